@@ -1,0 +1,129 @@
+"""Throughput of the DEM engine on a dense bonded pack (the issue's reference case).
+
+Pack: N spheres, radii uniform in [0.8, 1.328] mm, rho = 2294 kg/m^3, relaxed in a box
+of six frictionless walls, every contact bonded (linear + parallel bond, E* = E-bar =
+10 GPa, kappa = 2, strengths high enough that nothing breaks), friction 0.5, local damping
+0.7; the timed run is a small-strain compression (top and bottom walls approach at
+0.02 m/s each). Timing uses the code's own timer around ``Model.cycle`` after a warm-up;
+JIT compile (or cache load) time is measured separately on a tiny model first.
+
+    python benchmarks/dem_throughput.py --n 30000 --threads 1 --steps 2000 --json
+
+Packs are cached in ~/.cache/bpmcal/bench_pack_N.npz (the relaxation is not part of the
+timed run).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+RMIN, RMAX, RHO = 0.8e-3, 1.328e-3, 2294.0
+
+
+def _material(fric):
+    from bpmcal.dem import Material
+    return Material(emod=10e9, kratio=2.0, fric=fric, pb_emod=10e9, pb_kratio=2.0,
+                    pb_ten=1e12, pb_coh=1e12, pb_fa=30.0)
+
+
+def _box_walls(m, L):
+    for ax in range(3):
+        n = np.zeros(3)
+        n[ax] = 1.0
+        m.add_plane_wall(np.zeros(3), n)
+        p = np.zeros(3)
+        p[ax] = L
+        m.add_plane_wall(p, -n)
+
+
+def make_pack(n: int, seed: int = 1):
+    """Relaxed dense pack (positions, radii, box size), cached on disk."""
+    from bpmcal.dem import Model
+    cache = Path(os.environ.get("BPMCAL_CACHE", Path.home() / ".cache" / "bpmcal"))
+    f = cache / f"bench_pack_{n}_{seed}.npz"
+    if f.exists():
+        d = np.load(f)
+        return d["pos"], d["r"], float(d["L"])
+    rng = np.random.default_rng(seed)
+    r = rng.uniform(RMIN, RMAX, n)
+    L = ((4 / 3 * np.pi * r ** 3).sum() / 0.62) ** (1 / 3)
+    pos = rng.uniform(RMAX, L - RMAX, (n, 3))
+    m = Model(pos, r, RHO, _material(0.0), damping=0.7)
+    _box_walls(m, L)
+    m.set_timestep(None)
+    m.set_speed_cap(0.02 * RMIN / m.dt)
+    for _ in range(40):
+        m.cycle(250)
+        m.set_timestep(None)
+    m.set_speed_cap(0)
+    m.cycle(2000)
+    cache.mkdir(parents=True, exist_ok=True)
+    np.savez(f, pos=m.B.pos, r=r, L=L)
+    return m.B.pos.copy(), r, L
+
+
+def run(n: int, threads: int, steps: int, seed: int = 1) -> dict:
+    t0 = time.perf_counter()
+    from bpmcal.dem import Model
+    from bpmcal.dem._jit import set_threads
+    set_threads(threads)
+    # compile / cache-load time: every kernel on a tiny bonded model
+    tiny = Model([[0, 0, 0], [2.0e-3, 0, 0], [0, 2.0e-3, 0]], [1e-3] * 3, RHO,
+                 _material(0.5))
+    tiny.add_plane_wall((0, 0, -1e-3), (0, 0, 1), velocity=(0, 0, 1e-3))
+    tiny.add_cylinder_wall((0, 0, 0), (0, 0, 1), 0.01)
+    tiny.bond(gap=1e-6)
+    tiny.set_timestep(None)
+    tiny.cycle(2)
+    tiny.energies()
+    compile_s = time.perf_counter() - t0
+
+    pos, r, L = make_pack(n, seed)
+    m = Model(pos, r, RHO, _material(0.5), damping=0.7, threads=threads)
+    _box_walls(m, L)
+    nb = m.bond(gap=0.0)
+    m.set_wall_velocity(4, velocity=(0, 0, 0.02))
+    m.set_wall_velocity(5, velocity=(0, 0, -0.02))
+    m.set_timestep(None)
+    m.cycle(200)  # warm-up (page faults, first rebuild)
+    s0 = m.step
+    t1 = time.perf_counter()
+    m.cycle(steps)
+    wall = time.perf_counter() - t1
+    ci, cj = m.contacts()
+    npairs_active = ci.shape[0]  # intact bonds + touching unbonded pairs
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return {"n": n, "threads": threads, "steps": m.step - s0, "wall_s": wall,
+            "particle_steps_per_s": n * steps / wall,
+            "contact_steps_per_s": npairs_active * steps / wall,
+            "bonds": nb, "contacts_and_bonds": int(npairs_active),
+            "bonds_per_ball": 2 * nb / n, "compile_s": compile_s, "peak_rss_mb": peak,
+            "broken": m.n_broken, "rebuilds": int(m.iprm[5])}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--n", type=int, default=30000)
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    a = ap.parse_args(argv)
+    res = run(a.n, a.threads, a.steps, a.seed)
+    if a.json:
+        print(json.dumps(res))
+    else:
+        for k, v in res.items():
+            print(f"{k:24s} {v}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,36 @@
+"""numba configuration shared by every kernel module.
+
+- Kernels are compiled with ``cache=True`` so a warm cache makes job start-up cheap
+  (kernels live in importable modules, never in workflow scripts).
+- The threading layer is pinned to OpenMP before the first parallel call: with TBB
+  (pulled in by some Debian packages) numba's per-call overhead was measured to grow
+  without bound (see ../shared/PERFORMANCE.md). Set ``NUMBA_THREADING_LAYER`` yourself
+  to override.
+- ``NUMBA_DISABLE_JIT=1`` keeps working: ``prange`` becomes ``range`` and every kernel
+  runs as plain Python (slow, for debugging).
+"""
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
+
+import numba  # noqa: E402
+from numba import njit, prange  # noqa: E402,F401
+
+#: True when numba is switched off for debugging.
+JIT_DISABLED = bool(numba.config.DISABLE_JIT)
+
+# No fastmath: results must not depend on instruction-level reassociation, and NaN
+# checks must not be optimised away (blow-up detection relies on them).
+jit = njit(cache=True, nogil=True)
+jit_parallel = njit(cache=True, nogil=True, parallel=True)
+
+
+def set_threads(n: int | None) -> int:
+    """Set the number of numba threads (``None``: leave as is). Returns the number in use."""
+    if n is not None:
+        if int(n) < 1:
+            raise ValueError(f"threads must be >= 1, got {n}")
+        numba.set_num_threads(min(int(n), numba.config.NUMBA_NUM_THREADS))
+    return numba.get_num_threads()
