@@ -23,8 +23,11 @@ JIT_DISABLED = bool(numba.config.DISABLE_JIT)
 
 # No fastmath: results must not depend on instruction-level reassociation, and NaN
 # checks must not be optimised away (blow-up detection relies on them).
-jit = njit(cache=True, nogil=True)
-jit_parallel = njit(cache=True, nogil=True, parallel=True)
+# error_model="numpy": a division by zero gives inf/nan (caught by the blow-up guard)
+# instead of raising; without it every division carries an exception branch that stops
+# LLVM from vectorising the bond blocks.
+jit = njit(cache=True, nogil=True, error_model="numpy")
+jit_parallel = njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 
 
 def set_threads(n: int | None) -> int:

@@ -29,6 +29,8 @@ import math
 import numpy as np
 
 from ._jit import jit, jit_parallel, prange
+from .bondblock import bond_range
+from .bondblock import scratch as bond_scratch
 from .laws import (
     bond_failure,
     bond_geometry,
@@ -109,9 +111,19 @@ def pair_forces(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, p
     betas = prm[P_DP_S]
     nbroken = 0
     for p in prange(part.shape[0] - 1):
+        T = bond_scratch()
+        k0 = part[p]
+        k1 = part[p + 1]
+        kb = min(k1, nb)
+        if kb > k0:  # bond pairs: vectorised blocks
+            nbroken += bond_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact,
+                                  pslip, pdash, pestr, bfn, bfs, bmt, bmb, bstate, brgap,
+                                  bstep, bpos, bnrm, be, bestr, bsig, fbuf[p], k0, kb, T, dt,
+                                  emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa,
+                                  rmul, mcf, betan, betas, step, record)
         nbroken += _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip,
                                pdash, pestr, bfn, bfs, bmt, bmb, bstate, brgap, bstep, bpos,
-                               bnrm, be, bestr, bsig, fbuf[p], part[p], part[p + 1], dt, emod, ikr,
+                               bnrm, be, bestr, bsig, fbuf[p], max(k0, nb), k1, dt, emod, ikr,
                                fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf, betan,
                                betas, step, nb, record)
     return nbroken
@@ -362,7 +374,7 @@ def wall_contact_geometry(px, py, pz, r, w, wtype, wpos, wnrm, wrad, wdisk):
 
 
 @jit_parallel
-def wall_forces(pos, vel, angvel, radius, mass, sb, sw, sfs, sdf, sf, sm, srad, sslip, sdash,
+def wall_forces(pos, vel, angvel, radius, mass, sb, sw, sfs, sdf, srg, sf, sm, srad, sslip, sdash,
                 sestr, wtype, wpos, wnrm, wrad, wdisk, wvel, wradv, wfric, prm, nslots,
                 record, idt):
     dt = idt
@@ -376,6 +388,7 @@ def wall_forces(pos, vel, angvel, radius, mass, sb, sw, sfs, sdf, sf, sm, srad, 
         r = radius[b]
         gap, nx, ny, nz, ex, ey, ez, inside = wall_contact_geometry(
             pos[b, 0], pos[b, 1], pos[b, 2], r, w, wtype, wpos, wnrm, wrad, wdisk)
+        gap -= srg[s]  # surface gap relative to the contact's reference gap
         if gap >= 0.0 or not inside:
             if sfs[s, 0] != 0.0 or sfs[s, 1] != 0.0 or sfs[s, 2] != 0.0:
                 # contact lost: the shear spring's energy, booked as slip (see pairs)
@@ -405,7 +418,7 @@ def wall_forces(pos, vel, angvel, radius, mass, sb, sw, sfs, sdf, sf, sm, srad, 
             if record:
                 sestr[s] = 0.0
             continue
-        a = -(r + 0.5 * gap)  # contact point = x_b + a n
+        a = -(r + 0.5 * (gap + srg[s]))  # contact point = x_b + a n
         wx = angvel[b, 0]
         wy = angvel[b, 1]
         wz = angvel[b, 2]
@@ -838,8 +851,8 @@ def _bonded(i, j, bptr, bpart):
 
 @jit
 def rebuild(pos, radius, pos_ref, pi, pj, pfs, pdf, pact, pslip, pdash, vptr, bptr, bpart,
-            pi2, pj2, pfs2, vptr2, cand, part, sb, sw, sfs, sdf, sslip, sdash, sptr, sb2, sw2,
-            sfs2, sptr2, wtype, wpos, wnrm, wrad, wdisk, wdisp, prm, iprm, eacc):
+            pi2, pj2, pfs2, vptr2, cand, part, sb, sw, sfs, sdf, srg, sslip, sdash, sptr, sb2,
+            sw2, sfs2, sptr2, wtype, wpos, wnrm, wrad, wdisk, wdisp, prm, iprm, eacc):
     """Rebuild the Verlet pair list and the ball-wall slots; carry contact history over.
 
     Bond pairs (the first nb entries) are permanent and not searched. A new Verlet pair
@@ -937,13 +950,14 @@ def rebuild(pos, radius, pos_ref, pi, pj, pfs, pdf, pact, pslip, pdash, vptr, bp
                 if ns < wcap:
                     sb2[ns] = i
                     sw2[ns] = w
-                    for c in range(6):
+                    for c in range(7):
                         sfs2[ns, c] = 0.0
                     for e in range(sptr[i], sptr[i + 1]):
                         if sw[e] == w:
                             for c in range(3):
                                 sfs2[ns, c] = sfs[e, c]
                                 sfs2[ns, 3 + c] = sdf[e, c]
+                            sfs2[ns, 6] = srg[e]
                             break
                 ns += 1
     sptr2[n] = ns
@@ -977,6 +991,7 @@ def rebuild(pos, radius, pos_ref, pi, pj, pfs, pdf, pact, pslip, pdash, vptr, bp
         for c in range(3):
             sfs[s, c] = sfs2[s, c]
             sdf[s, c] = sfs2[s, 3 + c]
+        srg[s] = sfs2[s, 6]
         sslip[s] = 0.0
         sdash[s] = 0.0
     iprm[I_NPAIRS] = cnt
@@ -999,8 +1014,8 @@ def rebuild(pos, radius, pos_ref, pi, pj, pfs, pdf, pact, pslip, pdash, vptr, bp
 def _rebuild(B, P, Bd, S, W, prm, iprm, eacc):
     return rebuild(B.pos, B.radius, B.pos_ref, P.pi, P.pj, P.fs, P.df, P.act, P.slip, P.dash,
                    P.vptr, Bd.ptr, Bd.part, P.pi2, P.pj2, P.fs2, P.vptr2, P.cand, P.part,
-                   S.b, S.w, S.fs, S.df, S.slip, S.dash, S.ptr, S.b2, S.w2, S.fs2, S.ptr2,
-                   W.type,
+                   S.b, S.w, S.fs, S.df, S.rg, S.slip, S.dash, S.ptr, S.b2, S.w2, S.fs2,
+                   S.ptr2, W.type,
                    W.pos, W.nrm, W.rad, W.disk, W.disp, prm, iprm, eacc)
 
 
@@ -1012,7 +1027,8 @@ def _forces(B, P, Bd, S, W, prm, iprm, record, idt):
                       Bd.step, Bd.pos, Bd.nrm, Bd.energy, Bd.estr, Bd.sig, P.part, B.fbuf,
                       prm, iprm[I_STEP], iprm[I_NB], record, idt)
     iprm[I_NBROKEN] += nbk
-    wall_forces(B.pos, B.vel, B.angvel, B.radius, B.mass, S.b, S.w, S.fs, S.df, S.f, S.m, S.rad,
+    wall_forces(B.pos, B.vel, B.angvel, B.radius, B.mass, S.b, S.w, S.fs, S.df, S.rg, S.f, S.m,
+                S.rad,
                 S.slip, S.dash, S.estr, W.type, W.pos, W.nrm, W.rad, W.disk, W.vel, W.radv,
                 W.fric, prm, iprm[I_NSLOTS], record, idt)
     wall_resultants(S.w, S.f, S.rad, iprm[I_NSLOTS], W.force, W.radsum)

@@ -71,7 +71,7 @@ Balls = namedtuple("Balls", "pos vel angvel force moment radius mass inertia fix
                    "edamp egrav efix fbuf")
 Pairs = namedtuple("Pairs", "pi pj fs df act slip dash estr vptr pi2 pj2 fs2 vptr2 cand part")
 Bonds = namedtuple("Bonds", "fn fs mt mb state rgap step pos nrm energy estr sig ptr part")
-Slots = namedtuple("Slots", "b w fs df f m rad slip dash estr ptr b2 w2 fs2 ptr2")
+Slots = namedtuple("Slots", "b w fs df rg f m rad slip dash estr ptr b2 w2 fs2 ptr2")
 Walls = namedtuple("Walls", "type pos nrm rad disk vel radv fric mass force radsum work "
                    "grav disp")
 
@@ -195,14 +195,14 @@ class Model:
     def _alloc_slots(self, cap, old: Slots | None = None):
         n = self.n
         S = Slots(b=np.zeros(cap, np.int32), w=np.zeros(cap, np.int32), fs=np.zeros((cap, 3)),
-                  df=np.zeros((cap, 3)), f=np.zeros((cap, 3)), m=np.zeros((cap, 3)),
-                  rad=np.zeros(cap), slip=np.zeros(cap), dash=np.zeros(cap),
-                  estr=np.zeros(cap), ptr=np.zeros(n + 1, np.int64),
+                  df=np.zeros((cap, 3)), rg=np.zeros(cap), f=np.zeros((cap, 3)),
+                  m=np.zeros((cap, 3)), rad=np.zeros(cap), slip=np.zeros(cap),
+                  dash=np.zeros(cap), estr=np.zeros(cap), ptr=np.zeros(n + 1, np.int64),
                   b2=np.zeros(cap, np.int32), w2=np.zeros(cap, np.int32),
-                  fs2=np.zeros((cap, 6)), ptr2=np.zeros(n + 1, np.int64))
+                  fs2=np.zeros((cap, 7)), ptr2=np.zeros(n + 1, np.int64))
         if old is not None:
             m = int(self.iprm[I_NSLOTS])
-            for name in ("b", "w", "fs", "df", "f", "m", "rad", "slip", "dash", "estr"):
+            for name in ("b", "w", "fs", "df", "rg", "f", "m", "rad", "slip", "dash", "estr"):
                 getattr(S, name)[:m] = getattr(old, name)[:m]
             S.ptr[:] = old.ptr
         self.S = S
@@ -420,7 +420,8 @@ class Model:
         nw_[nw_ > w] -= 1
         fs = S.fs[:ns][sel].copy()
         df = S.df[:ns][sel].copy()
-        S.b[:m], S.w[:m], S.fs[:m], S.df[:m] = nb_, nw_, fs, df
+        rgs = S.rg[:ns][sel].copy()
+        S.b[:m], S.w[:m], S.fs[:m], S.df[:m], S.rg[:m] = nb_, nw_, fs, df, rgs
         S.f[:m] = S.f[:ns][sel]
         S.m[:m] = S.m[:ns][sel]
         counts = np.bincount(nb_, minlength=self.n)
@@ -550,6 +551,31 @@ class Model:
             raise InputError(f"rgap: expected {self.n_bonds} finite values, got shape {rg.shape}")
         self.Bd.rgap[:] = rg
         self._touch()
+
+    def scale_wall_overlaps(self, w: int, factor: float) -> int:
+        """Give every current contact of wall ``w`` a reference gap (PFC ``rgap``) so that
+        its overlap force is multiplied by ``factor`` (in [0, 1]); the geometry does not
+        change. Contacts formed later have a zero reference gap. Returns how many."""
+        f = float(factor)
+        if not (0.0 <= f <= 1.0):
+            raise InputError(f"factor={factor!r}: expected a force scale in [0, 1]")
+        if not (0 <= w < self.n_walls):
+            raise InputError(f"wall id {w}: expected 0..{self.n_walls - 1}")
+        self._ensure_lists()
+        ns = int(self.iprm[I_NSLOTS])
+        S, B, W = self.S, self.B, self.W
+        sel = np.flatnonzero(S.w[:ns] == w)
+        p = B.pos[S.b[sel]] - W.pos[w]
+        h = p @ W.nrm[w]
+        if W.type[w] == WALL_CYLINDER:
+            q = p - h[:, None] * W.nrm[w]
+            gap = W.rad[w] - np.linalg.norm(q, axis=1) - B.radius[S.b[sel]]
+        else:
+            gap = h - B.radius[S.b[sel]]
+        touching = gap < 0
+        S.rg[sel[touching]] = gap[touching] * (1.0 - f)
+        self._touch()
+        return int(touching.sum())
 
     def breaks(self) -> dict:
         """Broken bonds as events sorted by (step, bond index): step, time, bond, i, j,
