@@ -11,12 +11,33 @@
 """
 from __future__ import annotations
 
+import hashlib
 import os
+from pathlib import Path
 
 os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
 
+
+def _source_hash() -> str:
+    """Hash of the engine's source files. numba invalidates a cached function only when
+    its own file changes, not when a kernel it calls (in another module) does; keying the
+    cache directory on all engine sources makes a stale mixture impossible."""
+    h = hashlib.sha256()
+    for f in sorted(Path(__file__).resolve().parent.glob("*.py")):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+if "NUMBA_CACHE_DIR" not in os.environ:
+    _cache = Path(os.environ.get("BPMCAL_CACHE", Path.home() / ".cache" / "bpmcal"))
+    os.environ["NUMBA_CACHE_DIR"] = str(_cache / "numba" / _source_hash())
+
 import numba  # noqa: E402
 from numba import njit, prange  # noqa: E402,F401
+
+if not numba.config.CACHE_DIR:  # numba was imported before us: set it at run time
+    numba.config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
 
 #: True when numba is switched off for debugging.
 JIT_DISABLED = bool(numba.config.DISABLE_JIT)
@@ -26,8 +47,9 @@ JIT_DISABLED = bool(numba.config.DISABLE_JIT)
 # error_model="numpy": a division by zero gives inf/nan (caught by the blow-up guard)
 # instead of raising; without it every division carries an exception branch that stops
 # LLVM from vectorising the bond blocks.
-jit = njit(cache=True, nogil=True, error_model="numpy")
-jit_parallel = njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+jit = njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+jit_parallel = njit(cache=True, nogil=True, parallel=True, error_model="numpy",
+                    fastmath={"contract"})
 
 
 def set_threads(n: int | None) -> int:

@@ -1,21 +1,22 @@
-"""Bond pairs in SIMD-friendly blocks: gather -> branch-free compute -> ordered scatter.
+"""Bond pairs in SIMD-friendly blocks with their state kept in a blocked layout.
 
 The bond pairs (the first ``nb`` pairs, permanent) dominate the work of a bonded
-specimen. They are processed in blocks of ``BLK`` pairs:
+specimen. Their state lives permanently in one flat array ``blk`` in blocks of ``BLK``
+bonds: field ``f`` of bond ``k`` is ``blk[(k // BLK) * NSF * STR + f * STR + k % BLK]``
+(structure of arrays within a block). Per block and step:
 
-1. ``_gather``: the inputs of each pair (relative position and velocity, spins, radii,
-   masses, bond and contact state) are copied into one flat scratch array ``T``;
-2. ``_compute``: the linear contact + parallel-bond law (the same physics as
-   ``kernels._pair_range``; see ``laws.py``) is evaluated for every lane without
-   branches, reading and writing ``T`` only. Field offsets are compile-time constants
-   at least ``BLK`` apart, so LLVM can prove the lanes independent and vectorises the
-   loop (no aliasing between arguments to rule out);
-3. ``_scatter``: state written back and forces/moments added to the partition buffer in
-   increasing pair order (the same order as the scalar path, so results do not depend on
-   the block size); the rare events (bond breaks) are recorded here.
+1. gather: the per-step inputs of each pair (relative position and velocity, spins,
+   radii) are copied into a flat scratch array ``T``;
+2. ``_compute``: the linear contact + parallel-bond law (``laws.py``) is evaluated for
+   every lane without branches, reading ``T`` and updating the block's state in place.
+   All field offsets are compile-time constants at least ``BLK`` apart, so LLVM can prove
+   the lanes independent and vectorises the loop;
+3. scatter: forces and moments are added to the partition buffer in increasing pair
+   order (results do not depend on the block size); rare events (bond breaks) are
+   handled in a separate scalar pass.
 
-Every lane computes in IEEE double precision with the same operations as the scalar
-code; vectorisation does not change the results.
+A failing bond's lane is left holding its *trial* state; the break pass records the
+event (recomputing the state before the step from the increments) and zeroes it.
 """
 from __future__ import annotations
 
@@ -24,216 +25,154 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .layout import BOND_INTACT
+from .laws import (
+    bond_energy,
+    bond_failure,
+    bond_geometry,
+    dashpot,
+    kinematics,
+    linear_shear,
+    linear_stiffness,
+    rotate_shear,
+)
 
 BLK = 64  # lanes per block
+#: row stride: not a power of two, so that rows do not fall on the same 4 KiB offsets
+STR = BLK + 4
 
-# ---- input fields (T[F * BLK + lane]) --------------------------------------------------
-_I = iter(range(200))
+# ---- persistent state fields (blk) ----------------------------------------------------
+_S = iter(range(100))
+S_FN, S_SX, S_SY, S_SZ = next(_S), next(_S), next(_S), next(_S)  # bond normal/shear force
+S_MT, S_BX, S_BY, S_BZ = next(_S), next(_S), next(_S), next(_S)  # bond twist/bending moment
+S_LX, S_LY, S_LZ = next(_S), next(_S), next(_S)  # shear force of the linear component
+S_DFX, S_DFY, S_DFZ = next(_S), next(_S), next(_S)  # dashpot force of the last step
+S_RG = next(_S)  # reference gap of the linear component [m]
+S_INTACT = next(_S)  # 1.0 intact bond, 0.0 broken (mirror of the int8 state)
+S_ACT = next(_S)  # 1.0 if the pair carried force last step
+NSF = next(_S)
+del _S
+
+# ---- per-step scratch fields (T) ------------------------------------------------------
+_I = iter(range(100))
 F_DX, F_DY, F_DZ = next(_I), next(_I), next(_I)
 F_VX, F_VY, F_VZ = next(_I), next(_I), next(_I)
 F_WIX, F_WIY, F_WIZ = next(_I), next(_I), next(_I)
 F_WJX, F_WJY, F_WJZ = next(_I), next(_I), next(_I)
 F_RI, F_RJ, F_MI, F_MJ = next(_I), next(_I), next(_I), next(_I)
-F_FN, F_SX, F_SY, F_SZ = next(_I), next(_I), next(_I), next(_I)  # bond normal/shear force
-F_MT, F_BX, F_BY, F_BZ = next(_I), next(_I), next(_I), next(_I)  # bond twist/bending moment
-F_LX, F_LY, F_LZ = next(_I), next(_I), next(_I)  # linear shear force
-F_DFX, F_DFY, F_DFZ = next(_I), next(_I), next(_I)  # previous dashpot force
-F_RG, F_INTACT, F_WASACT = next(_I), next(_I), next(_I)
-# ---- outputs ---------------------------------------------------------------------------
 O_FX, O_FY, O_FZ = next(_I), next(_I), next(_I)  # force on j
 O_MIX, O_MIY, O_MIZ = next(_I), next(_I), next(_I)
 O_MJX, O_MJY, O_MJZ = next(_I), next(_I), next(_I)
-O_FN, O_SX, O_SY, O_SZ = next(_I), next(_I), next(_I), next(_I)
-O_MT, O_BX, O_BY, O_BZ = next(_I), next(_I), next(_I), next(_I)
-O_LX, O_LY, O_LZ = next(_I), next(_I), next(_I)
-O_DFX, O_DFY, O_DFZ = next(_I), next(_I), next(_I)
 O_ESLIP, O_EDASH, O_ELIN, O_EBOND = next(_I), next(_I), next(_I), next(_I)
-O_MODE, O_ACT = next(_I), next(_I)
-O_NX, O_NY, O_NZ, O_AI = next(_I), next(_I), next(_I), next(_I)
-# the failing trial state (only meaningful where O_MODE > 0)
-O_TFN, O_TSX, O_TSY, O_TSZ = next(_I), next(_I), next(_I), next(_I)
-O_TMT, O_TBX, O_TBY, O_TBZ = next(_I), next(_I), next(_I), next(_I)
-O_R0X, O_R0Y, O_R0Z = next(_I), next(_I), next(_I)  # rotated old bond shear force
-O_Q0X, O_Q0Y, O_Q0Z = next(_I), next(_I), next(_I)  # rotated old bending moment
+O_MODE = next(_I)
 NF = next(_I)
 del _I
+
+BLOCK_SIZE = NSF * STR  # floats per block of state
+
+
+def n_blocks(nb: int) -> int:
+    return max(1, -(-int(nb) // BLK))
+
+
+def new_state(nb: int) -> np.ndarray:
+    """Zeroed state for ``nb`` bonds, all intact."""
+    blk = np.zeros(n_blocks(nb) * BLOCK_SIZE)
+    set_field(blk, S_INTACT, nb, 1.0)
+    set_field(blk, S_ACT, nb, 1.0)
+    return blk
+
+
+def field_index(f: int, nb: int) -> np.ndarray:
+    """Positions of field ``f`` of bonds 0..nb-1 in the blocked state array."""
+    k = np.arange(int(nb))
+    return (k // BLK) * BLOCK_SIZE + f * STR + k % BLK
+
+
+def get_field(blk, f, nb) -> np.ndarray:
+    """Copy of state field ``f`` of bonds 0..nb-1 (Python side, not for hot loops)."""
+    return blk[field_index(f, nb)]
+
+
+def set_field(blk, f, nb, values):
+    blk[field_index(f, nb)] = values
 
 
 @jit
 def scratch():
     """A scratch block for one partition."""
-    return np.empty(NF * BLK)
+    return np.empty(NF * STR)
 
 
 @jit
-def _gather(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, bfn, bfs, bmt, bmb,
-            bstate, brgap, k0, nl, T):
-    for ll in range(nl):
-        k = k0 + ll
-        i = pi[k]
-        j = pj[k]
-        T[F_DX * BLK + ll] = pos[j, 0] - pos[i, 0]
-        T[F_DY * BLK + ll] = pos[j, 1] - pos[i, 1]
-        T[F_DZ * BLK + ll] = pos[j, 2] - pos[i, 2]
-        T[F_VX * BLK + ll] = vel[j, 0] - vel[i, 0]
-        T[F_VY * BLK + ll] = vel[j, 1] - vel[i, 1]
-        T[F_VZ * BLK + ll] = vel[j, 2] - vel[i, 2]
-        T[F_WIX * BLK + ll] = angvel[i, 0]
-        T[F_WIY * BLK + ll] = angvel[i, 1]
-        T[F_WIZ * BLK + ll] = angvel[i, 2]
-        T[F_WJX * BLK + ll] = angvel[j, 0]
-        T[F_WJY * BLK + ll] = angvel[j, 1]
-        T[F_WJZ * BLK + ll] = angvel[j, 2]
-        T[F_RI * BLK + ll] = radius[i]
-        T[F_RJ * BLK + ll] = radius[j]
-        T[F_MI * BLK + ll] = mass[i]
-        T[F_MJ * BLK + ll] = mass[j]
-        T[F_FN * BLK + ll] = bfn[k]
-        T[F_SX * BLK + ll] = bfs[k, 0]
-        T[F_SY * BLK + ll] = bfs[k, 1]
-        T[F_SZ * BLK + ll] = bfs[k, 2]
-        T[F_MT * BLK + ll] = bmt[k]
-        T[F_BX * BLK + ll] = bmb[k, 0]
-        T[F_BY * BLK + ll] = bmb[k, 1]
-        T[F_BZ * BLK + ll] = bmb[k, 2]
-        T[F_LX * BLK + ll] = pfs[k, 0]
-        T[F_LY * BLK + ll] = pfs[k, 1]
-        T[F_LZ * BLK + ll] = pfs[k, 2]
-        T[F_DFX * BLK + ll] = pdf[k, 0]
-        T[F_DFY * BLK + ll] = pdf[k, 1]
-        T[F_DFZ * BLK + ll] = pdf[k, 2]
-        T[F_RG * BLK + ll] = brgap[k]
-        T[F_INTACT * BLK + ll] = 1.0 if bstate[k] == BOND_INTACT else 0.0
-        T[F_WASACT * BLK + ll] = 1.0 if pact[k] else 0.0
+def state_index(k, f):
+    """Position of field ``f`` of bond ``k`` in the blocked state array."""
+    return (k // BLK) * BLOCK_SIZE + f * STR + k % BLK
 
 
 @jit
-def _compute(T, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf,
-             betan, betas, dp):
-    """Branch-free linear + parallel-bond law for every lane (see laws.py/kernels.py)."""
+def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa,
+             rmul, mcf, betan, betas, dp, record):
+    """Linear + parallel-bond law for every lane of a block, without branches (the laws.py
+    helpers are select-based): reads ``T``, updates the block's state ``sb`` (a view of
+    one block of ``blk``: indices stay non-negative and affine, which the vectoriser
+    needs) in place, writes forces, moments and energies to ``T``. LLVM vectorises this loop. Energy
+    terms only needed on record steps are computed only then."""
     for ll in range(nl):
-        dx = T[F_DX * BLK + ll]
-        dy = T[F_DY * BLK + ll]
-        dz = T[F_DZ * BLK + ll]
-        ri = T[F_RI * BLK + ll]
-        rj = T[F_RJ * BLK + ll]
-        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-        inv = 1.0 / max(dist, 1e-300)
-        nx = dx * inv
-        ny = dy * inv
-        nz = dz * inv
-        sr = ri + rj
-        inv_l = 1.0 / sr
-        gap = dist - sr
-        ai = ri + 0.5 * gap
-        aj = -(rj + 0.5 * gap)
-        wix = T[F_WIX * BLK + ll]
-        wiy = T[F_WIY * BLK + ll]
-        wiz = T[F_WIZ * BLK + ll]
-        wjx = T[F_WJX * BLK + ll]
-        wjy = T[F_WJY * BLK + ll]
-        wjz = T[F_WJZ * BLK + ll]
-        vrx = T[F_VX * BLK + ll] + aj * (wjy * nz - wjz * ny) - ai * (wiy * nz - wiz * ny)
-        vry = T[F_VY * BLK + ll] + aj * (wjz * nx - wjx * nz) - ai * (wiz * nx - wix * nz)
-        vrz = T[F_VZ * BLK + ll] + aj * (wjx * ny - wjy * nx) - ai * (wix * ny - wiy * nx)
-        vn = vrx * nx + vry * ny + vrz * nz
-        vsx = vrx - vn * nx
-        vsy = vry - vn * ny
-        vsz = vrz - vn * nz
-        dun = vn * dt
-        dusx = vsx * dt
-        dusy = vsy * dt
-        dusz = vsz * dt
-        dphi = 0.5 * ((wix + wjx) * nx + (wiy + wjy) * ny + (wiz + wjz) * nz) * dt
-        r = min(ri, rj)
-        # ---- linear component
-        kn = math.pi * r * r * emod * inv_l
-        ks = kn * ikr
-        rg = T[F_RG * BLK + ll]
+        ri = T[F_RI * STR + ll]
+        rj = T[F_RJ * STR + ll]
+        wix = T[F_WIX * STR + ll]
+        wiy = T[F_WIY * STR + ll]
+        wiz = T[F_WIZ * STR + ll]
+        wjx = T[F_WJX * STR + ll]
+        wjy = T[F_WJY * STR + ll]
+        wjz = T[F_WJZ * STR + ll]
+        (nx, ny, nz, gap, inv_l, ai, aj, vrx, vry, vrz, vn, dun, dusx, dusy, dusz,
+         dphi) = kinematics(T[F_DX * STR + ll], T[F_DY * STR + ll], T[F_DZ * STR + ll],
+                            T[F_VX * STR + ll], T[F_VY * STR + ll], T[F_VZ * STR + ll],
+                            wix, wiy, wiz, wjx, wjy, wjz, ri, rj, dt)
+        # ---- linear component (reference gap rg: active while gap < rg)
+        kn, ks = linear_stiffness(ri, rj, inv_l, emod, ikr)
+        iks = 1.0 / ks
+        rg = sb[S_RG * STR + ll]
         lact = gap < rg
         fn = kn * max(rg - gap, 0.0)
-        sx = T[F_LX * BLK + ll]
-        sy = T[F_LY * BLK + ll]
-        sz = T[F_LZ * BLK + ll]
-        d = sx * nx + sy * ny + sz * nz
-        sx -= d * nx
-        sy -= d * ny
-        sz -= d * nz
-        cx = ny * sz - nz * sy
-        cy = nz * sx - nx * sz
-        cz = nx * sy - ny * sx
-        sx += dphi * cx
-        sy += dphi * cy
-        sz += dphi * cz
-        tx = sx - ks * dusx
-        ty = sy - ks * dusy
-        tz = sz - ks * dusz
-        tt = tx * tx + ty * ty + tz * tz
-        lim = fric * fn
-        slip = tt > lim * lim
-        sc = lim / math.sqrt(max(tt, 1e-300)) if slip else 1.0
-        ux = tx * sc
-        uy = ty * sc
-        uz = tz * sc
-        iks = 1.0 / ks
-        # slip energy -1/2 (s + u).(dus - (s - u)/ks); contact lost: 1/2 s.t/ks
-        eslip_s = -0.5 * ((sx + ux) * (dusx - (sx - ux) * iks)
-                          + (sy + uy) * (dusy - (sy - uy) * iks)
-                          + (sz + uz) * (dusz - (sz - uz) * iks))
+        sx, sy, sz = rotate_shear(sb[S_LX * STR + ll], sb[S_LY * STR + ll],
+                                  sb[S_LZ * STR + ll], nx, ny, nz, dphi)
+        ux, uy, uz, tx, ty, tz, eslip = linear_shear(sx, sy, sz, dusx, dusy, dusz, ks, iks,
+                                                     fric * fn)
+        # contact lost this step: the shear spring's energy, as in kernels._pair_range
         elost = 0.5 * (sx * tx + sy * ty + sz * tz) * iks
-        wasact = T[F_WASACT * BLK + ll] > 0.0
-        eslip = (eslip_s if slip else 0.0) if lact else (elost if wasact else 0.0)
+        wasact = sb[S_ACT * STR + ll] > 0.0
+        eslip = eslip if lact else (elost if wasact else 0.0)
         ux = ux if lact else 0.0
         uy = uy if lact else 0.0
         uz = uz if lact else 0.0
         fx = fn * nx + ux
         fy = fn * ny + uy
         fz = fn * nz + uz
-        elin = 0.5 * fn * fn / kn + 0.5 * (ux * ux + uy * uy + uz * uz) * iks
-        # ---- dashpots (loop-invariant switch)
-        gx = 0.0
-        gy = 0.0
-        gz = 0.0
-        edash = 0.0
         if dp:
-            mi = T[F_MI * BLK + ll]
-            mj = T[F_MJ * BLK + ll]
-            mc = mi * mj / (mi + mj)
-            cn = 2.0 * betan * math.sqrt(mc * kn)
-            cs = 2.0 * betas * math.sqrt(mc * ks)
-            gx = -(cn * vn * nx + cs * vsx) if lact else 0.0
-            gy = -(cn * vn * ny + cs * vsy) if lact else 0.0
-            gz = -(cn * vn * nz + cs * vsz) if lact else 0.0
-            edash = -0.5 * ((gx + T[F_DFX * BLK + ll]) * vrx + (gy + T[F_DFY * BLK + ll]) * vry
-                            + (gz + T[F_DFZ * BLK + ll]) * vrz) * dt
+            mi = T[F_MI * STR + ll]
+            mj = T[F_MJ * STR + ll]
+            gx, gy, gz = dashpot(vrx, vry, vrz, vn, nx, ny, nz, mi * mj / (mi + mj), kn, ks,
+                                 betan, betas)
+            gx = gx if lact else 0.0
+            gy = gy if lact else 0.0
+            gz = gz if lact else 0.0
+            T[O_EDASH * STR + ll] = -0.5 * ((gx + sb[S_DFX * STR + ll]) * vrx
+                                            + (gy + sb[S_DFY * STR + ll]) * vry
+                                            + (gz + sb[S_DFZ * STR + ll]) * vrz) * dt
+            sb[S_DFX * STR + ll] = gx
+            sb[S_DFY * STR + ll] = gy
+            sb[S_DFZ * STR + ll] = gz
             fx += gx
             fy += gy
             fz += gz
         # ---- parallel bond
-        rb = rmul * r
-        area = math.pi * rb * rb
-        inertia = 0.25 * area * rb * rb
-        knb = pb_emod * inv_l
-        ksb = knb * pb_ikr
-        kna = knb * area
-        ksa = ksb * area
-        ksj = ksb * 2.0 * inertia
-        kni = knb * inertia
-        fnb = T[F_FN * BLK + ll] + kna * dun
-        ax = T[F_SX * BLK + ll]
-        ay = T[F_SY * BLK + ll]
-        az = T[F_SZ * BLK + ll]
-        d = ax * nx + ay * ny + az * nz
-        ax -= d * nx
-        ay -= d * ny
-        az -= d * nz
-        cx = ny * az - nz * ay
-        cy = nz * ax - nx * az
-        cz = nx * ay - ny * ax
-        ax += dphi * cx
-        ay += dphi * cy
-        az += dphi * cz
+        rb, area, kna, ksa, ksj, kni = bond_geometry(ri, rj, inv_l, pb_emod, pb_ikr, rmul)
+        intact = sb[S_INTACT * STR + ll] > 0.0
+        fnb = sb[S_FN * STR + ll] + kna * dun
+        ax, ay, az = rotate_shear(sb[S_SX * STR + ll], sb[S_SY * STR + ll],
+                                  sb[S_SZ * STR + ll], nx, ny, nz, dphi)
         sbx = ax - ksa * dusx
         sby = ay - ksa * dusy
         sbz = az - ksa * dusz
@@ -241,30 +180,29 @@ def _compute(T, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa,
         thy = (wjy - wiy) * dt
         thz = (wjz - wiz) * dt
         tht = thx * nx + thy * ny + thz * nz
-        mt = T[F_MT * BLK + ll] - ksj * tht
-        bx = T[F_BX * BLK + ll]
-        by = T[F_BY * BLK + ll]
-        bz = T[F_BZ * BLK + ll]
-        d = bx * nx + by * ny + bz * nz
-        bx -= d * nx
-        by -= d * ny
-        bz -= d * nz
-        cx = ny * bz - nz * by
-        cy = nz * bx - nx * bz
-        cz = nx * by - ny * bx
-        bx += dphi * cx
-        by += dphi * cy
-        bz += dphi * cz
+        mt = sb[S_MT * STR + ll] - ksj * tht
+        bx, by, bz = rotate_shear(sb[S_BX * STR + ll], sb[S_BY * STR + ll],
+                                  sb[S_BZ * STR + ll], nx, ny, nz, dphi)
         mbx = bx - kni * (thx - tht * nx)
         mby = by - kni * (thy - tht * ny)
         mbz = bz - kni * (thz - tht * nz)
-        smag = math.sqrt(sbx * sbx + sby * sby + sbz * sbz)
-        mbmag = math.sqrt(mbx * mbx + mby * mby + mbz * mbz)
-        intact = T[F_INTACT * BLK + ll] > 0.0
-        tens = fnb * rb + 4.0 * mcf * mbmag >= pb_ten * area * rb
-        shear = smag * rb + 2.0 * mcf * abs(mt) >= (pb_coh * area - fnb * tanfa) * rb
-        mode = (1.0 if tens else (2.0 if shear else 0.0)) if intact else 0.0
-        keep = intact and mode == 0.0
+        sb2 = sbx * sbx + sby * sby + sbz * sbz
+        mb2 = mbx * mbx + mby * mby + mbz * mbz
+        fm = bond_failure(fnb, sb2, mt, mb2, rb, area, pb_ten, pb_coh, tanfa, mcf)
+        keep = intact and fm == 0
+        # state: the new (or, for a failing bond, the trial) state; zero once broken
+        sb[S_FN * STR + ll] = fnb if intact else 0.0
+        sb[S_SX * STR + ll] = sbx if intact else 0.0
+        sb[S_SY * STR + ll] = sby if intact else 0.0
+        sb[S_SZ * STR + ll] = sbz if intact else 0.0
+        sb[S_MT * STR + ll] = mt if intact else 0.0
+        sb[S_BX * STR + ll] = mbx if intact else 0.0
+        sb[S_BY * STR + ll] = mby if intact else 0.0
+        sb[S_BZ * STR + ll] = mbz if intact else 0.0
+        sb[S_LX * STR + ll] = ux
+        sb[S_LY * STR + ll] = uy
+        sb[S_LZ * STR + ll] = uz
+        sb[S_ACT * STR + ll] = 1.0 if (lact or intact) else 0.0
         kfn = fnb if keep else 0.0
         ksx = sbx if keep else 0.0
         ksy = sby if keep else 0.0
@@ -279,145 +217,67 @@ def _compute(T, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa,
         cpx = kmt * nx + kbx
         cpy = kmt * ny + kby
         cpz = kmt * nz + kbz
-        ebond = 0.5 * (kfn * kfn / kna + (ksx * ksx + ksy * ksy + ksz * ksz) / ksa
-                       + kmt * kmt / ksj + (kbx * kbx + kby * kby + kbz * kbz) / kni)
         # ---- moments: M_j = aj n x F + couple, M_i = -ai n x F - couple
         cx = ny * fz - nz * fy
         cy = nz * fx - nx * fz
         cz = nx * fy - ny * fx
-        T[O_FX * BLK + ll] = fx
-        T[O_FY * BLK + ll] = fy
-        T[O_FZ * BLK + ll] = fz
-        T[O_MJX * BLK + ll] = aj * cx + cpx
-        T[O_MJY * BLK + ll] = aj * cy + cpy
-        T[O_MJZ * BLK + ll] = aj * cz + cpz
-        T[O_MIX * BLK + ll] = -ai * cx - cpx
-        T[O_MIY * BLK + ll] = -ai * cy - cpy
-        T[O_MIZ * BLK + ll] = -ai * cz - cpz
-        T[O_FN * BLK + ll] = kfn
-        T[O_SX * BLK + ll] = ksx
-        T[O_SY * BLK + ll] = ksy
-        T[O_SZ * BLK + ll] = ksz
-        T[O_MT * BLK + ll] = kmt
-        T[O_BX * BLK + ll] = kbx
-        T[O_BY * BLK + ll] = kby
-        T[O_BZ * BLK + ll] = kbz
-        T[O_LX * BLK + ll] = ux
-        T[O_LY * BLK + ll] = uy
-        T[O_LZ * BLK + ll] = uz
-        T[O_DFX * BLK + ll] = gx
-        T[O_DFY * BLK + ll] = gy
-        T[O_DFZ * BLK + ll] = gz
-        T[O_ESLIP * BLK + ll] = eslip
-        T[O_EDASH * BLK + ll] = edash
-        T[O_ELIN * BLK + ll] = elin if lact else 0.0
-        T[O_EBOND * BLK + ll] = ebond
-        T[O_MODE * BLK + ll] = mode
-        T[O_ACT * BLK + ll] = 1.0 if (lact or intact) else 0.0
-        T[O_NX * BLK + ll] = nx
-        T[O_NY * BLK + ll] = ny
-        T[O_NZ * BLK + ll] = nz
-        T[O_AI * BLK + ll] = ai
-        T[O_TFN * BLK + ll] = fnb
-        T[O_TSX * BLK + ll] = sbx
-        T[O_TSY * BLK + ll] = sby
-        T[O_TSZ * BLK + ll] = sbz
-        T[O_TMT * BLK + ll] = mt
-        T[O_TBX * BLK + ll] = mbx
-        T[O_TBY * BLK + ll] = mby
-        T[O_TBZ * BLK + ll] = mbz
-        T[O_R0X * BLK + ll] = ax
-        T[O_R0Y * BLK + ll] = ay
-        T[O_R0Z * BLK + ll] = az
-        T[O_Q0X * BLK + ll] = bx
-        T[O_Q0Y * BLK + ll] = by
-        T[O_Q0Z * BLK + ll] = bz
-
-
-@jit
-def _scatter(T, k0, nl, pos, radius, pi, pj, pfs, pdf, pact, pslip, pdash, pestr, bfn, bfs,
-             bmt, bmb, bstate, bstep, bpos, bnrm, be, bestr, bsig, fb, step, record, dp,
-             pb_emod, pb_ikr, rmul, mcf):
-    nbroken = 0
-    for ll in range(nl):
-        k = k0 + ll
-        i = pi[k]
-        j = pj[k]
-        fx = T[O_FX * BLK + ll]
-        fy = T[O_FY * BLK + ll]
-        fz = T[O_FZ * BLK + ll]
-        fb[i, 0] -= fx
-        fb[i, 1] -= fy
-        fb[i, 2] -= fz
-        fb[i, 3] += T[O_MIX * BLK + ll]
-        fb[i, 4] += T[O_MIY * BLK + ll]
-        fb[i, 5] += T[O_MIZ * BLK + ll]
-        fb[j, 0] += fx
-        fb[j, 1] += fy
-        fb[j, 2] += fz
-        fb[j, 3] += T[O_MJX * BLK + ll]
-        fb[j, 4] += T[O_MJY * BLK + ll]
-        fb[j, 5] += T[O_MJZ * BLK + ll]
-        pfs[k, 0] = T[O_LX * BLK + ll]
-        pfs[k, 1] = T[O_LY * BLK + ll]
-        pfs[k, 2] = T[O_LZ * BLK + ll]
-        es = T[O_ESLIP * BLK + ll]
-        if es != 0.0:
-            pslip[k] += es
-        if dp:
-            pdash[k] += T[O_EDASH * BLK + ll]
-            pdf[k, 0] = T[O_DFX * BLK + ll]
-            pdf[k, 1] = T[O_DFY * BLK + ll]
-            pdf[k, 2] = T[O_DFZ * BLK + ll]
-        pact[k] = 1 if T[O_ACT * BLK + ll] > 0.0 else 0
-        if bstate[k] == BOND_INTACT:
-            mode = T[O_MODE * BLK + ll]
-            bfn[k] = T[O_FN * BLK + ll]
-            bfs[k, 0] = T[O_SX * BLK + ll]
-            bfs[k, 1] = T[O_SY * BLK + ll]
-            bfs[k, 2] = T[O_SZ * BLK + ll]
-            bmt[k] = T[O_MT * BLK + ll]
-            bmb[k, 0] = T[O_BX * BLK + ll]
-            bmb[k, 1] = T[O_BY * BLK + ll]
-            bmb[k, 2] = T[O_BZ * BLK + ll]
-            if mode > 0.0:
-                nbroken += 1
-                _record_break(T, ll, k, i, j, pos, radius, bstate, bstep, bpos, bnrm, be,
-                              bsig, step, int(mode), pb_emod, pb_ikr, rmul, mcf)
+        T[O_FX * STR + ll] = fx
+        T[O_FY * STR + ll] = fy
+        T[O_FZ * STR + ll] = fz
+        T[O_MJX * STR + ll] = aj * cx + cpx
+        T[O_MJY * STR + ll] = aj * cy + cpy
+        T[O_MJZ * STR + ll] = aj * cz + cpz
+        T[O_MIX * STR + ll] = -ai * cx - cpx
+        T[O_MIY * STR + ll] = -ai * cy - cpy
+        T[O_MIZ * STR + ll] = -ai * cz - cpz
+        T[O_ESLIP * STR + ll] = eslip
+        T[O_MODE * STR + ll] = float(fm) if intact else 0.0
         if record:
-            pestr[k] = T[O_ELIN * BLK + ll]
-            bestr[k] = T[O_EBOND * BLK + ll]
-    return nbroken
+            T[O_ELIN * STR + ll] = (0.5 * fn * fn / kn + 0.5 * (ux * ux + uy * uy + uz * uz) * iks
+                                    if lact else 0.0)
+            T[O_EBOND * STR + ll] = bond_energy(kfn, ksx * ksx + ksy * ksy + ksz * ksz, kmt,
+                                                kbx * kbx + kby * kby + kbz * kbz, kna, ksa,
+                                                ksj, kni)
 
 
 @jit
-def _record_break(T, ll, k, i, j, pos, radius, bstate, bstep, bpos, bnrm, be, bsig, step,
-                  mode, pb_emod, pb_ikr, rmul, mcf):
-    """A bond failed in this step: record the event (rare; scalar)."""
-    nx = T[O_NX * BLK + ll]
-    ny = T[O_NY * BLK + ll]
-    nz = T[O_NZ * BLK + ll]
-    ai = T[O_AI * BLK + ll]
-    ri = radius[i]
-    rj = radius[j]
-    inv_l = 1.0 / (ri + rj)
-    rb = rmul * min(ri, rj)
-    area = math.pi * rb * rb
-    inertia = 0.25 * area * rb * rb
-    knb = pb_emod * inv_l
-    ksb = knb * pb_ikr
-    kna = knb * area
-    ksa = ksb * area
-    ksj = ksb * 2.0 * inertia
-    kni = knb * inertia
-    fnb = T[O_TFN * BLK + ll]
-    sbx = T[O_TSX * BLK + ll]
-    sby = T[O_TSY * BLK + ll]
-    sbz = T[O_TSZ * BLK + ll]
-    mt = T[O_TMT * BLK + ll]
-    mbx = T[O_TBX * BLK + ll]
-    mby = T[O_TBY * BLK + ll]
-    mbz = T[O_TBZ * BLK + ll]
+def _record_break(T, blk, base, ll, k, i, pos, bstate, bstep, bpos, bnrm, be, bsig, step,
+                  mode, dt, pb_emod, pb_ikr, rmul, mcf):
+    """A bond failed in this step: record the event (rare; scalar) and zero its state.
+
+    The block holds the failing *trial* state; the state before the step is the trial
+    minus this step's increments (recomputed from the inputs still in ``T``)."""
+    ri = T[F_RI * STR + ll]
+    rj = T[F_RJ * STR + ll]
+    wix = T[F_WIX * STR + ll]
+    wiy = T[F_WIY * STR + ll]
+    wiz = T[F_WIZ * STR + ll]
+    wjx = T[F_WJX * STR + ll]
+    wjy = T[F_WJY * STR + ll]
+    wjz = T[F_WJZ * STR + ll]
+    (nx, ny, nz, gap, inv_l, ai, aj, vrx, vry, vrz, vn, dun, dusx, dusy, dusz,
+     dphi) = kinematics(T[F_DX * STR + ll], T[F_DY * STR + ll], T[F_DZ * STR + ll],
+                        T[F_VX * STR + ll], T[F_VY * STR + ll], T[F_VZ * STR + ll],
+                        wix, wiy, wiz, wjx, wjy, wjz, ri, rj, dt)
+    rb, area, kna, ksa, ksj, kni = bond_geometry(ri, rj, inv_l, pb_emod, pb_ikr, rmul)
+    fnb = blk[base + S_FN * STR + ll]
+    sbx = blk[base + S_SX * STR + ll]
+    sby = blk[base + S_SY * STR + ll]
+    sbz = blk[base + S_SZ * STR + ll]
+    mt = blk[base + S_MT * STR + ll]
+    mbx = blk[base + S_BX * STR + ll]
+    mby = blk[base + S_BY * STR + ll]
+    mbz = blk[base + S_BZ * STR + ll]
+    tht = ((wjx - wix) * nx + (wjy - wiy) * ny + (wjz - wiz) * nz) * dt
+    # state before the step (rotated into the current plane)
+    fn0 = fnb - kna * dun
+    ax = sbx + ksa * dusx
+    ay = sby + ksa * dusy
+    az = sbz + ksa * dusz
+    mt0 = mt + ksj * tht
+    bx = mbx + kni * ((wjx - wix) * dt - tht * nx)
+    by = mby + kni * ((wjy - wiy) * dt - tht * ny)
+    bz = mbz + kni * ((wjz - wiz) * dt - tht * nz)
     smag = math.sqrt(sbx * sbx + sby * sby + sbz * sbz)
     mbmag = math.sqrt(mbx * mbx + mby * mby + mbz * mbz)
     bstate[k] = mode
@@ -428,33 +288,100 @@ def _record_break(T, ll, k, i, j, pos, radius, bstate, bstep, bpos, bnrm, be, bs
     bnrm[k, 0] = nx
     bnrm[k, 1] = ny
     bnrm[k, 2] = nz
+    # peak stresses of the failing state: sigma (with bending), tau (with twisting), and
+    # the normal stress Fn/A (tension positive)
     bsig[k, 0] = fnb / area + 4.0 * mcf * mbmag / (area * rb)
     bsig[k, 1] = smag / area + 2.0 * mcf * abs(mt) / (area * rb)
     bsig[k, 2] = fnb / area
     # released energy in the step-consistent form 1/2 F_old . F_trial / k per component
-    be[k] = 0.5 * (T[F_FN * BLK + ll] * fnb / kna
-                   + (T[O_R0X * BLK + ll] * sbx + T[O_R0Y * BLK + ll] * sby
-                      + T[O_R0Z * BLK + ll] * sbz) / ksa
-                   + T[F_MT * BLK + ll] * mt / ksj
-                   + (T[O_Q0X * BLK + ll] * mbx + T[O_Q0Y * BLK + ll] * mby
-                      + T[O_Q0Z * BLK + ll] * mbz) / kni)
+    be[k] = 0.5 * (fn0 * fnb / kna + (ax * sbx + ay * sby + az * sbz) / ksa + mt0 * mt / ksj
+                   + (bx * mbx + by * mby + bz * mbz) / kni)
+    for f in (S_FN, S_SX, S_SY, S_SZ, S_MT, S_BX, S_BY, S_BZ):
+        blk[base + f * STR + ll] = 0.0
+    blk[base + S_INTACT * STR + ll] = 0.0
 
 
 @jit
-def bond_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash, pestr,
-               bfn, bfs, bmt, bmb, bstate, brgap, bstep, bpos, bnrm, be, bestr, bsig, fb, k0,
-               k1, T, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf,
-               betan, betas, step, record):
-    """Bond pairs k0..k1 in blocks of BLK. Returns the number of bonds broken."""
+def bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash, pestr, bstate,
+               bstep, bpos, bnrm, be, bestr, bsig, fb, k0, k1, T, dt, emod, ikr, fric,
+               pb_emod, pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf, betan, betas, step, record):
+    """Bond pairs k0..k1 (k0 a multiple of BLK) in blocks. Returns the bonds broken.
+
+    Gather and scatter are written out here rather than called: a call that passes ~30
+    arrays costs more than a block."""
     dp = betan > 0.0 or betas > 0.0
     nbroken = 0
+    brk = np.empty(BLK, np.int64)
     for b0 in range(k0, k1, BLK):
         nl = min(BLK, k1 - b0)
-        _gather(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, bfn, bfs, bmt, bmb,
-                bstate, brgap, b0, nl, T)
-        _compute(T, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa, rmul,
-                 mcf, betan, betas, dp)
-        nbroken += _scatter(T, b0, nl, pos, radius, pi, pj, pfs, pdf, pact, pslip, pdash,
-                            pestr, bfn, bfs, bmt, bmb, bstate, bstep, bpos, bnrm, be, bestr,
-                            bsig, fb, step, record, dp, pb_emod, pb_ikr, rmul, mcf)
+        base = (b0 // BLK) * BLOCK_SIZE
+        # ---- gather
+        for ll in range(nl):
+            k = b0 + ll
+            i = pi[k]
+            j = pj[k]
+            T[F_DX * STR + ll] = pos[j, 0] - pos[i, 0]
+            T[F_DY * STR + ll] = pos[j, 1] - pos[i, 1]
+            T[F_DZ * STR + ll] = pos[j, 2] - pos[i, 2]
+            T[F_VX * STR + ll] = vel[j, 0] - vel[i, 0]
+            T[F_VY * STR + ll] = vel[j, 1] - vel[i, 1]
+            T[F_VZ * STR + ll] = vel[j, 2] - vel[i, 2]
+            T[F_WIX * STR + ll] = angvel[i, 0]
+            T[F_WIY * STR + ll] = angvel[i, 1]
+            T[F_WIZ * STR + ll] = angvel[i, 2]
+            T[F_WJX * STR + ll] = angvel[j, 0]
+            T[F_WJY * STR + ll] = angvel[j, 1]
+            T[F_WJZ * STR + ll] = angvel[j, 2]
+            T[F_RI * STR + ll] = radius[i]
+            T[F_RJ * STR + ll] = radius[j]
+        if dp:  # dashpot inputs only when dashpots are on
+            for ll in range(nl):
+                T[F_MI * STR + ll] = mass[pi[b0 + ll]]
+                T[F_MJ * STR + ll] = mass[pj[b0 + ll]]
+        # ---- compute (vectorised)
+        _compute(T, blk[base:base + BLOCK_SIZE], nl, dt, emod, ikr, fric, pb_emod, pb_ikr,
+                 pb_ten, pb_coh, tanfa, rmul, mcf, betan, betas, dp, record)
+        # ---- scatter, in increasing pair order
+        nbrk = 0
+        for ll in range(nl):
+            k = b0 + ll
+            i = pi[k]
+            j = pj[k]
+            fx = T[O_FX * STR + ll]
+            fy = T[O_FY * STR + ll]
+            fz = T[O_FZ * STR + ll]
+            fb[i, 0] -= fx
+            fb[i, 1] -= fy
+            fb[i, 2] -= fz
+            fb[i, 3] += T[O_MIX * STR + ll]
+            fb[i, 4] += T[O_MIY * STR + ll]
+            fb[i, 5] += T[O_MIZ * STR + ll]
+            fb[j, 0] += fx
+            fb[j, 1] += fy
+            fb[j, 2] += fz
+            fb[j, 3] += T[O_MJX * STR + ll]
+            fb[j, 4] += T[O_MJY * STR + ll]
+            fb[j, 5] += T[O_MJZ * STR + ll]
+            es = T[O_ESLIP * STR + ll]
+            if es != 0.0:
+                pslip[k] += es
+            if T[O_MODE * STR + ll] > 0.0:
+                brk[nbrk] = ll
+                nbrk += 1
+        if dp:
+            for ll in range(nl):
+                pdash[b0 + ll] += T[O_EDASH * STR + ll]
+        if record:
+            for ll in range(nl):
+                pestr[b0 + ll] = T[O_ELIN * STR + ll]
+                bestr[b0 + ll] = T[O_EBOND * STR + ll]
+        for q in range(nbrk):
+            ll = brk[q]
+            k = b0 + ll
+            _record_break(T, blk, base, ll, k, pi[k], pos, bstate, bstep, bpos, bnrm, be,
+                          bsig, step, int(T[O_MODE * STR + ll]), dt, pb_emod, pb_ikr, rmul,
+                          mcf)
+            if record:
+                bestr[k] = 0.0
+        nbroken += nbrk
     return nbroken

@@ -29,11 +29,20 @@ import math
 import numpy as np
 
 from ._jit import jit, jit_parallel, prange
-from .bondblock import bond_range
+from .bondblock import (
+    BLK,
+    S_FN,
+    S_LX,
+    S_RG,
+    S_SX,
+    bond_range,
+    state_index,
+)
 from .bondblock import scratch as bond_scratch
 from .laws import (
-    bond_failure,
     bond_geometry,
+    dashpot,
+    kinematics,
     linear_shear,
     linear_stiffness,
     rotate_shear,
@@ -57,6 +66,7 @@ from .layout import (
     I_REBUILD,
     I_STEP,
     P_ALPHA,
+    P_DBOUND,
     P_DP_N,
     P_DP_S,
     P_DT,
@@ -86,15 +96,16 @@ from .layout import (
 # ---------------------------------------------------------------------------------------
 @jit_parallel
 def pair_forces(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash, pestr,
-                bfn, bfs, bmt, bmb, bstate, brgap, bstep, bpos, bnrm, be, bestr, bsig, part,
-                fbuf, prm, step, nb, record, idt):
+                blk, bstate, bstep, bpos, bnrm, be, bestr, bsig, part, fbuf, prm, step, nb,
+                record, idt):
     """Force-displacement for every ball-ball pair; scatter into per-partition buffers.
 
     Pairs are split into fixed index ranges ``part`` (one per partition); partition p adds
     the forces and moments of its pairs to ``fbuf[p]`` (ball-major, 6 components), in
     increasing pair order. The partitions, not the threads, fix the summation order, so
-    the result does not depend on the number of threads. ``pact[k]`` remembers whether
-    the pair carried force last step (inactive pairs are skipped). Returns bonds broken.
+    the result does not depend on the number of threads. Bond pairs (k < nb) keep their
+    state in the blocked array ``blk`` (bondblock.py); the unbonded pairs use ``pfs``,
+    ``pdf`` and ``pact`` (whether the pair carried force last step). Returns bonds broken.
     """
     dt = idt
     emod = prm[P_EMOD]
@@ -116,25 +127,21 @@ def pair_forces(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, p
         k1 = part[p + 1]
         kb = min(k1, nb)
         if kb > k0:  # bond pairs: vectorised blocks
-            nbroken += bond_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact,
-                                  pslip, pdash, pestr, bfn, bfs, bmt, bmb, bstate, brgap,
-                                  bstep, bpos, bnrm, be, bestr, bsig, fbuf[p], k0, kb, T, dt,
-                                  emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa,
-                                  rmul, mcf, betan, betas, step, record)
-        nbroken += _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip,
-                               pdash, pestr, bfn, bfs, bmt, bmb, bstate, brgap, bstep, bpos,
-                               bnrm, be, bestr, bsig, fbuf[p], max(k0, nb), k1, dt, emod, ikr,
-                               fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf, betan,
-                               betas, step, nb, record)
+            nbroken += bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash,
+                                  pestr, bstate, bstep, bpos, bnrm, be, bestr, bsig, fbuf[p],
+                                  k0, kb, T, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten,
+                                  pb_coh, tanfa, rmul, mcf, betan, betas, step, record)
+        _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash,
+                    pestr, fbuf[p], max(k0, nb), k1, dt, emod, ikr, fric, betan, betas, record)
     return nbroken
 
 
 @jit
-def _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash, pestr, bfn,
-                bfs, bmt, bmb, bstate, brgap, bstep, bpos, bnrm, be, bestr, bsig, fb, k0, k1, dt,
-                emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf, betan,
-                betas, step, nb, record):
-    nbroken = 0
+def _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash, pestr, fb,
+                k0, k1, dt, emod, ikr, fric, betan, betas, record):
+    """Unbonded (Verlet) pairs k0..k1: the linear contact law (+ dashpots), scattered into
+    the partition buffer ``fb`` in increasing pair order."""
+    dp = betan > 0.0 or betas > 0.0
     for k in range(k0, k1):
         i = pi[k]
         j = pj[k]
@@ -144,81 +151,34 @@ def _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, p
         ri = radius[i]
         rj = radius[j]
         sr = ri + rj
-        d2 = dx * dx + dy * dy + dz * dz
-        bonded = False
-        rg = 0.0
-        if k < nb:
-            rg = brgap[k]
-            bonded = bstate[k] == BOND_INTACT
-        lim = sr + rg
-        if (not bonded) and d2 >= lim * lim and pact[k] == 0:
-            # stays out of contact, no bond: no force
+        if dx * dx + dy * dy + dz * dz >= sr * sr and pact[k] == 0:
+            # stays out of contact: no force
             if record:
                 pestr[k] = 0.0
             continue
-        dist = math.sqrt(d2)
-        if dist > 0.0:
-            inv = 1.0 / dist
-            nx = dx * inv
-            ny = dy * inv
-            nz = dz * inv
-        else:  # coincident centres (only possible in overlapped genesis): fixed axis
-            nx = 0.0
-            ny = 0.0
-            nz = 1.0
-        gap = dist - sr
-        inv_l = 1.0 / sr
-        ai = ri + 0.5 * gap  # contact point = x_i + ai n = x_j + aj n
-        aj = -(rj + 0.5 * gap)
-        wix = angvel[i, 0]
-        wiy = angvel[i, 1]
-        wiz = angvel[i, 2]
-        wjx = angvel[j, 0]
-        wjy = angvel[j, 1]
-        wjz = angvel[j, 2]
-        # relative velocity of j w.r.t. i at the contact point
-        vrx = vel[j, 0] - vel[i, 0] + aj * (wjy * nz - wjz * ny) - ai * (wiy * nz - wiz * ny)
-        vry = vel[j, 1] - vel[i, 1] + aj * (wjz * nx - wjx * nz) - ai * (wiz * nx - wix * nz)
-        vrz = vel[j, 2] - vel[i, 2] + aj * (wjx * ny - wjy * nx) - ai * (wix * ny - wiy * nx)
-        vn = vrx * nx + vry * ny + vrz * nz
-        vsx = vrx - vn * nx
-        vsy = vry - vn * ny
-        vsz = vrz - vn * nz
-        dun = vn * dt
-        dusx = vsx * dt
-        dusy = vsy * dt
-        dusz = vsz * dt
-        dphi = 0.5 * ((wix + wjx) * nx + (wiy + wjy) * ny + (wiz + wjz) * nz) * dt
-        fx = 0.0
-        fy = 0.0
-        fz = 0.0
-        cpx = 0.0
-        cpy = 0.0
-        cpz = 0.0
-        estr = 0.0
-        # ---- linear component
-        if gap < rg:
-            kn, ks = linear_stiffness(ri, rj, inv_l, emod, ikr)
-            fn = kn * (rg - gap)
-            sx, sy, sz = rotate_shear(pfs[k, 0], pfs[k, 1], pfs[k, 2], nx, ny, nz, dphi)
-            tx, ty, tz, eslip = linear_shear(sx, sy, sz, dusx, dusy, dusz, ks, fric * fn)
-            pfs[k, 0] = tx
-            pfs[k, 1] = ty
-            pfs[k, 2] = tz
-            if eslip != 0.0:
-                pslip[k] += eslip
-            fx = fn * nx + tx
-            fy = fn * ny + ty
-            fz = fn * nz + tz
+        (nx, ny, nz, gap, inv_l, ai, aj, vrx, vry, vrz, vn, dun, dusx, dusy, dusz,
+         dphi) = kinematics(dx, dy, dz, vel[j, 0] - vel[i, 0], vel[j, 1] - vel[i, 1],
+                            vel[j, 2] - vel[i, 2], angvel[i, 0], angvel[i, 1], angvel[i, 2],
+                            angvel[j, 0], angvel[j, 1], angvel[j, 2], ri, rj, dt)
+        kn, ks = linear_stiffness(ri, rj, inv_l, emod, ikr)
+        iks = 1.0 / ks
+        sx, sy, sz = rotate_shear(pfs[k, 0], pfs[k, 1], pfs[k, 2], nx, ny, nz, dphi)
+        if gap < 0.0:
+            fn = -kn * gap
+            ux, uy, uz, tx, ty, tz, eslip = linear_shear(sx, sy, sz, dusx, dusy, dusz, ks, iks,
+                                                         fric * fn)
+            pfs[k, 0] = ux
+            pfs[k, 1] = uy
+            pfs[k, 2] = uz
+            fx = fn * nx + ux
+            fy = fn * ny + uy
+            fz = fn * nz + uz
             if record:
-                estr = 0.5 * fn * fn / kn + 0.5 * (tx * tx + ty * ty + tz * tz) / ks
-            if betan > 0.0 or betas > 0.0:
-                mc = mass[i] * mass[j] / (mass[i] + mass[j])
-                cn = 2.0 * betan * math.sqrt(mc * kn)
-                cs = 2.0 * betas * math.sqrt(mc * ks)
-                gx = -(cn * vn * nx + cs * vsx)
-                gy = -(cn * vn * ny + cs * vsy)
-                gz = -(cn * vn * nz + cs * vsz)
+                pestr[k] = 0.5 * fn * fn / kn + 0.5 * (ux * ux + uy * uy + uz * uz) * iks
+            if dp:
+                gx, gy, gz = dashpot(vrx, vry, vrz, vn, nx, ny, nz,
+                                     mass[i] * mass[j] / (mass[i] + mass[j]), kn, ks, betan,
+                                     betas)
                 fx += gx
                 fy += gy
                 fz += gz
@@ -230,110 +190,45 @@ def _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, p
                 pdf[k, 0] = gx
                 pdf[k, 1] = gy
                 pdf[k, 2] = gz
-        elif pact[k]:
+            pact[k] = 1
+        else:
             # contact lost this step: the shear spring lets go of its energy (booked as
             # slip, in the step-consistent form 1/2 s_old . s_trial / ks); the last
             # dashpot force's second half-step is booked
-            if betan > 0.0 or betas > 0.0:
+            eslip = 0.5 * (sx * (sx - ks * dusx) + sy * (sy - ks * dusy)
+                           + sz * (sz - ks * dusz)) * iks
+            if dp:
                 pdash[k] -= 0.5 * (pdf[k, 0] * vrx + pdf[k, 1] * vry + pdf[k, 2] * vrz) * dt
                 pdf[k, 0] = 0.0
                 pdf[k, 1] = 0.0
                 pdf[k, 2] = 0.0
-            kn, ks = linear_stiffness(ri, rj, inv_l, emod, ikr)
-            sx, sy, sz = rotate_shear(pfs[k, 0], pfs[k, 1], pfs[k, 2], nx, ny, nz, dphi)
-            pslip[k] += 0.5 * (sx * (sx - ks * dusx) + sy * (sy - ks * dusy)
-                               + sz * (sz - ks * dusz)) / ks
             pfs[k, 0] = 0.0
             pfs[k, 1] = 0.0
             pfs[k, 2] = 0.0
-        pact[k] = 1 if (bonded or gap < rg) else 0
-        if record:
-            pestr[k] = estr
-        # ---- parallel bond
-        if bonded:
-            rb, area, kna, ksa, ksj, kni = bond_geometry(ri, rj, inv_l, pb_emod, pb_ikr, rmul)
-            fn0 = bfn[k]
-            fnb = fn0 + kna * dun
-            s0x, s0y, s0z = rotate_shear(bfs[k, 0], bfs[k, 1], bfs[k, 2], nx, ny, nz, dphi)
-            sbx = s0x - ksa * dusx
-            sby = s0y - ksa * dusy
-            sbz = s0z - ksa * dusz
-            thx = (wjx - wix) * dt
-            thy = (wjy - wiy) * dt
-            thz = (wjz - wiz) * dt
-            tht = thx * nx + thy * ny + thz * nz
-            mt0 = bmt[k]
-            mt = mt0 - ksj * tht
-            b0x, b0y, b0z = rotate_shear(bmb[k, 0], bmb[k, 1], bmb[k, 2], nx, ny, nz, dphi)
-            mbx = b0x - kni * (thx - tht * nx)
-            mby = b0y - kni * (thy - tht * ny)
-            mbz = b0z - kni * (thz - tht * nz)
-            smag = math.sqrt(sbx * sbx + sby * sby + sbz * sbz)
-            mbmag = math.sqrt(mbx * mbx + mby * mby + mbz * mbz)
-            mode = bond_failure(fnb, smag, mt, mbmag, rb, area, pb_ten, pb_coh, tanfa, mcf)
-            if mode != 0:
-                bstate[k] = mode
-                bstep[k] = step
-                bpos[k, 0] = pos[i, 0] + ai * nx
-                bpos[k, 1] = pos[i, 1] + ai * ny
-                bpos[k, 2] = pos[i, 2] + ai * nz
-                bnrm[k, 0] = nx
-                bnrm[k, 1] = ny
-                bnrm[k, 2] = nz
-                # peak stresses of the failing state: sigma (with bending), tau (with
-                # twisting), normal stress Fn/A (tension positive)
-                bsig[k, 0] = fnb / area + 4.0 * mcf * mbmag / (area * rb)
-                bsig[k, 1] = smag / area + 2.0 * mcf * abs(mt) / (area * rb)
-                bsig[k, 2] = fnb / area
-                be[k] = 0.5 * (fn0 * fnb / kna
-                               + (s0x * sbx + s0y * sby + s0z * sbz) / ksa
-                               + mt0 * mt / ksj
-                               + (b0x * mbx + b0y * mby + b0z * mbz) / kni)
-                bfn[k] = 0.0
-                bmt[k] = 0.0
-                for c in range(3):
-                    bfs[k, c] = 0.0
-                    bmb[k, c] = 0.0
-                if record:
-                    bestr[k] = 0.0
-                nbroken += 1
-            else:
-                bfn[k] = fnb
-                bfs[k, 0] = sbx
-                bfs[k, 1] = sby
-                bfs[k, 2] = sbz
-                bmt[k] = mt
-                bmb[k, 0] = mbx
-                bmb[k, 1] = mby
-                bmb[k, 2] = mbz
-                fx += sbx - fnb * nx
-                fy += sby - fnb * ny
-                fz += sbz - fnb * nz
-                cpx = mt * nx + mbx
-                cpy = mt * ny + mby
-                cpz = mt * nz + mbz
-                if record:
-                    bestr[k] = 0.5 * (fnb * fnb / kna + smag * smag / ksa + mt * mt / ksj
-                                      + mbmag * mbmag / kni)
-        elif record and k < nb:
-            bestr[k] = 0.0
-        # force on j (-F on i) and moments M_j = aj n x F + couple, M_i = -ai n x F - couple
+            pact[k] = 0
+            if record:
+                pestr[k] = 0.0
+            fx = 0.0
+            fy = 0.0
+            fz = 0.0
+        if eslip != 0.0:
+            pslip[k] += eslip
+        # force on j (-F on i) and moments M_j = aj n x F, M_i = -ai n x F
         cx = ny * fz - nz * fy
         cy = nz * fx - nx * fz
         cz = nx * fy - ny * fx
         fb[i, 0] -= fx
         fb[i, 1] -= fy
         fb[i, 2] -= fz
-        fb[i, 3] -= ai * cx + cpx
-        fb[i, 4] -= ai * cy + cpy
-        fb[i, 5] -= ai * cz + cpz
+        fb[i, 3] -= ai * cx
+        fb[i, 4] -= ai * cy
+        fb[i, 5] -= ai * cz
         fb[j, 0] += fx
         fb[j, 1] += fy
         fb[j, 2] += fz
-        fb[j, 3] += aj * cx + cpx
-        fb[j, 4] += aj * cy + cpy
-        fb[j, 5] += aj * cz + cpz
-    return nbroken
+        fb[j, 3] += aj * cx
+        fb[j, 4] += aj * cy
+        fb[j, 5] += aj * cz
 
 
 # ---------------------------------------------------------------------------------------
@@ -435,8 +330,8 @@ def wall_forces(pos, vel, angvel, radius, mass, sb, sw, sfs, sdf, srg, sf, sm, s
         fn = -kn * gap
         dphi = (wx * nx + wy * ny + wz * nz) * dt * 0.5
         sx, sy, sz = rotate_shear(sfs[s, 0], sfs[s, 1], sfs[s, 2], nx, ny, nz, dphi)
-        tx, ty, tz, eslip = linear_shear(sx, sy, sz, vsx * dt, vsy * dt, vsz * dt, ks,
-                                         wfric[w] * fn)
+        tx, ty, tz, _, _, _, eslip = linear_shear(sx, sy, sz, vsx * dt, vsy * dt, vsz * dt,
+                                                  ks, 1.0 / ks, wfric[w] * fn)
         sfs[s, 0] = tx
         sfs[s, 1] = ty
         sfs[s, 2] = tz
@@ -593,12 +488,10 @@ def _gather(i, fbuf, sptr, sf, sm, clear):
 
 @jit
 def _local_damping(f, v, alpha):
-    """PFC local damping force of one degree of freedom: -alpha |F| sign(v)."""
-    if v > 0.0:
-        return -alpha * abs(f)
-    if v < 0.0:
-        return alpha * abs(f)
-    return 0.0
+    """PFC local damping force of one degree of freedom: -alpha |F| sign(v), sign(0) = 0.
+    Written with selects: the sign of a velocity is a coin toss for the branch predictor."""
+    sgn = (1.0 if v > 0.0 else 0.0) - (1.0 if v < 0.0 else 0.0)
+    return -alpha * abs(f) * sgn
 
 
 @jit
@@ -611,14 +504,15 @@ def _dof(v, f, im, alpha, dt, fixed):
 
 
 @jit_parallel
-def integrate(pos, vel, angvel, force, moment, mass, inertia, fix, pos_ref, fbuf, sptr, sf,
-              sm, edamp, egrav, efix, prm):
+def integrate(pos, vel, angvel, mass, inertia, fix, fbuf, sptr, sf, sm, edamp, egrav, efix,
+              prm):
     """Step n for the balls: gather F_n, add gravity and local damping, v_{n+1/2}, x_{n+1}.
 
     Per-ball accumulators get the damping dissipation, gravity work and work of velocity
-    constraints of step n, each as F . (v_{n-1/2} + v_{n+1/2})/2 dt. Returns (max squared
-    displacement since the last rebuild, 1 + index of a ball whose velocity is not finite
-    or above the speed guard, or 0).
+    constraints of step n, each as F . (v_{n-1/2} + v_{n+1/2})/2 dt. Returns (largest
+    squared speed, 1 + index of a ball whose velocity is not finite or above the speed
+    guard, or 0). The largest speed bounds the displacements for the Verlet criterion, so
+    the step does not read the reference positions.
     """
     n = pos.shape[0]
     dt = prm[P_DT]
@@ -627,8 +521,9 @@ def integrate(pos, vel, angvel, force, moment, mass, inertia, fix, pos_ref, fbuf
     gx = prm[P_GX]
     gy = prm[P_GY]
     gz = prm[P_GZ]
+    grav = gx != 0.0 or gy != 0.0 or gz != 0.0
     vcap = prm[P_VCAP]
-    maxd2 = 0.0
+    maxv2 = 0.0
     bad = 0
     for i in prange(n):
         f0, f1, f2, m0, m1, m2 = _gather(i, fbuf, sptr, sf, sm, True)
@@ -636,12 +531,6 @@ def integrate(pos, vel, angvel, force, moment, mass, inertia, fix, pos_ref, fbuf
         f0 += mi * gx
         f1 += mi * gy
         f2 += mi * gz
-        force[i, 0] = f0
-        force[i, 1] = f1
-        force[i, 2] = f2
-        moment[i, 0] = m0
-        moment[i, 1] = m1
-        moment[i, 2] = m2
         fl = fix[i]
         im = 1.0 / mi
         ii = 1.0 / inertia[i]
@@ -663,8 +552,10 @@ def integrate(pos, vel, angvel, force, moment, mass, inertia, fix, pos_ref, fbuf
         q0 = 0.5 * (w0 + r0) * dt
         q1 = 0.5 * (w1 + r1) * dt
         q2 = 0.5 * (w2 + r2) * dt
-        edamp[i] -= d0 * s0 + d1 * s1 + d2 * s2 + e0 * q0 + e1 * q1 + e2 * q2
-        egrav[i] += mi * (gx * s0 + gy * s1 + gz * s2)
+        if alpha > 0.0:
+            edamp[i] -= d0 * s0 + d1 * s1 + d2 * s2 + e0 * q0 + e1 * q1 + e2 * q2
+        if grav:
+            egrav[i] += mi * (gx * s0 + gy * s1 + gz * s2)
         if fl:
             cw = 0.0
             if fl & 1:
@@ -694,20 +585,27 @@ def integrate(pos, vel, angvel, force, moment, mass, inertia, fix, pos_ref, fbuf
         angvel[i, 0] = r0
         angvel[i, 1] = r1
         angvel[i, 2] = r2
-        x0 = pos[i, 0] + n0 * dt
-        x1 = pos[i, 1] + n1 * dt
-        x2 = pos[i, 2] + n2 * dt
-        pos[i, 0] = x0
-        pos[i, 1] = x1
-        pos[i, 2] = x2
-        dd0 = x0 - pos_ref[i, 0]
-        dd1 = x1 - pos_ref[i, 1]
-        dd2 = x2 - pos_ref[i, 2]
-        maxd2 = max(maxd2, dd0 * dd0 + dd1 * dd1 + dd2 * dd2)
-        if not (n0 * n0 + n1 * n1 + n2 * n2 <= vmax2) or not (
-                abs(r0) + abs(r1) + abs(r2) < 1e300):
+        pos[i, 0] += n0 * dt
+        pos[i, 1] += n1 * dt
+        pos[i, 2] += n2 * dt
+        v2 = n0 * n0 + n1 * n1 + n2 * n2
+        maxv2 = max(maxv2, v2)
+        if not (v2 <= vmax2) or not (abs(r0) + abs(r1) + abs(r2) < 1e300):
             bad = max(bad, i + 1)
-    return maxd2, bad
+    return maxv2, bad
+
+
+@jit
+def max_displacement(pos, pos_ref):
+    """Largest ball displacement since the last rebuild [m]."""
+    m = 0.0
+    for i in range(pos.shape[0]):
+        d = 0.0
+        for c in range(3):
+            x = pos[i, c] - pos_ref[i, c]
+            d += x * x
+        m = max(m, d)
+    return math.sqrt(m)
 
 
 @jit
@@ -833,12 +731,27 @@ def _cell_grid(pos, radius, skin, ncap):
     return cell, start, order, dims
 
 
+#: cost of an unbonded (Verlet) pair relative to a bond pair, for balancing partitions
+VERLET_COST = 0.15
+
+
 @jit
-def set_partitions(part, npairs):
-    """Split pairs 0..npairs into len(part)-1 contiguous ranges of (nearly) equal size."""
+def set_partitions(part, npairs, nb):
+    """Split pairs 0..npairs into len(part)-1 contiguous ranges of about equal work (a
+    Verlet pair costs ``VERLET_COST`` of a bond pair); boundaries inside the bond pairs
+    fall on block boundaries (bondblock.BLK)."""
     npart = part.shape[0] - 1
-    for p in range(npart + 1):
-        part[p] = (npairs * p) // npart
+    work = nb + VERLET_COST * (npairs - nb)
+    part[0] = 0
+    part[npart] = npairs
+    for p in range(1, npart):
+        target = work * p / npart
+        if target <= nb:
+            b = int(target)
+            b = (b // BLK) * BLK
+        else:
+            b = nb + int((target - nb) / VERLET_COST)
+        part[p] = min(max(b, part[p - 1]), npairs)
 
 
 @jit
@@ -996,12 +909,13 @@ def rebuild(pos, radius, pos_ref, pi, pj, pfs, pdf, pact, pslip, pdash, vptr, bp
         sdash[s] = 0.0
     iprm[I_NPAIRS] = cnt
     iprm[I_NSLOTS] = ns
-    set_partitions(part, cnt)
+    set_partitions(part, cnt, nb)
     for i in range(n):
         for c in range(3):
             pos_ref[i, c] = pos[i, c]
     for w in range(nw):
         wdisp[w] = 0.0
+    prm[P_DBOUND] = 0.0
     iprm[I_REBUILD] = 0
     iprm[I_NREBUILDS] += 1
     return 0
@@ -1023,9 +937,9 @@ def _rebuild(B, P, Bd, S, W, prm, iprm, eacc):
 def _forces(B, P, Bd, S, W, prm, iprm, record, idt):
     """Force-displacement at the current positions; increments use velocity x ``idt``."""
     nbk = pair_forces(B.pos, B.vel, B.angvel, B.radius, B.mass, P.pi, P.pj, P.fs, P.df, P.act,
-                      P.slip, P.dash, P.estr, Bd.fn, Bd.fs, Bd.mt, Bd.mb, Bd.state, Bd.rgap,
-                      Bd.step, Bd.pos, Bd.nrm, Bd.energy, Bd.estr, Bd.sig, P.part, B.fbuf,
-                      prm, iprm[I_STEP], iprm[I_NB], record, idt)
+                      P.slip, P.dash, P.estr, Bd.blk, Bd.state, Bd.step, Bd.pos, Bd.nrm,
+                      Bd.energy, Bd.estr, Bd.sig, P.part, B.fbuf, prm, iprm[I_STEP],
+                      iprm[I_NB], record, idt)
     iprm[I_NBROKEN] += nbk
     wall_forces(B.pos, B.vel, B.angvel, B.radius, B.mass, S.b, S.w, S.fs, S.df, S.rg, S.f, S.m,
                 S.rad,
@@ -1057,9 +971,8 @@ def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last):
                 dt if iprm[I_FORCES] == 2 else 0.0)
         iprm[I_FORCES] = 0
     for s in range(nsteps):
-        maxd2, bad = integrate(B.pos, B.vel, B.angvel, B.force, B.moment, B.mass, B.inertia,
-                               B.fix, B.pos_ref, B.fbuf, S.ptr, S.f, S.m, B.edamp, B.egrav,
-                               B.efix, prm)
+        maxv2, bad = integrate(B.pos, B.vel, B.angvel, B.mass, B.inertia, B.fix, B.fbuf,
+                               S.ptr, S.f, S.m, B.edamp, B.egrav, B.efix, prm)
         wmax = advance_walls(W.pos, W.rad, W.vel, W.radv, W.mass, W.force, W.radsum, W.work,
                              W.grav, W.disp, prm)
         iprm[I_STEP] += 1
@@ -1068,9 +981,14 @@ def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last):
             iprm[I_BAD] = bad
             iprm[I_FORCES] = 2
             return 2, s + 1
-        maxd = math.sqrt(maxd2)
-        if 2.0 * maxd > skin or maxd + wmax > skin:
-            iprm[I_REBUILD] = 1
+        # Verlet criterion: a cheap upper bound (sum of the largest speed x dt) first, the
+        # exact displacement only when the bound says a rebuild may be needed
+        prm[P_DBOUND] += math.sqrt(maxv2) * dt
+        if 2.0 * prm[P_DBOUND] > skin or prm[P_DBOUND] + wmax > skin:
+            maxd = max_displacement(B.pos, B.pos_ref)
+            prm[P_DBOUND] = maxd
+            if 2.0 * maxd > skin or maxd + wmax > skin:
+                iprm[I_REBUILD] = 1
         if iprm[I_REBUILD]:
             if _rebuild(B, P, Bd, S, W, prm, iprm, eacc) != 0:
                 iprm[I_FORCES] = 2
@@ -1179,7 +1097,7 @@ def sum_energies(edamp, egrav, efix, pestr, pslip, pdash, npairs, bestr, be, bst
 
 
 @jit
-def contact_force_mean(pos, radius, pi, pj, pfs, npairs, nb, bstate, bfn, bfs, brgap, prm):
+def contact_force_mean(pos, radius, pi, pj, pfs, npairs, nb, bstate, blk, prm):
     """Mean magnitude of the force of active pairs (linear contact or intact bond),
     recomputed from the stored state (dashpot forces excluded)."""
     emod = prm[P_EMOD]
@@ -1202,19 +1120,27 @@ def contact_force_mean(pos, radius, pi, pj, pfs, npairs, nb, bstate, bfn, bfs, b
         rg = 0.0
         bonded = False
         if k < nb:
-            rg = brgap[k]
+            rg = blk[state_index(k, S_RG)]
             bonded = bstate[k] == BOND_INTACT
+            lx = blk[state_index(k, S_LX)]
+            ly = blk[state_index(k, S_LX + 1)]
+            lz = blk[state_index(k, S_LX + 2)]
+        else:
+            lx = pfs[k, 0]
+            ly = pfs[k, 1]
+            lz = pfs[k, 2]
         fn = 0.0
         if gap < rg:
             r = min(radius[i], radius[j])
             fn = math.pi * r * r * emod / sr * (rg - gap)
-        fx = fn * nx + pfs[k, 0]
-        fy = fn * ny + pfs[k, 1]
-        fz = fn * nz + pfs[k, 2]
+        fx = fn * nx + lx
+        fy = fn * ny + ly
+        fz = fn * nz + lz
         if bonded:
-            fx += bfs[k, 0] - bfn[k] * nx
-            fy += bfs[k, 1] - bfn[k] * ny
-            fz += bfs[k, 2] - bfn[k] * nz
+            fnb = blk[state_index(k, S_FN)]
+            fx += blk[state_index(k, S_SX)] - fnb * nx
+            fy += blk[state_index(k, S_SX + 1)] - fnb * ny
+            fz += blk[state_index(k, S_SX + 2)] - fnb * nz
         if bonded or gap < rg:
             tot += math.sqrt(fx * fx + fy * fy + fz * fz)
             cnt += 1
@@ -1224,7 +1150,7 @@ def contact_force_mean(pos, radius, pi, pj, pfs, npairs, nb, bstate, bfn, bfs, b
 
 
 @jit
-def coordination(pos, radius, pi, pj, npairs, nb, bstate, brgap, fix):
+def coordination(pos, radius, pi, pj, npairs, nb, bstate, blk):
     """Number of contacts (gap below reference gap, or intact bond) of every ball."""
     n = radius.shape[0]
     z = np.zeros(n, np.int64)
@@ -1234,7 +1160,7 @@ def coordination(pos, radius, pi, pj, npairs, nb, bstate, brgap, fix):
         rg = 0.0
         bonded = False
         if k < nb:
-            rg = brgap[k]
+            rg = blk[state_index(k, S_RG)]
             bonded = bstate[k] == BOND_INTACT
         d = math.sqrt((pos[j, 0] - pos[i, 0]) ** 2 + (pos[j, 1] - pos[i, 1]) ** 2
                       + (pos[j, 2] - pos[i, 2]) ** 2)

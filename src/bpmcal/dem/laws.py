@@ -50,6 +50,48 @@ def rotate_shear(sx, sy, sz, nx, ny, nz, dphi):
 
 
 @_inl
+def kinematics(dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy, wjz, ri, rj, dt):
+    """Geometry and relative motion of a ball-ball contact.
+
+    ``d`` = x_j - x_i, ``dv`` = v_j - v_i, spins w_i, w_j. Returns the unit normal n, the
+    surface gap, 1/L (L = R_i + R_j), the lever arms ai, aj (contact point = x_i + ai n =
+    x_j + aj n, the middle of the overlap), the relative velocity of j w.r.t. i at the
+    contact point, its normal component, the displacement increments dun, dus (x dt) and
+    the mean spin about the normal times dt (for rotating stored shear quantities).
+    Coincident centres give n = 0 (no normal force; only in artificial set-ups).
+    """
+    dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    inv = 1.0 / max(dist, 1e-300)
+    nx = dx * inv
+    ny = dy * inv
+    nz = dz * inv
+    sr = ri + rj
+    inv_l = 1.0 / sr
+    gap = dist - sr
+    ai = ri + 0.5 * gap
+    aj = -(rj + 0.5 * gap)
+    vrx = dvx + aj * (wjy * nz - wjz * ny) - ai * (wiy * nz - wiz * ny)
+    vry = dvy + aj * (wjz * nx - wjx * nz) - ai * (wiz * nx - wix * nz)
+    vrz = dvz + aj * (wjx * ny - wjy * nx) - ai * (wix * ny - wiy * nx)
+    vn = vrx * nx + vry * ny + vrz * nz
+    dusx = (vrx - vn * nx) * dt
+    dusy = (vry - vn * ny) * dt
+    dusz = (vrz - vn * nz) * dt
+    dphi = 0.5 * ((wix + wjx) * nx + (wiy + wjy) * ny + (wiz + wjz) * nz) * dt
+    return (nx, ny, nz, gap, inv_l, ai, aj, vrx, vry, vrz, vn, vn * dt, dusx, dusy, dusz,
+            dphi)
+
+
+@_inl
+def dashpot(vrx, vry, vrz, vn, nx, ny, nz, mc, kn, ks, betan, betas):
+    """Dashpot force on piece 2: -(2 beta_n sqrt(m kn) vn n + 2 beta_s sqrt(m ks) vs)."""
+    cn = 2.0 * betan * math.sqrt(mc * kn)
+    cs = 2.0 * betas * math.sqrt(mc * ks)
+    return (-(cn * vn * nx + cs * (vrx - vn * nx)), -(cn * vn * ny + cs * (vry - vn * ny)),
+            -(cn * vn * nz + cs * (vrz - vn * nz)))
+
+
+@_inl
 def linear_stiffness(r1, r2, inv_l, emod, inv_kratio):
     """PFC deformability method: kn = pi r^2 E*/L, r = min(R1,R2), L = R1+R2; ks = kn/kappa*.
 
@@ -60,32 +102,28 @@ def linear_stiffness(r1, r2, inv_l, emod, inv_kratio):
 
 
 @_inl
-def linear_shear(sx, sy, sz, dusx, dusy, dusz, ks, fslip):
-    """Incremental shear force with Coulomb slip.
+def linear_shear(sx, sy, sz, dusx, dusy, dusz, ks, iks, fslip):
+    """Incremental shear force with Coulomb slip, written without branches (selects) so
+    that it vectorises.
 
     ``s`` is the stored (already rotated) shear force, ``dus`` the shear displacement
-    increment, ``fslip = mu Fn`` the slip limit. Returns the new shear force and the
-    energy dissipated by slip in this increment (>= 0).
+    increment, ``ks``/``iks`` the shear stiffness and its inverse, ``fslip = mu Fn`` the
+    slip limit. Returns the new shear force, the trial force ``t = s - ks dus`` and the
+    energy dissipated by slip in this increment, -1/2 (s + u).(dus - (s - u)/ks) >= 0
+    (zero when the contact sticks).
     """
     tx = sx - ks * dusx
     ty = sy - ks * dusy
     tz = sz - ks * dusz
     tt = tx * tx + ty * ty + tz * tz
-    e = 0.0
-    if tt > fslip * fslip:
-        if tt > 0.0:
-            sc = fslip / math.sqrt(tt)
-        else:
-            sc = 0.0
-        tx *= sc
-        ty *= sc
-        tz *= sc
-        # elastic part of the increment: (s - t)/ks; slip part: dus - elastic part
-        ex = dusx - (sx - tx) / ks
-        ey = dusy - (sy - ty) / ks
-        ez = dusz - (sz - tz) / ks
-        e = -0.5 * ((sx + tx) * ex + (sy + ty) * ey + (sz + tz) * ez)
-    return tx, ty, tz, e
+    slip = tt > fslip * fslip
+    sc = fslip / math.sqrt(max(tt, 1e-300)) if slip else 1.0
+    ux = tx * sc
+    uy = ty * sc
+    uz = tz * sc
+    e = -0.5 * ((sx + ux) * (dusx - (sx - ux) * iks) + (sy + uy) * (dusy - (sy - uy) * iks)
+                + (sz + uz) * (dusz - (sz - uz) * iks))
+    return ux, uy, uz, tx, ty, tz, (e if slip else 0.0)
 
 
 @_inl
@@ -102,18 +140,26 @@ def bond_geometry(r1, r2, inv_l, pb_emod, pb_inv_kratio, rmul):
 
 
 @_inl
-def bond_failure(fn, smag, mt, mbmag, rb, area, ten, coh, tanfa, mcf):
+def bond_failure(fn, sb2, mt, mb2, rb, area, ten, coh, tanfa, mcf):
     """Failure mode of a parallel bond: 0 intact, 1 tension, 2 shear.
 
     sigma = Fn/A + beta |Mb| R/I >= sigma_c  -> tension (checked first);
     tau = |Fs|/A + beta |Mt| R/J >= c - (Fn/A) tan(phi)  -> shear.
-    Evaluated multiplied through by A R (A R/I = 4/R, A R/J = 2/R): no divisions.
+    Multiplied through by A R (A R/I = 4/R, A R/J = 2/R) and compared on squared
+    magnitudes ``sb2`` = |Fs|^2, ``mb2`` = |Mb|^2: no division, no square root.
     """
-    if fn * rb + 4.0 * mcf * mbmag >= ten * area * rb:
-        return 1
-    if smag * rb + 2.0 * mcf * abs(mt) >= (coh * area - fn * tanfa) * rb:
-        return 2
-    return 0
+    rt = (ten * area - fn) * rb  # 4 beta |Mb| must reach this
+    tens = rt <= 0.0 or 16.0 * mcf * mcf * mb2 >= rt * rt
+    rs = (coh * area - fn * tanfa) * rb - 2.0 * mcf * abs(mt)  # |Fs| rb must reach this
+    shear = rs <= 0.0 or sb2 * rb * rb >= rs * rs
+    return 1 if tens else (2 if shear else 0)
+
+
+@_inl
+def bond_energy(fn, sb2, mt, mb2, kna, ksa, ksj, kni):
+    """Strain energy of a parallel bond: 1/2 [Fn^2/(kn A) + |Fs|^2/(ks A) + Mt^2/(ks J)
+    + |Mb|^2/(kn I)]."""
+    return 0.5 * (fn * fn / kna + sb2 / ksa + mt * mt / ksj + mb2 / kni)
 
 
 @_inl

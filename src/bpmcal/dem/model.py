@@ -18,6 +18,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from . import bondblock as bb
 from . import kernels as K
 from ._jit import set_threads
 from .errors import InputError, InstabilityError
@@ -70,7 +71,7 @@ from .material import Material
 Balls = namedtuple("Balls", "pos vel angvel force moment radius mass inertia fix pos_ref "
                    "edamp egrav efix fbuf")
 Pairs = namedtuple("Pairs", "pi pj fs df act slip dash estr vptr pi2 pj2 fs2 vptr2 cand part")
-Bonds = namedtuple("Bonds", "fn fs mt mb state rgap step pos nrm energy estr sig ptr part")
+Bonds = namedtuple("Bonds", "blk state step pos nrm energy estr sig ptr part")
 Slots = namedtuple("Slots", "b w fs df rg f m rad slip dash estr ptr b2 w2 fs2 ptr2")
 Walls = namedtuple("Walls", "type pos nrm rad disk vel radv fric mass force radsum work "
                    "grav disp")
@@ -79,6 +80,15 @@ Walls = namedtuple("Walls", "type pos nrm rad disk vel radv fric mass force rads
 ENERGY_TERMS = ("kinetic", "kinetic_walls", "strain_linear", "strain_bond", "slip",
                 "dashpot", "damping", "released", "removed", "work_walls", "work_gravity",
                 "work_constraints")
+
+
+def aligned_zeros(shape, align=64):
+    """Zeroed float64 array whose data start on an ``align``-byte boundary (so that the
+    8-float rows of the force buffers each fill exactly one cache line)."""
+    n = int(np.prod(shape))
+    raw = np.zeros(n + align // 8)
+    off = (-raw.ctypes.data % align) // 8
+    return raw[off:off + n].reshape(shape)
 
 
 def _vec3(name, v):
@@ -150,7 +160,7 @@ class Model:
         self.B = Balls(pos=pos, vel=z3(), angvel=z3(), force=z3(), moment=z3(), radius=rad,
                        mass=mass, inertia=inertia, fix=np.zeros(n, np.uint8),
                        pos_ref=pos.copy(), edamp=np.zeros(n), egrav=np.zeros(n),
-                       efix=np.zeros(n), fbuf=np.zeros((npart, n, 6)))
+                       efix=np.zeros(n), fbuf=aligned_zeros((npart, n, 8)))
         self.prm = np.zeros(N_PRM)
         self.iprm = np.zeros(N_IPRM, np.int64)
         self.eacc = np.zeros(N_EACC)
@@ -208,8 +218,7 @@ class Model:
         self.S = S
 
     def _empty_bonds(self, nb):
-        return Bonds(fn=np.zeros(nb), fs=np.zeros((nb, 3)), mt=np.zeros(nb),
-                     mb=np.zeros((nb, 3)), state=np.zeros(nb, np.int8), rgap=np.zeros(nb),
+        return Bonds(blk=bb.new_state(nb), state=np.zeros(nb, np.int8),
                      step=np.full(nb, -1, np.int64), pos=np.zeros((nb, 3)),
                      nrm=np.zeros((nb, 3)), energy=np.zeros(nb), estr=np.zeros(nb),
                      sig=np.zeros((nb, 3)), ptr=np.zeros(self.n + 1, np.int64),
@@ -466,7 +475,7 @@ class Model:
         i, j = self.pairs()
         nb = self.n_bonds
         rg = np.zeros(i.shape[0])
-        rg[:nb] = self.Bd.rgap
+        rg[:nb] = bb.get_field(self.Bd.blk, bb.S_RG, nb)
         intact = np.zeros(i.shape[0], bool)
         intact[:nb] = self.Bd.state == BOND_INTACT
         sel = (self.pair_gaps(i, j) < rg) | intact
@@ -506,24 +515,29 @@ class Model:
         nnew = ni.shape[0]
         nbt = nb + nnew
         new = self._empty_bonds(nbt)
-        for name in ("fn", "fs", "mt", "mb", "state", "rgap", "step", "pos", "nrm", "energy",
-                     "estr", "sig"):
+        for name in ("state", "step", "pos", "nrm", "energy", "estr", "sig"):
             getattr(new, name)[:nb] = getattr(Bd, name)
+        for f in range(bb.NSF):  # blocked state: old bonds keep theirs
+            bb.set_field(new.blk, f, nb, bb.get_field(Bd.blk, f, nb))
+        newk = np.arange(nb, nbt)
+        for c in range(3):
+            new.blk[bb.field_index(bb.S_LX + c, nbt)[newk]] = nfs[:, c]
+            new.blk[bb.field_index(bb.S_DFX + c, nbt)[newk]] = ndf[:, c]
         if rgap is not None:
             rg = np.asarray(rgap, float).reshape(-1)
             if rg.shape != (nnew,) or not np.all(np.isfinite(rg)):
-                raise InputError(f"rgap: expected {nnew} finite reference gaps, got shape {rg.shape}")
-            new.rgap[nb:] = rg
+                raise InputError(f"rgap: expected {nnew} finite reference gaps, "
+                                 f"got shape {rg.shape}")
+            new.blk[bb.field_index(bb.S_RG, nbt)[newk]] = rg
         oi, oj = P.pi[:nb].copy(), P.pj[:nb].copy()
-        ofs, odf = P.fs[:nb].copy(), P.df[:nb].copy()
         ai = np.concatenate([oi, ni]).astype(np.int32)
         aj = np.concatenate([oj, nj]).astype(np.int32)
         if nbt > P.pi.shape[0]:
             self._alloc_pairs(int(nbt * 1.5) + 8 * self.n)
             P = self.P
         P.pi[:nbt], P.pj[:nbt] = ai, aj
-        P.fs[:nb], P.fs[nb:nbt] = ofs, nfs
-        P.df[:nb], P.df[nb:nbt] = odf, ndf
+        P.fs[:nbt] = 0.0  # bond pairs keep their linear shear force in the blocked state
+        P.df[:nbt] = 0.0
         P.act[:nbt] = 1
         P.slip[:nbt] = np.concatenate([P.slip[:nb], np.zeros(nnew)])
         P.dash[:nbt] = np.concatenate([P.dash[:nb], np.zeros(nnew)])
@@ -549,7 +563,7 @@ class Model:
         rg = np.asarray(rgap, float).reshape(-1)
         if rg.shape != (self.n_bonds,) or not np.all(np.isfinite(rg)):
             raise InputError(f"rgap: expected {self.n_bonds} finite values, got shape {rg.shape}")
-        self.Bd.rgap[:] = rg
+        bb.set_field(self.Bd.blk, bb.S_RG, self.n_bonds, rg)
         self._touch()
 
     def scale_wall_overlaps(self, w: int, factor: float) -> int:
@@ -596,13 +610,20 @@ class Model:
         positive) [N], shear force vector [N], twisting moment [N m], bending moment vector
         [N m], state (0 intact, 1 tension, 2 shear), reference gap of the linear part [m]."""
         Bd = self.Bd
-        return {"fn": Bd.fn.copy(), "fs": Bd.fs.copy(), "mt": Bd.mt.copy(), "mb": Bd.mb.copy(),
-                "state": Bd.state.copy(), "rgap": Bd.rgap.copy()}
+        nb = self.n_bonds
+        g = lambda f: bb.get_field(Bd.blk, f, nb)  # noqa: E731
+        vec = lambda f: np.column_stack([g(f), g(f + 1), g(f + 2)]) if nb else np.zeros((0, 3))  # noqa: E731
+        return {"fn": g(bb.S_FN), "fs": vec(bb.S_SX), "mt": g(bb.S_MT), "mb": vec(bb.S_BX),
+                "state": Bd.state.copy(), "rgap": g(bb.S_RG)}
 
     def linear_shear_forces(self) -> np.ndarray:
         """Shear force vector of the linear component of every listed pair [N]."""
         self._ensure_lists()
-        return self.P.fs[: int(self.iprm[I_NPAIRS])].copy()
+        out = self.P.fs[: int(self.iprm[I_NPAIRS])].copy()
+        nb = self.n_bonds
+        for c in range(3):
+            out[:nb, c] = bb.get_field(self.Bd.blk, bb.S_LX + c, nb)
+        return out
 
     # ------------------------------------------------------------------ running
     def _touch(self):
@@ -695,12 +716,11 @@ class Model:
         free = self.B.fix == 0
         if not free.any():
             return 0.0
-        fu = np.linalg.norm(self.B.force[free], axis=1).mean()
         self.energies()  # current resultant forces (measure pass)
+        fu = np.linalg.norm(self.B.force[free], axis=1).mean()
         fc, cnt = K.contact_force_mean(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                                        self.P.fs, int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]),
-                                       self.Bd.state, self.Bd.fn, self.Bd.fs, self.Bd.rgap,
-                                       self.prm)
+                                       self.Bd.state, self.Bd.blk, self.prm)
         if cnt == 0 or fc == 0.0:
             return math.inf if fu > 0 else 0.0
         return float(fu / fc)
@@ -710,7 +730,7 @@ class Model:
         self._ensure_lists()
         return K.coordination(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                               int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]), self.Bd.state,
-                              self.Bd.rgap, self.B.fix)
+                              self.Bd.blk)
 
     def ball_forces(self) -> tuple[np.ndarray, np.ndarray]:
         """Resultant force (contacts + gravity) [N] and moment [N m] on every ball at the
