@@ -1,0 +1,715 @@
+"""Calibration of the meso-parameters from laboratory targets (paper section 4.2):
+inversion of the regression models, bootstrap uncertainty and a closed-loop corrector.
+
+Parametrisation (shared by everything here)
+    The parameters of a calibration are split into *fixed* ones (paper: ``porosity`` 0.34,
+    ``rmin_mm`` 0.8, ``pb_fa_deg`` and ``fric`` at configured values), *free* ones (default
+    ``pb_emod_GPa``, ``pb_kratio``, ``pb_coh_MPa``) and, with a bond-strength ratio
+    ``a = σcp/τcp`` (``ratio``, default 1.4 as in the paper; ``None`` = both strengths
+    free), the *derived* ``pb_ten_MPa = ratio × pb_coh_MPa``. Free parameters are bounded
+    by the Table 2 ranges unless ``bounds`` says otherwise; with the ratio the bounds of
+    ``pb_coh_MPa`` are intersected with those of ``pb_ten_MPa`` divided by the ratio (for
+    a = 1.4: 10-35.71 MPa), so the derived value stays in its range too. Internally the
+    free parameters are mapped to the unit cube ``u = (x - lo) / (hi - lo)``.
+
+Inversion (:func:`invert`)
+    Minimise Σ_k r_k² with relative residuals ``r_k = (model_k(x) - target_k) / |target_k|``
+    over the bounded free parameters (``scipy.optimize.least_squares``, method ``trf``,
+    analytic Jacobian from the models' partial derivatives), from a seeded Latin-hypercube
+    set of starting points (plus any given ``x0``). Outcomes (``status``):
+
+    ``"ok"``           max |r_k| <= ``tol`` (default 1e-3) and a single solution;
+    ``"non-unique"``   several solutions, more than ``distinct`` (default 2 %) of a range apart
+                       in some free parameter, fit within ``tol`` (all listed in
+                       ``alternatives``; with more free parameters than targets there is a
+                       continuum and the list samples it);
+    ``"unreachable"``  the best fit has residuals above ``tol`` with a parameter on a bound:
+                       the targets lie outside what the sampled ranges can reach. The
+                       returned point is the closest one inside the bounds and is *not* a
+                       calibration (``ok`` is False, ``message`` says which bound);
+    ``"no-exact-fit"`` residuals above ``tol`` at an interior optimum (the models cannot meet
+                       all targets at once, e.g. more targets than free parameters).
+
+    Multi-start finds separate solutions only if some start lies in each basin; 24 starts
+    are ample for the low-order polynomials of the stepwise models.
+
+Bootstrap (:func:`bootstrap_intervals`)
+    Case resampling of the usable dataset rows (n rows drawn with replacement, ``n_boot``
+    times, seeded). In each resample every model is refitted by least squares *with the
+    terms selected on the full data* (model-selection uncertainty is then not included;
+    pass ``reselect=StepwiseRegression(...)`` and ``candidates`` to re-run the selection in
+    each resample instead), and the targets are inverted again, warm-started from the
+    full-data solution (so a resample follows the same branch when the inversion is
+    non-unique). Percentile intervals (default 2.5-97.5 %) are reported for every
+    calibrated (free and derived) parameter over the resamples whose inversion reached the
+    targets, and for every response the model predicts at the full-data solution (the
+    regression uncertainty of the predicted responses).
+
+Closed loop (:class:`ClosedLoop`)
+    The regression models only approximate the DEM, so their solution is corrected with the
+    DEM itself. Each round: ``simulate(params)`` → relative errors ``e_k`` → stop if every
+    ``|e_k| <= rtol_k`` (default 0.01) → otherwise a damped Newton step in the unit-cube
+    coordinates, ``Δu = -damping · J⁺ e`` (``J⁺`` the pseudo-inverse; damping default 0.8),
+    shortened so that no parameter moves by more than ``max_step`` (default 0.25) of its
+    range, then projected onto the bounds (the ratio constraint holds by construction).
+    The initial Jacobian ``J`` of the relative errors is the regression models' analytic
+    Jacobian at the starting point; after each new simulation it is corrected by
+    Broyden's ("good") secant update ``J += (Δe - J s) sᵀ / (sᵀ s)`` with the step ``s``
+    actually taken. Every round (parameters, simulated responses, errors, step) is recorded.
+    :func:`seed_scatter` judges whether a tolerance is meaningful given the packing-seed
+    scatter of the DEM responses.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import least_squares
+from scipy.stats import qmc
+
+from bpmcal.params import PARAMS, TARGETS, ParameterError, validate_params
+
+from ._common import check_params, check_responses, seed_from, usable_rows
+from .stepwise import RegressionModel, StepwiseRegression
+
+PAPER_RATIO = 1.4
+PAPER_FIXED: dict[str, float] = {"porosity": 0.34, "rmin_mm": 0.8}
+DEFAULT_FREE: tuple[str, ...] = ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa")
+_TEN, _COH = "pb_ten_MPa", "pb_coh_MPa"
+_EDGE = 1e-6  # |u| or |1 - u| below this counts as "on the bound"
+
+
+# -- parametrisation ------------------------------------------------------------------------
+def _default_free(free: Sequence[str] | None, ratio: float | None) -> tuple[str, ...]:
+    if free is not None:
+        return tuple(free)
+    return DEFAULT_FREE if ratio is not None else DEFAULT_FREE + (_TEN,)
+
+
+class _Space:
+    """Free parameters <-> unit cube, with fixed values and the strength-ratio constraint."""
+
+    def __init__(self, free, fixed: Mapping[str, float], ratio: float | None,
+                 bounds: Mapping[str, Sequence[float]] | None):
+        if ratio is not None:
+            ratio = float(ratio)
+            if not (math.isfinite(ratio) and ratio > 0):
+                raise ParameterError(f"ratio={ratio!r}: expected a positive number σcp/τcp (or None)")
+        self.ratio = ratio
+        self.free = check_params(_default_free(free, ratio), "free parameter")
+        if not self.free:
+            raise ParameterError("no free parameter: expected at least one name in free")
+        self.fixed = validate_params(dict(fixed), require_all=False)
+        both = sorted(set(self.free) & set(self.fixed))
+        if both:
+            raise ParameterError(f"parameter(s) {both} are both free and fixed")
+        if ratio is not None:
+            if _TEN in self.free or _TEN in self.fixed:
+                raise ParameterError(f"{_TEN} is derived as ratio × {_COH} (ratio={ratio:g}); remove it from "
+                                     "free/fixed or pass ratio=None")
+            if _COH not in self.free and _COH not in self.fixed:
+                raise ParameterError(f"the strength ratio needs {_COH} to be free or fixed")
+        box = {p: (PARAMS[p].lo, PARAMS[p].hi) for p in PARAMS}
+        for name, b in (bounds or {}).items():
+            check_params([name], "bounded parameter")
+            lo, hi = (float(v) for v in b)
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ParameterError(f"bounds[{name!r}]={tuple(b)!r}: expected finite (lo, hi) with lo < hi")
+            box[name] = (lo, hi)
+        lo = np.array([box[p][0] for p in self.free])
+        hi = np.array([box[p][1] for p in self.free])
+        if ratio is not None and _COH in self.free:
+            j = self.free.index(_COH)
+            lo[j], hi[j] = max(lo[j], box[_TEN][0] / ratio), min(hi[j], box[_TEN][1] / ratio)
+            if not lo[j] < hi[j]:
+                raise ParameterError(f"no {_COH} in {box[_COH]} gives {_TEN} = {ratio:g} × {_COH} inside "
+                                     f"{box[_TEN]}")
+        if ratio is not None and _COH in self.fixed:
+            ten = ratio * self.fixed[_COH]
+            if not box[_TEN][0] <= ten <= box[_TEN][1]:
+                raise ParameterError(f"{_TEN} = {ratio:g} × {self.fixed[_COH]:g} = {ten:g} is outside its "
+                                     f"bounds {box[_TEN]}")
+        self.lo, self.hi = lo, hi
+        self.width = hi - lo
+
+    @property
+    def derived(self) -> tuple[str, ...]:
+        return (_TEN,) if self.ratio is not None else ()
+
+    @property
+    def calibrated(self) -> tuple[str, ...]:
+        """Free and derived parameters (what a calibration determines)."""
+        return self.free + self.derived
+
+    def bounds(self) -> dict[str, tuple[float, float]]:
+        """Effective bounds of the free parameters and of the derived ``pb_ten_MPa``."""
+        out = {p: (float(a), float(b)) for p, a, b in zip(self.free, self.lo, self.hi)}
+        if self.ratio is not None and _COH in out:
+            out[_TEN] = (self.ratio * out[_COH][0], self.ratio * out[_COH][1])
+        return out
+
+    def x(self, u: np.ndarray) -> np.ndarray:
+        return self.lo + np.asarray(u, float) * self.width
+
+    def u(self, x: np.ndarray) -> np.ndarray:
+        return (np.asarray(x, float) - self.lo) / self.width
+
+    def full(self, x: np.ndarray) -> dict[str, float]:
+        out = dict(self.fixed)
+        out.update(zip(self.free, (float(v) for v in x)))
+        if self.ratio is not None:
+            out[_TEN] = self.ratio * out[_COH]
+        return out
+
+    def free_values(self, params: Mapping[str, float]) -> np.ndarray:
+        missing = [p for p in self.free if p not in params]
+        if missing:
+            raise ParameterError(f"missing free parameter(s) {missing}")
+        return np.array([float(params[p]) for p in self.free])
+
+    def check_models(self, models: Mapping[str, RegressionModel], responses: Sequence[str]) -> None:
+        known = set(self.fixed) | set(self.free) | set(self.derived)
+        for r in responses:
+            missing = [p for p in models[r].params if p not in known]
+            if missing:
+                raise ParameterError(f"the {r} model needs {missing}: give them in fixed or free")
+
+    def jacobian(self, models: Mapping[str, RegressionModel], responses: Sequence[str], x) -> np.ndarray:
+        """∂model_k/∂x_j (physical units), chain rule through the ratio constraint."""
+        point = self.full(x)
+        J = np.zeros((len(responses), len(self.free)))
+        for k, r in enumerate(responses):
+            grad = models[r].gradient(point)
+            for j, p in enumerate(self.free):
+                J[k, j] = grad.get(p, 0.0)
+                if p == _COH and self.ratio is not None:
+                    J[k, j] += self.ratio * grad.get(_TEN, 0.0)
+        return J
+
+    def at_bound(self, u: np.ndarray) -> list[tuple[str, str, float]]:
+        out = []
+        for j, p in enumerate(self.free):
+            if u[j] <= _EDGE:
+                out.append((p, "lower", float(self.lo[j])))
+            elif u[j] >= 1 - _EDGE:
+                out.append((p, "upper", float(self.hi[j])))
+        return out
+
+
+def _check_targets(targets: Mapping[str, float], models: Mapping[str, RegressionModel] | None
+                   ) -> tuple[tuple[str, ...], np.ndarray]:
+    responses = check_responses(targets)
+    if not responses:
+        raise ValueError("targets is empty: expected e.g. {'ucs_MPa': ..., 'E_GPa': ..., 'nu': ...}")
+    t = np.array([float(targets[r]) for r in responses])
+    bad = [f"{r}={targets[r]!r}" for r, v in zip(responses, t) if not (math.isfinite(v) and v != 0)]
+    if bad:
+        raise ValueError(f"target(s) {bad}: expected finite non-zero values (errors are relative)")
+    if models is not None:
+        missing = [r for r in responses if r not in models]
+        if missing:
+            raise ValueError(f"no regression model for target(s) {missing}; models given: {list(models)}")
+    return responses, t
+
+
+def _fmt_pct(responses, r) -> str:
+    return ", ".join(f"{name} {100 * v:+.2f} %" for name, v in zip(responses, r))
+
+
+# -- inversion ------------------------------------------------------------------------------
+@dataclass
+class InversionResult:
+    """Outcome of :func:`invert` (see the module docstring for ``status``).
+
+    ``solution`` holds every parameter (fixed, free, derived) of the best fit;
+    ``alternatives`` one row per distinct solution that fits equally well (best first);
+    ``starts`` the end point of every start.
+    """
+
+    status: str
+    message: str
+    solution: dict[str, float]
+    free: tuple[str, ...]
+    derived: tuple[str, ...]
+    targets: dict[str, float]
+    predicted: dict[str, float]
+    residuals: dict[str, float]  # relative
+    bounds: dict[str, tuple[float, float]]
+    at_bound: list[tuple[str, str, float]]
+    alternatives: pd.DataFrame
+    starts: pd.DataFrame
+    tol: float
+
+    @property
+    def ok(self) -> bool:
+        """True when the targets are met within ``tol`` by a single parameter set."""
+        return self.status == "ok"
+
+    @property
+    def reachable(self) -> bool:
+        return self.status in ("ok", "non-unique")
+
+    @property
+    def unique(self) -> bool:
+        return len(self.alternatives) <= 1
+
+    @property
+    def max_abs_residual(self) -> float:
+        return max(abs(v) for v in self.residuals.values())
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per parameter: value, role (fixed/free/derived), lower and upper bound."""
+        recs = []
+        for p, v in self.solution.items():
+            role = "free" if p in self.free else ("derived" if p in self.derived else "fixed")
+            lo, hi = self.bounds.get(p, (np.nan, np.nan))
+            recs.append({"parameter": p, "value": v, "role": role, "lower": lo, "upper": hi})
+        return pd.DataFrame.from_records(recs).set_index("parameter")
+
+    def responses_frame(self) -> pd.DataFrame:
+        """One row per target: target, predicted, relative residual."""
+        return pd.DataFrame({"target": self.targets, "predicted": self.predicted,
+                             "rel_residual": self.residuals})
+
+    def summary(self) -> str:
+        return "\n".join([f"Inversion: {self.status} - {self.message}", "", self.to_frame().to_string(), "",
+                          self.responses_frame().to_string(), "",
+                          f"{len(self.alternatives)} distinct solution(s):", self.alternatives.to_string()])
+
+
+def _lhs(n: int, d: int, seed: int) -> np.ndarray:
+    return qmc.LatinHypercube(d=d, seed=np.random.default_rng(seed)).random(n) if n > 0 else np.empty((0, d))
+
+
+def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], fixed: Mapping[str, float],
+           free: Sequence[str] | None = None, bounds: Mapping[str, Sequence[float]] | None = None,
+           ratio: float | None = PAPER_RATIO, *, n_starts: int = 24, seed: int = 0, tol: float = 1e-3,
+           distinct: float = 0.02, x0: Sequence[Mapping[str, float]] = ()) -> InversionResult:
+    """Solve the regression models for the free parameters that reproduce ``targets``.
+
+    Parameters
+    ----------
+    models:
+        response -> :class:`RegressionModel` (e.g. ``StepwiseResults.final_models``).
+    targets:
+        response -> laboratory value, e.g. ``{"ucs_MPa": 62.1, "E_GPa": 14.07, "nu": 0.267}``.
+    fixed:
+        parameter -> value for the parameters held fixed (paper: :data:`PAPER_FIXED` plus
+        ``pb_fa_deg`` and ``fric``).
+    free:
+        parameters to solve for (default :data:`DEFAULT_FREE`, plus ``pb_ten_MPa`` when
+        ``ratio`` is None).
+    bounds:
+        parameter -> (lo, hi) overriding the Table 2 ranges.
+    ratio:
+        ``pb_ten_MPa / pb_coh_MPa`` (default 1.4), or None for independent strengths.
+    n_starts, seed:
+        Latin-hypercube starting points in the free-parameter box (seeded).
+    tol:
+        Largest relative residual that counts as meeting the targets.
+    distinct:
+        Solutions further apart than this fraction of a range (in some free parameter)
+        are distinct.
+    x0:
+        Extra starting points (mappings holding the free parameters), tried first.
+    """
+    space = _Space(free, fixed, ratio, bounds)
+    responses, t = _check_targets(targets, models)
+    space.check_models(models, responses)
+    if not tol > 0 or not distinct > 0:
+        raise ValueError(f"tol={tol!r}, distinct={distinct!r}: expected positive numbers")
+    scale = np.abs(t)
+
+    def resid(u):
+        point = space.full(space.x(u))
+        return (np.array([models[r].predict(point) for r in responses]) - t) / scale
+
+    def jac(u):
+        return space.jacobian(models, responses, space.x(u)) * space.width / scale[:, None]
+
+    starts = [np.clip(space.u(space.free_values(p)), 0.0, 1.0) for p in x0]
+    starts += list(_lhs(int(n_starts), len(space.free), seed))
+    if not starts:
+        raise ValueError("no starting point: expected n_starts > 0 or x0")
+    fits = []
+    for u0 in starts:
+        sol = least_squares(resid, u0, jac=jac, bounds=(0.0, 1.0), method="trf", xtol=1e-12, ftol=1e-12,
+                            gtol=1e-12)
+        u = np.clip(sol.x, 0.0, 1.0)
+        r = resid(u)
+        fits.append((float(r @ r), float(np.max(np.abs(r))), u, r))
+    fits.sort(key=lambda f: f[0])
+    best_cost, best_max, best_u, best_r = fits[0]
+    reachable = best_max <= tol
+    good = [f for f in fits if (f[1] <= tol if reachable else f[0] <= best_cost * (1 + 1e-6) + 1e-14)]
+    kept: list[tuple] = []
+    for f in good:
+        if all(np.max(np.abs(f[2] - k[2])) > distinct for k in kept):
+            kept.append(f)
+
+    def row(f):
+        point = space.full(space.x(f[2]))
+        rec = {p: point[p] for p in space.calibrated}
+        rec.update({r: float(models[r].predict(point)) for r in responses})
+        rec.update(max_abs_residual=f[1], sum_sq=f[0])
+        return rec
+
+    alternatives = pd.DataFrame.from_records([row(f) for f in kept])
+    start_frame = pd.DataFrame.from_records([row(f) for f in fits])
+    solution = space.full(space.x(best_u))
+    edges = space.at_bound(best_u)
+    if reachable and len(kept) == 1:
+        status, message = "ok", f"targets met within {tol:g} (relative): {_fmt_pct(responses, best_r)}"
+    elif reachable:
+        extra = (f"; {len(space.free)} free parameters for {len(responses)} targets: a continuum of solutions"
+                 if len(space.free) > len(responses) else "")
+        status = "non-unique"
+        message = (f"{len(kept)} distinct parameter sets meet the targets within {tol:g}{extra}; "
+                   "see alternatives (the best-fitting one is returned)")
+    elif edges:
+        where = ", ".join(f"{p} at its {side} bound {v:g}"
+                          + (f" ({_TEN} = {solution[_TEN]:g})" if p == _COH and space.ratio else "")
+                          for p, side, v in edges)
+        status = "unreachable"
+        message = (f"targets lie outside what the sampled ranges can reach: the closest point inside the "
+                   f"bounds has {where} and relative residuals {_fmt_pct(responses, best_r)}; "
+                   "this point is not a calibration")
+    else:
+        status = "no-exact-fit"
+        message = (f"the models cannot meet all targets at once (interior optimum, relative residuals "
+                   f"{_fmt_pct(responses, best_r)} exceed {tol:g})")
+    return InversionResult(
+        status=status, message=message, solution=solution, free=space.free, derived=space.derived,
+        targets=dict(zip(responses, t.tolist())),
+        predicted={r: float(models[r].predict(solution)) for r in responses},
+        residuals=dict(zip(responses, best_r.tolist())),
+        bounds=space.bounds(),
+        at_bound=edges, alternatives=alternatives, starts=start_frame, tol=tol)
+
+
+# -- bootstrap ------------------------------------------------------------------------------
+@dataclass
+class BootstrapResults:
+    """Outcome of :func:`bootstrap_intervals`.
+
+    ``intervals``: one row per calibrated parameter (kind ``parameter``) and per response
+    predicted at the full-data solution (kind ``response``): full-data estimate, bootstrap
+    median, std, lower and upper percentile bound, number of resamples used. ``draws``: one
+    row per resample. ``base``: the full-data :class:`InversionResult`.
+    """
+
+    base: InversionResult
+    intervals: pd.DataFrame
+    draws: pd.DataFrame
+    level: float
+    scheme: str
+    rows: dict[str, int]
+
+    @property
+    def n_unreachable(self) -> int:
+        return int((~self.draws["reachable"]).sum())
+
+    def to_frame(self) -> pd.DataFrame:
+        return self.intervals
+
+    def summary(self) -> str:
+        return "\n".join([
+            f"Bootstrap ({self.scheme}): {len(self.draws)} resamples of {self.rows['n_used']} rows "
+            f"({self.rows['n_dropped']} dropped), {100 * self.level:g} % percentile intervals; "
+            f"{self.n_unreachable} resample(s) did not reach the targets and are excluded",
+            f"full-data inversion: {self.base.status} - {self.base.message}", "", self.intervals.to_string()])
+
+
+def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel], targets: Mapping[str, float],
+                        fixed: Mapping[str, float], free: Sequence[str] | None = None,
+                        bounds: Mapping[str, Sequence[float]] | None = None,
+                        ratio: float | None = PAPER_RATIO, *, n_boot: int = 1000, level: float = 0.95,
+                        seed: int = 0,
+                        reselect: StepwiseRegression | None = None,
+                        candidates: Mapping[str, Sequence[str]] | None = None, n_starts: int = 0,
+                        tol: float = 1e-3) -> BootstrapResults:
+    """Case-resampling bootstrap of the calibration (see the module docstring).
+
+    ``models`` are the full-data models whose terms are refitted in every resample (or,
+    with ``reselect``, re-selected from ``candidates``; use ``cv_folds=0`` there for
+    speed). Each resample's inversion starts from the full-data solution plus ``n_starts``
+    Latin-hypercube points.
+    """
+    if not isinstance(n_boot, (int, np.integer)) or n_boot < 2:
+        raise ValueError(f"n_boot={n_boot!r}: expected an integer >= 2")
+    if not 0.0 < level < 1.0:
+        raise ValueError(f"level={level!r}: expected a probability in (0, 1), e.g. 0.95")
+    if reselect is not None and not candidates:
+        raise ValueError("reselect needs candidates (response -> screened parameters)")
+    responses, _ = _check_targets(targets, models)
+    needed = list(dict.fromkeys([p for r in responses for p in models[r].params] + list(responses)
+                                + [p for c in (candidates or {}).values() for p in c]))
+    rows = usable_rows(df, needed)
+    data = rows.data
+    rng = np.random.default_rng(seed)
+    base = invert(models, targets, fixed, free, bounds, ratio, seed=seed_from(rng), tol=tol)
+    designs = {r: (models[r].design(data), data[r].to_numpy(float)) for r in responses}
+    start = [{p: base.solution[p] for p in base.free}]
+    recs = []
+    for b in range(int(n_boot)):
+        idx = rng.integers(0, len(data), len(data))
+        if reselect is None:
+            boot = {}
+            for r in responses:
+                X, y = designs[r]
+                A = np.column_stack([np.ones(len(idx)), X[idx]])
+                beta = np.linalg.lstsq(A, y[idx], rcond=None)[0]
+                boot[r] = models[r].with_coefficients(beta[0], beta[1:])
+        else:
+            boot = reselect.fit(data.iloc[idx], {r: candidates[r] for r in responses}).final_models
+        inv = invert(boot, targets, fixed, free, bounds, ratio, n_starts=n_starts, seed=seed_from(rng),
+                     tol=tol, x0=start)
+        rec = {"resample": b, "status": inv.status, "reachable": inv.reachable}
+        rec.update({p: inv.solution[p] for p in inv.free + inv.derived})
+        rec.update({f"{r}@estimate": float(boot[r].predict(base.solution)) for r in responses})
+        recs.append(rec)
+    draws = pd.DataFrame.from_records(recs)
+    q = [(1 - level) / 2, 1 - (1 - level) / 2]
+    out = []
+    quantities = [(p, "parameter", base.solution[p], p) for p in base.free + base.derived]
+    quantities += [(r, "response", base.predicted[r], f"{r}@estimate") for r in responses]
+    used = draws[draws["reachable"]]
+    for name, kind, est, col in quantities:
+        v = (used if kind == "parameter" else draws)[col].to_numpy(float)
+        lo, hi = np.quantile(v, q) if len(v) else (np.nan, np.nan)
+        out.append({"quantity": name, "kind": kind, "estimate": est,
+                    "median": np.median(v) if len(v) else np.nan,
+                    "std": np.std(v, ddof=1) if len(v) > 1 else np.nan,
+                    "lower": lo, "upper": hi, "n": len(v)})
+    scheme = ("case resampling, selection re-run in every resample" if reselect is not None
+              else "case resampling, terms fixed at the full-data selection")
+    return BootstrapResults(base=base, intervals=pd.DataFrame.from_records(out).set_index("quantity"),
+                            draws=draws, level=float(level), scheme=scheme, rows=rows.describe())
+
+
+# -- closed loop ----------------------------------------------------------------------------
+@dataclass
+class ClosedLoopResult:
+    """Outcome of :meth:`ClosedLoop.run`.
+
+    ``status``: ``"converged"``, ``"max_rounds"``, ``"stalled"`` (the step was blocked by
+    the bounds) or ``"failed"`` (a simulation returned no finite value). ``params`` and
+    ``responses`` are those of the best round (smallest max |error|), which is the last one
+    when converged. ``history`` has one row per simulation; ``jacobian`` is the final
+    Broyden estimate of ∂response/∂parameter in physical units.
+    """
+
+    status: str
+    message: str
+    history: pd.DataFrame
+    params: dict[str, float]
+    responses: dict[str, float]
+    jacobian: pd.DataFrame
+
+    @property
+    def converged(self) -> bool:
+        return self.status == "converged"
+
+    @property
+    def n_rounds(self) -> int:
+        return len(self.history)
+
+    def to_frame(self) -> pd.DataFrame:
+        return self.history
+
+    def summary(self) -> str:
+        head = f"Closed loop: {self.status} after {self.n_rounds} simulation(s) - {self.message}"
+        return "\n".join([head, "", self.history.to_string(index=False)])
+
+
+class ClosedLoop:
+    """Newton-Broyden closed-loop correction of a calibration with the simulator itself.
+
+    Parameters
+    ----------
+    simulate:
+        ``simulate(params) -> {response: value, ...}`` for a full parameter dict (paper
+        units), e.g. one DEM UCS test; must return every target response.
+    targets:
+        response -> laboratory value.
+    free, ratio, bounds:
+        As for :func:`invert`; every other parameter of the initial set stays fixed.
+    models:
+        Regression models whose analytic Jacobian at the initial point starts the Broyden
+        updates (alternatively ``jacobian``: DataFrame responses × free parameters,
+        ∂response/∂parameter in physical units).
+    rtol:
+        Relative tolerance, one number or response -> number (default 0.01).
+    max_rounds:
+        Maximum number of simulations (default 6).
+    damping, max_step:
+        Newton step factor (default 0.8) and cap on the move of any parameter per round
+        as a fraction of its range (default 0.25).
+    broyden:
+        Update the Jacobian by Broyden's secant rule (default True).
+    """
+
+    def __init__(self, simulate: Callable[[dict], Mapping[str, float]], targets: Mapping[str, float], *,
+                 free: Sequence[str] | None = None, ratio: float | None = PAPER_RATIO,
+                 bounds: Mapping[str, Sequence[float]] | None = None,
+                 models: Mapping[str, RegressionModel] | None = None, jacobian: pd.DataFrame | None = None,
+                 rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 6, damping: float = 0.8,
+                 max_step: float = 0.25, broyden: bool = True):
+        if not callable(simulate):
+            raise TypeError(f"simulate={simulate!r}: expected a callable params -> responses")
+        self.responses, self.t = _check_targets(targets, models)
+        if (models is None) == (jacobian is None):
+            raise ValueError("give exactly one of models (analytic Jacobian) or jacobian")
+        rt = {r: float(rtol[r] if isinstance(rtol, Mapping) else rtol) for r in self.responses}
+        if not all(v > 0 for v in rt.values()):
+            raise ValueError(f"rtol={rtol!r}: expected positive relative tolerance(s)")
+        if not isinstance(max_rounds, (int, np.integer)) or max_rounds < 1:
+            raise ValueError(f"max_rounds={max_rounds!r}: expected an integer >= 1")
+        if not 0 < damping <= 1:
+            raise ValueError(f"damping={damping!r}: expected a factor in (0, 1]")
+        if not 0 < max_step <= 1:
+            raise ValueError(f"max_step={max_step!r}: expected a fraction of the range in (0, 1]")
+        self.simulate = simulate
+        self.free, self.ratio, self.bounds = free, ratio, bounds
+        self.models, self.jacobian = models, jacobian
+        self.rtol = np.array([rt[r] for r in self.responses])
+        self.max_rounds, self.damping, self.max_step = int(max_rounds), float(damping), float(max_step)
+        self.broyden = bool(broyden)
+
+    def _space(self, initial: Mapping[str, float]) -> _Space:
+        free = _default_free(self.free, self.ratio)
+        derived = (_TEN,) if self.ratio is not None else ()
+        fixed = {k: v for k, v in initial.items() if k not in free and k not in derived}
+        space = _Space(free, fixed, self.ratio, self.bounds)
+        if self.ratio is not None and _TEN in initial and _COH in initial:
+            if not math.isclose(float(initial[_TEN]), self.ratio * float(initial[_COH]), rel_tol=1e-9):
+                raise ParameterError(f"initial {_TEN}={initial[_TEN]!r} differs from ratio × {_COH} = "
+                                     f"{self.ratio:g} × {initial[_COH]!r}")
+        return space
+
+    def _initial_jacobian(self, space: _Space, x: np.ndarray) -> np.ndarray:
+        if self.models is not None:
+            space.check_models(self.models, self.responses)
+            Jx = space.jacobian(self.models, self.responses, x)
+        else:
+            jac = pd.DataFrame(self.jacobian)
+            missing = [r for r in self.responses if r not in jac.index] + [p for p in space.free
+                                                                          if p not in jac.columns]
+            if missing:
+                raise ValueError(f"jacobian lacks {missing}: expected rows {list(self.responses)} and "
+                                 f"columns {list(space.free)}")
+            Jx = jac.loc[list(self.responses), list(space.free)].to_numpy(float)
+        return Jx * space.width / np.abs(self.t)[:, None]
+
+    def _simulate(self, params: dict[str, float]) -> np.ndarray:
+        out = self.simulate(dict(params))
+        return np.array([float(out.get(r, np.nan)) if out is not None else np.nan for r in self.responses])
+
+    def run(self, initial: Mapping[str, float]) -> ClosedLoopResult:
+        """Iterate from ``initial`` (a full parameter set, e.g. ``invert(...).solution``)."""
+        space = self._space(initial)
+        u = space.u(space.free_values(initial))
+        if np.any(u < -1e-12) or np.any(u > 1 + 1e-12):
+            bad = [p for p, v in zip(space.free, u) if not -1e-12 <= v <= 1 + 1e-12]
+            raise ParameterError(f"initial value(s) of {bad} outside the bounds "
+                                 f"{[(float(a), float(b)) for a, b in zip(space.lo, space.hi)]}")
+        u = np.clip(u, 0.0, 1.0)
+        J = self._initial_jacobian(space, space.x(u))
+        scale = np.abs(self.t)
+        history, prev = [], None
+        status, message = "max_rounds", f"tolerance not met within {self.max_rounds} simulations"
+        for rnd in range(self.max_rounds):
+            params = space.full(space.x(u))
+            y = self._simulate(params)
+            rec = {"round": rnd, **{p: params[p] for p in space.calibrated},
+                   **dict(zip(self.responses, y))}
+            if not np.all(np.isfinite(y)):
+                history.append(rec)
+                status = "failed"
+                message = f"simulation {rnd} returned non-finite responses {dict(zip(self.responses, y))}"
+                break
+            e = (y - self.t) / scale
+            rec.update({f"err_{r}": v for r, v in zip(self.responses, e)})
+            rec["max_abs_err"] = float(np.max(np.abs(e)))
+            updated = False
+            if prev is not None and self.broyden:
+                s, de = u - prev[0], e - prev[1]
+                if s @ s > 1e-16:
+                    J = J + np.outer(de - J @ s, s) / (s @ s)
+                    updated = True
+            rec["broyden_update"] = updated
+            if np.all(np.abs(e) <= self.rtol):
+                history.append(rec)
+                status = "converged"
+                message = f"all relative errors within tolerance after {rnd + 1} simulation(s)"
+                break
+            if rnd == self.max_rounds - 1:
+                history.append(rec)
+                break
+            du = -self.damping * np.linalg.lstsq(J, e, rcond=None)[0]
+            biggest = float(np.max(np.abs(du)))
+            if biggest > self.max_step:
+                du *= self.max_step / biggest
+            u_new = np.clip(u + du, 0.0, 1.0)
+            rec.update({f"step_{p}": v for p, v in zip(space.free, (u_new - u) * space.width)})
+            rec["clipped"] = ",".join(p for p, want, got in zip(space.free, u + du, u_new) if want != got)
+            history.append(rec)
+            if np.max(np.abs(u_new - u)) < 1e-9:
+                edges = ", ".join(f"{p} at its {side} bound {v:g}" for p, side, v in space.at_bound(u))
+                status = "stalled"
+                message = (f"the Newton step points out of the bounds ({edges}); the targets appear "
+                           "unreachable within the parameter ranges")
+                break
+            prev, u = (u, e), u_new
+        hist = pd.DataFrame.from_records(history)
+        if status == "max_rounds" and len(hist) > 1 and hist["clipped"].iloc[-2]:
+            message += (f"; the last step was cut at the bounds of {hist['clipped'].iloc[-2]}: the targets "
+                        "may lie outside what the parameter ranges can reach")
+        finite = hist.dropna(subset=["max_abs_err"]) if "max_abs_err" in hist else hist.iloc[:0]
+        best = hist.loc[finite["max_abs_err"].idxmin()] if len(finite) else hist.iloc[-1]
+        x_best = np.array([best[p] for p in space.free])
+        J_phys = J * scale[:, None] / space.width
+        return ClosedLoopResult(
+            status=status, message=message, history=hist, params=space.full(x_best),
+            responses={r: float(best[r]) for r in self.responses},
+            jacobian=pd.DataFrame(J_phys, index=list(self.responses), columns=list(space.free)))
+
+
+def seed_scatter(sims: pd.DataFrame | Sequence[Mapping[str, float]], rtol: float | Mapping[str, float] = 0.01,
+                 responses: Sequence[str] = TARGETS, n_per_round: int = 1) -> pd.DataFrame:
+    """Judge a closed-loop tolerance against the packing-seed scatter of the simulator.
+
+    ``sims`` holds the responses of ONE parameter set simulated with several packing seeds
+    (one row per seed). Per response: n, mean, sample std (ddof=1), coefficient of variation
+    ``cv = std / |mean|`` (the relative scatter of a single run), the relative standard
+    error of one closed-loop evaluation ``se = cv / sqrt(n_per_round)`` (``n_per_round``
+    seeds averaged per round), the noise floor ``2 se`` and ``noise_limited = rtol < 2 se``:
+    such a tolerance is below the noise - a parameter set that is exactly right would fail
+    it in more than ~5 % of evaluations and the loop would chase noise.
+    """
+    frame = pd.DataFrame(sims) if not isinstance(sims, pd.DataFrame) else sims
+    responses = check_responses(responses)
+    if not isinstance(n_per_round, (int, np.integer)) or n_per_round < 1:
+        raise ValueError(f"n_per_round={n_per_round!r}: expected an integer >= 1")
+    recs = []
+    for r in responses:
+        if r not in frame:
+            raise ValueError(f"sims lacks response {r!r}; it has {list(frame.columns)}")
+        v = pd.to_numeric(frame[r], errors="coerce").to_numpy(float)
+        v = v[np.isfinite(v)]
+        if len(v) < 2:
+            raise ValueError(f"{r}: {len(v)} finite value(s); need at least 2 seeds to estimate the scatter")
+        tol = float(rtol[r] if isinstance(rtol, Mapping) else rtol)
+        mean, std = float(v.mean()), float(v.std(ddof=1))
+        cv = std / abs(mean) if mean != 0 else math.inf
+        se = cv / math.sqrt(n_per_round)
+        recs.append({"response": r, "n": len(v), "mean": mean, "std": std, "cv": cv, "se": se,
+                     "noise_floor": 2 * se, "rtol": tol, "noise_limited": tol < 2 * se})
+    return pd.DataFrame.from_records(recs).set_index("response")
+
+
+__all__ = ["PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "InversionResult", "invert", "BootstrapResults",
+           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "seed_scatter"]
