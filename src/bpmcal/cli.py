@@ -1,0 +1,238 @@
+"""The ``bpmcal`` command: one subcommand per job of the study (workflow rules call these).
+
+    bpmcal ucs --params FILE.yaml --out RUN.h5 [--set NAME=VALUE ...] [--scale S] [--seed N]
+    bpmcal summary RUN.h5 [--json]
+    bpmcal vtk RUN.h5 --out DIR
+
+Parameters are in the paper's units at this edge (mm, GPa, MPa, degrees); the package
+works in SI inside. Bad or missing parameters are reported before any work starts.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+from . import params as P
+
+EXIT_BAD_INPUT = 2
+
+
+class Progress:
+    """A one-line progress bar on a terminal, plain log lines (every ``every`` s) otherwise."""
+
+    def __init__(self, label: str, stream=None, every: float = 10.0, enabled: bool = True):
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty()
+        self.label = label
+        self.every = every
+        self.enabled = enabled
+        self._last = 0.0
+        self._t0 = time.perf_counter()
+
+    def __call__(self, d: dict):
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if not self.tty and now - self._last < self.every:
+            return
+        self._last = now
+        rate = d.get("steps", 0) / max(d.get("wall_s", now - self._t0), 1e-9)
+        line = (f"{self.label}: strain {d.get('strain', 0) * 100:6.3f} %  stress "
+                f"{d.get('stress_MPa', 0):7.2f} MPa (peak {d.get('peak_MPa', 0):7.2f})  cracks "
+                f"{d.get('cracks', 0):6d}  {d.get('steps', 0):8d} steps  {rate:8.0f} steps/s")
+        if self.tty:
+            self.stream.write("\r" + line)
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def done(self, msg: str = ""):
+        if self.enabled and self.tty:
+            self.stream.write("\n")
+        if msg and self.enabled:
+            self.stream.write(msg + "\n")
+            self.stream.flush()
+
+
+def _param_help() -> str:
+    rows = ["meso-parameters (keys of the --params YAML file and of --set; paper units):"]
+    for p in P.PARAMS.values():
+        unit = p.unit or "-"
+        rows.append(f"  {p.name:12s} {p.symbol:9s} [{unit:3s}] Table 2 range {p.lo:g}-{p.hi:g}:"
+                    f" {p.description}")
+    return "\n".join(rows)
+
+
+def _parse_set(items) -> dict:
+    out = {}
+    for it in items or []:
+        if "=" not in it:
+            raise P.ParameterError(f"--set {it!r}: expected NAME=VALUE")
+        k, v = it.split("=", 1)
+        k = k.strip()
+        try:
+            out[k] = float(v)
+        except ValueError:
+            raise P.ParameterError(f"--set {k}={v!r}: expected a number") from None
+    return out
+
+
+def load_params(path, overrides=()) -> dict:
+    """Parameters from a YAML file (flat mapping of the 8 names) plus NAME=VALUE overrides,
+    validated (unknown, missing, non-numeric or out-of-domain values raise)."""
+    import yaml
+
+    d = {}
+    if path is not None:
+        try:
+            with open(path) as f:
+                d = yaml.safe_load(f) or {}
+        except FileNotFoundError:
+            raise P.ParameterError(f"--params {path}: no such file") from None
+        if not isinstance(d, dict):
+            raise P.ParameterError(f"--params {path}: expected a mapping of parameter names "
+                                   "to values")
+    d.update(_parse_set(overrides))
+    return P.validate_params(d)
+
+
+def _positive(name):
+    def conv(s):
+        try:
+            v = float(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a number") from None
+        if not (v > 0 and math.isfinite(v)):
+            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a positive number")
+        return v
+    return conv
+
+
+def _fraction(name):
+    def conv(s):
+        v = _positive(name)(s)
+        if v >= 1:
+            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a fraction in (0, 1)")
+        return v
+    return conv
+
+
+def cmd_ucs(a) -> int:
+    from .lab.runner import Geometry, run_ucs_file
+    from .lab.ucs import UCSSettings
+
+    params = load_params(a.params, a.set)
+    geo = Geometry(scale=a.scale, sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap)
+    st = UCSSettings(platen_velocity=a.platen_velocity, strain_rate=a.strain_rate,
+                     damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
+                     platen_fric=a.platen_fric)
+    if a.threads:
+        from .dem._jit import set_threads
+        set_threads(a.threads)
+    prog = Progress(f"ucs {Path(a.out).name}", enabled=not a.quiet)
+    out = run_ucs_file(a.out, params, a.seed, geo, st, cache=a.specimen_cache, progress=prog)
+    if out.status == "ok":
+        s = out.summary
+        prog.done(f"{a.out}: sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
+                  f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
+                  f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
+                  f"({s['stop_reason']})")
+    else:
+        prog.done(f"{a.out}: FAILED ({out.error}); failure record written")
+    return 0
+
+
+def cmd_summary(a) -> int:
+    from .io.h5 import json_safe, read_summary
+    s = read_summary(a.run)
+    if a.json:
+        print(json.dumps(json_safe(s), sort_keys=True))
+    else:
+        for k in sorted(s):
+            print(f"{k:24s} {s[k]}")
+    return 0
+
+
+def cmd_vtk(a) -> int:
+    from .io.vtk import export_run
+    files = export_run(a.run, a.out)
+    for f in files:
+        print(f)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="bpmcal", description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=f"bpmcal {_version()}")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+
+    u = sub.add_parser("ucs", help="one virtual uniaxial compression test -> HDF5",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       epilog=_param_help())
+    u.add_argument("--params", help="YAML file with the 8 meso-parameters", default=None)
+    u.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
+    u.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="override one parameter (repeatable)")
+    u.add_argument("--scale", type=_positive("scale"), default=1.0,
+                   help="specimen size factor on the 50 x 100 mm cylinder (default 1)")
+    u.add_argument("--seed", type=int, default=1, help="packing seed (default 1)")
+    u.add_argument("--platen-velocity", type=_positive("platen-velocity"), default=0.05,
+                   help="speed of each platen [m/s] (default 0.05)")
+    u.add_argument("--strain-rate", type=_positive("strain-rate"), default=None,
+                   help="axial strain rate [1/s]; overrides --platen-velocity "
+                        "(each platen then moves at rate x H / 2)")
+    u.add_argument("--damping", type=float, default=0.7, help="local damping (default 0.7)")
+    u.add_argument("--stop-drop", type=_fraction("stop-drop"), default=0.7,
+                   help="stop when stress < this fraction of the peak after it (default 0.7)")
+    u.add_argument("--max-strain", type=_positive("max-strain"), default=0.03,
+                   help="stop at this axial strain (default 0.03)")
+    u.add_argument("--platen-fric", type=float, default=0.0,
+                   help="platen friction coefficient (default 0, frictionless)")
+    u.add_argument("--sigma0", type=float, default=0.1,
+                   help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
+    u.add_argument("--install-gap", type=float, default=0.0,
+                   help="bond pairs with surface gap <= this [mm] (default 0)")
+    u.add_argument("--threads", type=int, default=None, help="numba threads")
+    u.add_argument("--specimen-cache", default=None,
+                   help="directory of cached packings (default ~/.cache/bpmcal/packings or "
+                        "$BPMCAL_SPECIMEN_CACHE)")
+    u.add_argument("--quiet", action="store_true", help="no progress output")
+    u.set_defaults(func=cmd_ucs)
+
+    s = sub.add_parser("summary", help="print the summary attributes of a run file")
+    s.add_argument("run")
+    s.add_argument("--json", action="store_true", help="one JSON object")
+    s.set_defaults(func=cmd_summary)
+
+    v = sub.add_parser("vtk", help="export particles and cracks of a run for ParaView")
+    v.add_argument("run")
+    v.add_argument("--out", required=True, help="output directory")
+    v.set_defaults(func=cmd_vtk)
+    return ap
+
+
+def _version():
+    from . import __version__
+    return __version__
+
+
+def main(argv=None) -> int:
+    os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
+    ap = build_parser()
+    a = ap.parse_args(argv)
+    from .dem.errors import InputError
+    try:
+        return a.func(a)
+    except (P.ParameterError, InputError) as e:
+        print(f"bpmcal {a.cmd}: error: {e}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""bpmcal.io: HDF5 run files, VTK export, provenance, material cards."""

@@ -1,0 +1,204 @@
+"""One HDF5 file per virtual test run: the schema, an atomic writer and readers.
+
+Layout (``SCHEMA_VERSION`` 1)::
+
+    /                 attrs: schema_version, bpmcal_version, git_commit, created_utc,
+                             test ("ucs" | "impact"), status ("ok" | "failed"), error,
+                             config_hash
+    /inputs           attrs: meso-parameters (paper units, names of params.py), geometry
+                             (diameter_mm, height_mm, scale), seed, test settings
+    /summary          attrs: results (``ucs_MPa``, ``E_GPa``, ``nu``, ``peak_strain``,
+                             ``u_pre_MJm3``, ``cracks_tension``, ``cracks_shear``, ``n_balls``,
+                             ``n_bonds``, ``porosity_achieved``, ``coordination``, ``steps``,
+                             ``wall_s``, ``stop_reason``, ...)
+    /genesis          attrs: the specimen genesis report
+    /series/<name>    1-D datasets, one row per record (attr ``unit``)
+    /cracks/<name>    one row per broken bond: step, time [s], position [m] (n, 3),
+                      normal (n, 3), mode (1 tension, 2 shear), radius [m], energy [J],
+                      sigma, tau, sigma_n [Pa]
+    /particles/initial  position (n, 3) [m], radius (n,) [m]
+    /particles/final    position, velocity, angular_velocity
+    /bonds            i, j, state (0 intact, 1 tension, 2 shear), break_step
+
+A file is written under a temporary name in the same directory and renamed when
+complete, so a file that exists is complete (``write_run``).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .provenance import provenance
+
+SCHEMA_VERSION = 1
+
+#: units of the series columns (SI; strains dimensionless, compression positive)
+SERIES_UNITS = {
+    "step": "", "time": "s", "axial_strain": "", "lateral_strain": "",
+    "volumetric_strain": "", "axial_stress": "Pa", "stress_top": "Pa", "stress_bottom": "Pa",
+    "cracks_tension": "", "cracks_shear": "", "kinetic": "J", "strain_linear": "J",
+    "strain_bond": "J", "slip": "J", "damping": "J", "dashpot": "J", "released": "J",
+    "work_walls": "J", "unbalanced": "",
+}
+
+
+def _attr(v):
+    """A value h5py can store as an attribute (None -> "", dict/list -> JSON)."""
+    if v is None:
+        return ""
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v)
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (list, tuple, dict)):
+        return json.dumps(v)
+    return str(v)
+
+
+def _put_attrs(obj, d: dict):
+    for k, v in d.items():
+        obj.attrs[k] = _attr(v)
+
+
+def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
+              genesis: dict | None = None, series: dict | None = None,
+              cracks: dict | None = None, particles_initial: dict | None = None,
+              particles_final: dict | None = None, bonds: dict | None = None,
+              status: str = "ok", error: str = "", extra: dict | None = None) -> Path:
+    """Write one run atomically (temporary file in the same directory, then rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        with h5py.File(tmp, "w") as f:
+            prov = provenance(inputs)
+            _put_attrs(f, {"schema_version": SCHEMA_VERSION, "test": test, "status": status,
+                           "error": error, **prov})
+            _put_attrs(f.create_group("inputs"), inputs)
+            _put_attrs(f.create_group("summary"), summary or {})
+            _put_attrs(f.create_group("genesis"), genesis or {})
+            if extra:
+                _put_attrs(f.create_group("extra"), extra)
+            if series:
+                g = f.create_group("series")
+                for k, v in series.items():
+                    ds = g.create_dataset(k, data=np.asarray(v), compression="gzip",
+                                          shuffle=True)
+                    ds.attrs["unit"] = SERIES_UNITS.get(k, "")
+            if cracks is not None:
+                g = f.create_group("cracks")
+                for k, v in cracks.items():
+                    g.create_dataset(k, data=np.asarray(v))
+            for name, d in (("initial", particles_initial), ("final", particles_final)):
+                if d:
+                    g = f.require_group("particles").create_group(name)
+                    for k, v in d.items():
+                        g.create_dataset(k, data=np.asarray(v), compression="gzip",
+                                         shuffle=True)
+            if bonds:
+                g = f.create_group("bonds")
+                for k, v in bonds.items():
+                    g.create_dataset(k, data=np.asarray(v), compression="gzip", shuffle=True)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+def _decode(v):
+    if isinstance(v, bytes):
+        v = v.decode()
+    if isinstance(v, np.generic):
+        v = v.item()
+    return v
+
+
+def read_attrs(path, group: str = "/") -> dict:
+    with h5py.File(path, "r") as f:
+        if group not in f:
+            return {}
+        return {k: _decode(v) for k, v in f[group].attrs.items()}
+
+
+def read_summary(path) -> dict:
+    """Summary results plus status/error/test and provenance, as one flat dict."""
+    out = {k: v for k, v in read_attrs(path, "/").items()}
+    out.update(read_attrs(path, "summary"))
+    return out
+
+
+def read_inputs(path) -> dict:
+    return read_attrs(path, "inputs")
+
+
+def read_genesis(path) -> dict:
+    return read_attrs(path, "genesis")
+
+
+def read_series(path):
+    """Time series as a pandas DataFrame (SI units; see ``SERIES_UNITS``)."""
+    import pandas as pd
+    with h5py.File(path, "r") as f:
+        if "series" not in f:
+            return pd.DataFrame()
+        return pd.DataFrame({k: f["series"][k][()] for k in f["series"]})
+
+
+def read_cracks(path):
+    """Crack events as a DataFrame (x, y, z, nx, ny, nz split out)."""
+    import pandas as pd
+    with h5py.File(path, "r") as f:
+        if "cracks" not in f:
+            return pd.DataFrame()
+        g = f["cracks"]
+        d = {}
+        for k in g:
+            v = g[k][()]
+            if v.ndim == 2 and v.shape[1] == 3:
+                names = ("x", "y", "z") if k == "position" else tuple(f"{k}_{c}" for c in "xyz")
+                for c, nm in enumerate(names):
+                    d[nm] = v[:, c]
+            else:
+                d[k] = v
+        return pd.DataFrame(d)
+
+
+def read_particles(path, which: str = "final") -> dict:
+    with h5py.File(path, "r") as f:
+        key = f"particles/{which}"
+        if key not in f:
+            return {}
+        return {k: f[key][k][()] for k in f[key]}
+
+
+def read_bonds(path) -> dict:
+    with h5py.File(path, "r") as f:
+        if "bonds" not in f:
+            return {}
+        return {k: f["bonds"][k][()] for k in f["bonds"]}
+
+
+def json_safe(d: dict) -> dict:
+    """NaN/inf -> None, numpy scalars -> Python, for JSON output."""
+    out = {}
+    for k, v in d.items():
+        v = _decode(v)
+        if isinstance(v, float) and not math.isfinite(v):
+            v = None
+        out[k] = v
+    return out

@@ -1,0 +1,39 @@
+"""Provenance stamped on every output: package version, git commit, time, input hash."""
+from __future__ import annotations
+
+import datetime as _dt
+import functools
+import hashlib
+import json
+import subprocess
+from pathlib import Path
+
+from .. import __version__
+
+
+@functools.lru_cache(maxsize=1)
+def git_commit() -> str:
+    """Commit of the source tree the package runs from ("unknown" outside a checkout);
+    a "+dirty" suffix marks uncommitted changes."""
+    here = Path(__file__).resolve().parent
+    try:
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
+                             text=True, timeout=5)
+        if sha.returncode != 0:
+            return "unknown"
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                               cwd=here, capture_output=True, text=True, timeout=5)
+        return sha.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def config_hash(d: dict) -> str:
+    """Stable short hash of a JSON-able dict (sorted keys)."""
+    return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def provenance(inputs: dict) -> dict:
+    return {"bpmcal_version": __version__, "git_commit": git_commit(),
+            "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "config_hash": config_hash(inputs)}

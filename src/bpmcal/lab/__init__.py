@@ -1,0 +1,1 @@
+"""bpmcal.lab: the virtual rock laboratory (specimen genesis, UCS test, drop-hammer impact)."""

@@ -1,0 +1,231 @@
+"""Uniaxial compression test of a bonded specimen (quasi-static, PFC practice).
+
+Loading: two frictionless (by default) planar platens on the specimen's end faces approach
+each other, each at ``platen_velocity`` (default 0.05 m/s), or at ``strain_rate x H0 / 2``
+when a strain rate is given; local damping 0.7. How quasi-static a test is depends on
+the platen speed, not on the strain rate: the dynamic overstress is ~ rho c v and the
+number of wave transits before the peak is ~ eps_p c / (2 v), both independent of the
+specimen size. Halving 0.05 m/s changes sigma_c by < 1 % and E by < 0.1 % (measured; see
+the README), so a small specimen can be loaded at a higher strain rate than a large one.
+
+Measurements, recorded every ``record_strain`` of axial strain (compression positive):
+
+- axial stress sigma = mean of the two platen forces / initial area pi (D/2)^2;
+- axial strain eps_a = platen approach / initial height H0;
+- lateral strain eps_r = -mean radial displacement / (D/2) of the *surface balls* (those
+  that touched the lateral vessel wall at the end of genesis) whose centres lie within
+  the central band ``lateral_band`` (10-90 %) of the height (compression positive, so
+  expansion is negative); volumetric strain eps_v = eps_a + 2 eps_r;
+- cracks (broken bonds) by mode, the energy terms of the engine.
+
+Results: sigma_c = peak stress; E = least-squares slope of sigma vs eps_a and
+nu = -slope of eps_r vs eps_a over the pre-peak records with 0.4 <= sigma/sigma_c <= 0.6
+(``fit_window``); strain at peak; pre-peak energy density U_p = integral of sigma d eps_a
+from 0 to the peak (trapezoids, the paper's Table 6); crack-initiation stress = sigma when
+the crack count first reaches ``ci_fraction`` (1 %) of the count at peak (at least one).
+The test stops when sigma falls below ``stop_drop`` (70 %) of the peak after the peak, at
+``max_strain``, or after ``max_steps``; ``stop_reason`` says which.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..dem.errors import InputError
+from ..dem.layout import BOND_SHEAR, BOND_TENSION
+from .specimen import Specimen
+
+#: columns of the recorded time series
+SERIES = ("step", "time", "axial_strain", "lateral_strain", "volumetric_strain",
+          "axial_stress", "stress_top", "stress_bottom", "cracks_tension", "cracks_shear",
+          "kinetic", "strain_linear", "strain_bond", "slip", "damping", "dashpot",
+          "released", "work_walls", "unbalanced")
+
+
+@dataclass(frozen=True)
+class UCSSettings:
+    platen_velocity: float = 0.05  # m/s, each platen (used when strain_rate is None)
+    strain_rate: float | None = None  # 1/s; if given, each platen moves at rate * H0 / 2
+    damping: float = 0.7
+    platen_fric: float = 0.0
+    stop_drop: float = 0.7  # stop when stress < stop_drop * peak after the peak
+    max_strain: float = 0.03
+    max_steps: int = 3_000_000
+    record_strain: float = 2e-5  # axial strain between records
+    fit_window: tuple = (0.4, 0.6)
+    ci_fraction: float = 0.01
+    lateral_band: tuple = (0.1, 0.9)
+    post_peak_min: float = 0.002  # also require this much strain past the peak to stop
+
+    def __post_init__(self):
+        if self.strain_rate is not None and not (self.strain_rate > 0
+                                                 and math.isfinite(self.strain_rate)):
+            raise InputError(f"strain_rate={self.strain_rate!r}: expected a positive rate in 1/s")
+        if not (self.platen_velocity > 0 and math.isfinite(self.platen_velocity)):
+            raise InputError(f"platen_velocity={self.platen_velocity!r}: expected a positive "
+                             "speed in m/s")
+        if not (0.0 <= self.damping < 1.0):
+            raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
+        if not (0.0 < self.stop_drop < 1.0):
+            raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
+        if not (0.0 < self.max_strain <= 0.5):
+            raise InputError(f"max_strain={self.max_strain!r}: expected a strain in (0, 0.5]")
+        lo, hi = self.fit_window
+        if not (0.0 <= lo < hi <= 1.0):
+            raise InputError(f"fit_window={self.fit_window!r}: expected 0 <= lo < hi <= 1")
+        if not (self.record_strain > 0):
+            raise InputError(f"record_strain={self.record_strain!r}: expected > 0")
+
+
+@dataclass
+class UCSResult:
+    summary: dict
+    series: dict  # column -> np.ndarray
+    cracks: dict  # event arrays (Model.breaks())
+    settings: UCSSettings
+
+    def series_frame(self):
+        import pandas as pd
+        return pd.DataFrame(self.series)
+
+
+def fit_slope(x, y):
+    """Least-squares slope of y on x (NaN if fewer than 3 points)."""
+    x = np.asarray(x, float)
+    y = np.asarray(y, float)
+    if x.size < 3 or np.ptp(x) == 0:
+        return math.nan
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def analyse(series: dict, settings: UCSSettings) -> dict:
+    """sigma_c, E, nu, peak strain, U_p and the crack-initiation stress from a series."""
+    s = np.asarray(series["axial_stress"])
+    ea = np.asarray(series["axial_strain"])
+    er = np.asarray(series["lateral_strain"])
+    cr = np.asarray(series["cracks_tension"]) + np.asarray(series["cracks_shear"])
+    ip = int(np.argmax(s))
+    peak = float(s[ip])
+    pre = slice(0, ip + 1)
+    lo, hi = settings.fit_window
+    win = (s[pre] >= lo * peak) & (s[pre] <= hi * peak)
+    E = fit_slope(ea[pre][win], s[pre][win])
+    nu = -fit_slope(ea[pre][win], er[pre][win])
+    up = float(np.trapezoid(s[: ip + 1], ea[: ip + 1])) if ip > 0 else 0.0
+    ci_target = max(1.0, settings.ci_fraction * cr[ip])
+    hit = np.flatnonzero(cr >= ci_target)
+    ci = float(s[hit[0]]) if hit.size and hit[0] <= ip else math.nan
+    return {"ucs_MPa": peak / 1e6, "E_GPa": E / 1e9, "nu": nu,
+            "peak_strain": float(ea[ip]), "u_pre_MJm3": up / 1e6,
+            "crack_init_MPa": ci / 1e6, "fit_points": int(win.sum()),
+            "cracks_tension_peak": int(series["cracks_tension"][ip]),
+            "cracks_shear_peak": int(series["cracks_shear"][ip])}
+
+
+def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) -> UCSResult:
+    """Run the test on specimen ``sp`` (its model is modified). ``progress(dict)`` is
+    called after every record with the latest values."""
+    st = settings
+    m = sp.model
+    H0 = sp.z_top - sp.z_bottom
+    R0 = sp.radius0
+    area = math.pi * R0 * R0
+    v = st.platen_velocity if st.strain_rate is None else 0.5 * st.strain_rate * H0
+    wb, wt = sp.platens
+    m.set_wall_velocity(wb, velocity=(0.0, 0.0, v))
+    m.set_wall_velocity(wt, velocity=(0.0, 0.0, -v))
+    m.W.fric[[wb, wt]] = st.platen_fric
+    m.set_damping(st.damping)
+    m.set_timestep(None)
+    dt = m.dt
+    n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
+    pos0 = m.B.pos.copy()
+    z0 = pos0[sp.surface, 2]
+    band = (z0 >= sp.z_bottom + st.lateral_band[0] * H0) & (
+        z0 <= sp.z_bottom + st.lateral_band[1] * H0)
+    gauge = sp.surface[band]
+    if gauge.size < 3:
+        raise InputError(f"only {gauge.size} surface balls in the lateral strain band: the "
+                         "specimen is too small for a lateral strain measurement")
+    rho0 = np.hypot(pos0[gauge, 0], pos0[gauge, 1])
+    ser = {k: [] for k in SERIES}
+    e0 = m.energies()
+    step0 = m.step
+    t0 = time.perf_counter()
+    peak = 0.0
+    peak_strain = 0.0
+    reason = "max_steps"
+
+    def record():
+        e = m.energies()
+        ft = abs(m.W.force[wt, 2])
+        fb = abs(m.W.force[wb, 2])
+        ea = 2 * v * (m.time - t_start) / H0
+        rho = np.hypot(m.B.pos[gauge, 0], m.B.pos[gauge, 1])
+        er = -float((rho - rho0).mean()) / R0
+        states = m.Bd.state
+        ser["step"].append(m.step - step0)
+        ser["time"].append(m.time - t_start)
+        ser["axial_strain"].append(ea)
+        ser["lateral_strain"].append(er)
+        ser["volumetric_strain"].append(ea + 2 * er)
+        ser["axial_stress"].append(0.5 * (ft + fb) / area)
+        ser["stress_top"].append(ft / area)
+        ser["stress_bottom"].append(fb / area)
+        ser["cracks_tension"].append(int(np.count_nonzero(states == BOND_TENSION)))
+        ser["cracks_shear"].append(int(np.count_nonzero(states == BOND_SHEAR)))
+        for k in ("kinetic", "strain_linear", "strain_bond", "slip", "damping", "dashpot",
+                  "released"):
+            ser[k].append(e[k] - e0[k] if k in ("slip", "damping", "dashpot", "released")
+                          else e[k])
+        ser["work_walls"].append(e["work_walls_each"][wb] + e["work_walls_each"][wt]
+                                 - e0_walls)
+        ser["unbalanced"].append(m.unbalanced_ratio())
+        return ser["axial_stress"][-1], ea
+
+    t_start = m.time
+    e0_walls = e0["work_walls_each"][wb] + e0["work_walls_each"][wt]
+    record()
+    while True:
+        if m.step - step0 >= st.max_steps:
+            reason = "max_steps"
+            break
+        m.cycle(n_rec)
+        s, ea = record()
+        if s > peak:
+            peak, peak_strain = s, ea
+        if progress is not None:
+            progress({"strain": ea, "stress_MPa": s / 1e6, "peak_MPa": peak / 1e6,
+                      "cracks": ser["cracks_tension"][-1] + ser["cracks_shear"][-1],
+                      "steps": m.step - step0, "wall_s": time.perf_counter() - t0})
+        if peak > 0 and s < st.stop_drop * peak and \
+                ea - peak_strain >= min(st.post_peak_min, 0.5 * peak_strain):
+            reason = "post_peak_drop"
+            break
+        if ea >= st.max_strain:
+            reason = "max_strain"
+            break
+    wall = time.perf_counter() - t0
+    series = {k: np.asarray(vv) for k, vv in ser.items()}
+    summ = analyse(series, st)
+    summ.update({
+        "cracks_tension": int(series["cracks_tension"][-1]),
+        "cracks_shear": int(series["cracks_shear"][-1]),
+        "steps": int(m.step - step0), "wall_s": wall, "stop_reason": reason,
+        "dt": dt, "platen_velocity": v, "strain_rate": 2 * v / H0,
+        "records": int(series["step"].size),
+    })
+    ev = m.breaks()
+    ev["step"] = ev["step"] - step0  # relative to the start of loading (< 0: during genesis)
+    ev["time"] = ev["step"] * dt
+    return UCSResult(summary=summ, series=series, cracks=ev, settings=st)
+
+
+def settings_dict(st: UCSSettings) -> dict:
+    d = asdict(st)
+    d["fit_window"] = list(d["fit_window"])
+    d["lateral_band"] = list(d["lateral_band"])
+    return d

@@ -1,0 +1,84 @@
+"""UCS test on small specimens: scaling laws and invariants of the bonded-particle model."""
+import math
+
+import numpy as np
+import pytest
+from conftest import A1, ucs
+
+from bpmcal.lab.ucs import UCSSettings, analyse
+
+
+def scaled(p, k, moduli=True, strengths=False):
+    q = dict(p)
+    if moduli:
+        q["pb_emod_GPa"] = p["pb_emod_GPa"] * k
+    if strengths:
+        q["pb_ten_MPa"] = p["pb_ten_MPa"] * k
+        q["pb_coh_MPa"] = p["pb_coh_MPa"] * k
+    return q
+
+
+@pytest.fixture(scope="module")
+def base(cache):
+    res, sp = ucs(A1, cache)
+    return res.summary
+
+
+def test_ucs_produces_a_peak_and_stops_after_it(base):
+    s = base
+    assert s["stop_reason"] == "post_peak_drop"
+    assert s["ucs_MPa"] > 5 and 2 < s["E_GPa"] < 40 and 0.05 < s["nu"] < 0.45
+    assert s["fit_points"] >= 5
+    assert 0 < s["crack_init_MPa"] < s["ucs_MPa"]
+    assert s["cracks_tension"] + s["cracks_shear"] > 0
+    # pre-peak energy density bracketed by the elastic triangle and the full rectangle
+    up = s["u_pre_MJm3"]
+    assert 0.3 * 0.5 * s["ucs_MPa"] * s["peak_strain"] < up < s["ucs_MPa"] * s["peak_strain"]
+
+
+def test_E_doubles_when_both_moduli_double_and_nu_is_unchanged(base, cache):
+    s2 = ucs(scaled(A1, 2.0), cache)[0].summary
+    assert s2["E_GPa"] / base["E_GPa"] == pytest.approx(2.0, rel=0.03)
+    assert abs(s2["nu"] - base["nu"]) <= 0.01
+
+
+def test_scaling_moduli_and_strengths_scales_stress_not_strain(base, cache):
+    k = 1.7
+    s2 = ucs(scaled(A1, k, strengths=True), cache)[0].summary
+    assert s2["ucs_MPa"] / base["ucs_MPa"] == pytest.approx(k, rel=0.03)
+    assert s2["E_GPa"] / base["E_GPa"] == pytest.approx(k, rel=0.03)
+    assert s2["peak_strain"] / base["peak_strain"] == pytest.approx(1.0, rel=0.03)
+
+
+def test_more_porosity_never_gives_a_stiffer_specimen(cache):
+    E = [ucs(dict(A1, porosity=n), cache)[0].summary["E_GPa"] for n in (0.22, 0.28, 0.34)]
+    assert E[0] > E[1] > E[2], E
+
+
+def test_stronger_bonds_give_higher_ucs(base, cache):
+    s2 = ucs(scaled(A1, 1.5, moduli=False, strengths=True), cache)[0].summary
+    assert s2["ucs_MPa"] > 1.2 * base["ucs_MPa"]
+
+
+def test_analyse_against_a_closed_form_curve():
+    """sigma = E eps (1 - eps/(2 eps_p)) up to the peak, then a linear drop: E from the
+    40-60 % window, the peak, U_p = integral, nu from a linear lateral strain."""
+    E, ep, nu = 12e9, 0.005, 0.23
+    eps = np.linspace(0, 1.6 * ep, 2001)
+    sig = np.where(eps <= ep, E * eps * (1 - eps / (2 * ep)),
+                   E * ep / 2 * (1 - (eps - ep) / (0.6 * ep) * 0.5))
+    ser = {"axial_stress": sig, "axial_strain": eps, "lateral_strain": -nu * eps,
+           "cracks_tension": (eps > 0.5 * ep).astype(int) * 10,
+           "cracks_shear": np.zeros_like(eps, dtype=int)}
+    r = analyse(ser, UCSSettings())
+    assert r["ucs_MPa"] == pytest.approx(E * ep / 2 / 1e6, rel=1e-6)
+    assert r["peak_strain"] == pytest.approx(ep, rel=1e-3)
+    # tangent slope averaged over the window: E (1 - eps/eps_p) for sigma in [0.4, 0.6] peak
+    lo = ep * (1 - math.sqrt(1 - 0.4))
+    hi = ep * (1 - math.sqrt(1 - 0.6))
+    mid = 0.5 * (lo + hi)
+    assert r["E_GPa"] == pytest.approx(E * (1 - mid / ep) / 1e9, rel=0.01)
+    assert r["nu"] == pytest.approx(nu, rel=1e-9)
+    assert r["u_pre_MJm3"] == pytest.approx(E * ep ** 2 / 3 / 1e6, rel=1e-4)
+    assert r["crack_init_MPa"] == pytest.approx(
+        sig[np.argmax(eps > 0.5 * ep)] / 1e6, rel=1e-9)
