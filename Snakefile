@@ -1,14 +1,19 @@
-# Minimal workflow until the study DAG lands (issue: the study as a Snakemake DAG):
-# runs a small engine demo so that `snakemake --cores 2` works on a fresh clone.
+# bpmcal: the calibration study of Yu et al. (2026) as a Snakemake DAG.
+#
+#   snakemake --cores 2                                   # default study (config/config.yaml)
+#   snakemake --cores 2 --configfile config/smoke.yaml    # a few tiny samples (CI)
+#   snakemake --workflow-profile workflow/profiles/slurm --configfile config/paper.yaml
+#
+# The config is validated against workflow/schemas/config.schema.yaml before any job runs.
+
+configfile: "config/config.yaml"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/study.smk"
+
+
 rule all:
     input:
-        "results/demo/engine_throughput.json",
-
-
-rule engine_demo:
-    output:
-        "results/demo/engine_throughput.json",
-    log:
-        "results/logs/engine_demo.log",
-    shell:
-        "python benchmarks/dem_throughput.py --n 2000 --steps 500 --json > {output} 2> {log}"
+        DATASET,
+    default_target: True

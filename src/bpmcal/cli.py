@@ -122,20 +122,45 @@ def _fraction(name):
     return conv
 
 
+def params_from_design(path, sample_id) -> tuple[dict, int]:
+    """The 8 parameters and the seed of one row of a design CSV."""
+    import pandas as pd
+
+    try:
+        d = pd.read_csv(path)
+    except FileNotFoundError:
+        raise P.ParameterError(f"--design {path}: no such file") from None
+    row = d[d["sample_id"] == sample_id]
+    if len(row) != 1:
+        raise P.ParameterError(f"--sample {sample_id!r}: not in {path} "
+                               f"({len(d)} samples: {d['sample_id'].iloc[0]}..."
+                               f"{d['sample_id'].iloc[-1]})")
+    r = row.iloc[0]
+    return {k: float(r[k]) for k in P.PARAMS}, int(r["seed"])
+
+
 def cmd_ucs(a) -> int:
     from .lab.runner import Geometry, run_ucs_file
     from .lab.ucs import UCSSettings
 
-    params = load_params(a.params, a.set)
-    geo = Geometry(scale=a.scale, sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap)
+    if a.design is not None:
+        if a.sample is None:
+            raise P.ParameterError("--design needs --sample ID")
+        params, seed = params_from_design(a.design, a.sample)
+        params.update(_parse_set(a.set))
+        params = P.validate_params(params)
+        a.seed = seed if a.seed is None else a.seed
+    else:
+        params = load_params(a.params, a.set)
+    a.seed = 1 if a.seed is None else a.seed
+    geo = Geometry(scale=a.scale, diameter_mm=a.diameter, height_mm=a.height,
+                   sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap, relax_ratio=a.relax_ratio)
     st = UCSSettings(platen_velocity=a.platen_velocity, strain_rate=a.strain_rate,
                      damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
-                     platen_fric=a.platen_fric)
-    if a.threads:
-        from .dem._jit import set_threads
-        set_threads(a.threads)
+                     platen_fric=a.platen_fric, record_strain=a.record_strain)
     prog = Progress(f"ucs {Path(a.out).name}", enabled=not a.quiet)
-    out = run_ucs_file(a.out, params, a.seed, geo, st, cache=a.specimen_cache, progress=prog)
+    out = run_ucs_file(a.out, params, a.seed, geo, st, cache=a.specimen_cache, progress=prog,
+                       threads=a.threads)
     if out.status == "ok":
         s = out.summary
         prog.done(f"{a.out}: sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
@@ -145,6 +170,42 @@ def cmd_ucs(a) -> int:
     else:
         prog.done(f"{a.out}: FAILED ({out.error}); failure record written")
     return 0
+
+
+def cmd_design(a) -> int:
+    from .study.design import lhs_design
+
+    try:
+        ranges = json.loads(a.ranges)
+    except json.JSONDecodeError as e:
+        raise P.ParameterError(f"--ranges: not valid JSON ({e})") from None
+    opt = None if a.optimization == "none" else a.optimization
+    df = lhs_design(ranges, a.n, a.seed, optimization=opt)
+    _write_csv(df, a.out)
+    print(f"{a.out}: {len(df)} samples over {sorted(ranges)} (seed {a.seed})")
+    return 0
+
+
+def cmd_gather(a) -> int:
+    import pandas as pd
+
+    from .study.gather import gather, status_report
+
+    design = pd.read_csv(a.design)
+    runs = {sid: Path(a.runs) / f"{sid}.h5" for sid in design["sample_id"]}
+    df = gather(design, runs)
+    _write_csv(df, a.out)
+    print(status_report(df))
+    return 0
+
+
+def _write_csv(df, path):
+    """Write a table atomically (temporary name, then rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    df.to_csv(tmp, index=False)
+    os.replace(tmp, path)
 
 
 def cmd_summary(a) -> int:
@@ -176,12 +237,24 @@ def build_parser() -> argparse.ArgumentParser:
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        epilog=_param_help())
     u.add_argument("--params", help="YAML file with the 8 meso-parameters", default=None)
+    u.add_argument("--design", default=None,
+                   help="take the parameters and the seed from this design CSV ...")
+    u.add_argument("--sample", default=None, help="... row with this sample_id")
     u.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
     u.add_argument("--set", action="append", metavar="NAME=VALUE",
                    help="override one parameter (repeatable)")
     u.add_argument("--scale", type=_positive("scale"), default=1.0,
                    help="specimen size factor on the 50 x 100 mm cylinder (default 1)")
-    u.add_argument("--seed", type=int, default=1, help="packing seed (default 1)")
+    u.add_argument("--seed", type=int, default=None,
+                   help="packing seed (default 1, or the design row's)")
+    u.add_argument("--diameter", type=_positive("diameter"), default=50.0,
+                   help="specimen diameter before scaling [mm] (default 50)")
+    u.add_argument("--height", type=_positive("height"), default=100.0,
+                   help="specimen height before scaling [mm] (default 100)")
+    u.add_argument("--relax-ratio", type=_positive("relax-ratio"), default=1e-3,
+                   help="genesis equilibrium: mean unbalanced-force ratio (default 1e-3)")
+    u.add_argument("--record-strain", type=_positive("record-strain"), default=1e-5,
+                   help="axial strain between records (default 1e-5)")
     u.add_argument("--platen-velocity", type=_positive("platen-velocity"), default=0.05,
                    help="speed of each platen [m/s] (default 0.05)")
     u.add_argument("--strain-rate", type=_positive("strain-rate"), default=None,
@@ -204,6 +277,22 @@ def build_parser() -> argparse.ArgumentParser:
                         "$BPMCAL_SPECIMEN_CACHE)")
     u.add_argument("--quiet", action="store_true", help="no progress output")
     u.set_defaults(func=cmd_ucs)
+
+    d = sub.add_parser("design", help="Latin-hypercube design over parameter ranges -> CSV")
+    d.add_argument("--ranges", required=True,
+                   help='JSON mapping of parameter name to [low, high] (paper units)')
+    d.add_argument("--n", type=int, required=True, help="number of samples")
+    d.add_argument("--seed", type=int, required=True, help="design seed")
+    d.add_argument("--optimization", default="random-cd",
+                   choices=["random-cd", "lloyd", "none"], help="LHS optimisation")
+    d.add_argument("--out", required=True, help="output CSV")
+    d.set_defaults(func=cmd_design)
+
+    g = sub.add_parser("gather", help="collect per-sample run files into one dataset CSV")
+    g.add_argument("--design", required=True, help="design CSV")
+    g.add_argument("--runs", required=True, help="directory of <sample_id>.h5 run files")
+    g.add_argument("--out", required=True, help="output CSV")
+    g.set_defaults(func=cmd_gather)
 
     s = sub.add_parser("summary", help="print the summary attributes of a run file")
     s.add_argument("run")

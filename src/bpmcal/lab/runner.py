@@ -14,6 +14,7 @@ import time
 from dataclasses import dataclass, field
 
 from .. import params as P
+from ..dem._jit import set_threads
 from ..dem.errors import InstabilityError
 from ..io.h5 import write_run
 from .specimen import GenesisError, SpecimenSpec, build_specimen, get_packing, paper_material
@@ -75,6 +76,8 @@ def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
     unbuildable specimens give status "failed" (and a failure-record file)."""
     p = P.validate_params(params)  # bad input: raise before any work
     inputs = ucs_inputs(p, seed, geometry, settings)
+    if threads:
+        set_threads(threads)  # for the whole run, genesis included
     t0 = time.perf_counter()
     try:
         sp = make_specimen(p, seed, geometry, cache=cache, threads=threads)

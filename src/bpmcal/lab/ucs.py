@@ -54,7 +54,7 @@ class UCSSettings:
     stop_drop: float = 0.7  # stop when stress < stop_drop * peak after the peak
     max_strain: float = 0.03
     max_steps: int = 3_000_000
-    record_strain: float = 2e-5  # axial strain between records
+    record_strain: float = 1e-5  # axial strain between records
     fit_window: tuple = (0.4, 0.6)
     ci_fraction: float = 0.01
     lateral_band: tuple = (0.1, 0.9)

@@ -1,0 +1,1 @@
+"""bpmcal.study: experimental design and dataset gathering for the calibration study."""

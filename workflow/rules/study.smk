@@ -1,0 +1,51 @@
+# The spine of the study: design -> one UCS job per sample -> gathered dataset.
+
+
+rule design:
+    output:
+        DESIGN,
+    log:
+        f"{LOGS}/design.log",
+    params:
+        ranges=json.dumps(config["ranges"]),
+        n=N,
+        seed=config["study"]["lhs_seed"],
+        opt=config["study"]["lhs_optimization"],
+    shell:
+        "bpmcal design --ranges '{params.ranges}' --n {params.n} --seed {params.seed} "
+        "--optimization {params.opt} --out {output} > {log} 2>&1"
+
+
+rule ucs:
+    input:
+        DESIGN,
+    output:
+        f"{OUT}/ucs/{{sample}}.h5",
+    log:
+        f"{LOGS}/ucs/{{sample}}.log",
+    wildcard_constraints:
+        sample=r"s\d+",
+    threads: config["resources"]["ucs_threads"]
+    resources:
+        runtime=config["resources"]["ucs_runtime_min"],
+        mem_mb=config["resources"]["ucs_mem_mb"],
+    params:
+        opts=specimen_args(),
+    shell:
+        "bpmcal ucs --design {input} --sample {wildcards.sample} --out {output} "
+        "--threads {threads} {params.opts} > {log} 2>&1"
+
+
+rule gather:
+    input:
+        design=DESIGN,
+        runs=expand(f"{OUT}/ucs/{{sample}}.h5", sample=SAMPLES),
+    output:
+        DATASET,
+    log:
+        f"{LOGS}/gather.log",
+    params:
+        runs=f"{OUT}/ucs",
+    shell:
+        "bpmcal gather --design {input.design} --runs {params.runs} --out {output} "
+        "> {log} 2>&1"
