@@ -10,6 +10,15 @@ configfile: "config/config.yaml"
 
 
 include: "workflow/rules/common.smk"
+
+
+# cheap rules run on the submit host when the study goes to a cluster
+localrules:
+    all,
+    design,
+    gather,
+
+
 include: "workflow/rules/study.smk"
 
 

@@ -5,6 +5,8 @@ import datetime as _dt
 import functools
 import hashlib
 import json
+import os
+import socket
 import subprocess
 from pathlib import Path
 
@@ -36,4 +38,5 @@ def config_hash(d: dict) -> str:
 def provenance(inputs: dict) -> dict:
     return {"bpmcal_version": __version__, "git_commit": git_commit(),
             "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-            "config_hash": config_hash(inputs)}
+            "config_hash": config_hash(inputs), "hostname": socket.gethostname(),
+            "slurm_job_id": os.environ.get("SLURM_JOB_ID", "")}

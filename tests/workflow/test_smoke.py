@@ -1,0 +1,116 @@
+"""The smoke study end to end through Snakemake, re-runs, and config errors."""
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def snakemake(cwd, *args, timeout=1200):
+    cmd = [sys.executable, "-m", "snakemake", *args]
+    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=timeout,
+                          env=dict(os.environ, NUMBA_THREADING_LAYER="omp"))
+
+
+def copy_workflow(dst: Path) -> Path:
+    """A private copy of the workflow (its own .snakemake metadata and outputs)."""
+    dst.mkdir(parents=True, exist_ok=True)
+    shutil.copy(REPO / "Snakefile", dst)
+    shutil.copytree(REPO / "workflow", dst / "workflow")
+    shutil.copytree(REPO / "config", dst / "config")
+    return dst
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory):
+    wf = copy_workflow(tmp_path_factory.mktemp("smoke"))
+    r = snakemake(wf, "--cores", "2", "--configfile", "config/smoke.yaml")
+    assert r.returncode == 0, r.stderr[-3000:]
+    return wf
+
+
+def test_smoke_study_gathers_every_sample(smoke):
+    cfg = yaml.safe_load((smoke / "config" / "smoke.yaml").read_text())
+    out = smoke / cfg["outdir"]
+    ds = pd.read_csv(out / "dataset.csv")
+    n = cfg["study"]["n_samples"]
+    assert len(ds) == n and ds["sample_id"].is_unique
+    assert set(ds["status"]) <= {"ok", "failed"}
+    ok = ds[ds["status"] == "ok"]
+    assert len(ok) >= n - 1
+    assert (ok["ucs_MPa"] > 0).all() and (ok["E_GPa"] > 0).all()
+    design = pd.read_csv(out / "design" / "samples.csv")
+    for c in ("rmin_mm", "porosity", "pb_emod_GPa", "seed"):
+        assert (ds[c].to_numpy() == design[c].to_numpy()).all()
+    for sid in ds["sample_id"]:
+        assert (out / "logs" / "ucs" / f"{sid}.log").stat().st_size > 0
+
+
+def test_rerun_redoes_nothing(smoke):
+    r = snakemake(smoke, "-n", "--configfile", "config/smoke.yaml")
+    assert r.returncode == 0
+    assert "Nothing to be done" in r.stdout + r.stderr
+
+
+def test_interrupted_study_resumes_without_redoing_samples(tmp_path):
+    wf = copy_workflow(tmp_path / "wf")
+    (wf / "config" / "resume.yaml").write_text(yaml.safe_dump(
+        {"outdir": "results/resume", "study": {"name": "resume", "n_samples": 4, "lhs_seed": 3}}))
+    cfg = ["--configfile", "config/smoke.yaml", "config/resume.yaml"]
+    done = [f"results/resume/ucs/s00{i}.h5" for i in (0, 1)]
+    r = snakemake(wf, *done, "--cores", "2", *cfg)  # "interrupted" after two samples
+    assert r.returncode == 0, r.stderr[-2000:]
+    mtimes = {f: (wf / f).stat().st_mtime_ns for f in done}
+    r = snakemake(wf, "--cores", "2", *cfg)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert {f: (wf / f).stat().st_mtime_ns for f in done} == mtimes
+    assert len(pd.read_csv(wf / "results/resume/dataset.csv")) == 4
+
+
+def test_same_seed_reproduces_design_and_results(tmp_path, smoke):
+    cfg = yaml.safe_load((smoke / "config" / "smoke.yaml").read_text())
+    out = smoke / cfg["outdir"]
+    design = out / "design" / "samples.csv"
+    d2 = tmp_path / "d2.csv"
+    subprocess.run(["bpmcal", "design", "--ranges", __import__("json").dumps(
+        yaml.safe_load((REPO / "config/config.yaml").read_text())["ranges"]),
+        "--n", str(cfg["study"]["n_samples"]), "--seed", str(cfg["study"]["lhs_seed"]),
+        "--out", str(d2)], check=True, capture_output=True)
+    assert design.read_bytes() == d2.read_bytes()
+    from bpmcal.io.h5 import read_series, read_summary
+    h = out / "ucs" / "s001.h5"
+    again = tmp_path / "again.h5"
+    r = subprocess.run(["bpmcal", "ucs", "--design", str(design), "--sample", "s001", "--out",
+                        str(again), "--scale", str(cfg["specimen"]["scale"]),
+                        "--platen-velocity", str(cfg["ucs"]["platen_velocity"]),
+                        "--record-strain", str(cfg["ucs"]["record_strain"]), "--threads", "1",
+                        "--quiet"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    a, b = read_summary(h), read_summary(again)
+    for k in ("ucs_MPa", "E_GPa", "nu", "steps", "cracks_tension", "cracks_shear", "n_balls"):
+        assert a[k] == b[k], k
+    assert read_series(h).equals(read_series(again))
+
+
+@pytest.mark.parametrize("patch, needle", [
+    ({"study": {"n_samples": "many"}}, "study.n_samples: 'many' is not of type 'integer'"),
+    ({"ranges": {"porosity": [0.2, 0.95]}}, "ranges.porosity[1]: 0.95 is greater than"),
+    ({"ucs": {"platen_velocty": 0.1}}, "ucs: unknown key(s) ['platen_velocty']"),
+    ({"lab": {"csv": "config/lab/missing.csv"}}, "lab.csv: file 'config/lab/missing.csv'"),
+    ({"ranges": {"pb_ten_MPa": [50, 10]}}, "ranges.pb_ten_MPa: low 50 exceeds high 10"),
+    ({"specimen": {"scale": 0.05}}, "specimen.scale: 0.05 gives"),
+])
+def test_config_errors_stop_before_any_job_naming_the_key(tmp_path, patch, needle):
+    wf = copy_workflow(tmp_path / "wf")
+    bad = wf / "config" / "bad.yaml"
+    bad.write_text(yaml.safe_dump(patch))
+    r = snakemake(wf, "--cores", "1", "--configfile", "config/bad.yaml")
+    assert r.returncode != 0
+    assert needle in r.stdout + r.stderr
+    assert not (wf / "results").exists()
