@@ -17,12 +17,22 @@ localrules:
     all,
     design,
     gather,
+    screen,
+    regress,
+    calibrate,
+    verification_tables,
 
 
 include: "workflow/rules/study.smk"
+include: "workflow/rules/analysis.smk"
 
 
 rule all:
     input:
         DATASET,
+        rules.screen.output,
+        rules.regress.output,
+        rules.calibrate.output,
+        rules.verification_tables.output,
+        rules.seed_scatter.output,
     default_target: True

@@ -140,8 +140,7 @@ def params_from_design(path, sample_id) -> tuple[dict, int]:
 
 
 def cmd_ucs(a) -> int:
-    from .lab.runner import Geometry, run_ucs_file
-    from .lab.ucs import UCSSettings
+    from .lab.runner import run_ucs_file
 
     if a.design is not None:
         if a.sample is None:
@@ -153,11 +152,8 @@ def cmd_ucs(a) -> int:
     else:
         params = load_params(a.params, a.set)
     a.seed = 1 if a.seed is None else a.seed
-    geo = Geometry(scale=a.scale, diameter_mm=a.diameter, height_mm=a.height,
-                   sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap, relax_ratio=a.relax_ratio)
-    st = UCSSettings(platen_velocity=a.platen_velocity, strain_rate=a.strain_rate,
-                     damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
-                     platen_fric=a.platen_fric, record_strain=a.record_strain)
+    geo = run_geometry(a)
+    st = run_settings(a)
     prog = Progress(f"ucs {Path(a.out).name}", enabled=not a.quiet)
     out = run_ucs_file(a.out, params, a.seed, geo, st, cache=a.specimen_cache, progress=prog,
                        threads=a.threads)
@@ -208,6 +204,80 @@ def _write_csv(df, path):
     os.replace(tmp, path)
 
 
+def _json_arg(text, name):
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise P.ParameterError(f"{name}: not valid JSON ({e})") from None
+
+
+def cmd_screen(a) -> int:
+    from .study.pipeline import screen
+
+    r = screen(a.dataset, a.out, a.tables, a.figures, threshold=a.threshold,
+               importance=a.importance, n_splits=a.splits, n_repeats=a.repeats, seed=a.seed)
+    print(r["note"])
+    for k, v in r["selected"].items():
+        print(f"{k}: {', '.join(v)}")
+    return 0
+
+
+def cmd_regress(a) -> int:
+    from .study.pipeline import regress
+
+    r = regress(a.dataset, a.selected, a.out, a.tables, a.figures, alpha_in=a.alpha_in,
+                alpha_out=a.alpha_out, vif_max=a.vif_max, hierarchy=a.hierarchy,
+                cv_folds=a.cv_folds, cv_repeats=a.cv_repeats, seed=a.seed)
+    print(r["note"])
+    print((Path(a.out) / "equations.md").read_text())
+    return 0
+
+
+def cmd_calibrate(a) -> int:
+    from .study.pipeline import calibrate
+
+    fixed = P.validate_params(_json_arg(a.fixed, "--fixed"), require_all=False)
+    free = a.free.split(",") if a.free else None
+    ratio = None if a.ratio is not None and a.ratio <= 0 else a.ratio
+    if a.ratio_from:
+        ratio = float(json.loads(Path(a.ratio_from).read_text())["chosen_ratio"])
+    r = calibrate(a.dataset, a.models, a.lab, a.out, fixed=fixed, ratio=ratio, free=free,
+                  n_boot=a.n_boot, seed=a.seed, tables_dir=a.tables)
+    print(r["table"].to_string())
+    return 0
+
+
+def cmd_verify(a) -> int:
+    from .study.pipeline import verify
+
+    prog = Progress(f"verify {Path(a.card).stem}", enabled=not a.quiet)
+    v = verify(a.card, a.models, a.out, geometry=run_geometry(a), settings=run_settings(a),
+               seed=a.seed, rtol=a.rtol, max_rounds=a.max_rounds, cache=a.specimen_cache,
+               threads=a.threads, progress=prog)["verification"]
+    prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
+    return 0
+
+
+def cmd_scatter(a) -> int:
+    from .study.pipeline import seed_scatter_runs
+
+    seeds = [int(x) for x in a.seeds.split(",")]
+    sc = seed_scatter_runs(a.card, a.out, geometry=run_geometry(a), settings=run_settings(a),
+                           seeds=seeds, rtol=a.rtol, cache=a.specimen_cache, threads=a.threads)
+    print(sc.to_string())
+    return 0
+
+
+def cmd_vtables(a) -> int:
+    from .study.pipeline import verification_tables
+
+    cards = {Path(c).parent.name: c for c in a.cards}
+    r = verification_tables(cards, a.lab, a.tables, a.figures)
+    print(r["table5"].to_string())
+    print(r["table6"].to_string())
+    return 0
+
+
 def cmd_summary(a) -> int:
     from .io.h5 import json_safe, read_summary
     s = read_summary(a.run)
@@ -227,6 +297,54 @@ def cmd_vtk(a) -> int:
     return 0
 
 
+def add_run_args(p):
+    """Options of the specimen and of the UCS loading (shared by ucs, verify, scatter)."""
+    p.add_argument("--scale", type=_positive("scale"), default=1.0,
+                   help="specimen size factor on the 50 x 100 mm cylinder (default 1)")
+    p.add_argument("--diameter", type=_positive("diameter"), default=50.0,
+                   help="specimen diameter before scaling [mm] (default 50)")
+    p.add_argument("--height", type=_positive("height"), default=100.0,
+                   help="specimen height before scaling [mm] (default 100)")
+    p.add_argument("--relax-ratio", type=_positive("relax-ratio"), default=1e-2,
+                   help="genesis equilibrium: mean unbalanced-force ratio (default 1e-2)")
+    p.add_argument("--record-strain", type=_positive("record-strain"), default=1e-5,
+                   help="axial strain between records (default 1e-5)")
+    p.add_argument("--platen-velocity", type=_positive("platen-velocity"), default=0.05,
+                   help="speed of each platen [m/s] (default 0.05)")
+    p.add_argument("--strain-rate", type=_positive("strain-rate"), default=None,
+                   help="axial strain rate [1/s]; overrides --platen-velocity "
+                        "(each platen then moves at rate x H / 2)")
+    p.add_argument("--damping", type=float, default=0.7, help="local damping (default 0.7)")
+    p.add_argument("--stop-drop", type=_fraction("stop-drop"), default=0.7,
+                   help="stop when stress < this fraction of the peak after it (default 0.7)")
+    p.add_argument("--max-strain", type=_positive("max-strain"), default=0.03,
+                   help="stop at this axial strain (default 0.03)")
+    p.add_argument("--platen-fric", type=float, default=0.0,
+                   help="platen friction coefficient (default 0, frictionless)")
+    p.add_argument("--sigma0", type=float, default=0.1,
+                   help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
+    p.add_argument("--install-gap", type=float, default=0.0,
+                   help="bond pairs with surface gap <= this [mm] (default 0)")
+    p.add_argument("--threads", type=int, default=None, help="numba threads")
+    p.add_argument("--specimen-cache", default=None,
+                   help="directory of cached packings (default ~/.cache/bpmcal/packings or "
+                        "$BPMCAL_SPECIMEN_CACHE)")
+
+
+def run_geometry(a):
+    from .lab.runner import Geometry
+    return Geometry(scale=a.scale, diameter_mm=a.diameter, height_mm=a.height,
+                    sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
+                    relax_ratio=a.relax_ratio)
+
+
+def run_settings(a):
+    from .lab.ucs import UCSSettings
+    return UCSSettings(platen_velocity=a.platen_velocity, strain_rate=a.strain_rate,
+                       damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
+                       platen_fric=a.platen_fric, record_strain=a.record_strain)
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="bpmcal", description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -243,38 +361,9 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
     u.add_argument("--set", action="append", metavar="NAME=VALUE",
                    help="override one parameter (repeatable)")
-    u.add_argument("--scale", type=_positive("scale"), default=1.0,
-                   help="specimen size factor on the 50 x 100 mm cylinder (default 1)")
     u.add_argument("--seed", type=int, default=None,
                    help="packing seed (default 1, or the design row's)")
-    u.add_argument("--diameter", type=_positive("diameter"), default=50.0,
-                   help="specimen diameter before scaling [mm] (default 50)")
-    u.add_argument("--height", type=_positive("height"), default=100.0,
-                   help="specimen height before scaling [mm] (default 100)")
-    u.add_argument("--relax-ratio", type=_positive("relax-ratio"), default=1e-3,
-                   help="genesis equilibrium: mean unbalanced-force ratio (default 1e-3)")
-    u.add_argument("--record-strain", type=_positive("record-strain"), default=1e-5,
-                   help="axial strain between records (default 1e-5)")
-    u.add_argument("--platen-velocity", type=_positive("platen-velocity"), default=0.05,
-                   help="speed of each platen [m/s] (default 0.05)")
-    u.add_argument("--strain-rate", type=_positive("strain-rate"), default=None,
-                   help="axial strain rate [1/s]; overrides --platen-velocity "
-                        "(each platen then moves at rate x H / 2)")
-    u.add_argument("--damping", type=float, default=0.7, help="local damping (default 0.7)")
-    u.add_argument("--stop-drop", type=_fraction("stop-drop"), default=0.7,
-                   help="stop when stress < this fraction of the peak after it (default 0.7)")
-    u.add_argument("--max-strain", type=_positive("max-strain"), default=0.03,
-                   help="stop at this axial strain (default 0.03)")
-    u.add_argument("--platen-fric", type=float, default=0.0,
-                   help="platen friction coefficient (default 0, frictionless)")
-    u.add_argument("--sigma0", type=float, default=0.1,
-                   help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
-    u.add_argument("--install-gap", type=float, default=0.0,
-                   help="bond pairs with surface gap <= this [mm] (default 0)")
-    u.add_argument("--threads", type=int, default=None, help="numba threads")
-    u.add_argument("--specimen-cache", default=None,
-                   help="directory of cached packings (default ~/.cache/bpmcal/packings or "
-                        "$BPMCAL_SPECIMEN_CACHE)")
+    add_run_args(u)
     u.add_argument("--quiet", action="store_true", help="no progress output")
     u.set_defaults(func=cmd_ucs)
 
@@ -293,6 +382,77 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--runs", required=True, help="directory of <sample_id>.h5 run files")
     g.add_argument("--out", required=True, help="output CSV")
     g.set_defaults(func=cmd_gather)
+
+    sc = sub.add_parser("screen", help="XGBoost screening of the dataset (Table 3)")
+    sc.add_argument("--dataset", required=True)
+    sc.add_argument("--out", required=True, help="output directory (screening)")
+    sc.add_argument("--tables", required=True, help="tables directory")
+    sc.add_argument("--figures", required=True, help="figures directory")
+    sc.add_argument("--threshold", type=float, default=10.0, help="selection threshold [%%]")
+    sc.add_argument("--importance", default="gain",
+                    choices=["gain", "total_gain", "permutation", "shap"],
+                    help="importance type that drives the selection (default gain)")
+    sc.add_argument("--splits", type=int, default=5, help="CV folds (default 5)")
+    sc.add_argument("--repeats", type=int, default=10, help="permutation repeats")
+    sc.add_argument("--seed", type=int, default=0)
+    sc.set_defaults(func=cmd_screen)
+
+    rg = sub.add_parser("regress", help="three-stage stepwise regression (Table 4)")
+    rg.add_argument("--dataset", required=True)
+    rg.add_argument("--selected", required=True, help="selected.json of the screening")
+    rg.add_argument("--out", required=True, help="output directory (regression)")
+    rg.add_argument("--tables", required=True)
+    rg.add_argument("--figures", required=True)
+    rg.add_argument("--alpha-in", type=float, default=0.05)
+    rg.add_argument("--alpha-out", type=float, default=0.05)
+    rg.add_argument("--vif-max", type=float, default=10.0)
+    rg.add_argument("--hierarchy", default="strong", choices=["strong", "weak", "none"])
+    rg.add_argument("--cv-folds", type=int, default=5)
+    rg.add_argument("--cv-repeats", type=int, default=10)
+    rg.add_argument("--seed", type=int, default=0)
+    rg.set_defaults(func=cmd_regress)
+
+    ca = sub.add_parser("calibrate", help="invert the models for the lab specimens")
+    ca.add_argument("--dataset", required=True)
+    ca.add_argument("--models", required=True, help="models.json of the regression")
+    ca.add_argument("--lab", required=True, help="lab CSV")
+    ca.add_argument("--out", required=True, help="directory of the material cards")
+    ca.add_argument("--tables", default=None)
+    ca.add_argument("--fixed", required=True, help="JSON of the fixed parameters")
+    ca.add_argument("--free", default=None, help="comma-separated free parameters")
+    ca.add_argument("--ratio", type=float, default=1.4,
+                    help="bond-strength ratio pb_ten/pb_coh (<= 0: both free)")
+    ca.add_argument("--ratio-from", default=None,
+                    help="JSON file with the chosen ratio (the ratio sweep's choice)")
+    ca.add_argument("--n-boot", type=int, default=200)
+    ca.add_argument("--seed", type=int, default=0)
+    ca.set_defaults(func=cmd_calibrate)
+
+    ve = sub.add_parser("verify", help="closed-loop DEM verification of a material card")
+    ve.add_argument("--card", required=True)
+    ve.add_argument("--models", required=True)
+    ve.add_argument("--out", required=True, help="output directory")
+    ve.add_argument("--seed", type=int, default=1, help="packing seed of the DEM runs")
+    ve.add_argument("--rtol", type=float, default=0.01, help="relative tolerance (0.01)")
+    ve.add_argument("--max-rounds", type=int, default=5, help="DEM runs at most")
+    ve.add_argument("--quiet", action="store_true")
+    add_run_args(ve)
+    ve.set_defaults(func=cmd_verify)
+
+    ss = sub.add_parser("scatter", help="one card, several packing seeds: DEM scatter")
+    ss.add_argument("--card", required=True)
+    ss.add_argument("--out", required=True)
+    ss.add_argument("--seeds", required=True, help="comma-separated packing seeds")
+    ss.add_argument("--rtol", type=float, default=0.01)
+    add_run_args(ss)
+    ss.set_defaults(func=cmd_scatter)
+
+    vt = sub.add_parser("verification-tables", help="Tables 5 and 6 and Fig. 6")
+    vt.add_argument("--cards", nargs="+", required=True, help="verification card.yaml files")
+    vt.add_argument("--lab", required=True)
+    vt.add_argument("--tables", required=True)
+    vt.add_argument("--figures", required=True)
+    vt.set_defaults(func=cmd_vtables)
 
     s = sub.add_parser("summary", help="print the summary attributes of a run file")
     s.add_argument("run")

@@ -1,6 +1,6 @@
 """Energy bookkeeping: every term separately, and the balance closes."""
 import numpy as np
-from conftest import box_pack, material, rng
+from dem_util import box_pack, material, rng
 
 from bpmcal.dem import Model
 

@@ -6,7 +6,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from conftest import box_pack, material, rng
+from dem_util import box_pack, material, rng
 
 from bpmcal.dem import InputError, InstabilityError, Material, Model
 from bpmcal.dem._jit import set_threads
@@ -128,7 +128,7 @@ def test_numba_disable_jit_runs_the_same_physics():
     code = textwrap.dedent("""
         import math, sys
         sys.path.insert(0, %r)
-        from conftest import material, two_balls, bond_constants
+        from dem_util import material, two_balls, bond_constants
         mat = material()
         m = two_balls(mat)
         m.set_velocity([1], vel=[1e-3, 0, 0])

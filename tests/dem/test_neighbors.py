@@ -1,7 +1,7 @@
 """Neighbour search (cell grid + Verlet skin) against brute force; capacity growth;
 contact history across rebuilds."""
 import numpy as np
-from conftest import box_pack, material, rng
+from dem_util import box_pack, material, rng
 
 from bpmcal.dem import Model
 

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import R, bond_constants, material, rel, two_balls
+from dem_util import R, bond_constants, material, rel, two_balls
 
 from bpmcal.dem import BOND_INTACT, BOND_SHEAR, BOND_TENSION, Model
 

@@ -1,7 +1,7 @@
 """Specimen genesis: porosity, bonding, locked-in stress, determinism."""
 import numpy as np
 import pytest
-from conftest import A1, SMALL
+from lab_util import A1, SMALL
 
 from bpmcal.lab.runner import make_specimen
 from bpmcal.lab.specimen import SpecimenSpec, get_packing

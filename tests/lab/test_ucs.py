@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import A1, ucs
+from lab_util import A1, ucs
 
 from bpmcal.lab.ucs import UCSSettings, analyse
 

@@ -17,6 +17,10 @@ DATASET = f"{OUT}/dataset.csv"
 PACKINGS = f"{OUT}/cache/packings"
 LOGS = f"{OUT}/logs"
 
+import pandas as _pd
+
+SPECIMENS = [str(s) for s in _pd.read_csv(config["lab"]["csv"])["specimen"]]
+
 
 def specimen_args(cfg=config):
     """bpmcal ucs options of the specimen and loading sections."""

@@ -692,7 +692,8 @@ class Model:
              "work_walls": float(ww.sum()) + self._removed_work,
              "work_gravity": grav + grv2 + float((W.grav + wout[:, 2]).sum())
              + self._removed_grav,
-             "work_constraints": fixw + cst2, "work_walls_each": ww.tolist()}
+             "work_constraints": fixw + cst2, "work_walls_each": ww.tolist(),
+             "work_gravity_walls": float((W.grav + wout[:, 2]).sum()) + self._removed_grav}
         return e
 
     @staticmethod

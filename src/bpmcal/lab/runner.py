@@ -28,7 +28,7 @@ class Geometry:
     height_mm: float = 100.0
     sigma0_MPa: float = 0.1  # locked-in isotropic stress after genesis
     install_gap_mm: float = 0.0  # bonds on pairs with gap <= this
-    relax_ratio: float = 1e-3
+    relax_ratio: float = 1e-2
 
     def to_dict(self):
         return {"scale": self.scale, "diameter_mm": self.diameter_mm * self.scale,

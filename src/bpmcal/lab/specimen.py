@@ -7,10 +7,13 @@ Procedure (after Potyondy & Cundall 2004 and PFC's ``ball distribute``):
    placed uniformly so that every ball lies inside the vessel. Overlaps are allowed: this
    is PFC's *nominal* porosity n, and n = 0.20 means heavily overlapped placement.
 2. **Relax** (``relax_packing``): frictionless balls in frictionless vessel walls (a
-   cylinder and two planes), local damping 0.7, speeds clipped during the first steps
+   cylinder and two planes), local damping 0.5, speeds clipped during the first steps
    while the initial overlaps are pushed apart, until the mean unbalanced-force ratio
    (mean |unbalanced force| / mean |contact force|, PFC's ``ratio-average``) falls below
-   ``relax_ratio`` (1e-3). The relaxed geometry does not depend on the contact modulus
+   ``relax_ratio`` (1e-2). That is looser than PFC's default for a final equilibrium,
+   on purpose: the contact forces of this state are scaled down by ~1e-3 in step 4, and
+   so is any residual imbalance; a tighter ratio costs 2-10x the steps while the
+   overcompressed pack keeps rearranging. The relaxed geometry does not depend on the contact modulus
    (the same number of steps at dt ~ sqrt(m/k)), so it is computed once at a reference
    modulus and cached: a packing depends only on geometry, Rmin, ratio, density, n, seed.
 3. **Floaters**: balls with fewer than 3 contacts are enlarged until they touch three
@@ -51,8 +54,11 @@ from ..dem.order import morton_order
 
 #: modulus used while relaxing the packing (the relaxed geometry does not depend on it)
 E_REF = 1.0e9
+#: local damping while the overlapped packing relaxes: with 0.5 the frictionless pack
+#: finds its jammed state in about half the steps it needs at 0.7 (measured, 6 packs)
+RELAX_DAMPING = 0.5
 #: genesis version: part of the cache key; bump when the procedure changes
-GENESIS_VERSION = 1
+GENESIS_VERSION = 2
 
 
 class GenesisError(RuntimeError):
@@ -71,7 +77,7 @@ class SpecimenSpec:
     seed: int
     ratio: float = P.RADIUS_RATIO
     density: float = P.DENSITY
-    relax_ratio: float = 1e-3  # mean unbalanced-force ratio for equilibrium
+    relax_ratio: float = 1e-2  # mean unbalanced-force ratio for equilibrium
     max_relax_steps: int = 200_000
 
     def __post_init__(self):
@@ -209,7 +215,7 @@ def _count_touching(pos, radius, gap):
 def relax_packing(spec: SpecimenSpec, progress=None) -> Packing:
     """Steps 1-3 at the reference modulus (frictionless balls and vessel)."""
     pos, r = distribute(spec)
-    m = Model(pos, r, spec.density, _genesis_material(), damping=0.7,
+    m = Model(pos, r, spec.density, _genesis_material(), damping=RELAX_DAMPING,
               skin=0.25 * spec.rmin, threads=None)
     _vessel(m, spec)
     m.set_timestep(None)

@@ -1,0 +1,1 @@
+"""bpmcal.plots: functions that take tables/results and return matplotlib Figures."""

@@ -1,0 +1,60 @@
+"""One figure style for every plot: readable at journal column width (3.5 in), symbols and
+units as in the paper. Functions in this package return matplotlib Figures; saving is
+done by the caller (``save``)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+COLUMN = 3.5  # in, single column
+DOUBLE = 7.2  # in, double column
+
+RC = {
+    "font.size": 8,
+    "axes.labelsize": 8,
+    "axes.titlesize": 8,
+    "legend.fontsize": 7,
+    "xtick.labelsize": 7,
+    "ytick.labelsize": 7,
+    "lines.linewidth": 1.0,
+    "lines.markersize": 3.5,
+    "axes.linewidth": 0.6,
+    "xtick.major.width": 0.6,
+    "ytick.major.width": 0.6,
+    "savefig.dpi": 300,
+    "figure.dpi": 150,
+    "axes.spines.top": False,
+    "axes.spines.right": False,
+    "mathtext.fontset": "dejavusans",
+}
+
+#: colours: tensile / shear cracks, simulation / lab
+C_TENSION = "#1f77b4"
+C_SHEAR = "#d62728"
+C_SIM = "#1f77b4"
+C_LAB = "#222222"
+C_ALT = "#ff7f0e"
+
+
+def figure(width=COLUMN, height=2.6, **kw):
+    plt.rcParams.update(RC)
+    return plt.subplots(figsize=(width, height), **kw)
+
+
+def save(fig, path_png) -> list[Path]:
+    """Save ``fig`` as PNG and PDF (same stem), atomically, and close it."""
+    p = Path(path_png)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    out = []
+    for ext in (".png", ".pdf"):
+        f = p.with_suffix(ext)
+        tmp = f.with_name(f".{f.stem}.tmp{ext}")
+        fig.savefig(tmp, bbox_inches="tight")
+        tmp.replace(f)
+        out.append(f)
+    plt.close(fig)
+    return out

@@ -1,0 +1,127 @@
+# Dataset -> screening (Table 3) -> stepwise regression (Table 4) -> calibration to the
+# lab specimens -> closed-loop DEM verification (Tables 5, 6, Fig. 6).
+
+SCREEN = f"{OUT}/screening"
+REGR = f"{OUT}/regression"
+CALIB = f"{OUT}/calibration"
+VERIF = f"{OUT}/verification"
+TABLES = f"{OUT}/tables"
+FIGS = f"{OUT}/figures"
+
+
+rule screen:
+    input:
+        DATASET,
+    output:
+        selected=f"{SCREEN}/selected.json",
+        table3=f"{TABLES}/table3_importance.csv",
+        table3_md=f"{TABLES}/table3_importance.md",
+        fig=f"{FIGS}/screening_importance.png",
+    log:
+        f"{LOGS}/screen.log",
+    params:
+        s=config["screening"],
+    shell:
+        "bpmcal screen --dataset {input} --out {SCREEN} --tables {TABLES} --figures {FIGS} "
+        "--threshold {params.s[threshold_pct]} --importance {params.s[importance]} "
+        "--splits {params.s[n_splits]} --repeats {params.s[n_repeats]} "
+        "--seed {params.s[seed]} > {log} 2>&1"
+
+
+rule regress:
+    input:
+        dataset=DATASET,
+        selected=f"{SCREEN}/selected.json",
+    output:
+        models=f"{REGR}/models.json",
+        table4=f"{TABLES}/table4_terms.csv",
+        equations=f"{REGR}/equations.md",
+        fig=f"{FIGS}/regression_fit.png",
+    log:
+        f"{LOGS}/regress.log",
+    params:
+        r=config["regression"],
+    shell:
+        "bpmcal regress --dataset {input.dataset} --selected {input.selected} --out {REGR} "
+        "--tables {TABLES} --figures {FIGS} --alpha-in {params.r[alpha_in]} "
+        "--alpha-out {params.r[alpha_out]} --vif-max {params.r[vif_max]} "
+        "--hierarchy {params.r[hierarchy]} --cv-folds {params.r[cv_folds]} "
+        "--cv-repeats {params.r[cv_repeats]} --seed {params.r[seed]} > {log} 2>&1"
+
+
+rule calibrate:
+    input:
+        dataset=DATASET,
+        models=f"{REGR}/models.json",
+        lab=config["lab"]["csv"],
+    output:
+        cards=expand(f"{CALIB}/{{spec}}.yaml", spec=SPECIMENS),
+        table=f"{TABLES}/calibration.csv",
+    log:
+        f"{LOGS}/calibrate.log",
+    params:
+        c=config["calibration"],
+        fixed=json.dumps(config["calibration"]["fixed"]),
+        free=",".join(config["calibration"]["free"]),
+    shell:
+        "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
+        "--out {CALIB} --tables {TABLES} --fixed '{params.fixed}' --free {params.free} "
+        "--ratio {params.c[ratio]} --n-boot {params.c[n_boot]} --seed {params.c[seed]} "
+        "> {log} 2>&1"
+
+
+rule verify:
+    input:
+        card=f"{CALIB}/{{spec}}.yaml",
+        models=f"{REGR}/models.json",
+    output:
+        card=f"{VERIF}/{{spec}}/card.yaml",
+        rounds=f"{VERIF}/{{spec}}/rounds.csv",
+    log:
+        f"{LOGS}/verify/{{spec}}.log",
+    threads: config["resources"]["ucs_threads"]
+    resources:
+        runtime=config["resources"]["ucs_runtime_min"] * config["verification"]["max_rounds"],
+        mem_mb=config["resources"]["ucs_mem_mb"],
+    params:
+        v=config["verification"],
+        opts=specimen_args(),
+    shell:
+        "bpmcal verify --card {input.card} --models {input.models} --out {VERIF}/{wildcards.spec} "
+        "--seed {params.v[seed]} --rtol {params.v[rtol]} --max-rounds {params.v[max_rounds]} "
+        "--threads {threads} {params.opts} > {log} 2>&1"
+
+
+rule seed_scatter:
+    input:
+        card=f"{CALIB}/{SPECIMENS[0]}.yaml",
+    output:
+        f"{VERIF}/seed_scatter/seed_scatter.csv",
+    log:
+        f"{LOGS}/seed_scatter.log",
+    threads: config["resources"]["ucs_threads"]
+    resources:
+        runtime=config["resources"]["ucs_runtime_min"] * len(config["verification"]["scatter_seeds"]),
+        mem_mb=config["resources"]["ucs_mem_mb"],
+    params:
+        seeds=",".join(str(s) for s in config["verification"]["scatter_seeds"]),
+        rtol=config["verification"]["rtol"],
+        opts=specimen_args(),
+    shell:
+        "bpmcal scatter --card {input.card} --out {VERIF}/seed_scatter --seeds {params.seeds} "
+        "--rtol {params.rtol} --threads {threads} {params.opts} > {log} 2>&1"
+
+
+rule verification_tables:
+    input:
+        cards=expand(f"{VERIF}/{{spec}}/card.yaml", spec=SPECIMENS),
+        lab=config["lab"]["csv"],
+    output:
+        table5=f"{TABLES}/table5_verification.csv",
+        table6=f"{TABLES}/table6_prepeak_energy.csv",
+        fig6=f"{FIGS}/fig6_stress_strain.png",
+    log:
+        f"{LOGS}/verification_tables.log",
+    shell:
+        "bpmcal verification-tables --cards {input.cards} --lab {input.lab} --tables {TABLES} "
+        "--figures {FIGS} > {log} 2>&1"
