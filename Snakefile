@@ -20,11 +20,16 @@ localrules:
     screen,
     regress,
     calibrate,
+    calibrate_initial,
     verification_tables,
+    sweep_plan,
+    sweep_analyse,
+    impact_analyse,
 
 
 include: "workflow/rules/study.smk"
 include: "workflow/rules/analysis.smk"
+include: "workflow/rules/fracture.smk"
 
 
 rule all:
@@ -35,4 +40,6 @@ rule all:
         rules.calibrate.output,
         rules.verification_tables.output,
         rules.seed_scatter.output,
+        rules.sweep_analyse.output if config["ratio_sweep"]["enabled"] else [],
+        rules.impact_analyse.output,
     default_target: True

@@ -278,6 +278,110 @@ def cmd_vtables(a) -> int:
     return 0
 
 
+def cmd_sweep_plan(a) -> int:
+    from .analysis import models_from_dict
+    from .study.pipeline import read_card
+    from .study.sweep import ratio_grid, sweep_plan
+
+    start, stop, step = (float(x) for x in a.ratios.split(","))
+    card = read_card(a.card)
+    models = models_from_dict(json.loads(Path(a.models).read_text()))
+    plan = sweep_plan(card, models["ucs_MPa"], ratio_grid(start, stop, step), a.seed)
+    _write_csv(plan, a.out)
+    print(plan.to_string())
+    return 0
+
+
+def cmd_sweep_analyse(a) -> int:
+    import pandas as pd
+
+    from .io.h5 import read_cracks
+    from .io.vtk import export_run
+    from .plots.fracture import fig_failure_patterns, fig_ratio_cracks
+    from .plots.style import save
+    from .study.pipeline import write_table
+    from .study.sweep import analyse_sweep, write_chosen
+
+    plan = pd.read_csv(a.plan)
+    df, chosen = analyse_sweep(plan, a.runs, a.criterion, a.target)
+    write_table(df, Path(a.tables) / "ratio_sweep.csv", index=False)
+    write_chosen(a.chosen, chosen)
+    save(fig_ratio_cracks(df, chosen), Path(a.figures) / "fig4_ratio_cracks.png")
+    show = sorted({plan["ratio"].iloc[0], chosen["chosen_ratio"], 1.0,
+                   plan["ratio"].iloc[-1]} & set(plan["ratio"]))
+    panels = {}
+    for r in show:
+        sid = plan.loc[plan["ratio"] == r, "sample_id"].iloc[0]
+        run = Path(a.runs) / f"{sid}.h5"
+        panels[f"a = {r:.1f}"] = read_cracks(run)
+        export_run(run, Path(a.vtk) / sid)
+    save(fig_failure_patterns(panels), Path(a.figures) / "fig5_failure_patterns.png")
+    print(df.to_string())
+    print(f"chosen: {chosen}")
+    return 0
+
+
+def cmd_impact(a) -> int:
+    from .lab.impact import ImpactSettings
+    from .lab.runner import run_impact_file
+    from .study.pipeline import read_card
+
+    card = read_card(a.card)
+    params = dict(card.get("verification", {}).get("parameters") or card["parameters"])
+    st = ImpactSettings(velocity=a.velocity, hammer_mass=a.hammer_mass * a.scale ** 3,
+                        dp_ratio=a.dp_ratio, platen_fric=a.anvil_fric,
+                        duration=a.duration_ms * 1e-3, record_dt=a.record_us * 1e-6)
+    prog = Progress(f"impact {Path(a.out).name}", enabled=not a.quiet)
+    out = run_impact_file(a.out, params, a.seed, run_geometry(a), st, cache=a.specimen_cache,
+                          threads=a.threads, progress=prog)
+    if out.status == "ok":
+        s = out.summary
+        prog.done(f"{a.out}: W_in = {s['W_in_J']:.3f} J, G_f = {s['G_f_J']:.3f} J, eta_f = "
+                  f"{100 * s['eta_f']:.1f} %, t10 = {s['t10_pct']:.1f} %, closure "
+                  f"{100 * s['closure_rel_max']:.3f} %, {s['steps']} steps, {s['wall_s']:.0f} s")
+    else:
+        prog.done(f"{a.out}: FAILED ({out.error})")
+    return 0
+
+
+def cmd_impact_analyse(a) -> int:
+    import pandas as pd
+
+    from .io.h5 import read_series, read_summary
+    from .lab.fragments import fit_jk
+    from .plots.fracture import fig_impact, fig_t10
+    from .plots.style import save
+    from .study.pipeline import write_table, write_text
+
+    main_s = read_summary(a.main)
+    ser = read_series(a.main)
+    ser["cracks_total"] = ser["cracks_tension"] + ser["cracks_shear"]
+    write_table(ser, Path(a.tables) / "impact_energy.csv", index=False)
+    save(fig_impact(ser, main_s), Path(a.figures) / "fig7_impact_energy.png")
+    rows = []
+    for f in a.runs:
+        s = read_summary(f)
+        if s.get("status") != "ok":
+            continue
+        rows.append({"velocity": s["velocity"], "W_in_J": s["W_in_J"], "G_f_J": s["G_f_J"],
+                     "eta_f": s["eta_f"], "ecs_kWh_t": s["ecs_kWh_t"], "t10_pct": s["t10_pct"],
+                     "n_fragments": s["n_fragments"],
+                     "largest_fragment_frac": s["largest_fragment_frac"],
+                     "balls_per_t10_fragment": s["balls_per_t10_fragment"]})
+    t = pd.DataFrame(rows).sort_values("velocity")
+    try:
+        fit = fit_jk(t["ecs_kWh_t"], t["t10_pct"])
+    except (ValueError, RuntimeError) as e:
+        fit = None
+        print(f"JK fit failed: {e}")
+    write_table(t, Path(a.tables) / "t10_ecs.csv", index=False)
+    write_text(Path(a.tables) / "jk_fit.json", json.dumps(fit, indent=2) + "\n")
+    save(fig_t10(t, fit), Path(a.figures) / "t10_ecs.png")
+    print(t.to_string())
+    print(f"JK fit: {fit}")
+    return 0
+
+
 def cmd_summary(a) -> int:
     from .io.h5 import json_safe, read_summary
     s = read_summary(a.run)
@@ -453,6 +557,50 @@ def build_parser() -> argparse.ArgumentParser:
     vt.add_argument("--tables", required=True)
     vt.add_argument("--figures", required=True)
     vt.set_defaults(func=cmd_vtables)
+
+    sp = sub.add_parser("sweep-plan", help="bond-strength-ratio sweep: one row per ratio")
+    sp.add_argument("--card", required=True, help="material card (the initial calibration)")
+    sp.add_argument("--models", required=True)
+    sp.add_argument("--ratios", default="0.5,2.0,0.1", help="start,stop,step")
+    sp.add_argument("--seed", type=int, default=1)
+    sp.add_argument("--out", required=True)
+    sp.set_defaults(func=cmd_sweep_plan)
+
+    sa = sub.add_parser("sweep-analyse", help="crack counts per ratio, the chosen ratio")
+    sa.add_argument("--plan", required=True)
+    sa.add_argument("--runs", required=True, help="directory of <sample_id>.h5")
+    sa.add_argument("--criterion", default="tensile_share",
+                    choices=["tensile_share", "crack_count"])
+    sa.add_argument("--target", type=float, default=0.6)
+    sa.add_argument("--tables", required=True)
+    sa.add_argument("--figures", required=True)
+    sa.add_argument("--vtk", required=True, help="VTK output directory of the shown runs")
+    sa.add_argument("--chosen", required=True, help="output JSON with the chosen ratio")
+    sa.set_defaults(func=cmd_sweep_analyse)
+
+    im = sub.add_parser("impact", help="drop-hammer impact of a calibrated specimen")
+    im.add_argument("--card", required=True, help="material card (verified or calibrated)")
+    im.add_argument("--out", required=True)
+    im.add_argument("--velocity", type=_positive("velocity"), default=6.0, help="m/s")
+    im.add_argument("--hammer-mass", type=_positive("hammer-mass"), default=4.383,
+                    help="hammer mass at full size [kg]; scaled by scale^3 (default 4.383)")
+    im.add_argument("--dp-ratio", type=float, default=0.1,
+                    help="contact dashpot critical-damping ratio (default 0.1)")
+    im.add_argument("--anvil-fric", dest="anvil_fric", type=float, default=0.3,
+                    help="friction of anvil and hammer (default 0.3)")
+    im.add_argument("--duration-ms", type=_positive("duration-ms"), default=10.0)
+    im.add_argument("--record-us", type=_positive("record-us"), default=5.0)
+    im.add_argument("--seed", type=int, default=1)
+    im.add_argument("--quiet", action="store_true")
+    add_run_args(im)
+    im.set_defaults(func=cmd_impact)
+
+    ia = sub.add_parser("impact-analyse", help="impact energy table, Fig. 7, t10-Ecs and JK fit")
+    ia.add_argument("--main", required=True, help="the reference impact run (6 m/s)")
+    ia.add_argument("--runs", nargs="+", required=True, help="impact runs of the velocity sweep")
+    ia.add_argument("--tables", required=True)
+    ia.add_argument("--figures", required=True)
+    ia.set_defaults(func=cmd_impact_analyse)
 
     s = sub.add_parser("summary", help="print the summary attributes of a run file")
     s.add_argument("run")

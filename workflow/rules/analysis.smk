@@ -4,6 +4,7 @@
 SCREEN = f"{OUT}/screening"
 REGR = f"{OUT}/regression"
 CALIB = f"{OUT}/calibration"
+CALIB0 = f"{OUT}/calibration_initial"
 VERIF = f"{OUT}/verification"
 TABLES = f"{OUT}/tables"
 FIGS = f"{OUT}/figures"
@@ -49,11 +50,31 @@ rule regress:
         "--cv-repeats {params.r[cv_repeats]} --seed {params.r[seed]} > {log} 2>&1"
 
 
+rule calibrate_initial:
+    input:
+        dataset=DATASET,
+        models=f"{REGR}/models.json",
+        lab=config["lab"]["csv"],
+    output:
+        cards=expand(f"{CALIB0}/{{spec}}.yaml", spec=SPECIMENS),
+    log:
+        f"{LOGS}/calibrate_initial.log",
+    params:
+        c=config["calibration"],
+        fixed=json.dumps(config["calibration"]["fixed"]),
+        free=",".join(config["calibration"]["free"]),
+    shell:
+        "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
+        "--out {CALIB0} --fixed '{params.fixed}' --free {params.free} "
+        "--ratio {params.c[ratio]} --n-boot 0 --seed {params.c[seed]} > {log} 2>&1"
+
+
 rule calibrate:
     input:
         dataset=DATASET,
         models=f"{REGR}/models.json",
         lab=config["lab"]["csv"],
+        chosen=SWEEP_CHOSEN if config["ratio_sweep"]["enabled"] else [],
     output:
         cards=expand(f"{CALIB}/{{spec}}.yaml", spec=SPECIMENS),
         table=f"{TABLES}/calibration.csv",
@@ -63,11 +84,12 @@ rule calibrate:
         c=config["calibration"],
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
+        ratio=(lambda wc, input: f"--ratio-from {input.chosen}" if input.chosen
+               else f"--ratio {config['calibration']['ratio']}"),
     shell:
         "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
         "--out {CALIB} --tables {TABLES} --fixed '{params.fixed}' --free {params.free} "
-        "--ratio {params.c[ratio]} --n-boot {params.c[n_boot]} --seed {params.c[seed]} "
-        "> {log} 2>&1"
+        "{params.ratio} --n-boot {params.c[n_boot]} --seed {params.c[seed]} > {log} 2>&1"
 
 
 rule verify:

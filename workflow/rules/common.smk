@@ -16,16 +16,36 @@ DESIGN = f"{OUT}/design/samples.csv"
 DATASET = f"{OUT}/dataset.csv"
 PACKINGS = f"{OUT}/cache/packings"
 LOGS = f"{OUT}/logs"
+SWEEP = f"{OUT}/ratio_sweep"
+SWEEP_PLAN = f"{SWEEP}/plan.csv"
+SWEEP_CHOSEN = f"{SWEEP}/chosen.json"
+IMPACT = f"{OUT}/impact"
 
 import pandas as _pd
 
 SPECIMENS = [str(s) for s in _pd.read_csv(config["lab"]["csv"])["specimen"]]
 
 
-def specimen_args(cfg=config):
+def _vtag(v):
+    """6.0 -> "6", 2.5 -> "2.5" (file names of the impact runs)."""
+    return f"{float(v):g}"
+
+
+SWEEP_SPEC = SPECIMENS[0]
+IMPACT_SPEC = SPECIMENS[0]
+_r0, _r1, _rs = config["ratio_sweep"]["ratios"]
+SWEEP_IDS = [f"a{int(round((_r0 + k * _rs) * 100)):03d}"
+             for k in range(int((_r1 - _r0) / _rs + 1e-9) + 1)]
+IMPACT_V0 = _vtag(config["impact"]["velocity"])
+IMPACT_VS = sorted({_vtag(v) for v in [config["impact"]["velocity"],
+                                       *config["impact"]["sweep_velocities"]]}, key=float)
+
+
+def specimen_args(cfg=config, scale=None):
     """bpmcal ucs options of the specimen and loading sections."""
     sp, u = cfg["specimen"], cfg["ucs"]
-    return (f"--scale {sp['scale']} --diameter {sp['diameter_mm']} --height {sp['height_mm']} "
+    scale = sp["scale"] if scale is None else scale
+    return (f"--scale {scale} --diameter {sp['diameter_mm']} --height {sp['height_mm']} "
             f"--sigma0 {sp['sigma0_MPa']} --install-gap {sp['install_gap_mm']} "
             f"--relax-ratio {sp['relax_ratio']} --platen-velocity {u['platen_velocity']} "
             f"--damping {u['damping']} --stop-drop {u['stop_drop']} "

@@ -416,7 +416,8 @@ class Model:
         S.dash[:ns] = 0.0
         wout = np.zeros((nw, 3))
         K.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
-        self._removed_work += float(W.work[w] + wout[w, 1])
+        if W.mass[w] == 0.0:  # a rigid wall's work is internal to the system
+            self._removed_work += float(W.work[w] + wout[w, 1])
         self._removed_grav += float(W.grav[w] + wout[w, 2])
         # the first half of the current step's work was counted: drop the wall's force so
         # the next step adds nothing for it (the slots are removed below)
@@ -665,7 +666,8 @@ class Model:
     def energies(self) -> dict:
         """Energy terms [J] of the current state (step n), consistent with the integrator.
 
-        Inputs: ``work_walls`` (total; per wall in ``work_walls_each``), ``work_gravity``,
+        Inputs: ``work_walls`` (walls with prescribed motion; every wall's work on the balls
+        is in ``work_walls_each``), ``work_gravity``,
         ``work_constraints`` (of prescribed velocities). Stored: ``kinetic`` (balls,
         1/2 m v_{n-1/2}.v_{n+1/2} + rotation), ``kinetic_walls`` (rigid walls),
         ``strain_linear``, ``strain_bond``. Dissipated or released: ``slip``, ``dashpot``,
@@ -689,7 +691,9 @@ class Model:
         e = {"kinetic": kin, "kinetic_walls": float(wout[:, 0].sum()), "strain_linear": lin,
              "strain_bond": bond, "slip": slip, "dashpot": dash, "damping": damp + dmp2,
              "released": rel, "removed": float(self.eacc[E_REMOVED]),
-             "work_walls": float(ww.sum()) + self._removed_work,
+             # rigid-body walls are part of the system (their kinetic energy is stored
+             # energy), so only walls with prescribed motion do external work
+             "work_walls": float(ww[W.mass == 0.0].sum()) + self._removed_work,
              "work_gravity": grav + grv2 + float((W.grav + wout[:, 2]).sum())
              + self._removed_grav,
              "work_constraints": fixw + cst2, "work_walls_each": ww.tolist(),

@@ -19,6 +19,8 @@ Layout (``SCHEMA_VERSION`` 1)::
     /particles/initial  position (n, 3) [m], radius (n,) [m]
     /particles/final    position, velocity, angular_velocity
     /bonds            i, j, state (0 intact, 1 tension, 2 shear), break_step
+    /fragments        (impact runs) mass [kg], size [m] (equivalent-sphere diameter) of
+                      every fragment; /particles/final/fragment holds each ball's label
 
 A file is written under a temporary name in the same directory and renamed when
 complete, so a file that exists is complete (``write_run``).
@@ -45,6 +47,9 @@ SERIES_UNITS = {
     "cracks_tension": "", "cracks_shear": "", "kinetic": "J", "strain_linear": "J",
     "strain_bond": "J", "slip": "J", "damping": "J", "dashpot": "J", "released": "J",
     "work_walls": "J", "unbalanced": "",
+    # impact runs
+    "hammer_z": "m", "hammer_v": "m/s", "W_in": "J", "W_in_paper": "J", "work_gravity": "J",
+    "eta_f": "", "closure_rel": "",
 }
 
 
@@ -74,7 +79,8 @@ def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
               genesis: dict | None = None, series: dict | None = None,
               cracks: dict | None = None, particles_initial: dict | None = None,
               particles_final: dict | None = None, bonds: dict | None = None,
-              status: str = "ok", error: str = "", extra: dict | None = None) -> Path:
+              status: str = "ok", error: str = "", extra: dict | None = None,
+              groups: dict | None = None) -> Path:
     """Write one run atomically (temporary file in the same directory, then rename)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -106,6 +112,10 @@ def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
                     for k, v in d.items():
                         g.create_dataset(k, data=np.asarray(v), compression="gzip",
                                          shuffle=True)
+            for gname, arrays in (groups or {}).items():
+                g = f.create_group(gname)
+                for k, v in arrays.items():
+                    g.create_dataset(k, data=np.asarray(v))
             if bonds:
                 g = f.create_group("bonds")
                 for k, v in bonds.items():
@@ -184,6 +194,13 @@ def read_particles(path, which: str = "final") -> dict:
         if key not in f:
             return {}
         return {k: f[key][k][()] for k in f[key]}
+
+
+def read_group(path, name) -> dict:
+    with h5py.File(path, "r") as f:
+        if name not in f:
+            return {}
+        return {k: f[name][k][()] for k in f[name]}
 
 
 def read_bonds(path) -> dict:

@@ -1,8 +1,9 @@
 """Drop-hammer impact on a bonded specimen: energy budget, crack stages, fragments.
 
 Set-up: the specimen stands on its fixed bottom platen (friction ``platen_fric``); its top
-platen is removed; a rigid hammer (a disk-shaped plane of mass ``hammer_mass``, radius 1.5
-x the specimen's) starts just above the top face moving down at ``velocity``; gravity on;
+platen is removed; a rigid hammer (a plane of mass ``hammer_mass``, wider than anything
+it can hit, so no ball can slip under its edge) starts just above the top face moving
+down at ``velocity``; gravity on;
 no local damping (dynamic run); contact dashpots with critical-damping ratios
 ``dp_ratio`` (normal and shear).
 
@@ -22,7 +23,8 @@ count, through-failure = first record with >= 90 %; propagation in between; the 
 the largest crack rate is reported too.
 
 The run ends when the hammer has rebounded (moving up) and ``after_rebound`` more time
-has passed, or at ``duration``.
+has passed, when the hammer has come down to two ball diameters above the anvil (the
+specimen is crushed through; steel would hit steel), or at ``duration``.
 """
 from __future__ import annotations
 
@@ -97,7 +99,7 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     z_top = float((m.B.pos[:, 2] + m.B.radius).max())
     hammer = m.add_plane_wall((0.0, 0.0, z_top + st.gap), (0.0, 0.0, -1.0),
                               velocity=(0.0, 0.0, -st.velocity), fric=st.platen_fric,
-                              disk_radius=1.5 * sp.radius0, mass=st.hammer_mass)
+                              mass=st.hammer_mass)
     m.set_timestep(None)
     dt = m.dt
     n_rec = max(1, int(round(st.record_dt / dt)))
@@ -137,6 +139,7 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     rec()
     t_rebound = None
     reason = "duration"
+    z_floor = float(m.W.pos[wb, 2]) + 4.0 * float(m.B.radius.max())
     while m.time - t0 < st.duration:
         m.cycle(n_rec)
         v = rec()
@@ -148,6 +151,9 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
             t_rebound = m.time - t0
         if t_rebound is not None and m.time - t0 - t_rebound >= st.after_rebound:
             reason = "rebound"
+            break
+        if float(m.W.pos[hammer, 2]) <= z_floor:
+            reason = "hammer_on_anvil"
             break
     series = {k: np.asarray(v) for k, v in ser.items()}
     ncr = series["cracks_tension"] + series["cracks_shear"]

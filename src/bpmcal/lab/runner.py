@@ -115,3 +115,51 @@ def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
               cracks=cracks, particles_initial=ini if keep_particles else None,
               particles_final=fin, bonds=bonds if keep_particles else None)
     return RunOutcome(status="ok", summary=summ, path=out)
+
+
+def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
+                    settings=None, *, cache=None, threads=None, progress=None) -> RunOutcome:
+    """Drop-hammer impact on a specimen of the given parameters -> HDF5 file (test
+    "impact"; the same conventions as the UCS run files)."""
+    from .impact import ImpactSettings, run_impact
+    from .impact import settings_dict as impact_dict
+
+    st = settings or ImpactSettings()
+    p = P.validate_params(params)
+    inputs = {k: float(p[k]) for k in P.PARAMS}
+    inputs.update(geometry.to_dict())
+    inputs["seed"] = int(seed)
+    inputs.update({f"impact_{k}": v for k, v in impact_dict(st).items()})
+    if threads:
+        set_threads(threads)
+    t0 = time.perf_counter()
+    try:
+        sp = make_specimen(p, seed, geometry, cache=cache, threads=threads)
+        ini = {"position": sp.model.B.pos.copy(), "radius": sp.model.B.radius.copy()}
+        res = run_impact(sp, st, progress=progress)
+    except (InstabilityError, GenesisError) as e:
+        msg = f"{type(e).__name__}: {e}"
+        write_run(out, test="impact", inputs=inputs, status="failed", error=msg,
+                  summary={"wall_s": time.perf_counter() - t0})
+        return RunOutcome(status="failed", error=msg, path=out)
+    m = sp.model
+    summ = dict(res.summary)
+    summ["velocity"] = st.velocity
+    summ["hammer_mass"] = st.hammer_mass
+    summ["total_s"] = time.perf_counter() - t0
+    ev = res.cracks
+    cracks = {"step": ev["step"], "time": ev["time"], "position": ev["pos"],
+              "normal": ev["normal"], "mode": ev["mode"], "radius": ev["radius"],
+              "energy": ev["energy"], "sigma": ev["sigma"], "tau": ev["tau"],
+              "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
+    bi, bj = m.bond_pairs()
+    write_run(out, test="impact", inputs=inputs, summary=summ, genesis=sp.report,
+              series=res.series, cracks=cracks, particles_initial=ini,
+              particles_final={"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
+                               "angular_velocity": m.B.angvel.copy(),
+                               "fragment": res.fragments["label"]},
+              bonds={"i": bi, "j": bj, "state": m.Bd.state.copy(),
+                     "break_step": m.Bd.step.copy()},
+              groups={"fragments": {"mass": res.fragments["mass"],
+                                    "size": res.fragments["size"]}})
+    return RunOutcome(status="ok", summary=summ, path=out)
