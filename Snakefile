@@ -9,6 +9,10 @@
 configfile: "config/config.yaml"
 
 
+# `snakemake --report results/report.html`: self-contained HTML with every figure and caption
+report: "workflow/report/workflow.rst"
+
+
 include: "workflow/rules/common.smk"
 
 
@@ -25,11 +29,13 @@ localrules:
     sweep_plan,
     sweep_analyse,
     impact_analyse,
+    report,
 
 
 include: "workflow/rules/study.smk"
 include: "workflow/rules/analysis.smk"
 include: "workflow/rules/fracture.smk"
+include: "workflow/rules/report.smk"
 
 
 rule all:
@@ -42,4 +48,5 @@ rule all:
         rules.seed_scatter.output,
         rules.sweep_analyse.output if config["ratio_sweep"]["enabled"] else [],
         rules.impact_analyse.output,
+        rules.report.output,
     default_target: True

@@ -237,6 +237,9 @@ def cmd_calibrate(a) -> int:
     from .study.pipeline import calibrate
 
     fixed = P.validate_params(_json_arg(a.fixed, "--fixed"), require_all=False)
+    if a.n_boot == 1 or a.n_boot < 0:
+        raise P.ParameterError(f"--n-boot {a.n_boot}: expected 0 (no bootstrap) "
+                               "or an integer >= 2")
     free = a.free.split(",") if a.free else None
     ratio = None if a.ratio is not None and a.ratio <= 0 else a.ratio
     if a.ratio_from:
@@ -379,6 +382,16 @@ def cmd_impact_analyse(a) -> int:
     save(fig_t10(t, fit), Path(a.figures) / "t10_ecs.png")
     print(t.to_string())
     print(f"JK fit: {fit}")
+    return 0
+
+
+def cmd_report(a) -> int:
+    from .report.build import build
+
+    cfg = _json_arg(Path(a.config).read_text(), "--config") if a.config.endswith(".json") \
+        else __import__("yaml").safe_load(Path(a.config).read_text())
+    index = build(a.outdir, cfg, a.out)
+    print(index)
     return 0
 
 
@@ -528,7 +541,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="bond-strength ratio pb_ten/pb_coh (<= 0: both free)")
     ca.add_argument("--ratio-from", default=None,
                     help="JSON file with the chosen ratio (the ratio sweep's choice)")
-    ca.add_argument("--n-boot", type=int, default=200)
+    ca.add_argument("--n-boot", type=int, default=200,
+                    help="bootstrap resamples for the intervals (0: no bootstrap, else >= 2)")
     ca.add_argument("--seed", type=int, default=0)
     ca.set_defaults(func=cmd_calibrate)
 
@@ -601,6 +615,12 @@ def build_parser() -> argparse.ArgumentParser:
     ia.add_argument("--tables", required=True)
     ia.add_argument("--figures", required=True)
     ia.set_defaults(func=cmd_impact_analyse)
+
+    rp = sub.add_parser("report", help="results/report: every table and figure + index.md")
+    rp.add_argument("--outdir", required=True, help="the study's output directory")
+    rp.add_argument("--config", required=True, help="the study's (merged) config, JSON/YAML")
+    rp.add_argument("--out", default=None, help="report directory (default OUTDIR/report)")
+    rp.set_defaults(func=cmd_report)
 
     s = sub.add_parser("summary", help="print the summary attributes of a run file")
     s.add_argument("run")

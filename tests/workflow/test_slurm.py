@@ -81,6 +81,7 @@ def test_smoke_study_runs_through_sbatch(local_slurm, tmp_path):
         wf,
         PROFILE,
         [
+            "results/dataset.csv",  # the sample stage: the part that goes to the cluster
             "--jobs", "4",
             # two batches of two ucs jobs: several submissions, each holding several jobs
             "--group-components", "ucs_batch=2",

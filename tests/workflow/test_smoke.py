@@ -67,7 +67,7 @@ def test_interrupted_study_resumes_without_redoing_samples(tmp_path):
     r = snakemake(wf, *done, "--cores", "2", *cfg)  # "interrupted" after two samples
     assert r.returncode == 0, r.stderr[-2000:]
     mtimes = {f: (wf / f).stat().st_mtime_ns for f in done}
-    r = snakemake(wf, "--cores", "2", *cfg)
+    r = snakemake(wf, "results/resume/dataset.csv", "--cores", "2", *cfg)
     assert r.returncode == 0, r.stderr[-2000:]
     assert {f: (wf / f).stat().st_mtime_ns for f in done} == mtimes
     assert len(pd.read_csv(wf / "results/resume/dataset.csv")) == 4
@@ -114,3 +114,67 @@ def test_config_errors_stop_before_any_job_naming_the_key(tmp_path, patch, needl
     assert r.returncode != 0
     assert needle in r.stdout + r.stderr
     assert not (wf / "results").exists()
+
+
+# ---------------------------------------------------------------------------- the report
+def _published_values():
+    """Every number the paper publishes that the report compares against."""
+    from bpmcal.report import paper
+
+    vals = [v for d in paper.TABLE3.values() for v in d.values()]
+    vals += [v for d in paper.ADJ_R2.values() for v in d.values()]
+    vals += [v for d in paper.CALIBRATED.values() for v in d.values()]
+    for d in paper.VERIFIED.values():
+        vals += [d[k] for k in ("ucs_MPa", "E_GPa", "nu")] + list(d["err_pct"].values())
+    vals += [v for d in paper.PREPEAK.values() for v in (d["sim"], d["err_pct"])]
+    vals += [paper.RATIO, paper.IMPACT["W_in_J"], paper.IMPACT["eta_f"]]
+    return vals
+
+
+def test_report_holds_every_table_and_figure(smoke):
+    from bpmcal.report.build import FIGURES, TABLES
+
+    rep = smoke / "results" / "smoke" / "report"
+    for stem in TABLES:
+        for ext in (".csv", ".md"):
+            f = rep / "tables" / f"{stem}{ext}"
+            assert f.exists() and f.stat().st_size > 0, f
+        assert len(pd.read_csv(rep / "tables" / f"{stem}.csv")) > 0, stem
+    for stem in FIGURES:
+        for ext in (".png", ".pdf"):
+            f = rep / "figures" / f"{stem}{ext}"
+            assert f.exists() and f.stat().st_size > 1000, f
+    index = (rep / "index.md").read_text()
+    for stem in FIGURES:
+        assert f"figures/{stem}.png" in index, stem
+    assert "Figures not produced" not in index
+    assert "samples ok" in index and "Specimen scale 0.3" in index
+
+
+def test_report_index_names_every_published_value(smoke):
+    rep = smoke / "results" / "smoke" / "report"
+    index = (rep / "index.md").read_text()
+    comp = pd.read_csv(rep / "tables" / "comparison.csv")
+    for v in _published_values():
+        rows = comp[(comp["paper"] - v).abs() <= 1e-9 * max(1.0, abs(v))]
+        assert len(rows), f"published value {v} missing from comparison.csv"
+        shown = {f"{v:.1f}", f"{v:.2f}", f"{v:.3f}", f"{100 * v:.1f}", f"{v:g}"}
+        assert any(s in index for s in shown), f"published value {v} not in index.md"
+        # each comparison carries our value next to it and the difference
+        assert rows["ours"].notna().any(), rows
+
+
+def test_snakemake_html_report_has_every_caption(smoke):
+    r = snakemake(smoke, "--configfile", "config/smoke.yaml", "--report",
+                  "results/smoke/report.html")
+    assert r.returncode == 0, r.stderr[-3000:]
+    html = (smoke / "results" / "smoke" / "report.html").read_text(errors="replace")
+    for cap in sorted((REPO / "workflow" / "report").glob("fig*.rst")) + [
+            REPO / "workflow" / "report" / f"{n}.rst" for n in ("regression", "screening", "t10")]:
+        # the captions sit in the page's JSON (non-ASCII escaped): compare an ASCII prefix
+        text = " ".join(cap.read_text().split())
+        cut = next((i for i, c in enumerate(text) if ord(c) > 127 or c in "'*"), len(text))
+        first = text[:min(cut, 60)]
+        assert len(first) >= 15, cap.name
+        assert first in html, f"caption of {cap.name} missing"
+    assert "XGBoost screening (Table 3) selects" in html  # the workflow description

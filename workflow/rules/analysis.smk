@@ -17,13 +17,17 @@ rule screen:
         selected=f"{SCREEN}/selected.json",
         table3=f"{TABLES}/table3_importance.csv",
         table3_md=f"{TABLES}/table3_importance.md",
-        fig=f"{FIGS}/screening_importance.png",
+        fig=report(f"{FIGS}/screening_importance.png", caption="../report/screening.rst",
+                   category="Calibration"),
     log:
         f"{LOGS}/screen.log",
     params:
+        figs=parent_of("fig"),
+        screen=parent_of("selected"),
+        tables=parent_of("table3"),
         s=config["screening"],
     shell:
-        "bpmcal screen --dataset {input} --out {SCREEN} --tables {TABLES} --figures {FIGS} "
+        "bpmcal screen --dataset {input} --out {params.screen} --tables {params.tables} --figures {params.figs} "
         "--threshold {params.s[threshold_pct]} --importance {params.s[importance]} "
         "--splits {params.s[n_splits]} --repeats {params.s[n_repeats]} "
         "--seed {params.s[seed]} > {log} 2>&1"
@@ -37,14 +41,18 @@ rule regress:
         models=f"{REGR}/models.json",
         table4=f"{TABLES}/table4_terms.csv",
         equations=f"{REGR}/equations.md",
-        fig=f"{FIGS}/regression_fit.png",
+        fig=report(f"{FIGS}/regression_fit.png", caption="../report/regression.rst",
+                   category="Calibration"),
     log:
         f"{LOGS}/regress.log",
     params:
+        figs=parent_of("fig"),
+        regr=parent_of("models"),
+        tables=parent_of("table4"),
         r=config["regression"],
     shell:
-        "bpmcal regress --dataset {input.dataset} --selected {input.selected} --out {REGR} "
-        "--tables {TABLES} --figures {FIGS} --alpha-in {params.r[alpha_in]} "
+        "bpmcal regress --dataset {input.dataset} --selected {input.selected} --out {params.regr} "
+        "--tables {params.tables} --figures {params.figs} --alpha-in {params.r[alpha_in]} "
         "--alpha-out {params.r[alpha_out]} --vif-max {params.r[vif_max]} "
         "--hierarchy {params.r[hierarchy]} --cv-folds {params.r[cv_folds]} "
         "--cv-repeats {params.r[cv_repeats]} --seed {params.r[seed]} > {log} 2>&1"
@@ -60,12 +68,13 @@ rule calibrate_initial:
     log:
         f"{LOGS}/calibrate_initial.log",
     params:
+        calib0=parent_of("cards"),
         c=config["calibration"],
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
     shell:
         "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
-        "--out {CALIB0} --fixed '{params.fixed}' --free {params.free} "
+        "--out {params.calib0} --fixed '{params.fixed}' --free {params.free} "
         "--ratio {params.c[ratio]} --n-boot 0 --seed {params.c[seed]} > {log} 2>&1"
 
 
@@ -81,6 +90,8 @@ rule calibrate:
     log:
         f"{LOGS}/calibrate.log",
     params:
+        calib=parent_of("cards"),
+        tables=parent_of("table"),
         c=config["calibration"],
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
@@ -88,7 +99,7 @@ rule calibrate:
                else f"--ratio {config['calibration']['ratio']}"),
     shell:
         "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
-        "--out {CALIB} --tables {TABLES} --fixed '{params.fixed}' --free {params.free} "
+        "--out {params.calib} --tables {params.tables} --fixed '{params.fixed}' --free {params.free} "
         "{params.ratio} --n-boot {params.c[n_boot]} --seed {params.c[seed]} > {log} 2>&1"
 
 
@@ -106,10 +117,11 @@ rule verify:
         runtime=config["resources"]["ucs_runtime_min"] * config["verification"]["max_rounds"],
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
+        verif=parent_of("card", up=2),
         v=config["verification"],
         opts=specimen_args(),
     shell:
-        "bpmcal verify --card {input.card} --models {input.models} --out {VERIF}/{wildcards.spec} "
+        "bpmcal verify --card {input.card} --models {input.models} --out {params.verif}/{wildcards.spec} "
         "--seed {params.v[seed]} --rtol {params.v[rtol]} --max-rounds {params.v[max_rounds]} "
         "--threads {threads} {params.opts} > {log} 2>&1"
 
@@ -126,11 +138,12 @@ rule seed_scatter:
         runtime=config["resources"]["ucs_runtime_min"] * len(config["verification"]["scatter_seeds"]),
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
+        verif=parent_of(0, up=2),
         seeds=",".join(str(s) for s in config["verification"]["scatter_seeds"]),
         rtol=config["verification"]["rtol"],
         opts=specimen_args(),
     shell:
-        "bpmcal scatter --card {input.card} --out {VERIF}/seed_scatter --seeds {params.seeds} "
+        "bpmcal scatter --card {input.card} --out {params.verif}/seed_scatter --seeds {params.seeds} "
         "--rtol {params.rtol} --threads {threads} {params.opts} > {log} 2>&1"
 
 
@@ -141,9 +154,13 @@ rule verification_tables:
     output:
         table5=f"{TABLES}/table5_verification.csv",
         table6=f"{TABLES}/table6_prepeak_energy.csv",
-        fig6=f"{FIGS}/fig6_stress_strain.png",
+        fig6=report(f"{FIGS}/fig6_stress_strain.png", caption="../report/fig6.rst",
+                    category="Verification"),
     log:
         f"{LOGS}/verification_tables.log",
+    params:
+        figs=parent_of("fig6"),
+        tables=parent_of("table5"),
     shell:
-        "bpmcal verification-tables --cards {input.cards} --lab {input.lab} --tables {TABLES} "
-        "--figures {FIGS} > {log} 2>&1"
+        "bpmcal verification-tables --cards {input.cards} --lab {input.lab} --tables {params.tables} "
+        "--figures {params.figs} > {log} 2>&1"

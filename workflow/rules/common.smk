@@ -51,3 +51,19 @@ def specimen_args(cfg=config, scale=None):
             f"--damping {u['damping']} --stop-drop {u['stop_drop']} "
             f"--max-strain {u['max_strain']} --platen-fric {u['platen_fric']} "
             f"--record-strain {u['record_strain']} --specimen-cache {PACKINGS}")
+
+
+def parent_of(key, up=1, io="output"):
+    """A params function: the folder ``up`` levels above a rule's output (or input) ``key``
+    (a name or an index; the first file of a list), so shell commands get folders that
+    follow the declared files instead of hard-coded prefixes."""
+
+    def f(wildcards, input, output):
+        files = output if io == "output" else input
+        v = files[key] if isinstance(key, int) else getattr(files, key)
+        path = v if isinstance(v, str) else v[0]
+        for _ in range(up):
+            path = os.path.dirname(path)
+        return path
+
+    return f

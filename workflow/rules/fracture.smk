@@ -44,16 +44,21 @@ rule sweep_analyse:
     output:
         table=f"{TABLES}/ratio_sweep.csv",
         chosen=SWEEP_CHOSEN,
-        fig4=f"{FIGS}/fig4_ratio_cracks.png",
-        fig5=f"{FIGS}/fig5_failure_patterns.png",
+        fig4=report(f"{FIGS}/fig4_ratio_cracks.png", caption="../report/fig4.rst",
+                    category="Failure and fragmentation"),
+        fig5=report(f"{FIGS}/fig5_failure_patterns.png", caption="../report/fig5.rst",
+                    category="Failure and fragmentation"),
     log:
         f"{LOGS}/sweep_analyse.log",
     params:
+        figs=parent_of("fig4"),
+        sweep=parent_of("plan", io="input"),
+        tables=parent_of("table"),
         s=config["ratio_sweep"],
     shell:
-        "bpmcal sweep-analyse --plan {input.plan} --runs {SWEEP}/runs "
-        "--criterion {params.s[criterion]} --target {params.s[target]} --tables {TABLES} "
-        "--figures {FIGS} --vtk {SWEEP}/vtk --chosen {output.chosen} > {log} 2>&1"
+        "bpmcal sweep-analyse --plan {input.plan} --runs {params.sweep}/runs "
+        "--criterion {params.s[criterion]} --target {params.s[target]} --tables {params.tables} "
+        "--figures {params.figs} --vtk {params.sweep}/vtk --chosen {output.chosen} > {log} 2>&1"
 
 
 rule impact:
@@ -85,10 +90,15 @@ rule impact_analyse:
     output:
         energy=f"{TABLES}/impact_energy.csv",
         t10=f"{TABLES}/t10_ecs.csv",
-        fig7=f"{FIGS}/fig7_impact_energy.png",
-        figt10=f"{FIGS}/t10_ecs.png",
+        fig7=report(f"{FIGS}/fig7_impact_energy.png", caption="../report/fig7.rst",
+                    category="Failure and fragmentation"),
+        figt10=report(f"{FIGS}/t10_ecs.png", caption="../report/t10.rst",
+                      category="Failure and fragmentation"),
     log:
         f"{LOGS}/impact_analyse.log",
+    params:
+        figs=parent_of("fig7"),
+        tables=parent_of("energy"),
     shell:
-        "bpmcal impact-analyse --main {input.main} --runs {input.runs} --tables {TABLES} "
-        "--figures {FIGS} > {log} 2>&1"
+        "bpmcal impact-analyse --main {input.main} --runs {input.runs} --tables {params.tables} "
+        "--figures {params.figs} > {log} 2>&1"

@@ -45,7 +45,7 @@ rule gather:
     log:
         f"{LOGS}/gather.log",
     params:
-        runs=f"{OUT}/ucs",
+        runs=parent_of("runs", io="input"),
     shell:
         "bpmcal gather --design {input.design} --runs {params.runs} --out {output} "
         "> {log} 2>&1"

@@ -476,7 +476,12 @@ def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel],
     out = []
     quantities = [(p, "parameter", base.solution[p], p) for p in base.free + base.derived]
     quantities += [(r, "response", base.predicted[r], f"{r}@estimate") for r in responses]
-    used = draws[draws["reachable"]]
+    if base.status == "no-exact-fit":
+        # the targets cannot all be met: the calibrated set is the least-squares compromise,
+        # and so is every resample's (an interior optimum, well defined): use those
+        used = draws[draws["status"].isin(["ok", "non-unique", "no-exact-fit"])]
+    else:
+        used = draws[draws["reachable"]]
     for name, kind, est, col in quantities:
         v = (used if kind == "parameter" else draws)[col].to_numpy(float)
         lo, hi = np.quantile(v, q) if len(v) else (np.nan, np.nan)

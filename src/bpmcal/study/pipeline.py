@@ -161,7 +161,8 @@ def regress(dataset_csv, selected_json, out_dir, tables_dir, figures_dir, *, alp
 def calibrate(dataset_csv, models_json, lab_csv, out_dir, *, fixed: dict, ratio=1.4,
               free=None, n_boot=200, seed=0, tables_dir=None) -> dict:
     """Invert the final regression models for every lab specimen; bootstrap intervals;
-    one material card per specimen (YAML)."""
+    one material card per specimen (YAML). ``n_boot=0`` skips the bootstrap (the initial
+    calibration that only seeds the strength-ratio sweep needs the point estimate)."""
     from ..analysis import bootstrap_intervals, invert, models_from_dict
 
     df, note = load_ok(dataset_csv)
@@ -173,9 +174,15 @@ def calibrate(dataset_csv, models_json, lab_csv, out_dir, *, fixed: dict, ratio=
         spec = str(rec["specimen"])
         targets = {k: float(rec[k]) for k in P.TARGETS}
         inv = invert(models, targets, fixed, free=free, ratio=ratio, seed=seed)
-        boot = bootstrap_intervals(df, models, targets, fixed, free=free, ratio=ratio,
-                                   n_boot=n_boot, seed=seed)
-        intervals = boot.intervals
+        if n_boot:
+            boot = bootstrap_intervals(df, models, targets, fixed, free=free, ratio=ratio,
+                                       n_boot=n_boot, seed=seed)
+            bootstrap = {"n_boot": n_boot, "scheme": boot.scheme,
+                         "unreachable_resamples": boot.n_unreachable,
+                         "intervals": boot.intervals.reset_index().to_dict("records")}
+        else:
+            bootstrap = {"n_boot": 0, "scheme": None, "unreachable_resamples": None,
+                         "intervals": []}
         card = {
             "specimen": spec,
             "status": inv.status,
@@ -190,9 +197,7 @@ def calibrate(dataset_csv, models_json, lab_csv, out_dir, *, fixed: dict, ratio=
             "predicted": inv.predicted,
             "residuals_pct": {k: 100 * v for k, v in inv.residuals.items()},
             "alternatives": inv.alternatives.to_dict("records"),
-            "bootstrap": {"n_boot": n_boot, "scheme": boot.scheme,
-                          "unreachable_resamples": boot.n_unreachable,
-                          "intervals": intervals.reset_index().to_dict("records")},
+            "bootstrap": bootstrap,
             "dataset_note": note,
             "provenance": provenance(dataset=str(dataset_csv), models=str(models_json),
                                      lab=str(lab_csv), fixed=fixed, ratio=ratio, seed=seed),

@@ -1,0 +1,1 @@
+"""bpmcal.report: the regenerated paper - published values and the report builder."""

@@ -1,0 +1,341 @@
+"""Assemble ``results/report/``: every table (CSV + Markdown) and figure (PNG + PDF) of the
+study, and ``index.md`` that puts each result next to the value the paper publishes, with
+the difference, the settings and seeds used, and the failed samples."""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import yaml
+
+from .. import __version__
+from .. import params as P
+from ..io.provenance import git_commit
+from . import paper
+
+#: tables and figures of the report (stem -> caption)
+TABLES = {
+    "table3_importance": "Table 3: XGBoost importance (%) of the meso-parameters",
+    "table4_terms": "Table 4: quadratic and interaction terms retained by the stepwise regression",
+    "regression_fit": "Adjusted and cross-validated R² of every stage",
+    "calibration": "Calibrated meso-parameters of the lab specimens",
+    "table5_verification": "Table 5: verification - DEM vs lab (single pass and closed loop)",
+    "table6_prepeak_energy": "Table 6: pre-peak energy density, DEM vs lab",
+    "ratio_sweep": "Bond-strength-ratio sweep: cracks and proportions",
+    "impact_energy": "Drop-hammer impact: energy budget over time",
+    "t10_ecs": "t10 against specific energy (impact-velocity sweep)",
+}
+FIGURES = {
+    "screening_importance": "XGBoost importance shares with fold spread and shadow reference",
+    "regression_fit": "Stepwise regression: predicted vs simulated",
+    "fig4_ratio_cracks": "Fig. 4: cracks and their proportions vs bond-strength ratio",
+    "fig5_failure_patterns": "Fig. 5: failure patterns (broken bonds) at selected ratios",
+    "fig6_stress_strain": "Fig. 6: stress-strain curves of the calibrated specimens",
+    "fig7_impact_energy": "Fig. 7: energy and crack evolution of the 6 m/s impact",
+    "t10_ecs": "t10 vs specific energy with the JK breakage model",
+}
+
+
+def _pct(ours, theirs):
+    if ours is None or theirs is None or not math.isfinite(float(ours)) or float(theirs) == 0:
+        return "–"
+    return f"{100 * (float(ours) - float(theirs)) / abs(float(theirs)):+.1f} %"
+
+
+def _f(v, fmt=".3f"):
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    return "–" if not math.isfinite(x) else format(x, fmt)
+
+
+def _md(rows, header):
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def copy_outputs(outdir: Path, report: Path) -> dict:
+    """Copy the tables and figures into the report folder; returns what was found."""
+    found = {"tables": [], "figures": []}
+    for stem in TABLES:
+        for ext in (".csv", ".md"):
+            src = outdir / "tables" / f"{stem}{ext}"
+            if src.exists():
+                dst = report / "tables" / src.name
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(src, dst)
+        if (outdir / "tables" / f"{stem}.csv").exists():
+            found["tables"].append(stem)
+    for stem in FIGURES:
+        for ext in (".png", ".pdf"):
+            src = outdir / "figures" / f"{stem}{ext}"
+            if src.exists():
+                dst = report / "figures" / src.name
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(src, dst)
+        if (outdir / "figures" / f"{stem}.png").exists():
+            found["figures"].append(stem)
+    return found
+
+
+def build(outdir, config: dict, report_dir=None) -> Path:
+    outdir = Path(outdir)
+    report = Path(report_dir) if report_dir else outdir / "report"
+    report.mkdir(parents=True, exist_ok=True)
+    found = copy_outputs(outdir, report)
+    eq = outdir / "regression" / "equations.md"
+    if eq.exists():
+        shutil.copy2(eq, report / "equations.md")
+    S = []  # sections of index.md
+    cfg = config
+    S.append(f"# {cfg['study']['name']}: the paper, regenerated\n")
+    S.append(f"Reproduction of {paper.REFERENCE}\n")
+    S.append(f"bpmcal {__version__}, commit `{git_commit()}`.\n")
+    S.append(_settings(outdir, cfg))
+    comp: list[dict] = []  # every published value we compare against, one row each
+    S.append(_table3(outdir, comp))
+    S.append(_regression(outdir, comp))
+    S.append(_calibration(outdir, cfg, comp))
+    S.append(_verification(outdir, comp))
+    S.append(_ratio(outdir, comp))
+    S.append(_impact(outdir, cfg, comp))
+    if comp:
+        from ..study.pipeline import write_table
+
+        write_table(pd.DataFrame(comp), report / "tables" / "comparison.csv", index=False)
+        S.append("All of these comparisons, one row per published value: "
+                 "[tables/comparison.md](tables/comparison.md) "
+                 "([CSV](tables/comparison.csv)).\n")
+    S.append("## Figures\n")
+    for stem in found["figures"]:
+        S.append(f"### {FIGURES[stem]}\n\n![{stem}](figures/{stem}.png)\n")
+    missing = sorted(set(FIGURES) - set(found["figures"]))
+    if missing:
+        S.append(f"Figures not produced by this configuration: {', '.join(missing)}\n")
+    S.append("## Tables\n")
+    for stem in found["tables"]:
+        S.append(f"- [{TABLES[stem]}](tables/{stem}.md) ([CSV](tables/{stem}.csv))")
+    S.append("\n## Notes on the paper\n")
+    S.extend(f"- {n}" for n in paper.NOTES)
+    index = report / "index.md"
+    tmp = index.with_name(".index.md.tmp")
+    tmp.write_text("\n".join(S) + "\n")
+    tmp.replace(index)
+    return index
+
+
+def _settings(outdir, cfg) -> str:
+    ds_path = outdir / "dataset.csv"
+    lines = ["## Settings\n"]
+    sp, u = cfg["specimen"], cfg["ucs"]
+    lines.append(f"- Samples: {cfg['study']['n_samples']} (Latin hypercube, seed "
+                 f"{cfg['study']['lhs_seed']}, packing seeds derived from it)")
+    lines.append(f"- Specimen scale {sp['scale']:g}: {sp['scale'] * sp['diameter_mm']:g} x "
+                 f"{sp['scale'] * sp['height_mm']:g} mm (the paper: 50 x 100 mm); radii uniform "
+                 "in [Rmin, 1.66 Rmin], ρ = 2294 kg/m³")
+    lines.append(f"- UCS: platens at {u['platen_velocity']:g} m/s each, local damping "
+                 f"{u['damping']:g}, E and ν fitted over 40-60 % of the peak")
+    c = cfg["calibration"]
+    lines.append(f"- Calibration: fixed {c['fixed']}, free {c['free']}, "
+                 f"verification seed {cfg['verification']['seed']}")
+    lines.append(f"- Impact: scale {cfg['impact']['scale']:g}, hammer "
+                 f"{cfg['impact']['hammer_mass_kg'] * cfg['impact']['scale'] ** 3:.3f} kg "
+                 f"({cfg['impact']['hammer_mass_kg']:g} kg at full size), dashpot ratio "
+                 f"{cfg['impact']['dp_ratio']:g}")
+    if ds_path.exists():
+        ds = pd.read_csv(ds_path)
+        bad = ds[ds["status"] != "ok"]
+        lines.append(f"- Dataset: {len(ds) - len(bad)} of {len(ds)} samples ok")
+        if len(bad):
+            lines.append("- Failed samples (left out of the analysis):")
+            for r in bad.itertuples():
+                lines.append(f"  - {r.sample_id}: {r.error}")
+        else:
+            lines.append("- Failed samples: none")
+        w = ds.loc[ds["status"] == "ok", "wall_s"]
+        if len(w):
+            lines.append(f"- DEM time per sample: median {w.median():.1f} s "
+                         f"(range {w.min():.1f}-{w.max():.1f} s)")
+    return "\n".join(lines) + "\n"
+
+
+def _cmp(comp, section, item, ours, theirs, unit=""):
+    """Record one comparison with a published value."""
+    try:
+        o = float(ours)
+    except (TypeError, ValueError):
+        o = math.nan
+    t = float(theirs)
+    comp.append({"section": section, "quantity": item, "unit": unit, "ours": o, "paper": t,
+                 "difference": o - t if math.isfinite(o) else math.nan,
+                 "difference_pct": 100 * (o - t) / abs(t) if math.isfinite(o) and t else math.nan})
+
+
+def _table3(outdir, comp) -> str:
+    f = outdir / "tables" / "table3_importance.csv"
+    if not f.exists():
+        return ""
+    t3 = pd.read_csv(f, index_col=0)
+    rows = []
+    for p in P.PARAMS:
+        if p not in t3.index:
+            continue
+        r = [P.PARAMS[p].symbol]
+        for resp in P.TARGETS:
+            ours = t3.loc[p, resp] if resp in t3.columns else math.nan
+            theirs = paper.TABLE3[p][resp]
+            _cmp(comp, "Table 3", f"importance of {p} for {resp}", ours, theirs, "%")
+            r.append(f"{_f(ours, '.1f')} ({theirs:.1f})")
+        rows.append(r)
+    return ("## Table 3: XGBoost screening (ours, paper in brackets, % of gain)\n\n"
+            + _md(rows, ["parameter", "σc", "E", "ν"]) + "\n")
+
+
+def _regression(outdir, comp) -> str:
+    f = outdir / "tables" / "regression_fit.csv"
+    if not f.exists():
+        return ""
+    fit = pd.read_csv(f)
+    rows = []
+    for r in fit.itertuples():
+        theirs = paper.ADJ_R2.get(r.response, {}).get(r.stage)
+        if theirs:
+            _cmp(comp, "Regression", f"adjusted R² of {r.response}, {r.stage}", r.adj_r2, theirs)
+        rows.append([r.response, r.stage, _f(r.adj_r2), _f(theirs) if theirs else "–",
+                     (f"{r.adj_r2 - theirs:+.3f}" if theirs else "–"), _f(r.cv_r2_mean)])
+    eq = outdir / "regression" / "equations.md"
+    s = ("## Stepwise regression: adjusted R² per stage\n\n"
+         + _md(rows, ["response", "stage", "ours", "paper", "difference", "CV R² (ours)"]))
+    if eq.exists():
+        s += "\n\nOur equations (all stages): [equations.md](equations.md)\n"
+        s += "\nThe paper's main-effect equations: " + "; ".join(
+            paper.EQUATIONS["main"].values()) + "\n"
+    return s + "\n"
+
+
+def _calibration(outdir, cfg, comp) -> str:
+    cal = outdir / "calibration"
+    if not cal.exists():
+        return ""
+    rows = []
+    for spec, theirs in paper.CALIBRATED.items():
+        f = cal / f"{spec}.yaml"
+        if not f.exists():
+            continue
+        card = yaml.safe_load(f.read_text())
+        p = card["parameters"]
+        for k in ("pb_emod_GPa", "pb_kratio", "pb_ten_MPa", "pb_coh_MPa"):
+            ci = next((i for i in card["bootstrap"]["intervals"] if i.get("quantity") == k),
+                      None)
+            ci_s = (f"[{_f(ci.get('lower'))}, {_f(ci.get('upper'))}] (n={ci.get('n')})"
+                    if ci else "–")
+            _cmp(comp, "Calibration", f"{spec} {k}", p[k], theirs[k], P.PARAMS[k].unit)
+            rows.append([spec, P.PARAMS[k].symbol, _f(p[k]), ci_s, _f(theirs[k]),
+                         _pct(p[k], theirs[k]), card["status"]])
+    chosen = outdir / "ratio_sweep" / "chosen.json"
+    ratio = (json.loads(chosen.read_text())["chosen_ratio"] if chosen.exists()
+             else cfg["calibration"]["ratio"])
+    return (f"## Calibrated meso-parameters (bond-strength ratio {ratio:g}; paper 1.4)\n\n"
+            + _md(rows, ["specimen", "parameter", "ours", "95 % bootstrap interval", "paper",
+                         "difference", "inversion status"]) + "\n")
+
+
+def _verification(outdir, comp) -> str:
+    f = outdir / "tables" / "table5_verification.csv"
+    if not f.exists():
+        return ""
+    t5 = pd.read_csv(f, index_col=0)
+    rows = []
+    for spec, r in t5.iterrows():
+        th = paper.VERIFIED.get(spec)
+        for k in P.TARGETS:
+            if th:
+                _cmp(comp, "Table 5", f"{spec} {k}, DEM (closed loop vs paper's PFC3D)",
+                     r[f"closed_loop_{k}"], th[k], P.RESPONSES[k].unit)
+                _cmp(comp, "Table 5", f"{spec} {k} error % (closed loop vs paper)",
+                     r[f"closed_loop_{k}_err_pct"], th["err_pct"][k], "%")
+            rows.append([spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]),
+                         _f(r[f"single_pass_{k}"]), _f(r[f"single_pass_{k}_err_pct"], "+.2f"),
+                         _f(r[f"closed_loop_{k}"]), _f(r[f"closed_loop_{k}_err_pct"], "+.2f"),
+                         _f(th[k]) if th else "–",
+                         _f(th["err_pct"][k], ".2f") if th else "–"])
+    s = ("## Table 5: verification (errors in % of the lab value)\n\n"
+         + _md(rows, ["specimen", "response", "lab", "DEM, single pass", "error",
+                      "DEM, closed loop", "error", "paper (PFC3D)", "paper error"]) + "\n")
+    f6 = outdir / "tables" / "table6_prepeak_energy.csv"
+    if f6.exists():
+        t6 = pd.read_csv(f6, index_col=0)
+        rows = []
+        for spec, r in t6.iterrows():
+            th = paper.PREPEAK.get(spec, {})
+            if th:
+                _cmp(comp, "Table 6", f"{spec} Up, DEM", r["sim_Up_MJm3"], th["sim"], "MJ/m³")
+                _cmp(comp, "Table 6", f"{spec} Up error %", r["rel_error_pct"], th["err_pct"],
+                     "%")
+            rows.append([spec, _f(r["lab_Up_MJm3"]), _f(r["sim_Up_MJm3"]),
+                         _f(r["rel_error_pct"], ".1f"), _f(th.get("sim")),
+                         _f(th.get("err_pct"), ".1f")])
+        s += ("\n## Table 6: pre-peak energy density Up (MJ/m³)\n\n"
+              + _md(rows, ["specimen", "lab", "DEM (ours)", "error %", "paper PFC3D",
+                           "paper error %"]) + "\n")
+    sc = outdir / "verification" / "seed_scatter" / "seed_scatter.csv"
+    if sc.exists():
+        t = pd.read_csv(sc)
+        rows = [[r["response"], _f(r["cv"] * 100, ".2f"), _f(r["noise_floor"] * 100, ".2f"),
+                 "yes" if r["noise_limited"] else "no"] for _, r in t.iterrows()]
+        s += ("\n### Packing-seed scatter of one calibrated set\n\n"
+              + _md(rows, ["response", "CV of one run (%)", "noise floor 2 se (%)",
+                           "1 % tolerance below the noise?"]) + "\n")
+    return s
+
+
+def _ratio(outdir, comp) -> str:
+    f = outdir / "ratio_sweep" / "chosen.json"
+    if not f.exists():
+        return ""
+    ch = json.loads(f.read_text())
+    _cmp(comp, "Ratio sweep", "bond-strength ratio a", ch["chosen_ratio"], paper.RATIO)
+    return (f"## Bond-strength ratio\n\nChosen a = σcp/τcp = {ch['chosen_ratio']:g} "
+            f"({ch['criterion']} {_f(ch['value'])} vs target {ch['target']:g}); the paper "
+            f"chose {paper.RATIO:g} (difference {ch['chosen_ratio'] - paper.RATIO:+.1f}).\n")
+
+
+def _impact(outdir, cfg, comp) -> str:
+    from ..io.h5 import read_summary
+
+    v = f"{float(cfg['impact']['velocity']):g}"
+    f = outdir / "impact" / f"impact_{v}ms.h5"
+    if not f.exists():
+        return ""
+    s = read_summary(f)
+    sc = float(cfg["impact"]["scale"]) ** 3
+    w_full = s["W_in_J"] / sc
+    _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", w_full,
+         paper.IMPACT["W_in_J"], "J")
+    _cmp(comp, "Impact", "eta_f = G_f / W_in", s["eta_f"], paper.IMPACT["eta_f"])
+    rows = [["W_in (J), scaled to full size", _f(w_full, ".1f"),
+             _f(paper.IMPACT["W_in_J"], ".1f"), _pct(w_full, paper.IMPACT["W_in_J"])],
+            ["η_f = G_f / W_in", _f(100 * s["eta_f"], ".1f") + " %",
+             _f(100 * paper.IMPACT["eta_f"], ".1f") + " %", _pct(s["eta_f"], paper.IMPACT["eta_f"])],
+            ["energy closure (max over time)", _f(100 * s["closure_rel_max"], ".3f") + " %",
+             "–", "–"]]
+    out = (f"## Drop-hammer impact at {v} m/s\n\n"
+           + _md(rows, ["quantity", "ours", "paper", "difference"]) + "\n")
+    out += (f"\nStages: crack initiation {1e3 * s['t_initiation_s']:.3f} ms, peak crack rate "
+            f"{1e3 * s['t_peak_rate_s']:.3f} ms, through-failure {1e3 * s['t_through_s']:.3f} ms"
+            f" after first contact; t10 = {s['t10_pct']:.1f} % "
+            f"(a t10-size fragment holds ~{s['balls_per_t10_fragment']:.1f} balls"
+            + ("; below ~30 balls t10 reflects the ball size more than the rock)"
+               if s["balls_per_t10_fragment"] < 30 else ")") + "\n")
+    jk = outdir / "tables" / "jk_fit.json"
+    if jk.exists():
+        fit = json.loads(jk.read_text())
+        if fit:
+            out += (f"\nJK fit t10 = A (1 − exp(−b Ecs)): A = {fit['A']:.1f} %, b = "
+                    f"{fit['b']:.3g} t/kWh, A·b = {fit['Ab']:.1f} ({fit['n']} velocities)\n")
+    return out
