@@ -83,8 +83,9 @@ def _parse_set(items) -> dict:
 
 
 def load_params(path, overrides=()) -> dict:
-    """Parameters from a YAML file (flat mapping of the 8 names) plus NAME=VALUE overrides,
-    validated (unknown, missing, non-numeric or out-of-domain values raise)."""
+    """Parameters from a YAML file (a flat mapping of the 8 names, or a material card whose
+    ``parameters`` hold them) plus NAME=VALUE overrides, validated (unknown, missing,
+    non-numeric or out-of-domain values raise)."""
     import yaml
 
     d = {}
@@ -97,6 +98,8 @@ def load_params(path, overrides=()) -> dict:
         if not isinstance(d, dict):
             raise P.ParameterError(f"--params {path}: expected a mapping of parameter names "
                                    "to values")
+        if isinstance(d.get("parameters"), dict):  # a material card
+            d = dict(d["parameters"])
     d.update(_parse_set(overrides))
     return P.validate_params(d)
 

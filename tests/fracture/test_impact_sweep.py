@@ -40,6 +40,17 @@ def test_crack_stages_on_a_known_history():
     assert st["t_initiation"] == pytest.approx(0.21, abs=0.011)
     assert st["t_through"] == pytest.approx(0.65, abs=0.011)
     assert 0.2 <= st["t_peak_rate"] <= 0.7
+    assert st["late_cracks"] == 0
+
+
+def test_crack_stages_ignore_a_slow_late_phase():
+    # a burst of 1000 cracks between 0.2 and 0.7, then 300 more trickling in until 10
+    t = np.linspace(0, 10, 10001)
+    n = np.clip((t - 0.2) / 0.5, 0, 1) * 1000 + np.clip((t - 0.8) / 9.2, 0, 1) * 300
+    st = crack_stages(t, n)
+    assert st["t_through"] == pytest.approx(0.65, abs=0.002)
+    assert st["t_initiation"] == pytest.approx(0.205, abs=0.002)
+    assert st["late_cracks"] == pytest.approx(300, abs=2)
 
 
 def test_sweep_plan_holds_the_predicted_ucs_at_the_target():

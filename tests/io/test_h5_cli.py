@@ -145,6 +145,18 @@ def test_cli_rejects_bad_parameters_before_any_work(tmp_path, capsys, args, need
     assert not out.exists()
 
 
+def test_load_params_takes_a_material_card_and_applies_overrides(tmp_path):
+    import yaml
+
+    from bpmcal.cli import load_params
+
+    card = tmp_path / "B1.yaml"
+    card.write_text(yaml.safe_dump({"specimen": "B1", "status": "ok",
+                                    "parameters": dict(A1), "targets": {"ucs_MPa": 60.0}}))
+    p = load_params(card, ["fric=0.5"])
+    assert p == {**A1, "fric": 0.5}
+
+
 def test_cli_reports_missing_parameters(tmp_path, capsys):
     pf = tmp_path / "p.yaml"
     pf.write_text("rmin_mm: 0.8\nporosity: 0.3\n")

@@ -74,18 +74,36 @@ class ImpactResult:
     settings: ImpactSettings
 
 
+def primary_burst(t, n_cracks) -> float:
+    """Crack count of the primary fracture burst: the count when the crack rate, after its
+    peak, first falls below 1 % of the peak (the final count if it never does). A slow late
+    phase (the hammer crushing the fragment bed) then does not shift the stages."""
+    t = np.asarray(t, float)
+    n = np.asarray(n_cracks, float)
+    if n.size < 3 or n[-1] <= 0:
+        return float(n[-1]) if n.size else 0.0
+    rate = np.gradient(n, t)
+    ip = int(np.argmax(rate))
+    below = np.nonzero(rate[ip:] < 0.01 * rate[ip])[0]
+    return float(n[ip + below[0]] if below.size else n[-1])
+
+
 def crack_stages(t, n_cracks) -> dict:
-    """Initiation (1 %), peak crack rate, through-failure (90 %) times."""
+    """Stage times from the crack history: initiation (1 % of the primary burst's cracks),
+    peak crack rate, through-failure (90 % of the primary burst, see ``primary_burst``),
+    and the number of cracks after the burst (``late_cracks``)."""
     t = np.asarray(t, float)
     n = np.asarray(n_cracks, float)
     total = n[-1] if n.size else 0.0
     if total <= 0:
-        return {"t_initiation": math.nan, "t_peak_rate": math.nan, "t_through": math.nan}
-    i1 = int(np.argmax(n >= max(1.0, 0.01 * total)))
-    i9 = int(np.argmax(n >= 0.9 * total))
+        return {"t_initiation": math.nan, "t_peak_rate": math.nan, "t_through": math.nan,
+                "late_cracks": 0}
+    ref = primary_burst(t, n)
+    i1 = int(np.argmax(n >= max(1.0, 0.01 * ref)))
+    i9 = int(np.argmax(n >= 0.9 * ref))
     rate = np.gradient(n, t) if n.size > 1 else np.zeros(1)
     return {"t_initiation": float(t[i1]), "t_peak_rate": float(t[int(np.argmax(rate))]),
-            "t_through": float(t[i9])}
+            "t_through": float(t[i9]), "late_cracks": int(total - ref)}
 
 
 def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=None) -> ImpactResult:
@@ -175,7 +193,8 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
         "t_rebound_s": t_rebound if t_rebound is not None else math.nan,
         "cracks_tension": int(series["cracks_tension"][-1]),
         "cracks_shear": int(series["cracks_shear"][-1]),
-        **{f"{k}_s": v for k, v in stages.items()},
+        **{f"{k}_s": v for k, v in stages.items() if k.startswith("t_")},
+        "cracks_after_burst": stages["late_cracks"],
         "n_fragments": int(fmass.size), "largest_fragment_frac": float(fmass.max() / fmass.sum()),
         "original_size_mm": orig * 1e3, "t10_pct": F.t10(fmass, fsize, orig),
         "ecs_kWh_t": w_in / rock_mass / F.KWH_PER_T,

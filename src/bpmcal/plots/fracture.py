@@ -56,33 +56,120 @@ def fig_failure_patterns(panels: dict):
     return fig
 
 
+#: stage markers of Fig. 7: summary key, label, meaning (see ``lab.impact.crack_stages``)
+_STAGES = (("t_initiation_s", "I", "crack initiation"),
+           ("t_peak_rate_s", "II", "peak crack rate"),
+           ("t_through_s", "III", "through-failure"))
+
+
+def _fracture_window(t: np.ndarray, n: np.ndarray) -> float:
+    """End (s) of the zoomed time window of Fig. 7: 3x the time at which the crack count
+    reaches 95 % of the primary fracture burst, clamped to the record.
+
+    The primary burst (``lab.impact.primary_burst``) ends when the crack rate first drops
+    below 1 % of its peak; its crack count is the reference instead of the final count,
+    so a slow late phase (e.g. crushing of the fragment bed) does not stretch the window
+    over the whole record. Without a late phase both references coincide."""
+    from ..lab.impact import primary_burst
+
+    t_end = float(t[-1]) if t.size else 0.0
+    if t.size < 3 or n[-1] <= 0:
+        return t_end
+    n_ref = primary_burst(t, n)
+    t95 = float(t[int(np.argmax(n >= 0.95 * n_ref))])
+    return float(min(max(3.0 * t95, 10 * (t[1] - t[0])), t_end))
+
+
 def fig_impact(series: pd.DataFrame, summary: dict):
-    """Fig. 7: input energy, fracture-related energy, eta_f and crack numbers vs time, with
-    the crack-initiation, peak-rate and through-failure times marked."""
-    fig, ax = figure(COLUMN, 2.8)
-    t = series["time"] * 1e3
-    ax.plot(t, series["W_in"], color="k", label=r"$W_{in}$")
-    ax.plot(t, series["released"], color=C_SIM, label=r"$G_f$")
-    ax.plot(t, series["kinetic"], color="0.6", lw=0.8, label="rock kinetic")
-    ax.set_xlabel("time (ms)")
+    """Fig. 7: (a) input energy W_in, fracture-related energy G_f (energy released by bond
+    breakage), rock kinetic energy and crack number, (b) fracture-energy utilisation
+    efficiency eta_f(t) = G_f(t)/W_in(t), vs time, zoomed on the fracture burst (see
+    ``_fracture_window``), with the stages I (initiation), II (peak crack rate) and III
+    (through-failure) marked; stages beyond the window and the values at the end of the
+    record are given in the annotation."""
+    fig, (ax, axe) = figure(COLUMN, 4.4, nrows=2, sharex=True,
+                            gridspec_kw={"height_ratios": [1.25, 1.0]})
+    t_s = series["time"].to_numpy(float)
+    w_in = series["W_in"].to_numpy(float)
+    g_f = series["released"].to_numpy(float)
+    n = (series["cracks_tension"] + series["cracks_shear"]).to_numpy(float)
+    t_win = _fracture_window(t_s, n)
+    t_end = float(t_s[-1]) if t_s.size else 0.0
+    # plot the window plus one sample so the curves reach the right edge
+    sel = np.zeros(t_s.size, bool)
+    sel[: int(np.searchsorted(t_s, t_win, side="right")) + 1] = True
+    t = t_s[sel] * 1e3
+
+    # (a) energies and crack number
+    ax.plot(t, w_in[sel], color="k", label=r"input energy $W_{in}$")
+    ax.plot(t, g_f[sel], color=C_SIM, label=r"fracture-related energy $G_f$")
+    ax.plot(t, series["kinetic"].to_numpy(float)[sel], color="0.6", lw=0.8,
+            label="rock kinetic energy")
     ax.set_ylabel("energy (J)")
+    ax.set_ylim(bottom=0)
     ax2 = ax.twinx()
     ax2.spines["right"].set_visible(True)
-    ax2.plot(t, series["cracks_tension"] + series["cracks_shear"], color=C_SHEAR, lw=0.9,
-             label="cracks")
+    ax2.plot(t, n[sel], color=C_SHEAR, lw=0.9, ls="--", label="number of cracks (right)")
     ax2.set_ylabel("number of cracks", color=C_SHEAR)
-    for key, lab in (("t_initiation_s", "I"), ("t_peak_rate_s", "II"),
-                     ("t_through_s", "III")):
-        v = summary.get(key)
-        if v is not None and np.isfinite(v):
-            ax.axvline(v * 1e3, color=C_ALT, ls=":", lw=0.7)
-            ax.text(v * 1e3, ax.get_ylim()[1], lab, color=C_ALT, fontsize=6, va="top")
+    ax2.tick_params(axis="y", colors=C_SHEAR)
+    ax2.spines["right"].set_color(C_SHEAR)
+    # keep the crack plateau below the W_in plateau so the two curves stay distinguishable
+    ax2.set_ylim(0, 1.25 * max(np.nanmax(n[sel], initial=0), 1.0))
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, frameon=False, loc="center right", fontsize=6)
-    ax.text(0.02, 0.97, rf"$\eta_f$ = {summary['eta_f'] * 100:.1f} %", transform=ax.transAxes,
-            va="top", fontsize=7)
+
+    # (b) fracture-energy utilisation efficiency, undefined while W_in ~ 0
+    w_fin = float(summary.get("W_in_J", w_in[-1] if w_in.size else np.nan))
+    g_fin = float(summary.get("G_f_J", g_f[-1] if g_f.size else np.nan))
+    eta_fin = float(summary.get("eta_f", g_fin / w_fin if w_fin > 0 else np.nan))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        eta = np.where(w_in >= 0.01 * w_fin, 100 * g_f / w_in, np.nan)
+    axe.plot(t, eta[sel], color=C_SIM)
+    axe.axhline(100 * eta_fin, color="0.5", ls=":", lw=0.7)
+    axe.text(t_win * 1e3, 100 * eta_fin, rf"$\eta_f$ at $t_{{end}}$ = {100 * eta_fin:.1f} %",
+             ha="right", va="bottom", fontsize=6, color="0.35")
+    axe.set_ylabel(r"$\eta_f = G_f/W_{in}$ (%)")
+    axe.set_xlabel("time t (ms)")
+    axe.set_ylim(0, 1.15 * max(np.nanmax(eta[sel], initial=0), 100 * eta_fin, 1.0))
+    axe.set_xlim(0, t_win * 1e3)
+
+    # stages: vertical lines in both panels, labels staggered at the top of (a)
+    outside = []
+    k = 0
+    for key, lab, what in _STAGES:
+        v = summary.get(key)
+        if v is None or not np.isfinite(v):
+            continue
+        if v > t_win:
+            outside.append(f"{lab} ({what}) at {1e3 * v:.2f} ms")
+            continue
+        for a in (ax, axe):
+            a.axvline(v * 1e3, color=C_ALT, ls=":", lw=0.8, zorder=0)
+        # left of the line (the curves rise to the right of it), staggered downwards
+        ax.annotate(lab, (v * 1e3, 0.98 - 0.09 * k), xycoords=ax.get_xaxis_transform(),
+                    xytext=(-1.5, 0), textcoords="offset points", color=C_ALT, fontsize=7,
+                    va="top", ha="right")
+        k += 1
+
+    # what the zoom leaves out: end of record and final values
+    dn = n[-1] - n[sel][-1] if n.size else 0
+    note = [f"record continues to $t_{{end}}$ = {1e3 * t_end:.1f} ms;",
+            f"at $t_{{end}}$: $W_{{in}}$ = {w_fin:.2f} J, $G_f$ = {g_fin:.2f} J,",
+            rf"$\eta_f$ = {100 * eta_fin:.1f} %, {n[-1]:.0f} cracks"]
+    if dn > 0:
+        note.append(f"(+{dn:.0f} cracks after the window)")
+    note += outside
+    stages = [f"{lab}: {what}" for key, lab, what in _STAGES
+              if np.isfinite(summary.get(key, np.nan)) and summary[key] <= t_win]
+    if stages:
+        note.append(", ".join(stages))
+    axe.text(0.98, 0.04, "\n".join(note), transform=axe.transAxes, ha="right", va="bottom",
+             fontsize=6, linespacing=1.35)
+    for a, lab in ((ax, "(a)"), (axe, "(b)")):
+        a.text(-0.2, 1.0, lab, transform=a.transAxes, fontsize=8, va="top", ha="left")
     fig.tight_layout()
+    fig.align_ylabels([ax, axe])
     return fig
 
 

@@ -328,7 +328,10 @@ def _impact(outdir, cfg, comp) -> str:
            + _md(rows, ["quantity", "ours", "paper", "difference"]) + "\n")
     out += (f"\nStages: crack initiation {1e3 * s['t_initiation_s']:.3f} ms, peak crack rate "
             f"{1e3 * s['t_peak_rate_s']:.3f} ms, through-failure {1e3 * s['t_through_s']:.3f} ms"
-            f" after first contact; t10 = {s['t10_pct']:.1f} % "
+            f" after first contact ({s.get('cracks_after_burst', 0)} of the "
+            f"{s['cracks_tension'] + s['cracks_shear']} cracks came after the primary burst, "
+            "while the hammer crushed the fragments); "
+            f"t10 = {s['t10_pct']:.1f} % "
             f"(a t10-size fragment holds ~{s['balls_per_t10_fragment']:.1f} balls"
             + ("; below ~30 balls t10 reflects the ball size more than the rock)"
                if s["balls_per_t10_fragment"] < 30 else ")") + "\n")
