@@ -61,6 +61,15 @@ def test_round_trip_through_the_reader(run):
     assert np.count_nonzero(b["state"]) == len(cr)
 
 
+def test_written_file_has_a_normal_mode_not_the_temporary_0600(tmp_path):
+    old = os.umask(0o022)
+    try:
+        out = h5.write_run(tmp_path / "m.h5", test="ucs", inputs={"a": 1})
+    finally:
+        os.umask(old)
+    assert out.stat().st_mode & 0o777 == 0o644  # readable by the group and others
+
+
 def test_a_failed_write_leaves_no_file(tmp_path, monkeypatch):
     out = tmp_path / "x.h5"
 

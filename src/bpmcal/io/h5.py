@@ -75,6 +75,12 @@ def _put_attrs(obj, d: dict):
         obj.attrs[k] = _attr(v)
 
 
+def _umask() -> int:
+    um = os.umask(0)
+    os.umask(um)
+    return um
+
+
 def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
               genesis: dict | None = None, series: dict | None = None,
               cracks: dict | None = None, particles_initial: dict | None = None,
@@ -86,6 +92,7 @@ def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
+    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes it 0600; give it a normal file's mode
     try:
         with h5py.File(tmp, "w") as f:
             prov = provenance(inputs)
