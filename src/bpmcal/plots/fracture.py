@@ -162,8 +162,8 @@ def fig_impact(series: pd.DataFrame, summary: dict):
     note += outside
     stages = [f"{lab}: {what}" for key, lab, what in _STAGES
               if np.isfinite(summary.get(key, np.nan)) and summary[key] <= t_win]
-    if stages:
-        note.append(", ".join(stages))
+    for k in range(0, len(stages), 2):  # two per line: a full line would reach the axis
+        note.append(", ".join(stages[k:k + 2]) + ("," if k + 2 < len(stages) else ""))
     axe.text(0.98, 0.04, "\n".join(note), transform=axe.transAxes, ha="right", va="bottom",
              fontsize=6, linespacing=1.35)
     for a, lab in ((ax, "(a)"), (axe, "(b)")):
