@@ -87,12 +87,12 @@ def test_a_killed_writer_leaves_no_file(tmp_path):
     out = tmp_path / "k.h5"
     code = textwrap.dedent(f"""
         import os, time, numpy as np
-        from bpmcal.io import h5
+        from bpmcal.io import atomic, h5
         real = os.replace
         def slow(a, b):
             time.sleep(60)
             real(a, b)
-        h5.os.replace = slow
+        atomic.os.replace = slow
         h5.write_run({str(out)!r}, test="ucs", inputs={{}}, series={{"t": np.arange(10**6)}})
     """)
     p = subprocess.Popen([sys.executable, "-c", code])

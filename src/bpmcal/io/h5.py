@@ -29,13 +29,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from .atomic import atomic_path
 from .provenance import provenance
 
 SCHEMA_VERSION = 1
@@ -75,12 +74,6 @@ def _put_attrs(obj, d: dict):
         obj.attrs[k] = _attr(v)
 
 
-def _umask() -> int:
-    um = os.umask(0)
-    os.umask(um)
-    return um
-
-
 def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
               genesis: dict | None = None, series: dict | None = None,
               cracks: dict | None = None, particles_initial: dict | None = None,
@@ -89,51 +82,39 @@ def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
               groups: dict | None = None) -> Path:
     """Write one run atomically (temporary file in the same directory, then rename)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes it 0600; give it a normal file's mode
-    try:
-        with h5py.File(tmp, "w") as f:
-            prov = provenance(inputs)
-            _put_attrs(f, {"schema_version": SCHEMA_VERSION, "test": test, "status": status,
-                           "error": error, **prov})
-            _put_attrs(f.create_group("inputs"), inputs)
-            _put_attrs(f.create_group("summary"), summary or {})
-            _put_attrs(f.create_group("genesis"), genesis or {})
-            if extra:
-                _put_attrs(f.create_group("extra"), extra)
-            if series:
-                g = f.create_group("series")
-                for k, v in series.items():
-                    ds = g.create_dataset(k, data=np.asarray(v), compression="gzip",
-                                          shuffle=True)
-                    ds.attrs["unit"] = SERIES_UNITS.get(k, "")
-            if cracks is not None:
-                g = f.create_group("cracks")
-                for k, v in cracks.items():
-                    g.create_dataset(k, data=np.asarray(v))
-            for name, d in (("initial", particles_initial), ("final", particles_final)):
-                if d:
-                    g = f.require_group("particles").create_group(name)
-                    for k, v in d.items():
-                        g.create_dataset(k, data=np.asarray(v), compression="gzip",
-                                         shuffle=True)
-            for gname, arrays in (groups or {}).items():
-                g = f.create_group(gname)
-                for k, v in arrays.items():
-                    g.create_dataset(k, data=np.asarray(v))
-            if bonds:
-                g = f.create_group("bonds")
-                for k, v in bonds.items():
-                    g.create_dataset(k, data=np.asarray(v), compression="gzip", shuffle=True)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        prov = provenance(inputs)
+        _put_attrs(f, {"schema_version": SCHEMA_VERSION, "test": test, "status": status,
+                       "error": error, **prov})
+        _put_attrs(f.create_group("inputs"), inputs)
+        _put_attrs(f.create_group("summary"), summary or {})
+        _put_attrs(f.create_group("genesis"), genesis or {})
+        if extra:
+            _put_attrs(f.create_group("extra"), extra)
+        if series:
+            g = f.create_group("series")
+            for k, v in series.items():
+                ds = g.create_dataset(k, data=np.asarray(v), compression="gzip",
+                                      shuffle=True)
+                ds.attrs["unit"] = SERIES_UNITS.get(k, "")
+        if cracks is not None:
+            g = f.create_group("cracks")
+            for k, v in cracks.items():
+                g.create_dataset(k, data=np.asarray(v))
+        for name, d in (("initial", particles_initial), ("final", particles_final)):
+            if d:
+                g = f.require_group("particles").create_group(name)
+                for k, v in d.items():
+                    g.create_dataset(k, data=np.asarray(v), compression="gzip",
+                                     shuffle=True)
+        for gname, arrays in (groups or {}).items():
+            g = f.create_group(gname)
+            for k, v in arrays.items():
+                g.create_dataset(k, data=np.asarray(v))
+        if bonds:
+            g = f.create_group("bonds")
+            for k, v in bonds.items():
+                g.create_dataset(k, data=np.asarray(v), compression="gzip", shuffle=True)
     return path
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import write_text
 from .h5 import read_bonds, read_cracks, read_particles
 
 
@@ -50,11 +51,7 @@ def write_vtp(path, points: np.ndarray, point_data: dict) -> Path:
         f'<Verts><DataArray type="Int64" Name="connectivity" format="ascii">{verts}</DataArray>'
         f'<DataArray type="Int64" Name="offsets" format="ascii">{offs}</DataArray></Verts>\n'
         '</Piece>\n</PolyData>\n</VTKFile>\n')
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name("." + path.name + ".tmp")
-    tmp.write_text(xml)
-    tmp.replace(path)
-    return path
+    return write_text(path, xml)
 
 
 def export_run(h5path, outdir) -> list[Path]:

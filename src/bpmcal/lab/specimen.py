@@ -51,6 +51,7 @@ from .. import params as P
 from ..dem import Material, Model
 from ..dem.errors import InputError
 from ..dem.order import morton_order
+from ..io.atomic import atomic_path
 
 #: modulus used while relaxing the packing (the relaxed geometry does not depend on it)
 E_REF = 1.0e9
@@ -270,11 +271,9 @@ def get_packing(spec: SpecimenSpec, cache: str | os.PathLike | None = None,
         return Packing(spec=spec, pos=z["pos"], radius=z["radius"],
                        report=json.loads(str(z["report"])))
     pk = relax_packing(spec, progress=progress)
-    d.mkdir(parents=True, exist_ok=True)
-    tmp = d / f".{f.name}.{os.getpid()}.tmp.npz"
-    np.savez(tmp, pos=pk.pos, radius=pk.radius, report=json.dumps(pk.report),
-             spec=json.dumps(asdict(spec)))
-    os.replace(tmp, f)
+    with atomic_path(f) as tmp, open(tmp, "wb") as fh:  # a file object: no ".npz" appended
+        np.savez(fh, pos=pk.pos, radius=pk.radius, report=json.dumps(pk.report),
+                 spec=json.dumps(asdict(spec)))
     return pk
 
 

@@ -10,6 +10,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from ..io.atomic import atomic_path  # noqa: E402
+
 COLUMN = 3.5  # in, single column
 DOUBLE = 7.2  # in, double column
 
@@ -52,9 +54,8 @@ def save(fig, path_png) -> list[Path]:
     out = []
     for ext in (".png", ".pdf"):
         f = p.with_suffix(ext)
-        tmp = f.with_name(f".{f.stem}.tmp{ext}")
-        fig.savefig(tmp, bbox_inches="tight")
-        tmp.replace(f)
+        with atomic_path(f) as tmp:
+            fig.savefig(tmp, format=ext[1:], bbox_inches="tight")
         out.append(f)
     plt.close(fig)
     return out

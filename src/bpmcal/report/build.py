@@ -13,6 +13,7 @@ import yaml
 
 from .. import __version__
 from .. import params as P
+from ..io.atomic import write_text
 from ..io.provenance import git_commit
 from . import paper
 
@@ -123,10 +124,7 @@ def build(outdir, config: dict, report_dir=None) -> Path:
     S.append("\n## Notes on the paper\n")
     S.extend(f"- {n}" for n in paper.NOTES)
     index = report / "index.md"
-    tmp = index.with_name(".index.md.tmp")
-    tmp.write_text("\n".join(S) + "\n")
-    tmp.replace(index)
-    return index
+    return write_text(index, "\n".join(S) + "\n")
 
 
 def _settings(outdir, cfg) -> str:

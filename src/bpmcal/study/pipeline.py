@@ -24,6 +24,7 @@ import yaml
 
 from .. import __version__
 from .. import params as P
+from ..io.atomic import atomic_path, write_text  # noqa: F401  (write_text: re-exported)
 from ..io.provenance import config_hash, git_commit
 
 
@@ -31,27 +32,10 @@ from ..io.provenance import config_hash, git_commit
 def write_table(df: pd.DataFrame, path, index=True, floatfmt=".4g") -> list[Path]:
     """CSV + Markdown (same stem), atomically."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    out = []
-    tmp = path.with_name(f".{path.name}.tmp")
-    df.to_csv(tmp, index=index)
-    tmp.replace(path)
-    out.append(path)
-    md = path.with_suffix(".md")
-    tmp = md.with_name(f".{md.name}.tmp")
-    tmp.write_text(df.to_markdown(index=index, floatfmt=floatfmt) + "\n")
-    tmp.replace(md)
-    out.append(md)
-    return out
-
-
-def write_text(path, text: str) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
-    return path
+    with atomic_path(path) as tmp:
+        df.to_csv(tmp, index=index)
+    md = write_text(path.with_suffix(".md"), df.to_markdown(index=index, floatfmt=floatfmt) + "\n")
+    return [path, md]
 
 
 def write_yaml(path, d: dict) -> Path:

@@ -22,6 +22,7 @@ import pandas as pd
 from scipy.optimize import brentq
 
 from .. import params as P
+from ..io.atomic import write_text
 
 
 def ratio_grid(start: float, stop: float, step: float) -> list[float]:
@@ -95,4 +96,4 @@ def analyse_sweep(plan: pd.DataFrame, runs_dir, criterion="tensile_share", targe
 
 
 def write_chosen(path, chosen: dict):
-    Path(path).write_text(json.dumps(chosen, indent=2) + "\n")
+    write_text(path, json.dumps(chosen, indent=2) + "\n")
