@@ -207,3 +207,30 @@ def test_path_of_a_card_never_leaves_the_output_folder(models, tmp_path):
     with pytest.raises(ValueError):
         child_path(tmp_path, "/etc/passwd")
     assert child_path(tmp_path, "B1", ".yaml") == Path(tmp_path) / "B1.yaml"
+
+
+# ------------------------------------------------------------------------ other endings
+@pytest.mark.parametrize("exc, code, needle", [
+    (RuntimeError("boom"), 1, "internal error (a bug in bpmcal, not in your input)"),
+    (OSError(28, "No space left on device", "/full/disk.h5"), 4,
+     "bpmcal summary: error: /full/disk.h5: No space left on device (system error)"),
+    (KeyboardInterrupt(), 130, "bpmcal summary: interrupted"),
+])
+def test_bugs_system_errors_and_interrupts_have_their_own_exit_codes(monkeypatch, capsys,
+                                                                    exc, code, needle):
+    import bpmcal.io.h5 as h5mod
+
+    def fail(path):
+        raise exc
+    monkeypatch.setattr(h5mod, "read_summary", fail)
+    assert main(["summary", "x.h5"]) == code
+    err = capsys.readouterr().err
+    assert needle in err
+    assert ("Traceback" in err) == (code == 1)  # only a bug shows a traceback
+
+
+def test_usage_errors_are_one_line(capsys):
+    assert main([]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("bpmcal: error: ")
+    assert main(["--version"]) == 0
