@@ -183,6 +183,13 @@ def _run_done(a, cmd: str, out) -> int:
     return EXIT_OK if a.failed_ok and not out.kept else EXIT_RUN_FAILED
 
 
+def _float_or_nan(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
 def _cache_dir(a):
     if getattr(a, "specimen_cache", None) is not None:
         out_dir(a.specimen_cache, "--specimen-cache")
@@ -217,7 +224,7 @@ def cmd_ucs(a) -> int:
     out_file(a.out)
     _cache_dir(a)
     if skip:
-        inputs = ucs_inputs({k: float(v) for k, v in params.items()}, a.seed, geo, st)
+        inputs = ucs_inputs({k: _float_or_nan(v) for k, v in params.items()}, a.seed, geo, st)
         return _run_done(a, "ucs", write_failure(a.out, test="ucs", inputs=inputs, error=skip))
     prog = Progress(f"ucs {Path(a.out).name}", enabled=not a.quiet)
     out = run_ucs_file(a.out, params, a.seed, geo, st, cache=a.specimen_cache, progress=prog,
