@@ -5,7 +5,12 @@
     bpmcal vtk RUN.h5 --out DIR
 
 Parameters are in the paper's units at this edge (mm, GPa, MPa, degrees); the package
-works in SI inside. Bad or missing parameters are reported before any work starts.
+works in SI inside. Bad input (arguments, parameter values, input files, output paths,
+resource budgets) is reported before any work starts as one line on stderr,
+``bpmcal CMD: error: ...``, with exit code 2, and nothing is written. Exit codes: 0 done,
+1 internal error (a bug: traceback and a hint), 2 bad input, 3 the DEM run failed and its
+failure record was written (0 with ``--failed-ok``, what the workflow rules pass),
+4 system error (disk full, permission), 130 interrupted. Helpers: ``bpmcal.cli_args``.
 """
 from __future__ import annotations
 
@@ -15,11 +20,34 @@ import math
 import os
 import sys
 import time
+import traceback
 from pathlib import Path
 
 from . import params as P
-
-EXIT_BAD_INPUT = 2
+from .cli_args import (
+    EXIT_BAD_INPUT,
+    EXIT_BUG,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_RUN_FAILED,
+    EXIT_SYSTEM,
+    SEED,
+    THREADS,
+    BadInput,
+    Parser,
+    fraction,
+    in_file,
+    integer,
+    number,
+    out_dir,
+    out_file,
+    parse_json,
+    positive,
+    read_csv,
+    read_json,
+    read_yaml,
+)
+from .io.paths import name_problem
 
 
 class Progress:
@@ -41,10 +69,19 @@ class Progress:
         if not self.tty and now - self._last < self.every:
             return
         self._last = now
+        if "phase" in d:  # genesis: phase, steps, ratio, target, wall_s (of the phase)
+            rate = d.get("steps", 0) / max(d.get("wall_s", 0.0), 1e-9)
+            self._write(f"{self.label}: genesis, {d['phase']:16s} unbalanced-force ratio "
+                        f"{d.get('ratio', 0):9.3g} (target {d.get('target', 0):g})  "
+                        f"{d.get('steps', 0):8d} steps  {rate:8.0f} steps/s")
+            return
         rate = d.get("steps", 0) / max(d.get("wall_s", now - self._t0), 1e-9)
         line = (f"{self.label}: strain {d.get('strain', 0) * 100:6.3f} %  stress "
                 f"{d.get('stress_MPa', 0):7.2f} MPa (peak {d.get('peak_MPa', 0):7.2f})  cracks "
                 f"{d.get('cracks', 0):6d}  {d.get('steps', 0):8d} steps  {rate:8.0f} steps/s")
+        self._write(line)
+
+    def _write(self, line: str):
         if self.tty:
             self.stream.write("\r" + line)
         else:
@@ -65,6 +102,9 @@ def _param_help() -> str:
         unit = p.unit or "-"
         rows.append(f"  {p.name:12s} {p.symbol:9s} [{unit:3s}] Table 2 range {p.lo:g}-{p.hi:g}:"
                     f" {p.description}")
+    rows.append("exit codes: 0 done, 2 bad input (nothing written), 3 the run failed and its "
+                "failure record was written (0 with --failed-ok), 1 internal error, "
+                "4 system error, 130 interrupted")
     return "\n".join(rows)
 
 
@@ -85,81 +125,110 @@ def _parse_set(items) -> dict:
 def load_params(path, overrides=()) -> dict:
     """Parameters from a YAML file (a flat mapping of the 8 names, or a material card whose
     ``parameters`` hold them) plus NAME=VALUE overrides, validated (unknown, missing,
-    non-numeric or out-of-domain values raise)."""
-    import yaml
-
+    non-numeric, boolean, NaN or out-of-domain values raise)."""
     d = {}
     if path is not None:
-        try:
-            with open(path) as f:
-                d = yaml.safe_load(f) or {}
-        except FileNotFoundError:
-            raise P.ParameterError(f"--params {path}: no such file") from None
-        if not isinstance(d, dict):
-            raise P.ParameterError(f"--params {path}: expected a mapping of parameter names "
-                                   "to values")
-        if isinstance(d.get("parameters"), dict):  # a material card
+        d = read_yaml(path, "--params")
+        if "parameters" in d:  # a material card
+            if not isinstance(d["parameters"], dict):
+                raise BadInput(f"--params {path}: 'parameters' is not a mapping of parameter "
+                               "names to values")
             d = dict(d["parameters"])
     d.update(_parse_set(overrides))
-    return P.validate_params(d)
-
-
-def _positive(name):
-    def conv(s):
-        try:
-            v = float(s)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a number") from None
-        if not (v > 0 and math.isfinite(v)):
-            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a positive number")
-        return v
-    return conv
-
-
-def _fraction(name):
-    def conv(s):
-        v = _positive(name)(s)
-        if v >= 1:
-            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a fraction in (0, 1)")
-        return v
-    return conv
-
-
-def params_from_design(path, sample_id) -> tuple[dict, int]:
-    """The 8 parameters and the seed of one row of a design CSV."""
-    import pandas as pd
-
     try:
-        d = pd.read_csv(path)
-    except FileNotFoundError:
-        raise P.ParameterError(f"--design {path}: no such file") from None
+        return P.validate_params(d)
+    except P.ParameterError as e:
+        raise P.ParameterError(f"--params {path}: {e}" if path is not None else str(e)) from None
+
+
+def params_from_design(path, sample_id) -> tuple[dict, int, str]:
+    """The 8 parameters, the seed and a skip reason ("" to run) of one row of a design CSV.
+    A sweep-plan row with status "unreachable" is not run: its reason is returned and its
+    parameters (NaN strengths) are not validated."""
+    from .study.sweep import UNREACHABLE
+
+    d = read_csv(path, "--design", ["sample_id", *P.PARAMS, "seed"], dtype={"sample_id": str})
     row = d[d["sample_id"] == sample_id]
     if len(row) != 1:
-        raise P.ParameterError(f"--sample {sample_id!r}: not in {path} "
-                               f"({len(d)} samples: {d['sample_id'].iloc[0]}..."
-                               f"{d['sample_id'].iloc[-1]})")
+        raise BadInput(f"--sample {sample_id!r}: {'not in' if len(row) == 0 else 'repeated in'} "
+                       f"{path} ({len(d)} samples: {d['sample_id'].iloc[0]}..."
+                       f"{d['sample_id'].iloc[-1]})")
     r = row.iloc[0]
-    return {k: float(r[k]) for k in P.PARAMS}, int(r["seed"])
+    raw = r["seed"].item() if hasattr(r["seed"], "item") else r["seed"]
+    try:
+        seed = float(raw)
+    except (TypeError, ValueError):
+        seed = math.nan
+    if not (math.isfinite(seed) and seed == int(seed) and 0 <= seed < 2 ** 32):
+        raise BadInput(f"--design {path} sample {sample_id}: seed={raw!r}: expected an "
+                       "integer in [0, 2^32)")
+    if "status" in d.columns and str(r["status"]) == UNREACHABLE:
+        reason = r["reason"] if "reason" in d.columns and isinstance(r["reason"], str) else ""
+        return {k: r[k] for k in P.PARAMS}, int(seed), f"not run: unreachable ratio: {reason}"
+    try:
+        params = P.validate_params({k: r[k] for k in P.PARAMS})
+    except P.ParameterError as e:
+        raise P.ParameterError(f"--design {path} sample {sample_id}: {e}") from None
+    return params, int(seed), ""
+
+
+def _run_done(a, cmd: str, out) -> int:
+    """Exit code of a DEM run command; the FAILED line is printed even with --quiet."""
+    if out.status == "ok":
+        return EXIT_OK
+    where = (f"failure record written to {out.path}; the good run in {out.kept} was kept"
+             if out.kept else "failure record written")
+    print(f"bpmcal {cmd}: FAILED: {a.out}: {out.error} ({where})", file=sys.stderr)
+    sys.stderr.flush()
+    return EXIT_OK if a.failed_ok and not out.kept else EXIT_RUN_FAILED
+
+
+def _float_or_nan(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _cache_dir(a):
+    if getattr(a, "specimen_cache", None) is not None:
+        out_dir(a.specimen_cache, "--specimen-cache")
+
+
+def _check_budget(a, params, geo):
+    from .lab.budget import check_budget
+
+    check_budget(params, geo, max_balls=a.max_balls, mem_budget_mb=a.mem_budget_mb)
 
 
 def cmd_ucs(a) -> int:
-    from .lab.runner import run_ucs_file
+    from .lab.runner import run_ucs_file, ucs_inputs, write_failure
 
+    skip = ""
     if a.design is not None:
         if a.sample is None:
-            raise P.ParameterError("--design needs --sample ID")
-        params, seed = params_from_design(a.design, a.sample)
-        params.update(_parse_set(a.set))
-        params = P.validate_params(params)
+            raise BadInput("--design needs --sample ID (the row to run)")
+        params, seed, skip = params_from_design(a.design, a.sample)
+        if not skip and a.set:
+            params = P.validate_params({**params, **_parse_set(a.set)})
         a.seed = seed if a.seed is None else a.seed
     else:
+        if a.sample is not None:
+            raise BadInput(f"--sample {a.sample}: needs --design FILE")
         params = load_params(a.params, a.set)
     a.seed = 1 if a.seed is None else a.seed
     geo = run_geometry(a)
     st = run_settings(a)
+    if not skip:
+        _check_budget(a, params, geo)
+    out_file(a.out)
+    _cache_dir(a)
+    if skip:
+        inputs = ucs_inputs({k: _float_or_nan(v) for k, v in params.items()}, a.seed, geo, st)
+        return _run_done(a, "ucs", write_failure(a.out, test="ucs", inputs=inputs, error=skip))
     prog = Progress(f"ucs {Path(a.out).name}", enabled=not a.quiet)
     out = run_ucs_file(a.out, params, a.seed, geo, st, cache=a.specimen_cache, progress=prog,
-                       threads=a.threads)
+                       threads=a.threads, genesis_max_steps=a.genesis_max_steps)
     if out.status == "ok":
         s = out.summary
         prog.done(f"{a.out}: sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
@@ -167,17 +236,18 @@ def cmd_ucs(a) -> int:
                   f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
                   f"({s['stop_reason']})")
     else:
-        prog.done(f"{a.out}: FAILED ({out.error}); failure record written")
-    return 0
+        prog.done()
+    return _run_done(a, "ucs", out)
 
 
 def cmd_design(a) -> int:
     from .study.design import lhs_design
 
-    try:
-        ranges = json.loads(a.ranges)
-    except json.JSONDecodeError as e:
-        raise P.ParameterError(f"--ranges: not valid JSON ({e})") from None
+    ranges = parse_json(a.ranges, "--ranges")
+    if not isinstance(ranges, dict):
+        raise BadInput(f"--ranges {a.ranges}: expected a JSON object "
+                       '{"name": [low, high], ...}')
+    out_file(a.out, suffixes=(".csv",))
     opt = None if a.optimization == "none" else a.optimization
     df = lhs_design(ranges, a.n, a.seed, optimization=opt)
     _write_csv(df, a.out)
@@ -186,13 +256,20 @@ def cmd_design(a) -> int:
 
 
 def cmd_gather(a) -> int:
-    import pandas as pd
-
     from .study.gather import gather, status_report
 
-    design = pd.read_csv(a.design)
-    runs = {sid: Path(a.runs) / f"{sid}.h5" for sid in design["sample_id"]}
-    df = gather(design, runs)
+    design = read_csv(a.design, "--design", ["sample_id", *P.PARAMS, "seed"],
+                      dtype={"sample_id": str})
+    for sid in design["sample_id"]:
+        m = name_problem(sid)
+        if m:
+            raise BadInput(f"--design {a.design}: sample_id {m}")
+    runs_dir = Path(a.runs)
+    if not runs_dir.is_dir():
+        raise BadInput(f"--runs {a.runs}: not a directory (expected the folder of the "
+                       "<sample_id>.h5 run files)")
+    out_file(a.out, suffixes=(".csv",))
+    df = gather(design, {sid: runs_dir / f"{sid}.h5" for sid in design["sample_id"]})
     _write_csv(df, a.out)
     print(status_report(df))
     return 0
@@ -207,15 +284,62 @@ def _write_csv(df, path):
 
 
 def _json_arg(text, name):
+    return parse_json(text, name)
+
+
+def _dataset(path, flag="--dataset", min_ok: int = 1):
+    """A gathered dataset CSV with the columns the analyses need and enough ok samples."""
+    df = read_csv(path, flag, ["sample_id", *P.PARAMS, "status"])
+    n_ok = int((df["status"] == "ok").sum())
+    if n_ok < min_ok:
+        raise BadInput(f"{flag} {path}: {n_ok} of {len(df)} samples have status ok; this step "
+                       f"needs at least {min_ok}")
+    return df
+
+
+def _models(path, flag="--models"):
+    from .analysis import models_from_dict
+
+    d = read_json(path, flag)
     try:
-        return json.loads(text)
-    except json.JSONDecodeError as e:
-        raise P.ParameterError(f"{name}: not valid JSON ({e})") from None
+        models = models_from_dict(d)
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise BadInput(f"{flag} {path}: not a models.json of 'bpmcal regress' "
+                       f"({type(e).__name__}: {e})") from None
+    if "ucs_MPa" not in models:
+        raise BadInput(f"{flag} {path}: no model of ucs_MPa")
+    return models
+
+
+def _card(path, flag="--card", need=("parameters",)) -> dict:
+    """A material card (YAML mapping) with the keys ``need`` and valid parameters."""
+    d = read_yaml(path, flag)
+    missing = [k for k in need if k not in d]
+    if missing:
+        raise BadInput(f"{flag} {path}: not a material card (no {', '.join(missing)}; "
+                       "expected the output of 'bpmcal calibrate' or 'bpmcal verify')")
+    if "parameters" in d:
+        if not isinstance(d["parameters"], dict):
+            raise BadInput(f"{flag} {path}: 'parameters' is not a mapping")
+        try:
+            P.validate_params(d["parameters"])
+        except P.ParameterError as e:
+            raise P.ParameterError(f"{flag} {path}: {e}") from None
+    return d
+
+
+def _out_dirs(a, *flags):
+    for f in flags:
+        v = getattr(a, f.lstrip("-").replace("-", "_"))
+        if v is not None:
+            out_dir(v, f)
 
 
 def cmd_screen(a) -> int:
     from .study.pipeline import screen
 
+    _dataset(a.dataset, min_ok=max(a.splits, 4))
+    _out_dirs(a, "--out", "--tables", "--figures")
     r = screen(a.dataset, a.out, a.tables, a.figures, threshold=a.threshold,
                importance=a.importance, n_splits=a.splits, n_repeats=a.repeats, seed=a.seed)
     print(r["note"])
@@ -227,6 +351,12 @@ def cmd_screen(a) -> int:
 def cmd_regress(a) -> int:
     from .study.pipeline import regress
 
+    _dataset(a.dataset, min_ok=max(a.cv_folds, 4))
+    sel = read_json(a.selected, "--selected")
+    if not isinstance(sel, dict) or not isinstance(sel.get("selected"), dict):
+        raise BadInput(f"--selected {a.selected}: not a selected.json of 'bpmcal screen' "
+                       "(no 'selected' mapping)")
+    _out_dirs(a, "--out", "--tables", "--figures")
     r = regress(a.dataset, a.selected, a.out, a.tables, a.figures, alpha_in=a.alpha_in,
                 alpha_out=a.alpha_out, vif_max=a.vif_max, hierarchy=a.hierarchy,
                 cv_folds=a.cv_folds, cv_repeats=a.cv_repeats, seed=a.seed)
@@ -236,70 +366,151 @@ def cmd_regress(a) -> int:
 
 
 def cmd_calibrate(a) -> int:
+    from .study.config import load_lab
     from .study.pipeline import calibrate
 
-    fixed = P.validate_params(_json_arg(a.fixed, "--fixed"), require_all=False)
-    if a.n_boot == 1 or a.n_boot < 0:
+    load_lab(in_file(a.lab, "--lab"))  # specimen names become file names: check them first
+    fixed = _json_arg(a.fixed, "--fixed")
+    if not isinstance(fixed, dict):
+        raise BadInput(f"--fixed {a.fixed}: expected a JSON object of parameter values")
+    try:
+        fixed = P.validate_params(fixed, require_all=False)
+    except P.ParameterError as e:
+        raise P.ParameterError(f"--fixed: {e}") from None
+    if a.n_boot == 1:
         raise P.ParameterError(f"--n-boot {a.n_boot}: expected 0 (no bootstrap) "
                                "or an integer >= 2")
     free = a.free.split(",") if a.free else None
-    ratio = None if a.ratio is not None and a.ratio <= 0 else a.ratio
+    if free:
+        bad = [f for f in free if f not in P.PARAMS]
+        if bad:
+            raise BadInput(f"--free {a.free}: unknown parameter(s) {bad}; expected names from "
+                           f"{list(P.PARAMS)}")
+    ratio = None if a.ratio <= 0 else a.ratio
     if a.ratio_from:
-        ratio = float(json.loads(Path(a.ratio_from).read_text())["chosen_ratio"])
+        ch = read_json(a.ratio_from, "--ratio-from")
+        if not isinstance(ch, dict) or "chosen_ratio" not in ch:
+            raise BadInput(f"--ratio-from {a.ratio_from}: no 'chosen_ratio' (expected the "
+                           "chosen.json of 'bpmcal sweep-analyse')")
+        if ch["chosen_ratio"] is None:
+            print(f"--ratio-from {a.ratio_from}: the sweep chose no ratio "
+                  f"({ch.get('reason', 'no usable run')}); using --ratio {a.ratio:g}")
+        else:
+            ratio = P.as_number(ch["chosen_ratio"], f"--ratio-from {a.ratio_from}: "
+                                "chosen_ratio", "a positive ratio", BadInput)
+            if ratio <= 0:
+                raise BadInput(f"--ratio-from {a.ratio_from}: chosen_ratio={ratio:g}: "
+                               "expected a positive ratio")
+    _dataset(a.dataset)
+    _models(a.models)
+    _out_dirs(a, "--out", "--tables")
     r = calibrate(a.dataset, a.models, a.lab, a.out, fixed=fixed, ratio=ratio, free=free,
                   n_boot=a.n_boot, seed=a.seed, tables_dir=a.tables)
     print(r["table"].to_string())
     return 0
 
 
+def _run_inputs(a, params):
+    """Geometry and UCS settings of a DEM command and the budget of ``params``, checked;
+    then the output folder and the cache folder."""
+    geo, st = run_geometry(a), run_settings(a)
+    _check_budget(a, params, geo)
+    _out_dirs(a, "--out")
+    _cache_dir(a)
+    return geo, st
+
+
 def cmd_verify(a) -> int:
     from .study.pipeline import verify
 
+    card = _card(a.card, need=("parameters", "targets", "roles"))
+    _models(a.models)
+    geo, st = _run_inputs(a, card["parameters"])
     prog = Progress(f"verify {Path(a.card).stem}", enabled=not a.quiet)
-    v = verify(a.card, a.models, a.out, geometry=run_geometry(a), settings=run_settings(a),
+    v = verify(a.card, a.models, a.out, geometry=geo, settings=st,
                seed=a.seed, rtol=a.rtol, max_rounds=a.max_rounds, cache=a.specimen_cache,
                threads=a.threads, progress=prog)["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
 
 
+def _seeds(text) -> list[int]:
+    try:
+        seeds = [int(x) for x in text.split(",")]
+    except ValueError:
+        raise BadInput(f"--seeds {text!r}: expected comma-separated integers") from None
+    bad = [x for x in seeds if not 0 <= x < 2 ** 32]
+    if bad or len(seeds) < 2 or len(set(seeds)) != len(seeds):
+        raise BadInput(f"--seeds {text!r}: expected at least 2 different seeds in [0, 2^32)")
+    return seeds
+
+
 def cmd_scatter(a) -> int:
     from .study.pipeline import seed_scatter_runs
 
-    seeds = [int(x) for x in a.seeds.split(",")]
-    sc = seed_scatter_runs(a.card, a.out, geometry=run_geometry(a), settings=run_settings(a),
+    seeds = _seeds(a.seeds)
+    card = _card(a.card, need=("parameters", "specimen"))
+    geo, st = _run_inputs(a, card["parameters"])
+    sc = seed_scatter_runs(a.card, a.out, geometry=geo, settings=st,
                            seeds=seeds, rtol=a.rtol, cache=a.specimen_cache, threads=a.threads)
     print(sc.to_string())
     return 0
 
 
 def cmd_vtables(a) -> int:
+    from .study.config import load_lab
     from .study.pipeline import verification_tables
 
-    cards = {Path(c).parent.name: c for c in a.cards}
+    cards = {}
+    for c in a.cards:
+        _card(c, "--cards", need=("parameters", "targets", "verification", "lab"))
+        spec = Path(c).parent.name
+        m = name_problem(spec)
+        if m:
+            raise BadInput(f"--cards {c}: folder name {m}")
+        cards[spec] = c
+    load_lab(in_file(a.lab, "--lab"))
+    _out_dirs(a, "--tables", "--figures")
     r = verification_tables(cards, a.lab, a.tables, a.figures)
     print(r["table5"].to_string())
     print(r["table6"].to_string())
     return 0
 
 
+def _ratios(text) -> tuple[float, float, float]:
+    from .study.sweep import ratio_grid
+
+    parts = text.split(",")
+    try:
+        start, stop, step = (float(x) for x in parts)
+    except ValueError:
+        raise BadInput(f"--ratios {text!r}: expected start,stop,step (three numbers)") from None
+    try:
+        ratio_grid(start, stop, step)
+    except P.ParameterError as e:
+        raise BadInput(f"--ratios {text!r}: {e}") from None
+    return start, stop, step
+
+
 def cmd_sweep_plan(a) -> int:
-    from .analysis import models_from_dict
-    from .study.pipeline import read_card
     from .study.sweep import ratio_grid, sweep_plan
 
-    start, stop, step = (float(x) for x in a.ratios.split(","))
-    card = read_card(a.card)
-    models = models_from_dict(json.loads(Path(a.models).read_text()))
+    start, stop, step = _ratios(a.ratios)
+    card = _card(a.card, need=("parameters", "targets"))
+    if "ucs_MPa" not in (card["targets"] or {}):
+        raise BadInput(f"--card {a.card}: no targets.ucs_MPa")
+    models = _models(a.models)
+    out_file(a.out, suffixes=(".csv",))
     plan = sweep_plan(card, models["ucs_MPa"], ratio_grid(start, stop, step), a.seed)
     _write_csv(plan, a.out)
     print(plan.to_string())
+    bad = plan[plan["status"] != "planned"]
+    for r in bad.itertuples():
+        print(f"{r.sample_id}: {r.status}: {r.reason}")
     return 0
 
 
 def cmd_sweep_analyse(a) -> int:
-    import pandas as pd
-
     from .io.h5 import read_cracks
     from .io.vtk import export_run
     from .plots.fracture import fig_failure_patterns, fig_ratio_cracks
@@ -307,16 +518,26 @@ def cmd_sweep_analyse(a) -> int:
     from .study.pipeline import write_table
     from .study.sweep import analyse_sweep, write_chosen
 
-    plan = pd.read_csv(a.plan)
+    plan = read_csv(a.plan, "--plan", ["sample_id", "ratio", "pb_ten_MPa", "pb_coh_MPa",
+                                       "extrapolated"], dtype={"sample_id": str})
+    for sid in plan["sample_id"]:
+        m = name_problem(sid)
+        if m:
+            raise BadInput(f"--plan {a.plan}: sample_id {m}")
+    if not Path(a.runs).is_dir():
+        raise BadInput(f"--runs {a.runs}: not a directory")
+    out_file(a.chosen, "--chosen", suffixes=(".json",))
+    _out_dirs(a, "--tables", "--figures", "--vtk")
     df, chosen = analyse_sweep(plan, a.runs, a.criterion, a.target)
     write_table(df, Path(a.tables) / "ratio_sweep.csv", index=False)
     write_chosen(a.chosen, chosen)
     save(fig_ratio_cracks(df, chosen), Path(a.figures) / "fig4_ratio_cracks.png")
-    show = sorted({plan["ratio"].iloc[0], chosen["chosen_ratio"], 1.0,
-                   plan["ratio"].iloc[-1]} & set(plan["ratio"]))
+    ok = df[df["status"] == "ok"]
+    show = sorted({ok["ratio"].iloc[0], chosen["chosen_ratio"], 1.0, ok["ratio"].iloc[-1]}
+                  & set(ok["ratio"])) if len(ok) else []
     panels = {}
     for r in show:
-        sid = plan.loc[plan["ratio"] == r, "sample_id"].iloc[0]
+        sid = ok.loc[ok["ratio"] == r, "sample_id"].iloc[0]
         run = Path(a.runs) / f"{sid}.h5"
         panels[f"a = {r:.1f}"] = read_cracks(run)
         export_run(run, Path(a.vtk) / sid)
@@ -329,69 +550,116 @@ def cmd_sweep_analyse(a) -> int:
 def cmd_impact(a) -> int:
     from .lab.impact import ImpactSettings
     from .lab.runner import run_impact_file
-    from .study.pipeline import read_card
 
-    card = read_card(a.card)
-    params = dict(card.get("verification", {}).get("parameters") or card["parameters"])
+    card = _card(a.card, need=())
+    if "parameters" in card or "verification" in card:
+        params = (card.get("verification") or {}).get("parameters") or card.get("parameters")
+    else:
+        params = card  # a flat mapping of the 8 parameters
+    if not isinstance(params, dict):
+        raise BadInput(f"--card {a.card}: no parameters")
+    try:
+        params = P.validate_params(params)
+    except P.ParameterError as e:
+        raise P.ParameterError(f"--card {a.card}: {e}") from None
+    geo = run_geometry(a)
     st = ImpactSettings(velocity=a.velocity, hammer_mass=a.hammer_mass * a.scale ** 3,
                         dp_ratio=a.dp_ratio, platen_fric=a.anvil_fric,
                         duration=a.duration_ms * 1e-3, record_dt=a.record_us * 1e-6)
+    _check_budget(a, params, geo)
+    out_file(a.out)
+    _cache_dir(a)
     prog = Progress(f"impact {Path(a.out).name}", enabled=not a.quiet)
-    out = run_impact_file(a.out, params, a.seed, run_geometry(a), st, cache=a.specimen_cache,
-                          threads=a.threads, progress=prog)
+    out = run_impact_file(a.out, params, a.seed, geo, st, cache=a.specimen_cache,
+                          threads=a.threads, progress=prog,
+                          genesis_max_steps=a.genesis_max_steps)
     if out.status == "ok":
         s = out.summary
         prog.done(f"{a.out}: W_in = {s['W_in_J']:.3f} J, G_f = {s['G_f_J']:.3f} J, eta_f = "
                   f"{100 * s['eta_f']:.1f} %, t10 = {s['t10_pct']:.1f} %, closure "
                   f"{100 * s['closure_rel_max']:.3f} %, {s['steps']} steps, {s['wall_s']:.0f} s")
     else:
-        prog.done(f"{a.out}: FAILED ({out.error})")
-    return 0
+        prog.done()
+    return _run_done(a, "impact", out)
 
 
 def cmd_impact_analyse(a) -> int:
     import pandas as pd
 
-    from .io.h5 import read_series, read_summary
+    from .io.h5 import RunFileError, check_run_file, read_inputs, read_series, read_summary
     from .lab.fragments import fit_jk
     from .plots.fracture import fig_impact, fig_t10
-    from .plots.style import save
+    from .plots.style import fig_note, save
     from .study.pipeline import write_table, write_text
 
+    check_run_file(a.main)
+    for f in a.runs:
+        in_file(f, "--runs")
+    _out_dirs(a, "--tables", "--figures")
     main_s = read_summary(a.main)
-    ser = read_series(a.main)
-    ser["cracks_total"] = ser["cracks_tension"] + ser["cracks_shear"]
+    if main_s.get("status") == "ok":
+        ser = read_series(a.main)
+        ser["cracks_total"] = ser["cracks_tension"] + ser["cracks_shear"]
+        fig7 = fig_impact(ser, main_s)
+    else:
+        ser = pd.DataFrame({"status": [main_s.get("status")], "error": [main_s.get("error")]})
+        fig7 = fig_note("Fig. 7 not available", f"the impact run {Path(a.main).name} failed: "
+                        f"{main_s.get('error', '')}")
+        print(f"{a.main}: run failed ({main_s.get('error', '')}); Fig. 7 not drawn")
     write_table(ser, Path(a.tables) / "impact_energy.csv", index=False)
-    save(fig_impact(ser, main_s), Path(a.figures) / "fig7_impact_energy.png")
+    save(fig7, Path(a.figures) / "fig7_impact_energy.png")
+    cols = ["velocity", "W_in_J", "G_f_J", "eta_f", "ecs_kWh_t", "t10_pct", "n_fragments",
+            "largest_fragment_frac", "balls_per_t10_fragment"]
     rows = []
     for f in a.runs:
-        s = read_summary(f)
+        try:
+            s = read_summary(f)
+        except RunFileError as e:
+            s = {"status": "unreadable", "error": str(e)}
         if s.get("status") != "ok":
+            v = read_inputs(f).get("impact_velocity") if s["status"] == "failed" else None
+            print(f"{f}: {s['status']} ({s.get('error', '')}); left out of the t10 fit")
+            rows.append({"velocity": v, "status": s["status"], "error": s.get("error", "")})
             continue
-        rows.append({"velocity": s["velocity"], "W_in_J": s["W_in_J"], "G_f_J": s["G_f_J"],
-                     "eta_f": s["eta_f"], "ecs_kWh_t": s["ecs_kWh_t"], "t10_pct": s["t10_pct"],
-                     "n_fragments": s["n_fragments"],
-                     "largest_fragment_frac": s["largest_fragment_frac"],
-                     "balls_per_t10_fragment": s["balls_per_t10_fragment"]})
-    t = pd.DataFrame(rows).sort_values("velocity")
+        rows.append({**{c: s[c] for c in cols}, "status": "ok", "error": ""})
+    t = pd.DataFrame(rows, columns=[*cols, "status", "error"]).sort_values("velocity")
+    ok = t[t["status"] == "ok"]
     try:
-        fit = fit_jk(t["ecs_kWh_t"], t["t10_pct"])
-    except (ValueError, RuntimeError) as e:
+        fit = fit_jk(ok["ecs_kWh_t"], ok["t10_pct"])
+    except (ValueError, RuntimeError, TypeError) as e:
         fit = None
         print(f"JK fit failed: {e}")
     write_table(t, Path(a.tables) / "t10_ecs.csv", index=False)
     write_text(Path(a.tables) / "jk_fit.json", json.dumps(fit, indent=2) + "\n")
-    save(fig_t10(t, fit), Path(a.figures) / "t10_ecs.png")
+    save(fig_t10(ok, fit), Path(a.figures) / "t10_ecs.png")
     print(t.to_string())
     print(f"JK fit: {fit}")
     return 0
 
 
 def cmd_report(a) -> int:
+    from .io.atomic import write_text
     from .report.build import build
 
-    cfg = _json_arg(Path(a.config).read_text(), "--config") if a.config.endswith(".json") \
-        else __import__("yaml").safe_load(Path(a.config).read_text())
+    if (a.config is None) == (a.config_json is None):
+        raise BadInput("give the study config with exactly one of --config FILE and "
+                       "--config-json TEXT")
+    if a.config_json is not None:
+        cfg = parse_json(a.config_json, "--config-json")
+    elif a.config.endswith(".json"):
+        cfg = read_json(a.config, "--config")
+    else:
+        cfg = read_yaml(a.config, "--config")
+    if not isinstance(cfg, dict) or not isinstance(cfg.get("study"), dict):
+        raise BadInput("--config: not a study config (no 'study' section)")
+    if not Path(a.outdir).is_dir():
+        raise BadInput(f"--outdir {a.outdir}: not a directory (expected the study's output "
+                       "folder)")
+    if a.config_out is not None:
+        out_file(a.config_out, "--config-out", suffixes=(".json",))
+    _out_dirs(a, "--out")
+    if a.config_out is not None:
+        write_text(a.config_out, json.dumps(cfg, indent=1, sort_keys=True) + "\n")
     index = build(a.outdir, cfg, a.out)
     print(index)
     return 0
@@ -409,45 +677,72 @@ def cmd_summary(a) -> int:
 
 
 def cmd_vtk(a) -> int:
+    from .io.h5 import read_summary
     from .io.vtk import export_run
+
+    s = read_summary(a.run)
+    if s.get("status") != "ok":
+        raise BadInput(f"{a.run}: a failure record (status {s.get('status')}: "
+                       f"{s.get('error', '')}), no particles to export")
+    _out_dirs(a, "--out")
     files = export_run(a.run, a.out)
     for f in files:
         print(f)
     return 0
 
 
+def add_budget_args(p):
+    """Resource guards of a DEM command (checked before any work)."""
+    from .lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
+
+    p.add_argument("--max-balls", type=integer("max-balls", 1), default=MAX_BALLS,
+                   help="refuse a specimen estimated to hold more balls than this "
+                        f"(default {MAX_BALLS:,})")
+    p.add_argument("--mem-budget-mb", type=positive("mem-budget-mb", "MB"), default=None,
+                   help="refuse a run estimated to need more memory than this [MB] "
+                        "(default 80 %% of this machine's memory)")
+    p.add_argument("--genesis-max-steps", type=integer("genesis-max-steps", 1000),
+                   default=GENESIS_MAX_STEPS,
+                   help="a specimen that has not settled after this many steps is a failed "
+                        f"run (default {GENESIS_MAX_STEPS:,})")
+
+
 def add_run_args(p):
     """Options of the specimen and of the UCS loading (shared by ucs, verify, scatter)."""
-    p.add_argument("--scale", type=_positive("scale"), default=1.0,
+    p.add_argument("--scale", type=number("scale", 0.0, 10.0, lo_open=True), default=1.0,
                    help="specimen size factor on the 50 x 100 mm cylinder (default 1)")
-    p.add_argument("--diameter", type=_positive("diameter"), default=50.0,
+    p.add_argument("--diameter", type=positive("diameter", "mm"), default=50.0,
                    help="specimen diameter before scaling [mm] (default 50)")
-    p.add_argument("--height", type=_positive("height"), default=100.0,
+    p.add_argument("--height", type=positive("height", "mm"), default=100.0,
                    help="specimen height before scaling [mm] (default 100)")
-    p.add_argument("--relax-ratio", type=_positive("relax-ratio"), default=1e-2,
+    p.add_argument("--relax-ratio", type=number("relax-ratio", 0.0, 0.1, lo_open=True),
+                   default=1e-2,
                    help="genesis equilibrium: mean unbalanced-force ratio (default 1e-2)")
-    p.add_argument("--record-strain", type=_positive("record-strain"), default=1e-5,
-                   help="axial strain between records (default 1e-5)")
-    p.add_argument("--platen-velocity", type=_positive("platen-velocity"), default=0.05,
+    p.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
+                   default=1e-5, help="axial strain between records (default 1e-5)")
+    p.add_argument("--platen-velocity", type=number("platen-velocity", 0.0, 100.0,
+                                                    lo_open=True, unit="m/s"), default=0.05,
                    help="speed of each platen [m/s] (default 0.05)")
-    p.add_argument("--strain-rate", type=_positive("strain-rate"), default=None,
+    p.add_argument("--strain-rate", type=positive("strain-rate", "1/s"), default=None,
                    help="axial strain rate [1/s]; overrides --platen-velocity "
                         "(each platen then moves at rate x H / 2)")
-    p.add_argument("--damping", type=float, default=0.7, help="local damping (default 0.7)")
-    p.add_argument("--stop-drop", type=_fraction("stop-drop"), default=0.7,
+    p.add_argument("--damping", type=number("damping", 0.0, 1.0, hi_open=True), default=0.7,
+                   help="local damping in [0, 1) (default 0.7)")
+    p.add_argument("--stop-drop", type=fraction("stop-drop"), default=0.7,
                    help="stop when stress < this fraction of the peak after it (default 0.7)")
-    p.add_argument("--max-strain", type=_positive("max-strain"), default=0.03,
-                   help="stop at this axial strain (default 0.03)")
-    p.add_argument("--platen-fric", type=float, default=0.0,
-                   help="platen friction coefficient (default 0, frictionless)")
-    p.add_argument("--sigma0", type=float, default=0.1,
+    p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
+                   default=0.03, help="stop at this axial strain (default 0.03)")
+    p.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0), default=0.0,
+                   help="platen friction coefficient in [0, 10] (default 0, frictionless)")
+    p.add_argument("--sigma0", type=number("sigma0", 0.0, 100.0, unit="MPa"), default=0.1,
                    help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
-    p.add_argument("--install-gap", type=float, default=0.0,
-                   help="bond pairs with surface gap <= this [mm] (default 0)")
-    p.add_argument("--threads", type=int, default=None, help="numba threads")
+    p.add_argument("--install-gap", type=number("install-gap", 0.0, 1.0, unit="mm"),
+                   default=0.0, help="bond pairs with surface gap <= this [mm] (default 0)")
+    p.add_argument("--threads", type=THREADS, default=None, help="numba threads (>= 1)")
     p.add_argument("--specimen-cache", default=None,
                    help="directory of cached packings (default ~/.cache/bpmcal/packings or "
                         "$BPMCAL_SPECIMEN_CACHE)")
+    add_budget_args(p)
 
 
 def run_geometry(a):
@@ -464,33 +759,41 @@ def run_settings(a):
                        platen_fric=a.platen_fric, record_strain=a.record_strain)
 
 
+FAILED_OK_HELP = ("a failed run (failure record written) exits 0 instead of 3; the workflow "
+                  "passes this so that one failed sample does not stop the study")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="bpmcal", description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = Parser(prog="bpmcal", description=__doc__.split("\n\n")[0],
+                formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--version", action="version", version=f"bpmcal {_version()}")
     sub = ap.add_subparsers(dest="cmd", required=True)
 
     u = sub.add_parser("ucs", help="one virtual uniaxial compression test -> HDF5",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        epilog=_param_help())
-    u.add_argument("--params", help="YAML file with the 8 meso-parameters", default=None)
-    u.add_argument("--design", default=None,
-                   help="take the parameters and the seed from this design CSV ...")
+    src = u.add_mutually_exclusive_group()
+    src.add_argument("--params", help="YAML file with the 8 meso-parameters", default=None)
+    src.add_argument("--design", default=None,
+                     help="take the parameters and the seed from this design CSV ...")
     u.add_argument("--sample", default=None, help="... row with this sample_id")
     u.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
     u.add_argument("--set", action="append", metavar="NAME=VALUE",
                    help="override one parameter (repeatable)")
-    u.add_argument("--seed", type=int, default=None,
+    u.add_argument("--seed", type=SEED, default=None,
                    help="packing seed (default 1, or the design row's)")
     add_run_args(u)
-    u.add_argument("--quiet", action="store_true", help="no progress output")
+    u.add_argument("--quiet", action="store_true",
+                   help="no progress output (a FAILED line is still printed)")
+    u.add_argument("--failed-ok", action="store_true", help=FAILED_OK_HELP)
     u.set_defaults(func=cmd_ucs)
 
     d = sub.add_parser("design", help="Latin-hypercube design over parameter ranges -> CSV")
     d.add_argument("--ranges", required=True,
                    help='JSON mapping of parameter name to [low, high] (paper units)')
-    d.add_argument("--n", type=int, required=True, help="number of samples")
-    d.add_argument("--seed", type=int, required=True, help="design seed")
+    d.add_argument("--n", type=integer("n", 2, 1_000_000), required=True,
+                   help="number of samples")
+    d.add_argument("--seed", type=SEED, required=True, help="design seed")
     d.add_argument("--optimization", default="random-cd",
                    choices=["random-cd", "lloyd", "none"], help="LHS optimisation")
     d.add_argument("--out", required=True, help="output CSV")
@@ -507,13 +810,16 @@ def build_parser() -> argparse.ArgumentParser:
     sc.add_argument("--out", required=True, help="output directory (screening)")
     sc.add_argument("--tables", required=True, help="tables directory")
     sc.add_argument("--figures", required=True, help="figures directory")
-    sc.add_argument("--threshold", type=float, default=10.0, help="selection threshold [%%]")
+    sc.add_argument("--threshold", type=number("threshold", 0.0, 100.0), default=10.0,
+                    help="selection threshold [%%]")
     sc.add_argument("--importance", default="gain",
                     choices=["gain", "total_gain", "permutation", "shap"],
                     help="importance type that drives the selection (default gain)")
-    sc.add_argument("--splits", type=int, default=5, help="CV folds (default 5)")
-    sc.add_argument("--repeats", type=int, default=10, help="permutation repeats")
-    sc.add_argument("--seed", type=int, default=0)
+    sc.add_argument("--splits", type=integer("splits", 2, 100), default=5,
+                    help="CV folds (default 5)")
+    sc.add_argument("--repeats", type=integer("repeats", 1, 1000), default=10,
+                    help="permutation repeats")
+    sc.add_argument("--seed", type=SEED, default=0)
     sc.set_defaults(func=cmd_screen)
 
     rg = sub.add_parser("regress", help="three-stage stepwise regression (Table 4)")
@@ -522,13 +828,14 @@ def build_parser() -> argparse.ArgumentParser:
     rg.add_argument("--out", required=True, help="output directory (regression)")
     rg.add_argument("--tables", required=True)
     rg.add_argument("--figures", required=True)
-    rg.add_argument("--alpha-in", type=float, default=0.05)
-    rg.add_argument("--alpha-out", type=float, default=0.05)
-    rg.add_argument("--vif-max", type=float, default=10.0)
+    rg.add_argument("--alpha-in", type=number("alpha-in", 0.0, 0.5, lo_open=True), default=0.05)
+    rg.add_argument("--alpha-out", type=number("alpha-out", 0.0, 0.5, lo_open=True),
+                    default=0.05)
+    rg.add_argument("--vif-max", type=number("vif-max", 1.0), default=10.0)
     rg.add_argument("--hierarchy", default="strong", choices=["strong", "weak", "none"])
-    rg.add_argument("--cv-folds", type=int, default=5)
-    rg.add_argument("--cv-repeats", type=int, default=10)
-    rg.add_argument("--seed", type=int, default=0)
+    rg.add_argument("--cv-folds", type=integer("cv-folds", 2, 100), default=5)
+    rg.add_argument("--cv-repeats", type=integer("cv-repeats", 1, 1000), default=10)
+    rg.add_argument("--seed", type=SEED, default=0)
     rg.set_defaults(func=cmd_regress)
 
     ca = sub.add_parser("calibrate", help="invert the models for the lab specimens")
@@ -539,22 +846,25 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--tables", default=None)
     ca.add_argument("--fixed", required=True, help="JSON of the fixed parameters")
     ca.add_argument("--free", default=None, help="comma-separated free parameters")
-    ca.add_argument("--ratio", type=float, default=1.4,
+    ca.add_argument("--ratio", type=number("ratio", None, 100.0), default=1.4,
                     help="bond-strength ratio pb_ten/pb_coh (<= 0: both free)")
     ca.add_argument("--ratio-from", default=None,
-                    help="JSON file with the chosen ratio (the ratio sweep's choice)")
-    ca.add_argument("--n-boot", type=int, default=200,
+                    help="JSON file with the chosen ratio (the ratio sweep's choice; when it "
+                         "holds none, --ratio is used)")
+    ca.add_argument("--n-boot", type=integer("n-boot", 0, 1_000_000), default=200,
                     help="bootstrap resamples for the intervals (0: no bootstrap, else >= 2)")
-    ca.add_argument("--seed", type=int, default=0)
+    ca.add_argument("--seed", type=SEED, default=0)
     ca.set_defaults(func=cmd_calibrate)
 
     ve = sub.add_parser("verify", help="closed-loop DEM verification of a material card")
     ve.add_argument("--card", required=True)
     ve.add_argument("--models", required=True)
     ve.add_argument("--out", required=True, help="output directory")
-    ve.add_argument("--seed", type=int, default=1, help="packing seed of the DEM runs")
-    ve.add_argument("--rtol", type=float, default=0.01, help="relative tolerance (0.01)")
-    ve.add_argument("--max-rounds", type=int, default=5, help="DEM runs at most")
+    ve.add_argument("--seed", type=SEED, default=1, help="packing seed of the DEM runs")
+    ve.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=0.01,
+                    help="relative tolerance (0.01)")
+    ve.add_argument("--max-rounds", type=integer("max-rounds", 1, 50), default=5,
+                    help="DEM runs at most")
     ve.add_argument("--quiet", action="store_true")
     add_run_args(ve)
     ve.set_defaults(func=cmd_verify)
@@ -563,7 +873,7 @@ def build_parser() -> argparse.ArgumentParser:
     ss.add_argument("--card", required=True)
     ss.add_argument("--out", required=True)
     ss.add_argument("--seeds", required=True, help="comma-separated packing seeds")
-    ss.add_argument("--rtol", type=float, default=0.01)
+    ss.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=0.01)
     add_run_args(ss)
     ss.set_defaults(func=cmd_scatter)
 
@@ -578,7 +888,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--card", required=True, help="material card (the initial calibration)")
     sp.add_argument("--models", required=True)
     sp.add_argument("--ratios", default="0.5,2.0,0.1", help="start,stop,step")
-    sp.add_argument("--seed", type=int, default=1)
+    sp.add_argument("--seed", type=SEED, default=1)
     sp.add_argument("--out", required=True)
     sp.set_defaults(func=cmd_sweep_plan)
 
@@ -587,7 +897,7 @@ def build_parser() -> argparse.ArgumentParser:
     sa.add_argument("--runs", required=True, help="directory of <sample_id>.h5")
     sa.add_argument("--criterion", default="tensile_share",
                     choices=["tensile_share", "crack_count"])
-    sa.add_argument("--target", type=float, default=0.6)
+    sa.add_argument("--target", type=number("target", 0.0), default=0.6)
     sa.add_argument("--tables", required=True)
     sa.add_argument("--figures", required=True)
     sa.add_argument("--vtk", required=True, help="VTK output directory of the shown runs")
@@ -597,17 +907,20 @@ def build_parser() -> argparse.ArgumentParser:
     im = sub.add_parser("impact", help="drop-hammer impact of a calibrated specimen")
     im.add_argument("--card", required=True, help="material card (verified or calibrated)")
     im.add_argument("--out", required=True)
-    im.add_argument("--velocity", type=_positive("velocity"), default=6.0, help="m/s")
-    im.add_argument("--hammer-mass", type=_positive("hammer-mass"), default=4.383,
+    im.add_argument("--velocity", type=number("velocity", 0.0, 100.0, lo_open=True,
+                                              unit="m/s"), default=6.0, help="m/s")
+    im.add_argument("--hammer-mass", type=positive("hammer-mass", "kg"), default=4.383,
                     help="hammer mass at full size [kg]; scaled by scale^3 (default 4.383)")
-    im.add_argument("--dp-ratio", type=float, default=0.1,
-                    help="contact dashpot critical-damping ratio (default 0.1)")
-    im.add_argument("--anvil-fric", dest="anvil_fric", type=float, default=0.3,
-                    help="friction of anvil and hammer (default 0.3)")
-    im.add_argument("--duration-ms", type=_positive("duration-ms"), default=10.0)
-    im.add_argument("--record-us", type=_positive("record-us"), default=5.0)
-    im.add_argument("--seed", type=int, default=1)
-    im.add_argument("--quiet", action="store_true")
+    im.add_argument("--dp-ratio", type=number("dp-ratio", 0.0, 1.0), default=0.1,
+                    help="contact dashpot critical-damping ratio in [0, 1] (default 0.1)")
+    im.add_argument("--anvil-fric", dest="anvil_fric", type=number("anvil-fric", 0.0, 10.0),
+                    default=0.3, help="friction of anvil and hammer (default 0.3)")
+    im.add_argument("--duration-ms", type=positive("duration-ms", "ms"), default=10.0)
+    im.add_argument("--record-us", type=positive("record-us", "us"), default=5.0)
+    im.add_argument("--seed", type=SEED, default=1)
+    im.add_argument("--quiet", action="store_true",
+                    help="no progress output (a FAILED line is still printed)")
+    im.add_argument("--failed-ok", action="store_true", help=FAILED_OK_HELP)
     add_run_args(im)
     im.set_defaults(func=cmd_impact)
 
@@ -620,7 +933,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     rp = sub.add_parser("report", help="results/report: every table and figure + index.md")
     rp.add_argument("--outdir", required=True, help="the study's output directory")
-    rp.add_argument("--config", required=True, help="the study's (merged) config, JSON/YAML")
+    rp.add_argument("--config", default=None, help="the study's (merged) config, JSON/YAML")
+    rp.add_argument("--config-json", default=None,
+                    help="... or the config as JSON text (what the workflow passes)")
+    rp.add_argument("--config-out", default=None,
+                    help="also write the config as JSON to this file")
     rp.add_argument("--out", default=None, help="report directory (default OUTDIR/report)")
     rp.set_defaults(func=cmd_report)
 
@@ -641,16 +958,52 @@ def _version():
     return __version__
 
 
+def _bad_input_types() -> tuple:
+    from .dem.errors import InputError
+    from .io.h5 import RunFileError
+    from .study.config import ConfigError
+
+    return (BadInput, P.ParameterError, InputError, ConfigError, RunFileError)
+
+
+def _one_line(e) -> str:
+    return " ".join(str(e).split())
+
+
 def main(argv=None) -> int:
+    """Run one subcommand; returns the exit code (see the module doc)."""
     os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
     ap = build_parser()
-    a = ap.parse_args(argv)
-    from .dem.errors import InputError
+    try:
+        a = ap.parse_args(argv)
+    except SystemExit as e:  # --help, --version, usage errors (one line, exit 2)
+        return e.code if isinstance(e.code, int) else (0 if e.code is None else EXIT_BAD_INPUT)
+    try:
+        bad_input = _bad_input_types()
+    except Exception:  # noqa: BLE001 - a broken install is a bug, reported below
+        bad_input = (BadInput, P.ParameterError)
+    where = f"bpmcal {a.cmd}"
     try:
         return a.func(a)
-    except (P.ParameterError, InputError) as e:
-        print(f"bpmcal {a.cmd}: error: {e}", file=sys.stderr)
+    except bad_input as e:
+        print(f"{where}: error: {_one_line(e)}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"\n{where}: interrupted; the file being written was discarded", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # e.g. `bpmcal summary run.h5 | head`
+        sys.stdout = open(os.devnull, "w")
+        return EXIT_OK
+    except OSError as e:
+        name = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        print(f"{where}: error: {name}{e.strerror or _one_line(e)} (system error)",
+              file=sys.stderr)
+        return EXIT_SYSTEM
+    except Exception:  # noqa: BLE001 - a bug: keep the traceback, add a hint
+        traceback.print_exc()
+        print(f"{where}: internal error (a bug in bpmcal, not in your input): please report it "
+              "with the traceback above and the command line", file=sys.stderr)
+        return EXIT_BUG
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ class Param:
     phys_hi: float
     lo_open: bool = False
     description: str = ""
+    hi_open: bool = False
 
 
 #: The 8 meso-parameters of the LHS design, in the paper's Table 2 order.
@@ -55,7 +56,7 @@ PARAMS: dict[str, Param] = {p.name: p for p in [
     Param("pb_coh_MPa", "tau_cp", r"$\tau_c^p$", "MPa", 1e6, 10.0, 50.0, 0.0, math.inf, False,
           "parallel-bond cohesion (shear strength at zero normal stress)"),
     Param("pb_fa_deg", "phi_p", r"$\varphi_p$", "deg", 1.0, 15.0, 55.0, 0.0, 90.0, False,
-          "parallel-bond friction angle"),
+          "parallel-bond friction angle", hi_open=True),
     Param("fric", "mu_p", r"$\mu_p$", "", 1.0, 0.15, 0.55, 0.0, math.inf, False,
           "ball-ball friction coefficient"),
 ]}
@@ -114,6 +115,24 @@ def from_si(name: str, value: float) -> float:
     raise ParameterError(f"unknown quantity {name!r}")
 
 
+def as_number(v, name: str, expected: str = "a number", error=None) -> float:
+    """``v`` as a finite float; booleans (YAML ``true``), strings, None and NaN/inf raise
+    ``error`` (default :class:`ParameterError`) naming the value and what was expected."""
+    error = error or ParameterError
+    if type(v).__module__ == "numpy" and hasattr(v, "item"):
+        v = v.item()  # numpy scalar -> Python (plain repr in messages)
+    if isinstance(v, bool) or v is None or isinstance(v, (str, bytes)):
+        raise error(f"{name}={v!r}: expected {expected}, got "
+                    f"{'a boolean' if isinstance(v, bool) else type(v).__name__}")
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        raise error(f"{name}={v!r}: expected {expected}") from None
+    if not math.isfinite(x):
+        raise error(f"{name}={v!r}: expected a finite number ({expected})")
+    return x
+
+
 def validate_params(values: dict, *, require_all: bool = True, within_table2: bool = False
                     ) -> dict[str, float]:
     """Check a dict of meso-parameters (paper units). Returns floats.
@@ -132,18 +151,16 @@ def validate_params(values: dict, *, require_all: bool = True, within_table2: bo
     out = {}
     for k, v in values.items():
         p = PARAMS[k]
-        try:
-            x = float(v)
-        except (TypeError, ValueError):
-            raise ParameterError(f"{k}={v!r}: expected a number in {p.unit or 'dimensionless'}") from None
+        x = as_number(v, k, f"a number in {p.unit}" if p.unit else "a dimensionless number",
+                      ParameterError)
         unit = f" {p.unit}" if p.unit else ""
-        if not math.isfinite(x):
-            raise ParameterError(f"{k}={v!r}: expected a finite number")
         bad_lo = x <= p.phys_lo if p.lo_open else x < p.phys_lo
-        if bad_lo or x > p.phys_hi:
+        bad_hi = x >= p.phys_hi if p.hi_open else x > p.phys_hi
+        if bad_lo or bad_hi:
             b = "(" if p.lo_open else "["
+            e = ")" if p.hi_open else "]"
             raise ParameterError(f"{k}={x:g}{unit} is outside its physical domain "
-                                 f"{b}{p.phys_lo:g}, {p.phys_hi:g}] ({p.description})")
+                                 f"{b}{p.phys_lo:g}, {p.phys_hi:g}{e} ({p.description})")
         if within_table2 and not (p.lo <= x <= p.hi):
             raise ParameterError(f"{k}={x:g}{unit} is outside the Table 2 range "
                                  f"[{p.lo:g}, {p.hi:g}]{unit}")

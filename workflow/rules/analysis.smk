@@ -27,10 +27,10 @@ rule screen:
         tables=parent_of("table3"),
         s=config["screening"],
     shell:
-        "bpmcal screen --dataset {input} --out {params.screen} --tables {params.tables} --figures {params.figs} "
-        "--threshold {params.s[threshold_pct]} --importance {params.s[importance]} "
-        "--splits {params.s[n_splits]} --repeats {params.s[n_repeats]} "
-        "--seed {params.s[seed]} > {log} 2>&1"
+        "bpmcal screen --dataset {input:q} --out {params.screen:q} --tables {params.tables:q} "
+        "--figures {params.figs:q} --threshold {params.s[threshold_pct]:q} "
+        "--importance {params.s[importance]:q} --splits {params.s[n_splits]:q} "
+        "--repeats {params.s[n_repeats]:q} --seed {params.s[seed]:q} > {log:q} 2>&1"
 
 
 rule regress:
@@ -51,11 +51,12 @@ rule regress:
         tables=parent_of("table4"),
         r=config["regression"],
     shell:
-        "bpmcal regress --dataset {input.dataset} --selected {input.selected} --out {params.regr} "
-        "--tables {params.tables} --figures {params.figs} --alpha-in {params.r[alpha_in]} "
-        "--alpha-out {params.r[alpha_out]} --vif-max {params.r[vif_max]} "
-        "--hierarchy {params.r[hierarchy]} --cv-folds {params.r[cv_folds]} "
-        "--cv-repeats {params.r[cv_repeats]} --seed {params.r[seed]} > {log} 2>&1"
+        "bpmcal regress --dataset {input.dataset:q} --selected {input.selected:q} "
+        "--out {params.regr:q} --tables {params.tables:q} --figures {params.figs:q} "
+        "--alpha-in {params.r[alpha_in]:q} --alpha-out {params.r[alpha_out]:q} "
+        "--vif-max {params.r[vif_max]:q} --hierarchy {params.r[hierarchy]:q} "
+        "--cv-folds {params.r[cv_folds]:q} --cv-repeats {params.r[cv_repeats]:q} "
+        "--seed {params.r[seed]:q} > {log:q} 2>&1"
 
 
 rule calibrate_initial:
@@ -73,9 +74,10 @@ rule calibrate_initial:
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
     shell:
-        "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
-        "--out {params.calib0} --fixed '{params.fixed}' --free {params.free} "
-        "--ratio {params.c[ratio]} --n-boot 0 --seed {params.c[seed]} > {log} 2>&1"
+        "bpmcal calibrate --dataset {input.dataset:q} --models {input.models:q} "
+        "--lab {input.lab:q} --out {params.calib0:q} --fixed {params.fixed:q} "
+        "--free {params.free:q} --ratio {params.c[ratio]:q} --n-boot 0 "
+        "--seed {params.c[seed]:q} > {log:q} 2>&1"
 
 
 rule calibrate:
@@ -95,12 +97,13 @@ rule calibrate:
         c=config["calibration"],
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
-        ratio=(lambda wc, input: f"--ratio-from {input.chosen}" if input.chosen
-               else f"--ratio {config['calibration']['ratio']}"),
+        ratio_from=lambda wc, input: ["--ratio-from", input.chosen] if input.chosen else [],
     shell:
-        "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
-        "--out {params.calib} --tables {params.tables} --fixed '{params.fixed}' --free {params.free} "
-        "{params.ratio} --n-boot {params.c[n_boot]} --seed {params.c[seed]} > {log} 2>&1"
+        "bpmcal calibrate --dataset {input.dataset:q} --models {input.models:q} "
+        "--lab {input.lab:q} --out {params.calib:q} --tables {params.tables:q} "
+        "--fixed {params.fixed:q} --free {params.free:q} --ratio {params.c[ratio]:q} "
+        "{params.ratio_from:q} --n-boot {params.c[n_boot]:q} --seed {params.c[seed]:q} "
+        "> {log:q} 2>&1"
 
 
 rule verify:
@@ -117,13 +120,14 @@ rule verify:
         runtime=config["resources"]["ucs_runtime_min"] * config["verification"]["max_rounds"],
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
-        verif=parent_of("card", up=2),
+        verif=parent_of("card"),
         v=config["verification"],
         opts=specimen_args(),
     shell:
-        "bpmcal verify --card {input.card} --models {input.models} --out {params.verif}/{wildcards.spec} "
-        "--seed {params.v[seed]} --rtol {params.v[rtol]} --max-rounds {params.v[max_rounds]} "
-        "--threads {threads} {params.opts} > {log} 2>&1"
+        "bpmcal verify --card {input.card:q} --models {input.models:q} --out {params.verif:q} "
+        "--seed {params.v[seed]:q} --rtol {params.v[rtol]:q} "
+        "--max-rounds {params.v[max_rounds]:q} --threads {threads} {params.opts:q} "
+        "> {log:q} 2>&1"
 
 
 rule seed_scatter:
@@ -138,13 +142,13 @@ rule seed_scatter:
         runtime=config["resources"]["ucs_runtime_min"] * len(config["verification"]["scatter_seeds"]),
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
-        verif=parent_of(0, up=2),
+        scatter=parent_of(0),
         seeds=",".join(str(s) for s in config["verification"]["scatter_seeds"]),
         rtol=config["verification"]["rtol"],
         opts=specimen_args(),
     shell:
-        "bpmcal scatter --card {input.card} --out {params.verif}/seed_scatter --seeds {params.seeds} "
-        "--rtol {params.rtol} --threads {threads} {params.opts} > {log} 2>&1"
+        "bpmcal scatter --card {input.card:q} --out {params.scatter:q} --seeds {params.seeds:q} "
+        "--rtol {params.rtol:q} --threads {threads} {params.opts:q} > {log:q} 2>&1"
 
 
 rule verification_tables:
@@ -162,5 +166,5 @@ rule verification_tables:
         figs=parent_of("fig6"),
         tables=parent_of("table5"),
     shell:
-        "bpmcal verification-tables --cards {input.cards} --lab {input.lab} --tables {params.tables} "
-        "--figures {params.figs} > {log} 2>&1"
+        "bpmcal verification-tables --cards {input.cards:q} --lab {input.lab:q} "
+        "--tables {params.tables:q} --figures {params.figs:q} > {log:q} 2>&1"

@@ -1,11 +1,18 @@
 # Helpers shared by the rules: config validation, paths, sample ids, CLI options.
+#
+# Shell safety: every value that comes from the config or from a file name reaches a shell
+# command only through Snakemake's quoting ({x:q}; a list is quoted element by element),
+# never spliced as text. outdir, lab.csv and specimen names are also checked against safe
+# patterns at validation (bpmcal.io.paths).
 import json
 import os
 
-from bpmcal.study.config import ConfigError, validate_config
+from bpmcal.study.config import ConfigError, load_lab, validate_config
+from bpmcal.study.sweep import ratio_grid, ratio_id
 
 try:
     validate_config(config, workflow.source_path("../schemas/config.schema.yaml"))
+    _lab = load_lab(config["lab"]["csv"])
 except ConfigError as e:
     raise WorkflowError(str(e)) from None
 
@@ -21,9 +28,7 @@ SWEEP_PLAN = f"{SWEEP}/plan.csv"
 SWEEP_CHOSEN = f"{SWEEP}/chosen.json"
 IMPACT = f"{OUT}/impact"
 
-import pandas as _pd
-
-SPECIMENS = [str(s) for s in _pd.read_csv(config["lab"]["csv"])["specimen"]]
+SPECIMENS = list(_lab["specimen"])
 
 
 def _vtag(v):
@@ -33,24 +38,26 @@ def _vtag(v):
 
 SWEEP_SPEC = SPECIMENS[0]
 IMPACT_SPEC = SPECIMENS[0]
-_r0, _r1, _rs = config["ratio_sweep"]["ratios"]
-SWEEP_IDS = [f"a{int(round((_r0 + k * _rs) * 100)):03d}"
-             for k in range(int((_r1 - _r0) / _rs + 1e-9) + 1)]
+SWEEP_IDS = [ratio_id(a) for a in ratio_grid(*config["ratio_sweep"]["ratios"])]
 IMPACT_V0 = _vtag(config["impact"]["velocity"])
 IMPACT_VS = sorted({_vtag(v) for v in [config["impact"]["velocity"],
                                        *config["impact"]["sweep_velocities"]]}, key=float)
 
 
 def specimen_args(cfg=config, scale=None):
-    """bpmcal ucs options of the specimen and loading sections."""
-    sp, u = cfg["specimen"], cfg["ucs"]
+    """bpmcal ucs/impact options of the specimen, loading and resources sections, as a list
+    of arguments (for {params.opts:q}: each one is shell-quoted)."""
+    sp, u, r = cfg["specimen"], cfg["ucs"], cfg["resources"]
     scale = sp["scale"] if scale is None else scale
-    return (f"--scale {scale} --diameter {sp['diameter_mm']} --height {sp['height_mm']} "
-            f"--sigma0 {sp['sigma0_MPa']} --install-gap {sp['install_gap_mm']} "
-            f"--relax-ratio {sp['relax_ratio']} --platen-velocity {u['platen_velocity']} "
-            f"--damping {u['damping']} --stop-drop {u['stop_drop']} "
-            f"--max-strain {u['max_strain']} --platen-fric {u['platen_fric']} "
-            f"--record-strain {u['record_strain']} --specimen-cache {PACKINGS}")
+    opts = {"--scale": scale, "--diameter": sp["diameter_mm"], "--height": sp["height_mm"],
+            "--sigma0": sp["sigma0_MPa"], "--install-gap": sp["install_gap_mm"],
+            "--relax-ratio": sp["relax_ratio"], "--platen-velocity": u["platen_velocity"],
+            "--damping": u["damping"], "--stop-drop": u["stop_drop"],
+            "--max-strain": u["max_strain"], "--platen-fric": u["platen_fric"],
+            "--record-strain": u["record_strain"], "--specimen-cache": PACKINGS,
+            "--max-balls": r["max_balls"], "--mem-budget-mb": r["ucs_mem_mb"],
+            "--genesis-max-steps": r["genesis_max_steps"]}
+    return [str(x) for k, v in opts.items() for x in (k, v)]
 
 
 def parent_of(key, up=1, io="output"):

@@ -13,8 +13,8 @@ rule sweep_plan:
         ratios=",".join(str(x) for x in config["ratio_sweep"]["ratios"]),
         seed=config["ratio_sweep"]["seed"],
     shell:
-        "bpmcal sweep-plan --card {input.card} --models {input.models} --ratios {params.ratios} "
-        "--seed {params.seed} --out {output} > {log} 2>&1"
+        "bpmcal sweep-plan --card {input.card:q} --models {input.models:q} "
+        "--ratios {params.ratios:q} --seed {params.seed:q} --out {output:q} > {log:q} 2>&1"
 
 
 rule sweep_ucs:
@@ -33,8 +33,8 @@ rule sweep_ucs:
     params:
         opts=specimen_args(),
     shell:
-        "bpmcal ucs --design {input} --sample {wildcards.rid} --out {output} "
-        "--threads {threads} {params.opts} > {log} 2>&1"
+        "bpmcal ucs --design {input:q} --sample {wildcards.rid:q} --out {output:q} "
+        "--threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
 
 
 rule sweep_analyse:
@@ -52,13 +52,15 @@ rule sweep_analyse:
         f"{LOGS}/sweep_analyse.log",
     params:
         figs=parent_of("fig4"),
-        sweep=parent_of("plan", io="input"),
+        runs=parent_of("runs", io="input"),
+        vtk=f"{SWEEP}/vtk",
         tables=parent_of("table"),
         s=config["ratio_sweep"],
     shell:
-        "bpmcal sweep-analyse --plan {input.plan} --runs {params.sweep}/runs "
-        "--criterion {params.s[criterion]} --target {params.s[target]} --tables {params.tables} "
-        "--figures {params.figs} --vtk {params.sweep}/vtk --chosen {output.chosen} > {log} 2>&1"
+        "bpmcal sweep-analyse --plan {input.plan:q} --runs {params.runs:q} "
+        "--criterion {params.s[criterion]:q} --target {params.s[target]:q} "
+        "--tables {params.tables:q} --figures {params.figs:q} --vtk {params.vtk:q} "
+        "--chosen {output.chosen:q} > {log:q} 2>&1"
 
 
 rule impact:
@@ -68,6 +70,8 @@ rule impact:
         f"{IMPACT}/impact_{{v}}ms.h5",
     log:
         f"{LOGS}/impact/impact_{{v}}ms.log",
+    wildcard_constraints:
+        v=r"[0-9][0-9.e+-]*",
     threads: config["resources"]["ucs_threads"]
     resources:
         runtime=config["resources"]["ucs_runtime_min"] * 2,
@@ -76,11 +80,11 @@ rule impact:
         i=config["impact"],
         opts=specimen_args(scale=config["impact"]["scale"]),
     shell:
-        "bpmcal impact --card {input.card} --out {output} --velocity {wildcards.v} "
-        "--hammer-mass {params.i[hammer_mass_kg]} --dp-ratio {params.i[dp_ratio]} "
-        "--anvil-fric {params.i[anvil_fric]} --duration-ms {params.i[duration_ms]} "
-        "--record-us {params.i[record_us]} --seed {params.i[seed]} --threads {threads} "
-        "{params.opts} > {log} 2>&1"
+        "bpmcal impact --card {input.card:q} --out {output:q} --velocity {wildcards.v:q} "
+        "--hammer-mass {params.i[hammer_mass_kg]:q} --dp-ratio {params.i[dp_ratio]:q} "
+        "--anvil-fric {params.i[anvil_fric]:q} --duration-ms {params.i[duration_ms]:q} "
+        "--record-us {params.i[record_us]:q} --seed {params.i[seed]:q} --threads {threads} "
+        "--failed-ok {params.opts:q} > {log:q} 2>&1"
 
 
 rule impact_analyse:
@@ -100,5 +104,5 @@ rule impact_analyse:
         figs=parent_of("fig7"),
         tables=parent_of("energy"),
     shell:
-        "bpmcal impact-analyse --main {input.main} --runs {input.runs} --tables {params.tables} "
-        "--figures {params.figs} > {log} 2>&1"
+        "bpmcal impact-analyse --main {input.main:q} --runs {input.runs:q} "
+        "--tables {params.tables:q} --figures {params.figs:q} > {log:q} 2>&1"

@@ -16,7 +16,8 @@ rule report:
         f"{LOGS}/report.log",
     params:
         out=parent_of("index", up=2),
-        config=json.dumps(config),
+        report=parent_of("index"),
+        config=json.dumps(config),  # JSON text, shell-quoted below; never echoed
     shell:
-        "echo '{params.config}' > {output.config} && "
-        "bpmcal report --outdir {params.out} --config {output.config} --out {params.out}/report > {log} 2>&1"
+        "bpmcal report --outdir {params.out:q} --config-json {params.config:q} "
+        "--config-out {output.config:q} --out {params.report:q} > {log:q} 2>&1"

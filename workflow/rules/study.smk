@@ -1,4 +1,6 @@
 # The spine of the study: design -> one UCS job per sample -> gathered dataset.
+# A sample whose DEM run fails writes a failure record (--failed-ok: exit 0), so the DAG
+# goes on and the dataset carries the sample with its status and reason.
 
 
 rule design:
@@ -12,8 +14,8 @@ rule design:
         seed=config["study"]["lhs_seed"],
         opt=config["study"]["lhs_optimization"],
     shell:
-        "bpmcal design --ranges '{params.ranges}' --n {params.n} --seed {params.seed} "
-        "--optimization {params.opt} --out {output} > {log} 2>&1"
+        "bpmcal design --ranges {params.ranges:q} --n {params.n:q} --seed {params.seed:q} "
+        "--optimization {params.opt:q} --out {output:q} > {log:q} 2>&1"
 
 
 rule ucs:
@@ -32,8 +34,8 @@ rule ucs:
     params:
         opts=specimen_args(),
     shell:
-        "bpmcal ucs --design {input} --sample {wildcards.sample} --out {output} "
-        "--threads {threads} {params.opts} > {log} 2>&1"
+        "bpmcal ucs --design {input:q} --sample {wildcards.sample:q} --out {output:q} "
+        "--threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
 
 
 rule gather:
@@ -47,5 +49,5 @@ rule gather:
     params:
         runs=parent_of("runs", io="input"),
     shell:
-        "bpmcal gather --design {input.design} --runs {params.runs} --out {output} "
-        "> {log} 2>&1"
+        "bpmcal gather --design {input.design:q} --runs {params.runs:q} --out {output:q} "
+        "> {log:q} 2>&1"

@@ -24,11 +24,16 @@ Layout (``SCHEMA_VERSION`` 1)::
 
 A file is written under a temporary name in the same directory and renamed when
 complete, so a file that exists is complete (``write_run``).
+
+Readers raise :class:`RunFileError` (a ``ValueError``) naming the file when it is missing,
+a directory, not HDF5 (another format, or truncated) or an HDF5 file that is not a bpmcal
+run file; ``check_run_file`` does that check alone and returns the root attributes.
 """
 from __future__ import annotations
 
 import json
 import math
+from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
@@ -126,16 +131,62 @@ def _decode(v):
     return v
 
 
+class RunFileError(ValueError):
+    """A file is not a readable bpmcal run file (missing, not HDF5, truncated, foreign)."""
+
+
+@contextmanager
+def _open(path):
+    """Open a run file for reading; every failure to open or read it is a RunFileError."""
+    p = Path(path)
+    if not p.exists():
+        raise RunFileError(f"{path}: no such file")
+    if p.is_dir():
+        raise RunFileError(f"{path}: is a directory, expected an HDF5 run file")
+    try:
+        f = h5py.File(p, "r")
+    except OSError as e:
+        reason = str(e).split("(")[-1].rstrip(")") if "(" in str(e) else str(e)
+        raise RunFileError(f"{path}: not a readable HDF5 file ({reason.strip()}); "
+                           "expected a bpmcal run file (truncated, or another format?)") from None
+    try:
+        with f:
+            yield f
+    except (OSError, KeyError) as e:  # a damaged file that opens but cannot be read
+        raise RunFileError(f"{path}: damaged HDF5 run file ({type(e).__name__}: "
+                           f"{' '.join(str(e).split())})") from None
+
+
+def check_run_file(path) -> dict:
+    """The root attributes of a bpmcal run file; RunFileError if ``path`` is not one."""
+    with _open(path) as f:
+        attrs = {k: _decode(v) for k, v in f.attrs.items()}
+    missing = [k for k in ("schema_version", "test", "status") if k not in attrs]
+    if missing:
+        raise RunFileError(f"{path}: an HDF5 file but not a bpmcal run file (no {', '.join(missing)} "
+                           "attribute)")
+    try:
+        version = int(attrs["schema_version"])
+    except (TypeError, ValueError):
+        raise RunFileError(f"{path}: schema_version={attrs['schema_version']!r} is not an "
+                           "integer") from None
+    if version > SCHEMA_VERSION:
+        raise RunFileError(f"{path}: run file schema_version {version} is newer than this bpmcal "
+                           f"reads ({SCHEMA_VERSION}); update bpmcal")
+    return attrs
+
+
 def read_attrs(path, group: str = "/") -> dict:
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if group not in f:
             return {}
         return {k: _decode(v) for k, v in f[group].attrs.items()}
 
 
 def read_summary(path) -> dict:
-    """Summary results plus status/error/test and provenance, as one flat dict."""
-    out = {k: v for k, v in read_attrs(path, "/").items()}
+    """Summary results plus status/error/test and provenance, as one flat dict (a
+    RunFileError if ``path`` is not a bpmcal run file)."""
+    out = check_run_file(path)
     out.update(read_attrs(path, "summary"))
     return out
 
@@ -151,7 +202,7 @@ def read_genesis(path) -> dict:
 def read_series(path):
     """Time series as a pandas DataFrame (SI units; see ``SERIES_UNITS``)."""
     import pandas as pd
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if "series" not in f:
             return pd.DataFrame()
         return pd.DataFrame({k: f["series"][k][()] for k in f["series"]})
@@ -160,7 +211,7 @@ def read_series(path):
 def read_cracks(path):
     """Crack events as a DataFrame (x, y, z, nx, ny, nz split out)."""
     import pandas as pd
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if "cracks" not in f:
             return pd.DataFrame()
         g = f["cracks"]
@@ -177,7 +228,7 @@ def read_cracks(path):
 
 
 def read_particles(path, which: str = "final") -> dict:
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         key = f"particles/{which}"
         if key not in f:
             return {}
@@ -185,14 +236,14 @@ def read_particles(path, which: str = "final") -> dict:
 
 
 def read_group(path, name) -> dict:
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if name not in f:
             return {}
         return {k: f[name][k][()] for k in f[name]}
 
 
 def read_bonds(path) -> dict:
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if "bonds" not in f:
             return {}
         return {k: f["bonds"][k][()] for k in f["bonds"]}

@@ -38,6 +38,7 @@ from ..dem.errors import InputError
 from ..dem.layout import BOND_INTACT, BOND_SHEAR, BOND_TENSION
 from . import fragments as F
 from .specimen import Specimen
+from .stepping import cycle
 
 IMPACT_SERIES = ("step", "time", "hammer_z", "hammer_v", "W_in", "W_in_paper", "cracks_tension",
                  "cracks_shear", "kinetic", "strain_linear", "strain_bond", "slip", "damping",
@@ -63,6 +64,9 @@ class ImpactSettings:
                 raise InputError(f"{k}={v!r}: expected a positive number")
         if not (0.0 <= self.dp_ratio <= 1.0):
             raise InputError(f"dp_ratio={self.dp_ratio!r}: expected in [0, 1]")
+        if not (0.0 <= self.platen_fric <= 10.0):  # NaN fails too
+            raise InputError(f"platen_fric={self.platen_fric!r}: expected a friction "
+                             "coefficient in [0, 10]")
 
 
 @dataclass
@@ -159,7 +163,7 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     reason = "duration"
     z_floor = float(m.W.pos[wb, 2]) + 4.0 * float(m.B.radius.max())
     while m.time - t0 < st.duration:
-        m.cycle(n_rec)
+        cycle(m, n_rec)
         v = rec()
         if progress is not None:
             progress({"strain": 0.0, "stress_MPa": 0.0, "peak_MPa": 0.0,

@@ -5,18 +5,25 @@ parameters (paper units), get the packing (cached), build the specimen, run the 
 write the HDF5 file atomically. A run that goes numerically unstable, or a parameter
 combination that cannot be built, produces a *failure record* (status "failed" and the
 message) instead of an exception, so a study is not stopped by one bad sample; any other
-exception is a bug and propagates.
+exception is a bug and propagates. A failure record never replaces a good run file: if
+``out`` already holds a run with status "ok", the record goes beside it as
+``NAME.failed.h5`` and the outcome says so (``kept``).
+
+``genesis_max_steps`` bounds the settling of the specimen (``specimen.build_specimen``);
+``progress`` receives the genesis phases (``{"phase", "steps", "ratio", "target",
+"wall_s"}``), then the records of the test.
 """
 from __future__ import annotations
 
 import math
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from .. import params as P
 from ..dem._jit import set_threads
-from ..dem.errors import InstabilityError
-from ..io.h5 import write_run
+from ..dem.errors import InputError, InstabilityError
+from ..io.h5 import RunFileError, check_run_file, write_run
 from .specimen import GenesisError, SpecimenSpec, build_specimen, get_packing, paper_material
 from .ucs import UCSSettings, run_ucs, settings_dict
 
@@ -30,6 +37,20 @@ class Geometry:
     install_gap_mm: float = 0.0  # bonds on pairs with gap <= this
     relax_ratio: float = 1e-2
 
+    def __post_init__(self):
+        checks = (  # name, value, low, high, low end open
+            ("scale", self.scale, 0.0, 10.0, True),
+            ("diameter_mm", self.diameter_mm, 0.0, math.inf, True),
+            ("height_mm", self.height_mm, 0.0, math.inf, True),
+            ("sigma0_MPa", self.sigma0_MPa, 0.0, 1e4, False),
+            ("install_gap_mm", self.install_gap_mm, 0.0, 1e3, False),
+            ("relax_ratio", self.relax_ratio, 0.0, 1.0, True))
+        for name, v, lo, hi, lo_open in checks:
+            v = P.as_number(v, name, "a number", InputError)
+            if (v <= lo if lo_open else v < lo) or v > hi:
+                raise InputError(f"{name}={v!r}: expected a number in {'(' if lo_open else '['}"
+                                 f"{lo:g}, {hi:g}]")
+
     def to_dict(self):
         return {"scale": self.scale, "diameter_mm": self.diameter_mm * self.scale,
                 "height_mm": self.height_mm * self.scale, "sigma0_MPa": self.sigma0_MPa,
@@ -42,10 +63,34 @@ class RunOutcome:
     summary: dict = field(default_factory=dict)
     error: str = ""
     path: object = None
+    kept: object = None  # a good run file left in place (the record went beside it)
+
+
+def failed_path(out):
+    """Where a failure record goes when ``out`` already holds a good run."""
+    out = Path(out)
+    return out.with_name(f"{out.stem}.failed{out.suffix}")
+
+
+def write_failure(out, *, test: str, inputs: dict, error: str, wall_s: float = 0.0
+                  ) -> RunOutcome:
+    """Write a failure record (status "failed", the reason) to ``out``, or beside it if
+    ``out`` is a good run file (never overwrite a good result with a failure)."""
+    out = Path(out)
+    kept = None
+    if out.is_file():
+        try:
+            if check_run_file(out).get("status") == "ok":
+                kept, out = out, failed_path(out)
+        except RunFileError:
+            pass  # not a good run: replace it
+    write_run(out, test=test, inputs=inputs, status="failed", error=error,
+              summary={"wall_s": wall_s})
+    return RunOutcome(status="failed", error=error, path=out, kept=kept)
 
 
 def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, cache=None,
-                  threads=None, progress=None):
+                  threads=None, progress=None, genesis_max_steps=None):
     """Validated parameters (paper units) -> a bonded Specimen (packing from the cache)."""
     p = P.validate_params(params)
     spec = SpecimenSpec.from_paper_units(p["rmin_mm"], p["porosity"], seed,
@@ -53,12 +98,12 @@ def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, c
                                          diameter_mm=geometry.diameter_mm,
                                          height_mm=geometry.height_mm,
                                          relax_ratio=geometry.relax_ratio)
-    pk = get_packing(spec, cache=cache)
+    pk = get_packing(spec, cache=cache, progress=progress)
     mat = paper_material(p["pb_emod_GPa"], p["pb_kratio"], p["pb_ten_MPa"], p["pb_coh_MPa"],
                          p["pb_fa_deg"], p["fric"])
     return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6,
                           install_gap=geometry.install_gap_mm * 1e-3, threads=threads,
-                          progress=progress)
+                          progress=progress, max_steps=genesis_max_steps)
 
 
 def ucs_inputs(params: dict, seed: int, geometry: Geometry, settings: UCSSettings) -> dict:
@@ -71,7 +116,8 @@ def ucs_inputs(params: dict, seed: int, geometry: Geometry, settings: UCSSetting
 
 def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
                  settings: UCSSettings = UCSSettings(), *, cache=None, threads=None,
-                 progress=None, keep_particles: bool = True) -> RunOutcome:
+                 progress=None, keep_particles: bool = True,
+                 genesis_max_steps: int | None = None) -> RunOutcome:
     """Run one UCS test and write ``out`` (HDF5). Returns the outcome; unstable runs and
     unbuildable specimens give status "failed" (and a failure-record file)."""
     p = P.validate_params(params)  # bad input: raise before any work
@@ -80,16 +126,15 @@ def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
         set_threads(threads)  # for the whole run, genesis included
     t0 = time.perf_counter()
     try:
-        sp = make_specimen(p, seed, geometry, cache=cache, threads=threads)
+        sp = make_specimen(p, seed, geometry, cache=cache, threads=threads, progress=progress,
+                           genesis_max_steps=genesis_max_steps)
         t_gen = time.perf_counter() - t0
         m = sp.model
         ini = {"position": m.B.pos.copy(), "radius": m.B.radius.copy()}
         res = run_ucs(sp, settings, progress=progress)
     except (InstabilityError, GenesisError) as e:
-        msg = f"{type(e).__name__}: {e}"
-        write_run(out, test="ucs", inputs=inputs, status="failed", error=msg,
-                  summary={"wall_s": time.perf_counter() - t0})
-        return RunOutcome(status="failed", error=msg, path=out)
+        return write_failure(out, test="ucs", inputs=inputs, error=f"{type(e).__name__}: {e}",
+                             wall_s=time.perf_counter() - t0)
     summ = dict(res.summary)
     g = sp.report
     summ.update({"n_balls": g["n_balls"], "n_bonds": g["n_bonds"],
@@ -118,7 +163,8 @@ def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
 
 
 def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
-                    settings=None, *, cache=None, threads=None, progress=None) -> RunOutcome:
+                    settings=None, *, cache=None, threads=None, progress=None,
+                    genesis_max_steps: int | None = None) -> RunOutcome:
     """Drop-hammer impact on a specimen of the given parameters -> HDF5 file (test
     "impact"; the same conventions as the UCS run files)."""
     from .impact import ImpactSettings, run_impact
@@ -134,14 +180,13 @@ def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(
         set_threads(threads)
     t0 = time.perf_counter()
     try:
-        sp = make_specimen(p, seed, geometry, cache=cache, threads=threads)
+        sp = make_specimen(p, seed, geometry, cache=cache, threads=threads, progress=progress,
+                           genesis_max_steps=genesis_max_steps)
         ini = {"position": sp.model.B.pos.copy(), "radius": sp.model.B.radius.copy()}
         res = run_impact(sp, st, progress=progress)
     except (InstabilityError, GenesisError) as e:
-        msg = f"{type(e).__name__}: {e}"
-        write_run(out, test="impact", inputs=inputs, status="failed", error=msg,
-                  summary={"wall_s": time.perf_counter() - t0})
-        return RunOutcome(status="failed", error=msg, path=out)
+        return write_failure(out, test="impact", inputs=inputs,
+                             error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - t0)
     m = sp.model
     summ = dict(res.summary)
     summ["velocity"] = st.velocity

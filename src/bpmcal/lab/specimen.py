@@ -35,6 +35,13 @@ Procedure (after Potyondy & Cundall 2004 and PFC's ``ball distribute``):
    they were packed against them).
 
 Everything is seeded; the same inputs give bitwise-identical specimens.
+
+Bounds and feedback: the relaxation stops after ``SpecimenSpec.max_relax_steps``
+(200,000; a GenesisError), the settling of steps 4-5 after ``max_steps`` in total when
+given (the genesis step budget, ``bpmcal ucs --genesis-max-steps``; a GenesisError
+naming the phase and its unbalanced-force ratio); ``progress`` receives
+``{"phase", "steps", "ratio", "target", "wall_s"}`` after every 500 steps; steps run
+through ``stepping.cycle`` so that Ctrl-C is honoured within a fraction of a second.
 """
 from __future__ import annotations
 
@@ -42,6 +49,7 @@ import hashlib
 import json
 import math
 import os
+import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -52,6 +60,7 @@ from ..dem import Material, Model
 from ..dem.errors import InputError
 from ..dem.order import morton_order
 from ..io.atomic import atomic_path
+from .stepping import cycle
 
 #: modulus used while relaxing the packing (the relaxed geometry does not depend on it)
 E_REF = 1.0e9
@@ -169,15 +178,40 @@ def _genesis_material(emod=E_REF, kratio=1.0) -> Material:
                     pb_ten=1.0, pb_coh=1.0, pb_fa=0.0)
 
 
-def _solve(m: Model, tol: float, max_steps: int, chunk: int = 500, progress=None) -> dict:
-    """Cycle until the mean unbalanced-force ratio is <= tol (or max_steps)."""
-    s0 = m.step
+class _StepBudget:
+    """Total steps allowed for the settling phases of ``build_specimen``."""
+
+    def __init__(self, total):
+        self.total = None if total is None else int(total)
+        self.used = 0
+
+    def limit(self, max_steps: int) -> int:
+        return max_steps if self.total is None else min(max_steps, max(0, self.total - self.used))
+
+    def spend(self, steps: int, phase: str, ratio: float, tol: float):
+        self.used += int(steps)
+        if self.total is not None and ratio > tol and self.used >= self.total:
+            raise GenesisError(
+                f"the specimen did not settle within the genesis step budget of "
+                f"{self.total:,} steps (--genesis-max-steps): phase '{phase}' stopped at "
+                f"unbalanced-force ratio {ratio:.3g} > {tol:g}")
+
+
+def _solve(m: Model, tol: float, max_steps: int, chunk: int = 500, progress=None,
+           phase: str = "", budget: _StepBudget | None = None) -> dict:
+    """Cycle until the mean unbalanced-force ratio is <= tol (or max_steps, or the budget
+    is used up: GenesisError)."""
+    s0, t0 = m.step, time.perf_counter()
     ratio = m.unbalanced_ratio()
-    while ratio > tol and m.step - s0 < max_steps:
-        m.cycle(chunk)
+    limit = max_steps if budget is None else budget.limit(max_steps)
+    while ratio > tol and m.step - s0 < limit:
+        cycle(m, chunk)
         ratio = m.unbalanced_ratio()
         if progress is not None:
-            progress(m.step - s0, ratio)
+            progress({"phase": phase, "steps": m.step - s0, "ratio": float(ratio),
+                      "target": tol, "wall_s": time.perf_counter() - t0})
+    if budget is not None:
+        budget.spend(m.step - s0, phase, ratio, tol)
     return {"steps": m.step - s0, "ratio": float(ratio), "converged": bool(ratio <= tol)}
 
 
@@ -229,12 +263,13 @@ def relax_packing(spec: SpecimenSpec, progress=None) -> Packing:
     # clear the initial overlaps: speeds clipped to 2 % of Rmin per step
     m.set_speed_cap(0.02 * spec.rmin / m.dt)
     for _ in range(10):
-        m.cycle(200)
+        cycle(m, 200)
         m.set_timestep(None)
         m.set_speed_cap(0.02 * spec.rmin / m.dt)
     m.set_speed_cap(0.0)
     m.set_timestep(None)
-    info = _solve(m, spec.relax_ratio, spec.max_relax_steps, progress=progress)
+    info = _solve(m, spec.relax_ratio, spec.max_relax_steps, progress=progress,
+                  phase="relax packing")
     if not info["converged"]:
         raise GenesisError(f"packing did not reach equilibrium: unbalanced-force ratio "
                            f"{info['ratio']:.3g} > {spec.relax_ratio:g} after {info['steps']} "
@@ -303,12 +338,17 @@ def wall_stresses(m: Model, spec: SpecimenSpec) -> tuple[float, float]:
 
 def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e6,
                    install_gap: float = 0.0, damping: float = 0.7, threads=None,
-                   progress=None) -> Specimen:
+                   progress=None, max_steps: int | None = None) -> Specimen:
     """Steps 4-5: install the material, relieve the locked-in stress to ``sigma0``, bond,
-    remove the vessel, settle."""
+    remove the vessel, settle (at most ``max_steps`` steps in total, else GenesisError)."""
     spec = packing.spec
     if not (sigma0 >= 0 and math.isfinite(sigma0)):
         raise InputError(f"sigma0={sigma0!r}: expected an isotropic stress >= 0 Pa")
+    if not (install_gap >= 0 and math.isfinite(install_gap)):
+        raise InputError(f"install_gap={install_gap!r}: expected a surface gap >= 0 m")
+    if max_steps is not None and int(max_steps) < 1:
+        raise InputError(f"max_steps={max_steps!r}: expected a step budget >= 1")
+    budget = _StepBudget(max_steps)
     frictionless = material.replace(fric=0.0)
     m = Model(packing.pos, packing.radius, spec.density, frictionless, damping=damping,
               skin=0.25 * spec.rmin, threads=threads)
@@ -316,9 +356,11 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     m.set_timestep(None)
     # enlarged floaters overlap their nearest neighbours: clip speeds while they settle
     m.set_speed_cap(0.02 * spec.rmin / m.dt)
-    m.cycle(500)
+    cycle(m, 500)
+    budget.used += 500
     m.set_speed_cap(0.0)
-    settle_walls = _solve(m, spec.relax_ratio, spec.max_relax_steps, progress=progress)
+    settle_walls = _solve(m, spec.relax_ratio, spec.max_relax_steps, progress=progress,
+                          phase="settle in vessel", budget=budget)
     s_ax, s_lat = wall_stresses(m, spec)
     sigma_m = (s_ax + 2 * s_lat) / 3.0
     f = 1.0 if sigma_m <= sigma0 or sigma_m <= 0 else sigma0 / sigma_m
@@ -343,7 +385,7 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     # calm (PFC): the bonded specimen starts at rest, then settles to a tight equilibrium
     m.set_velocity(np.arange(m.n), vel=np.zeros((m.n, 3)), angvel=np.zeros((m.n, 3)))
     settle_free = _solve(m, min(spec.relax_ratio, SETTLE_RATIO), spec.max_relax_steps,
-                         progress=progress)
+                         progress=progress, phase="settle bonded", budget=budget)
     pos, r = m.B.pos, m.B.radius
     z_bot = 0.0
     z_top = spec.height

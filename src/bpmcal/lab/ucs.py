@@ -38,6 +38,7 @@ import numpy as np
 from ..dem.errors import InputError
 from ..dem.layout import BOND_SHEAR, BOND_TENSION
 from .specimen import Specimen
+from .stepping import cycle
 
 #: columns of the recorded time series
 SERIES = ("step", "time", "axial_strain", "lateral_strain", "volumetric_strain",
@@ -68,6 +69,9 @@ class UCSSettings:
         if not (self.platen_velocity > 0 and math.isfinite(self.platen_velocity)):
             raise InputError(f"platen_velocity={self.platen_velocity!r}: expected a positive "
                              "speed in m/s")
+        if not (0.0 <= self.platen_fric <= 10.0):  # NaN fails too
+            raise InputError(f"platen_fric={self.platen_fric!r}: expected a friction "
+                             "coefficient in [0, 10]")
         if not (0.0 <= self.damping < 1.0):
             raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
         if not (0.0 < self.stop_drop < 1.0):
@@ -77,7 +81,7 @@ class UCSSettings:
         lo, hi = self.fit_window
         if not (0.0 <= lo < hi <= 1.0):
             raise InputError(f"fit_window={self.fit_window!r}: expected 0 <= lo < hi <= 1")
-        if not (self.record_strain > 0):
+        if not (self.record_strain > 0 and math.isfinite(self.record_strain)):
             raise InputError(f"record_strain={self.record_strain!r}: expected > 0")
 
 
@@ -194,7 +198,7 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
         if m.step - step0 >= st.max_steps:
             reason = "max_steps"
             break
-        m.cycle(n_rec)
+        cycle(m, n_rec)
         s, ea = record()
         if s > peak:
             peak, peak_strain = s, ea

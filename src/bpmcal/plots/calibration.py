@@ -72,9 +72,12 @@ def fig_stress_strain(curves: dict, lab: pd.DataFrame):
     fig, axes = figure(DOUBLE, 2.4, ncols=len(curves), sharey=True)
     axes = np.atleast_1d(axes)
     for ax, (spec, ser) in zip(axes, curves.items()):
-        eps = ser["axial_strain"].to_numpy() * 100
-        sig = ser["axial_stress"].to_numpy() / 1e6
-        ax.plot(eps, sig, color=C_SIM, label="simulated")
+        if "axial_strain" in ser:  # a failed run has no series
+            eps = ser["axial_strain"].to_numpy() * 100
+            sig = ser["axial_stress"].to_numpy() / 1e6
+            ax.plot(eps, sig, color=C_SIM, label="simulated")
+        else:
+            ax.text(0.5, 0.5, "DEM run failed", ha="center", transform=ax.transAxes)
         row = lab.set_index("specimen").loc[spec]
         ax.axhline(row["ucs_MPa"], color=C_LAB, ls="--", lw=0.7, label=r"lab $\sigma_c$")
         e_lab = row["E_GPa"] * 1e3 / 100  # MPa per % strain

@@ -47,6 +47,19 @@ def figure(width=COLUMN, height=2.6, **kw):
     return plt.subplots(figsize=(width, height), **kw)
 
 
+def fig_note(title: str, text: str):
+    """A figure that says why the real one is missing (e.g. its run failed), so that the
+    report shows the reason in place of the figure."""
+    import textwrap
+
+    fig, ax = figure(COLUMN, 1.6)
+    ax.set_axis_off()
+    ax.set_title(title)
+    ax.text(0.5, 0.5, "\n".join(textwrap.wrap(text, 60)), ha="center", va="center",
+            transform=ax.transAxes, fontsize=7)
+    return fig
+
+
 def save(fig, path_png) -> list[Path]:
     """Save ``fig`` as PNG and PDF (same stem), atomically, and close it."""
     p = Path(path_png)

@@ -152,7 +152,7 @@ def _settings(outdir, cfg) -> str:
         if len(bad):
             lines.append("- Failed samples (left out of the analysis):")
             for r in bad.itertuples():
-                lines.append(f"  - {r.sample_id}: {r.error}")
+                lines.append(f"  - {r.sample_id}: {r.status}: {r.error}")
         else:
             lines.append("- Failed samples: none")
         w = ds.loc[ds["status"] == "ok", "wall_s"]
@@ -236,8 +236,9 @@ def _calibration(outdir, cfg, comp) -> str:
             rows.append([spec, P.PARAMS[k].symbol, _f(p[k]), ci_s, _f(theirs[k]),
                          _pct(p[k], theirs[k]), card["status"]])
     chosen = outdir / "ratio_sweep" / "chosen.json"
-    ratio = (json.loads(chosen.read_text())["chosen_ratio"] if chosen.exists()
-             else cfg["calibration"]["ratio"])
+    ratio = json.loads(chosen.read_text())["chosen_ratio"] if chosen.exists() else None
+    if ratio is None:  # no sweep, or it chose no ratio: the configured one was used
+        ratio = cfg["calibration"]["ratio"]
     return (f"## Calibrated meso-parameters (bond-strength ratio {ratio:g}; paper 1.4)\n\n"
             + _md(rows, ["specimen", "parameter", "ours", "95 % bootstrap interval", "paper",
                          "difference", "inversion status"]) + "\n")
@@ -297,10 +298,26 @@ def _ratio(outdir, comp) -> str:
     if not f.exists():
         return ""
     ch = json.loads(f.read_text())
+    failed = ""
+    t = outdir / "tables" / "ratio_sweep.csv"
+    if t.exists():
+        sw = pd.read_csv(t)
+        bad = sw[sw["status"] != "ok"] if "status" in sw.columns else sw.iloc[:0]
+        if len(bad):
+            failed = "\nRuns of the sweep left out (failed, unreadable or not run):\n\n" + "\n".join(
+                f"- a = {r.ratio:g} ({r.sample_id}): {r.status}: "
+                f"{getattr(r, 'reason', '') if isinstance(getattr(r, 'reason', ''), str) else ''}"
+                for r in bad.itertuples()) + "\n"
+    if ch.get("chosen_ratio") is None:
+        _cmp(comp, "Ratio sweep", "bond-strength ratio a", None, paper.RATIO)
+        return (f"## Bond-strength ratio\n\nNo ratio chosen: {ch.get('reason', '')}. The "
+                "calibration used the configured ratio (calibration.ratio); the paper chose "
+                f"{paper.RATIO:g}.\n" + failed)
     _cmp(comp, "Ratio sweep", "bond-strength ratio a", ch["chosen_ratio"], paper.RATIO)
     return (f"## Bond-strength ratio\n\nChosen a = σcp/τcp = {ch['chosen_ratio']:g} "
             f"({ch['criterion']} {_f(ch['value'])} vs target {ch['target']:g}); the paper "
-            f"chose {paper.RATIO:g} (difference {ch['chosen_ratio'] - paper.RATIO:+.1f}).\n")
+            f"chose {paper.RATIO:g} (difference {ch['chosen_ratio'] - paper.RATIO:+.1f}).\n"
+            + failed)
 
 
 def _impact(outdir, cfg, comp) -> str:
@@ -311,6 +328,12 @@ def _impact(outdir, cfg, comp) -> str:
     if not f.exists():
         return ""
     s = read_summary(f)
+    if s.get("status") != "ok":
+        _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", None,
+             paper.IMPACT["W_in_J"], "J")
+        _cmp(comp, "Impact", "eta_f = G_f / W_in", None, paper.IMPACT["eta_f"])
+        return (f"## Drop-hammer impact at {v} m/s\n\nThe impact run failed: "
+                f"{s.get('error', '')}\n")
     sc = float(cfg["impact"]["scale"]) ** 3
     w_full = s["W_in_J"] / sc
     _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", w_full,

@@ -5,11 +5,13 @@ any job runs.
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 
 import yaml
 
 from .. import params as P
+from ..io.paths import name_problem, path_problem
 
 
 class ConfigError(ValueError):
@@ -69,8 +71,32 @@ def validate_config(config: dict, schema_path, base_dir=".") -> dict:
     return config
 
 
+def _finite_problems(v, key="") -> list[str]:
+    """NaN and inf anywhere in the config (YAML ``.nan``/``.inf``), by key."""
+    if isinstance(v, dict):
+        return [m for k, x in v.items() for m in _finite_problems(x, f"{key}.{k}" if key else k)]
+    if isinstance(v, list):
+        return [m for i, x in enumerate(v) for m in _finite_problems(x, f"{key}[{i}]")]
+    if isinstance(v, float) and not math.isfinite(v):
+        return [f"{key}: {v!r} is not a finite number"]
+    return []
+
+
+#: at most this many ratios in the strength-ratio sweep (one DEM job each)
+MAX_SWEEP_RATIOS = 200
+
+
 def _semantic_checks(cfg: dict, base: Path) -> list[str]:
-    msgs = []
+    msgs = _finite_problems(cfg)
+    if msgs:
+        return msgs  # the checks below compare numbers
+    for key in ("outdir",):
+        m = path_problem(cfg[key])
+        if m:
+            msgs.append(f"{key}: {m}")
+    m = path_problem(cfg["lab"]["csv"])
+    if m:
+        msgs.append(f"lab.csv: {m}")
     for name, (lo, hi) in cfg["ranges"].items():
         if lo > hi:
             msgs.append(f"ranges.{name}: low {lo:g} exceeds high {hi:g}")
@@ -82,43 +108,131 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
         msgs.append(f"specimen.scale: {sp['scale']:g} gives a {d:g} x {h:g} mm specimen, less "
                     f"than 3 ball diameters across for Rmax = {rmax:g} mm "
                     f"(ranges.rmin_mm up to {max(cfg['ranges']['rmin_mm']):g} mm)")
-    lab = base / cfg["lab"]["csv"]
-    if not lab.exists():
-        msgs.append(f"lab.csv: file {cfg['lab']['csv']!r} not found (relative to {base})")
-    else:
-        msgs.extend(_check_lab(lab, cfg["lab"]["csv"]))
+    msgs.extend(_budget_checks(cfg))
+    msgs.extend(_sweep_checks(cfg))
+    if not path_problem(cfg["lab"]["csv"]):
+        lab = base / cfg["lab"]["csv"]
+        if not lab.is_file():
+            msgs.append(f"lab.csv: file {cfg['lab']['csv']!r} not found (relative to {base})")
+        else:
+            msgs.extend(_check_lab(lab, cfg["lab"]["csv"]))
     return msgs
 
 
+def _budget_checks(cfg: dict) -> list[str]:
+    """The largest specimen the study can build (smallest Rmin and porosity of the ranges
+    and of the fixed calibration values, at the UCS and the impact scale) must fit
+    ``resources.max_balls`` and ``resources.ucs_mem_mb``."""
+    from ..lab.budget import budget_problem
+
+    res = cfg["resources"]
+    rg, fx = cfg["ranges"], cfg["calibration"]["fixed"]
+    rmin = min([min(rg["rmin_mm"])] + ([fx["rmin_mm"]] if "rmin_mm" in fx else []))
+    por = min([min(rg["porosity"])] + ([fx["porosity"]] if "porosity" in fx else []))
+    sp = cfg["specimen"]
+    out = []
+    for what, scale in (("specimen.scale", sp["scale"]), ("impact.scale", cfg["impact"]["scale"])):
+        m = budget_problem(rmin, por, scale=scale, diameter_mm=sp["diameter_mm"],
+                           height_mm=sp["height_mm"], max_balls=res["max_balls"],
+                           mem_budget_mb=res["ucs_mem_mb"],
+                           what=f"{what}={scale:g} with the smallest ")
+        if m:
+            out.append(f"resources: {m}")
+    return out
+
+
+def _sweep_checks(cfg: dict) -> list[str]:
+    rs = cfg["ratio_sweep"]
+    start, stop, step = rs["ratios"]
+    if not (start <= stop):
+        return [f"ratio_sweep.ratios: start {start:g} exceeds stop {stop:g} (expected "
+                "[start, stop, step] with start <= stop)"]
+    from .sweep import ratio_grid, ratio_id
+
+    n = int(math.floor((stop - start) / step + 1e-9)) + 1
+    if n > MAX_SWEEP_RATIOS:
+        return [f"ratio_sweep.ratios: {rs['ratios']} gives {n} ratios, more than "
+                f"{MAX_SWEEP_RATIOS} (one DEM run each); use a larger step"]
+    ids = [ratio_id(a) for a in ratio_grid(start, stop, step)]
+    if len(set(ids)) != len(ids):
+        return [f"ratio_sweep.ratios: step {step:g} is finer than 0.01: ratios would share "
+                "a run name (a{100 x ratio})"]
+    return []
+
+
 LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
+LAB_OPTIONAL = ("u_pre_MJm3",)
 
 
-def _check_lab(path: Path, key: str) -> list[str]:
+def lab_problems(df, key: str) -> list[str]:
+    """Problems of a lab table (a DataFrame read with ``read_lab``), named by column and
+    specimen."""
     import pandas as pd
 
-    try:
-        df = pd.read_csv(path)
-    except Exception as e:  # noqa: BLE001 - any parse error is reported by key
-        return [f"lab.csv: cannot read {key!r}: {e}"]
     missing = [c for c in LAB_COLUMNS if c not in df.columns]
     if missing:
         return [f"lab.csv: {key!r} lacks column(s) {missing}; expected {list(LAB_COLUMNS)} "
-                "(+ optional u_pre_MJm3)"]
+                f"(+ optional {', '.join(LAB_OPTIONAL)})"]
+    if len(df) == 0:
+        return [f"lab.csv: {key!r} has no specimen rows"]
     msgs = []
+    for s in df["specimen"]:
+        m = name_problem(s)
+        if m:
+            msgs.append(f"lab.csv: {key!r} specimen {m} (it becomes a file name)")
     if df["specimen"].duplicated().any():
-        msgs.append(f"lab.csv: {key!r} has duplicate specimen names")
-    for c in ("ucs_MPa", "E_GPa", "nu"):
-        v = pd.to_numeric(df[c], errors="coerce")
-        if v.isna().any() or (v <= 0).any():
-            msgs.append(f"lab.csv: {key!r} column {c} must hold positive numbers")
-    nu = pd.to_numeric(df["nu"], errors="coerce")
-    if (nu >= 0.5).any():
-        msgs.append(f"lab.csv: {key!r} column nu must be below 0.5")
+        dup = sorted(set(df.loc[df["specimen"].duplicated(), "specimen"]))
+        msgs.append(f"lab.csv: {key!r} has duplicate specimen names {dup}")
+    for c in ("ucs_MPa", "E_GPa", "nu", *[o for o in LAB_OPTIONAL if o in df.columns]):
+        optional = c in LAB_OPTIONAL
+        for spec, raw in zip(df["specimen"], df[c]):
+            if optional and (raw is None or (isinstance(raw, float) and math.isnan(raw))
+                             or (isinstance(raw, str) and not raw.strip())):
+                continue  # an empty optional value
+            try:
+                v = float(pd.to_numeric(pd.Series([raw]), errors="coerce").iloc[0])
+            except (TypeError, ValueError):
+                v = math.nan
+            if not (math.isfinite(v) and v > 0):
+                msgs.append(f"lab.csv: {key!r} specimen {spec} {c}={raw!r}: expected a "
+                            f"positive number{' (or empty)' if optional else ''}")
+            elif c == "nu" and v >= 0.5:
+                msgs.append(f"lab.csv: {key!r} specimen {spec} nu={raw!r}: expected below 0.5")
     return msgs
 
 
 def read_lab(path):
-    """The lab specimens table (validated columns)."""
+    """The lab specimens table as read everywhere (specimen names kept as text, e.g.
+    "007" stays "007"; the values as text until checked). Raises ConfigError for a file
+    that is not a CSV table."""
     import pandas as pd
 
-    return pd.read_csv(path)
+    try:
+        return pd.read_csv(path, dtype=str, keep_default_na=False, na_values=[""])
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError,
+            ValueError) as e:
+        raise ConfigError(f"lab.csv: cannot read {str(path)!r}: "
+                          f"{' '.join(str(e).split())[:200]}") from None
+
+
+def _check_lab(path: Path, key: str) -> list[str]:
+    try:
+        df = read_lab(path)
+    except ConfigError as e:
+        return [str(e)]
+    return lab_problems(df, key)
+
+
+def load_lab(path):
+    """The validated lab table (ConfigError listing every problem): specimen as text,
+    the values as floats (NaN for an empty optional value)."""
+    import pandas as pd
+
+    df = read_lab(path)
+    msgs = lab_problems(df, str(path))
+    if msgs:
+        raise ConfigError("invalid lab table:\n  " + "\n  ".join(msgs))
+    for c in (*LAB_COLUMNS[1:], *LAB_OPTIONAL):
+        if c in df.columns:
+            df[c] = pd.to_numeric(df[c], errors="coerce")
+    return df

@@ -22,10 +22,10 @@ def validate_ranges(ranges: dict) -> dict[str, tuple[float, float]]:
     if unknown:
         raise P.ParameterError(f"ranges: unknown parameter(s) {unknown}")
     for name, r in ranges.items():
-        try:
-            lo, hi = (float(r[0]), float(r[1]))
-        except (TypeError, ValueError, IndexError):
-            raise P.ParameterError(f"ranges.{name}={r!r}: expected [low, high]") from None
+        if not isinstance(r, (list, tuple)) or len(r) != 2:
+            raise P.ParameterError(f"ranges.{name}={r!r}: expected [low, high]")
+        lo = P.as_number(r[0], f"ranges.{name}[0]", "a number (low)")
+        hi = P.as_number(r[1], f"ranges.{name}[1]", "a number (high)")
         if not lo <= hi:
             raise P.ParameterError(f"ranges.{name}=[{lo:g}, {hi:g}]: low must not exceed high")
         P.validate_params({name: lo}, require_all=False)

@@ -148,14 +148,17 @@ def calibrate(dataset_csv, models_json, lab_csv, out_dir, *, fixed: dict, ratio=
     one material card per specimen (YAML). ``n_boot=0`` skips the bootstrap (the initial
     calibration that only seeds the strength-ratio sweep needs the point estimate)."""
     from ..analysis import bootstrap_intervals, invert, models_from_dict
+    from ..io.paths import child_path
+    from .config import load_lab
 
     df, note = load_ok(dataset_csv)
     models = models_from_dict(json.loads(Path(models_json).read_text()))
-    lab = pd.read_csv(lab_csv)
+    lab = load_lab(lab_csv)  # specimen names checked: they become file names
     out = Path(out_dir)
     rows = []
     for rec in lab.to_dict("records"):
         spec = str(rec["specimen"])
+        card_path = child_path(out, spec, ".yaml")  # never outside out_dir
         targets = {k: float(rec[k]) for k in P.TARGETS}
         inv = invert(models, targets, fixed, free=free, ratio=ratio, seed=seed)
         if n_boot:
@@ -186,7 +189,7 @@ def calibrate(dataset_csv, models_json, lab_csv, out_dir, *, fixed: dict, ratio=
             "provenance": provenance(dataset=str(dataset_csv), models=str(models_json),
                                      lab=str(lab_csv), fixed=fixed, ratio=ratio, seed=seed),
         }
-        write_yaml(out / f"{spec}.yaml", card)
+        write_yaml(card_path, card)
         row = {"specimen": spec, "status": inv.status, **card["parameters"],
                **{f"pred_{k}": v for k, v in inv.predicted.items()}}
         rows.append(row)
@@ -298,8 +301,9 @@ def verification_tables(cards: dict, lab_csv, tables_dir, figures_dir,
     from ..io.h5 import read_series
     from ..plots.calibration import fig_stress_strain
     from ..plots.style import save
+    from .config import load_lab
 
-    lab = pd.read_csv(lab_csv)
+    lab = load_lab(lab_csv)
     t5, t6, curves = [], [], {}
     for spec, path in cards.items():
         c = read_card(path)

@@ -5,7 +5,11 @@ over a grid (0.5 to 2.0 by 0.1). For every a, tau_cp is chosen so that the regre
 predicted sigma_c stays at the calibration target (sigma_cp = a tau_cp; a bracketing
 root search on the final sigma_c model) - the constraint the paper's procedure implies.
 A ratio whose tau_cp or sigma_cp falls outside the sampled Table 2 range is still run but
-flagged ``extrapolated``.
+flagged ``extrapolated``. A ratio for which no tau_cp in [1, 300] MPa reaches the target
+(e.g. the refitted sigma_c model no longer depends on tau_cp) is kept in the plan with
+``status`` "unreachable" and the reason: its run becomes a failure record (``bpmcal ucs``
+does not run it), the analysis leaves it out, and when no ratio is usable the chosen-ratio
+file says so (``chosen_ratio`` null) and the calibration keeps the configured ratio.
 
 The ratio is then chosen by a criterion on the simulated cracks: by default the tensile
 share of all cracks closest to 60 % (the brittle/shear split the paper cites), or the
@@ -19,23 +23,41 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import brentq
 
 from .. import params as P
 from ..io.atomic import write_text
 
+#: plan rows: "planned" (run it) or "unreachable" (no tau_cp gives the target)
+PLANNED, UNREACHABLE = "planned", "unreachable"
+
 
 def ratio_grid(start: float, stop: float, step: float) -> list[float]:
-    if not (start > 0 and stop >= start and step > 0):
+    """start, start + step, ... <= stop (rounded to 10 digits); ParameterError for a
+    reversed, empty or non-finite grid."""
+    ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+             for x in (start, stop, step))
+    if not (ok and start > 0 and stop >= start and step > 0):
         raise P.ParameterError(f"ratio grid [{start}, {stop}] step {step}: expected "
-                               "0 < start <= stop and step > 0")
+                               "finite numbers with 0 < start <= stop and step > 0")
     n = int(math.floor((stop - start) / step + 1e-9)) + 1
     return [round(start + k * step, 10) for k in range(n)]
 
 
+def ratio_id(a: float) -> str:
+    """The run name of ratio ``a`` ("a050" for a = 0.50)."""
+    return f"a{int(round(a * 100)):03d}"
+
+
 def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
     """One row per ratio: sample_id ("a050" for a = 0.50), the 8 parameters, seed,
-    ratio, extrapolated flag. ``ucs_model``: the final regression model of sigma_c."""
+    ratio, extrapolated flag, status ("planned" or "unreachable") and reason.
+    ``ucs_model``: the final regression model of sigma_c."""
+    from scipy.optimize import brentq
+
+    ids = [ratio_id(a) for a in ratios]
+    if len(set(ids)) != len(ids):
+        raise P.ParameterError(f"ratios {list(ratios)}: two ratios share a run name "
+                               "(a step finer than 0.01)")
     base = {k: float(v) for k, v in card["parameters"].items()}
     target = float(card["targets"]["ucs_MPa"])
     lo, hi = P.PARAMS["pb_coh_MPa"].lo, P.PARAMS["pb_coh_MPa"].hi
@@ -47,47 +69,72 @@ def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
         grid = np.linspace(1.0, 300.0, 600)
         vals = np.array([resid(c) for c in grid])
         cross = np.flatnonzero(np.sign(vals[:-1]) != np.sign(vals[1:]))
-        if cross.size == 0:
-            raise P.ParameterError(f"ratio {a}: no tau_cp in [1, 300] MPa gives the target "
-                                   f"sigma_c {target:g} MPa with the regression model")
+        if cross.size == 0 or not np.isfinite(vals).all():
+            fin = vals[np.isfinite(vals)] + target
+            if fin.size == 0:
+                span = "the predicted sigma_c is not finite"
+            elif np.ptp(fin) <= 1e-9 * max(1.0, abs(fin[0])):
+                span = (f"the sigma_c model does not depend on the bond strengths: it predicts "
+                        f"{fin[0]:.4g} MPa for every tau_cp")
+            else:
+                span = f"predicted sigma_c {fin.min():.4g}-{fin.max():.4g} MPa"
+            rows.append({"sample_id": ratio_id(a), **base, "pb_coh_MPa": math.nan,
+                         "pb_ten_MPa": math.nan, "seed": int(seed), "ratio": a,
+                         "extrapolated": False, "status": UNREACHABLE,
+                         "reason": f"no tau_cp in [1, 300] MPa gives the target sigma_c "
+                                   f"{target:g} MPa at a = {a:g} ({span})"})
+            continue
         # the root nearest the calibrated cohesion
         roots = [brentq(resid, grid[c], grid[c + 1]) for c in cross]
         coh = min(roots, key=lambda r: abs(r - base["pb_coh_MPa"]))
         ten = a * coh
         extrap = not (lo <= coh <= hi and P.PARAMS["pb_ten_MPa"].lo <= ten
                       <= P.PARAMS["pb_ten_MPa"].hi)
-        rows.append({"sample_id": f"a{int(round(a * 100)):03d}", **base, "pb_coh_MPa": coh,
+        rows.append({"sample_id": ratio_id(a), **base, "pb_coh_MPa": coh,
                      "pb_ten_MPa": ten, "seed": int(seed), "ratio": a,
-                     "extrapolated": extrap})
-    cols = ["sample_id", *P.PARAMS, "seed", "ratio", "extrapolated"]
+                     "extrapolated": extrap, "status": PLANNED, "reason": ""})
+    cols = ["sample_id", *P.PARAMS, "seed", "ratio", "extrapolated", "status", "reason"]
     return pd.DataFrame(rows)[cols]
 
 
 def analyse_sweep(plan: pd.DataFrame, runs_dir, criterion="tensile_share", target=0.6):
-    """Crack counts and proportions per ratio, and the chosen ratio."""
-    from ..io.h5 import read_summary
+    """Crack counts and proportions per ratio, and the chosen ratio. A run that failed, is
+    unreadable or was not run (unreachable ratio) is a row with its status and reason and
+    no counts; when no run is usable, ``chosen_ratio`` is None and ``reason`` says why."""
+    from ..io.h5 import RunFileError, read_summary
 
     rows = []
     for r in plan.to_dict("records"):
-        s = read_summary(Path(runs_dir) / f"{r['sample_id']}.h5")
-        ok = s.get("status") == "ok"
+        f = Path(runs_dir) / f"{r['sample_id']}.h5"
+        try:
+            s = read_summary(f)
+            status, reason = s.get("status", "failed"), s.get("error", "")
+        except RunFileError as e:
+            s, status, reason = {}, "unreadable", str(e)
+        if r.get("status", PLANNED) == UNREACHABLE:
+            status, reason = UNREACHABLE, r.get("reason", "")
+        ok = status == "ok"
         nt = float(s.get("cracks_tension", np.nan)) if ok else np.nan
         ns = float(s.get("cracks_shear", np.nan)) if ok else np.nan
         tot = nt + ns
         rows.append({"ratio": r["ratio"], "sample_id": r["sample_id"],
                      "pb_ten_MPa": r["pb_ten_MPa"], "pb_coh_MPa": r["pb_coh_MPa"],
-                     "extrapolated": r["extrapolated"], "status": s.get("status"),
+                     "extrapolated": r["extrapolated"], "status": status,
+                     "reason": "" if ok else reason,
                      "ucs_MPa": s.get("ucs_MPa", np.nan) if ok else np.nan,
                      "cracks_tension": nt, "cracks_shear": ns, "cracks_total": tot,
                      "tensile_share": nt / tot if tot > 0 else np.nan,
                      "shear_share": ns / tot if tot > 0 else np.nan,
-                     "cracks_tension_peak": s.get("cracks_tension_peak", np.nan),
-                     "cracks_shear_peak": s.get("cracks_shear_peak", np.nan)})
+                     "cracks_tension_peak": s.get("cracks_tension_peak", np.nan) if ok else np.nan,
+                     "cracks_shear_peak": s.get("cracks_shear_peak", np.nan) if ok else np.nan})
     df = pd.DataFrame(rows)
     key = {"tensile_share": "tensile_share", "crack_count": "cracks_total"}[criterion]
-    dist = (df[key] - target).abs()
+    dist = (df[key].astype(float) - target).abs()
     if dist.notna().sum() == 0:
-        raise RuntimeError("ratio sweep: no successful run to choose from")
+        bad = "; ".join(f"{r.sample_id}: {r.status}" for r in df.itertuples())
+        return df, {"chosen_ratio": None, "criterion": criterion, "target": target,
+                    "value": None, "sample_id": None,
+                    "reason": f"no ratio of the sweep gave a usable run ({bad})"}
     best = int(dist.idxmin())
     chosen = {"chosen_ratio": float(df.loc[best, "ratio"]), "criterion": criterion,
               "target": target, "value": float(df.loc[best, key]),
