@@ -36,6 +36,7 @@ import numpy as np
 
 from ..dem.errors import InputError
 from ..dem.layout import BOND_INTACT, BOND_SHEAR, BOND_TENSION
+from ..portable import libm_pow
 from . import fragments as F
 from .specimen import Specimen
 from .stepping import cycle
@@ -184,7 +185,7 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     bi, bj = m.bond_pairs()
     labels = F.fragments(m.n, bi, bj, m.Bd.state == BOND_INTACT)
     fmass, fsize = F.fragment_sizes(labels, m.B.radius, sp.spec.density)
-    solid = float((4 / 3 * np.pi * m.B.radius ** 3).sum())
+    solid = float((4 / 3 * np.pi * libm_pow(m.B.radius, 3)).sum())
     orig = (6 * solid / np.pi) ** (1 / 3)
     mean_d = 2 * float(m.B.radius.mean())
     w_in = float(series["W_in"][-1])

@@ -60,6 +60,7 @@ from ..dem import Material, Model
 from ..dem.errors import InputError
 from ..dem.order import morton_order
 from ..io.atomic import atomic_path
+from ..portable import libm_pow
 from .stepping import cycle
 
 #: modulus used while relaxing the packing (the relaxed geometry does not depend on it)
@@ -70,8 +71,9 @@ RELAX_DAMPING = 0.5
 #: unbalanced-force ratio of the bonded specimen's final settling (bonded packs
 #: equilibrate quickly, and a drifting specimen would corrupt the lateral strain)
 SETTLE_RATIO = 1e-3
-#: genesis version: part of the cache key; bump when the procedure changes
-GENESIS_VERSION = 4
+#: genesis version: part of the cache key; bump when the procedure changes (5: ball masses
+#: from the C library's pow, so packings no longer depend on the host's numpy kernels)
+GENESIS_VERSION = 5
 
 
 class GenesisError(RuntimeError):
@@ -285,7 +287,8 @@ def relax_packing(spec: SpecimenSpec, progress=None) -> Packing:
         "relax_converged": info["converged"],
         "floaters": nfloat,
         "floaters_enlarged": nfixed,
-        "porosity_nominal_distributed": float(1.0 - (4 / 3 * np.pi * r ** 3).sum() / spec.volume),
+        "porosity_nominal_distributed": float(1.0 - (4 / 3 * np.pi * libm_pow(r, 3)).sum()
+                                               / spec.volume),
     }
     return Packing(spec=spec, pos=m.B.pos.copy(), radius=r2, report=report)
 
@@ -390,7 +393,7 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     z_bot = 0.0
     z_top = spec.height
     rho = np.hypot(pos[:, 0], pos[:, 1]) + r
-    vol = float((4 / 3 * np.pi * r ** 3).sum())
+    vol = float((4 / 3 * np.pi * libm_pow(r, 3)).sum())
     report = dict(packing.report)
     report.update({
         "n_balls": int(m.n),

@@ -37,6 +37,7 @@ import numpy as np
 
 from ..dem.errors import InputError
 from ..dem.layout import BOND_SHEAR, BOND_TENSION
+from ..portable import lsq_slope
 from .specimen import Specimen
 from .stepping import cycle
 
@@ -98,12 +99,9 @@ class UCSResult:
 
 
 def fit_slope(x, y):
-    """Least-squares slope of y on x (NaN if fewer than 3 points)."""
-    x = np.asarray(x, float)
-    y = np.asarray(y, float)
-    if x.size < 3 or np.ptp(x) == 0:
-        return math.nan
-    return float(np.polyfit(x, y, 1)[0])
+    """Least-squares slope of y on x (NaN if fewer than 3 points), computed without BLAS
+    so that E and nu do not depend on the host (bpmcal.portable.lsq_slope)."""
+    return lsq_slope(np.asarray(x, float), np.asarray(y, float))
 
 
 def analyse(series: dict, settings: UCSSettings) -> dict:
