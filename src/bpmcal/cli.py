@@ -246,8 +246,14 @@ def cmd_calibrate(a) -> int:
     ratio = None if a.ratio is not None and a.ratio <= 0 else a.ratio
     if a.ratio_from:
         ratio = float(json.loads(Path(a.ratio_from).read_text())["chosen_ratio"])
-    r = calibrate(a.dataset, a.models, a.lab, a.out, fixed=fixed, ratio=ratio, free=free,
-                  n_boot=a.n_boot, seed=a.seed, tables_dir=a.tables)
+    ranges = _json_arg(a.ranges, "--ranges")
+    bounds = _json_arg(a.bounds, "--bounds") if a.bounds else {}
+    for name, val in (("--ranges", ranges), ("--bounds", bounds)):
+        if not isinstance(val, dict):
+            raise P.ParameterError(f"{name}: expected a JSON mapping of parameter name to "
+                                   f"[low, high] (paper units), got {val!r}")
+    r = calibrate(a.dataset, a.models, a.lab, a.out, fixed=fixed, ranges=ranges, bounds=bounds,
+                  ratio=ratio, free=free, n_boot=a.n_boot, seed=a.seed, tables_dir=a.tables)
     print(r["table"].to_string())
     return 0
 
@@ -258,7 +264,8 @@ def cmd_verify(a) -> int:
     prog = Progress(f"verify {Path(a.card).stem}", enabled=not a.quiet)
     v = verify(a.card, a.models, a.out, geometry=run_geometry(a), settings=run_settings(a),
                seed=a.seed, rtol=a.rtol, max_rounds=a.max_rounds, cache=a.specimen_cache,
-               threads=a.threads, progress=prog)["verification"]
+               threads=a.threads, progress=prog,
+               from_unreachable=a.from_unreachable)["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
 
@@ -538,6 +545,12 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--out", required=True, help="directory of the material cards")
     ca.add_argument("--tables", default=None)
     ca.add_argument("--fixed", required=True, help="JSON of the fixed parameters")
+    ca.add_argument("--ranges", required=True,
+                    help="JSON of the design space {name: [low, high]} the dataset was sampled "
+                         "over (the config's ranges); it bounds the free parameters")
+    ca.add_argument("--bounds", default=None,
+                    help="JSON {name: [low, high]} narrowing --ranges for free parameters "
+                         "(the config's calibration.bounds; wider than --ranges is an error)")
     ca.add_argument("--free", default=None, help="comma-separated free parameters")
     ca.add_argument("--ratio", type=float, default=1.4,
                     help="bond-strength ratio pb_ten/pb_coh (<= 0: both free)")
@@ -555,6 +568,9 @@ def build_parser() -> argparse.ArgumentParser:
     ve.add_argument("--seed", type=int, default=1, help="packing seed of the DEM runs")
     ve.add_argument("--rtol", type=float, default=0.01, help="relative tolerance (0.01)")
     ve.add_argument("--max-rounds", type=int, default=5, help="DEM runs at most")
+    ve.add_argument("--from-unreachable", action="store_true",
+                    help="run the closed loop even when the card's inversion is unreachable "
+                         "(default: do not; the verified card says why)")
     ve.add_argument("--quiet", action="store_true")
     add_run_args(ve)
     ve.set_defaults(func=cmd_verify)

@@ -72,9 +72,12 @@ rule calibrate_initial:
         c=config["calibration"],
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
+        ranges=json.dumps(config["ranges"]),
+        bounds=json.dumps(config["calibration"]["bounds"]),
     shell:
         "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
         "--out {params.calib0} --fixed '{params.fixed}' --free {params.free} "
+        "--ranges {params.ranges:q} --bounds {params.bounds:q} "
         "--ratio {params.c[ratio]} --n-boot 0 --seed {params.c[seed]} > {log} 2>&1"
 
 
@@ -97,9 +100,12 @@ rule calibrate:
         free=",".join(config["calibration"]["free"]),
         ratio=(lambda wc, input: f"--ratio-from {input.chosen}" if input.chosen
                else f"--ratio {config['calibration']['ratio']}"),
+        ranges=json.dumps(config["ranges"]),
+        bounds=json.dumps(config["calibration"]["bounds"]),
     shell:
         "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
         "--out {params.calib} --tables {params.tables} --fixed '{params.fixed}' --free {params.free} "
+        "--ranges {params.ranges:q} --bounds {params.bounds:q} "
         "{params.ratio} --n-boot {params.c[n_boot]} --seed {params.c[seed]} > {log} 2>&1"
 
 
@@ -120,10 +126,11 @@ rule verify:
         verif=parent_of("card", up=2),
         v=config["verification"],
         opts=specimen_args(),
+        unreachable="--from-unreachable" if config["verification"]["from_unreachable"] else "",
     shell:
         "bpmcal verify --card {input.card} --models {input.models} --out {params.verif}/{wildcards.spec} "
         "--seed {params.v[seed]} --rtol {params.v[rtol]} --max-rounds {params.v[max_rounds]} "
-        "--threads {threads} {params.opts} > {log} 2>&1"
+        "{params.unreachable} --threads {threads} {params.opts} > {log} 2>&1"
 
 
 rule seed_scatter:

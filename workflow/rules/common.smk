@@ -21,9 +21,9 @@ SWEEP_PLAN = f"{SWEEP}/plan.csv"
 SWEEP_CHOSEN = f"{SWEEP}/chosen.json"
 IMPACT = f"{OUT}/impact"
 
-import pandas as _pd
+from bpmcal.study.config import read_lab
 
-SPECIMENS = [str(s) for s in _pd.read_csv(config["lab"]["csv"])["specimen"]]
+SPECIMENS = [str(s) for s in read_lab(config["lab"]["csv"])["specimen"]]
 
 
 def _vtag(v):

@@ -4,8 +4,10 @@ With a calibrated parameter set held otherwise fixed, the ratio a = sigma_cp / t
 over a grid (0.5 to 2.0 by 0.1). For every a, tau_cp is chosen so that the regression's
 predicted sigma_c stays at the calibration target (sigma_cp = a tau_cp; a bracketing
 root search on the final sigma_c model) - the constraint the paper's procedure implies.
-A ratio whose tau_cp or sigma_cp falls outside the sampled Table 2 range is still run but
-flagged ``extrapolated``.
+The root is searched from near zero up to four times the largest cohesion the sampled
+ranges allow at that ratio (``max(ranges.pb_coh_MPa, ranges.pb_ten_MPa / a)``; the ranges
+are the card's, i.e. the study's design space). A ratio whose tau_cp or sigma_cp falls
+outside the sampled ranges is still run but flagged ``extrapolated``.
 
 The ratio is then chosen by a criterion on the simulated cracks: by default the tensile
 share of all cracks closest to 60 % (the brittle/shear split the paper cites), or the
@@ -35,27 +37,32 @@ def ratio_grid(start: float, stop: float, step: float) -> list[float]:
 
 def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
     """One row per ratio: sample_id ("a050" for a = 0.50), the 8 parameters, seed,
-    ratio, extrapolated flag. ``ucs_model``: the final regression model of sigma_c."""
+    ratio, extrapolated flag. ``ucs_model``: the final regression model of sigma_c;
+    ``card``: a material card (its ``ranges`` are the study's design space)."""
+    if "ranges" not in card:
+        raise P.ParameterError("the card has no 'ranges' (the design space); it was written by "
+                               "an older bpmcal: rerun the calibrate step")
     base = {k: float(v) for k, v in card["parameters"].items()}
     target = float(card["targets"]["ucs_MPa"])
-    lo, hi = P.PARAMS["pb_coh_MPa"].lo, P.PARAMS["pb_coh_MPa"].hi
+    clo, chi = (float(v) for v in card["ranges"]["pb_coh_MPa"])
+    tlo, thi = (float(v) for v in card["ranges"]["pb_ten_MPa"])
     rows = []
     for a in ratios:
         def resid(coh):
             p = dict(base, pb_coh_MPa=coh, pb_ten_MPa=a * coh)
             return float(ucs_model.predict(pd.DataFrame([p]))[0]) - target
-        grid = np.linspace(1.0, 300.0, 600)
+        top = 4.0 * max(chi, thi / a)
+        grid = np.linspace(top / 600, top, 600)
         vals = np.array([resid(c) for c in grid])
         cross = np.flatnonzero(np.sign(vals[:-1]) != np.sign(vals[1:]))
         if cross.size == 0:
-            raise P.ParameterError(f"ratio {a}: no tau_cp in [1, 300] MPa gives the target "
-                                   f"sigma_c {target:g} MPa with the regression model")
+            raise P.ParameterError(f"ratio {a}: no tau_cp in [{grid[0]:.3g}, {top:.4g}] MPa gives the "
+                                   f"target sigma_c {target:g} MPa with the regression model")
         # the root nearest the calibrated cohesion
         roots = [brentq(resid, grid[c], grid[c + 1]) for c in cross]
         coh = min(roots, key=lambda r: abs(r - base["pb_coh_MPa"]))
         ten = a * coh
-        extrap = not (lo <= coh <= hi and P.PARAMS["pb_ten_MPa"].lo <= ten
-                      <= P.PARAMS["pb_ten_MPa"].hi)
+        extrap = not (clo <= coh <= chi and tlo <= ten <= thi)
         rows.append({"sample_id": f"a{int(round(a * 100)):03d}", **base, "pb_coh_MPa": coh,
                      "pb_ten_MPa": ten, "seed": int(seed), "ratio": a,
                      "extrapolated": extrap})
