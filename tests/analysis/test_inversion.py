@@ -138,7 +138,7 @@ def test_bounds_narrow_the_ranges_but_never_widen_them():
     assert "pb_emod_GPa at the upper bound 80 of calibration.bounds.pb_emod_GPa" in tight.message
     assert tight.widen == [{"parameter": "pb_emod_GPa", "side": "upper", "bound": 80.0,
                             "key": "calibration.bounds.pb_emod_GPa", "needed": pytest.approx(85.0),
-                            "beyond_ranges": False}]
+                            "beyond_ranges": False, "reaches_targets": True}]
     assert "rerun the design" not in tight.advice
     with pytest.raises(ParameterError, match=r"calibration.bounds.pb_emod_GPa=\[20, 100\] reaches beyond "
                                              r"ranges.pb_emod_GPa=\[30, 120\], the sampled space"):
@@ -162,12 +162,15 @@ def test_no_exact_fit_says_when_widening_cannot_help():
     assert "no bound of the configured ranges is active" in res.message
     assert res.widen == [] and "widening the ranges does not help" in res.advice
     assert "calibration.free" in res.advice
-    # at a bound, with models that turn over outside the ranges: the bound is named, no value
+    # at a bound, with a target beyond the models' reach even extrapolated: the best compromise
+    # (the nu peak at kp* = 3) says how far to widen, and what it still misses
     res = invert(models, targets, FIXED, seed=2, ranges={**T2, "pb_kratio": (1.0, 2.5)})
     assert res.status == "unreachable"
     assert res.widen == [{"parameter": "pb_kratio", "side": "upper", "key": "ranges.pb_kratio",
-                          "bound": 2.5, "needed": None, "beyond_ranges": True}]
-    assert "cannot tell how far to widen" in res.advice and "ranges.pb_kratio (upper bound 2.5)" in res.advice
+                          "bound": 2.5, "needed": pytest.approx(3.0, rel=1e-6), "beyond_ranges": True,
+                          "reaches_targets": False}]
+    assert "widen ranges.pb_kratio above 3 (its upper bound is now 2.5)" in res.advice
+    assert "What it still misses (nu -6.25 %)" in res.advice
 
 
 def test_closed_loop_runs_outside_table2_inside_the_configured_ranges():

@@ -260,13 +260,16 @@ def test_report_shows_the_paper_only_for_the_paper_study(study, tmp_path, refere
 
 
 # ------------------------------------------------------------------------ the example, end to end
+EXAMPLE_ARGS = ("--configfile", "config/examples/lac_du_bonnet.yaml",
+                "config/examples/lac_du_bonnet_smoke.yaml")
+
+
 @pytest.fixture(scope="module")
 def example(tmp_path_factory):
     from test_smoke import copy_workflow, snakemake
 
     wf = copy_workflow(tmp_path_factory.mktemp("ldb"))
-    r = snakemake(wf, "--cores", "2", "--configfile", "config/examples/lac_du_bonnet.yaml",
-                  "config/examples/lac_du_bonnet_smoke.yaml")
+    r = snakemake(wf, "--cores", "2", *EXAMPLE_ARGS)
     assert r.returncode == 0, r.stderr[-3000:]
     cfg = merged(*EXAMPLE_SMOKE)
     return wf / cfg["outdir"], cfg
@@ -308,3 +311,12 @@ def test_example_report_has_no_paper_column(example):
     assert not (out / "report" / "tables" / "comparison.csv").exists()
     t5 = pd.read_csv(out / "report" / "tables" / "table5_verification.csv")
     assert not any("paper" in c for c in t5.columns)
+    # Snakemake's HTML report describes this rock's study, not the paper's
+    from test_smoke import snakemake
+
+    wf = out.parents[1]
+    r = snakemake(wf, *EXAMPLE_ARGS, "--report", str(out / "report.html"))
+    assert r.returncode == 0, r.stderr[-3000:]
+    html = (out / "report.html").read_text(errors="replace")
+    assert "calibration of the rock in" in html and "the configured ranges" in html
+    assert "the paper: 50" not in html and "side-by-side comparison" not in html

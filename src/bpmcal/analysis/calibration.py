@@ -41,12 +41,13 @@ Inversion (:func:`invert`)
     domain) until some point meets the targets; among the
     points that meet the targets there, the one least outside the configured limits names
     every configured key to widen (``ranges.<p>`` or ``calibration.bounds.<p>``) and the value
-    it must reach (``widen``, ``advice``). If even the extrapolated models cannot meet the
-    targets, they cannot tell how far to widen: an ``unreachable`` card then names the
-    configured limits that stop the fit (``needed`` None: widen them and rerun the design so
-    a new regression covers the targets), a ``no-exact-fit`` card says that with these models
-    widening does not help (free another parameter or change a fixed one). All these values
-    are indicative: the regression is not validated outside the sampled space.
+    it must reach (``widen``, ``advice``). If even the extrapolated models cannot meet every
+    target, their best compromise is used instead: the keys to widen to reach it, and what it
+    still misses (which may need another free parameter or other fixed values); if that
+    compromise lies inside the configured limits, an ``unreachable`` card names the limits
+    that stop the fit without a value and a ``no-exact-fit`` card says that with these models
+    widening does not help. All these values are indicative: the regression is not validated
+    outside the sampled space.
 
     Multi-start finds separate solutions only if some start lies in each basin; 24 starts
     are ample for the low-order polynomials of the stepwise models.
@@ -354,9 +355,10 @@ class InversionResult:
     calibrated parameters and ``bound_origins`` the configured key each side comes from
     (``ranges.<p>``, ``calibration.bounds.<p>``, or ``ranges.pb_ten_MPa / ratio a``);
     ``ranges`` the design space. When the targets are not met, ``widen`` lists each
-    configured limit to move (parameter, side, key, bound, needed value; ``needed`` is None
-    when the extrapolated models cannot tell how far) and ``advice`` says it in words (empty
-    when the diagnosis was not run).
+    configured limit to move (parameter, side, key, bound, needed value, and whether the
+    extrapolated models meet every target there, ``reaches_targets``; ``needed`` is None when
+    they cannot tell how far) and ``advice`` says it in words (empty when the diagnosis was
+    not run).
     """
 
     status: str
@@ -494,29 +496,44 @@ def _what_to_widen(space: _Space, models, responses, t, x_best, tol: float, n_st
 
     if not reach:
         best = fits[0]
+        point = space.full(best[2])
+        missed = ", ".join(f"{r} {100 * v:+.2f} %" for r, v in zip(responses, best[3]) if abs(v) > tol)
         models_say = (f"The fitted models, extrapolated up to {_EXTEND[-1]:g} range widths beyond the "
-                      f"sampled space, do not meet the targets either (best relative residuals "
-                      f"{_fmt_pct(responses, best[3])}), so they cannot tell how far to widen; their "
-                      "shape outside the sampled ranges is not supported by data.")
+                      f"sampled space, cannot meet all targets either (best relative residuals "
+                      f"{_fmt_pct(responses, best[3])})")
+        items = needs(best[2])
+        if items:
+            for it in items:
+                it["reaches_targets"] = False
+            where = ", ".join(f"{p} = {point[p]:.4g}" for p in space.calibrated)
+            parts = [f"{it['key']} {'below' if it['side'] == 'lower' else 'above'} {it['needed']:.4g} "
+                     f"(its {it['side']} bound is now {it['bound']:.4g})" for it in items]
+            return items, (f"{models_say}. Their best compromise lies at {where}: widen {'; '.join(parts)} "
+                           "and rerun the design so that a new regression covers it. What it still misses "
+                           f"({missed}) may need another free parameter (calibration.free) or other fixed "
+                           "values (calibration.fixed). Indicative only: the regression is not validated "
+                           "outside the sampled space.")
         u_best = space.u(x_best)
-        items = []
         for p, side, v in space.at_bound(u_best):
             key, via = space.origin[p][side]
             name = key.split(".", 1)[1] if key.startswith("ranges.") else key.rsplit(".", 1)[1]
             items.append({"parameter": name, "side": side, "key": key,
                           "bound": float(via) if via is not None else float(v), "needed": None,
-                          "beyond_ranges": key.startswith("ranges.")})
+                          "beyond_ranges": key.startswith("ranges."), "reaches_targets": False})
         if items:
             keys = ", ".join(f"{it['key']} ({it['side']} bound {it['bound']:.4g})" for it in items)
-            return items, (f"{models_say} The configured limits that stop the fit are {keys}: widen "
-                           "them and rerun the design so that a new regression covers the targets, or "
-                           "free another parameter (calibration.free) or change a fixed value "
+            return items, (f"{models_say}, and their best compromise lies inside the configured limits, "
+                           f"so they cannot tell how far to widen. The limits that stop the fit are {keys}: "
+                           "widen them and rerun the design so that a new regression covers the targets, "
+                           "or free another parameter (calibration.free) or change a fixed value "
                            "(calibration.fixed).")
-        return [], (f"{models_say} No configured bound is active: with these models widening the ranges "
-                    "does not help; free another parameter (calibration.free) or change a fixed value "
-                    "(calibration.fixed), then rerun.")
+        return [], (f"{models_say}, and no configured bound is active: with these models widening the "
+                    "ranges does not help; free another parameter (calibration.free) or change a fixed "
+                    "value (calibration.fixed), then rerun.")
     x = min(reach, key=lambda f: (distance(f[2]), f[0]))[2]
     items = needs(x)
+    for it in items:
+        it["reaches_targets"] = True
     if not items:  # a point inside the limits meets the targets: the multi-start missed it
         return [], ("A point inside the configured limits meets the targets when started from the "
                     "extrapolated search; the multi-start missed it (increase n_starts).")
