@@ -401,11 +401,20 @@ def cmd_calibrate(a) -> int:
             if ratio <= 0:
                 raise BadInput(f"--ratio-from {a.ratio_from}: chosen_ratio={ratio:g}: "
                                "expected a positive ratio")
+    ranges = _json_arg(a.ranges, "--ranges")
+    bounds = _json_arg(a.bounds, "--bounds") if a.bounds else {}
+    for name, val in (("--ranges", ranges), ("--bounds", bounds)):
+        if not isinstance(val, dict):
+            raise BadInput(f"{name}: expected a JSON mapping of parameter name to "
+                           f"[low, high] (paper units), got {val!r}")
+    from .analysis.calibration import check_calibration_space
+
+    check_calibration_space(free, fixed, ratio, ranges, bounds)
     _dataset(a.dataset)
     _models(a.models)
     _out_dirs(a, "--out", "--tables")
-    r = calibrate(a.dataset, a.models, a.lab, a.out, fixed=fixed, ratio=ratio, free=free,
-                  n_boot=a.n_boot, seed=a.seed, tables_dir=a.tables)
+    r = calibrate(a.dataset, a.models, a.lab, a.out, fixed=fixed, ranges=ranges, bounds=bounds,
+                  ratio=ratio, free=free, n_boot=a.n_boot, seed=a.seed, tables_dir=a.tables)
     print(r["table"].to_string())
     return 0
 
@@ -429,7 +438,8 @@ def cmd_verify(a) -> int:
     prog = Progress(f"verify {Path(a.card).stem}", enabled=not a.quiet)
     v = verify(a.card, a.models, a.out, geometry=geo, settings=st,
                seed=a.seed, rtol=a.rtol, max_rounds=a.max_rounds, cache=a.specimen_cache,
-               threads=a.threads, progress=prog)["verification"]
+               threads=a.threads, progress=prog,
+               from_unreachable=a.from_unreachable)["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
 
@@ -845,6 +855,12 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--out", required=True, help="directory of the material cards")
     ca.add_argument("--tables", default=None)
     ca.add_argument("--fixed", required=True, help="JSON of the fixed parameters")
+    ca.add_argument("--ranges", required=True,
+                    help="JSON of the design space {name: [low, high]} the dataset was sampled "
+                         "over (the config's ranges); it bounds the free parameters")
+    ca.add_argument("--bounds", default=None,
+                    help="JSON {name: [low, high]} narrowing --ranges for free parameters "
+                         "(the config's calibration.bounds; wider than --ranges is an error)")
     ca.add_argument("--free", default=None, help="comma-separated free parameters")
     ca.add_argument("--ratio", type=number("ratio", None, 100.0), default=1.4,
                     help="bond-strength ratio pb_ten/pb_coh (<= 0: both free)")
@@ -865,6 +881,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="relative tolerance (0.01)")
     ve.add_argument("--max-rounds", type=integer("max-rounds", 1, 50), default=5,
                     help="DEM runs at most")
+    ve.add_argument("--from-unreachable", action="store_true",
+                    help="run the closed loop even when the card's inversion is unreachable "
+                         "(default: do not; the verified card says why)")
     ve.add_argument("--quiet", action="store_true")
     add_run_args(ve)
     ve.set_defaults(func=cmd_verify)

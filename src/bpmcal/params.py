@@ -64,6 +64,12 @@ PARAMS: dict[str, Param] = {p.name: p for p in [
 PARAM_NAMES: tuple[str, ...] = tuple(PARAMS)
 
 
+def table2_ranges() -> dict[str, tuple[float, float]]:
+    """The paper's Table 2 sampling ranges (paper units): the design space of the default
+    study. Calibration bounds come from a study's own ``ranges``, never from these."""
+    return {p.name: (p.lo, p.hi) for p in PARAMS.values()}
+
+
 @dataclass(frozen=True)
 class Response:
     name: str

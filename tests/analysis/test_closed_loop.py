@@ -5,7 +5,9 @@ import pytest
 
 from bpmcal.analysis.calibration import ClosedLoop, invert, seed_scatter
 from bpmcal.analysis.stepwise import RegressionModel
+from bpmcal.params import table2_ranges
 
+T2 = table2_ranges()  # the paper's design space
 FIXED = {"porosity": 0.34, "rmin_mm": 0.8, "pb_fa_deg": 30.0, "fric": 0.4}
 MODELS = {
     "ucs_MPa": RegressionModel("ucs_MPa", [("pb_coh_MPa",), ("pb_ten_MPa",), ("porosity",), ("pb_kratio",),
@@ -34,14 +36,14 @@ class BiasedDEM:
 
 @pytest.fixture(scope="module")
 def start():
-    inv = invert(MODELS, TARGETS, FIXED, seed=0)
+    inv = invert(MODELS, TARGETS, FIXED, seed=0, ranges=T2)
     assert inv.ok
     return inv.solution
 
 
 def test_converges_within_a_few_rounds(start):
     dem = BiasedDEM()
-    res = ClosedLoop(dem, TARGETS, models=MODELS, rtol=0.01, max_rounds=8).run(start)
+    res = ClosedLoop(dem, TARGETS, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2).run(start)
     assert res.converged and res.n_rounds <= 4
     h = res.history
     assert h.loc[0, "max_abs_err"] > 0.05  # the bias is real: the regression answer is off
@@ -57,7 +59,8 @@ def test_converges_within_a_few_rounds(start):
 
 
 def test_broyden_update_satisfies_the_secant_condition(start):
-    res = ClosedLoop(BiasedDEM(noise=0.0), TARGETS, models=MODELS, rtol=1e-4, max_rounds=3).run(start)
+    res = ClosedLoop(BiasedDEM(noise=0.0), TARGETS, models=MODELS, rtol=1e-4, max_rounds=3,
+                     ranges=T2).run(start)
     h = res.history
     assert h["broyden_update"].iloc[-1]
     free = list(res.jacobian.columns)
@@ -67,7 +70,8 @@ def test_broyden_update_satisfies_the_secant_condition(start):
 
 
 def test_unreachable_target_does_not_converge(start):
-    res = ClosedLoop(BiasedDEM(), {**TARGETS, "ucs_MPa": 400.0}, models=MODELS, max_rounds=6).run(start)
+    res = ClosedLoop(BiasedDEM(), {**TARGETS, "ucs_MPa": 400.0}, models=MODELS, max_rounds=6,
+                     ranges=T2).run(start)
     assert not res.converged and res.status in ("stalled", "max_rounds")
     assert "pb_coh_MPa" in res.message
     assert res.params["pb_coh_MPa"] <= 50 / 1.4 + 1e-9
@@ -75,19 +79,19 @@ def test_unreachable_target_does_not_converge(start):
 
 def test_failed_simulation_stops_the_loop(start):
     broken = lambda p: {"ucs_MPa": np.nan, "E_GPa": 14.0, "nu": 0.2}
-    res = ClosedLoop(broken, TARGETS, models=MODELS).run(start)
+    res = ClosedLoop(broken, TARGETS, models=MODELS, ranges=T2).run(start)
     assert res.status == "failed" and res.n_rounds == 1
 
 
 def test_explicit_jacobian_and_input_checks(start):
     J = pd.DataFrame(np.diag([1.3, 0.04, 2.0]), index=["E_GPa", "nu", "ucs_MPa"],
                      columns=["pb_emod_GPa", "pb_kratio", "pb_coh_MPa"])
-    res = ClosedLoop(BiasedDEM(), TARGETS, jacobian=J, max_rounds=12).run(start)
+    res = ClosedLoop(BiasedDEM(), TARGETS, jacobian=J, max_rounds=12, ranges=T2).run(start)
     assert res.converged
     with pytest.raises(ValueError, match="exactly one"):
-        ClosedLoop(BiasedDEM(), TARGETS)
+        ClosedLoop(BiasedDEM(), TARGETS, ranges=T2)
     with pytest.raises(ValueError, match="pb_ten_MPa"):
-        ClosedLoop(BiasedDEM(), TARGETS, models=MODELS).run({**start, "pb_ten_MPa": 20.0})
+        ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2).run({**start, "pb_ten_MPa": 20.0})
 
 
 def test_seed_scatter_flags_tolerances_below_noise():

@@ -78,7 +78,7 @@ R = json.dumps({"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "pb_emod_GPa": [
                 "pb_fa_deg": [15, 55], "fric": [0.15, 0.55]}, separators=(",", ":"))
 UCS = "ucs --params {d}/a1.yaml --out {o}/r.h5"
 CAL = ("calibrate --dataset {d}/design.csv --models {d}/card.yaml --lab {d}/lab.csv "
-       "--out {o}/cards --fixed {}")
+       "--out {o}/cards --ranges " + R + " --fixed {}")
 
 # (id, command line ({d}: inputs, {o}: output folder), text the message must contain)
 CASES = [

@@ -21,6 +21,7 @@ A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_te
           pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
 SMALL = ["--scale", "0.24", "--platen-velocity", "0.1", "--record-strain", "4e-5",
          "--threads", "1"]
+TABLE2 = {k: [p.lo, p.hi] for k, p in PARAMS.items()}
 
 
 @pytest.fixture(scope="module")
@@ -138,12 +139,12 @@ def models(tmp_path_factory):
 
 def test_unreachable_ratios_are_marked_run_as_records_and_the_calibration_goes_on(
         models, tmp_path, capsys):
-    """The sweep planner cannot reach the target (a sigma_c far above what any tau_cp in
-    [1, 300] MPa gives): every ratio is marked unreachable instead of raising; its DEM job
+    """The sweep planner cannot reach the target (a sigma_c far above what any tau_cp up to
+    four times the sampled range gives): every ratio is marked unreachable instead of raising; its DEM job
     writes a failure record without running; the analysis chooses no ratio and says why;
     the calibration keeps the configured ratio."""
     card = tmp_path / "B1.yaml"
-    card.write_text(yaml.safe_dump({"specimen": "B1", "parameters": A1,
+    card.write_text(yaml.safe_dump({"specimen": "B1", "parameters": A1, "ranges": TABLE2,
                                     "targets": {"ucs_MPa": 5000.0, "E_GPa": 8.0, "nu": 0.2}}))
     plan = tmp_path / "sweep" / "plan.csv"
     assert main(["sweep-plan", "--card", str(card), "--models",
@@ -151,7 +152,7 @@ def test_unreachable_ratios_are_marked_run_as_records_and_the_calibration_goes_o
                  "--out", str(plan)]) == 0
     p = pd.read_csv(plan)
     assert list(p["status"]) == ["unreachable"] * 3
-    assert p["reason"].str.contains("no tau_cp in \\[1, 300\\] MPa gives the target").all()
+    assert p["reason"].str.contains(r"no tau_cp in \[[0-9.]+, [0-9.]+\] MPa gives the target").all()
     runs = tmp_path / "sweep" / "runs"
     for sid in p["sample_id"]:
         assert main(["ucs", "--design", str(plan), "--sample", sid, "--out",
@@ -176,6 +177,7 @@ def test_unreachable_ratios_are_marked_run_as_records_and_the_calibration_goes_o
                  str(tmp_path / "cal"), "--fixed", json.dumps({"rmin_mm": 0.8, "porosity": 0.3,
                                                                "pb_fa_deg": 35, "fric": 0.35}),
                  "--free", "pb_emod_GPa,pb_kratio,pb_coh_MPa", "--ratio", "1.4",
+                 "--ranges", json.dumps(TABLE2),
                  "--ratio-from", str(chosen), "--n-boot", "0"]) == 0
     assert "the sweep chose no ratio" in capsys.readouterr().out
     assert yaml.safe_load((tmp_path / "cal" / "B1.yaml").read_text())["ratio_ten_coh"] == 1.4
@@ -183,7 +185,7 @@ def test_unreachable_ratios_are_marked_run_as_records_and_the_calibration_goes_o
 
 def test_a_reachable_plan_is_planned(models, tmp_path):
     card = tmp_path / "B1.yaml"
-    card.write_text(yaml.safe_dump({"specimen": "B1", "parameters": A1,
+    card.write_text(yaml.safe_dump({"specimen": "B1", "parameters": A1, "ranges": TABLE2,
                                     "targets": {"ucs_MPa": 60.0, "E_GPa": 8.0, "nu": 0.2}}))
     plan = tmp_path / "plan.csv"
     assert main(["sweep-plan", "--card", str(card), "--models",

@@ -59,12 +59,20 @@ def test_sweep_plan_holds_the_predicted_ucs_at_the_target():
     df["ucs_MPa"] = 1.2 * df["pb_ten_MPa"] + 2.0 * df["pb_coh_MPa"] - 0.01 * df["pb_coh_MPa"] ** 2
     df["status"] = "ok"
     model = fit_terms(df, "ucs_MPa", ["pb_ten_MPa", "pb_coh_MPa", ("pb_coh_MPa", "pb_coh_MPa")])
-    card = {"parameters": dict(A1), "targets": {"ucs_MPa": 60.0}}
+    ranges = {"pb_ten_MPa": [15.0, 50.0], "pb_coh_MPa": [15.0, 50.0]}
+    card = {"parameters": dict(A1), "targets": {"ucs_MPa": 60.0}, "ranges": ranges}
     plan = sweep_plan(card, model, ratio_grid(0.5, 2.0, 0.1), seed=3)
     assert list(plan["sample_id"])[:3] == ["a050", "a060", "a070"] and len(plan) == 16
     assert np.allclose(plan["pb_ten_MPa"], plan["ratio"] * plan["pb_coh_MPa"])
     assert np.allclose(model.predict(plan), 60.0, atol=1e-6)
     assert (plan["seed"] == 3).all()
+    # "extrapolated" is judged against the card's ranges (the study's design space)
+    inside = plan[["pb_ten_MPa", "pb_coh_MPa"]].apply(lambda c: c.between(15.0, 50.0)).all(axis=1)
+    assert (plan["extrapolated"] == ~inside).all() and plan["extrapolated"].any()
+    wide = sweep_plan({**card, "ranges": {"pb_ten_MPa": [1.0, 200.0], "pb_coh_MPa": [1.0, 200.0]}},
+                      model, ratio_grid(0.5, 2.0, 0.1), seed=3)
+    assert not wide["extrapolated"].any()
+    np.testing.assert_allclose(wide["pb_coh_MPa"], plan["pb_coh_MPa"], rtol=1e-9)
 
 
 def test_sweep_choice_picks_the_tensile_share_closest_to_the_target(tmp_path):

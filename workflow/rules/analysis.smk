@@ -73,11 +73,13 @@ rule calibrate_initial:
         c=config["calibration"],
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
+        ranges=json.dumps(config["ranges"]),
+        bounds=json.dumps(config["calibration"]["bounds"]),
     shell:
         "bpmcal calibrate --dataset {input.dataset:q} --models {input.models:q} "
         "--lab {input.lab:q} --out {params.calib0:q} --fixed {params.fixed:q} "
-        "--free {params.free:q} --ratio {params.c[ratio]:q} --n-boot 0 "
-        "--seed {params.c[seed]:q} > {log:q} 2>&1"
+        "--free {params.free:q} --ranges {params.ranges:q} --bounds {params.bounds:q} "
+        "--ratio {params.c[ratio]:q} --n-boot 0 --seed {params.c[seed]:q} > {log:q} 2>&1"
 
 
 rule calibrate:
@@ -98,10 +100,13 @@ rule calibrate:
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
         ratio_from=lambda wc, input: ["--ratio-from", input.chosen] if input.chosen else [],
+        ranges=json.dumps(config["ranges"]),
+        bounds=json.dumps(config["calibration"]["bounds"]),
     shell:
         "bpmcal calibrate --dataset {input.dataset:q} --models {input.models:q} "
         "--lab {input.lab:q} --out {params.calib:q} --tables {params.tables:q} "
-        "--fixed {params.fixed:q} --free {params.free:q} --ratio {params.c[ratio]:q} "
+        "--fixed {params.fixed:q} --free {params.free:q} --ranges {params.ranges:q} "
+        "--bounds {params.bounds:q} --ratio {params.c[ratio]:q} "
         "{params.ratio_from:q} --n-boot {params.c[n_boot]:q} --seed {params.c[seed]:q} "
         "> {log:q} 2>&1"
 
@@ -123,11 +128,12 @@ rule verify:
         verif=parent_of("card"),
         v=config["verification"],
         opts=specimen_args(),
+        unreachable=["--from-unreachable"] if config["verification"]["from_unreachable"] else [],
     shell:
         "bpmcal verify --card {input.card:q} --models {input.models:q} --out {params.verif:q} "
         "--seed {params.v[seed]:q} --rtol {params.v[rtol]:q} "
-        "--max-rounds {params.v[max_rounds]:q} --threads {threads} {params.opts:q} "
-        "> {log:q} 2>&1"
+        "--max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
+        "{params.opts:q} > {log:q} 2>&1"
 
 
 rule seed_scatter:

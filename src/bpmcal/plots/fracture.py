@@ -34,7 +34,7 @@ def fig_ratio_cracks(sweep: pd.DataFrame, chosen: dict):
     ext = sweep["extrapolated"].astype(bool)
     if ext.any():
         ax.plot(a[ext], sweep["cracks_total"][ext], "o", mfc="none", mec="0.5", ms=6,
-                label="outside Table 2 range")
+                label="outside the sampled ranges")
     ax.legend(frameon=False, loc="upper left", fontsize=6)
     fig.tight_layout()
     return fig

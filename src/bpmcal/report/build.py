@@ -1,6 +1,9 @@
 """Assemble ``results/report/``: every table (CSV + Markdown) and figure (PNG + PDF) of the
-study, and ``index.md`` that puts each result next to the value the paper publishes, with
-the difference, the settings and seeds used, and the failed samples."""
+study, and ``index.md`` with the settings and seeds used, the failed samples, and every
+result. For the paper's own study (``study.reference: yu2026``) each result stands next to
+the value Yu et al. (2026) publish, with the difference (and ``tables/comparison.csv``); for
+any other rock (``reference: none``) the paper's columns, shares and comparisons are left
+out, not filled with dashes."""
 from __future__ import annotations
 
 import json
@@ -94,17 +97,22 @@ def build(outdir, config: dict, report_dir=None) -> Path:
         shutil.copy2(eq, report / "equations.md")
     S = []  # sections of index.md
     cfg = config
-    S.append(f"# {cfg['study']['name']}: the paper, regenerated\n")
-    S.append(f"Reproduction of {paper.REFERENCE}\n")
+    ref = is_paper_study(cfg)
+    if ref:
+        S.append(f"# {cfg['study']['name']}: the paper, regenerated\n")
+        S.append(f"Reproduction of {paper.REFERENCE}\n")
+    else:
+        S.append(f"# {cfg['study']['name']}: calibration report\n")
+        S.append(f"Lab data: `{cfg['lab']['csv']}`.\n")
     S.append(f"bpmcal {__version__}, commit `{git_commit()}`.\n")
-    S.append(_settings(outdir, cfg))
+    S.append(_settings(outdir, cfg, ref))
     comp: list[dict] = []  # every published value we compare against, one row each
-    S.append(_table3(outdir, comp))
-    S.append(_regression(outdir, comp))
-    S.append(_calibration(outdir, cfg, comp))
-    S.append(_verification(outdir, comp))
-    S.append(_ratio(outdir, comp))
-    S.append(_impact(outdir, cfg, comp))
+    S.append(_table3(outdir, comp, ref))
+    S.append(_regression(outdir, comp, ref))
+    S.append(_calibration(outdir, cfg, comp, ref))
+    S.append(_verification(outdir, comp, ref))
+    S.append(_ratio(outdir, comp, ref))
+    S.append(_impact(outdir, cfg, comp, ref))
     if comp:
         from ..study.pipeline import write_table
 
@@ -121,26 +129,36 @@ def build(outdir, config: dict, report_dir=None) -> Path:
     S.append("## Tables\n")
     for stem in found["tables"]:
         S.append(f"- [{TABLES[stem]}](tables/{stem}.md) ([CSV](tables/{stem}.csv))")
-    S.append("\n## Notes on the paper\n")
-    S.extend(f"- {n}" for n in paper.NOTES)
+    if ref:
+        S.append("\n## Notes on the paper\n")
+        S.extend(f"- {n}" for n in paper.NOTES)
     index = report / "index.md"
     return write_text(index, "\n".join(S) + "\n")
 
 
-def _settings(outdir, cfg) -> str:
+def is_paper_study(cfg: dict) -> bool:
+    """True when the study is the paper's (``study.reference: yu2026``): only then does the
+    report show the paper's values, columns and comparisons."""
+    return (cfg.get("study") or {}).get("reference") == "yu2026"
+
+
+def _settings(outdir, cfg, ref=False) -> str:
     ds_path = outdir / "dataset.csv"
     lines = ["## Settings\n"]
     sp, u = cfg["specimen"], cfg["ucs"]
     lines.append(f"- Samples: {cfg['study']['n_samples']} (Latin hypercube, seed "
                  f"{cfg['study']['lhs_seed']}, packing seeds derived from it)")
+    lines.append("- Sampled ranges (the design space; the calibration stays inside them): "
+                 + ", ".join(f"{k} [{lo:g}, {hi:g}]" for k, (lo, hi) in cfg["ranges"].items()))
     lines.append(f"- Specimen scale {sp['scale']:g}: {sp['scale'] * sp['diameter_mm']:g} x "
-                 f"{sp['scale'] * sp['height_mm']:g} mm (the paper: 50 x 100 mm); radii uniform "
-                 "in [Rmin, 1.66 Rmin], ρ = 2294 kg/m³")
+                 f"{sp['scale'] * sp['height_mm']:g} mm" + (" (the paper: 50 x 100 mm)" if ref else "")
+                 + "; radii uniform in [Rmin, 1.66 Rmin], ρ = 2294 kg/m³")
     lines.append(f"- UCS: platens at {u['platen_velocity']:g} m/s each, local damping "
                  f"{u['damping']:g}, E and ν fitted over 40-60 % of the peak")
     c = cfg["calibration"]
-    lines.append(f"- Calibration: fixed {c['fixed']}, free {c['free']}, "
-                 f"verification seed {cfg['verification']['seed']}")
+    lines.append(f"- Calibration: fixed {c['fixed']}, free {c['free']}"
+                 + (f", bounds {c['bounds']}" if c.get("bounds") else "")
+                 + f", verification seed {cfg['verification']['seed']}")
     lines.append(f"- Impact: scale {cfg['impact']['scale']:g}, hammer "
                  f"{cfg['impact']['hammer_mass_kg'] * cfg['impact']['scale'] ** 3:.3f} kg "
                  f"({cfg['impact']['hammer_mass_kg']:g} kg at full size), dashpot ratio "
@@ -174,7 +192,7 @@ def _cmp(comp, section, item, ours, theirs, unit=""):
                  "difference_pct": 100 * (o - t) / abs(t) if math.isfinite(o) and t else math.nan})
 
 
-def _table3(outdir, comp) -> str:
+def _table3(outdir, comp, ref=False) -> str:
     f = outdir / "tables" / "table3_importance.csv"
     if not f.exists():
         return ""
@@ -186,102 +204,154 @@ def _table3(outdir, comp) -> str:
         r = [P.PARAMS[p].symbol]
         for resp in P.TARGETS:
             ours = t3.loc[p, resp] if resp in t3.columns else math.nan
-            theirs = paper.TABLE3[p][resp]
-            _cmp(comp, "Table 3", f"importance of {p} for {resp}", ours, theirs, "%")
-            r.append(f"{_f(ours, '.1f')} ({theirs:.1f})")
+            if ref:
+                theirs = paper.TABLE3[p][resp]
+                _cmp(comp, "Table 3", f"importance of {p} for {resp}", ours, theirs, "%")
+                r.append(f"{_f(ours, '.1f')} ({theirs:.1f})")
+            else:
+                r.append(_f(ours, ".1f"))
         rows.append(r)
-    return ("## Table 3: XGBoost screening (ours, paper in brackets, % of gain)\n\n"
-            + _md(rows, ["parameter", "σc", "E", "ν"]) + "\n")
+    head = ("## Table 3: XGBoost screening (ours, paper in brackets, % of gain)\n\n" if ref
+            else "## Table 3: XGBoost screening (% of gain)\n\n")
+    return head + _md(rows, ["parameter", "σc", "E", "ν"]) + "\n"
 
 
-def _regression(outdir, comp) -> str:
+def _regression(outdir, comp, ref=False) -> str:
     f = outdir / "tables" / "regression_fit.csv"
     if not f.exists():
         return ""
     fit = pd.read_csv(f)
     rows = []
     for r in fit.itertuples():
+        if not ref:
+            rows.append([r.response, r.stage, _f(r.adj_r2), _f(r.cv_r2_mean)])
+            continue
         theirs = paper.ADJ_R2.get(r.response, {}).get(r.stage)
         if theirs:
             _cmp(comp, "Regression", f"adjusted R² of {r.response}, {r.stage}", r.adj_r2, theirs)
         rows.append([r.response, r.stage, _f(r.adj_r2), _f(theirs) if theirs else "–",
                      (f"{r.adj_r2 - theirs:+.3f}" if theirs else "–"), _f(r.cv_r2_mean)])
     eq = outdir / "regression" / "equations.md"
-    s = ("## Stepwise regression: adjusted R² per stage\n\n"
-         + _md(rows, ["response", "stage", "ours", "paper", "difference", "CV R² (ours)"]))
+    header = (["response", "stage", "ours", "paper", "difference", "CV R² (ours)"] if ref
+              else ["response", "stage", "adjusted R²", "CV R²"])
+    s = "## Stepwise regression: adjusted R² per stage\n\n" + _md(rows, header)
     if eq.exists():
-        s += "\n\nOur equations (all stages): [equations.md](equations.md)\n"
-        s += "\nThe paper's main-effect equations: " + "; ".join(
-            paper.EQUATIONS["main"].values()) + "\n"
+        s += ("\n\nOur equations (all stages): " if ref else "\n\nThe equations (all stages): ")
+        s += "[equations.md](equations.md)\n"
+        if ref:
+            s += "\nThe paper's main-effect equations: " + "; ".join(
+                paper.EQUATIONS["main"].values()) + "\n"
     return s + "\n"
 
 
-def _calibration(outdir, cfg, comp) -> str:
+def _specimen_cards(directory: Path, outdir: Path) -> dict[str, Path]:
+    """The cards in ``directory`` in the lab CSV's specimen order (the calibration table's)."""
+    order = []
+    t = outdir / "tables" / "calibration.csv"
+    if t.exists():
+        order = [str(x) for x in pd.read_csv(t)["specimen"]]
+    found = {f.stem: f for f in sorted(directory.glob("*.yaml"))}
+    keys = [k for k in order if k in found] + sorted(set(found) - set(order))
+    return {k: found[k] for k in keys}
+
+
+def _calibration(outdir, cfg, comp, ref=False) -> str:
     cal = outdir / "calibration"
     if not cal.exists():
         return ""
-    rows = []
-    for spec, theirs in paper.CALIBRATED.items():
-        f = cal / f"{spec}.yaml"
-        if not f.exists():
-            continue
+    rows, notes = [], []
+    for spec, f in _specimen_cards(cal, outdir).items():
         card = yaml.safe_load(f.read_text())
         p = card["parameters"]
-        for k in ("pb_emod_GPa", "pb_kratio", "pb_ten_MPa", "pb_coh_MPa"):
+        theirs = paper.CALIBRATED.get(spec) if ref else None
+        bounds = card.get("bounds") or {}
+        shown = [k for k, role in card["roles"].items() if role in ("free", "derived")]
+        for k in shown:
             ci = next((i for i in card["bootstrap"]["intervals"] if i.get("quantity") == k),
                       None)
             ci_s = (f"[{_f(ci.get('lower'))}, {_f(ci.get('upper'))}] (n={ci.get('n')})"
                     if ci else "–")
-            _cmp(comp, "Calibration", f"{spec} {k}", p[k], theirs[k], P.PARAMS[k].unit)
-            rows.append([spec, P.PARAMS[k].symbol, _f(p[k]), ci_s, _f(theirs[k]),
-                         _pct(p[k], theirs[k]), card["status"]])
+            b = bounds.get(k)
+            b_s = f"[{_f(b['lower'], '.4g')}, {_f(b['upper'], '.4g')}]" if b else "–"
+            row = [spec, P.PARAMS[k].symbol, _f(p[k]), ci_s, b_s]
+            if ref:
+                th = theirs.get(k) if theirs else None
+                if th is not None:
+                    _cmp(comp, "Calibration", f"{spec} {k}", p[k], th, P.PARAMS[k].unit)
+                row += [_f(th) if th is not None else "–",
+                        _pct(p[k], th) if th is not None else "–"]
+            rows.append(row + [card["status"]])
+        if card["status"] != "ok":
+            notes.append(f"- **{spec}: {card['status']}** — {card['message']}")
     chosen = outdir / "ratio_sweep" / "chosen.json"
     ratio = json.loads(chosen.read_text())["chosen_ratio"] if chosen.exists() else None
     if ratio is None:  # no sweep, or it chose no ratio: the configured one was used
         ratio = cfg["calibration"]["ratio"]
-    return (f"## Calibrated meso-parameters (bond-strength ratio {ratio:g}; paper 1.4)\n\n"
-            + _md(rows, ["specimen", "parameter", "ours", "95 % bootstrap interval", "paper",
-                         "difference", "inversion status"]) + "\n")
+    header = ["specimen", "parameter", "calibrated", "95 % bootstrap interval", "bounds"]
+    if ref:
+        header += ["paper", "difference"]
+    header += ["inversion status"]
+    title = (f"## Calibrated meso-parameters (bond-strength ratio {ratio:g}; paper 1.4)\n\n" if ref
+             else f"## Calibrated meso-parameters (bond-strength ratio {ratio:g})\n\n")
+    out = title + _md(rows, header) + "\n"
+    out += ("\nBounds: the configured ranges (the design space), narrowed by calibration.bounds "
+            "and, for τcp, by ranges.pb_ten_MPa / ratio; each card names where every bound comes "
+            "from.\n")
+    if notes:
+        out += "\n" + "\n".join(notes) + "\n"
+    return out
 
 
-def _verification(outdir, comp) -> str:
+def _verification(outdir, comp, ref=False) -> str:
     f = outdir / "tables" / "table5_verification.csv"
     if not f.exists():
         return ""
     t5 = pd.read_csv(f, index_col=0)
-    rows = []
+    rows, notes = [], []
     for spec, r in t5.iterrows():
-        th = paper.VERIFIED.get(spec)
+        th = paper.VERIFIED.get(spec) if ref else None
+        ran = r.get("status") != "not-run"
+        if not ran:
+            notes.append(f"- **{spec}: closed loop not run** — {r.get('note', '')}")
         for k in P.TARGETS:
-            if th:
+            if th and ran:
                 _cmp(comp, "Table 5", f"{spec} {k}, DEM (closed loop vs paper's PFC3D)",
                      r[f"closed_loop_{k}"], th[k], P.RESPONSES[k].unit)
                 _cmp(comp, "Table 5", f"{spec} {k} error % (closed loop vs paper)",
                      r[f"closed_loop_{k}_err_pct"], th["err_pct"][k], "%")
-            rows.append([spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]),
-                         _f(r[f"single_pass_{k}"]), _f(r[f"single_pass_{k}_err_pct"], "+.2f"),
-                         _f(r[f"closed_loop_{k}"]), _f(r[f"closed_loop_{k}_err_pct"], "+.2f"),
-                         _f(th[k]) if th else "–",
-                         _f(th["err_pct"][k], ".2f") if th else "–"])
-    s = ("## Table 5: verification (errors in % of the lab value)\n\n"
-         + _md(rows, ["specimen", "response", "lab", "DEM, single pass", "error",
-                      "DEM, closed loop", "error", "paper (PFC3D)", "paper error"]) + "\n")
+            if ran:
+                row = [spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]),
+                       _f(r[f"single_pass_{k}"]), _f(r[f"single_pass_{k}_err_pct"], "+.2f"),
+                       _f(r[f"closed_loop_{k}"]), _f(r[f"closed_loop_{k}_err_pct"], "+.2f")]
+            else:
+                row = [spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]), "not run", "", "not run", ""]
+            if ref:
+                row += [_f(th[k]) if th else "–", _f(th["err_pct"][k], ".2f") if th else "–"]
+            rows.append(row)
+    header = ["specimen", "response", "lab", "DEM, single pass", "error", "DEM, closed loop", "error"]
+    if ref:
+        header += ["paper (PFC3D)", "paper error"]
+    s = ("## Table 5: verification (errors in % of the lab value)\n\n" + _md(rows, header) + "\n")
+    if notes:
+        s += "\n" + "\n".join(notes) + "\n"
     f6 = outdir / "tables" / "table6_prepeak_energy.csv"
     if f6.exists():
         t6 = pd.read_csv(f6, index_col=0)
         rows = []
         for spec, r in t6.iterrows():
-            th = paper.PREPEAK.get(spec, {})
+            th = paper.PREPEAK.get(spec, {}) if ref else {}
             if th:
                 _cmp(comp, "Table 6", f"{spec} Up, DEM", r["sim_Up_MJm3"], th["sim"], "MJ/m³")
                 _cmp(comp, "Table 6", f"{spec} Up error %", r["rel_error_pct"], th["err_pct"],
                      "%")
-            rows.append([spec, _f(r["lab_Up_MJm3"]), _f(r["sim_Up_MJm3"]),
-                         _f(r["rel_error_pct"], ".1f"), _f(th.get("sim")),
-                         _f(th.get("err_pct"), ".1f")])
-        s += ("\n## Table 6: pre-peak energy density Up (MJ/m³)\n\n"
-              + _md(rows, ["specimen", "lab", "DEM (ours)", "error %", "paper PFC3D",
-                           "paper error %"]) + "\n")
+            row = [spec, _f(r["lab_Up_MJm3"]), _f(r["sim_Up_MJm3"]), _f(r["rel_error_pct"], ".1f")]
+            if ref:
+                row += [_f(th.get("sim")), _f(th.get("err_pct"), ".1f")]
+            rows.append(row)
+        header = ["specimen", "lab", "DEM (ours)" if ref else "DEM", "error %"]
+        if ref:
+            header += ["paper PFC3D", "paper error %"]
+        s += ("\n## Table 6: pre-peak energy density Up (MJ/m³)\n\n" + _md(rows, header) + "\n")
     sc = outdir / "verification" / "seed_scatter" / "seed_scatter.csv"
     if sc.exists():
         t = pd.read_csv(sc)
@@ -293,7 +363,7 @@ def _verification(outdir, comp) -> str:
     return s
 
 
-def _ratio(outdir, comp) -> str:
+def _ratio(outdir, comp, ref=False) -> str:
     f = outdir / "ratio_sweep" / "chosen.json"
     if not f.exists():
         return ""
@@ -309,18 +379,22 @@ def _ratio(outdir, comp) -> str:
                 f"{getattr(r, 'reason', '') if isinstance(getattr(r, 'reason', ''), str) else ''}"
                 for r in bad.itertuples()) + "\n"
     if ch.get("chosen_ratio") is None:
+        s = (f"## Bond-strength ratio\n\nNo ratio chosen: {ch.get('reason', '')}. The "
+             "calibration used the configured ratio (calibration.ratio)")
+        if not ref:
+            return s + ".\n" + failed
         _cmp(comp, "Ratio sweep", "bond-strength ratio a", None, paper.RATIO)
-        return (f"## Bond-strength ratio\n\nNo ratio chosen: {ch.get('reason', '')}. The "
-                "calibration used the configured ratio (calibration.ratio); the paper chose "
-                f"{paper.RATIO:g}.\n" + failed)
+        return s + f"; the paper chose {paper.RATIO:g}.\n" + failed
+    s = (f"## Bond-strength ratio\n\nChosen a = σcp/τcp = {ch['chosen_ratio']:g} "
+         f"({ch['criterion']} {_f(ch['value'])} vs target {ch['target']:g})")
+    if not ref:
+        return s + ".\n" + failed
     _cmp(comp, "Ratio sweep", "bond-strength ratio a", ch["chosen_ratio"], paper.RATIO)
-    return (f"## Bond-strength ratio\n\nChosen a = σcp/τcp = {ch['chosen_ratio']:g} "
-            f"({ch['criterion']} {_f(ch['value'])} vs target {ch['target']:g}); the paper "
-            f"chose {paper.RATIO:g} (difference {ch['chosen_ratio'] - paper.RATIO:+.1f}).\n"
-            + failed)
+    return (s + f"; the paper chose {paper.RATIO:g} (difference "
+            f"{ch['chosen_ratio'] - paper.RATIO:+.1f}).\n" + failed)
 
 
-def _impact(outdir, cfg, comp) -> str:
+def _impact(outdir, cfg, comp, ref=False) -> str:
     from ..io.h5 import read_summary
 
     v = f"{float(cfg['impact']['velocity']):g}"
@@ -329,24 +403,33 @@ def _impact(outdir, cfg, comp) -> str:
         return ""
     s = read_summary(f)
     if s.get("status") != "ok":
-        _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", None,
-             paper.IMPACT["W_in_J"], "J")
-        _cmp(comp, "Impact", "eta_f = G_f / W_in", None, paper.IMPACT["eta_f"])
+        if ref:
+            _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", None,
+                 paper.IMPACT["W_in_J"], "J")
+            _cmp(comp, "Impact", "eta_f = G_f / W_in", None, paper.IMPACT["eta_f"])
         return (f"## Drop-hammer impact at {v} m/s\n\nThe impact run failed: "
                 f"{s.get('error', '')}\n")
     sc = float(cfg["impact"]["scale"]) ** 3
     w_full = s["W_in_J"] / sc
-    _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", w_full,
-         paper.IMPACT["W_in_J"], "J")
-    _cmp(comp, "Impact", "eta_f = G_f / W_in", s["eta_f"], paper.IMPACT["eta_f"])
-    rows = [["W_in (J), scaled to full size", _f(w_full, ".1f"),
-             _f(paper.IMPACT["W_in_J"], ".1f"), _pct(w_full, paper.IMPACT["W_in_J"])],
-            ["η_f = G_f / W_in", _f(100 * s["eta_f"], ".1f") + " %",
-             _f(100 * paper.IMPACT["eta_f"], ".1f") + " %", _pct(s["eta_f"], paper.IMPACT["eta_f"])],
-            ["energy closure (max over time)", _f(100 * s["closure_rel_max"], ".3f") + " %",
-             "–", "–"]]
-    out = (f"## Drop-hammer impact at {v} m/s\n\n"
-           + _md(rows, ["quantity", "ours", "paper", "difference"]) + "\n")
+    if ref:
+        _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", w_full,
+             paper.IMPACT["W_in_J"], "J")
+        _cmp(comp, "Impact", "eta_f = G_f / W_in", s["eta_f"], paper.IMPACT["eta_f"])
+        rows = [["W_in (J), scaled to full size", _f(w_full, ".1f"),
+                 _f(paper.IMPACT["W_in_J"], ".1f"), _pct(w_full, paper.IMPACT["W_in_J"])],
+                ["η_f = G_f / W_in", _f(100 * s["eta_f"], ".1f") + " %",
+                 _f(100 * paper.IMPACT["eta_f"], ".1f") + " %",
+                 _pct(s["eta_f"], paper.IMPACT["eta_f"])],
+                ["energy closure (max over time)", _f(100 * s["closure_rel_max"], ".3f") + " %",
+                 "–", "–"]]
+        header = ["quantity", "ours", "paper", "difference"]
+    else:
+        rows = [["W_in (J), scaled to full size", _f(w_full, ".1f")],
+                ["η_f = G_f / W_in", _f(100 * s["eta_f"], ".1f") + " %"],
+                ["energy closure (max over time)", _f(100 * s["closure_rel_max"], ".3f") + " %"]]
+        header = ["quantity", "value"]
+    out = f"## Drop-hammer impact at {v} m/s\n\n" + _md(rows, header) + "\n"
+    out += _impact_card_note(outdir)
     out += (f"\nStages: crack initiation {1e3 * s['t_initiation_s']:.3f} ms, peak crack rate "
             f"{1e3 * s['t_peak_rate_s']:.3f} ms, through-failure {1e3 * s['t_through_s']:.3f} ms"
             f" after first contact ({s.get('cracks_after_burst', 0)} of the "
@@ -363,3 +446,23 @@ def _impact(outdir, cfg, comp) -> str:
             out += (f"\nJK fit t10 = A (1 − exp(−b Ecs)): A = {fit['A']:.1f} %, b = "
                     f"{fit['b']:.3g} t/kWh, A·b = {fit['Ab']:.1f} ({fit['n']} velocities)\n")
     return out
+
+
+def _impact_card_note(outdir) -> str:
+    """Say so when the impact's specimen has no verified calibration (the impact rule uses
+    the first lab specimen's verified card; if its closed loop did not run, or did not
+    converge from an unreachable start, the parameters are not a calibrated rock)."""
+    t = outdir / "tables" / "calibration.csv"
+    if not t.exists():
+        return ""
+    first = str(pd.read_csv(t)["specimen"].iloc[0])
+    f = outdir / "verification" / first / "card.yaml"
+    if not f.exists():
+        return ""
+    card = yaml.safe_load(f.read_text())
+    if card.get("status") == "unreachable":
+        v = card.get("verification", {})
+        return (f"\n**Not a calibrated rock:** the impact used specimen {first}'s card, whose "
+                f"inversion is unreachable (closed loop: {v.get('status')}); its parameters are the "
+                "closest point inside the sampled ranges, not a calibration.\n")
+    return ""

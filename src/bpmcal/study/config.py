@@ -115,7 +115,12 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
         if not lab.is_file():
             msgs.append(f"lab.csv: file {cfg['lab']['csv']!r} not found (relative to {base})")
         else:
-            msgs.extend(_check_lab(lab, cfg["lab"]["csv"]))
+            lab_msgs = _check_lab(lab, cfg["lab"]["csv"])
+            msgs.extend(lab_msgs)
+            if not lab_msgs:
+                msgs.extend(_check_reference(cfg, lab))
+    if not msgs:
+        msgs.extend(_check_calibration_space(cfg))
     return msgs
 
 
@@ -157,6 +162,66 @@ def _sweep_checks(cfg: dict) -> list[str]:
     if len(set(ids)) != len(ids):
         return [f"ratio_sweep.ratios: step {step:g} is finer than 0.01: ratios would share "
                 "a run name (a{100 x ratio})"]
+    return []
+
+
+def _check_calibration_space(cfg: dict) -> list[str]:
+    """The calibration works inside the design space: fixed values inside their ranges,
+    ``calibration.bounds`` only narrowing the ranges of calibrated parameters, and (with a
+    strength ratio) some cohesion whose derived tensile strength lies in its range."""
+    msgs = []
+    rng, cal = cfg["ranges"], cfg["calibration"]
+    ratio = cal.get("ratio")
+    free = list(cal.get("free", []))
+    derived = ["pb_ten_MPa"] if ratio and "pb_ten_MPa" not in free else []
+    for name, v in cal["fixed"].items():
+        lo, hi = rng[name]
+        if not lo <= v <= hi:
+            msgs.append(f"calibration.fixed.{name}: {v:g} is outside ranges.{name} [{lo:g}, {hi:g}], "
+                        "the sampled space (the regression is not valid there): fix a value inside "
+                        f"it, or widen ranges.{name}")
+    box = {k: tuple(rng[k]) for k in rng}
+    for name, (lo, hi) in (cal.get("bounds") or {}).items():
+        rlo, rhi = rng[name]
+        if not lo < hi:
+            msgs.append(f"calibration.bounds.{name}: low {lo:g} must be below high {hi:g}")
+        elif name not in free + derived:
+            msgs.append(f"calibration.bounds.{name}: {name} is not calibrated (calibration.free: "
+                        f"{free}" + (", derived: pb_ten_MPa" if derived else "")
+                        + "); bounds apply to calibrated parameters only")
+        elif lo < rlo or hi > rhi:
+            msgs.append(f"calibration.bounds.{name}: [{lo:g}, {hi:g}] reaches beyond ranges.{name} "
+                        f"[{rlo:g}, {rhi:g}], the sampled space (the regression is not valid "
+                        f"outside it): narrow the bounds, or widen ranges.{name}")
+        else:
+            box[name] = (lo, hi)
+    if not msgs and derived and "pb_coh_MPa" in free:
+        (clo, chi), (tlo, thi) = box["pb_coh_MPa"], box["pb_ten_MPa"]
+        if not max(clo, tlo / ratio) < min(chi, thi / ratio):
+            msgs.append(f"calibration.ratio: {ratio:g} x pb_coh_MPa in [{clo:g}, {chi:g}] never falls "
+                        f"inside pb_ten_MPa [{tlo:g}, {thi:g}]: widen ranges.pb_ten_MPa or "
+                        "ranges.pb_coh_MPa, or change the ratio")
+    return msgs
+
+
+def _check_reference(cfg: dict, lab: Path) -> list[str]:
+    """``study.reference: yu2026`` puts the paper's published values beside the results;
+    that only means something for the paper's specimens B1-B3."""
+    if cfg["study"].get("reference") != "yu2026":
+        return []
+    from ..report.paper import LAB
+
+    df = read_lab(lab)
+    bad = []
+    for rec in df.to_dict("records"):
+        pub = LAB.get(str(rec["specimen"]))
+        if pub is None or any(abs(float(rec[k]) - pub[k]) > 1e-9 * abs(pub[k])
+                              for k in ("ucs_MPa", "E_GPa", "nu")):
+            bad.append(str(rec["specimen"]))
+    if bad:
+        return [f"study.reference: yu2026 compares the results with the paper's green sandstone "
+                f"specimens {sorted(LAB)}, but lab.csv {cfg['lab']['csv']!r} holds other data "
+                f"(specimen(s) {bad}); set study.reference: none for another rock"]
     return []
 
 
@@ -202,14 +267,21 @@ def lab_problems(df, key: str) -> list[str]:
 
 
 def read_lab(path):
-    """The lab specimens table as read everywhere (specimen names kept as text, e.g.
-    "007" stays "007"; the values as text until checked). Raises ConfigError for a file
-    that is not a CSV table."""
+    """The lab specimens table as read everywhere: lines whose first non-blank character is
+    ``#`` are comments (the data's source, units, notes) and are skipped; specimen names
+    are kept as text ("007" stays "007") and the values as text until checked. Raises
+    ConfigError for a file that is not a CSV table."""
+    import io
+
     import pandas as pd
 
     try:
-        return pd.read_csv(path, dtype=str, keep_default_na=False, na_values=[""])
-    except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError,
+        text = Path(path).read_text()
+        body = "".join(ln for ln in text.splitlines(keepends=True)
+                       if not ln.lstrip().startswith("#"))
+        return pd.read_csv(io.StringIO(body), dtype=str, keep_default_na=False,
+                           na_values=[""])
+    except (OSError, pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError,
             ValueError) as e:
         raise ConfigError(f"lab.csv: cannot read {str(path)!r}: "
                           f"{' '.join(str(e).split())[:200]}") from None

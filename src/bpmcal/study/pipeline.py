@@ -142,11 +142,18 @@ def regress(dataset_csv, selected_json, out_dir, tables_dir, figures_dir, *, alp
 
 
 # ------------------------------------------------------------------------ calibration
-def calibrate(dataset_csv, models_json, lab_csv, out_dir, *, fixed: dict, ratio=1.4,
-              free=None, n_boot=200, seed=0, tables_dir=None) -> dict:
+def calibrate(dataset_csv, models_json, lab_csv, out_dir, *, fixed: dict, ranges: dict, bounds=None,
+              ratio=1.4, free=None, n_boot=200, seed=0, tables_dir=None) -> dict:
     """Invert the final regression models for every lab specimen; bootstrap intervals;
-    one material card per specimen (YAML). ``n_boot=0`` skips the bootstrap (the initial
-    calibration that only seeds the strength-ratio sweep needs the point estimate)."""
+    one material card per specimen (YAML). ``ranges`` is the design space the dataset was
+    sampled over (the config's ``ranges``) and bounds the free parameters; ``bounds`` (the
+    config's ``calibration.bounds``) may narrow it. ``n_boot=0`` skips the bootstrap (the
+    initial calibration that only seeds the strength-ratio sweep needs the point estimate).
+
+    Every card records the configured ``ranges``, the effective ``bounds`` of the calibrated
+    parameters with the configured key each side comes from, and, when the targets are not
+    met, ``widen``: which configured limit to move and how far (see
+    :func:`bpmcal.analysis.invert`)."""
     from ..analysis import bootstrap_intervals, invert, models_from_dict
     from ..io.paths import child_path
     from .config import load_lab
@@ -155,15 +162,17 @@ def calibrate(dataset_csv, models_json, lab_csv, out_dir, *, fixed: dict, ratio=
     models = models_from_dict(json.loads(Path(models_json).read_text()))
     lab = load_lab(lab_csv)  # specimen names checked: they become file names
     out = Path(out_dir)
+    bounds = dict(bounds or {})
     rows = []
     for rec in lab.to_dict("records"):
         spec = str(rec["specimen"])
         card_path = child_path(out, spec, ".yaml")  # never outside out_dir
         targets = {k: float(rec[k]) for k in P.TARGETS}
-        inv = invert(models, targets, fixed, free=free, ratio=ratio, seed=seed)
+        inv = invert(models, targets, fixed, free=free, bounds=bounds, ratio=ratio, ranges=ranges,
+                     seed=seed)
         if n_boot:
-            boot = bootstrap_intervals(df, models, targets, fixed, free=free, ratio=ratio,
-                                       n_boot=n_boot, seed=seed)
+            boot = bootstrap_intervals(df, models, targets, fixed, free=free, bounds=bounds,
+                                       ratio=ratio, ranges=ranges, n_boot=n_boot, seed=seed)
             bootstrap = {"n_boot": n_boot, "scheme": boot.scheme,
                          "unreachable_resamples": boot.n_unreachable,
                          "intervals": boot.intervals.reset_index().to_dict("records")}
@@ -178,6 +187,14 @@ def calibrate(dataset_csv, models_json, lab_csv, out_dir, *, fixed: dict, ratio=
             "parameters": {k: float(inv.solution[k]) for k in P.PARAMS},
             "roles": {k: ("free" if k in inv.free else "derived" if k in inv.derived
                           else "fixed") for k in P.PARAMS},
+            "ranges": {k: [float(a), float(b)] for k, (a, b) in inv.ranges.items()},
+            "calibration_bounds": {k: [float(a), float(b)] for k, (a, b) in bounds.items()},
+            "bounds": {k: {"lower": lo, "upper": hi, "lower_from": inv.bound_origins[k]["lower"],
+                           "upper_from": inv.bound_origins[k]["upper"]}
+                       for k, (lo, hi) in inv.bounds.items()},
+            "at_bound": [{"parameter": p, "side": side, "value": v} for p, side, v in inv.at_bound],
+            "widen": inv.widen,
+            "advice": inv.advice,
             "targets": targets,
             "lab": {k: (None if (isinstance(v, float) and not math.isfinite(v)) else v)
                     for k, v in rec.items() if k != "specimen"},
@@ -187,7 +204,8 @@ def calibrate(dataset_csv, models_json, lab_csv, out_dir, *, fixed: dict, ratio=
             "bootstrap": bootstrap,
             "dataset_note": note,
             "provenance": provenance(dataset=str(dataset_csv), models=str(models_json),
-                                     lab=str(lab_csv), fixed=fixed, ratio=ratio, seed=seed),
+                                     lab=str(lab_csv), fixed=fixed, ratio=ratio, seed=seed,
+                                     ranges=ranges, bounds=bounds),
         }
         write_yaml(card_path, card)
         row = {"specimen": spec, "status": inv.status, **card["parameters"],
@@ -205,20 +223,42 @@ def read_card(path) -> dict:
 
 # ------------------------------------------------------------------------ verification
 def verify(card_path, models_json, out_dir, *, geometry, settings, seed=1, rtol=0.01,
-           max_rounds=5, cache=None, threads=None, free=None, progress=None) -> dict:
+           max_rounds=5, cache=None, threads=None, free=None, progress=None,
+           from_unreachable=False) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within ``rtol`` (relative) of the lab
-    value, or ``max_rounds`` DEM runs are used up. Every round is a run file."""
+    value, or ``max_rounds`` DEM runs are used up. Every round is a run file. The loop
+    stays inside the card's bounds (its design ``ranges``, narrowed by its
+    ``calibration_bounds``).
+
+    A card whose inversion is ``unreachable`` is not a calibration: unless
+    ``from_unreachable`` (config ``verification.from_unreachable``) the DEM is not run, and
+    the verified card says so (``verification.status: not-run`` with the reason and what to
+    widen); ``rounds.csv`` then has its header only."""
     from ..analysis import ClosedLoop, models_from_dict
     from ..io.h5 import read_summary
     from ..lab.runner import run_ucs_file
 
     card = read_card(card_path)
-    models = models_from_dict(json.loads(Path(models_json).read_text()))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    if "ranges" not in card:
+        raise P.ParameterError(f"{card_path}: the card has no 'ranges' (the design space); it was "
+                               "written by an older bpmcal: rerun the calibrate step")
     targets = {k: float(v) for k, v in card["targets"].items()}
+    if card.get("status") == "unreachable" and not from_unreachable:
+        reason = ("the calibration is unreachable, so the closed loop did not start from it "
+                  "(verification.from_unreachable: false); " + str(card.get("message", "")))
+        write_table(pd.DataFrame(columns=["run_file", "round"]), out / "rounds.csv", index=False)
+        verified = dict(card)
+        verified["verification"] = {
+            "status": "not-run", "message": reason, "rounds": 0, "rtol": rtol, "seed": seed,
+            "best_round": None, "single_pass": None, "closed_loop": None, "parameters": None,
+            "widen": card.get("widen", []), "geometry": geometry.to_dict()}
+        write_yaml(out / "card.yaml", verified)
+        return verified
+    models = models_from_dict(json.loads(Path(models_json).read_text()))
     ratio = card.get("ratio_ten_coh")
     runs = []
 
@@ -235,16 +275,21 @@ def verify(card_path, models_json, out_dir, *, geometry, settings, seed=1, rtol=
 
     free = free or [k for k, v in card["roles"].items() if v == "free"]
     loop = ClosedLoop(simulate, targets, free=free, ratio=ratio, models=models, rtol=rtol,
-                      max_rounds=max_rounds)
+                      max_rounds=max_rounds, ranges=card["ranges"],
+                      bounds=card.get("calibration_bounds") or None)
     res = loop.run(card["parameters"])
     hist = res.history.copy()
     hist.insert(0, "run_file", [str(f.name) for f in runs][: len(hist)])
     write_table(hist, out / "rounds.csv", index=False)
     best_round = int(np.argmin([_max_err(read_summary(f), targets) for f in runs])) + 1
+    message = res.message
+    if card.get("status") == "unreachable":
+        message = ("started from an unreachable calibration at the user's request "
+                   f"(verification.from_unreachable: true): {message}")
     verified = dict(card)
     verified.update({
         "verification": {
-            "status": res.status, "message": res.message, "rounds": len(runs),
+            "status": res.status, "message": message, "rounds": len(runs),
             "rtol": rtol, "seed": seed, "best_round": best_round,
             "single_pass": _responses(read_summary(runs[0]), targets),
             "closed_loop": _responses(read_summary(runs[best_round - 1]), targets),
@@ -297,7 +342,9 @@ def seed_scatter_runs(card_path, out_dir, *, geometry, settings, seeds, rtol=0.0
 
 def verification_tables(cards: dict, lab_csv, tables_dir, figures_dir,
                         scatter_csv=None) -> dict:
-    """Tables 5 and 6 and Fig. 6 from the verified cards (specimen -> card path)."""
+    """Tables 5 and 6 and Fig. 6 from the verified cards (specimen -> card path). A card
+    whose closed loop did not run (``not-run``) keeps its row, with empty responses, status
+    ``not-run`` and the reason in ``note``; its Fig. 6 panel says why it has no curve."""
     from ..io.h5 import read_series
     from ..plots.calibration import fig_stress_strain
     from ..plots.style import save
@@ -309,24 +356,30 @@ def verification_tables(cards: dict, lab_csv, tables_dir, figures_dir,
         c = read_card(path)
         v = c["verification"]
         row = {"specimen": spec}
+        ran = v["status"] != "not-run"
         for which in ("single_pass", "closed_loop"):
-            r = v[which]
+            r = v[which] if ran else None
             for k in P.TARGETS:
-                row[f"{which}_{k}"] = r[k]
-                row[f"{which}_{k}_err_pct"] = r["errors_pct"][k]
+                row[f"{which}_{k}"] = r[k] if ran else math.nan
+                row[f"{which}_{k}_err_pct"] = r["errors_pct"][k] if ran else math.nan
         for k in P.TARGETS:
             row[f"lab_{k}"] = c["targets"][k]
         row["rounds"] = v["rounds"]
         row["status"] = v["status"]
+        row["calibration_status"] = c.get("status")
+        row["note"] = "" if ran else v["message"]
         t5.append(row)
         up_lab = c["lab"].get("u_pre_MJm3")
-        up_sim = v["closed_loop"]["u_pre_MJm3"]
+        up_sim = v["closed_loop"]["u_pre_MJm3"] if ran else math.nan
         t6.append({"specimen": spec, "sim_Up_MJm3": up_sim, "lab_Up_MJm3": up_lab,
                    "rel_error_pct": (100 * abs(up_sim - up_lab) / up_lab
-                                     if up_lab else math.nan),
-                   "sim_peak_strain": v["closed_loop"]["peak_strain"]})
-        best = Path(path).parent / f"round{v['best_round']}.h5"
-        curves[spec] = read_series(best)
+                                     if up_lab and ran else math.nan),
+                   "sim_peak_strain": v["closed_loop"]["peak_strain"] if ran else math.nan})
+        if ran:
+            best = Path(path).parent / f"round{v['best_round']}.h5"
+            curves[spec] = read_series(best)
+        else:
+            curves[spec] = f"not run: {c.get('status')} calibration"
     t5 = pd.DataFrame(t5).set_index("specimen")
     t6 = pd.DataFrame(t6).set_index("specimen")
     tab, fig = Path(tables_dir), Path(figures_dir)

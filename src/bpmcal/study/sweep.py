@@ -4,9 +4,12 @@ With a calibrated parameter set held otherwise fixed, the ratio a = sigma_cp / t
 over a grid (0.5 to 2.0 by 0.1). For every a, tau_cp is chosen so that the regression's
 predicted sigma_c stays at the calibration target (sigma_cp = a tau_cp; a bracketing
 root search on the final sigma_c model) - the constraint the paper's procedure implies.
-A ratio whose tau_cp or sigma_cp falls outside the sampled Table 2 range is still run but
-flagged ``extrapolated``. A ratio for which no tau_cp in [1, 300] MPa reaches the target
-(e.g. the refitted sigma_c model no longer depends on tau_cp) is kept in the plan with
+The root is searched from near zero up to four times the largest cohesion the sampled
+ranges allow at that ratio (``max(ranges.pb_coh_MPa, ranges.pb_ten_MPa / a)``; the ranges
+are the card's, i.e. the study's design space). A ratio whose tau_cp or sigma_cp falls
+outside the sampled ranges is still run but flagged ``extrapolated``. A ratio for which
+no tau_cp in that interval reaches the target (e.g. the refitted sigma_c model no longer
+depends on tau_cp) is kept in the plan with
 ``status`` "unreachable" and the reason: its run becomes a failure record (``bpmcal ucs``
 does not run it), the analysis leaves it out, and when no ratio is usable the chosen-ratio
 file says so (``chosen_ratio`` null) and the calibration keeps the configured ratio.
@@ -51,8 +54,13 @@ def ratio_id(a: float) -> str:
 def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
     """One row per ratio: sample_id ("a050" for a = 0.50), the 8 parameters, seed,
     ratio, extrapolated flag, status ("planned" or "unreachable") and reason.
-    ``ucs_model``: the final regression model of sigma_c."""
+    ``ucs_model``: the final regression model of sigma_c; ``card``: a material card (its
+    ``ranges`` are the study's design space)."""
     from scipy.optimize import brentq
+
+    if "ranges" not in card:
+        raise P.ParameterError("the card has no 'ranges' (the design space); it was written by "
+                               "an older bpmcal: rerun the calibrate step")
 
     ids = [ratio_id(a) for a in ratios]
     if len(set(ids)) != len(ids):
@@ -60,13 +68,15 @@ def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
                                "(a step finer than 0.01)")
     base = {k: float(v) for k, v in card["parameters"].items()}
     target = float(card["targets"]["ucs_MPa"])
-    lo, hi = P.PARAMS["pb_coh_MPa"].lo, P.PARAMS["pb_coh_MPa"].hi
+    clo, chi = (float(v) for v in card["ranges"]["pb_coh_MPa"])
+    tlo, thi = (float(v) for v in card["ranges"]["pb_ten_MPa"])
     rows = []
     for a in ratios:
         def resid(coh):
             p = dict(base, pb_coh_MPa=coh, pb_ten_MPa=a * coh)
             return float(ucs_model.predict(pd.DataFrame([p]))[0]) - target
-        grid = np.linspace(1.0, 300.0, 600)
+        top = 4.0 * max(chi, thi / a)
+        grid = np.linspace(top / 600, top, 600)
         vals = np.array([resid(c) for c in grid])
         cross = np.flatnonzero(np.sign(vals[:-1]) != np.sign(vals[1:]))
         if cross.size == 0 or not np.isfinite(vals).all():
@@ -81,15 +91,14 @@ def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
             rows.append({"sample_id": ratio_id(a), **base, "pb_coh_MPa": math.nan,
                          "pb_ten_MPa": math.nan, "seed": int(seed), "ratio": a,
                          "extrapolated": False, "status": UNREACHABLE,
-                         "reason": f"no tau_cp in [1, 300] MPa gives the target sigma_c "
+                         "reason": f"no tau_cp in [{grid[0]:.3g}, {top:.4g}] MPa gives the target sigma_c "
                                    f"{target:g} MPa at a = {a:g} ({span})"})
             continue
         # the root nearest the calibrated cohesion
         roots = [brentq(resid, grid[c], grid[c + 1]) for c in cross]
         coh = min(roots, key=lambda r: abs(r - base["pb_coh_MPa"]))
         ten = a * coh
-        extrap = not (lo <= coh <= hi and P.PARAMS["pb_ten_MPa"].lo <= ten
-                      <= P.PARAMS["pb_ten_MPa"].hi)
+        extrap = not (clo <= coh <= chi and tlo <= ten <= thi)
         rows.append({"sample_id": ratio_id(a), **base, "pb_coh_MPa": coh,
                      "pb_ten_MPa": ten, "seed": int(seed), "ratio": a,
                      "extrapolated": extrap, "status": PLANNED, "reason": ""})
