@@ -1,6 +1,8 @@
 """The ``bpmcal`` command: one subcommand per job of the study (workflow rules call these).
 
     bpmcal ucs --params FILE.yaml --out RUN.h5 [--set NAME=VALUE ...] [--scale S] [--seed N]
+    bpmcal bts --params FILE.yaml --out RUN.h5 [--scale S] [--seed N] [--platen-velocity V]
+    bpmcal triaxial --params FILE.yaml --sigma3 MPA --out RUN.h5 [--scale S] [--seed N]
     bpmcal summary RUN.h5 [--json]
     bpmcal vtk RUN.h5 --out DIR
 
@@ -166,6 +168,88 @@ def cmd_ucs(a) -> int:
                   f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
                   f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
                   f"({s['stop_reason']})")
+    else:
+        prog.done(f"{a.out}: FAILED ({out.error}); failure record written")
+    return 0
+
+
+def _run_params(a) -> tuple[dict, int]:
+    """Parameters and seed of a run command: --params (+ --set), or a --design row."""
+    if a.design is not None:
+        if a.sample is None:
+            raise P.ParameterError("--design needs --sample ID")
+        params, seed = params_from_design(a.design, a.sample)
+        params.update(_parse_set(a.set))
+        params = P.validate_params(params)
+        seed = seed if a.seed is None else a.seed
+    else:
+        params = load_params(a.params, a.set)
+        seed = 1 if a.seed is None else a.seed
+    return params, int(seed)
+
+
+def _stress_mpa(name, text) -> float:
+    """A stress in MPa >= 0 from the command line (one clear error line otherwise)."""
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        raise P.ParameterError(f"{name} {text!r}: expected a stress in MPa (a number "
+                               ">= 0)") from None
+    if not (math.isfinite(v) and v >= 0):
+        raise P.ParameterError(f"{name} {text!r}: expected a stress in MPa >= 0 "
+                               "(compression positive)")
+    return v
+
+
+def cmd_bts(a) -> int:
+    from .lab.brazilian import BTSSettings
+    from .lab.runner import bts_geometry, run_bts_file
+
+    params, seed = _run_params(a)
+    geo = bts_geometry(scale=a.scale, diameter_mm=a.diameter, thickness_mm=a.thickness,
+                       sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
+                       relax_ratio=a.relax_ratio)
+    st = BTSSettings(platen_velocity=a.platen_velocity, platen_fric=a.platen_fric,
+                     damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
+                     record_strain=a.record_strain)
+    prog = Progress(f"bts {Path(a.out).name}", enabled=not a.quiet)
+    out = run_bts_file(a.out, params, seed, geo, st, cache=a.specimen_cache, progress=prog,
+                       threads=a.threads)
+    if out.status == "ok":
+        s = out.summary
+        prog.done(f"{a.out}: sigma_t = {s['bts_MPa']:.3f} MPa (peak load "
+                  f"{s['peak_load_N']:.1f} N, platen forces differ by "
+                  f"{100 * s['platen_mismatch']:.2f} %), cracks {s['cracks_tension']}+"
+                  f"{s['cracks_shear']}, {s['n_balls']} balls, {s['steps']} steps, "
+                  f"{s['wall_s']:.1f} s ({s['stop_reason']})")
+    else:
+        prog.done(f"{a.out}: FAILED ({out.error}); failure record written")
+    return 0
+
+
+def cmd_triaxial(a) -> int:
+    from .lab.runner import run_triaxial_file
+    from .lab.triaxial import TriaxialSettings
+
+    sigma3 = _stress_mpa("--sigma3", a.sigma3)  # before any work
+    params, seed = _run_params(a)
+    geo = run_geometry(a)
+    st = TriaxialSettings(sigma3=sigma3 * 1e6, platen_velocity=a.platen_velocity,
+                          strain_rate=a.strain_rate, damping=a.damping,
+                          stop_drop=a.stop_drop, max_strain=a.max_strain,
+                          platen_fric=a.platen_fric, record_strain=a.record_strain,
+                          servo_alpha=a.servo_gain, servo_interval=a.servo_interval)
+    prog = Progress(f"triaxial {Path(a.out).name}", enabled=not a.quiet)
+    out = run_triaxial_file(a.out, params, seed, geo, st, cache=a.specimen_cache,
+                            progress=prog, threads=a.threads)
+    if out.status == "ok":
+        s = out.summary
+        dev = (f"{100 * s['sigma3_maxdev_rel']:.2f} %" if sigma3 > 0
+               else f"{s['sigma3_maxdev_MPa']:.3f} MPa")
+        prog.done(f"{a.out}: sigma3 = {sigma3:g} MPa, sigma1 = {s['sigma1_MPa']:.3f} MPa, "
+                  f"E = {s['E_GPa']:.3f} GPa, nu = {s['nu']:.3f}, sigma3 held within {dev} "
+                  f"up to the peak, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
+                  f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
     else:
         prog.done(f"{a.out}: FAILED ({out.error}); failure record written")
     return 0
@@ -485,6 +569,74 @@ def build_parser() -> argparse.ArgumentParser:
     add_run_args(u)
     u.add_argument("--quiet", action="store_true", help="no progress output")
     u.set_defaults(func=cmd_ucs)
+
+    b = sub.add_parser("bts", help="one virtual Brazilian (diametral compression) test -> HDF5",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       epilog=_param_help())
+    b.add_argument("--params", help="YAML file with the 8 meso-parameters (or a material "
+                                    "card)", default=None)
+    b.add_argument("--design", default=None,
+                   help="take the parameters and the seed from this design CSV ...")
+    b.add_argument("--sample", default=None, help="... row with this sample_id")
+    b.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
+    b.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="override one parameter (repeatable)")
+    b.add_argument("--seed", type=int, default=None,
+                   help="packing seed (default 1, or the design row's)")
+    b.add_argument("--scale", type=_positive("scale"), default=1.0,
+                   help="specimen size factor on the ISRM 50 x 25 mm disc (default 1)")
+    b.add_argument("--diameter", type=_positive("diameter"), default=50.0,
+                   help="disc diameter before scaling [mm] (default 50)")
+    b.add_argument("--thickness", type=_positive("thickness"), default=25.0,
+                   help="disc thickness before scaling [mm] (default 25, ISRM t = D/2)")
+    b.add_argument("--platen-velocity", type=_positive("platen-velocity"), default=0.0125,
+                   help="speed of each platen [m/s] (default 0.0125)")
+    b.add_argument("--platen-fric", type=float, default=0.3,
+                   help="platen friction coefficient (default 0.3; > 0 keeps the free disc "
+                        "from spinning on the platens)")
+    b.add_argument("--damping", type=float, default=0.7, help="local damping (default 0.7)")
+    b.add_argument("--stop-drop", type=_fraction("stop-drop"), default=0.7,
+                   help="stop when the load < this fraction of the peak after it "
+                        "(default 0.7)")
+    b.add_argument("--max-strain", type=_positive("max-strain"), default=0.05,
+                   help="stop at this platen approach / D (default 0.05)")
+    b.add_argument("--record-strain", type=_positive("record-strain"), default=1e-5,
+                   help="platen approach / D between records (default 1e-5)")
+    b.add_argument("--sigma0", type=float, default=0.1,
+                   help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
+    b.add_argument("--install-gap", type=float, default=0.0,
+                   help="bond pairs with surface gap <= this [mm] (default 0)")
+    b.add_argument("--relax-ratio", type=_positive("relax-ratio"), default=1e-2,
+                   help="genesis equilibrium: mean unbalanced-force ratio (default 1e-2)")
+    b.add_argument("--threads", type=int, default=None, help="numba threads")
+    b.add_argument("--specimen-cache", default=None,
+                   help="directory of cached packings (default ~/.cache/bpmcal/packings or "
+                        "$BPMCAL_SPECIMEN_CACHE)")
+    b.add_argument("--quiet", action="store_true", help="no progress output")
+    b.set_defaults(func=cmd_bts)
+
+    t = sub.add_parser("triaxial", help="one virtual triaxial compression test -> HDF5",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       epilog=_param_help())
+    t.add_argument("--params", help="YAML file with the 8 meso-parameters (or a material "
+                                    "card)", default=None)
+    t.add_argument("--design", default=None,
+                   help="take the parameters and the seed from this design CSV ...")
+    t.add_argument("--sample", default=None, help="... row with this sample_id")
+    t.add_argument("--sigma3", required=True, metavar="MPA",
+                   help="confining stress [MPa] >= 0, held by a servo-controlled lateral wall")
+    t.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
+    t.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="override one parameter (repeatable)")
+    t.add_argument("--seed", type=int, default=None,
+                   help="packing seed (default 1, or the design row's)")
+    t.add_argument("--servo-gain", type=_positive("servo-gain"), default=0.8,
+                   help="servo relaxation factor alpha in (0, 1] (default 0.8, as PFC)")
+    t.add_argument("--servo-interval", type=int, default=1,
+                   help="steps between servo updates (default 1)")
+    add_run_args(t)
+    t.add_argument("--quiet", action="store_true", help="no progress output")
+    t.set_defaults(func=cmd_triaxial)
 
     d = sub.add_parser("design", help="Latin-hypercube design over parameter ranges -> CSV")
     d.add_argument("--ranges", required=True,

@@ -1,4 +1,7 @@
-"""One complete virtual UCS test from the paper's parameters to an HDF5 file.
+"""One complete virtual lab test from the paper's parameters to an HDF5 file.
+
+``run_ucs_file``, ``run_bts_file`` (Brazilian) and ``run_triaxial_file`` (test "ucs",
+"bts", "triaxial" in the file) share the conventions below; ``run_impact_file`` too.
 
 ``run_ucs_file`` is what ``bpmcal ucs`` and the workflow call: validate the 8 meso-
 parameters (paper units), get the packing (cached), build the specimen, run the test,
@@ -45,8 +48,9 @@ class RunOutcome:
 
 
 def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, cache=None,
-                  threads=None, progress=None):
-    """Validated parameters (paper units) -> a bonded Specimen (packing from the cache)."""
+                  threads=None, progress=None, boundary: str = "platens"):
+    """Validated parameters (paper units) -> a bonded Specimen (packing from the cache);
+    ``boundary``: which vessel walls stay (``build_specimen``)."""
     p = P.validate_params(params)
     spec = SpecimenSpec.from_paper_units(p["rmin_mm"], p["porosity"], seed,
                                          scale=geometry.scale,
@@ -58,7 +62,7 @@ def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, c
                          p["pb_fa_deg"], p["fric"])
     return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6,
                           install_gap=geometry.install_gap_mm * 1e-3, threads=threads,
-                          progress=progress)
+                          progress=progress, boundary=boundary)
 
 
 def ucs_inputs(params: dict, seed: int, geometry: Geometry, settings: UCSSettings) -> dict:
@@ -163,3 +167,111 @@ def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(
               groups={"fragments": {"mass": res.fragments["mass"],
                                     "size": res.fragments["size"]}})
     return RunOutcome(status="ok", summary=summ, path=out)
+
+
+# ------------------------------------------------------------------ Brazilian, triaxial
+#: the ISRM Brazilian disc at full size: D = 50 mm, t = D / 2 (scaled like the cylinder)
+BTS_DIAMETER_MM = 50.0
+BTS_THICKNESS_MM = 25.0
+
+
+def bts_geometry(scale: float = 1.0, diameter_mm: float = BTS_DIAMETER_MM,
+                 thickness_mm: float = BTS_THICKNESS_MM, **kw) -> Geometry:
+    """Geometry of a Brazilian disc (``height_mm`` is the disc thickness)."""
+    return Geometry(scale=scale, diameter_mm=diameter_mm, height_mm=thickness_mm, **kw)
+
+
+def _crack_arrays(ev: dict) -> dict:
+    return {"step": ev["step"], "time": ev["time"], "position": ev["pos"],
+            "normal": ev["normal"], "mode": ev["mode"], "radius": ev["radius"],
+            "energy": ev["energy"], "sigma": ev["sigma"], "tau": ev["tau"],
+            "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
+
+
+def _run_lab_test(out, test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
+                  boundary: str, run, *, cache, threads, keep_particles,
+                  finite=()) -> RunOutcome:
+    """Shared body of the Brazilian and triaxial runners: specimen, test, HDF5 file (or a
+    failure record for an unstable run, an unbuildable specimen or a servo stage that
+    does not converge)."""
+    from .servo import ServoError
+
+    if threads:
+        set_threads(threads)  # for the whole run, genesis included
+    t0 = time.perf_counter()
+    try:
+        sp = make_specimen(params, seed, geometry, cache=cache, threads=threads,
+                           boundary=boundary)
+        t_gen = time.perf_counter() - t0
+        m = sp.model
+        ini = {"position": m.B.pos.copy(), "radius": m.B.radius.copy()}
+        res = run(sp)
+    except (InstabilityError, GenesisError, ServoError) as e:
+        msg = f"{type(e).__name__}: {e}"
+        write_run(out, test=test, inputs=inputs, status="failed", error=msg,
+                  summary={"wall_s": time.perf_counter() - t0})
+        return RunOutcome(status="failed", error=msg, path=out)
+    summ = dict(res.summary)
+    g = sp.report
+    summ.update({"n_balls": g["n_balls"], "n_bonds": g["n_bonds"],
+                 "porosity_achieved": g["porosity_achieved"],
+                 "coordination": g["coordination"],
+                 "locked_in_stress_MPa": g["locked_in_stress_MPa"],
+                 "genesis_s": t_gen, "wall_s": time.perf_counter() - t0,
+                 "test_s": summ["wall_s"]})
+    bad = [k for k in finite if not math.isfinite(summ[k])]
+    if bad:
+        summ["warning"] = (f"{', '.join(bad)} not finite: too few records in the fit window "
+                           "or no peak; see the series")
+    bi, bj = m.bond_pairs()
+    bonds = {"i": bi, "j": bj, "state": m.Bd.state.copy(), "break_step": m.Bd.step.copy()}
+    fin = {"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
+           "angular_velocity": m.B.angvel.copy()} if keep_particles else None
+    write_run(out, test=test, inputs=inputs, summary=summ, genesis=g, series=res.series,
+              cracks=_crack_arrays(res.cracks),
+              particles_initial=ini if keep_particles else None, particles_final=fin,
+              bonds=bonds if keep_particles else None)
+    return RunOutcome(status="ok", summary=summ, path=out)
+
+
+def run_bts_file(out, params: dict, seed: int, geometry: Geometry | None = None,
+                 settings=None, *, cache=None, threads=None, progress=None,
+                 keep_particles: bool = True) -> RunOutcome:
+    """Run one Brazilian test (``lab.brazilian``) and write ``out`` (HDF5, test "bts").
+    ``geometry`` defaults to the ISRM disc 50 x 25 mm at scale 1 (``bts_geometry``)."""
+    from .brazilian import BTSSettings, run_bts
+    from .brazilian import settings_dict as bts_dict
+
+    st = settings or BTSSettings()
+    geo = geometry or bts_geometry()
+    p = P.validate_params(params)  # bad input: raise before any work
+    inputs = {k: float(p[k]) for k in P.PARAMS}
+    inputs.update(geo.to_dict())
+    inputs["thickness_mm"] = inputs["height_mm"]
+    inputs["seed"] = int(seed)
+    inputs.update({f"bts_{k}": v for k, v in bts_dict(st).items()})
+    return _run_lab_test(out, "bts", p, seed, geo, inputs, "free",
+                         lambda sp: run_bts(sp, st, progress=progress), cache=cache,
+                         threads=threads, keep_particles=keep_particles,
+                         finite=("bts_MPa",))
+
+
+def run_triaxial_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
+                      settings=None, *, cache=None, threads=None, progress=None,
+                      keep_particles: bool = True) -> RunOutcome:
+    """Run one triaxial test (``lab.triaxial``; sigma3 in ``settings``) and write ``out``
+    (HDF5, test "triaxial"); the specimen is the UCS cylinder of ``geometry``."""
+    from .triaxial import TriaxialSettings, run_triaxial
+    from .triaxial import settings_dict as tx_dict
+
+    st = settings or TriaxialSettings()
+    p = P.validate_params(params)
+    inputs = {k: float(p[k]) for k in P.PARAMS}
+    inputs.update(geometry.to_dict())
+    inputs["seed"] = int(seed)
+    inputs["sigma3_MPa"] = st.sigma3 / 1e6
+    inputs.update({f"triaxial_{k}": v for k, v in tx_dict(st).items()})
+    return _run_lab_test(out, "triaxial", p, seed, geometry, inputs, "vessel",
+                         lambda sp: run_triaxial(sp, st, progress=progress), cache=cache,
+                         threads=threads, keep_particles=keep_particles,
+                         finite=("sigma1_MPa", "E_GPa", "nu"))
