@@ -157,3 +157,10 @@ def test_cli_rejects_bad_input_with_one_line_and_no_file(tmp_path, capsys, args,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0] and "error" in err[0], err
     assert not out.exists()
+
+
+def test_same_seed_and_inputs_give_the_same_run(runs, cache):
+    """Deterministic: the servo runs in Python on the engine's state, nothing random."""
+    again = triaxial(cache, 5.0)
+    for k, v in runs[5.0].series.items():
+        assert np.array_equal(again.series[k], v), k
