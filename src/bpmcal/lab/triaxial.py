@@ -43,7 +43,9 @@ Results: the peak is the largest deviator q_p; ``sigma1_MPa`` = sigma3 (target) 
 i.e. the peak axial stress with the servo's small deviation from sigma3 removed
 (``sigma1_measured_MPa`` is the platen stress at that record); E = slope of q vs eps_a
 and nu = -slope of eps_r vs eps_a over the pre-peak records with q in ``fit_window``
-(40-60 %) of q_p (``nu_wall`` from the wall radius); ``sigma3_maxdev_rel`` = max |sigma3
+(40-60 %) of q_p (``nu_wall`` from the wall radius); ``u_pre_MJm3`` = integral of q d eps_a
+up to the peak; ``crack_init_MPa`` = q when the crack count first reaches 1 % of the count
+at the peak; ``sigma3_maxdev_rel`` = max |sigma3
 measured - sigma3| / sigma3 over the records up to the peak (the servo's accuracy; NaN
 for sigma3 = 0, where ``sigma3_maxdev_MPa`` gives it in MPa). The test stops as the UCS
 test: q below ``stop_drop`` of q_p after the peak, ``max_strain`` or ``max_steps``.
