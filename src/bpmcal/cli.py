@@ -1,6 +1,8 @@
 """The ``bpmcal`` command: one subcommand per job of the study (workflow rules call these).
 
     bpmcal ucs --params FILE.yaml --out RUN.h5 [--set NAME=VALUE ...] [--scale S] [--seed N]
+    bpmcal bts --params FILE.yaml --out RUN.h5 [--scale S] [--seed N] [--platen-velocity V]
+    bpmcal triaxial --params FILE.yaml --sigma3 MPA --out RUN.h5 [--scale S] [--seed N]
     bpmcal summary RUN.h5 [--json]
     bpmcal vtk RUN.h5 --out DIR
 
@@ -201,9 +203,10 @@ def _check_budget(a, params, geo):
     check_budget(params, geo, max_balls=a.max_balls, mem_budget_mb=a.mem_budget_mb)
 
 
-def cmd_ucs(a) -> int:
-    from .lab.runner import run_ucs_file, ucs_inputs, write_failure
-
+def _params_seed(a) -> tuple[dict, int, str]:
+    """Parameters, packing seed and (for a plan row not to be run) the reason, of a DEM run
+    command: ``--params`` (+ ``--set``) or a ``--design`` row (argparse makes the two
+    exclusive)."""
     skip = ""
     if a.design is not None:
         if a.sample is None:
@@ -211,33 +214,102 @@ def cmd_ucs(a) -> int:
         params, seed, skip = params_from_design(a.design, a.sample)
         if not skip and a.set:
             params = P.validate_params({**params, **_parse_set(a.set)})
-        a.seed = seed if a.seed is None else a.seed
+        seed = seed if a.seed is None else a.seed
     else:
         if a.sample is not None:
             raise BadInput(f"--sample {a.sample}: needs --design FILE")
         params = load_params(a.params, a.set)
-    a.seed = 1 if a.seed is None else a.seed
-    geo = run_geometry(a)
-    st = run_settings(a)
+        seed = 1 if a.seed is None else a.seed
+    return params, int(seed), skip
+
+
+def _run_command(a, cmd: str, geo, run, inputs, done_line) -> int:
+    """The common body of ``ucs``, ``bts`` and ``triaxial``: parameters and seed, resource
+    budget, output path (all before any work), then the run (``run(params, seed,
+    progress)`` -> RunOutcome), its one-line result and the exit code."""
+    from .lab.runner import write_failure
+
+    params, seed, skip = _params_seed(a)
     if not skip:
         _check_budget(a, params, geo)
     out_file(a.out)
     _cache_dir(a)
     if skip:
-        inputs = ucs_inputs({k: _float_or_nan(v) for k, v in params.items()}, a.seed, geo, st)
-        return _run_done(a, "ucs", write_failure(a.out, test="ucs", inputs=inputs, error=skip))
-    prog = Progress(f"ucs {Path(a.out).name}", enabled=not a.quiet)
-    out = run_ucs_file(a.out, params, a.seed, geo, st, cache=a.specimen_cache, progress=prog,
-                       threads=a.threads, genesis_max_steps=a.genesis_max_steps)
+        inp = inputs({k: _float_or_nan(v) for k, v in params.items()}, seed)
+        return _run_done(a, cmd, write_failure(a.out, test=cmd, inputs=inp, error=skip))
+    prog = Progress(f"{cmd} {Path(a.out).name}", enabled=not a.quiet)
+    out = run(params, seed, prog)
     if out.status == "ok":
-        s = out.summary
-        prog.done(f"{a.out}: sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
-                  f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
-                  f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
-                  f"({s['stop_reason']})")
+        prog.done(f"{a.out}: {done_line(out.summary)}")
     else:
         prog.done()
-    return _run_done(a, "ucs", out)
+    return _run_done(a, cmd, out)
+
+
+def cmd_ucs(a) -> int:
+    from .lab.runner import run_ucs_file, ucs_inputs
+
+    geo, st = run_geometry(a), run_settings(a)
+    return _run_command(
+        a, "ucs", geo,
+        lambda p, seed, prog: run_ucs_file(a.out, p, seed, geo, st, cache=a.specimen_cache,
+                                           progress=prog, threads=a.threads,
+                                           genesis_max_steps=a.genesis_max_steps),
+        lambda p, seed: ucs_inputs(p, seed, geo, st),
+        lambda s: (f"sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
+                   f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
+                   f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
+                   f"({s['stop_reason']})"))
+
+
+def cmd_bts(a) -> int:
+    from .lab.brazilian import BTSSettings
+    from .lab.runner import bts_geometry, bts_inputs, run_bts_file
+
+    geo = bts_geometry(scale=a.scale, diameter_mm=a.diameter, thickness_mm=a.thickness,
+                       sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
+                       relax_ratio=a.relax_ratio)
+    st = BTSSettings(platen_velocity=a.platen_velocity, platen_fric=a.platen_fric,
+                     damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
+                     record_strain=a.record_strain)
+    return _run_command(
+        a, "bts", geo,
+        lambda p, seed, prog: run_bts_file(a.out, p, seed, geo, st, cache=a.specimen_cache,
+                                           progress=prog, threads=a.threads,
+                                           genesis_max_steps=a.genesis_max_steps),
+        lambda p, seed: bts_inputs(p, seed, geo, st),
+        lambda s: (f"sigma_t = {s['bts_MPa']:.3f} MPa (peak load {s['peak_load_N']:.1f} N, "
+                   f"platen forces differ by {100 * s['platen_mismatch']:.2f} %), cracks "
+                   f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
+                   f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})"))
+
+
+def cmd_triaxial(a) -> int:
+    from .lab.runner import run_triaxial_file, triaxial_inputs
+    from .lab.triaxial import TriaxialSettings
+
+    geo = run_geometry(a)
+    st = TriaxialSettings(sigma3=a.sigma3 * 1e6, platen_velocity=a.platen_velocity,
+                          strain_rate=a.strain_rate, damping=a.damping,
+                          stop_drop=a.stop_drop, max_strain=a.max_strain,
+                          platen_fric=a.platen_fric, record_strain=a.record_strain,
+                          servo_alpha=a.servo_gain, servo_interval=a.servo_interval)
+
+    def line(s):
+        dev = (f"{100 * s['sigma3_maxdev_rel']:.2f} %" if a.sigma3 > 0
+               else f"{s['sigma3_maxdev_MPa']:.3f} MPa")
+        return (f"sigma3 = {a.sigma3:g} MPa, sigma1 = {s['sigma1_MPa']:.3f} MPa, "
+                f"E = {s['E_GPa']:.3f} GPa, nu = {s['nu']:.3f}, sigma3 held within {dev} "
+                f"up to the peak, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
+                f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+
+    return _run_command(
+        a, "triaxial", geo,
+        lambda p, seed, prog: run_triaxial_file(a.out, p, seed, geo, st,
+                                                cache=a.specimen_cache, progress=prog,
+                                                threads=a.threads,
+                                                genesis_max_steps=a.genesis_max_steps),
+        lambda p, seed: triaxial_inputs(p, seed, geo, st), line)
 
 
 def cmd_design(a) -> int:
@@ -701,6 +773,28 @@ def cmd_vtk(a) -> int:
     return 0
 
 
+def add_source_args(p):
+    """Where a DEM run command takes its parameters and seed from, and its output file."""
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--params", default=None,
+                     help="YAML file with the 8 meso-parameters (or a material card)")
+    src.add_argument("--design", default=None,
+                     help="take the parameters and the seed from this design CSV ...")
+    p.add_argument("--sample", default=None, help="... row with this sample_id")
+    p.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="override one parameter (repeatable)")
+    p.add_argument("--seed", type=SEED, default=None,
+                   help="packing seed (default 1, or the design row's)")
+
+
+def add_outcome_args(p):
+    """How a DEM run command reports: progress, and the exit code of a failed run."""
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress output (a FAILED line is still printed)")
+    p.add_argument("--failed-ok", action="store_true", help=FAILED_OK_HELP)
+
+
 def add_budget_args(p):
     """Resource guards of a DEM command (checked before any work)."""
     from .lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
@@ -782,21 +876,81 @@ def build_parser() -> argparse.ArgumentParser:
     u = sub.add_parser("ucs", help="one virtual uniaxial compression test -> HDF5",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        epilog=_param_help())
-    src = u.add_mutually_exclusive_group()
-    src.add_argument("--params", help="YAML file with the 8 meso-parameters", default=None)
-    src.add_argument("--design", default=None,
-                     help="take the parameters and the seed from this design CSV ...")
-    u.add_argument("--sample", default=None, help="... row with this sample_id")
-    u.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
-    u.add_argument("--set", action="append", metavar="NAME=VALUE",
-                   help="override one parameter (repeatable)")
-    u.add_argument("--seed", type=SEED, default=None,
-                   help="packing seed (default 1, or the design row's)")
+    add_source_args(u)
     add_run_args(u)
-    u.add_argument("--quiet", action="store_true",
-                   help="no progress output (a FAILED line is still printed)")
-    u.add_argument("--failed-ok", action="store_true", help=FAILED_OK_HELP)
+    add_outcome_args(u)
     u.set_defaults(func=cmd_ucs)
+
+    from .lab.brazilian import BTSSettings
+
+    bd = BTSSettings()  # the defaults of the Brazilian test live in its settings
+    b = sub.add_parser("bts", help="one virtual Brazilian (diametral compression) test -> HDF5",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       epilog=_param_help())
+    add_source_args(b)
+    b.add_argument("--scale", type=number("scale", 0.0, 10.0, lo_open=True), default=1.0,
+                   help="specimen size factor on the ISRM 50 x 25 mm disc (default 1)")
+    b.add_argument("--diameter", type=positive("diameter", "mm"), default=50.0,
+                   help="disc diameter before scaling [mm] (default 50)")
+    b.add_argument("--thickness", type=positive("thickness", "mm"), default=25.0,
+                   help="disc thickness before scaling [mm] (default 25, ISRM t = D/2)")
+    b.add_argument("--platen-velocity", type=number("platen-velocity", 0.0, 100.0,
+                                                    lo_open=True, unit="m/s"),
+                   default=bd.platen_velocity,
+                   help=f"speed of each platen [m/s] (default {bd.platen_velocity:g}: halving "
+                        "it changes sigma_t by < 2 %%, see the README)")
+    b.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0),
+                   default=bd.platen_fric,
+                   help=f"platen friction coefficient (default {bd.platen_fric:g}; with 0 the "
+                        "free disc spins on the platens before it seats, and sigma_t is ~15 %% "
+                        "lower)")
+    b.add_argument("--damping", type=number("damping", 0.0, 1.0, hi_open=True),
+                   default=bd.damping, help=f"local damping in [0, 1) (default {bd.damping:g})")
+    b.add_argument("--stop-drop", type=fraction("stop-drop"), default=bd.stop_drop,
+                   help="stop when the load < this fraction of the peak after it "
+                        f"(default {bd.stop_drop:g})")
+    b.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
+                   default=bd.max_strain,
+                   help=f"stop at this platen approach / D (default {bd.max_strain:g})")
+    b.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
+                   default=bd.record_strain,
+                   help=f"platen approach / D between records (default {bd.record_strain:g})")
+    b.add_argument("--sigma0", type=number("sigma0", 0.0, 100.0, unit="MPa"), default=0.1,
+                   help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
+    b.add_argument("--install-gap", type=number("install-gap", 0.0, 1.0, unit="mm"),
+                   default=0.0, help="bond pairs with surface gap <= this [mm] (default 0)")
+    b.add_argument("--relax-ratio", type=number("relax-ratio", 0.0, 0.1, lo_open=True),
+                   default=1e-2,
+                   help="genesis equilibrium: mean unbalanced-force ratio (default 1e-2)")
+    b.add_argument("--threads", type=THREADS, default=None, help="numba threads (>= 1)")
+    b.add_argument("--specimen-cache", default=None,
+                   help="directory of cached packings (default ~/.cache/bpmcal/packings or "
+                        "$BPMCAL_SPECIMEN_CACHE)")
+    add_budget_args(b)
+    add_outcome_args(b)
+    b.set_defaults(func=cmd_bts)
+
+    from .lab.triaxial import TriaxialSettings
+
+    td = TriaxialSettings()
+    t = sub.add_parser("triaxial", help="one virtual triaxial compression test -> HDF5",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       epilog=_param_help())
+    add_source_args(t)
+    t.add_argument("--sigma3", required=True, metavar="MPA",
+                   type=number("sigma3", 0.0, 1000.0, unit="MPa"),
+                   help="confining stress [MPa] in [0, 1000], held by a servo-controlled "
+                        "lateral wall")
+    t.add_argument("--servo-gain", type=number("servo-gain", 0.0, 1.0, lo_open=True),
+                   default=td.servo_alpha,
+                   help=f"servo relaxation factor alpha in (0, 1] (default {td.servo_alpha:g}, "
+                        "as PFC)")
+    t.add_argument("--servo-interval", type=integer("servo-interval", 1, 1000),
+                   default=td.servo_interval,
+                   help=f"steps between servo updates (default {td.servo_interval})")
+    add_run_args(t)
+    add_outcome_args(t)
+    t.set_defaults(func=cmd_triaxial)
 
     d = sub.add_parser("design", help="Latin-hypercube design over parameter ranges -> CSV")
     d.add_argument("--ranges", required=True,

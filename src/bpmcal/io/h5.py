@@ -3,14 +3,18 @@
 Layout (``SCHEMA_VERSION`` 1)::
 
     /                 attrs: schema_version, bpmcal_version, git_commit, created_utc,
-                             test ("ucs" | "impact"), status ("ok" | "failed"), error,
+                             test ("ucs" | "bts" | "triaxial" | "impact"),
+                             status ("ok" | "failed"), error,
                              config_hash
     /inputs           attrs: meso-parameters (paper units, names of params.py), geometry
                              (diameter_mm, height_mm, scale), seed, test settings
     /summary          attrs: results (``ucs_MPa``, ``E_GPa``, ``nu``, ``peak_strain``,
                              ``u_pre_MJm3``, ``cracks_tension``, ``cracks_shear``, ``n_balls``,
                              ``n_bonds``, ``porosity_achieved``, ``coordination``, ``steps``,
-                             ``wall_s``, ``stop_reason``, ...)
+                             ``wall_s``, ``stop_reason``, ...); Brazilian runs
+                             ``bts_MPa``, ``peak_load_N``, ``platen_mismatch``, ...;
+                             triaxial runs ``sigma1_MPa``, ``sigma3_MPa``, ``E_GPa``,
+                             ``nu``, ``sigma3_maxdev_rel``, ...
     /genesis          attrs: the specimen genesis report
     /series/<name>    1-D datasets, one row per record (attr ``unit``)
     /cracks/<name>    one row per broken bond: step, time [s], position [m] (n, 3),
@@ -51,6 +55,11 @@ SERIES_UNITS = {
     "cracks_tension": "", "cracks_shear": "", "kinetic": "J", "strain_linear": "J",
     "strain_bond": "J", "slip": "J", "damping": "J", "dashpot": "J", "released": "J",
     "work_walls": "J", "unbalanced": "",
+    # Brazilian runs
+    "displacement": "m", "diametral_strain": "", "load": "N", "load_bottom": "N",
+    "load_top": "N", "tensile_stress": "Pa",
+    # triaxial runs
+    "lateral_strain_wall": "", "confining_stress": "Pa", "deviator": "Pa", "wall_radius": "m",
     # impact runs
     "hammer_z": "m", "hammer_v": "m/s", "W_in": "J", "W_in_paper": "J", "work_gravity": "J",
     "eta_f": "", "closure_rel": "",

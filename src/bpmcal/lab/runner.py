@@ -1,4 +1,7 @@
-"""One complete virtual UCS test from the paper's parameters to an HDF5 file.
+"""One complete virtual lab test from the paper's parameters to an HDF5 file.
+
+``run_ucs_file``, ``run_bts_file`` (Brazilian) and ``run_triaxial_file`` (test "ucs",
+"bts", "triaxial" in the file) share the conventions below; ``run_impact_file`` too.
 
 ``run_ucs_file`` is what ``bpmcal ucs`` and the workflow call: validate the 8 meso-
 parameters (paper units), get the packing (cached), build the specimen, run the test,
@@ -90,8 +93,10 @@ def write_failure(out, *, test: str, inputs: dict, error: str, wall_s: float = 0
 
 
 def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, cache=None,
-                  threads=None, progress=None, genesis_max_steps=None):
-    """Validated parameters (paper units) -> a bonded Specimen (packing from the cache)."""
+                  threads=None, progress=None, genesis_max_steps=None,
+                  boundary: str = "platens"):
+    """Validated parameters (paper units) -> a bonded Specimen (packing from the cache);
+    ``boundary``: which vessel walls stay (``build_specimen``)."""
     p = P.validate_params(params)
     spec = SpecimenSpec.from_paper_units(p["rmin_mm"], p["porosity"], seed,
                                          scale=geometry.scale,
@@ -103,7 +108,7 @@ def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, c
                          p["pb_fa_deg"], p["fric"])
     return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6,
                           install_gap=geometry.install_gap_mm * 1e-3, threads=threads,
-                          progress=progress, max_steps=genesis_max_steps)
+                          progress=progress, max_steps=genesis_max_steps, boundary=boundary)
 
 
 def ucs_inputs(params: dict, seed: int, geometry: Geometry, settings: UCSSettings) -> dict:
@@ -121,45 +126,11 @@ def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
     """Run one UCS test and write ``out`` (HDF5). Returns the outcome; unstable runs and
     unbuildable specimens give status "failed" (and a failure-record file)."""
     p = P.validate_params(params)  # bad input: raise before any work
-    inputs = ucs_inputs(p, seed, geometry, settings)
-    if threads:
-        set_threads(threads)  # for the whole run, genesis included
-    t0 = time.perf_counter()
-    try:
-        sp = make_specimen(p, seed, geometry, cache=cache, threads=threads, progress=progress,
-                           genesis_max_steps=genesis_max_steps)
-        t_gen = time.perf_counter() - t0
-        m = sp.model
-        ini = {"position": m.B.pos.copy(), "radius": m.B.radius.copy()}
-        res = run_ucs(sp, settings, progress=progress)
-    except (InstabilityError, GenesisError) as e:
-        return write_failure(out, test="ucs", inputs=inputs, error=f"{type(e).__name__}: {e}",
-                             wall_s=time.perf_counter() - t0)
-    summ = dict(res.summary)
-    g = sp.report
-    summ.update({"n_balls": g["n_balls"], "n_bonds": g["n_bonds"],
-                 "porosity_achieved": g["porosity_achieved"],
-                 "coordination": g["coordination"],
-                 "locked_in_stress_MPa": g["locked_in_stress_MPa"],
-                 "genesis_s": t_gen, "wall_s": time.perf_counter() - t0,
-                 "test_s": summ["wall_s"]})
-    for k in ("ucs_MPa", "E_GPa", "nu"):
-        if not math.isfinite(summ[k]):
-            summ["warning"] = (f"{k} is not finite: too few records in the fit window or no "
-                               "peak; see the series")
-    ev = res.cracks
-    cracks = {"step": ev["step"], "time": ev["time"], "position": ev["pos"],
-              "normal": ev["normal"], "mode": ev["mode"], "radius": ev["radius"],
-              "energy": ev["energy"], "sigma": ev["sigma"], "tau": ev["tau"],
-              "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
-    bi, bj = m.bond_pairs()
-    bonds = {"i": bi, "j": bj, "state": m.Bd.state.copy(), "break_step": m.Bd.step.copy()}
-    fin = {"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
-           "angular_velocity": m.B.angvel.copy()} if keep_particles else None
-    write_run(out, test="ucs", inputs=inputs, summary=summ, genesis=g, series=res.series,
-              cracks=cracks, particles_initial=ini if keep_particles else None,
-              particles_final=fin, bonds=bonds if keep_particles else None)
-    return RunOutcome(status="ok", summary=summ, path=out)
+    return _run_lab_test(out, "ucs", p, seed, geometry, ucs_inputs(p, seed, geometry, settings),
+                         "platens", lambda sp: run_ucs(sp, settings, progress=progress),
+                         cache=cache, threads=threads, keep_particles=keep_particles,
+                         progress=progress, genesis_max_steps=genesis_max_steps,
+                         finite=("ucs_MPa", "E_GPa", "nu"))
 
 
 def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
@@ -192,14 +163,9 @@ def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(
     summ["velocity"] = st.velocity
     summ["hammer_mass"] = st.hammer_mass
     summ["total_s"] = time.perf_counter() - t0
-    ev = res.cracks
-    cracks = {"step": ev["step"], "time": ev["time"], "position": ev["pos"],
-              "normal": ev["normal"], "mode": ev["mode"], "radius": ev["radius"],
-              "energy": ev["energy"], "sigma": ev["sigma"], "tau": ev["tau"],
-              "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
     bi, bj = m.bond_pairs()
     write_run(out, test="impact", inputs=inputs, summary=summ, genesis=sp.report,
-              series=res.series, cracks=cracks, particles_initial=ini,
+              series=res.series, cracks=_crack_arrays(res.cracks), particles_initial=ini,
               particles_final={"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
                                "angular_velocity": m.B.angvel.copy(),
                                "fragment": res.fragments["label"]},
@@ -208,3 +174,124 @@ def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(
               groups={"fragments": {"mass": res.fragments["mass"],
                                     "size": res.fragments["size"]}})
     return RunOutcome(status="ok", summary=summ, path=out)
+
+
+# ------------------------------------------------------------------ Brazilian, triaxial
+#: the ISRM Brazilian disc at full size: D = 50 mm, t = D / 2 (scaled like the cylinder)
+BTS_DIAMETER_MM = 50.0
+BTS_THICKNESS_MM = 25.0
+
+
+def bts_geometry(scale: float = 1.0, diameter_mm: float = BTS_DIAMETER_MM,
+                 thickness_mm: float = BTS_THICKNESS_MM, **kw) -> Geometry:
+    """Geometry of a Brazilian disc (``height_mm`` is the disc thickness)."""
+    return Geometry(scale=scale, diameter_mm=diameter_mm, height_mm=thickness_mm, **kw)
+
+
+def _crack_arrays(ev: dict) -> dict:
+    return {"step": ev["step"], "time": ev["time"], "position": ev["pos"],
+            "normal": ev["normal"], "mode": ev["mode"], "radius": ev["radius"],
+            "energy": ev["energy"], "sigma": ev["sigma"], "tau": ev["tau"],
+            "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
+
+
+def _run_lab_test(out, test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
+                  boundary: str, run, *, cache, threads, keep_particles, progress=None,
+                  genesis_max_steps=None, finite=()) -> RunOutcome:
+    """Shared body of the UCS, Brazilian and triaxial runners: specimen, test, HDF5 file
+    (or a failure record for an unstable run, an unbuildable specimen or a servo stage
+    that does not converge)."""
+    from .servo import ServoError
+
+    if threads:
+        set_threads(threads)  # for the whole run, genesis included
+    t0 = time.perf_counter()
+    try:
+        sp = make_specimen(params, seed, geometry, cache=cache, threads=threads,
+                           progress=progress, genesis_max_steps=genesis_max_steps,
+                           boundary=boundary)
+        t_gen = time.perf_counter() - t0
+        m = sp.model
+        ini = {"position": m.B.pos.copy(), "radius": m.B.radius.copy()}
+        res = run(sp)
+    except (InstabilityError, GenesisError, ServoError) as e:
+        return write_failure(out, test=test, inputs=inputs, error=f"{type(e).__name__}: {e}",
+                             wall_s=time.perf_counter() - t0)
+    summ = dict(res.summary)
+    g = sp.report
+    summ.update({"n_balls": g["n_balls"], "n_bonds": g["n_bonds"],
+                 "porosity_achieved": g["porosity_achieved"],
+                 "coordination": g["coordination"],
+                 "locked_in_stress_MPa": g["locked_in_stress_MPa"],
+                 "genesis_s": t_gen, "wall_s": time.perf_counter() - t0,
+                 "test_s": summ["wall_s"]})
+    bad = [k for k in finite if not math.isfinite(summ[k])]
+    if bad:
+        summ["warning"] = (f"{', '.join(bad)} not finite: too few records in the fit window "
+                           "or no peak; see the series")
+    bi, bj = m.bond_pairs()
+    bonds = {"i": bi, "j": bj, "state": m.Bd.state.copy(), "break_step": m.Bd.step.copy()}
+    fin = {"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
+           "angular_velocity": m.B.angvel.copy()} if keep_particles else None
+    write_run(out, test=test, inputs=inputs, summary=summ, genesis=g, series=res.series,
+              cracks=_crack_arrays(res.cracks),
+              particles_initial=ini if keep_particles else None, particles_final=fin,
+              bonds=bonds if keep_particles else None)
+    return RunOutcome(status="ok", summary=summ, path=out)
+
+
+def bts_inputs(params: dict, seed: int, geometry: Geometry, settings) -> dict:
+    from .brazilian import settings_dict as bts_dict
+
+    d = {k: float(params[k]) for k in P.PARAMS if k in params}
+    d.update(geometry.to_dict())
+    d["thickness_mm"] = d["height_mm"]
+    d["seed"] = int(seed)
+    d.update({f"bts_{k}": v for k, v in bts_dict(settings).items()})
+    return d
+
+
+def triaxial_inputs(params: dict, seed: int, geometry: Geometry, settings) -> dict:
+    from .triaxial import settings_dict as tx_dict
+
+    d = {k: float(params[k]) for k in P.PARAMS if k in params}
+    d.update(geometry.to_dict())
+    d["seed"] = int(seed)
+    d["sigma3_MPa"] = settings.sigma3 / 1e6
+    d.update({f"triaxial_{k}": v for k, v in tx_dict(settings).items()})
+    return d
+
+
+def run_bts_file(out, params: dict, seed: int, geometry: Geometry | None = None,
+                 settings=None, *, cache=None, threads=None, progress=None,
+                 keep_particles: bool = True, genesis_max_steps: int | None = None
+                 ) -> RunOutcome:
+    """Run one Brazilian test (``lab.brazilian``) and write ``out`` (HDF5, test "bts").
+    ``geometry`` defaults to the ISRM disc 50 x 25 mm at scale 1 (``bts_geometry``)."""
+    from .brazilian import BTSSettings, run_bts
+
+    st = settings or BTSSettings()
+    geo = geometry or bts_geometry()
+    p = P.validate_params(params)  # bad input: raise before any work
+    return _run_lab_test(out, "bts", p, seed, geo, bts_inputs(p, seed, geo, st), "free",
+                         lambda sp: run_bts(sp, st, progress=progress), cache=cache,
+                         threads=threads, keep_particles=keep_particles, progress=progress,
+                         genesis_max_steps=genesis_max_steps, finite=("bts_MPa",))
+
+
+def run_triaxial_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
+                      settings=None, *, cache=None, threads=None, progress=None,
+                      keep_particles: bool = True, genesis_max_steps: int | None = None
+                      ) -> RunOutcome:
+    """Run one triaxial test (``lab.triaxial``; sigma3 in ``settings``) and write ``out``
+    (HDF5, test "triaxial"); the specimen is the UCS cylinder of ``geometry``."""
+    from .triaxial import TriaxialSettings, run_triaxial
+
+    st = settings or TriaxialSettings()
+    p = P.validate_params(params)
+    return _run_lab_test(out, "triaxial", p, seed, geometry,
+                         triaxial_inputs(p, seed, geometry, st), "vessel",
+                         lambda sp: run_triaxial(sp, st, progress=progress), cache=cache,
+                         threads=threads, keep_particles=keep_particles, progress=progress,
+                         genesis_max_steps=genesis_max_steps,
+                         finite=("sigma1_MPa", "E_GPa", "nu"))

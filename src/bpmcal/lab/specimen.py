@@ -32,7 +32,10 @@ Procedure (after Potyondy & Cundall 2004 and PFC's ``ball distribute``):
    relieve the ball-wall contacts the same way, set the friction, remove the lateral
    wall and let the specimen settle (same ratio criterion) between the end walls, which
    stay in place as the loading platens (PFC practice: the end faces are flat because
-   they were packed against them).
+   they were packed against them). Other tests keep other parts of the vessel
+   (``boundary``): the triaxial test keeps all of it (the cylinder becomes the
+   servo-controlled confining wall), the Brazilian test none of it (the disc settles
+   free and gets its own platens across a diameter).
 
 Everything is seeded; the same inputs give bitwise-identical specimens.
 
@@ -328,6 +331,8 @@ class Specimen:
     z_top: float  # top face [m]
     radius0: float  # specimen radius at the start of testing [m]
     platens: tuple = (0, 1)  # wall ids of the bottom and top platens (the vessel's ends)
+    lateral_wall: int | None = None  # wall id of the vessel's cylinder when it was kept
+    boundary: str = "platens"  # which vessel walls were kept (see build_specimen)
 
 
 def wall_stresses(m: Model, spec: SpecimenSpec) -> tuple[float, float]:
@@ -339,11 +344,23 @@ def wall_stresses(m: Model, spec: SpecimenSpec) -> tuple[float, float]:
     return float(s_ax), float(s_lat)
 
 
+#: which walls of the vessel stay after bonding (``build_specimen(boundary=...)``)
+BOUNDARIES = ("platens", "vessel", "free")
+
+
 def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e6,
                    install_gap: float = 0.0, damping: float = 0.7, threads=None,
-                   progress=None, max_steps: int | None = None) -> Specimen:
+                   progress=None, max_steps: int | None = None,
+                   boundary: str = "platens") -> Specimen:
     """Steps 4-5: install the material, relieve the locked-in stress to ``sigma0``, bond,
-    remove the vessel, settle (at most ``max_steps`` steps in total, else GenesisError)."""
+    remove (part of) the vessel, settle (at most ``max_steps`` steps in total, else
+    GenesisError).
+
+    ``boundary`` says which vessel walls stay for the test: ``"platens"`` (UCS, impact)
+    removes the cylinder and keeps the end walls as platens (wall ids 0, 1);
+    ``"vessel"`` (triaxial) keeps the cylinder (wall 0) and the end walls (1, 2), and the
+    specimen settles inside the closed vessel at the locked-in stress; ``"free"``
+    (Brazilian) removes all three walls and the specimen settles free."""
     spec = packing.spec
     if not (sigma0 >= 0 and math.isfinite(sigma0)):
         raise InputError(f"sigma0={sigma0!r}: expected an isotropic stress >= 0 Pa")
@@ -351,6 +368,8 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
         raise InputError(f"install_gap={install_gap!r}: expected a surface gap >= 0 m")
     if max_steps is not None and int(max_steps) < 1:
         raise InputError(f"max_steps={max_steps!r}: expected a step budget >= 1")
+    if boundary not in BOUNDARIES:
+        raise InputError(f"boundary={boundary!r}: expected one of {', '.join(BOUNDARIES)}")
     budget = _StepBudget(max_steps)
     frictionless = material.replace(fric=0.0)
     m = Model(packing.pos, packing.radius, spec.density, frictionless, damping=damping,
@@ -382,7 +401,15 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     for w in range(3):
         m.scale_wall_overlaps(w, f)
     z = m.coordination_numbers()
-    m.remove_wall(0)  # the lateral wall; walls 0 and 1 are now the bottom and top platens
+    if boundary == "platens":
+        m.remove_wall(0)  # the lateral wall; walls 0 and 1 are now the bottom and top platens
+        platens, lateral = (0, 1), None
+    elif boundary == "vessel":
+        platens, lateral = (1, 2), 0
+    else:
+        for _ in range(3):
+            m.remove_wall(0)
+        platens, lateral = (), None
     m.set_material(material)
     m.set_timestep(None)
     # calm (PFC): the bonded specimen starts at rest, then settles to a tight equilibrium
@@ -414,7 +441,8 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
         "diameter_after_settle_mm": 2e3 * float(np.percentile(rho, 99.5)),
     })
     return Specimen(model=m, spec=spec, material=material, report=report, surface=surface,
-                    z_bottom=z_bot, z_top=z_top, radius0=0.5 * spec.diameter)
+                    z_bottom=z_bot, z_top=z_top, radius0=0.5 * spec.diameter,
+                    platens=platens, lateral_wall=lateral, boundary=boundary)
 
 
 def paper_material(pb_emod_GPa, pb_kratio, pb_ten_MPa, pb_coh_MPa, pb_fa_deg, fric,
