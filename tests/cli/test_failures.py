@@ -236,3 +236,25 @@ def test_usage_errors_are_one_line(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("bpmcal: error: ")
     assert main(["--version"]) == 0
+
+
+@pytest.mark.parametrize("n_ok, folds", [(9, 4), (5, 2), (3, None)])
+def test_screening_adapts_its_folds_to_the_samples_left(models, tmp_path, capsys, n_ok, folds):
+    """Failed samples may leave fewer usable rows than 5-fold CV needs (2 per fold): the
+    screening then uses fewer folds and says so; below 4 usable samples it is one clear
+    error line (exit 2), never a traceback."""
+    ds = pd.read_csv(models / "dataset.csv").head(12)
+    ds.loc[n_ok:, "status"] = "failed"
+    ds.to_csv(tmp_path / "dataset.csv", index=False)
+    out = tmp_path / "screening"
+    rc = main(["screen", "--dataset", str(tmp_path / "dataset.csv"), "--out", str(out),
+               "--tables", str(tmp_path / "tables"), "--figures", str(tmp_path / "figures"),
+               "--repeats", "1"])
+    cap = capsys.readouterr()
+    if folds is None:
+        assert rc == 2 and "3 of 12 samples have status ok" in cap.err
+        assert len(cap.err.strip().splitlines()) == 1 and not (out / "selected.json").exists()
+    else:
+        assert rc == 0, cap.err
+        note = json.loads((out / "selected.json").read_text())["note"]
+        assert f"so {folds}-fold CV was used" in note and f"{n_ok} of 12 samples used" in note

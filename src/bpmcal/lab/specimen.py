@@ -348,6 +348,16 @@ def wall_stresses(m: Model, spec: SpecimenSpec) -> tuple[float, float]:
 BOUNDARIES = ("platens", "vessel", "free")
 
 
+def speed_guard(material: Material, density: float) -> float:
+    """Blow-up guard [m/s] of a specimen's model: twice the P-wave speed of the stiffer
+    spring, sqrt(max(E*, Ebar) / rho), but at least 500 m/s. While the overlapped packing
+    settles under the real moduli, ball speeds scale with that wave speed (~200-500 m/s
+    at 100 GPa), so a fixed 500 m/s would stop a stiff rock's genesis although nothing
+    blew up; a real blow-up grows without bound and is still caught."""
+    e = max(float(material.emod), float(material.pb_emod))
+    return max(500.0, 2.0 * math.sqrt(e / float(density)))
+
+
 def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e6,
                    install_gap: float = 0.0, damping: float = 0.7, threads=None,
                    progress=None, max_steps: int | None = None,
@@ -373,7 +383,8 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     budget = _StepBudget(max_steps)
     frictionless = material.replace(fric=0.0)
     m = Model(packing.pos, packing.radius, spec.density, frictionless, damping=damping,
-              skin=0.25 * spec.rmin, threads=threads)
+              skin=0.25 * spec.rmin, threads=threads,
+              max_speed=speed_guard(material, spec.density))
     _vessel(m, spec)
     m.set_timestep(None)
     # enlarged floaters overlap their nearest neighbours: clip speeds while they settle

@@ -81,6 +81,18 @@ def screen(dataset_csv, out_dir, tables_dir, figures_dir, *, threshold=10.0,
     from ..plots.style import save
 
     df, note = load_ok(dataset_csv)
+    from ..analysis._common import usable_rows
+
+    n_ok = usable_rows(df, [*P.PARAMS, *P.TARGETS]).n_used
+    if n_ok < 2 * n_splits:  # failed samples left too few rows for the configured CV
+        k = n_ok // 2
+        if k < 2:
+            raise P.ParameterError(f"{dataset_csv}: only {n_ok} usable samples (status ok, "
+                                   "finite responses); the screening needs at least 4 - see "
+                                   "the dataset's status and error columns")
+        note += (f"; {n_splits}-fold CV needs {2 * n_splits} usable samples, so {k}-fold CV "
+                 "was used")
+        n_splits = k
     res = XGBScreening(n_splits=n_splits, threshold=threshold, select_by=importance,
                        n_repeats=n_repeats, seed=seed).fit(df)
     out, tab, fig = Path(out_dir), Path(tables_dir), Path(figures_dir)
