@@ -11,7 +11,10 @@ from pathlib import Path
 import yaml
 
 from .. import params as P
+from ..io.layout import ratio_grid, ratio_id
 from ..io.paths import name_problem, path_problem
+from ..lab.budget import budget_problem
+from .paper import LAB as PAPER_LAB
 
 
 class ConfigError(ValueError):
@@ -128,8 +131,6 @@ def _budget_checks(cfg: dict) -> list[str]:
     """The largest specimen the study can build (smallest Rmin and porosity of the ranges
     and of the fixed calibration values, at the UCS and the impact scale) must fit
     ``resources.max_balls`` and ``resources.ucs_mem_mb``."""
-    from ..lab.budget import budget_problem
-
     res = cfg["resources"]
     rg, fx = cfg["ranges"], cfg["calibration"]["fixed"]
     rmin = min([min(rg["rmin_mm"])] + ([fx["rmin_mm"]] if "rmin_mm" in fx else []))
@@ -152,8 +153,6 @@ def _sweep_checks(cfg: dict) -> list[str]:
     if not (start <= stop):
         return [f"ratio_sweep.ratios: start {start:g} exceeds stop {stop:g} (expected "
                 "[start, stop, step] with start <= stop)"]
-    from .sweep import ratio_grid, ratio_id
-
     n = int(math.floor((stop - start) / step + 1e-9)) + 1
     if n > MAX_SWEEP_RATIOS:
         return [f"ratio_sweep.ratios: {rs['ratios']} gives {n} ratios, more than "
@@ -209,18 +208,16 @@ def _check_reference(cfg: dict, lab: Path) -> list[str]:
     that only means something for the paper's specimens B1-B3."""
     if cfg["study"].get("reference") != "yu2026":
         return []
-    from ..report.paper import LAB
-
     df = read_lab(lab)
     bad = []
     for rec in df.to_dict("records"):
-        pub = LAB.get(str(rec["specimen"]))
+        pub = PAPER_LAB.get(str(rec["specimen"]))
         if pub is None or any(abs(float(rec[k]) - pub[k]) > 1e-9 * abs(pub[k])
                               for k in ("ucs_MPa", "E_GPa", "nu")):
             bad.append(str(rec["specimen"]))
     if bad:
         return [f"study.reference: yu2026 compares the results with the paper's green sandstone "
-                f"specimens {sorted(LAB)}, but lab.csv {cfg['lab']['csv']!r} holds other data "
+                f"specimens {sorted(PAPER_LAB)}, but lab.csv {cfg['lab']['csv']!r} holds other data "
                 f"(specimen(s) {bad}); set study.reference: none for another rock"]
     return []
 
@@ -308,3 +305,4 @@ def load_lab(path):
         if c in df.columns:
             df[c] = pd.to_numeric(df[c], errors="coerce")
     return df
+
