@@ -12,16 +12,22 @@ resource budgets) is reported before any work starts as one line on stderr,
 ``bpmcal CMD: error: ...``, with exit code 2, and nothing is written. Exit codes: 0 done,
 1 internal error (a bug: traceback and a hint), 2 bad input, 3 the DEM run failed and its
 failure record was written (0 with ``--failed-ok``, what the workflow rules pass),
-4 system error (disk full, permission), 130 interrupted. Helpers: ``bpmcal.cli_args``.
+4 system error (disk full, permission), 130 interrupted.
+
+This module only parses arguments and calls one stage (``bpmcal.stages``, the report) or
+one I/O helper; argument types and exit codes: ``bpmcal.cli_args``. Every default comes
+from the settings it sets (the lab tests' settings dataclasses, ``Geometry``, the
+analysis classes and the stage functions: :func:`defaults_of`), never a literal here.
+Each subcommand's options are added by its ``_add_<cmd>`` function, which imports what
+that command needs, and ``main`` builds only the parser of the command it runs: a DEM
+job (``bpmcal ucs``, 150 per study) does not load xgboost, statsmodels or matplotlib.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
-import time
 import traceback
 from pathlib import Path
 
@@ -35,67 +41,16 @@ from .cli_args import (
     EXIT_SYSTEM,
     SEED,
     THREADS,
-    BadInput,
     Parser,
     fraction,
-    in_file,
     integer,
     number,
-    out_dir,
-    out_file,
-    parse_json,
     positive,
-    read_csv,
-    read_json,
-    read_yaml,
 )
-from .io.paths import name_problem
-
-
-class Progress:
-    """A one-line progress bar on a terminal, plain log lines (every ``every`` s) otherwise."""
-
-    def __init__(self, label: str, stream=None, every: float = 10.0, enabled: bool = True):
-        self.stream = stream or sys.stderr
-        self.tty = self.stream.isatty()
-        self.label = label
-        self.every = every
-        self.enabled = enabled
-        self._last = 0.0
-        self._t0 = time.perf_counter()
-
-    def __call__(self, d: dict):
-        if not self.enabled:
-            return
-        now = time.perf_counter()
-        if not self.tty and now - self._last < self.every:
-            return
-        self._last = now
-        if "phase" in d:  # genesis: phase, steps, ratio, target, wall_s (of the phase)
-            rate = d.get("steps", 0) / max(d.get("wall_s", 0.0), 1e-9)
-            self._write(f"{self.label}: genesis, {d['phase']:16s} unbalanced-force ratio "
-                        f"{d.get('ratio', 0):9.3g} (target {d.get('target', 0):g})  "
-                        f"{d.get('steps', 0):8d} steps  {rate:8.0f} steps/s")
-            return
-        rate = d.get("steps", 0) / max(d.get("wall_s", now - self._t0), 1e-9)
-        line = (f"{self.label}: strain {d.get('strain', 0) * 100:6.3f} %  stress "
-                f"{d.get('stress_MPa', 0):7.2f} MPa (peak {d.get('peak_MPa', 0):7.2f})  cracks "
-                f"{d.get('cracks', 0):6d}  {d.get('steps', 0):8d} steps  {rate:8.0f} steps/s")
-        self._write(line)
-
-    def _write(self, line: str):
-        if self.tty:
-            self.stream.write("\r" + line)
-        else:
-            self.stream.write(line + "\n")
-        self.stream.flush()
-
-    def done(self, msg: str = ""):
-        if self.enabled and self.tty:
-            self.stream.write("\n")
-        if msg and self.enabled:
-            self.stream.write(msg + "\n")
-            self.stream.flush()
+from .io.checks import BadInput, parse_json
+from .lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
+from .stages import defaults_of
+from .stages.progress import Progress
 
 
 def _param_help() -> str:
@@ -110,70 +65,7 @@ def _param_help() -> str:
     return "\n".join(rows)
 
 
-def _parse_set(items) -> dict:
-    out = {}
-    for it in items or []:
-        if "=" not in it:
-            raise P.ParameterError(f"--set {it!r}: expected NAME=VALUE")
-        k, v = it.split("=", 1)
-        k = k.strip()
-        try:
-            out[k] = float(v)
-        except ValueError:
-            raise P.ParameterError(f"--set {k}={v!r}: expected a number") from None
-    return out
-
-
-def load_params(path, overrides=()) -> dict:
-    """Parameters from a YAML file (a flat mapping of the 8 names, or a material card whose
-    ``parameters`` hold them) plus NAME=VALUE overrides, validated (unknown, missing,
-    non-numeric, boolean, NaN or out-of-domain values raise)."""
-    d = {}
-    if path is not None:
-        d = read_yaml(path, "--params")
-        if "parameters" in d:  # a material card
-            if not isinstance(d["parameters"], dict):
-                raise BadInput(f"--params {path}: 'parameters' is not a mapping of parameter "
-                               "names to values")
-            d = dict(d["parameters"])
-    d.update(_parse_set(overrides))
-    try:
-        return P.validate_params(d)
-    except P.ParameterError as e:
-        raise P.ParameterError(f"--params {path}: {e}" if path is not None else str(e)) from None
-
-
-def params_from_design(path, sample_id) -> tuple[dict, int, str]:
-    """The 8 parameters, the seed and a skip reason ("" to run) of one row of a design CSV.
-    A sweep-plan row with status "unreachable" is not run: its reason is returned and its
-    parameters (NaN strengths) are not validated."""
-    from .study.sweep import UNREACHABLE
-
-    d = read_csv(path, "--design", ["sample_id", *P.PARAMS, "seed"], dtype={"sample_id": str})
-    row = d[d["sample_id"] == sample_id]
-    if len(row) != 1:
-        raise BadInput(f"--sample {sample_id!r}: {'not in' if len(row) == 0 else 'repeated in'} "
-                       f"{path} ({len(d)} samples: {d['sample_id'].iloc[0]}..."
-                       f"{d['sample_id'].iloc[-1]})")
-    r = row.iloc[0]
-    raw = r["seed"].item() if hasattr(r["seed"], "item") else r["seed"]
-    try:
-        seed = float(raw)
-    except (TypeError, ValueError):
-        seed = math.nan
-    if not (math.isfinite(seed) and seed == int(seed) and 0 <= seed < 2 ** 32):
-        raise BadInput(f"--design {path} sample {sample_id}: seed={raw!r}: expected an "
-                       "integer in [0, 2^32)")
-    if "status" in d.columns and str(r["status"]) == UNREACHABLE:
-        reason = r["reason"] if "reason" in d.columns and isinstance(r["reason"], str) else ""
-        return {k: r[k] for k in P.PARAMS}, int(seed), f"not run: unreachable ratio: {reason}"
-    try:
-        params = P.validate_params({k: r[k] for k in P.PARAMS})
-    except P.ParameterError as e:
-        raise P.ParameterError(f"--design {path} sample {sample_id}: {e}") from None
-    return params, int(seed), ""
-
-
+# ------------------------------------------------------------------------ DEM runs
 def _run_done(a, cmd: str, out) -> int:
     """Exit code of a DEM run command; the FAILED line is printed even with --quiet."""
     if out.status == "ok":
@@ -185,77 +77,46 @@ def _run_done(a, cmd: str, out) -> int:
     return EXIT_OK if a.failed_ok and not out.kept else EXIT_RUN_FAILED
 
 
-def _float_or_nan(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return math.nan
+def _budget(a) -> dict:
+    return {"max_balls": a.max_balls, "mem_budget_mb": a.mem_budget_mb,
+            "genesis_max_steps": a.genesis_max_steps}
 
 
-def _cache_dir(a):
-    if getattr(a, "specimen_cache", None) is not None:
-        out_dir(a.specimen_cache, "--specimen-cache")
+def run_geometry(a):
+    from .lab.runner import Geometry
+
+    return Geometry(scale=a.scale, diameter_mm=a.diameter, height_mm=a.height,
+                    sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
+                    relax_ratio=a.relax_ratio)
 
 
-def _check_budget(a, params, geo):
-    from .lab.budget import check_budget
-
-    check_budget(params, geo, max_balls=a.max_balls, mem_budget_mb=a.mem_budget_mb)
-
-
-def _params_seed(a) -> tuple[dict, int, str]:
-    """Parameters, packing seed and (for a plan row not to be run) the reason, of a DEM run
-    command: ``--params`` (+ ``--set``) or a ``--design`` row (argparse makes the two
-    exclusive)."""
-    skip = ""
-    if a.design is not None:
-        if a.sample is None:
-            raise BadInput("--design needs --sample ID (the row to run)")
-        params, seed, skip = params_from_design(a.design, a.sample)
-        if not skip and a.set:
-            params = P.validate_params({**params, **_parse_set(a.set)})
-        seed = seed if a.seed is None else a.seed
-    else:
-        if a.sample is not None:
-            raise BadInput(f"--sample {a.sample}: needs --design FILE")
-        params = load_params(a.params, a.set)
-        seed = 1 if a.seed is None else a.seed
-    return params, int(seed), skip
+def run_settings(a, cls=None, **extra):
+    """The loading settings (``cls``: UCSSettings, the default, or TriaxialSettings)."""
+    if cls is None:
+        from .lab.ucs import UCSSettings as cls
+    return cls(platen_velocity=a.platen_velocity, strain_rate=a.strain_rate,
+               damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
+               platen_fric=a.platen_fric, record_strain=a.record_strain, **extra)
 
 
-def _run_command(a, cmd: str, geo, run, inputs, done_line) -> int:
-    """The common body of ``ucs``, ``bts`` and ``triaxial``: parameters and seed, resource
-    budget, output path (all before any work), then the run (``run(params, seed,
-    progress)`` -> RunOutcome), its one-line result and the exit code."""
-    from .lab.runner import write_failure
+def _lab_test(a, test: str, geometry, settings, done_line) -> int:
+    """``ucs``, ``bts`` and ``triaxial``: the run file (``stages.runs.lab_test_file``), its
+    one-line result and the exit code."""
+    from .stages.runs import lab_test_file
 
-    params, seed, skip = _params_seed(a)
-    if not skip:
-        _check_budget(a, params, geo)
-    out_file(a.out)
-    _cache_dir(a)
-    if skip:
-        inp = inputs({k: _float_or_nan(v) for k, v in params.items()}, seed)
-        return _run_done(a, cmd, write_failure(a.out, test=cmd, inputs=inp, error=skip))
-    prog = Progress(f"{cmd} {Path(a.out).name}", enabled=not a.quiet)
-    out = run(params, seed, prog)
-    if out.status == "ok":
-        prog.done(f"{a.out}: {done_line(out.summary)}")
-    else:
-        prog.done()
-    return _run_done(a, cmd, out)
+    prog = Progress(f"{test} {Path(a.out).name}", enabled=not a.quiet)
+    out = lab_test_file(test, a.out, geometry=geometry, settings=settings,
+                        params_file=a.params, sets=a.set, design=a.design, sample=a.sample,
+                        seed=a.seed, cache=a.specimen_cache, threads=a.threads,
+                        progress=prog, **_budget(a))
+    prog.done(f"{a.out}: {done_line(out.summary)}" if out.status == "ok" and out.summary
+              else "")
+    return _run_done(a, test, out)
 
 
 def cmd_ucs(a) -> int:
-    from .lab.runner import run_ucs_file, ucs_inputs
-
-    geo, st = run_geometry(a), run_settings(a)
-    return _run_command(
-        a, "ucs", geo,
-        lambda p, seed, prog: run_ucs_file(a.out, p, seed, geo, st, cache=a.specimen_cache,
-                                           progress=prog, threads=a.threads,
-                                           genesis_max_steps=a.genesis_max_steps),
-        lambda p, seed: ucs_inputs(p, seed, geo, st),
+    return _lab_test(
+        a, "ucs", run_geometry(a), run_settings(a),
         lambda s: (f"sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
                    f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
                    f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
@@ -264,7 +125,7 @@ def cmd_ucs(a) -> int:
 
 def cmd_bts(a) -> int:
     from .lab.brazilian import BTSSettings
-    from .lab.runner import bts_geometry, bts_inputs, run_bts_file
+    from .lab.runner import bts_geometry
 
     geo = bts_geometry(scale=a.scale, diameter_mm=a.diameter, thickness_mm=a.thickness,
                        sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
@@ -272,12 +133,8 @@ def cmd_bts(a) -> int:
     st = BTSSettings(platen_velocity=a.platen_velocity, platen_fric=a.platen_fric,
                      damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
                      record_strain=a.record_strain)
-    return _run_command(
-        a, "bts", geo,
-        lambda p, seed, prog: run_bts_file(a.out, p, seed, geo, st, cache=a.specimen_cache,
-                                           progress=prog, threads=a.threads,
-                                           genesis_max_steps=a.genesis_max_steps),
-        lambda p, seed: bts_inputs(p, seed, geo, st),
+    return _lab_test(
+        a, "bts", geo, st,
         lambda s: (f"sigma_t = {s['bts_MPa']:.3f} MPa (peak load {s['peak_load_N']:.1f} N, "
                    f"platen forces differ by {100 * s['platen_mismatch']:.2f} %), cracks "
                    f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
@@ -285,15 +142,10 @@ def cmd_bts(a) -> int:
 
 
 def cmd_triaxial(a) -> int:
-    from .lab.runner import run_triaxial_file, triaxial_inputs
     from .lab.triaxial import TriaxialSettings
 
-    geo = run_geometry(a)
-    st = TriaxialSettings(sigma3=a.sigma3 * 1e6, platen_velocity=a.platen_velocity,
-                          strain_rate=a.strain_rate, damping=a.damping,
-                          stop_drop=a.stop_drop, max_strain=a.max_strain,
-                          platen_fric=a.platen_fric, record_strain=a.record_strain,
-                          servo_alpha=a.servo_gain, servo_interval=a.servo_interval)
+    st = run_settings(a, TriaxialSettings, sigma3=a.sigma3 * 1e6, servo_alpha=a.servo_gain,
+                      servo_interval=a.servo_interval)
 
     def line(s):
         dev = (f"{100 * s['sigma3_maxdev_rel']:.2f} %" if a.sigma3 > 0
@@ -303,116 +155,54 @@ def cmd_triaxial(a) -> int:
                 f"up to the peak, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
                 f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
 
-    return _run_command(
-        a, "triaxial", geo,
-        lambda p, seed, prog: run_triaxial_file(a.out, p, seed, geo, st,
-                                                cache=a.specimen_cache, progress=prog,
-                                                threads=a.threads,
-                                                genesis_max_steps=a.genesis_max_steps),
-        lambda p, seed: triaxial_inputs(p, seed, geo, st), line)
+    return _lab_test(a, "triaxial", run_geometry(a), st, line)
 
 
+def cmd_impact(a) -> int:
+    from .lab.impact import ImpactSettings
+    from .stages.runs import impact_file
+
+    st = ImpactSettings(velocity=a.velocity, hammer_mass=a.hammer_mass * a.scale ** 3,
+                        dp_ratio=a.dp_ratio, platen_fric=a.anvil_fric,
+                        duration=a.duration_ms * 1e-3, record_dt=a.record_us * 1e-6)
+    prog = Progress(f"impact {Path(a.out).name}", enabled=not a.quiet)
+    out = impact_file(a.card, a.out, geometry=run_geometry(a), settings=st, seed=a.seed,
+                      cache=a.specimen_cache, threads=a.threads, progress=prog, **_budget(a))
+    if out.status == "ok":
+        s = out.summary
+        prog.done(f"{a.out}: W_in = {s['W_in_J']:.3f} J, G_f = {s['G_f_J']:.3f} J, eta_f = "
+                  f"{100 * s['eta_f']:.1f} %, t10 = {s['t10_pct']:.1f} %, closure "
+                  f"{100 * s['closure_rel_max']:.3f} %, {s['steps']} steps, {s['wall_s']:.0f} s")
+    else:
+        prog.done()
+    return _run_done(a, "impact", out)
+
+
+# ------------------------------------------------------------------------ the study
 def cmd_design(a) -> int:
-    from .study.design import lhs_design
+    from .stages.study import design
 
     ranges = parse_json(a.ranges, "--ranges")
-    if not isinstance(ranges, dict):
-        raise BadInput(f"--ranges {a.ranges}: expected a JSON object "
-                       '{"name": [low, high], ...}')
-    out_file(a.out, suffixes=(".csv",))
     opt = None if a.optimization == "none" else a.optimization
-    df = lhs_design(ranges, a.n, a.seed, optimization=opt)
-    _write_csv(df, a.out)
+    df = design(ranges, a.n, a.seed, a.out, optimization=opt)
     print(f"{a.out}: {len(df)} samples over {sorted(ranges)} (seed {a.seed})")
     return 0
 
 
 def cmd_gather(a) -> int:
-    from .study.gather import gather, status_report
+    from .stages.study import gather
 
-    design = read_csv(a.design, "--design", ["sample_id", *P.PARAMS, "seed"],
-                      dtype={"sample_id": str})
-    for sid in design["sample_id"]:
-        m = name_problem(sid)
-        if m:
-            raise BadInput(f"--design {a.design}: sample_id {m}")
-    runs_dir = Path(a.runs)
-    if not runs_dir.is_dir():
-        raise BadInput(f"--runs {a.runs}: not a directory (expected the folder of the "
-                       "<sample_id>.h5 run files)")
-    out_file(a.out, suffixes=(".csv",))
-    df = gather(design, {sid: runs_dir / f"{sid}.h5" for sid in design["sample_id"]})
-    _write_csv(df, a.out)
-    print(status_report(df))
+    _, report = gather(a.design, a.runs, a.out)
+    print(report)
     return 0
 
 
-def _write_csv(df, path):
-    """Write a table atomically (temporary name, then rename)."""
-    from .io.atomic import atomic_path
-
-    with atomic_path(path) as tmp:
-        df.to_csv(tmp, index=False)
-
-
-def _json_arg(text, name):
-    return parse_json(text, name)
-
-
-def _dataset(path, flag="--dataset", min_ok: int = 1):
-    """A gathered dataset CSV with the columns the analyses need and enough ok samples."""
-    df = read_csv(path, flag, ["sample_id", *P.PARAMS, "status"])
-    n_ok = int((df["status"] == "ok").sum())
-    if n_ok < min_ok:
-        raise BadInput(f"{flag} {path}: {n_ok} of {len(df)} samples have status ok; this step "
-                       f"needs at least {min_ok}")
-    return df
-
-
-def _models(path, flag="--models"):
-    from .analysis import models_from_dict
-
-    d = read_json(path, flag)
-    try:
-        models = models_from_dict(d)
-    except (KeyError, TypeError, ValueError, AttributeError) as e:
-        raise BadInput(f"{flag} {path}: not a models.json of 'bpmcal regress' "
-                       f"({type(e).__name__}: {e})") from None
-    if "ucs_MPa" not in models:
-        raise BadInput(f"{flag} {path}: no model of ucs_MPa")
-    return models
-
-
-def _card(path, flag="--card", need=("parameters",)) -> dict:
-    """A material card (YAML mapping) with the keys ``need`` and valid parameters."""
-    d = read_yaml(path, flag)
-    missing = [k for k in need if k not in d]
-    if missing:
-        raise BadInput(f"{flag} {path}: not a material card (no {', '.join(missing)}; "
-                       "expected the output of 'bpmcal calibrate' or 'bpmcal verify')")
-    if "parameters" in d:
-        if not isinstance(d["parameters"], dict):
-            raise BadInput(f"{flag} {path}: 'parameters' is not a mapping")
-        try:
-            P.validate_params(d["parameters"])
-        except P.ParameterError as e:
-            raise P.ParameterError(f"{flag} {path}: {e}") from None
-    return d
-
-
-def _out_dirs(a, *flags):
-    for f in flags:
-        v = getattr(a, f.lstrip("-").replace("-", "_"))
-        if v is not None:
-            out_dir(v, f)
-
-
 def cmd_screen(a) -> int:
-    from .study.pipeline import screen
+    from .stages.analysis import screen
 
-    _dataset(a.dataset, min_ok=max(a.splits, 4))
-    _out_dirs(a, "--out", "--tables", "--figures")
-    r = screen(a.dataset, a.out, a.tables, a.figures, threshold=a.threshold,
+    r = screen(a.dataset, selected=a.selected, table3_csv=a.table3, figure=a.figure,
+               importance_table=a.importance_table, cv_table=a.cv_table,
+               shadow_table=a.shadow_table, summary=a.summary, threshold=a.threshold,
                importance=a.importance, n_splits=a.splits, n_repeats=a.repeats, seed=a.seed)
     print(r["note"])
     for k, v in r["selected"].items():
@@ -421,97 +211,44 @@ def cmd_screen(a) -> int:
 
 
 def cmd_regress(a) -> int:
-    from .study.pipeline import regress
+    from .stages.analysis import regress
 
-    _dataset(a.dataset, min_ok=max(a.cv_folds, 4))
-    sel = read_json(a.selected, "--selected")
-    if not isinstance(sel, dict) or not isinstance(sel.get("selected"), dict):
-        raise BadInput(f"--selected {a.selected}: not a selected.json of 'bpmcal screen' "
-                       "(no 'selected' mapping)")
-    _out_dirs(a, "--out", "--tables", "--figures")
-    r = regress(a.dataset, a.selected, a.out, a.tables, a.figures, alpha_in=a.alpha_in,
-                alpha_out=a.alpha_out, vif_max=a.vif_max, hierarchy=a.hierarchy,
-                cv_folds=a.cv_folds, cv_repeats=a.cv_repeats, seed=a.seed)
+    r = regress(a.dataset, a.selected, models=a.models, equations=a.equations,
+                summaries=a.summaries, coefficients=a.coefficients, candidates=a.candidates,
+                table4=a.table4, fit_table=a.fit_table, figure=a.figure,
+                alpha_in=a.alpha_in, alpha_out=a.alpha_out, vif_max=a.vif_max,
+                hierarchy=a.hierarchy, cv_folds=a.cv_folds, cv_repeats=a.cv_repeats,
+                seed=a.seed)
     print(r["note"])
-    print((Path(a.out) / "equations.md").read_text())
+    print(r["equations"])
     return 0
 
 
 def cmd_calibrate(a) -> int:
-    from .study.config import load_lab
-    from .study.pipeline import calibrate
+    from .stages.analysis import calibrate
 
-    load_lab(in_file(a.lab, "--lab"))  # specimen names become file names: check them first
-    fixed = _json_arg(a.fixed, "--fixed")
-    if not isinstance(fixed, dict):
-        raise BadInput(f"--fixed {a.fixed}: expected a JSON object of parameter values")
-    try:
-        fixed = P.validate_params(fixed, require_all=False)
-    except P.ParameterError as e:
-        raise P.ParameterError(f"--fixed: {e}") from None
-    if a.n_boot == 1:
-        raise P.ParameterError(f"--n-boot {a.n_boot}: expected 0 (no bootstrap) "
-                               "or an integer >= 2")
-    free = a.free.split(",") if a.free else None
-    if free:
-        bad = [f for f in free if f not in P.PARAMS]
-        if bad:
-            raise BadInput(f"--free {a.free}: unknown parameter(s) {bad}; expected names from "
-                           f"{list(P.PARAMS)}")
-    ratio = None if a.ratio <= 0 else a.ratio
-    if a.ratio_from:
-        ch = read_json(a.ratio_from, "--ratio-from")
-        if not isinstance(ch, dict) or "chosen_ratio" not in ch:
-            raise BadInput(f"--ratio-from {a.ratio_from}: no 'chosen_ratio' (expected the "
-                           "chosen.json of 'bpmcal sweep-analyse')")
-        if ch["chosen_ratio"] is None:
-            print(f"--ratio-from {a.ratio_from}: the sweep chose no ratio "
-                  f"({ch.get('reason', 'no usable run')}); using --ratio {a.ratio:g}")
-        else:
-            ratio = P.as_number(ch["chosen_ratio"], f"--ratio-from {a.ratio_from}: "
-                                "chosen_ratio", "a positive ratio", BadInput)
-            if ratio <= 0:
-                raise BadInput(f"--ratio-from {a.ratio_from}: chosen_ratio={ratio:g}: "
-                               "expected a positive ratio")
-    ranges = _json_arg(a.ranges, "--ranges")
-    bounds = _json_arg(a.bounds, "--bounds") if a.bounds else {}
-    for name, val in (("--ranges", ranges), ("--bounds", bounds)):
-        if not isinstance(val, dict):
-            raise BadInput(f"{name}: expected a JSON mapping of parameter name to "
-                           f"[low, high] (paper units), got {val!r}")
-    from .analysis.calibration import check_calibration_space
-
-    check_calibration_space(free, fixed, ratio, ranges, bounds)
-    _dataset(a.dataset)
-    _models(a.models)
-    _out_dirs(a, "--out", "--tables")
-    r = calibrate(a.dataset, a.models, a.lab, a.out, fixed=fixed, ranges=ranges, bounds=bounds,
-                  ratio=ratio, free=free, n_boot=a.n_boot, seed=a.seed, tables_dir=a.tables)
+    fixed = parse_json(a.fixed, "--fixed")
+    ranges = parse_json(a.ranges, "--ranges")
+    bounds = parse_json(a.bounds, "--bounds") if a.bounds else {}
+    r = calibrate(a.dataset, a.models, a.lab, cards=a.cards, table=a.table, fixed=fixed,
+                  ranges=ranges, bounds=bounds, ratio=None if a.ratio <= 0 else a.ratio,
+                  ratio_from=a.ratio_from, free=a.free.split(",") if a.free else None,
+                  n_boot=a.n_boot, seed=a.seed)
+    if r["note"]:
+        print(r["note"])
     print(r["table"].to_string())
     return 0
 
 
-def _run_inputs(a, params):
-    """Geometry and UCS settings of a DEM command and the budget of ``params``, checked;
-    then the output folder and the cache folder."""
-    geo, st = run_geometry(a), run_settings(a)
-    _check_budget(a, params, geo)
-    _out_dirs(a, "--out")
-    _cache_dir(a)
-    return geo, st
-
-
 def cmd_verify(a) -> int:
-    from .study.pipeline import verify
+    from .stages.analysis import verify
 
-    card = _card(a.card, need=("parameters", "targets", "roles"))
-    _models(a.models)
-    geo, st = _run_inputs(a, card["parameters"])
     prog = Progress(f"verify {Path(a.card).stem}", enabled=not a.quiet)
-    v = verify(a.card, a.models, a.out, geometry=geo, settings=st,
-               seed=a.seed, rtol=a.rtol, max_rounds=a.max_rounds, cache=a.specimen_cache,
-               threads=a.threads, progress=prog,
-               from_unreachable=a.from_unreachable)["verification"]
+    v = verify(a.card, a.models, out_card=a.out_card, rounds=a.rounds, run=a.run,
+               geometry=run_geometry(a), settings=run_settings(a), seed=a.seed,
+               rtol=a.rtol, max_rounds=a.max_rounds, cache=a.specimen_cache,
+               threads=a.threads, progress=prog, from_unreachable=a.from_unreachable,
+               **_budget(a))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
 
@@ -528,227 +265,77 @@ def _seeds(text) -> list[int]:
 
 
 def cmd_scatter(a) -> int:
-    from .study.pipeline import seed_scatter_runs
+    from .stages.analysis import seed_scatter
 
-    seeds = _seeds(a.seeds)
-    card = _card(a.card, need=("parameters", "specimen"))
-    geo, st = _run_inputs(a, card["parameters"])
-    sc = seed_scatter_runs(a.card, a.out, geometry=geo, settings=st,
-                           seeds=seeds, rtol=a.rtol, cache=a.specimen_cache, threads=a.threads)
+    sc = seed_scatter(a.card, runs=a.runs, seeds=_seeds(a.seeds), seed_runs=a.seed_runs,
+                      table=a.table, geometry=run_geometry(a), settings=run_settings(a),
+                      rtol=a.rtol, cache=a.specimen_cache, threads=a.threads, **_budget(a))
     print(sc.to_string())
     return 0
 
 
 def cmd_vtables(a) -> int:
-    from .study.config import load_lab
-    from .study.pipeline import verification_tables
+    from .stages.analysis import verification_tables
 
-    cards = {}
-    for c in a.cards:
-        _card(c, "--cards", need=("parameters", "targets", "verification", "lab"))
-        spec = Path(c).parent.name
-        m = name_problem(spec)
-        if m:
-            raise BadInput(f"--cards {c}: folder name {m}")
-        cards[spec] = c
-    load_lab(in_file(a.lab, "--lab"))
-    _out_dirs(a, "--tables", "--figures")
-    r = verification_tables(cards, a.lab, a.tables, a.figures)
+    r = verification_tables(a.cards, a.runs, a.lab, table5=a.table5, table6=a.table6,
+                            figure=a.figure)
     print(r["table5"].to_string())
     print(r["table6"].to_string())
     return 0
 
 
 def _ratios(text) -> tuple[float, float, float]:
-    from .study.sweep import ratio_grid
-
-    parts = text.split(",")
     try:
-        start, stop, step = (float(x) for x in parts)
+        start, stop, step = (float(x) for x in text.split(","))
     except ValueError:
         raise BadInput(f"--ratios {text!r}: expected start,stop,step (three numbers)") from None
-    try:
-        ratio_grid(start, stop, step)
-    except P.ParameterError as e:
-        raise BadInput(f"--ratios {text!r}: {e}") from None
     return start, stop, step
 
 
 def cmd_sweep_plan(a) -> int:
-    from .study.sweep import ratio_grid, sweep_plan
+    from .stages.fracture import sweep_plan
 
-    start, stop, step = _ratios(a.ratios)
-    card = _card(a.card, need=("parameters", "targets"))
-    if "ucs_MPa" not in (card["targets"] or {}):
-        raise BadInput(f"--card {a.card}: no targets.ucs_MPa")
-    models = _models(a.models)
-    out_file(a.out, suffixes=(".csv",))
-    plan = sweep_plan(card, models["ucs_MPa"], ratio_grid(start, stop, step), a.seed)
-    _write_csv(plan, a.out)
+    plan = sweep_plan(a.card, a.models, ratios=_ratios(a.ratios), seed=a.seed, out=a.out)
     print(plan.to_string())
-    bad = plan[plan["status"] != "planned"]
-    for r in bad.itertuples():
+    for r in plan[plan["status"] != "planned"].itertuples():
         print(f"{r.sample_id}: {r.status}: {r.reason}")
     return 0
 
 
 def cmd_sweep_analyse(a) -> int:
-    from .io.h5 import read_cracks
-    from .io.vtk import export_run
-    from .plots.fracture import fig_failure_patterns, fig_ratio_cracks
-    from .plots.style import save
-    from .study.pipeline import write_table
-    from .study.sweep import analyse_sweep, write_chosen
+    from .stages.fracture import sweep_analyse
 
-    plan = read_csv(a.plan, "--plan", ["sample_id", "ratio", "pb_ten_MPa", "pb_coh_MPa",
-                                       "extrapolated"], dtype={"sample_id": str})
-    for sid in plan["sample_id"]:
-        m = name_problem(sid)
-        if m:
-            raise BadInput(f"--plan {a.plan}: sample_id {m}")
-    if not Path(a.runs).is_dir():
-        raise BadInput(f"--runs {a.runs}: not a directory")
-    out_file(a.chosen, "--chosen", suffixes=(".json",))
-    _out_dirs(a, "--tables", "--figures", "--vtk")
-    df, chosen = analyse_sweep(plan, a.runs, a.criterion, a.target)
-    write_table(df, Path(a.tables) / "ratio_sweep.csv", index=False)
-    write_chosen(a.chosen, chosen)
-    save(fig_ratio_cracks(df, chosen), Path(a.figures) / "fig4_ratio_cracks.png")
-    ok = df[df["status"] == "ok"]
-    show = sorted({ok["ratio"].iloc[0], chosen["chosen_ratio"], 1.0, ok["ratio"].iloc[-1]}
-                  & set(ok["ratio"])) if len(ok) else []
-    panels = {}
-    for r in show:
-        sid = ok.loc[ok["ratio"] == r, "sample_id"].iloc[0]
-        run = Path(a.runs) / f"{sid}.h5"
-        panels[f"a = {r:.1f}"] = read_cracks(run)
-        export_run(run, Path(a.vtk) / sid)
-    save(fig_failure_patterns(panels), Path(a.figures) / "fig5_failure_patterns.png")
+    df, chosen = sweep_analyse(a.plan, a.runs, criterion=a.criterion, target=a.target,
+                               table=a.table, chosen=a.chosen, fig4=a.fig4, fig5=a.fig5,
+                               vtk=a.vtk)
     print(df.to_string())
     print(f"chosen: {chosen}")
     return 0
 
 
-def cmd_impact(a) -> int:
-    from .lab.impact import ImpactSettings
-    from .lab.runner import run_impact_file
-
-    card = _card(a.card, need=())
-    if "parameters" in card or "verification" in card:
-        params = (card.get("verification") or {}).get("parameters") or card.get("parameters")
-    else:
-        params = card  # a flat mapping of the 8 parameters
-    if not isinstance(params, dict):
-        raise BadInput(f"--card {a.card}: no parameters")
-    try:
-        params = P.validate_params(params)
-    except P.ParameterError as e:
-        raise P.ParameterError(f"--card {a.card}: {e}") from None
-    geo = run_geometry(a)
-    st = ImpactSettings(velocity=a.velocity, hammer_mass=a.hammer_mass * a.scale ** 3,
-                        dp_ratio=a.dp_ratio, platen_fric=a.anvil_fric,
-                        duration=a.duration_ms * 1e-3, record_dt=a.record_us * 1e-6)
-    _check_budget(a, params, geo)
-    out_file(a.out)
-    _cache_dir(a)
-    prog = Progress(f"impact {Path(a.out).name}", enabled=not a.quiet)
-    out = run_impact_file(a.out, params, a.seed, geo, st, cache=a.specimen_cache,
-                          threads=a.threads, progress=prog,
-                          genesis_max_steps=a.genesis_max_steps)
-    if out.status == "ok":
-        s = out.summary
-        prog.done(f"{a.out}: W_in = {s['W_in_J']:.3f} J, G_f = {s['G_f_J']:.3f} J, eta_f = "
-                  f"{100 * s['eta_f']:.1f} %, t10 = {s['t10_pct']:.1f} %, closure "
-                  f"{100 * s['closure_rel_max']:.3f} %, {s['steps']} steps, {s['wall_s']:.0f} s")
-    else:
-        prog.done()
-    return _run_done(a, "impact", out)
-
-
 def cmd_impact_analyse(a) -> int:
-    import pandas as pd
+    from .stages.fracture import impact_analyse
 
-    from .io.h5 import RunFileError, check_run_file, read_inputs, read_series, read_summary
-    from .lab.fragments import fit_jk
-    from .plots.fracture import fig_impact, fig_t10
-    from .plots.style import fig_note, save
-    from .study.pipeline import write_table, write_text
-
-    check_run_file(a.main)
-    for f in a.runs:
-        in_file(f, "--runs")
-    _out_dirs(a, "--tables", "--figures")
-    main_s = read_summary(a.main)
-    if main_s.get("status") == "ok":
-        ser = read_series(a.main)
-        ser["cracks_total"] = ser["cracks_tension"] + ser["cracks_shear"]
-        fig7 = fig_impact(ser, main_s)
-    else:
-        ser = pd.DataFrame({"status": [main_s.get("status")], "error": [main_s.get("error")]})
-        fig7 = fig_note("Fig. 7 not available", f"the impact run {Path(a.main).name} failed: "
-                        f"{main_s.get('error', '')}")
-        print(f"{a.main}: run failed ({main_s.get('error', '')}); Fig. 7 not drawn")
-    write_table(ser, Path(a.tables) / "impact_energy.csv", index=False)
-    save(fig7, Path(a.figures) / "fig7_impact_energy.png")
-    cols = ["velocity", "W_in_J", "G_f_J", "eta_f", "ecs_kWh_t", "t10_pct", "n_fragments",
-            "largest_fragment_frac", "balls_per_t10_fragment"]
-    rows = []
-    for f in a.runs:
-        try:
-            s = read_summary(f)
-        except RunFileError as e:
-            s = {"status": "unreadable", "error": str(e)}
-        if s.get("status") != "ok":
-            v = read_inputs(f).get("impact_velocity") if s["status"] == "failed" else None
-            print(f"{f}: {s['status']} ({s.get('error', '')}); left out of the t10 fit")
-            rows.append({"velocity": v, "status": s["status"], "error": s.get("error", "")})
-            continue
-        rows.append({**{c: s[c] for c in cols}, "status": "ok", "error": ""})
-    t = pd.DataFrame(rows, columns=[*cols, "status", "error"]).sort_values("velocity")
-    ok = t[t["status"] == "ok"]
-    try:
-        fit = fit_jk(ok["ecs_kWh_t"], ok["t10_pct"])
-    except (ValueError, RuntimeError, TypeError) as e:
-        fit = None
-        print(f"JK fit failed: {e}")
-    write_table(t, Path(a.tables) / "t10_ecs.csv", index=False)
-    write_text(Path(a.tables) / "jk_fit.json", json.dumps(fit, indent=2) + "\n")
-    save(fig_t10(ok, fit), Path(a.figures) / "t10_ecs.png")
-    print(t.to_string())
-    print(f"JK fit: {fit}")
+    r = impact_analyse(a.main, a.runs, energy=a.energy, t10=a.t10, jk_fit=a.jk_fit,
+                       fig7=a.fig7, fig_t10_png=a.fig_t10)
+    for n in r["notes"]:
+        print(n)
+    print(r["t10"].to_string())
+    print(f"JK fit: {r['fit']}")
     return 0
 
 
 def cmd_report(a) -> int:
-    from .io.atomic import write_text
-    from .report.build import build
+    from .report.build import report
 
-    if (a.config is None) == (a.config_json is None):
-        raise BadInput("give the study config with exactly one of --config FILE and "
-                       "--config-json TEXT")
-    if a.config_json is not None:
-        cfg = parse_json(a.config_json, "--config-json")
-    elif a.config.endswith(".json"):
-        cfg = read_json(a.config, "--config")
-    else:
-        cfg = read_yaml(a.config, "--config")
-    if not isinstance(cfg, dict) or not isinstance(cfg.get("study"), dict):
-        raise BadInput("--config: not a study config (no 'study' section)")
-    if not Path(a.outdir).is_dir():
-        raise BadInput(f"--outdir {a.outdir}: not a directory (expected the study's output "
-                       "folder)")
-    if a.config_out is not None:
-        out_file(a.config_out, "--config-out", suffixes=(".json",))
-    _out_dirs(a, "--out")
-    if a.config_out is not None:
-        write_text(a.config_out, json.dumps(cfg, indent=1, sort_keys=True) + "\n")
-    index = build(a.outdir, cfg, a.out)
-    print(index)
+    print(report(a.outdir, config=a.config, config_json=a.config_json,
+                 config_out=a.config_out))
     return 0
 
 
 def cmd_summary(a) -> int:
     from .io.h5 import json_safe, read_summary
+
     s = read_summary(a.run)
     if a.json:
         print(json.dumps(json_safe(s), sort_keys=True))
@@ -759,6 +346,7 @@ def cmd_summary(a) -> int:
 
 
 def cmd_vtk(a) -> int:
+    from .io.checks import out_dir
     from .io.h5 import read_summary
     from .io.vtk import export_run
 
@@ -766,13 +354,13 @@ def cmd_vtk(a) -> int:
     if s.get("status") != "ok":
         raise BadInput(f"{a.run}: a failure record (status {s.get('status')}: "
                        f"{s.get('error', '')}), no particles to export")
-    _out_dirs(a, "--out")
-    files = export_run(a.run, a.out)
-    for f in files:
+    out_dir(a.out, "--out")
+    for f in export_run(a.run, a.out):
         print(f)
     return 0
 
 
+# ------------------------------------------------------------------------ shared options
 def add_source_args(p):
     """Where a DEM run command takes its parameters and seed from, and its output file."""
     src = p.add_mutually_exclusive_group()
@@ -788,6 +376,10 @@ def add_source_args(p):
                    help="packing seed (default 1, or the design row's)")
 
 
+FAILED_OK_HELP = ("a failed run (failure record written) exits 0 instead of 3; the workflow "
+                  "passes this so that one failed sample does not stop the study")
+
+
 def add_outcome_args(p):
     """How a DEM run command reports: progress, and the exit code of a failed run."""
     p.add_argument("--quiet", action="store_true",
@@ -797,8 +389,6 @@ def add_outcome_args(p):
 
 def add_budget_args(p):
     """Resource guards of a DEM command (checked before any work)."""
-    from .lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
-
     p.add_argument("--max-balls", type=integer("max-balls", 1), default=MAX_BALLS,
                    help="refuse a specimen estimated to hold more balls than this "
                         f"(default {MAX_BALLS:,})")
@@ -811,37 +401,23 @@ def add_budget_args(p):
                         f"run (default {GENESIS_MAX_STEPS:,})")
 
 
-def add_run_args(p):
-    """Options of the specimen and of the UCS loading (shared by ucs, verify, scatter)."""
-    p.add_argument("--scale", type=number("scale", 0.0, 10.0, lo_open=True), default=1.0,
-                   help="specimen size factor on the 50 x 100 mm cylinder (default 1)")
-    p.add_argument("--diameter", type=positive("diameter", "mm"), default=50.0,
-                   help="specimen diameter before scaling [mm] (default 50)")
-    p.add_argument("--height", type=positive("height", "mm"), default=100.0,
-                   help="specimen height before scaling [mm] (default 100)")
-    p.add_argument("--relax-ratio", type=number("relax-ratio", 0.0, 0.1, lo_open=True),
-                   default=1e-2,
-                   help="genesis equilibrium: mean unbalanced-force ratio (default 1e-2)")
-    p.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
-                   default=1e-5, help="axial strain between records (default 1e-5)")
-    p.add_argument("--platen-velocity", type=number("platen-velocity", 0.0, 100.0,
-                                                    lo_open=True, unit="m/s"), default=0.05,
-                   help="speed of each platen [m/s] (default 0.05)")
-    p.add_argument("--strain-rate", type=positive("strain-rate", "1/s"), default=None,
-                   help="axial strain rate [1/s]; overrides --platen-velocity "
-                        "(each platen then moves at rate x H / 2)")
-    p.add_argument("--damping", type=number("damping", 0.0, 1.0, hi_open=True), default=0.7,
-                   help="local damping in [0, 1) (default 0.7)")
-    p.add_argument("--stop-drop", type=fraction("stop-drop"), default=0.7,
-                   help="stop when stress < this fraction of the peak after it (default 0.7)")
-    p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
-                   default=0.03, help="stop at this axial strain (default 0.03)")
-    p.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0), default=0.0,
-                   help="platen friction coefficient in [0, 10] (default 0, frictionless)")
-    p.add_argument("--sigma0", type=number("sigma0", 0.0, 100.0, unit="MPa"), default=0.1,
-                   help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
+def add_specimen_args(p, geo=None, what: str = "the 50 x 100 mm cylinder"):
+    """The specimen of a DEM command (``Geometry``'s fields; defaults from ``geo``)."""
+    from .lab.runner import Geometry
+
+    geo = geo or Geometry()
+    p.add_argument("--scale", type=number("scale", 0.0, 10.0, lo_open=True), default=geo.scale,
+                   help=f"specimen size factor on {what} (default {geo.scale:g})")
+    p.add_argument("--sigma0", type=number("sigma0", 0.0, 100.0, unit="MPa"),
+                   default=geo.sigma0_MPa, help="locked-in isotropic stress after genesis "
+                                                f"[MPa] (default {geo.sigma0_MPa:g})")
     p.add_argument("--install-gap", type=number("install-gap", 0.0, 1.0, unit="mm"),
-                   default=0.0, help="bond pairs with surface gap <= this [mm] (default 0)")
+                   default=geo.install_gap_mm,
+                   help=f"bond pairs with surface gap <= this [mm] (default {geo.install_gap_mm:g})")
+    p.add_argument("--relax-ratio", type=number("relax-ratio", 0.0, 0.1, lo_open=True),
+                   default=geo.relax_ratio,
+                   help="genesis equilibrium: mean unbalanced-force ratio "
+                        f"(default {geo.relax_ratio:g})")
     p.add_argument("--threads", type=THREADS, default=None, help="numba threads (>= 1)")
     p.add_argument("--specimen-cache", default=None,
                    help="directory of cached packings (default ~/.cache/bpmcal/packings or "
@@ -849,280 +425,398 @@ def add_run_args(p):
     add_budget_args(p)
 
 
-def run_geometry(a):
+def add_run_args(p, loading=None):
+    """Options of the cylinder and of its axial loading (shared by ucs, triaxial, verify,
+    scatter, impact); the loading defaults are ``loading``'s (default ``UCSSettings()``)."""
     from .lab.runner import Geometry
-    return Geometry(scale=a.scale, diameter_mm=a.diameter, height_mm=a.height,
-                    sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
-                    relax_ratio=a.relax_ratio)
-
-
-def run_settings(a):
     from .lab.ucs import UCSSettings
-    return UCSSettings(platen_velocity=a.platen_velocity, strain_rate=a.strain_rate,
-                       damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
-                       platen_fric=a.platen_fric, record_strain=a.record_strain)
+
+    geo, ld = Geometry(), loading or UCSSettings()
+    p.add_argument("--diameter", type=positive("diameter", "mm"), default=geo.diameter_mm,
+                   help=f"specimen diameter before scaling [mm] (default {geo.diameter_mm:g})")
+    p.add_argument("--height", type=positive("height", "mm"), default=geo.height_mm,
+                   help=f"specimen height before scaling [mm] (default {geo.height_mm:g})")
+    p.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
+                   default=ld.record_strain,
+                   help=f"axial strain between records (default {ld.record_strain:g})")
+    p.add_argument("--platen-velocity", type=number("platen-velocity", 0.0, 100.0,
+                                                    lo_open=True, unit="m/s"),
+                   default=ld.platen_velocity,
+                   help=f"speed of each platen [m/s] (default {ld.platen_velocity:g})")
+    p.add_argument("--strain-rate", type=positive("strain-rate", "1/s"), default=ld.strain_rate,
+                   help="axial strain rate [1/s]; overrides --platen-velocity "
+                        "(each platen then moves at rate x H / 2)")
+    p.add_argument("--damping", type=number("damping", 0.0, 1.0, hi_open=True),
+                   default=ld.damping, help=f"local damping in [0, 1) (default {ld.damping:g})")
+    p.add_argument("--stop-drop", type=fraction("stop-drop"), default=ld.stop_drop,
+                   help="stop when stress < this fraction of the peak after it "
+                        f"(default {ld.stop_drop:g})")
+    p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
+                   default=ld.max_strain,
+                   help=f"stop at this axial strain (default {ld.max_strain:g})")
+    p.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0),
+                   default=ld.platen_fric,
+                   help=f"platen friction coefficient in [0, 10] (default {ld.platen_fric:g})")
+    add_specimen_args(p, geo)
 
 
-FAILED_OK_HELP = ("a failed run (failure record written) exits 0 instead of 3; the workflow "
-                  "passes this so that one failed sample does not stop the study")
+def _file(p, flag, help_, nargs=None):
+    """A required file option (an input or a declared output of the job)."""
+    p.add_argument(flag, required=True, nargs=nargs, help=help_)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = Parser(prog="bpmcal", description=__doc__.split("\n\n")[0],
-                formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--version", action="version", version=f"bpmcal {_version()}")
-    sub = ap.add_subparsers(dest="cmd", required=True)
+# ------------------------------------------------------------------------ subcommands
+def _add_ucs(p):
+    add_source_args(p)
+    add_run_args(p)
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_ucs)
 
-    u = sub.add_parser("ucs", help="one virtual uniaxial compression test -> HDF5",
-                       formatter_class=argparse.RawDescriptionHelpFormatter,
-                       epilog=_param_help())
-    add_source_args(u)
-    add_run_args(u)
-    add_outcome_args(u)
-    u.set_defaults(func=cmd_ucs)
 
+def _add_bts(p):
     from .lab.brazilian import BTSSettings
+    from .lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM, bts_geometry
 
     bd = BTSSettings()  # the defaults of the Brazilian test live in its settings
-    b = sub.add_parser("bts", help="one virtual Brazilian (diametral compression) test -> HDF5",
-                       formatter_class=argparse.RawDescriptionHelpFormatter,
-                       epilog=_param_help())
-    add_source_args(b)
-    b.add_argument("--scale", type=number("scale", 0.0, 10.0, lo_open=True), default=1.0,
-                   help="specimen size factor on the ISRM 50 x 25 mm disc (default 1)")
-    b.add_argument("--diameter", type=positive("diameter", "mm"), default=50.0,
-                   help="disc diameter before scaling [mm] (default 50)")
-    b.add_argument("--thickness", type=positive("thickness", "mm"), default=25.0,
-                   help="disc thickness before scaling [mm] (default 25, ISRM t = D/2)")
-    b.add_argument("--platen-velocity", type=number("platen-velocity", 0.0, 100.0,
+    add_source_args(p)
+    p.add_argument("--diameter", type=positive("diameter", "mm"), default=BTS_DIAMETER_MM,
+                   help=f"disc diameter before scaling [mm] (default {BTS_DIAMETER_MM:g})")
+    p.add_argument("--thickness", type=positive("thickness", "mm"), default=BTS_THICKNESS_MM,
+                   help=f"disc thickness before scaling [mm] (default {BTS_THICKNESS_MM:g}, "
+                        "ISRM t = D/2)")
+    p.add_argument("--platen-velocity", type=number("platen-velocity", 0.0, 100.0,
                                                     lo_open=True, unit="m/s"),
                    default=bd.platen_velocity,
                    help=f"speed of each platen [m/s] (default {bd.platen_velocity:g}: halving "
                         "it changes sigma_t by < 2 %%, see the README)")
-    b.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0),
+    p.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0),
                    default=bd.platen_fric,
                    help=f"platen friction coefficient (default {bd.platen_fric:g}; with 0 the "
                         "free disc spins on the platens before it seats, and sigma_t is ~15 %% "
                         "lower)")
-    b.add_argument("--damping", type=number("damping", 0.0, 1.0, hi_open=True),
+    p.add_argument("--damping", type=number("damping", 0.0, 1.0, hi_open=True),
                    default=bd.damping, help=f"local damping in [0, 1) (default {bd.damping:g})")
-    b.add_argument("--stop-drop", type=fraction("stop-drop"), default=bd.stop_drop,
+    p.add_argument("--stop-drop", type=fraction("stop-drop"), default=bd.stop_drop,
                    help="stop when the load < this fraction of the peak after it "
                         f"(default {bd.stop_drop:g})")
-    b.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
+    p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
                    default=bd.max_strain,
                    help=f"stop at this platen approach / D (default {bd.max_strain:g})")
-    b.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
+    p.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
                    default=bd.record_strain,
                    help=f"platen approach / D between records (default {bd.record_strain:g})")
-    b.add_argument("--sigma0", type=number("sigma0", 0.0, 100.0, unit="MPa"), default=0.1,
-                   help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
-    b.add_argument("--install-gap", type=number("install-gap", 0.0, 1.0, unit="mm"),
-                   default=0.0, help="bond pairs with surface gap <= this [mm] (default 0)")
-    b.add_argument("--relax-ratio", type=number("relax-ratio", 0.0, 0.1, lo_open=True),
-                   default=1e-2,
-                   help="genesis equilibrium: mean unbalanced-force ratio (default 1e-2)")
-    b.add_argument("--threads", type=THREADS, default=None, help="numba threads (>= 1)")
-    b.add_argument("--specimen-cache", default=None,
-                   help="directory of cached packings (default ~/.cache/bpmcal/packings or "
-                        "$BPMCAL_SPECIMEN_CACHE)")
-    add_budget_args(b)
-    add_outcome_args(b)
-    b.set_defaults(func=cmd_bts)
+    add_specimen_args(p, bts_geometry(), "the ISRM 50 x 25 mm disc")
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_bts)
 
+
+def _add_triaxial(p):
     from .lab.triaxial import TriaxialSettings
 
     td = TriaxialSettings()
-    t = sub.add_parser("triaxial", help="one virtual triaxial compression test -> HDF5",
-                       formatter_class=argparse.RawDescriptionHelpFormatter,
-                       epilog=_param_help())
-    add_source_args(t)
-    t.add_argument("--sigma3", required=True, metavar="MPA",
+    add_source_args(p)
+    p.add_argument("--sigma3", required=True, metavar="MPA",
                    type=number("sigma3", 0.0, 1000.0, unit="MPa"),
                    help="confining stress [MPa] in [0, 1000], held by a servo-controlled "
                         "lateral wall")
-    t.add_argument("--servo-gain", type=number("servo-gain", 0.0, 1.0, lo_open=True),
+    p.add_argument("--servo-gain", type=number("servo-gain", 0.0, 1.0, lo_open=True),
                    default=td.servo_alpha,
                    help=f"servo relaxation factor alpha in (0, 1] (default {td.servo_alpha:g}, "
                         "as PFC)")
-    t.add_argument("--servo-interval", type=integer("servo-interval", 1, 1000),
+    p.add_argument("--servo-interval", type=integer("servo-interval", 1, 1000),
                    default=td.servo_interval,
                    help=f"steps between servo updates (default {td.servo_interval})")
-    add_run_args(t)
-    add_outcome_args(t)
-    t.set_defaults(func=cmd_triaxial)
+    add_run_args(p, loading=td)
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_triaxial)
 
-    d = sub.add_parser("design", help="Latin-hypercube design over parameter ranges -> CSV")
-    d.add_argument("--ranges", required=True,
+
+def _add_impact(p):
+    from .lab.impact import ImpactSettings
+    from .stages.runs import impact_file
+
+    im, seed = ImpactSettings(), defaults_of(impact_file)["seed"]
+    p.add_argument("--card", required=True,
+                   help="material card (verified or calibrated) or a YAML of the 8 parameters")
+    p.add_argument("--out", required=True)
+    p.add_argument("--velocity", type=number("velocity", 0.0, 100.0, lo_open=True,
+                                             unit="m/s"), default=im.velocity,
+                   help=f"hammer velocity [m/s] (default {im.velocity:g})")
+    p.add_argument("--hammer-mass", type=positive("hammer-mass", "kg"), default=im.hammer_mass,
+                   help="hammer mass at full size [kg]; scaled by scale^3 "
+                        f"(default {im.hammer_mass:g})")
+    p.add_argument("--dp-ratio", type=number("dp-ratio", 0.0, 1.0), default=im.dp_ratio,
+                   help="contact dashpot critical-damping ratio in [0, 1] "
+                        f"(default {im.dp_ratio:g})")
+    p.add_argument("--anvil-fric", dest="anvil_fric", type=number("anvil-fric", 0.0, 10.0),
+                   default=im.platen_fric,
+                   help=f"friction of anvil and hammer (default {im.platen_fric:g})")
+    p.add_argument("--duration-ms", type=positive("duration-ms", "ms"),
+                   default=im.duration * 1e3,
+                   help=f"run at most this long [ms] (default {im.duration * 1e3:g})")
+    p.add_argument("--record-us", type=positive("record-us", "us"),
+                   default=im.record_dt * 1e6,
+                   help=f"time between records [us] (default {im.record_dt * 1e6:g})")
+    p.add_argument("--seed", type=SEED, default=seed, help=f"packing seed (default {seed})")
+    add_outcome_args(p)
+    add_run_args(p)
+    p.set_defaults(func=cmd_impact)
+
+
+def _add_design(p):
+    from .study.design import lhs_design
+
+    opt = defaults_of(lhs_design)["optimization"]
+    p.add_argument("--ranges", required=True,
                    help='JSON mapping of parameter name to [low, high] (paper units)')
-    d.add_argument("--n", type=integer("n", 2, 1_000_000), required=True,
+    p.add_argument("--n", type=integer("n", 2, 1_000_000), required=True,
                    help="number of samples")
-    d.add_argument("--seed", type=SEED, required=True, help="design seed")
-    d.add_argument("--optimization", default="random-cd",
-                   choices=["random-cd", "lloyd", "none"], help="LHS optimisation")
-    d.add_argument("--out", required=True, help="output CSV")
-    d.set_defaults(func=cmd_design)
+    p.add_argument("--seed", type=SEED, required=True, help="design seed")
+    p.add_argument("--optimization", default=opt, choices=["random-cd", "lloyd", "none"],
+                   help=f"LHS optimisation (default {opt})")
+    p.add_argument("--out", required=True, help="output CSV")
+    p.set_defaults(func=cmd_design)
 
-    g = sub.add_parser("gather", help="collect per-sample run files into one dataset CSV")
-    g.add_argument("--design", required=True, help="design CSV")
-    g.add_argument("--runs", required=True, help="directory of <sample_id>.h5 run files")
-    g.add_argument("--out", required=True, help="output CSV")
-    g.set_defaults(func=cmd_gather)
 
-    sc = sub.add_parser("screen", help="XGBoost screening of the dataset (Table 3)")
-    sc.add_argument("--dataset", required=True)
-    sc.add_argument("--out", required=True, help="output directory (screening)")
-    sc.add_argument("--tables", required=True, help="tables directory")
-    sc.add_argument("--figures", required=True, help="figures directory")
-    sc.add_argument("--threshold", type=number("threshold", 0.0, 100.0), default=10.0,
-                    help="selection threshold [%%]")
-    sc.add_argument("--importance", default="gain",
-                    choices=["gain", "total_gain", "permutation", "shap"],
-                    help="importance type that drives the selection (default gain)")
-    sc.add_argument("--splits", type=integer("splits", 2, 100), default=5,
-                    help="CV folds (default 5)")
-    sc.add_argument("--repeats", type=integer("repeats", 1, 1000), default=10,
-                    help="permutation repeats")
-    sc.add_argument("--seed", type=SEED, default=0)
-    sc.set_defaults(func=cmd_screen)
+def _add_gather(p):
+    p.add_argument("--design", required=True, help="design CSV")
+    _file(p, "--runs", "the run files, one per sample: <sample_id>.h5 (a sample without one "
+                       "is 'missing')", nargs="+")
+    p.add_argument("--out", required=True, help="output CSV")
+    p.set_defaults(func=cmd_gather)
 
-    rg = sub.add_parser("regress", help="three-stage stepwise regression (Table 4)")
-    rg.add_argument("--dataset", required=True)
-    rg.add_argument("--selected", required=True, help="selected.json of the screening")
-    rg.add_argument("--out", required=True, help="output directory (regression)")
-    rg.add_argument("--tables", required=True)
-    rg.add_argument("--figures", required=True)
-    rg.add_argument("--alpha-in", type=number("alpha-in", 0.0, 0.5, lo_open=True), default=0.05)
-    rg.add_argument("--alpha-out", type=number("alpha-out", 0.0, 0.5, lo_open=True),
-                    default=0.05)
-    rg.add_argument("--vif-max", type=number("vif-max", 1.0), default=10.0)
-    rg.add_argument("--hierarchy", default="strong", choices=["strong", "weak", "none"])
-    rg.add_argument("--cv-folds", type=integer("cv-folds", 2, 100), default=5)
-    rg.add_argument("--cv-repeats", type=integer("cv-repeats", 1, 1000), default=10)
-    rg.add_argument("--seed", type=SEED, default=0)
-    rg.set_defaults(func=cmd_regress)
 
-    ca = sub.add_parser("calibrate", help="invert the models for the lab specimens")
-    ca.add_argument("--dataset", required=True)
-    ca.add_argument("--models", required=True, help="models.json of the regression")
-    ca.add_argument("--lab", required=True, help="lab CSV")
-    ca.add_argument("--out", required=True, help="directory of the material cards")
-    ca.add_argument("--tables", default=None)
-    ca.add_argument("--fixed", required=True, help="JSON of the fixed parameters")
-    ca.add_argument("--ranges", required=True,
-                    help="JSON of the design space {name: [low, high]} the dataset was sampled "
-                         "over (the config's ranges); it bounds the free parameters")
-    ca.add_argument("--bounds", default=None,
-                    help="JSON {name: [low, high]} narrowing --ranges for free parameters "
-                         "(the config's calibration.bounds; wider than --ranges is an error)")
-    ca.add_argument("--free", default=None, help="comma-separated free parameters")
-    ca.add_argument("--ratio", type=number("ratio", None, 100.0), default=1.4,
-                    help="bond-strength ratio pb_ten/pb_coh (<= 0: both free)")
-    ca.add_argument("--ratio-from", default=None,
-                    help="JSON file with the chosen ratio (the ratio sweep's choice; when it "
-                         "holds none, --ratio is used)")
-    ca.add_argument("--n-boot", type=integer("n-boot", 0, 1_000_000), default=200,
-                    help="bootstrap resamples for the intervals (0: no bootstrap, else >= 2)")
-    ca.add_argument("--seed", type=SEED, default=0)
-    ca.set_defaults(func=cmd_calibrate)
+def _add_screen(p):
+    from .analysis import XGBScreening
 
-    ve = sub.add_parser("verify", help="closed-loop DEM verification of a material card")
-    ve.add_argument("--card", required=True)
-    ve.add_argument("--models", required=True)
-    ve.add_argument("--out", required=True, help="output directory")
-    ve.add_argument("--seed", type=SEED, default=1, help="packing seed of the DEM runs")
-    ve.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=0.01,
-                    help="relative tolerance (0.01)")
-    ve.add_argument("--max-rounds", type=integer("max-rounds", 1, 50), default=5,
-                    help="DEM runs at most")
-    ve.add_argument("--from-unreachable", action="store_true",
-                    help="run the closed loop even when the card's inversion is unreachable "
-                         "(default: do not; the verified card says why)")
-    ve.add_argument("--quiet", action="store_true")
-    add_run_args(ve)
-    ve.set_defaults(func=cmd_verify)
+    d = defaults_of(XGBScreening)
+    p.add_argument("--dataset", required=True)
+    for flag, h in (("--selected", "output JSON: the selected candidates per response"),
+                    ("--table3", "output table (CSV, Markdown beside): Table 3"),
+                    ("--figure", "output figure (PNG, PDF beside): importance shares"),
+                    ("--importance-table", "output table: every importance type"),
+                    ("--cv-table", "output table: cross-validated R² of the models"),
+                    ("--shadow-table", "output table: largest shadow-feature share"),
+                    ("--summary", "output text: the screening summary")):
+        _file(p, flag, h)
+    p.add_argument("--threshold", type=number("threshold", 0.0, 100.0), default=d["threshold"],
+                   help=f"selection threshold [%%] (default {d['threshold']:g})")
+    p.add_argument("--importance", default=d["select_by"],
+                   choices=["gain", "total_gain", "permutation", "shap"],
+                   help=f"importance type that drives the selection (default {d['select_by']})")
+    p.add_argument("--splits", type=integer("splits", 2, 100), default=d["n_splits"],
+                   help=f"CV folds (default {d['n_splits']})")
+    p.add_argument("--repeats", type=integer("repeats", 1, 1000), default=d["n_repeats"],
+                   help=f"permutation repeats (default {d['n_repeats']})")
+    p.add_argument("--seed", type=SEED, default=d["seed"])
+    p.set_defaults(func=cmd_screen)
 
-    ss = sub.add_parser("scatter", help="one card, several packing seeds: DEM scatter")
-    ss.add_argument("--card", required=True)
-    ss.add_argument("--out", required=True)
-    ss.add_argument("--seeds", required=True, help="comma-separated packing seeds")
-    ss.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=0.01)
-    add_run_args(ss)
-    ss.set_defaults(func=cmd_scatter)
 
-    vt = sub.add_parser("verification-tables", help="Tables 5 and 6 and Fig. 6")
-    vt.add_argument("--cards", nargs="+", required=True, help="verification card.yaml files")
-    vt.add_argument("--lab", required=True)
-    vt.add_argument("--tables", required=True)
-    vt.add_argument("--figures", required=True)
-    vt.set_defaults(func=cmd_vtables)
+def _add_regress(p):
+    from .analysis import StepwiseRegression
 
-    sp = sub.add_parser("sweep-plan", help="bond-strength-ratio sweep: one row per ratio")
-    sp.add_argument("--card", required=True, help="material card (the initial calibration)")
-    sp.add_argument("--models", required=True)
-    sp.add_argument("--ratios", default="0.5,2.0,0.1", help="start,stop,step")
-    sp.add_argument("--seed", type=SEED, default=1)
-    sp.add_argument("--out", required=True)
-    sp.set_defaults(func=cmd_sweep_plan)
+    d = defaults_of(StepwiseRegression)
+    p.add_argument("--dataset", required=True)
+    p.add_argument("--selected", required=True, help="selected.json of the screening")
+    for flag, h in (("--models", "output JSON: the fitted models"),
+                    ("--equations", "output Markdown: the equations of every stage"),
+                    ("--summaries", "output text: the statsmodels summaries"),
+                    ("--coefficients", "output table: coefficients"),
+                    ("--candidates", "output table: Table 4 over all candidate terms"),
+                    ("--table4", "output table: Table 4 (retained terms)"),
+                    ("--fit-table", "output table: adjusted and CV R² per stage"),
+                    ("--figure", "output figure: predicted vs simulated")):
+        _file(p, flag, h)
+    p.add_argument("--alpha-in", type=number("alpha-in", 0.0, 0.5, lo_open=True),
+                   default=d["alpha_in"])
+    p.add_argument("--alpha-out", type=number("alpha-out", 0.0, 0.5, lo_open=True),
+                   default=d["alpha_out"])
+    p.add_argument("--vif-max", type=number("vif-max", 1.0), default=d["vif_max"])
+    p.add_argument("--hierarchy", default=d["hierarchy"], choices=["strong", "weak", "none"])
+    p.add_argument("--cv-folds", type=integer("cv-folds", 2, 100), default=d["cv_folds"])
+    p.add_argument("--cv-repeats", type=integer("cv-repeats", 1, 1000), default=d["cv_repeats"])
+    p.add_argument("--seed", type=SEED, default=d["seed"])
+    p.set_defaults(func=cmd_regress)
 
-    sa = sub.add_parser("sweep-analyse", help="crack counts per ratio, the chosen ratio")
-    sa.add_argument("--plan", required=True)
-    sa.add_argument("--runs", required=True, help="directory of <sample_id>.h5")
-    sa.add_argument("--criterion", default="tensile_share",
-                    choices=["tensile_share", "crack_count"])
-    sa.add_argument("--target", type=number("target", 0.0), default=0.6)
-    sa.add_argument("--tables", required=True)
-    sa.add_argument("--figures", required=True)
-    sa.add_argument("--vtk", required=True, help="VTK output directory of the shown runs")
-    sa.add_argument("--chosen", required=True, help="output JSON with the chosen ratio")
-    sa.set_defaults(func=cmd_sweep_analyse)
 
-    im = sub.add_parser("impact", help="drop-hammer impact of a calibrated specimen")
-    im.add_argument("--card", required=True, help="material card (verified or calibrated)")
-    im.add_argument("--out", required=True)
-    im.add_argument("--velocity", type=number("velocity", 0.0, 100.0, lo_open=True,
-                                              unit="m/s"), default=6.0, help="m/s")
-    im.add_argument("--hammer-mass", type=positive("hammer-mass", "kg"), default=4.383,
-                    help="hammer mass at full size [kg]; scaled by scale^3 (default 4.383)")
-    im.add_argument("--dp-ratio", type=number("dp-ratio", 0.0, 1.0), default=0.1,
-                    help="contact dashpot critical-damping ratio in [0, 1] (default 0.1)")
-    im.add_argument("--anvil-fric", dest="anvil_fric", type=number("anvil-fric", 0.0, 10.0),
-                    default=0.3, help="friction of anvil and hammer (default 0.3)")
-    im.add_argument("--duration-ms", type=positive("duration-ms", "ms"), default=10.0)
-    im.add_argument("--record-us", type=positive("record-us", "us"), default=5.0)
-    im.add_argument("--seed", type=SEED, default=1)
-    im.add_argument("--quiet", action="store_true",
-                    help="no progress output (a FAILED line is still printed)")
-    im.add_argument("--failed-ok", action="store_true", help=FAILED_OK_HELP)
-    add_run_args(im)
-    im.set_defaults(func=cmd_impact)
+def _add_calibrate(p):
+    from .stages.analysis import calibrate
 
-    ia = sub.add_parser("impact-analyse", help="impact energy table, Fig. 7, t10-Ecs and JK fit")
-    ia.add_argument("--main", required=True, help="the reference impact run (6 m/s)")
-    ia.add_argument("--runs", nargs="+", required=True, help="impact runs of the velocity sweep")
-    ia.add_argument("--tables", required=True)
-    ia.add_argument("--figures", required=True)
-    ia.set_defaults(func=cmd_impact_analyse)
+    d = defaults_of(calibrate)
+    p.add_argument("--dataset", required=True)
+    p.add_argument("--models", required=True, help="models.json of the regression")
+    p.add_argument("--lab", required=True, help="lab CSV")
+    _file(p, "--cards", "output material cards, one per lab specimen: <specimen>.yaml",
+          nargs="+")
+    p.add_argument("--table", default=None, help="output table: the calibrated parameters")
+    p.add_argument("--fixed", required=True, help="JSON of the fixed parameters")
+    p.add_argument("--ranges", required=True,
+                   help="JSON of the design space {name: [low, high]} the dataset was sampled "
+                        "over (the config's ranges); it bounds the free parameters")
+    p.add_argument("--bounds", default=None,
+                   help="JSON {name: [low, high]} narrowing --ranges for free parameters "
+                        "(the config's calibration.bounds; wider than --ranges is an error)")
+    p.add_argument("--free", default=None, help="comma-separated free parameters")
+    p.add_argument("--ratio", type=number("ratio", None, 100.0), default=d["ratio"],
+                   help=f"bond-strength ratio pb_ten/pb_coh (<= 0: both free; default "
+                        f"{d['ratio']:g})")
+    p.add_argument("--ratio-from", default=None,
+                   help="JSON file with the chosen ratio (the ratio sweep's choice; when it "
+                        "holds none, --ratio is used)")
+    p.add_argument("--n-boot", type=integer("n-boot", 0, 1_000_000), default=d["n_boot"],
+                   help="bootstrap resamples for the intervals (0: no bootstrap, else >= 2; "
+                        f"default {d['n_boot']})")
+    p.add_argument("--seed", type=SEED, default=d["seed"])
+    p.set_defaults(func=cmd_calibrate)
 
-    rp = sub.add_parser("report", help="results/report: every table and figure + index.md")
-    rp.add_argument("--outdir", required=True, help="the study's output directory")
-    rp.add_argument("--config", default=None, help="the study's (merged) config, JSON/YAML")
-    rp.add_argument("--config-json", default=None,
-                    help="... or the config as JSON text (what the workflow passes)")
-    rp.add_argument("--config-out", default=None,
-                    help="also write the config as JSON to this file")
-    rp.add_argument("--out", default=None, help="report directory (default OUTDIR/report)")
-    rp.set_defaults(func=cmd_report)
 
-    s = sub.add_parser("summary", help="print the summary attributes of a run file")
-    s.add_argument("run")
-    s.add_argument("--json", action="store_true", help="one JSON object")
-    s.set_defaults(func=cmd_summary)
+def _add_verify(p):
+    from .stages.analysis import verify
 
-    v = sub.add_parser("vtk", help="export particles and cracks of a run for ParaView")
-    v.add_argument("run")
-    v.add_argument("--out", required=True, help="output directory")
-    v.set_defaults(func=cmd_vtk)
+    d = defaults_of(verify)
+    p.add_argument("--card", required=True)
+    p.add_argument("--models", required=True)
+    _file(p, "--out-card", "output: the verified card")
+    _file(p, "--rounds", "output table: one row per DEM round")
+    _file(p, "--run", "output: the run file of the best round")
+    p.add_argument("--seed", type=SEED, default=d["seed"],
+                   help=f"packing seed of the DEM runs (default {d['seed']})")
+    p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
+                   help=f"relative tolerance (default {d['rtol']:g})")
+    p.add_argument("--max-rounds", type=integer("max-rounds", 1, 50), default=d["max_rounds"],
+                   help=f"DEM runs at most (default {d['max_rounds']})")
+    p.add_argument("--from-unreachable", action="store_true",
+                   help="run the closed loop even when the card's inversion is unreachable "
+                        "(default: do not; the verified card says why)")
+    p.add_argument("--quiet", action="store_true")
+    add_run_args(p)
+    p.set_defaults(func=cmd_verify)
+
+
+def _add_scatter(p):
+    from .stages.analysis import seed_scatter
+
+    d = defaults_of(seed_scatter)
+    p.add_argument("--card", required=True)
+    p.add_argument("--seeds", required=True, help="comma-separated packing seeds")
+    _file(p, "--runs", "output run files, one per seed in the order of --seeds", nargs="+")
+    _file(p, "--seed-runs", "output table: the responses of every seed")
+    _file(p, "--table", "output table: CV and noise floor per response")
+    p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"])
+    add_run_args(p)
+    p.set_defaults(func=cmd_scatter)
+
+
+def _add_vtables(p):
+    _file(p, "--cards", "verified cards", nargs="+")
+    _file(p, "--runs", "their best rounds' run files, in the same order", nargs="+")
+    p.add_argument("--lab", required=True)
+    _file(p, "--table5", "output table: Table 5")
+    _file(p, "--table6", "output table: Table 6")
+    _file(p, "--figure", "output figure: Fig. 6")
+    p.set_defaults(func=cmd_vtables)
+
+
+def _add_sweep_plan(p):
+    from .stages.fracture import sweep_plan
+
+    d = defaults_of(sweep_plan)
+    p.add_argument("--card", required=True, help="material card (the initial calibration)")
+    p.add_argument("--models", required=True)
+    p.add_argument("--ratios", default=",".join(f"{x:g}" for x in d["ratios"]),
+                   help="start,stop,step (default %(default)s)")
+    p.add_argument("--seed", type=SEED, default=d["seed"],
+                   help=f"packing seed of the runs (default {d['seed']})")
+    p.add_argument("--out", required=True)
+    p.set_defaults(func=cmd_sweep_plan)
+
+
+def _add_sweep_analyse(p):
+    from .stages.fracture import sweep_analyse
+
+    d = defaults_of(sweep_analyse)
+    p.add_argument("--plan", required=True)
+    _file(p, "--runs", "the run files of the plan's rows: <sample_id>.h5", nargs="+")
+    p.add_argument("--criterion", default=d["criterion"], choices=["tensile_share", "crack_count"])
+    p.add_argument("--target", type=number("target", 0.0), default=d["target"])
+    _file(p, "--table", "output table: cracks per ratio")
+    _file(p, "--chosen", "output JSON: the chosen ratio")
+    _file(p, "--fig4", "output figure: Fig. 4")
+    _file(p, "--fig5", "output figure: Fig. 5")
+    _file(p, "--vtk", "output folder: ParaView files of the runs Fig. 5 shows")
+    p.set_defaults(func=cmd_sweep_analyse)
+
+
+def _add_impact_analyse(p):
+    p.add_argument("--main", required=True, help="the reference impact run (6 m/s)")
+    _file(p, "--runs", "impact runs of the velocity sweep", nargs="+")
+    _file(p, "--energy", "output table: energy budget of the reference run")
+    _file(p, "--t10", "output table: t10 vs specific energy")
+    _file(p, "--jk-fit", "output JSON: the JK fit")
+    _file(p, "--fig7", "output figure: Fig. 7")
+    _file(p, "--fig-t10", "output figure: t10 vs Ecs")
+    p.set_defaults(func=cmd_impact_analyse)
+
+
+def _add_report(p):
+    p.add_argument("--outdir", default=None,
+                   help="the study's output directory (its files: bpmcal.io.layout; default: "
+                        "the config's outdir)")
+    p.add_argument("--config", default=None, help="the study's (merged) config, JSON/YAML")
+    p.add_argument("--config-json", default=None,
+                   help="... or the config as JSON text (what the workflow passes)")
+    p.add_argument("--config-out", default=None, help="also write the config as JSON to this file")
+    p.set_defaults(func=cmd_report)
+
+
+def _add_summary(p):
+    p.add_argument("run")
+    p.add_argument("--json", action="store_true", help="one JSON object")
+    p.set_defaults(func=cmd_summary)
+
+
+def _add_vtk(p):
+    p.add_argument("run")
+    p.add_argument("--out", required=True, help="output directory")
+    p.set_defaults(func=cmd_vtk)
+
+
+#: subcommand -> (help, adds its options, whether its help lists the parameters)
+COMMANDS = {
+    "ucs": ("one virtual uniaxial compression test -> HDF5", _add_ucs, True),
+    "bts": ("one virtual Brazilian (diametral compression) test -> HDF5", _add_bts, True),
+    "triaxial": ("one virtual triaxial compression test -> HDF5", _add_triaxial, True),
+    "impact": ("drop-hammer impact of a calibrated specimen", _add_impact, False),
+    "design": ("Latin-hypercube design over parameter ranges -> CSV", _add_design, False),
+    "gather": ("collect per-sample run files into one dataset CSV", _add_gather, False),
+    "screen": ("XGBoost screening of the dataset (Table 3)", _add_screen, False),
+    "regress": ("three-stage stepwise regression (Table 4)", _add_regress, False),
+    "calibrate": ("invert the models for the lab specimens", _add_calibrate, False),
+    "verify": ("closed-loop DEM verification of a material card", _add_verify, False),
+    "scatter": ("one card, several packing seeds: DEM scatter", _add_scatter, False),
+    "verification-tables": ("Tables 5 and 6 and Fig. 6", _add_vtables, False),
+    "sweep-plan": ("bond-strength-ratio sweep: one row per ratio", _add_sweep_plan, False),
+    "sweep-analyse": ("crack counts per ratio, the chosen ratio", _add_sweep_analyse, False),
+    "impact-analyse": ("impact energy table, Fig. 7, t10-Ecs and JK fit", _add_impact_analyse,
+                       False),
+    "report": ("OUTDIR/report: every table and figure + index.md", _add_report, False),
+    "summary": ("print the summary attributes of a run file", _add_summary, False),
+    "vtk": ("export particles and cracks of a run for ParaView", _add_vtk, False),
+}
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The ``bpmcal`` parser; with ``only``, the options of that subcommand alone (the
+    others are listed by name)."""
+    ap = Parser(prog="bpmcal", description=__doc__.split("\n\n")[0],
+                formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=f"bpmcal {_version()}")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    for name, (help_, add, epilog) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_, formatter_class=argparse.RawDescriptionHelpFormatter,
+                           epilog=_param_help() if epilog else None)
+        if only is None or only == name:
+            add(p)
     return ap
 
 
@@ -1146,7 +840,9 @@ def _one_line(e) -> str:
 def main(argv=None) -> int:
     """Run one subcommand; returns the exit code (see the module doc)."""
     os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
-    ap = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    cmd = next((x for x in argv if not x.startswith("-")), None)
+    ap = build_parser(only=cmd if cmd in COMMANDS else None)
     try:
         a = ap.parse_args(argv)
     except SystemExit as e:  # --help, --version, usage errors (one line, exit 2)

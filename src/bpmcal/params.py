@@ -1,7 +1,7 @@
 """Names, units and ranges of the study's parameters and responses: the one place where
 the paper's units (mm, GPa, MPa, degrees) are converted to SI and back.
 
-Meso-parameters use PFC property names with the unit in the name (../shared/DESIGN.md):
+Meso-parameters use PFC property names with the unit in the name (docs/architecture.md):
 
 ======================  =========  ======  ===============  =======================
 name                    symbol     unit    Table 2 range    SI factor
@@ -18,6 +18,10 @@ name                    symbol     unit    Table 2 range    SI factor
 
 Responses: ``ucs_MPa`` (sigma_c), ``E_GPa``, ``nu``, ``peak_strain``, ``u_pre_MJm3``
 (pre-peak energy density), ``cracks_tension``, ``cracks_shear``.
+
+This is the one table of names, symbols (``symbol`` plain text for logs and the CLI,
+``unicode`` for tables, ``latex`` for figures), units and physical domains: the config
+schema's parameter limits are tested against it (``tests/workflow/test_defaults.py``).
 """
 from __future__ import annotations
 
@@ -39,26 +43,27 @@ class Param:
     lo_open: bool = False
     description: str = ""
     hi_open: bool = False
+    unicode: str = ""  # the paper's symbol for tables (σcp, ...)
 
 
 #: The 8 meso-parameters of the LHS design, in the paper's Table 2 order.
 PARAMS: dict[str, Param] = {p.name: p for p in [
     Param("rmin_mm", "Rmin", r"$R_\mathrm{min}$", "mm", 1e-3, 0.6, 1.0, 0.0, math.inf, True,
-          "minimum ball radius (radii uniform in [Rmin, 1.66 Rmin])"),
+          "minimum ball radius (radii uniform in [Rmin, 1.66 Rmin])", unicode="Rmin"),
     Param("porosity", "n", r"$n$", "", 1.0, 0.20, 0.36, 0.0, 0.9, True,
-          "nominal porosity as PFC's ball distribute (summed ball volume = (1-n) V)"),
+          "nominal porosity as PFC's ball distribute (summed ball volume = (1-n) V)", unicode="n"),
     Param("pb_emod_GPa", "Ecp", r"$E_c^p$", "GPa", 1e9, 10.0, 50.0, 0.0, math.inf, True,
-          "parallel-bond effective modulus (= linear emod)"),
+          "parallel-bond effective modulus (= linear emod)", unicode="Ecp"),
     Param("pb_kratio", "kp*", r"$k_p^*$", "", 1.0, 1.0, 5.0, 0.0, math.inf, True,
-          "parallel-bond normal-to-shear stiffness ratio (= linear kratio)"),
+          "parallel-bond normal-to-shear stiffness ratio (= linear kratio)", unicode="kp*"),
     Param("pb_ten_MPa", "sigma_cp", r"$\sigma_c^p$", "MPa", 1e6, 10.0, 50.0, 0.0, math.inf,
-          False, "parallel-bond tensile strength"),
+          False, "parallel-bond tensile strength", unicode="σcp"),
     Param("pb_coh_MPa", "tau_cp", r"$\tau_c^p$", "MPa", 1e6, 10.0, 50.0, 0.0, math.inf, False,
-          "parallel-bond cohesion (shear strength at zero normal stress)"),
+          "parallel-bond cohesion (shear strength at zero normal stress)", unicode="τcp"),
     Param("pb_fa_deg", "phi_p", r"$\varphi_p$", "deg", 1.0, 15.0, 55.0, 0.0, 90.0, False,
-          "parallel-bond friction angle", hi_open=True),
+          "parallel-bond friction angle", hi_open=True, unicode="φp"),
     Param("fric", "mu_p", r"$\mu_p$", "", 1.0, 0.15, 0.55, 0.0, math.inf, False,
-          "ball-ball friction coefficient"),
+          "ball-ball friction coefficient", unicode="μp"),
 ]}
 
 PARAM_NAMES: tuple[str, ...] = tuple(PARAMS)
@@ -78,16 +83,17 @@ class Response:
     unit: str
     si: float
     description: str
+    unicode: str = ""  # the paper's symbol for tables
 
 
 RESPONSES: dict[str, Response] = {r.name: r for r in [
-    Response("ucs_MPa", "sigma_c", r"$\sigma_c$", "MPa", 1e6, "peak axial stress (UCS)"),
-    Response("E_GPa", "E", r"$E$", "GPa", 1e9, "Young's modulus (fit over 40-60 % of peak)"),
-    Response("nu", "nu", r"$\nu$", "", 1.0, "Poisson's ratio (fit over 40-60 % of peak)"),
-    Response("peak_strain", "eps_p", r"$\varepsilon_p$", "", 1.0, "axial strain at peak"),
-    Response("u_pre_MJm3", "Up", r"$U_p$", "MJ/m3", 1e6, "pre-peak energy density"),
-    Response("cracks_tension", "Nt", r"$N_t$", "", 1.0, "tensile cracks"),
-    Response("cracks_shear", "Ns", r"$N_s$", "", 1.0, "shear cracks"),
+    Response("ucs_MPa", "sigma_c", r"$\sigma_c$", "MPa", 1e6, "peak axial stress (UCS)", "σc"),
+    Response("E_GPa", "E", r"$E$", "GPa", 1e9, "Young's modulus (fit over 40-60 % of peak)", "E"),
+    Response("nu", "nu", r"$\nu$", "", 1.0, "Poisson's ratio (fit over 40-60 % of peak)", "ν"),
+    Response("peak_strain", "eps_p", r"$\varepsilon_p$", "", 1.0, "axial strain at peak", "εp"),
+    Response("u_pre_MJm3", "Up", r"$U_p$", "MJ/m3", 1e6, "pre-peak energy density", "Up"),
+    Response("cracks_tension", "Nt", r"$N_t$", "", 1.0, "tensile cracks", "Nt"),
+    Response("cracks_shear", "Ns", r"$N_s$", "", 1.0, "shear cracks", "Ns"),
 ]}
 
 #: Responses the paper calibrates against.

@@ -42,8 +42,10 @@ def d(tmp_path_factory):
     (d / "string.yaml").write_text(yaml.safe_dump({**A1, "porosity": "0.3"}))
     (d / "fa90.yaml").write_text(yaml.safe_dump({**A1, "pb_fa_deg": 90.0}))
     (d / "nan.yaml").write_text(yaml.safe_dump(A1).replace("rmin_mm: 0.8", "rmin_mm: .nan"))
-    (d / "badcard.yaml").write_text("specimen: B1\nparameters: 5\n")
+    (d / "badcard.yaml").write_text("card_format: 1\nspecimen: B1\nparameters: 5\n")
     (d / "design.csv").write_text(DESIGN_HEAD + ROW)
+    (d / "plan.csv").write_text("sample_id,ratio,pb_ten_MPa,pb_coh_MPa,extrapolated\n"
+                                "a100,1.0,20,20,False\n")
     (d / "design_missing_cols.csv").write_text("sample_id,rmin_mm\ns000,0.8\n")
     (d / "design_empty.csv").write_text("")
     (d / "design_header.csv").write_text(DESIGN_HEAD)
@@ -67,6 +69,9 @@ def d(tmp_path_factory):
     (d / "lab_nu.csv").write_text(LAB_HEAD + "B1,60,13,0.6,\n")
     (d / "lab.csv").write_text(LAB_HEAD + "B1,60,13,0.25,0.1\n")
     (d / "dataset_cols.csv").write_text("sample_id,ucs_MPa\ns000,50\n")
+    (d / "dataset_ok.csv").write_text(
+        DESIGN_HEAD.strip() + ",status\n"
+        + "".join(ROW.replace("s000", f"s00{i}").strip() + ",ok\n" for i in range(10)))
     (d / "card.yaml").write_text(yaml.safe_dump({"specimen": "B1", "parameters": A1,
                                                  "targets": {"ucs_MPa": 60.0}}))
     (d / "afile").write_text("x")
@@ -78,7 +83,12 @@ R = json.dumps({"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "pb_emod_GPa": [
                 "pb_fa_deg": [15, 55], "fric": [0.15, 0.55]}, separators=(",", ":"))
 UCS = "ucs --params {d}/a1.yaml --out {o}/r.h5"
 CAL = ("calibrate --dataset {d}/design.csv --models {d}/card.yaml --lab {d}/lab.csv "
-       "--out {o}/cards --ranges " + R + " --fixed {}")
+       "--cards {o}/cards/B1.yaml --ranges " + R + " --fixed {}")
+SCREEN_OUT = (" --selected {o}/s.json --table3 {o}/t3.csv --figure {o}/f.png --importance-table "
+              "{o}/i.csv --cv-table {o}/cv.csv --shadow-table {o}/sh.csv --summary {o}/s.txt")
+REGRESS_OUT = (" --models {o}/m.json --equations {o}/eq.md --summaries {o}/s.txt --coefficients "
+               "{o}/c.csv --candidates {o}/cand.csv --table4 {o}/t4.csv --fit-table {o}/fit.csv "
+               "--figure {o}/f.png")
 
 # (id, command line ({d}: inputs, {o}: output folder), text the message must contain)
 CASES = [
@@ -153,14 +163,20 @@ CASES = [
     ("vtk-truncated", "vtk {d}/truncated.h5 --out {o}/vtk", "truncated.h5"),
     ("vtk-failure-record", "vtk {d}/failed.h5 --out {o}/vtk", "a failure record"),
     # --- gather
-    ("gather-design-missing", "gather --design {d}/nope.csv --runs {d}/runs --out {o}/ds.csv",
-     "nope.csv: no such file"),
-    ("gather-runs-not-dir", "gather --design {d}/design.csv --runs {d}/afile --out {o}/ds.csv",
-     "--runs"),
-    ("gather-sample-escape", "gather --design {d}/design_escape.csv --runs {d}/runs "
+    ("gather-design-missing", "gather --design {d}/nope.csv --runs {d}/runs/s000.h5 "
+     "--out {o}/ds.csv", "nope.csv: no such file"),
+    ("gather-runs-dir", "gather --design {d}/design.csv --runs {d}/runs --out {o}/ds.csv",
+     "--runs {d}/runs: is a directory, expected a run file"),
+    ("gather-runs-not-h5", "gather --design {d}/design.csv --runs {d}/afile --out {o}/ds.csv",
+     "afile: expected a run file ending in .h5"),
+    ("gather-runs-stranger", "gather --design {d}/design.csv --runs {d}/runs/s999.h5 "
+     "--out {o}/ds.csv", "run file(s) ['s999'] match no id"),
+    ("gather-runs-twice", "gather --design {d}/design.csv --runs {d}/runs/s000.h5 "
+     "{d}/runs/s000.h5 --out {o}/ds.csv", "s000 given twice"),
+    ("gather-sample-escape", "gather --design {d}/design_escape.csv --runs {d}/runs/s000.h5 "
      "--out {o}/ds.csv", "'../../x'"),
-    ("gather-out-suffix", "gather --design {d}/design.csv --runs {d}/runs --out {o}/ds.h5",
-     "ending in .csv"),
+    ("gather-out-suffix", "gather --design {d}/design.csv --runs {d}/runs/s000.h5 "
+     "--out {o}/ds.h5", "ending in .csv"),
     # --- design
     ("design-ranges-json", "design --ranges {rmin --n 8 --seed 1 --out {o}/s.csv",
      "--ranges: not valid JSON"),
@@ -201,15 +217,25 @@ CASES = [
     ("impact-velocity-neg", "impact --card {d}/card.yaml --out {o}/i.h5 --velocity -6",
      "velocity='-6'"),
     ("impact-card-missing", "impact --card {d}/nope.yaml --out {o}/i.h5", "no such file"),
-    ("report-no-config", "report --outdir {d} --out {o}/rep", "exactly one of --config"),
-    ("report-config-json", "report --outdir {d} --config-json {x --out {o}/rep",
-     "--config-json: not valid JSON"),
-    ("screen-dataset-cols", "screen --dataset {d}/dataset_cols.csv --out {o}/s --tables {o}/t "
-     "--figures {o}/f", "missing column(s)"),
-    ("screen-threshold-nan", "screen --dataset {d}/design.csv --out {o}/s --tables {o}/t "
-     "--figures {o}/f --threshold nan", "threshold='nan'"),
-    ("regress-alpha-0", "regress --dataset {d}/design.csv --selected {d}/card.yaml --out {o}/r "
-     "--tables {o}/t --figures {o}/f --alpha-in 0", "alpha-in='0'"),
+    ("report-no-config", "report --outdir {d}", "exactly one of --config"),
+    ("report-config-json", "report --outdir {d} --config-json {x", "--config-json: not valid JSON"),
+    ("screen-dataset-cols", "screen --dataset {d}/dataset_cols.csv" + SCREEN_OUT,
+     "missing column(s)"),
+    ("screen-threshold-nan", "screen --dataset {d}/design.csv --threshold nan" + SCREEN_OUT,
+     "threshold='nan'"),
+    ("screen-out-suffix", "screen --dataset {d}/dataset_ok.csv"
+     + SCREEN_OUT.replace("t3.csv", "t3.md"),
+     "--table3 {o}/t3.md: expected a file name ending in .csv"),
+    ("regress-alpha-0", "regress --dataset {d}/design.csv --selected {d}/card.yaml --alpha-in 0"
+     + REGRESS_OUT, "alpha-in='0'"),
+    ("calibrate-cards-mismatch", CAL.replace("B1.yaml", "B2.yaml"),
+     "expected one card per lab specimen, named <specimen>.yaml: ['B1']"),
+    ("vtables-runs-count", "verification-tables --cards {d}/card.yaml --runs {d}/good.h5 "
+     "{d}/good.h5 --lab {d}/lab.csv --table5 {o}/t5.csv --table6 {o}/t6.csv --figure {o}/f.png",
+     "2 run file(s) for 1 card(s)"),
+    ("sweep-analyse-stranger", "sweep-analyse --plan {d}/plan.csv --runs {d}/runs/a999.h5 "
+     "--table {o}/t.csv --chosen {o}/c.json --fig4 {o}/4.png --fig5 {o}/5.png --vtk {o}/vtk",
+     "run file(s) ['a999'] match no id"),
 ]
 
 
@@ -233,7 +259,7 @@ def test_bad_input_is_one_line_exit_2_nothing_written(d, tmp_path, capsys, case,
     lines = err.strip().splitlines()
     assert len(lines) == 1, err
     assert lines[0].startswith(f"bpmcal {cmd}: error: "), err
-    assert needle in lines[0], err
+    assert needle.replace("{d}", str(d)).replace("{o}", str(o)) in lines[0], err
     assert "Traceback" not in err
     assert not o.exists() or not any(o.rglob("*")), sorted(o.rglob("*"))
     assert _files(d) == before  # nothing written beside the inputs either

@@ -6,7 +6,6 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -15,6 +14,7 @@ import yaml
 
 from bpmcal.cli import main
 from bpmcal.io import h5
+from bpmcal.io.card import write_card
 from bpmcal.params import PARAM_NAMES, PARAMS
 
 A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
@@ -101,7 +101,8 @@ def test_gather_records_unreadable_missing_and_failed_samples(tmp_path, capsys):
     (runs / "s002.h5").write_bytes(raw[: len(raw) // 3])  # truncated (a killed copy)
     (runs / "s003.h5").write_text("garbage")  # not HDF5
     out = tmp_path / "dataset.csv"
-    assert main(["gather", "--design", str(design), "--runs", str(runs), "--out", str(out)]) == 0
+    files = [str(runs / f"s00{i}.h5") for i in range(5)]  # s004.h5 was never written
+    assert main(["gather", "--design", str(design), "--runs", *files, "--out", str(out)]) == 0
     ds = pd.read_csv(out).set_index("sample_id")
     assert list(ds["status"]) == ["ok", "failed", "unreadable", "unreadable", "missing"]
     assert "blew up" in ds.loc["s001", "error"]
@@ -130,9 +131,14 @@ def models(tmp_path_factory):
     ds.to_csv(d / "dataset.csv", index=False)
     (d / "selected.json").write_text(json.dumps({"selected": {
         "ucs_MPa": ["pb_ten_MPa", "pb_coh_MPa"], "E_GPa": ["pb_emod_GPa"], "nu": ["pb_kratio"]}}))
+    r, t = d / "regression", d / "tables"
     assert main(["regress", "--dataset", str(d / "dataset.csv"), "--selected",
-                 str(d / "selected.json"), "--out", str(d / "regression"), "--tables",
-                 str(d / "tables"), "--figures", str(d / "figures"), "--cv-folds", "2",
+                 str(d / "selected.json"), "--models", str(r / "models.json"), "--equations",
+                 str(r / "equations.md"), "--summaries", str(r / "summaries.txt"),
+                 "--coefficients", str(r / "coefficients.csv"), "--candidates",
+                 str(r / "candidates.csv"), "--table4", str(t / "table4_terms.csv"),
+                 "--fit-table", str(t / "regression_fit.csv"), "--figure",
+                 str(d / "figures" / "regression_fit.png"), "--cv-folds", "2",
                  "--cv-repeats", "1"]) == 0
     return d
 
@@ -143,9 +149,9 @@ def test_unreachable_ratios_are_marked_run_as_records_and_the_calibration_goes_o
     four times the sampled range gives): every ratio is marked unreachable instead of raising; its DEM job
     writes a failure record without running; the analysis chooses no ratio and says why;
     the calibration keeps the configured ratio."""
-    card = tmp_path / "B1.yaml"
-    card.write_text(yaml.safe_dump({"specimen": "B1", "parameters": A1, "ranges": TABLE2,
-                                    "targets": {"ucs_MPa": 5000.0, "E_GPa": 8.0, "nu": 0.2}}))
+    card = write_card(tmp_path / "B1.yaml", {
+        "specimen": "B1", "parameters": A1, "ranges": TABLE2,
+        "targets": {"ucs_MPa": 5000.0, "E_GPa": 8.0, "nu": 0.2}})
     plan = tmp_path / "sweep" / "plan.csv"
     assert main(["sweep-plan", "--card", str(card), "--models",
                  str(models / "regression" / "models.json"), "--ratios", "1.0,1.6,0.3",
@@ -160,9 +166,12 @@ def test_unreachable_ratios_are_marked_run_as_records_and_the_calibration_goes_o
         s = h5.read_summary(runs / f"{sid}.h5")
         assert s["status"] == "failed" and s["error"].startswith("not run: unreachable ratio")
     chosen = tmp_path / "sweep" / "chosen.json"
-    assert main(["sweep-analyse", "--plan", str(plan), "--runs", str(runs), "--tables",
-                 str(tmp_path / "tables"), "--figures", str(tmp_path / "figures"), "--vtk",
-                 str(tmp_path / "vtk"), "--chosen", str(chosen)]) == 0
+    figs = tmp_path / "figures"
+    assert main(["sweep-analyse", "--plan", str(plan), "--runs",
+                 *(str(runs / f"{sid}.h5") for sid in p["sample_id"]), "--table",
+                 str(tmp_path / "tables" / "ratio_sweep.csv"), "--fig4",
+                 str(figs / "fig4_ratio_cracks.png"), "--fig5", str(figs / "fig5_failure_patterns.png"),
+                 "--vtk", str(tmp_path / "vtk"), "--chosen", str(chosen)]) == 0
     ch = json.loads(chosen.read_text())
     assert ch["chosen_ratio"] is None and "no ratio of the sweep gave a usable run" in ch["reason"]
     t = pd.read_csv(tmp_path / "tables" / "ratio_sweep.csv")
@@ -173,8 +182,8 @@ def test_unreachable_ratios_are_marked_run_as_records_and_the_calibration_goes_o
     lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60,8,0.2,\n")
     capsys.readouterr()
     assert main(["calibrate", "--dataset", str(models / "dataset.csv"), "--models",
-                 str(models / "regression" / "models.json"), "--lab", str(lab), "--out",
-                 str(tmp_path / "cal"), "--fixed", json.dumps({"rmin_mm": 0.8, "porosity": 0.3,
+                 str(models / "regression" / "models.json"), "--lab", str(lab), "--cards",
+                 str(tmp_path / "cal" / "B1.yaml"), "--fixed", json.dumps({"rmin_mm": 0.8, "porosity": 0.3,
                                                                "pb_fa_deg": 35, "fric": 0.35}),
                  "--free", "pb_emod_GPa,pb_kratio,pb_coh_MPa", "--ratio", "1.4",
                  "--ranges", json.dumps(TABLE2),
@@ -184,9 +193,9 @@ def test_unreachable_ratios_are_marked_run_as_records_and_the_calibration_goes_o
 
 
 def test_a_reachable_plan_is_planned(models, tmp_path):
-    card = tmp_path / "B1.yaml"
-    card.write_text(yaml.safe_dump({"specimen": "B1", "parameters": A1, "ranges": TABLE2,
-                                    "targets": {"ucs_MPa": 60.0, "E_GPa": 8.0, "nu": 0.2}}))
+    card = write_card(tmp_path / "B1.yaml", {
+        "specimen": "B1", "parameters": A1, "ranges": TABLE2,
+        "targets": {"ucs_MPa": 60.0, "E_GPa": 8.0, "nu": 0.2}})
     plan = tmp_path / "plan.csv"
     assert main(["sweep-plan", "--card", str(card), "--models",
                  str(models / "regression" / "models.json"), "--ratios", "1.0,1.6,0.3",
@@ -199,16 +208,23 @@ def test_a_reachable_plan_is_planned(models, tmp_path):
     assert np.allclose(p["pb_ten_MPa"], p["ratio"] * p["pb_coh_MPa"])
 
 
-def test_path_of_a_card_never_leaves_the_output_folder(models, tmp_path):
-    """Defence in depth: calibrate refuses an unsafe specimen name even when the lab table
-    was not validated before (the workflow validates it at config time too)."""
-    from bpmcal.io.paths import child_path
-
-    with pytest.raises(ValueError, match="evil"):
-        child_path(tmp_path, "../../evil_card", ".yaml")
-    with pytest.raises(ValueError):
-        child_path(tmp_path, "/etc/passwd")
-    assert child_path(tmp_path, "B1", ".yaml") == Path(tmp_path) / "B1.yaml"
+def test_calibrate_writes_exactly_the_cards_it_is_given(models, tmp_path, capsys):
+    """The cards' paths are the command line's (one per lab specimen, named after it): a
+    specimen name never makes a path, and a card that matches no specimen is refused
+    before anything is written."""
+    lab = tmp_path / "lab.csv"
+    lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60,8,0.2,\nB2,61,8,0.21,\n")
+    argv = ["calibrate", "--dataset", str(models / "dataset.csv"), "--models",
+            str(models / "regression" / "models.json"), "--lab", str(lab), "--fixed",
+            json.dumps({"rmin_mm": 0.8, "porosity": 0.3, "pb_fa_deg": 35, "fric": 0.35}),
+            "--ranges", json.dumps(TABLE2), "--n-boot", "0", "--cards"]
+    out = tmp_path / "cards"
+    assert main([*argv, str(out / "B1.yaml"), str(out / "evil.yaml")]) == 2
+    assert "expected one card per lab specimen" in capsys.readouterr().err
+    assert not out.exists()
+    assert main([*argv, str(out / "B2.yaml"), str(out / "B1.yaml")]) == 0
+    assert sorted(f.name for f in out.iterdir()) == ["B1.yaml", "B2.yaml"]
+    assert yaml.safe_load((out / "B2.yaml").read_text())["specimen"] == "B2"
 
 
 # ------------------------------------------------------------------------ other endings
@@ -247,9 +263,12 @@ def test_screening_adapts_its_folds_to_the_samples_left(models, tmp_path, capsys
     ds.loc[n_ok:, "status"] = "failed"
     ds.to_csv(tmp_path / "dataset.csv", index=False)
     out = tmp_path / "screening"
-    rc = main(["screen", "--dataset", str(tmp_path / "dataset.csv"), "--out", str(out),
-               "--tables", str(tmp_path / "tables"), "--figures", str(tmp_path / "figures"),
-               "--repeats", "1"])
+    files = {"--selected": out / "selected.json", "--table3": out / "table3.csv",
+             "--figure": out / "importance.png", "--importance-table": out / "imp.csv",
+             "--cv-table": out / "cv.csv", "--shadow-table": out / "shadow.csv",
+             "--summary": out / "summary.txt"}
+    rc = main(["screen", "--dataset", str(tmp_path / "dataset.csv"), "--repeats", "1",
+               *[str(x) for kv in files.items() for x in kv]])
     cap = capsys.readouterr()
     if folds is None:
         assert rc == 2 and "3 of 12 samples have status ok" in cap.err

@@ -5,9 +5,10 @@ import pandas as pd
 import pytest
 
 from bpmcal.analysis import fit_terms
+from bpmcal.io.layout import ratio_grid
 from bpmcal.lab.impact import ImpactSettings, crack_stages, run_impact
 from bpmcal.lab.runner import Geometry, make_specimen
-from bpmcal.study.sweep import analyse_sweep, ratio_grid, sweep_plan
+from bpmcal.study.sweep import analyse_sweep, sweep_plan
 
 A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
           pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
@@ -83,6 +84,7 @@ def test_sweep_choice_picks_the_tensile_share_closest_to_the_target(tmp_path):
     for sid, nt, ns in (("a050", 10, 90), ("a100", 55, 45), ("a150", 90, 10)):
         write_run(tmp_path / f"{sid}.h5", test="ucs", inputs={},
                   summary={"cracks_tension": nt, "cracks_shear": ns, "ucs_MPa": 50.0})
-    df, chosen = analyse_sweep(plan, tmp_path, "tensile_share", 0.6)
+    runs = {sid: tmp_path / f"{sid}.h5" for sid in plan["sample_id"]}
+    df, chosen = analyse_sweep(plan, runs, "tensile_share", 0.6)
     assert chosen["chosen_ratio"] == 1.0
     assert df["tensile_share"].tolist() == [0.1, 0.55, 0.9]

@@ -11,7 +11,8 @@ from bpmcal.dem.errors import InstabilityError
 from bpmcal.io import h5
 from bpmcal.lab import runner, stepping
 from bpmcal.lab.budget import BudgetError, check_budget, estimate_balls
-from bpmcal.lab.runner import Geometry, make_specimen, run_ucs_file
+from bpmcal.lab.runner import Geometry, make_specimen
+from bpmcal.stages.runs import run_ucs_file
 
 
 def _loaded(cache):

@@ -12,10 +12,11 @@ from bpmcal.cli import main
 from bpmcal.dem.errors import InputError
 from bpmcal.io import h5
 from bpmcal.io.vtk import export_run
-from bpmcal.lab.runner import make_specimen, run_triaxial_file
+from bpmcal.lab.runner import make_specimen
 from bpmcal.lab.servo import ServoError
 from bpmcal.lab.triaxial import TriaxialSettings, run_triaxial
 from bpmcal.lab.ucs import run_ucs
+from bpmcal.stages.runs import run_triaxial_file
 
 SEED = 3
 TX = dict(platen_velocity=FAST.platen_velocity, record_strain=FAST.record_strain)

@@ -139,12 +139,26 @@ def _lab(tmp, name, **targets):
 
 
 def _calibrate(study, lab, out, **kw):
-    from bpmcal.study.pipeline import calibrate, read_card
+    """Calibrate the one specimen of ``lab`` to ``out/<specimen>.yaml``; the card."""
+    from bpmcal.io.card import read_card
+    from bpmcal.stages.analysis import calibrate
 
     c = study["cfg"]["calibration"]
-    calibrate(study["dataset"], study["models"], lab, out, fixed=c["fixed"],
+    card = Path(out) / f"{Path(lab).stem}.yaml"
+    calibrate(study["dataset"], study["models"], lab, cards=[card], fixed=c["fixed"],
               ranges=study["cfg"]["ranges"], n_boot=0, seed=1, **kw)
-    return read_card(next(Path(out).glob("*.yaml")))
+    return read_card(card)
+
+
+def _verify(card, models, lay, spec, **kw):
+    """The closed loop of ``card`` into the study layout ``lay`` (tiny specimens)."""
+    from bpmcal.lab.runner import Geometry
+    from bpmcal.lab.ucs import UCSSettings
+    from bpmcal.stages.analysis import verify
+
+    return verify(card, models, out_card=lay.verified_card(spec),
+                  rounds=lay.verification_rounds(spec), run=lay.verification_run(spec),
+                  geometry=Geometry(scale=0.25), settings=UCSSettings(), **kw)
 
 
 def test_card_bounds_are_the_configured_ranges_and_reachable_inside(study):
@@ -163,9 +177,10 @@ def test_card_bounds_are_the_configured_ranges_and_reachable_inside(study):
 
 
 def test_unreachable_card_names_the_configured_bound_and_what_to_widen(study, tmp_path):
-    from bpmcal.lab.runner import Geometry
-    from bpmcal.lab.ucs import UCSSettings
-    from bpmcal.study.pipeline import read_card, verification_tables, verify
+    from bpmcal.io.card import read_card
+    from bpmcal.io.h5 import read_summary
+    from bpmcal.io.layout import Layout
+    from bpmcal.stages.analysis import verification_tables
 
     # E = 1.2 Ecp - 1.5 kp* needs Ecp ~ 170 GPa for 200 GPa: beyond ranges.pb_emod_GPa [30, 120]
     card_dir = tmp_path / "cal"
@@ -178,17 +193,19 @@ def test_unreachable_card_names_the_configured_bound_and_what_to_widen(study, tm
     assert f"widen ranges.pb_emod_GPa above {w['needed']:.4g}" in card["message"]
     assert "rerun the design" in card["advice"]
     # the closed loop does not start from it: no DEM run, and the verified card says why
-    out = tmp_path / "verif" / "stiff"
-    v = verify(card_dir / "stiff.yaml", study["models"], out, geometry=Geometry(scale=0.25),
-               settings=UCSSettings())["verification"]
+    lay = Layout(tmp_path / "verif")
+    v = _verify(card_dir / "stiff.yaml", study["models"], lay, "stiff")["verification"]
     assert v["status"] == "not-run" and v["rounds"] == 0 and "from_unreachable: false" in v["message"]
     assert "ranges.pb_emod_GPa" in v["message"] and v["widen"] == card["widen"]
-    assert not list(out.glob("*.h5"))
-    assert pd.read_csv(out / "rounds.csv").empty
-    assert read_card(out / "card.yaml")["verification"]["status"] == "not-run"
+    run = read_summary(lay.verification_run("stiff"))  # a failure record: not run
+    assert run["status"] == "failed" and run["error"].startswith("not run: the calibration is unreachable")
+    assert pd.read_csv(lay.verification_rounds("stiff")).empty
+    assert read_card(lay.verified_card("stiff"))["verification"]["status"] == "not-run"
     # Table 5 keeps the row, says why it is empty; Fig. 6 is drawn with a note
-    t = verification_tables({"stiff": out / "card.yaml"}, tmp_path / "stiff.csv", tmp_path / "tab",
-                            tmp_path / "fig")["table5"]
+    t = verification_tables([lay.verified_card("stiff")], [lay.verification_run("stiff")],
+                            tmp_path / "stiff.csv", table5=tmp_path / "tab" / "t5.csv",
+                            table6=tmp_path / "tab" / "t6.csv",
+                            figure=tmp_path / "fig" / "fig6_stress_strain.png")["table5"]
     assert t.loc["stiff", "status"] == "not-run" and t.loc["stiff", "rounds"] == 0
     assert math.isnan(t.loc["stiff", "closed_loop_ucs_MPa"])
     assert "ranges.pb_emod_GPa" in t.loc["stiff", "note"]
@@ -199,7 +216,7 @@ def test_calibrate_cli_rejects_bounds_beyond_the_ranges(study, tmp_path):
     c = study["cfg"]["calibration"]
     r = subprocess.run([sys.executable, "-m", "bpmcal.cli", "calibrate", "--dataset", str(study["dataset"]),
                         "--models", str(study["models"]), "--lab", str(REPO / "config/lab/lac_du_bonnet.csv"),
-                        "--out", str(tmp_path / "cards"), "--fixed", json.dumps(c["fixed"]),
+                        "--cards", str(tmp_path / "cards" / "LdB.yaml"), "--fixed", json.dumps(c["fixed"]),
                         "--ranges", json.dumps(study["cfg"]["ranges"]),
                         "--bounds", json.dumps({"pb_coh_MPa": [40, 200]}), "--n-boot", "0"],
                        capture_output=True, text=True)
@@ -216,27 +233,29 @@ def test_report_shows_the_paper_only_for_the_paper_study(study, tmp_path, refere
     """The same outputs (specimen B1 with the paper's lab values; its card unreachable in the
     widened synthetic space, so its closed loop did not run) reported as the paper's study
     and as another rock's."""
-    from bpmcal.lab.runner import Geometry
-    from bpmcal.lab.ucs import UCSSettings
+    from bpmcal.io import layout as L
     from bpmcal.report.build import build
-    from bpmcal.study.pipeline import calibrate, verification_tables, verify
+    from bpmcal.stages.analysis import calibrate, verification_tables
 
     out = tmp_path / "results"
+    lay = L.Layout(out)
     lab = REPO / "config/lab/green_sandstone.csv"
     c = study["cfg"]["calibration"]
-    calibrate(study["dataset"], study["models"], lab, out / "calibration", fixed=c["fixed"],
-              ranges=study["cfg"]["ranges"], n_boot=0, seed=1, tables_dir=out / "tables")
-    cards = {}
-    for spec in ("B1", "B2", "B3"):
-        verify(out / "calibration" / f"{spec}.yaml", study["models"], out / "verification" / spec,
-               geometry=Geometry(scale=0.25), settings=UCSSettings())
-        cards[spec] = out / "verification" / spec / "card.yaml"
-    verification_tables(cards, lab, out / "tables", out / "figures")
+    specs = ("B1", "B2", "B3")
+    calibrate(study["dataset"], study["models"], lab, cards=[lay.card(s) for s in specs],
+              fixed=c["fixed"], ranges=study["cfg"]["ranges"], n_boot=0, seed=1,
+              table=lay.table(L.CALIBRATION))
+    for spec in specs:
+        _verify(lay.card(spec), study["models"], lay, spec)
+    verification_tables([lay.verified_card(s) for s in specs],
+                        [lay.verification_run(s) for s in specs], lab,
+                        table5=lay.table(L.TABLE5), table6=lay.table(L.TABLE6),
+                        figure=lay.figure(L.FIG6))
     pd.DataFrame({"ucs_MPa": 10.0, "E_GPa": 20.0, "nu": 30.0},
                  index=pd.Index(list(study["cfg"]["ranges"]), name="parameter")
-                 ).to_csv(out / "tables" / "table3_importance.csv")
+                 ).to_csv(lay.table(L.TABLE3))
     pd.DataFrame({"response": ["ucs_MPa"], "stage": ["main"], "adj_r2": [0.9], "cv_r2_mean": [0.85]}
-                 ).to_csv(out / "tables" / "regression_fit.csv", index=False)
+                 ).to_csv(lay.table(L.REGRESSION_FIT), index=False)
     cfg = merged("config.yaml", "smoke.yaml") if reference == "yu2026" else merged(*EXAMPLE)
     cfg["lab"]["csv"] = str(lab)
     index = build(out, cfg).read_text()

@@ -1,11 +1,16 @@
-"""The smoke study end to end through Snakemake, re-runs, and config errors.
+"""The smoke study end to end through Snakemake, re-runs, the file contract, and config
+errors.
 
 The smoke study runs with an output folder that holds a space and a title full of shell
 syntax (quotes, ``$( )``, backticks, ``;``): every command must quote them, and nothing
 may run. One sample's run file is corrupted (truncated) before the dataset is gathered:
-the study must carry it as "unreadable" to the report, which lists it."""
+the study must carry it as "unreadable" to the report, which lists it. Every ``bpmcal``
+process of the study records the files it reads (``audit/sitecustomize.py``): each must be
+a file the rule graph declares as an input of that job."""
+import csv
 import json
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -18,10 +23,20 @@ import yaml
 REPO = Path(__file__).resolve().parents[2]
 
 
-def snakemake(cwd, *args, timeout=1200):
+AUDIT = Path(__file__).resolve().parent / "audit"
+AUDIT_LOGS = ".audit"  # in the smoke study's folder: the files each bpmcal process read
+
+
+def snakemake(cwd, *args, timeout=1200, audit=None):
+    """Run Snakemake in ``cwd``; with ``audit`` (a folder), every bpmcal process records the
+    files it reads there."""
     cmd = [sys.executable, "-m", "snakemake", *args]
+    env = dict(os.environ, NUMBA_THREADING_LAYER="omp")
+    if audit is not None:
+        env["BPMCAL_AUDIT_DIR"] = str(audit)
+        env["PYTHONPATH"] = os.pathsep.join([str(AUDIT), *filter(None, [env.get("PYTHONPATH")])])
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=timeout,
-                          env=dict(os.environ, NUMBA_THREADING_LAYER="omp"))
+                          env=env)
 
 
 def copy_workflow(dst: Path) -> Path:
@@ -44,16 +59,18 @@ PLANTED = "s003"
 @pytest.fixture(scope="module")
 def smoke(tmp_path_factory):
     wf = copy_workflow(tmp_path_factory.mktemp("smoke"))
+    audit = wf / AUDIT_LOGS
+    audit.mkdir()
     (wf / "config" / "hostile_names.yaml").write_text(
         yaml.safe_dump({"outdir": OUTDIR, "study": {"name": TITLE}}))
     n = yaml.safe_load((wf / "config" / "smoke.yaml").read_text())["study"]["n_samples"]
     runs = [f"{OUTDIR}/ucs/s{i:03d}.h5" for i in range(n)]
-    r = snakemake(wf, *runs, "--cores", "2", *SMOKE)  # the samples ...
+    r = snakemake(wf, *runs, "--cores", "2", *SMOKE, audit=audit)  # the samples ...
     assert r.returncode == 0, r.stderr[-3000:]
     f = wf / OUTDIR / "ucs" / f"{PLANTED}.h5"  # ... one of them damaged (a half copy) ...
     raw = f.read_bytes()
     f.write_bytes(raw[: len(raw) // 2])
-    r = snakemake(wf, "--cores", "2", *SMOKE)  # ... and the rest of the study
+    r = snakemake(wf, "--cores", "2", *SMOKE, audit=audit)  # ... and the rest of the study
     assert r.returncode == 0, r.stderr[-3000:]
     return wf
 
@@ -169,7 +186,7 @@ def test_config_errors_stop_before_any_job_naming_the_key(tmp_path, patch, needl
 # ---------------------------------------------------------------------------- the report
 def _published_values():
     """Every number the paper publishes that the report compares against."""
-    from bpmcal.report import paper
+    from bpmcal.study import paper
 
     vals = [v for d in paper.TABLE3.values() for v in d.values()]
     vals += [v for d in paper.ADJ_R2.values() for v in d.values()]
@@ -210,7 +227,7 @@ def _no_ratio_chosen(smoke) -> bool:
 
 
 def test_report_index_names_every_published_value(smoke):
-    from bpmcal.report import paper
+    from bpmcal.study import paper
 
     rep = smoke / OUTDIR / "report"
     index = (rep / "index.md").read_text()
@@ -260,3 +277,79 @@ def test_snakemake_html_report_has_every_caption(smoke):
         assert len(first) >= 15, cap.name
         assert first in html, f"caption of {cap.name} missing"
     assert "XGBoost screening (Table 3) selects" in html  # the workflow description
+
+
+# ---------------------------------------------------------------------------- the file contract
+def declared_jobs(wf, *args) -> dict:
+    """The rule graph's jobs, by command line (the arguments after ``bpmcal``, up to the log
+    redirection): rule, declared inputs and outputs (absolute), from
+    ``snakemake --detailed-summary``."""
+    r = snakemake(wf, "--detailed-summary", *args)
+    assert r.returncode == 0, r.stderr[-3000:]
+    jobs: dict[tuple, dict] = {}
+    rows = csv.DictReader(r.stdout.splitlines(), delimiter="\t")
+    for row in rows:
+        argv = shlex.split(row["shellcmd"])
+        if not argv or argv[0] != "bpmcal":
+            continue
+        key = tuple(argv[1:argv.index(">")])
+        j = jobs.setdefault(key, {"rule": row["rule"], "inputs": set(), "outputs": set()})
+        j["inputs"] |= {str((wf / f).resolve()) for f in row["input-file(s)"].split(",") if f}
+        j["outputs"].add(str((wf / row["output_file"]).resolve()))
+    return jobs
+
+
+def audited(folder) -> list[dict]:
+    """Every audited bpmcal process: its arguments and the files it read."""
+    procs = []
+    for f in sorted(Path(folder).glob("*.jsonl")):
+        lines = [json.loads(x) for x in f.read_text().splitlines()]
+        procs.append({"argv": tuple(lines[0]["argv"][1:]),
+                      "reads": {x["read"] for x in lines[1:]}})
+    return procs
+
+
+def undeclared_reads(procs, jobs, root, ignore=()) -> list[str]:
+    """Files under ``root`` that a process read but its job does not declare (as an input,
+    or as an output it checks before replacing), and processes that match no job."""
+    root = str(Path(root).resolve()) + os.sep
+    ignore = tuple(str(Path(i).resolve()) + os.sep for i in ignore)
+    bad = []
+    for p in procs:
+        job = jobs.get(p["argv"])
+        if job is None:
+            bad.append(f"a bpmcal process that is no job of the rule graph: {p['argv'][:3]}")
+            continue
+        for f in sorted(p["reads"]):
+            if f.startswith(root) and not f.startswith(ignore) and \
+                    f not in job["inputs"] | job["outputs"]:
+                bad.append(f"rule {job['rule']} read {os.path.relpath(f, root)}, not declared")
+    return bad
+
+
+def test_every_file_a_stage_reads_is_declared_by_the_rule_graph(smoke):
+    procs = audited(smoke / AUDIT_LOGS)
+    jobs = declared_jobs(smoke, *SMOKE)
+    bad = undeclared_reads(procs, jobs, smoke,
+                           ignore=[smoke / AUDIT_LOGS, smoke / ".snakemake",
+                                   smoke / OUTDIR / "cache"])  # the packing cache
+    assert not bad, "\n".join(bad)
+    # the audit saw every rule's command, and what the rules read
+    assert {j["rule"] for j in jobs.values()} == {jobs[p["argv"]]["rule"] for p in procs}
+    reads = {f for p in procs for f in p["reads"]}
+    for f in ("tables/regression_fit.csv", "tables/jk_fit.json", "regression/equations.md",
+              "verification/B1/best_round.h5", "ucs/s000.h5"):
+        assert str((smoke / OUTDIR / f).resolve()) in reads, f
+
+
+def test_the_contract_check_can_fail(tmp_path):
+    """A stage that reads a file its rule does not declare, and a process that is no job."""
+    jobs = {("report", "--x"): {"rule": "report", "inputs": {str(tmp_path / "a.csv")},
+                                "outputs": {str(tmp_path / "index.md")}}}
+    procs = [{"argv": ("report", "--x"),
+              "reads": {str(tmp_path / "a.csv"), str(tmp_path / "index.md"),
+                        str(tmp_path / "tables" / "jk_fit.json"), "/usr/lib/x.py"}},
+             {"argv": ("screen",), "reads": set()}]
+    bad = undeclared_reads(procs, jobs, tmp_path)
+    assert bad == ["rule report read tables/jk_fit.json, not declared",
+                   "a bpmcal process that is no job of the rule graph: ('screen',)"]

@@ -5,12 +5,14 @@
 
 rule design:
     output:
-        DESIGN,
+        FILES.design,
     log:
-        f"{LOGS}/design.log",
+        FILES.log("design"),
+    conda:
+        "../envs/bpmcal.yaml"
     params:
         ranges=json.dumps(config["ranges"]),
-        n=N,
+        n=config["study"]["n_samples"],
         seed=config["study"]["lhs_seed"],
         opt=config["study"]["lhs_optimization"],
     shell:
@@ -20,13 +22,15 @@ rule design:
 
 rule ucs:
     input:
-        DESIGN,
+        FILES.design,
     output:
-        f"{OUT}/ucs/{{sample}}.h5",
+        FILES.ucs_run("{sample}"),
     log:
-        f"{LOGS}/ucs/{{sample}}.log",
+        FILES.log("ucs", "{sample}"),
     wildcard_constraints:
         sample=r"s\d+",
+    conda:
+        "../envs/bpmcal.yaml"
     threads: config["resources"]["ucs_threads"]
     resources:
         runtime=config["resources"]["ucs_runtime_min"],
@@ -40,14 +44,14 @@ rule ucs:
 
 rule gather:
     input:
-        design=DESIGN,
-        runs=expand(f"{OUT}/ucs/{{sample}}.h5", sample=SAMPLES),
+        design=FILES.design,
+        runs=[FILES.ucs_run(s) for s in SAMPLES],
     output:
-        DATASET,
+        FILES.dataset,
     log:
-        f"{LOGS}/gather.log",
-    params:
-        runs=parent_of("runs", io="input"),
+        FILES.log("gather"),
+    conda:
+        "../envs/bpmcal.yaml"
     shell:
-        "bpmcal gather --design {input.design:q} --runs {params.runs:q} --out {output:q} "
+        "bpmcal gather --design {input.design:q} --runs {input.runs:q} --out {output:q} "
         "> {log:q} 2>&1"

@@ -825,7 +825,7 @@ class ClosedLoop:
     rtol:
         Relative tolerance, one number or response -> number (default 0.01).
     max_rounds:
-        Maximum number of simulations (default 6).
+        Maximum number of simulations (default 5).
     damping, max_step:
         Newton step factor (default 0.8) and cap on the move of any parameter per round
         as a fraction of its range (default 0.25).
@@ -838,7 +838,7 @@ class ClosedLoop:
                  ranges: Mapping[str, Sequence[float]],
                  bounds: Mapping[str, Sequence[float]] | None = None,
                  models: Mapping[str, RegressionModel] | None = None, jacobian: pd.DataFrame | None = None,
-                 rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 6, damping: float = 0.8,
+                 rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 5, damping: float = 0.8,
                  max_step: float = 0.25, broyden: bool = True):
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable params -> responses")

@@ -5,7 +5,8 @@ Layout (``SCHEMA_VERSION`` 1)::
     /                 attrs: schema_version, bpmcal_version, git_commit, created_utc,
                              test ("ucs" | "bts" | "triaxial" | "impact"),
                              status ("ok" | "failed"), error,
-                             config_hash
+                             inputs_hash (of /inputs; older files: config_hash),
+                             hostname, slurm_job_id
     /inputs           attrs: meso-parameters (paper units, names of params.py), geometry
                              (diameter_mm, height_mm, scale), seed, test settings
     /summary          attrs: results (``ucs_MPa``, ``E_GPa``, ``nu``, ``peak_strain``,
@@ -97,7 +98,7 @@ def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
     """Write one run atomically (temporary file in the same directory, then rename)."""
     path = Path(path)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        prov = provenance(inputs)
+        prov = provenance(inputs, stamp=True)
         _put_attrs(f, {"schema_version": SCHEMA_VERSION, "test": test, "status": status,
                        "error": error, **prov})
         _put_attrs(f.create_group("inputs"), inputs)

@@ -17,7 +17,6 @@ expected; callers raise their own error type (config, CLI) with it.
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 SAFE_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
 SAFE_NAME_RE = re.compile(SAFE_NAME)
@@ -50,16 +49,3 @@ def path_problem(path) -> str | None:
         bad = sorted({c for c in path if not re.match(r"[\w .,/+@=:-]", c)})
         return f"{path!r}: character(s) {''.join(bad)!r} not allowed; expected {PATH_RULE}"
     return None
-
-
-def child_path(directory, name: str, suffix: str = "") -> Path:
-    """``directory / (name + suffix)`` after checking that ``name`` is a safe name and that
-    the result lies inside ``directory`` (ValueError otherwise)."""
-    msg = name_problem(name)
-    if msg:
-        raise ValueError(msg)
-    d = Path(directory)
-    p = d / f"{name}{suffix}"
-    if p.resolve().parent != d.resolve():
-        raise ValueError(f"{name!r}: would be written outside {d}")
-    return p

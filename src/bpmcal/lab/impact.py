@@ -53,9 +53,9 @@ class ImpactSettings:
     dp_ratio: float = 0.1  # contact dashpot critical-damping ratio (normal and shear)
     platen_fric: float = 0.3
     gravity: float = 9.81
-    duration: float = 5e-3  # s, at most
+    duration: float = 10e-3  # s, at most (the study: impact.duration_ms)
     after_rebound: float = 2e-4  # s, kept running after the hammer moves up
-    record_dt: float = 1e-5  # s between records
+    record_dt: float = 5e-6  # s between records (the study: impact.record_us)
     gap: float = 1e-5  # m, initial hammer gap above the top face
 
     def __post_init__(self):

@@ -1,16 +1,14 @@
-"""One complete virtual lab test from the paper's parameters to an HDF5 file.
+"""One complete virtual lab test from the paper's parameters: validate the 8 meso-
+parameters (paper units), get the packing (cached), build the specimen, run the test, and
+return everything a run file holds as a :class:`LabRun` (no file is written here: the
+stages in ``bpmcal.stages.runs`` write it, or a failure record).
 
-``run_ucs_file``, ``run_bts_file`` (Brazilian) and ``run_triaxial_file`` (test "ucs",
-"bts", "triaxial" in the file) share the conventions below; ``run_impact_file`` too.
-
-``run_ucs_file`` is what ``bpmcal ucs`` and the workflow call: validate the 8 meso-
-parameters (paper units), get the packing (cached), build the specimen, run the test,
-write the HDF5 file atomically. A run that goes numerically unstable, or a parameter
-combination that cannot be built, produces a *failure record* (status "failed" and the
-message) instead of an exception, so a study is not stopped by one bad sample; any other
-exception is a bug and propagates. A failure record never replaces a good run file: if
-``out`` already holds a run with status "ok", the record goes beside it as
-``NAME.failed.h5`` and the outcome says so (``kept``).
+``ucs_test``, ``bts_test`` (Brazilian), ``triaxial_test`` and ``impact_test`` share these
+conventions. A run that goes numerically unstable, a specimen that cannot be built or
+does not settle, or a servo stage that does not converge raises one of
+:data:`RUN_FAILURES`: the run failed, which a study records as data (a failure record);
+any other exception is a bug. ``*_inputs`` give the inputs a run file records, also for
+a run that failed or was not run.
 
 ``genesis_max_steps`` bounds the settling of the specimen (``specimen.build_specimen``);
 ``progress`` receives the genesis phases (``{"phase", "steps", "ratio", "target",
@@ -20,15 +18,23 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
 from .. import params as P
 from ..dem._jit import set_threads
 from ..dem.errors import InputError, InstabilityError
-from ..io.h5 import RunFileError, check_run_file, write_run
+from .brazilian import BTSSettings, run_bts
+from .brazilian import settings_dict as bts_dict
+from .impact import ImpactSettings, run_impact
+from .impact import settings_dict as impact_dict
+from .servo import ServoError
 from .specimen import GenesisError, SpecimenSpec, build_specimen, get_packing, paper_material
+from .triaxial import TriaxialSettings, run_triaxial
+from .triaxial import settings_dict as tx_dict
 from .ucs import UCSSettings, run_ucs, settings_dict
+
+#: the exceptions that mean "this run failed" (a failure record, not a bug)
+RUN_FAILURES = (InstabilityError, GenesisError, ServoError)
 
 
 @dataclass(frozen=True)
@@ -61,35 +67,19 @@ class Geometry:
 
 
 @dataclass
-class RunOutcome:
-    status: str
-    summary: dict = field(default_factory=dict)
-    error: str = ""
-    path: object = None
-    kept: object = None  # a good run file left in place (the record went beside it)
+class LabRun:
+    """A finished virtual test: what its run file holds (``bpmcal.io.h5.write_run``)."""
 
-
-def failed_path(out):
-    """Where a failure record goes when ``out`` already holds a good run."""
-    out = Path(out)
-    return out.with_name(f"{out.stem}.failed{out.suffix}")
-
-
-def write_failure(out, *, test: str, inputs: dict, error: str, wall_s: float = 0.0
-                  ) -> RunOutcome:
-    """Write a failure record (status "failed", the reason) to ``out``, or beside it if
-    ``out`` is a good run file (never overwrite a good result with a failure)."""
-    out = Path(out)
-    kept = None
-    if out.is_file():
-        try:
-            if check_run_file(out).get("status") == "ok":
-                kept, out = out, failed_path(out)
-        except RunFileError:
-            pass  # not a good run: replace it
-    write_run(out, test=test, inputs=inputs, status="failed", error=error,
-              summary={"wall_s": wall_s})
-    return RunOutcome(status="failed", error=error, path=out, kept=kept)
+    test: str  # "ucs" | "bts" | "triaxial" | "impact"
+    inputs: dict
+    summary: dict
+    genesis: dict
+    series: dict
+    cracks: dict
+    particles_initial: dict | None = None
+    particles_final: dict | None = None
+    bonds: dict | None = None
+    groups: dict | None = None
 
 
 def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, cache=None,
@@ -111,72 +101,6 @@ def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, c
                           progress=progress, max_steps=genesis_max_steps, boundary=boundary)
 
 
-def ucs_inputs(params: dict, seed: int, geometry: Geometry, settings: UCSSettings) -> dict:
-    d = {k: float(params[k]) for k in P.PARAMS if k in params}
-    d.update(geometry.to_dict())
-    d["seed"] = int(seed)
-    d.update({f"ucs_{k}": v for k, v in settings_dict(settings).items()})
-    return d
-
-
-def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
-                 settings: UCSSettings = UCSSettings(), *, cache=None, threads=None,
-                 progress=None, keep_particles: bool = True,
-                 genesis_max_steps: int | None = None) -> RunOutcome:
-    """Run one UCS test and write ``out`` (HDF5). Returns the outcome; unstable runs and
-    unbuildable specimens give status "failed" (and a failure-record file)."""
-    p = P.validate_params(params)  # bad input: raise before any work
-    return _run_lab_test(out, "ucs", p, seed, geometry, ucs_inputs(p, seed, geometry, settings),
-                         "platens", lambda sp: run_ucs(sp, settings, progress=progress),
-                         cache=cache, threads=threads, keep_particles=keep_particles,
-                         progress=progress, genesis_max_steps=genesis_max_steps,
-                         finite=("ucs_MPa", "E_GPa", "nu"))
-
-
-def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
-                    settings=None, *, cache=None, threads=None, progress=None,
-                    genesis_max_steps: int | None = None) -> RunOutcome:
-    """Drop-hammer impact on a specimen of the given parameters -> HDF5 file (test
-    "impact"; the same conventions as the UCS run files)."""
-    from .impact import ImpactSettings, run_impact
-    from .impact import settings_dict as impact_dict
-
-    st = settings or ImpactSettings()
-    p = P.validate_params(params)
-    inputs = {k: float(p[k]) for k in P.PARAMS}
-    inputs.update(geometry.to_dict())
-    inputs["seed"] = int(seed)
-    inputs.update({f"impact_{k}": v for k, v in impact_dict(st).items()})
-    if threads:
-        set_threads(threads)
-    t0 = time.perf_counter()
-    try:
-        sp = make_specimen(p, seed, geometry, cache=cache, threads=threads, progress=progress,
-                           genesis_max_steps=genesis_max_steps)
-        ini = {"position": sp.model.B.pos.copy(), "radius": sp.model.B.radius.copy()}
-        res = run_impact(sp, st, progress=progress)
-    except (InstabilityError, GenesisError) as e:
-        return write_failure(out, test="impact", inputs=inputs,
-                             error=f"{type(e).__name__}: {e}", wall_s=time.perf_counter() - t0)
-    m = sp.model
-    summ = dict(res.summary)
-    summ["velocity"] = st.velocity
-    summ["hammer_mass"] = st.hammer_mass
-    summ["total_s"] = time.perf_counter() - t0
-    bi, bj = m.bond_pairs()
-    write_run(out, test="impact", inputs=inputs, summary=summ, genesis=sp.report,
-              series=res.series, cracks=_crack_arrays(res.cracks), particles_initial=ini,
-              particles_final={"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
-                               "angular_velocity": m.B.angvel.copy(),
-                               "fragment": res.fragments["label"]},
-              bonds={"i": bi, "j": bj, "state": m.Bd.state.copy(),
-                     "break_step": m.Bd.step.copy()},
-              groups={"fragments": {"mass": res.fragments["mass"],
-                                    "size": res.fragments["size"]}})
-    return RunOutcome(status="ok", summary=summ, path=out)
-
-
-# ------------------------------------------------------------------ Brazilian, triaxial
 #: the ISRM Brazilian disc at full size: D = 50 mm, t = D / 2 (scaled like the cylinder)
 BTS_DIAMETER_MM = 50.0
 BTS_THICKNESS_MM = 25.0
@@ -188,6 +112,43 @@ def bts_geometry(scale: float = 1.0, diameter_mm: float = BTS_DIAMETER_MM,
     return Geometry(scale=scale, diameter_mm=diameter_mm, height_mm=thickness_mm, **kw)
 
 
+# ------------------------------------------------------------------ the inputs a run records
+def _base_inputs(params: dict, seed: int, geometry: Geometry) -> dict:
+    d = {k: float(params[k]) for k in P.PARAMS if k in params}
+    d.update(geometry.to_dict())
+    d["seed"] = int(seed)
+    return d
+
+
+def ucs_inputs(params: dict, seed: int, geometry: Geometry, settings: UCSSettings) -> dict:
+    d = _base_inputs(params, seed, geometry)
+    d.update({f"ucs_{k}": v for k, v in settings_dict(settings).items()})
+    return d
+
+
+def bts_inputs(params: dict, seed: int, geometry: Geometry, settings: BTSSettings) -> dict:
+    d = _base_inputs(params, seed, geometry)
+    d["thickness_mm"] = d["height_mm"]
+    d.update({f"bts_{k}": v for k, v in bts_dict(settings).items()})
+    return d
+
+
+def triaxial_inputs(params: dict, seed: int, geometry: Geometry,
+                    settings: TriaxialSettings) -> dict:
+    d = _base_inputs(params, seed, geometry)
+    d["sigma3_MPa"] = settings.sigma3 / 1e6
+    d.update({f"triaxial_{k}": v for k, v in tx_dict(settings).items()})
+    return d
+
+
+def impact_inputs(params: dict, seed: int, geometry: Geometry,
+                  settings: ImpactSettings) -> dict:
+    d = _base_inputs(params, seed, geometry)
+    d.update({f"impact_{k}": v for k, v in impact_dict(settings).items()})
+    return d
+
+
+# ------------------------------------------------------------------ the tests
 def _crack_arrays(ev: dict) -> dict:
     return {"step": ev["step"], "time": ev["time"], "position": ev["pos"],
             "normal": ev["normal"], "mode": ev["mode"], "radius": ev["radius"],
@@ -195,28 +156,20 @@ def _crack_arrays(ev: dict) -> dict:
             "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
 
 
-def _run_lab_test(out, test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
-                  boundary: str, run, *, cache, threads, keep_particles, progress=None,
-                  genesis_max_steps=None, finite=()) -> RunOutcome:
-    """Shared body of the UCS, Brazilian and triaxial runners: specimen, test, HDF5 file
-    (or a failure record for an unstable run, an unbuildable specimen or a servo stage
-    that does not converge)."""
-    from .servo import ServoError
-
+def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
+              boundary: str, run, *, cache, threads, keep_particles, progress=None,
+              genesis_max_steps=None, finite=()) -> LabRun:
+    """Shared body of the UCS, Brazilian and triaxial tests: specimen, test, results."""
     if threads:
         set_threads(threads)  # for the whole run, genesis included
     t0 = time.perf_counter()
-    try:
-        sp = make_specimen(params, seed, geometry, cache=cache, threads=threads,
-                           progress=progress, genesis_max_steps=genesis_max_steps,
-                           boundary=boundary)
-        t_gen = time.perf_counter() - t0
-        m = sp.model
-        ini = {"position": m.B.pos.copy(), "radius": m.B.radius.copy()}
-        res = run(sp)
-    except (InstabilityError, GenesisError, ServoError) as e:
-        return write_failure(out, test=test, inputs=inputs, error=f"{type(e).__name__}: {e}",
-                             wall_s=time.perf_counter() - t0)
+    sp = make_specimen(params, seed, geometry, cache=cache, threads=threads,
+                       progress=progress, genesis_max_steps=genesis_max_steps,
+                       boundary=boundary)
+    t_gen = time.perf_counter() - t0
+    m = sp.model
+    ini = {"position": m.B.pos.copy(), "radius": m.B.radius.copy()}
+    res = run(sp)
     summ = dict(res.summary)
     g = sp.report
     summ.update({"n_balls": g["n_balls"], "n_bonds": g["n_bonds"],
@@ -233,65 +186,82 @@ def _run_lab_test(out, test: str, params: dict, seed: int, geometry: Geometry, i
     bonds = {"i": bi, "j": bj, "state": m.Bd.state.copy(), "break_step": m.Bd.step.copy()}
     fin = {"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
            "angular_velocity": m.B.angvel.copy()} if keep_particles else None
-    write_run(out, test=test, inputs=inputs, summary=summ, genesis=g, series=res.series,
-              cracks=_crack_arrays(res.cracks),
-              particles_initial=ini if keep_particles else None, particles_final=fin,
-              bonds=bonds if keep_particles else None)
-    return RunOutcome(status="ok", summary=summ, path=out)
+    return LabRun(test=test, inputs=inputs, summary=summ, genesis=g, series=res.series,
+                  cracks=_crack_arrays(res.cracks),
+                  particles_initial=ini if keep_particles else None, particles_final=fin,
+                  bonds=bonds if keep_particles else None)
 
 
-def bts_inputs(params: dict, seed: int, geometry: Geometry, settings) -> dict:
-    from .brazilian import settings_dict as bts_dict
-
-    d = {k: float(params[k]) for k in P.PARAMS if k in params}
-    d.update(geometry.to_dict())
-    d["thickness_mm"] = d["height_mm"]
-    d["seed"] = int(seed)
-    d.update({f"bts_{k}": v for k, v in bts_dict(settings).items()})
-    return d
-
-
-def triaxial_inputs(params: dict, seed: int, geometry: Geometry, settings) -> dict:
-    from .triaxial import settings_dict as tx_dict
-
-    d = {k: float(params[k]) for k in P.PARAMS if k in params}
-    d.update(geometry.to_dict())
-    d["seed"] = int(seed)
-    d["sigma3_MPa"] = settings.sigma3 / 1e6
-    d.update({f"triaxial_{k}": v for k, v in tx_dict(settings).items()})
-    return d
+def ucs_test(params: dict, seed: int, geometry: Geometry = Geometry(),
+             settings: UCSSettings = UCSSettings(), *, cache=None, threads=None,
+             progress=None, keep_particles: bool = True,
+             genesis_max_steps: int | None = None) -> LabRun:
+    """One UCS test (``lab.ucs``) on the cylinder of ``geometry``."""
+    p = P.validate_params(params)  # bad input: raise before any work
+    return _lab_test("ucs", p, seed, geometry, ucs_inputs(p, seed, geometry, settings),
+                     "platens", lambda sp: run_ucs(sp, settings, progress=progress),
+                     cache=cache, threads=threads, keep_particles=keep_particles,
+                     progress=progress, genesis_max_steps=genesis_max_steps,
+                     finite=("ucs_MPa", "E_GPa", "nu"))
 
 
-def run_bts_file(out, params: dict, seed: int, geometry: Geometry | None = None,
-                 settings=None, *, cache=None, threads=None, progress=None,
-                 keep_particles: bool = True, genesis_max_steps: int | None = None
-                 ) -> RunOutcome:
-    """Run one Brazilian test (``lab.brazilian``) and write ``out`` (HDF5, test "bts").
-    ``geometry`` defaults to the ISRM disc 50 x 25 mm at scale 1 (``bts_geometry``)."""
-    from .brazilian import BTSSettings, run_bts
-
+def bts_test(params: dict, seed: int, geometry: Geometry | None = None,
+             settings: BTSSettings | None = None, *, cache=None, threads=None, progress=None,
+             keep_particles: bool = True, genesis_max_steps: int | None = None) -> LabRun:
+    """One Brazilian test (``lab.brazilian``); ``geometry`` defaults to the ISRM disc
+    50 x 25 mm at scale 1 (``bts_geometry``)."""
     st = settings or BTSSettings()
     geo = geometry or bts_geometry()
-    p = P.validate_params(params)  # bad input: raise before any work
-    return _run_lab_test(out, "bts", p, seed, geo, bts_inputs(p, seed, geo, st), "free",
-                         lambda sp: run_bts(sp, st, progress=progress), cache=cache,
-                         threads=threads, keep_particles=keep_particles, progress=progress,
-                         genesis_max_steps=genesis_max_steps, finite=("bts_MPa",))
+    p = P.validate_params(params)
+    return _lab_test("bts", p, seed, geo, bts_inputs(p, seed, geo, st), "free",
+                     lambda sp: run_bts(sp, st, progress=progress), cache=cache,
+                     threads=threads, keep_particles=keep_particles, progress=progress,
+                     genesis_max_steps=genesis_max_steps, finite=("bts_MPa",))
 
 
-def run_triaxial_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
-                      settings=None, *, cache=None, threads=None, progress=None,
-                      keep_particles: bool = True, genesis_max_steps: int | None = None
-                      ) -> RunOutcome:
-    """Run one triaxial test (``lab.triaxial``; sigma3 in ``settings``) and write ``out``
-    (HDF5, test "triaxial"); the specimen is the UCS cylinder of ``geometry``."""
-    from .triaxial import TriaxialSettings, run_triaxial
-
+def triaxial_test(params: dict, seed: int, geometry: Geometry = Geometry(),
+                  settings: TriaxialSettings | None = None, *, cache=None, threads=None,
+                  progress=None, keep_particles: bool = True,
+                  genesis_max_steps: int | None = None) -> LabRun:
+    """One triaxial test (``lab.triaxial``; sigma3 in ``settings``) on the UCS cylinder of
+    ``geometry``."""
     st = settings or TriaxialSettings()
     p = P.validate_params(params)
-    return _run_lab_test(out, "triaxial", p, seed, geometry,
-                         triaxial_inputs(p, seed, geometry, st), "vessel",
-                         lambda sp: run_triaxial(sp, st, progress=progress), cache=cache,
-                         threads=threads, keep_particles=keep_particles, progress=progress,
-                         genesis_max_steps=genesis_max_steps,
-                         finite=("sigma1_MPa", "E_GPa", "nu"))
+    return _lab_test("triaxial", p, seed, geometry, triaxial_inputs(p, seed, geometry, st),
+                     "vessel", lambda sp: run_triaxial(sp, st, progress=progress),
+                     cache=cache, threads=threads, keep_particles=keep_particles,
+                     progress=progress, genesis_max_steps=genesis_max_steps,
+                     finite=("sigma1_MPa", "E_GPa", "nu"))
+
+
+def impact_test(params: dict, seed: int, geometry: Geometry = Geometry(),
+                settings: ImpactSettings | None = None, *, cache=None, threads=None,
+                progress=None, genesis_max_steps: int | None = None) -> LabRun:
+    """Drop-hammer impact (``lab.impact``) on the cylinder of ``geometry``; the final
+    particles carry their fragment label, ``groups["fragments"]`` every fragment's mass
+    and size."""
+    st = settings or ImpactSettings()
+    p = P.validate_params(params)
+    inputs = impact_inputs(p, seed, geometry, st)
+    if threads:
+        set_threads(threads)
+    t0 = time.perf_counter()
+    sp = make_specimen(p, seed, geometry, cache=cache, threads=threads, progress=progress,
+                       genesis_max_steps=genesis_max_steps)
+    ini = {"position": sp.model.B.pos.copy(), "radius": sp.model.B.radius.copy()}
+    res = run_impact(sp, st, progress=progress)
+    m = sp.model
+    summ = dict(res.summary)
+    summ["velocity"] = st.velocity
+    summ["hammer_mass"] = st.hammer_mass
+    summ["total_s"] = time.perf_counter() - t0
+    bi, bj = m.bond_pairs()
+    return LabRun(test="impact", inputs=inputs, summary=summ, genesis=sp.report,
+                  series=res.series, cracks=_crack_arrays(res.cracks), particles_initial=ini,
+                  particles_final={"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
+                                   "angular_velocity": m.B.angvel.copy(),
+                                   "fragment": res.fragments["label"]},
+                  bonds={"i": bi, "j": bj, "state": m.Bd.state.copy(),
+                         "break_step": m.Bd.step.copy()},
+                  groups={"fragments": {"mass": res.fragments["mass"],
+                                        "size": res.fragments["size"]}})

@@ -7,7 +7,8 @@ import numpy as np
 import pandas as pd
 
 from ..lab.fragments import jk_model
-from .style import C_ALT, C_SHEAR, C_SIM, C_TENSION, COLUMN, DOUBLE, figure
+from ..lab.impact import primary_burst
+from .style import C_ALT, C_SHEAR, C_SIM, C_TENSION, COLUMN, DOUBLE, fig_note, figure
 
 
 def fig_ratio_cracks(sweep: pd.DataFrame, chosen: dict):
@@ -45,7 +46,6 @@ def fig_failure_patterns(panels: dict):
     the intact specimen is hidden. ``panels``: title -> crack table (x, z, mode); no panels
     (no successful run): a note instead."""
     if not panels:
-        from .style import fig_note
 
         return fig_note("Fig. 5 not available", "no run of the ratio sweep succeeded")
     fig, axes = figure(DOUBLE, 2.9, ncols=len(panels), sharey=True)
@@ -80,7 +80,6 @@ def _fracture_window(t: np.ndarray, n: np.ndarray) -> float:
     below 1 % of its peak; its crack count is the reference instead of the final count,
     so a slow late phase (e.g. crushing of the fragment bed) does not stretch the window
     over the whole record. Without a late phase both references coincide."""
-    from ..lab.impact import primary_burst
 
     t_end = float(t[-1]) if t.size else 0.0
     if t.size < 3 or n[-1] <= 0:

@@ -3,7 +3,11 @@ study, and ``index.md`` with the settings and seeds used, the failed samples, an
 result. For the paper's own study (``study.reference: yu2026``) each result stands next to
 the value Yu et al. (2026) publish, with the difference (and ``tables/comparison.csv``); for
 any other rock (``reference: none``) the paper's columns, shares and comparisons are left
-out, not filled with dashes."""
+out, not filled with dashes.
+
+The report reads the files of the study's layout (``bpmcal.io.layout``: the report rule
+declares every one of them as its input) and writes the files ``Layout.report_outputs``
+names; a file that is not there (a partial study) leaves its section out."""
 from __future__ import annotations
 
 import json
@@ -12,34 +16,38 @@ import shutil
 from pathlib import Path
 
 import pandas as pd
-import yaml
 
 from .. import __version__
 from .. import params as P
+from ..io import layout as L
 from ..io.atomic import write_text
+from ..io.card import read_card
+from ..io.checks import BadInput, out_file, parse_json, read_json, read_yaml
+from ..io.h5 import read_summary
 from ..io.provenance import git_commit
-from . import paper
+from ..io.tables import markdown_table, write_table
+from ..study import paper
 
 #: tables and figures of the report (stem -> caption)
 TABLES = {
-    "table3_importance": "Table 3: XGBoost importance (%) of the meso-parameters",
-    "table4_terms": "Table 4: quadratic and interaction terms retained by the stepwise regression",
-    "regression_fit": "Adjusted and cross-validated R² of every stage",
-    "calibration": "Calibrated meso-parameters of the lab specimens",
-    "table5_verification": "Table 5: verification - DEM vs lab (single pass and closed loop)",
-    "table6_prepeak_energy": "Table 6: pre-peak energy density, DEM vs lab",
-    "ratio_sweep": "Bond-strength-ratio sweep: cracks and proportions",
-    "impact_energy": "Drop-hammer impact: energy budget over time",
-    "t10_ecs": "t10 against specific energy (impact-velocity sweep)",
+    L.TABLE3: "Table 3: XGBoost importance (%) of the meso-parameters",
+    L.TABLE4: "Table 4: quadratic and interaction terms retained by the stepwise regression",
+    L.REGRESSION_FIT: "Adjusted and cross-validated R² of every stage",
+    L.CALIBRATION: "Calibrated meso-parameters of the lab specimens",
+    L.TABLE5: "Table 5: verification - DEM vs lab (single pass and closed loop)",
+    L.TABLE6: "Table 6: pre-peak energy density, DEM vs lab",
+    L.RATIO_SWEEP: "Bond-strength-ratio sweep: cracks and proportions",
+    L.IMPACT_ENERGY: "Drop-hammer impact: energy budget over time",
+    L.T10_ECS: "t10 against specific energy (impact-velocity sweep)",
 }
 FIGURES = {
-    "screening_importance": "XGBoost importance shares with fold spread and shadow reference",
-    "regression_fit": "Stepwise regression: predicted vs simulated",
-    "fig4_ratio_cracks": "Fig. 4: cracks and their proportions vs bond-strength ratio",
-    "fig5_failure_patterns": "Fig. 5: failure patterns (broken bonds) at selected ratios",
-    "fig6_stress_strain": "Fig. 6: stress-strain curves of the calibrated specimens",
-    "fig7_impact_energy": "Fig. 7: energy and crack evolution of the 6 m/s impact",
-    "t10_ecs": "t10 vs specific energy with the JK breakage model",
+    L.FIG_SCREENING: "XGBoost importance shares with fold spread and shadow reference",
+    L.FIG_REGRESSION: "Stepwise regression: predicted vs simulated",
+    L.FIG4: "Fig. 4: cracks and their proportions vs bond-strength ratio",
+    L.FIG5: "Fig. 5: failure patterns (broken bonds) at selected ratios",
+    L.FIG6: "Fig. 6: stress-strain curves of the calibrated specimens",
+    L.FIG7: "Fig. 7: energy and crack evolution of the 6 m/s impact",
+    L.FIG_T10: "t10 vs specific energy with the JK breakage model",
 }
 
 
@@ -57,46 +65,68 @@ def _f(v, fmt=".3f"):
     return "–" if not math.isfinite(x) else format(x, fmt)
 
 
-def _md(rows, header):
-    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return "\n".join(out)
+def _copy(lay: L.Layout, src: str) -> bool:
+    """Copy a table, figure or the equations into the report folder (if it exists)."""
+    if not Path(src).exists():
+        return False
+    dst = Path(lay.report_copy(src))
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(src, dst)
+    return True
 
 
-def copy_outputs(outdir: Path, report: Path) -> dict:
-    """Copy the tables and figures into the report folder; returns what was found."""
+def copy_outputs(lay: L.Layout, sweep: bool = True) -> dict:
+    """Copy the tables, figures and equations into the report folder; returns the stems
+    of the tables and figures found."""
     found = {"tables": [], "figures": []}
-    for stem in TABLES:
-        for ext in (".csv", ".md"):
-            src = outdir / "tables" / f"{stem}{ext}"
-            if src.exists():
-                dst = report / "tables" / src.name
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy2(src, dst)
-        if (outdir / "tables" / f"{stem}.csv").exists():
-            found["tables"].append(stem)
-    for stem in FIGURES:
-        for ext in (".png", ".pdf"):
-            src = outdir / "figures" / f"{stem}{ext}"
-            if src.exists():
-                dst = report / "figures" / src.name
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy2(src, dst)
-        if (outdir / "figures" / f"{stem}.png").exists():
-            found["figures"].append(stem)
+    for kind, files in (("tables", lay.report_tables(sweep)), ("figures", lay.report_figures(sweep))):
+        for f in files:
+            copied = [_copy(lay, c) for c in L.companions(f)]
+            if copied[0]:
+                found[kind].append(Path(f).stem)
+    _copy(lay, lay.equations)
     return found
 
 
-def build(outdir, config: dict, report_dir=None) -> Path:
-    outdir = Path(outdir)
-    report = Path(report_dir) if report_dir else outdir / "report"
-    report.mkdir(parents=True, exist_ok=True)
-    found = copy_outputs(outdir, report)
-    eq = outdir / "regression" / "equations.md"
-    if eq.exists():
-        shutil.copy2(eq, report / "equations.md")
-    S = []  # sections of index.md
+def report(outdir=None, *, config=None, config_json=None, config_out=None) -> Path:
+    """The job of ``bpmcal report``: the study config from ``config`` (a JSON or YAML file)
+    or ``config_json`` (the text the workflow passes), checked; written to ``config_out``
+    (JSON) when given; then :func:`build` for the study in ``outdir`` (default: the
+    config's ``outdir``). Returns the index file."""
+    if (config is None) == (config_json is None):
+        raise BadInput("give the study config with exactly one of --config FILE and "
+                       "--config-json TEXT")
+    if config_json is not None:
+        cfg = parse_json(config_json, "--config-json")
+    elif str(config).endswith(".json"):
+        cfg = read_json(config, "--config")
+    else:
+        cfg = read_yaml(config, "--config")
+    if not isinstance(cfg, dict) or not isinstance(cfg.get("study"), dict):
+        raise BadInput("--config: not a study config (no 'study' section)")
+    if outdir is None:
+        if not isinstance(cfg.get("outdir"), str):
+            raise BadInput("--config: no 'outdir' (give --outdir)")
+        outdir = cfg["outdir"]
+    if not Path(outdir).is_dir():
+        raise BadInput(f"--outdir {outdir}: not a directory (expected the study's output "
+                       "folder)")
+    if config_out is not None:
+        out_file(config_out, "--config-out", suffixes=(".json",))
+    out_file(L.Layout(outdir).report_index, "--outdir", suffixes=(".md",))
+    if config_out is not None:
+        write_text(config_out, json.dumps(cfg, indent=1, sort_keys=True) + "\n")
+    return build(outdir, cfg)
+
+
+def build(outdir, config: dict) -> Path:
+    """Write the report of the study in ``outdir`` (its layout) for ``config``."""
+    lay = L.Layout(outdir)
     cfg = config
+    sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
+    Path(lay.report_dir).mkdir(parents=True, exist_ok=True)
+    found = copy_outputs(lay, sweep)
+    S = []  # sections of index.md
     ref = is_paper_study(cfg)
     if ref:
         S.append(f"# {cfg['study']['name']}: the paper, regenerated\n")
@@ -105,18 +135,16 @@ def build(outdir, config: dict, report_dir=None) -> Path:
         S.append(f"# {cfg['study']['name']}: calibration report\n")
         S.append(f"Lab data: `{cfg['lab']['csv']}`.\n")
     S.append(f"bpmcal {__version__}, commit `{git_commit()}`.\n")
-    S.append(_settings(outdir, cfg, ref))
+    S.append(_settings(lay, cfg, ref))
     comp: list[dict] = []  # every published value we compare against, one row each
-    S.append(_table3(outdir, comp, ref))
-    S.append(_regression(outdir, comp, ref))
-    S.append(_calibration(outdir, cfg, comp, ref))
-    S.append(_verification(outdir, comp, ref))
-    S.append(_ratio(outdir, comp, ref))
-    S.append(_impact(outdir, cfg, comp, ref))
+    S.append(_table3(lay, comp, ref))
+    S.append(_regression(lay, comp, ref))
+    S.append(_calibration(lay, cfg, comp, ref))
+    S.append(_verification(lay, comp, ref))
+    S.append(_ratio(lay, comp, ref) if sweep else "")
+    S.append(_impact(lay, cfg, comp, ref))
     if comp:
-        from ..study.pipeline import write_table
-
-        write_table(pd.DataFrame(comp), report / "tables" / "comparison.csv", index=False)
+        write_table(pd.DataFrame(comp), lay.comparison, index=False)
         S.append("All of these comparisons, one row per published value: "
                  "[tables/comparison.md](tables/comparison.md) "
                  "([CSV](tables/comparison.csv)).\n")
@@ -132,8 +160,7 @@ def build(outdir, config: dict, report_dir=None) -> Path:
     if ref:
         S.append("\n## Notes on the paper\n")
         S.extend(f"- {n}" for n in paper.NOTES)
-    index = report / "index.md"
-    return write_text(index, "\n".join(S) + "\n")
+    return write_text(lay.report_index, "\n".join(S) + "\n")
 
 
 def is_paper_study(cfg: dict) -> bool:
@@ -142,8 +169,8 @@ def is_paper_study(cfg: dict) -> bool:
     return (cfg.get("study") or {}).get("reference") == "yu2026"
 
 
-def _settings(outdir, cfg, ref=False) -> str:
-    ds_path = outdir / "dataset.csv"
+def _settings(lay, cfg, ref=False) -> str:
+    ds_path = Path(lay.dataset)
     lines = ["## Settings\n"]
     sp, u = cfg["specimen"], cfg["ucs"]
     lines.append(f"- Samples: {cfg['study']['n_samples']} (Latin hypercube, seed "
@@ -192,8 +219,8 @@ def _cmp(comp, section, item, ours, theirs, unit=""):
                  "difference_pct": 100 * (o - t) / abs(t) if math.isfinite(o) and t else math.nan})
 
 
-def _table3(outdir, comp, ref=False) -> str:
-    f = outdir / "tables" / "table3_importance.csv"
+def _table3(lay, comp, ref=False) -> str:
+    f = Path(lay.table(L.TABLE3))
     if not f.exists():
         return ""
     t3 = pd.read_csv(f, index_col=0)
@@ -213,11 +240,11 @@ def _table3(outdir, comp, ref=False) -> str:
         rows.append(r)
     head = ("## Table 3: XGBoost screening (ours, paper in brackets, % of gain)\n\n" if ref
             else "## Table 3: XGBoost screening (% of gain)\n\n")
-    return head + _md(rows, ["parameter", "σc", "E", "ν"]) + "\n"
+    return head + markdown_table(rows, ["parameter", "σc", "E", "ν"]) + "\n"
 
 
-def _regression(outdir, comp, ref=False) -> str:
-    f = outdir / "tables" / "regression_fit.csv"
+def _regression(lay, comp, ref=False) -> str:
+    f = Path(lay.table(L.REGRESSION_FIT))
     if not f.exists():
         return ""
     fit = pd.read_csv(f)
@@ -231,10 +258,10 @@ def _regression(outdir, comp, ref=False) -> str:
             _cmp(comp, "Regression", f"adjusted R² of {r.response}, {r.stage}", r.adj_r2, theirs)
         rows.append([r.response, r.stage, _f(r.adj_r2), _f(theirs) if theirs else "–",
                      (f"{r.adj_r2 - theirs:+.3f}" if theirs else "–"), _f(r.cv_r2_mean)])
-    eq = outdir / "regression" / "equations.md"
+    eq = Path(lay.equations)
     header = (["response", "stage", "ours", "paper", "difference", "CV R² (ours)"] if ref
               else ["response", "stage", "adjusted R²", "CV R²"])
-    s = "## Stepwise regression: adjusted R² per stage\n\n" + _md(rows, header)
+    s = "## Stepwise regression: adjusted R² per stage\n\n" + markdown_table(rows, header)
     if eq.exists():
         s += ("\n\nOur equations (all stages): " if ref else "\n\nThe equations (all stages): ")
         s += "[equations.md](equations.md)\n"
@@ -244,24 +271,21 @@ def _regression(outdir, comp, ref=False) -> str:
     return s + "\n"
 
 
-def _specimen_cards(directory: Path, outdir: Path) -> dict[str, Path]:
-    """The cards in ``directory`` in the lab CSV's specimen order (the calibration table's)."""
-    order = []
-    t = outdir / "tables" / "calibration.csv"
-    if t.exists():
-        order = [str(x) for x in pd.read_csv(t)["specimen"]]
-    found = {f.stem: f for f in sorted(directory.glob("*.yaml"))}
-    keys = [k for k in order if k in found] + sorted(set(found) - set(order))
-    return {k: found[k] for k in keys}
+def _specimens(lay) -> list[str]:
+    """The lab specimens in the lab CSV's order (the calibration table's)."""
+    t = Path(lay.table(L.CALIBRATION))
+    if not t.exists():
+        return []
+    return [str(x) for x in pd.read_csv(t, dtype={"specimen": str})["specimen"]]
 
 
-def _calibration(outdir, cfg, comp, ref=False) -> str:
-    cal = outdir / "calibration"
-    if not cal.exists():
+def _calibration(lay, cfg, comp, ref=False) -> str:
+    specs = [s for s in _specimens(lay) if Path(lay.card(s)).exists()]
+    if not specs:
         return ""
     rows, notes = [], []
-    for spec, f in _specimen_cards(cal, outdir).items():
-        card = yaml.safe_load(f.read_text())
+    for spec in specs:
+        card = read_card(lay.card(spec))
         p = card["parameters"]
         theirs = paper.CALIBRATED.get(spec) if ref else None
         bounds = card.get("bounds") or {}
@@ -283,8 +307,10 @@ def _calibration(outdir, cfg, comp, ref=False) -> str:
             rows.append(row + [card["status"]])
         if card["status"] != "ok":
             notes.append(f"- **{spec}: {card['status']}** — {card['message']}")
-    chosen = outdir / "ratio_sweep" / "chosen.json"
-    ratio = json.loads(chosen.read_text())["chosen_ratio"] if chosen.exists() else None
+    chosen = Path(lay.sweep_chosen)
+    sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
+    ratio = (json.loads(chosen.read_text())["chosen_ratio"] if sweep and chosen.exists()
+             else None)
     if ratio is None:  # no sweep, or it chose no ratio: the configured one was used
         ratio = cfg["calibration"]["ratio"]
     header = ["specimen", "parameter", "calibrated", "95 % bootstrap interval", "bounds"]
@@ -293,7 +319,7 @@ def _calibration(outdir, cfg, comp, ref=False) -> str:
     header += ["inversion status"]
     title = (f"## Calibrated meso-parameters (bond-strength ratio {ratio:g}; paper 1.4)\n\n" if ref
              else f"## Calibrated meso-parameters (bond-strength ratio {ratio:g})\n\n")
-    out = title + _md(rows, header) + "\n"
+    out = title + markdown_table(rows, header) + "\n"
     out += ("\nBounds: the configured ranges (the design space), narrowed by calibration.bounds "
             "and, for τcp, by ranges.pb_ten_MPa / ratio; each card names where every bound comes "
             "from.\n")
@@ -302,8 +328,8 @@ def _calibration(outdir, cfg, comp, ref=False) -> str:
     return out
 
 
-def _verification(outdir, comp, ref=False) -> str:
-    f = outdir / "tables" / "table5_verification.csv"
+def _verification(lay, comp, ref=False) -> str:
+    f = Path(lay.table(L.TABLE5))
     if not f.exists():
         return ""
     t5 = pd.read_csv(f, index_col=0)
@@ -331,10 +357,11 @@ def _verification(outdir, comp, ref=False) -> str:
     header = ["specimen", "response", "lab", "DEM, single pass", "error", "DEM, closed loop", "error"]
     if ref:
         header += ["paper (PFC3D)", "paper error"]
-    s = ("## Table 5: verification (errors in % of the lab value)\n\n" + _md(rows, header) + "\n")
+    s = ("## Table 5: verification (errors in % of the lab value)\n\n"
+         + markdown_table(rows, header) + "\n")
     if notes:
         s += "\n" + "\n".join(notes) + "\n"
-    f6 = outdir / "tables" / "table6_prepeak_energy.csv"
+    f6 = Path(lay.table(L.TABLE6))
     if f6.exists():
         t6 = pd.read_csv(f6, index_col=0)
         rows = []
@@ -351,25 +378,26 @@ def _verification(outdir, comp, ref=False) -> str:
         header = ["specimen", "lab", "DEM (ours)" if ref else "DEM", "error %"]
         if ref:
             header += ["paper PFC3D", "paper error %"]
-        s += ("\n## Table 6: pre-peak energy density Up (MJ/m³)\n\n" + _md(rows, header) + "\n")
-    sc = outdir / "verification" / "seed_scatter" / "seed_scatter.csv"
+        s += ("\n## Table 6: pre-peak energy density Up (MJ/m³)\n\n"
+              + markdown_table(rows, header) + "\n")
+    sc = Path(lay.seed_scatter)
     if sc.exists():
         t = pd.read_csv(sc)
         rows = [[r["response"], _f(r["cv"] * 100, ".2f"), _f(r["noise_floor"] * 100, ".2f"),
                  "yes" if r["noise_limited"] else "no"] for _, r in t.iterrows()]
         s += ("\n### Packing-seed scatter of one calibrated set\n\n"
-              + _md(rows, ["response", "CV of one run (%)", "noise floor 2 se (%)",
+              + markdown_table(rows, ["response", "CV of one run (%)", "noise floor 2 se (%)",
                            "1 % tolerance below the noise?"]) + "\n")
     return s
 
 
-def _ratio(outdir, comp, ref=False) -> str:
-    f = outdir / "ratio_sweep" / "chosen.json"
+def _ratio(lay, comp, ref=False) -> str:
+    f = Path(lay.sweep_chosen)
     if not f.exists():
         return ""
     ch = json.loads(f.read_text())
     failed = ""
-    t = outdir / "tables" / "ratio_sweep.csv"
+    t = Path(lay.table(L.RATIO_SWEEP))
     if t.exists():
         sw = pd.read_csv(t)
         bad = sw[sw["status"] != "ok"] if "status" in sw.columns else sw.iloc[:0]
@@ -394,11 +422,9 @@ def _ratio(outdir, comp, ref=False) -> str:
             f"{ch['chosen_ratio'] - paper.RATIO:+.1f}).\n" + failed)
 
 
-def _impact(outdir, cfg, comp, ref=False) -> str:
-    from ..io.h5 import read_summary
-
-    v = f"{float(cfg['impact']['velocity']):g}"
-    f = outdir / "impact" / f"impact_{v}ms.h5"
+def _impact(lay, cfg, comp, ref=False) -> str:
+    v = L.velocity_tag(cfg["impact"]["velocity"])
+    f = Path(lay.impact_run(v))
     if not f.exists():
         return ""
     s = read_summary(f)
@@ -428,8 +454,8 @@ def _impact(outdir, cfg, comp, ref=False) -> str:
                 ["η_f = G_f / W_in", _f(100 * s["eta_f"], ".1f") + " %"],
                 ["energy closure (max over time)", _f(100 * s["closure_rel_max"], ".3f") + " %"]]
         header = ["quantity", "value"]
-    out = f"## Drop-hammer impact at {v} m/s\n\n" + _md(rows, header) + "\n"
-    out += _impact_card_note(outdir)
+    out = f"## Drop-hammer impact at {v} m/s\n\n" + markdown_table(rows, header) + "\n"
+    out += _impact_card_note(lay)
     out += (f"\nStages: crack initiation {1e3 * s['t_initiation_s']:.3f} ms, peak crack rate "
             f"{1e3 * s['t_peak_rate_s']:.3f} ms, through-failure {1e3 * s['t_through_s']:.3f} ms"
             f" after first contact ({s.get('cracks_after_burst', 0)} of the "
@@ -439,7 +465,7 @@ def _impact(outdir, cfg, comp, ref=False) -> str:
             f"(a t10-size fragment holds ~{s['balls_per_t10_fragment']:.1f} balls"
             + ("; below ~30 balls t10 reflects the ball size more than the rock)"
                if s["balls_per_t10_fragment"] < 30 else ")") + "\n")
-    jk = outdir / "tables" / "jk_fit.json"
+    jk = Path(lay.jk_fit)
     if jk.exists():
         fit = json.loads(jk.read_text())
         if fit:
@@ -448,18 +474,15 @@ def _impact(outdir, cfg, comp, ref=False) -> str:
     return out
 
 
-def _impact_card_note(outdir) -> str:
+def _impact_card_note(lay) -> str:
     """Say so when the impact's specimen has no verified calibration (the impact rule uses
     the first lab specimen's verified card; if its closed loop did not run, or did not
     converge from an unreachable start, the parameters are not a calibrated rock)."""
-    t = outdir / "tables" / "calibration.csv"
-    if not t.exists():
+    specs = _specimens(lay)
+    if not specs or not Path(lay.verified_card(specs[0])).exists():
         return ""
-    first = str(pd.read_csv(t)["specimen"].iloc[0])
-    f = outdir / "verification" / first / "card.yaml"
-    if not f.exists():
-        return ""
-    card = yaml.safe_load(f.read_text())
+    first = specs[0]
+    card = read_card(lay.verified_card(first))
     if card.get("status") == "unreachable":
         v = card.get("verification", {})
         return (f"\n**Not a calibrated rock:** the impact used specimen {first}'s card, whose "

@@ -5,13 +5,17 @@ any job runs.
 from __future__ import annotations
 
 import copy
+import json
 import math
 from pathlib import Path
 
 import yaml
 
 from .. import params as P
+from ..io.layout import ratio_grid, ratio_id
 from ..io.paths import name_problem, path_problem
+from ..lab.budget import budget_problem
+from .paper import LAB as PAPER_LAB
 
 
 class ConfigError(ValueError):
@@ -128,8 +132,6 @@ def _budget_checks(cfg: dict) -> list[str]:
     """The largest specimen the study can build (smallest Rmin and porosity of the ranges
     and of the fixed calibration values, at the UCS and the impact scale) must fit
     ``resources.max_balls`` and ``resources.ucs_mem_mb``."""
-    from ..lab.budget import budget_problem
-
     res = cfg["resources"]
     rg, fx = cfg["ranges"], cfg["calibration"]["fixed"]
     rmin = min([min(rg["rmin_mm"])] + ([fx["rmin_mm"]] if "rmin_mm" in fx else []))
@@ -152,8 +154,6 @@ def _sweep_checks(cfg: dict) -> list[str]:
     if not (start <= stop):
         return [f"ratio_sweep.ratios: start {start:g} exceeds stop {stop:g} (expected "
                 "[start, stop, step] with start <= stop)"]
-    from .sweep import ratio_grid, ratio_id
-
     n = int(math.floor((stop - start) / step + 1e-9)) + 1
     if n > MAX_SWEEP_RATIOS:
         return [f"ratio_sweep.ratios: {rs['ratios']} gives {n} ratios, more than "
@@ -209,18 +209,16 @@ def _check_reference(cfg: dict, lab: Path) -> list[str]:
     that only means something for the paper's specimens B1-B3."""
     if cfg["study"].get("reference") != "yu2026":
         return []
-    from ..report.paper import LAB
-
     df = read_lab(lab)
     bad = []
     for rec in df.to_dict("records"):
-        pub = LAB.get(str(rec["specimen"]))
+        pub = PAPER_LAB.get(str(rec["specimen"]))
         if pub is None or any(abs(float(rec[k]) - pub[k]) > 1e-9 * abs(pub[k])
                               for k in ("ucs_MPa", "E_GPa", "nu")):
             bad.append(str(rec["specimen"]))
     if bad:
         return [f"study.reference: yu2026 compares the results with the paper's green sandstone "
-                f"specimens {sorted(LAB)}, but lab.csv {cfg['lab']['csv']!r} holds other data "
+                f"specimens {sorted(PAPER_LAB)}, but lab.csv {cfg['lab']['csv']!r} holds other data "
                 f"(specimen(s) {bad}); set study.reference: none for another rock"]
     return []
 
@@ -308,3 +306,77 @@ def load_lab(path):
         if c in df.columns:
             df[c] = pd.to_numeric(df[c], errors="coerce")
     return df
+
+
+# ------------------------------------------------------------------------ documentation
+def _allowed(node: dict) -> str:
+    """The values a schema node accepts, in words."""
+    if "enum" in node:
+        return " \\| ".join("null" if v is None else str(v) for v in node["enum"])
+    t = node.get("type")
+    if t == "array":
+        n = ""
+        if node.get("minItems") == node.get("maxItems") and "minItems" in node:
+            n = f"{node['minItems']} "
+        elif "minItems" in node:
+            n = f"≥ {node['minItems']} "
+        inner = _allowed(node.get("items", {}))
+        return f"list of {n}{inner or 'items'}".strip()
+    a = node.get("exclusiveMinimum", node.get("minimum"))
+    b = node.get("exclusiveMaximum", node.get("maximum"))
+    lo = "(" if "exclusiveMinimum" in node or a is None else "["
+    hi = ")" if "exclusiveMaximum" in node or b is None else "]"
+    if a is None and b is None:
+        return ""
+    return f"{lo}{'-∞' if a is None else f'{a:g}'}, {'∞' if b is None else f'{b:g}'}{hi}"
+
+
+def _type(node: dict) -> str:
+    t = node.get("type", "")
+    if isinstance(t, list):
+        t = " or ".join(t)
+    if t == "array":
+        t = f"list of {node.get('items', {}).get('type', 'items')}"
+    return t
+
+
+def _default(node: dict, required: bool) -> str:
+    if "default" in node:
+        return f"`{json.dumps(node['default'], ensure_ascii=False)}`"
+    return "required" if required else "–"
+
+
+def schema_reference(schema: dict) -> str:
+    """Every section and key of the config schema as Markdown tables (type, default,
+    allowed values, meaning): the reference part of config/README.md, generated from the
+    schema so that the two cannot disagree (tests/workflow/test_config_doc.py)."""
+    out = []
+    top = schema["properties"]
+    for sec, node in top.items():
+        out.append(f"### `{sec}`\n")
+        desc = " ".join(str(node.get("description", "")).split())
+        if node.get("type") != "object":
+            out.append(f"{desc}\n")
+            out.append("| type | default | allowed |\n|---|---|---|")
+            out.append(f"| {_type(node)} | {_default(node, sec in schema.get('required', []))} "
+                       f"| {_allowed(node) or '–'} |\n")
+            continue
+        out.append(f"{desc}\n")
+        out.append("| key | type | default | allowed | meaning |\n|---|---|---|---|---|")
+        req = set(node.get("required", []))
+        for key, sub in node.get("properties", {}).items():
+            meaning = " ".join(str(sub.get("description", "")).split())
+            props = sub.get("properties", {})
+            if sub.get("type") == "object" and set(props) <= set(P.PARAMS) and props:
+                items = ", ".join(f"`{k}` {_allowed(v) or _type(v)}" for k, v in props.items())
+                meaning = f"{meaning} Keys, each optional: {items}.".strip()
+            out.append(f"| `{key}` | {_type(sub)} | {_default(sub, key in req)} | "
+                       f"{_allowed(sub) or '–'} | {meaning or '–'} |")
+        out.append("")
+    return "\n".join(out).rstrip() + "\n"
+
+
+if __name__ == "__main__":  # python -m bpmcal.study.config SCHEMA: print the reference
+    import sys
+
+    print(schema_reference(load_schema(sys.argv[1])), end="")

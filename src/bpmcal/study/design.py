@@ -3,8 +3,8 @@
 ``lhs_design(ranges, n, seed)`` draws ``n`` points with scipy.stats.qmc.LatinHypercube
 (optionally optimised for space filling), scales them to the ranges (paper units) and
 gives every sample its own packing seed, derived from the design seed so that the whole
-study is reproducible from one number. Output columns: ``sample_id``, the parameters in
-the order of the ranges, ``seed``.
+study is reproducible from one number. Output columns: ``sample_id``
+(``bpmcal.io.layout.sample_ids``: s000, s001, ...), the 8 parameters, ``seed``.
 """
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import pandas as pd
 from scipy.stats import qmc
 
 from .. import params as P
+from ..io.layout import sample_ids
 
 
 def validate_ranges(ranges: dict) -> dict[str, tuple[float, float]]:
@@ -35,7 +36,7 @@ def validate_ranges(ranges: dict) -> dict[str, tuple[float, float]]:
 
 
 def lhs_design(ranges: dict, n: int, seed: int, optimization: str | None = "random-cd",
-               fixed: dict | None = None, id_prefix: str = "s") -> pd.DataFrame:
+               fixed: dict | None = None) -> pd.DataFrame:
     """Latin-hypercube design over ``ranges`` (paper units); ``fixed`` parameters are
     constant columns. Parameters with lo == hi are treated as fixed."""
     if int(n) < 2:
@@ -56,8 +57,7 @@ def lhs_design(ranges: dict, n: int, seed: int, optimization: str | None = "rand
     for k, v in fixed.items():
         df[k] = float(v)
     df = df[[p for p in P.PARAMS]]
-    width = max(3, len(str(int(n))))
-    df.insert(0, "sample_id", [f"{id_prefix}{i:0{width}d}" for i in range(int(n))])
+    df.insert(0, "sample_id", sample_ids(n))
     seeds = np.random.SeedSequence(int(seed)).generate_state(int(n), dtype=np.uint32)
     df["seed"] = (seeds % 2_000_000_000).astype(np.int64)
     return df

@@ -14,41 +14,27 @@ depends on tau_cp) is kept in the plan with
 does not run it), the analysis leaves it out, and when no ratio is usable the chosen-ratio
 file says so (``chosen_ratio`` null) and the calibration keeps the configured ratio.
 
-The ratio is then chosen by a criterion on the simulated cracks: by default the tensile
+Run names come from ``bpmcal.io.layout`` (``ratio_id``: "a050" for a = 0.50, over
+``ratio_grid``). The ratio is then chosen by a criterion on the simulated cracks: by default the tensile
 share of all cracks closest to 60 % (the brittle/shear split the paper cites), or the
 crack count closest to a target.
 """
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .. import params as P
-from ..io.atomic import write_text
+from ..io.h5 import RunFileError, read_summary
+from ..io.layout import ratio_id
 
 #: plan rows: "planned" (run it) or "unreachable" (no tau_cp gives the target)
 PLANNED, UNREACHABLE = "planned", "unreachable"
 
-
-def ratio_grid(start: float, stop: float, step: float) -> list[float]:
-    """start, start + step, ... <= stop (rounded to 10 digits); ParameterError for a
-    reversed, empty or non-finite grid."""
-    ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-             for x in (start, stop, step))
-    if not (ok and start > 0 and stop >= start and step > 0):
-        raise P.ParameterError(f"ratio grid [{start}, {stop}] step {step}: expected "
-                               "finite numbers with 0 < start <= stop and step > 0")
-    n = int(math.floor((stop - start) / step + 1e-9)) + 1
-    return [round(start + k * step, 10) for k in range(n)]
-
-
-def ratio_id(a: float) -> str:
-    """The run name of ratio ``a`` ("a050" for a = 0.50)."""
-    return f"a{int(round(a * 100)):03d}"
+#: the paper's grid of ratios a = sigma_cp / tau_cp: start, stop, step
+DEFAULT_RATIOS = (0.5, 2.0, 0.1)
 
 
 def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
@@ -106,16 +92,17 @@ def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
     return pd.DataFrame(rows)[cols]
 
 
-def analyse_sweep(plan: pd.DataFrame, runs_dir, criterion="tensile_share", target=0.6):
-    """Crack counts and proportions per ratio, and the chosen ratio. A run that failed, is
-    unreadable or was not run (unreachable ratio) is a row with its status and reason and
-    no counts; when no run is usable, ``chosen_ratio`` is None and ``reason`` says why."""
-    from ..io.h5 import RunFileError, read_summary
-
+def analyse_sweep(plan: pd.DataFrame, run_files, criterion="tensile_share", target=0.6):
+    """Crack counts and proportions per ratio, and the chosen ratio. ``run_files``: the run
+    file of every plan row, by sample_id. A run that failed, is unreadable or was not run
+    (unreachable ratio) is a row with its status and reason and no counts; when no run is
+    usable, ``chosen_ratio`` is None and ``reason`` says why."""
     rows = []
     for r in plan.to_dict("records"):
-        f = Path(runs_dir) / f"{r['sample_id']}.h5"
+        f = run_files.get(r["sample_id"])
         try:
+            if f is None:
+                raise RunFileError(f"no run file for {r['sample_id']}")
             s = read_summary(f)
             status, reason = s.get("status", "failed"), s.get("error", "")
         except RunFileError as e:
@@ -149,7 +136,3 @@ def analyse_sweep(plan: pd.DataFrame, runs_dir, criterion="tensile_share", targe
               "target": target, "value": float(df.loc[best, key]),
               "sample_id": df.loc[best, "sample_id"]}
     return df, chosen
-
-
-def write_chosen(path, chosen: dict):
-    write_text(path, json.dumps(chosen, indent=2) + "\n")
