@@ -268,7 +268,7 @@ def cmd_bts(a) -> int:
 
     geo = bts_geometry(scale=a.scale, diameter_mm=a.diameter, thickness_mm=a.thickness,
                        sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
-                       relax_ratio=a.relax_ratio)
+                       relax_ratio=a.relax_ratio, genesis=a.genesis)
     st = BTSSettings(platen_velocity=a.platen_velocity, platen_fric=a.platen_fric,
                      damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
                      record_strain=a.record_strain)
@@ -811,6 +811,15 @@ def add_budget_args(p):
                         f"run (default {GENESIS_MAX_STEPS:,})")
 
 
+GENESES = ("bpmcal", "pfc")  # = lab.specimen.GENESES (not imported: keeps --help fast)
+GENESIS_HELP = ("specimen genesis after the packing: bpmcal (locked-in stress relieved to "
+                "--sigma0, bonds on touching pairs) or pfc (Itasca's tutorial practice: "
+                "every overlap relieved to zero force, bonds within a positive gap); default "
+                "bpmcal")
+INSTALL_GAP_HELP = ("bond pairs with surface gap <= this [mm] (default: the genesis's, 0 for "
+                    "bpmcal, 0.0625 Rmin for pfc)")
+
+
 def add_run_args(p):
     """Options of the specimen and of the UCS loading (shared by ucs, verify, scatter)."""
     p.add_argument("--scale", type=number("scale", 0.0, 10.0, lo_open=True), default=1.0,
@@ -841,7 +850,8 @@ def add_run_args(p):
     p.add_argument("--sigma0", type=number("sigma0", 0.0, 100.0, unit="MPa"), default=0.1,
                    help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
     p.add_argument("--install-gap", type=number("install-gap", 0.0, 1.0, unit="mm"),
-                   default=0.0, help="bond pairs with surface gap <= this [mm] (default 0)")
+                   default=None, help=INSTALL_GAP_HELP)
+    p.add_argument("--genesis", choices=GENESES, default="bpmcal", help=GENESIS_HELP)
     p.add_argument("--threads", type=THREADS, default=None, help="numba threads (>= 1)")
     p.add_argument("--specimen-cache", default=None,
                    help="directory of cached packings (default ~/.cache/bpmcal/packings or "
@@ -853,7 +863,7 @@ def run_geometry(a):
     from .lab.runner import Geometry
     return Geometry(scale=a.scale, diameter_mm=a.diameter, height_mm=a.height,
                     sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
-                    relax_ratio=a.relax_ratio)
+                    relax_ratio=a.relax_ratio, genesis=a.genesis)
 
 
 def run_settings(a):
@@ -918,7 +928,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--sigma0", type=number("sigma0", 0.0, 100.0, unit="MPa"), default=0.1,
                    help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
     b.add_argument("--install-gap", type=number("install-gap", 0.0, 1.0, unit="mm"),
-                   default=0.0, help="bond pairs with surface gap <= this [mm] (default 0)")
+                   default=None, help=INSTALL_GAP_HELP)
+    b.add_argument("--genesis", choices=GENESES, default="bpmcal", help=GENESIS_HELP)
     b.add_argument("--relax-ratio", type=number("relax-ratio", 0.0, 0.1, lo_open=True),
                    default=1e-2,
                    help="genesis equilibrium: mean unbalanced-force ratio (default 1e-2)")

@@ -50,13 +50,15 @@ def specimen_args(cfg=config, scale=None):
     sp, u, r = cfg["specimen"], cfg["ucs"], cfg["resources"]
     scale = sp["scale"] if scale is None else scale
     opts = {"--scale": scale, "--diameter": sp["diameter_mm"], "--height": sp["height_mm"],
-            "--sigma0": sp["sigma0_MPa"], "--install-gap": sp["install_gap_mm"],
+            "--sigma0": sp["sigma0_MPa"], "--genesis": sp["genesis"],
             "--relax-ratio": sp["relax_ratio"], "--platen-velocity": u["platen_velocity"],
             "--damping": u["damping"], "--stop-drop": u["stop_drop"],
             "--max-strain": u["max_strain"], "--platen-fric": u["platen_fric"],
             "--record-strain": u["record_strain"], "--specimen-cache": PACKINGS,
             "--max-balls": r["max_balls"], "--mem-budget-mb": r["ucs_mem_mb"],
             "--genesis-max-steps": r["genesis_max_steps"]}
+    if sp["install_gap_mm"] is not None:  # null: the genesis's own gap
+        opts["--install-gap"] = sp["install_gap_mm"]
     return [str(x) for k, v in opts.items() for x in (k, v)]
 
 

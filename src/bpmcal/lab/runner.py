@@ -27,7 +27,15 @@ from .. import params as P
 from ..dem._jit import set_threads
 from ..dem.errors import InputError, InstabilityError
 from ..io.h5 import RunFileError, check_run_file, write_run
-from .specimen import GenesisError, SpecimenSpec, build_specimen, get_packing, paper_material
+from .specimen import (
+    GENESES,
+    GenesisError,
+    SpecimenSpec,
+    build_specimen,
+    default_install_gap,
+    get_packing,
+    paper_material,
+)
 from .ucs import UCSSettings, run_ucs, settings_dict
 
 
@@ -36,11 +44,14 @@ class Geometry:
     scale: float = 1.0
     diameter_mm: float = 50.0
     height_mm: float = 100.0
-    sigma0_MPa: float = 0.1  # locked-in isotropic stress after genesis
-    install_gap_mm: float = 0.0  # bonds on pairs with gap <= this
+    sigma0_MPa: float = 0.1  # locked-in isotropic stress after genesis ("bpmcal" only)
+    install_gap_mm: float | None = None  # bonds on pairs with gap <= this (None: genesis's)
     relax_ratio: float = 1e-2
+    genesis: str = "bpmcal"  # steps 4-5 of the genesis: "bpmcal" | "pfc" (lab.specimen)
 
     def __post_init__(self):
+        if self.genesis not in GENESES:
+            raise InputError(f"genesis={self.genesis!r}: expected one of {', '.join(GENESES)}")
         checks = (  # name, value, low, high, low end open
             ("scale", self.scale, 0.0, 10.0, True),
             ("diameter_mm", self.diameter_mm, 0.0, math.inf, True),
@@ -49,15 +60,29 @@ class Geometry:
             ("install_gap_mm", self.install_gap_mm, 0.0, 1e3, False),
             ("relax_ratio", self.relax_ratio, 0.0, 1.0, True))
         for name, v, lo, hi, lo_open in checks:
+            if v is None and name == "install_gap_mm":
+                continue
             v = P.as_number(v, name, "a number", InputError)
             if (v <= lo if lo_open else v < lo) or v > hi:
                 raise InputError(f"{name}={v!r}: expected a number in {'(' if lo_open else '['}"
                                  f"{lo:g}, {hi:g}]")
 
-    def to_dict(self):
+    def install_gap(self, rmin_mm: float) -> float:
+        """The installation gap [mm] used with balls of minimum radius ``rmin_mm``: the
+        given one, or the genesis's default (``specimen.default_install_gap``)."""
+        if self.install_gap_mm is not None:
+            return float(self.install_gap_mm)
+        return default_install_gap(self.genesis, 1.0) * float(rmin_mm)
+
+    def to_dict(self, rmin_mm: float | None = None):
+        """The run file's geometry inputs; ``install_gap_mm`` is the gap used (needs
+        ``rmin_mm`` when the genesis's default applies; NaN without it)."""
+        gap = (self.install_gap(rmin_mm) if rmin_mm is not None or self.install_gap_mm is not None
+               else math.nan)
         return {"scale": self.scale, "diameter_mm": self.diameter_mm * self.scale,
                 "height_mm": self.height_mm * self.scale, "sigma0_MPa": self.sigma0_MPa,
-                "install_gap_mm": self.install_gap_mm, "relax_ratio": self.relax_ratio}
+                "install_gap_mm": gap, "relax_ratio": self.relax_ratio,
+                "genesis": self.genesis}
 
 
 @dataclass
@@ -107,13 +132,14 @@ def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, c
     mat = paper_material(p["pb_emod_GPa"], p["pb_kratio"], p["pb_ten_MPa"], p["pb_coh_MPa"],
                          p["pb_fa_deg"], p["fric"])
     return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6,
-                          install_gap=geometry.install_gap_mm * 1e-3, threads=threads,
-                          progress=progress, max_steps=genesis_max_steps, boundary=boundary)
+                          install_gap=geometry.install_gap(p["rmin_mm"]) * 1e-3, threads=threads,
+                          progress=progress, max_steps=genesis_max_steps, boundary=boundary,
+                          genesis=geometry.genesis)
 
 
 def ucs_inputs(params: dict, seed: int, geometry: Geometry, settings: UCSSettings) -> dict:
     d = {k: float(params[k]) for k in P.PARAMS if k in params}
-    d.update(geometry.to_dict())
+    d.update(geometry.to_dict(params.get("rmin_mm")))
     d["seed"] = int(seed)
     d.update({f"ucs_{k}": v for k, v in settings_dict(settings).items()})
     return d
@@ -144,7 +170,7 @@ def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(
     st = settings or ImpactSettings()
     p = P.validate_params(params)
     inputs = {k: float(p[k]) for k in P.PARAMS}
-    inputs.update(geometry.to_dict())
+    inputs.update(geometry.to_dict(p["rmin_mm"]))
     inputs["seed"] = int(seed)
     inputs.update({f"impact_{k}": v for k, v in impact_dict(st).items()})
     if threads:
@@ -163,6 +189,8 @@ def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(
     summ["velocity"] = st.velocity
     summ["hammer_mass"] = st.hammer_mass
     summ["total_s"] = time.perf_counter() - t0
+    summ.update({k: sp.report[k] for k in ("genesis", "install_gap_mm", "coordination",
+                                           "bonds_per_ball", "bonds_per_cm3")})
     bi, bj = m.bond_pairs()
     write_run(out, test="impact", inputs=inputs, summary=summ, genesis=sp.report,
               series=res.series, cracks=_crack_arrays(res.cracks), particles_initial=ini,
@@ -222,6 +250,8 @@ def _run_lab_test(out, test: str, params: dict, seed: int, geometry: Geometry, i
     summ.update({"n_balls": g["n_balls"], "n_bonds": g["n_bonds"],
                  "porosity_achieved": g["porosity_achieved"],
                  "coordination": g["coordination"],
+                 "bonds_per_ball": g["bonds_per_ball"], "bonds_per_cm3": g["bonds_per_cm3"],
+                 "install_gap_mm": g["install_gap_mm"], "genesis": g["genesis"],
                  "locked_in_stress_MPa": g["locked_in_stress_MPa"],
                  "genesis_s": t_gen, "wall_s": time.perf_counter() - t0,
                  "test_s": summ["wall_s"]})
@@ -244,7 +274,7 @@ def bts_inputs(params: dict, seed: int, geometry: Geometry, settings) -> dict:
     from .brazilian import settings_dict as bts_dict
 
     d = {k: float(params[k]) for k in P.PARAMS if k in params}
-    d.update(geometry.to_dict())
+    d.update(geometry.to_dict(params.get("rmin_mm")))
     d["thickness_mm"] = d["height_mm"]
     d["seed"] = int(seed)
     d.update({f"bts_{k}": v for k, v in bts_dict(settings).items()})
@@ -255,7 +285,7 @@ def triaxial_inputs(params: dict, seed: int, geometry: Geometry, settings) -> di
     from .triaxial import settings_dict as tx_dict
 
     d = {k: float(params[k]) for k in P.PARAMS if k in params}
-    d.update(geometry.to_dict())
+    d.update(geometry.to_dict(params.get("rmin_mm")))
     d["seed"] = int(seed)
     d["sigma3_MPa"] = settings.sigma3 / 1e6
     d.update({f"triaxial_{k}": v for k, v in tx_dict(settings).items()})
