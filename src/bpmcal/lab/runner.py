@@ -23,6 +23,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from .. import params as P
 from ..dem._jit import set_threads
 from ..dem.errors import InputError, InstabilityError
@@ -246,6 +248,7 @@ def _run_lab_test(out, test: str, params: dict, seed: int, geometry: Geometry, i
         return write_failure(out, test=test, inputs=inputs, error=f"{type(e).__name__}: {e}",
                              wall_s=time.perf_counter() - t0)
     summ = dict(res.summary)
+    summ.update(_morphology(test, sp, res, ini))
     g = sp.report
     summ.update({"n_balls": g["n_balls"], "n_bonds": g["n_bonds"],
                  "porosity_achieved": g["porosity_achieved"],
@@ -268,6 +271,36 @@ def _run_lab_test(out, test: str, params: dict, seed: int, geometry: Geometry, i
               particles_initial=ini if keep_particles else None, particles_final=fin,
               bonds=bonds if keep_particles else None)
     return RunOutcome(status="ok", summary=summ, path=out)
+
+
+#: the series whose maximum is the peak of each test (for the morphology)
+_PEAK_SERIES = {"ucs": "axial_stress", "triaxial": "deviator", "bts": "load"}
+
+
+def _morphology(test: str, sp, res, ini: dict) -> dict:
+    """Failure morphology of a finished run (``lab.morphology``): crack heights along the
+    loading axis (the cylinder's axis; a Brazilian disc's loaded diameter, y), the
+    principal fracture plane (fitted with a half-thickness of 1.5 mean ball diameters)
+    and the fragments."""
+    from .morphology import run_summary
+
+    m = sp.model
+    ip = int(np.argmax(res.series[_PEAK_SERIES[test]]))
+    peak_step = int(res.series["step"][ip])
+    r0 = ini["radius"]
+    if test == "bts":
+        xc, yc = (float(v) for v in ini["position"][:, :2].mean(axis=0))
+        d = 2.0 * sp.radius0
+        geo = dict(axis=1, low=yc - 0.5 * d, length=d,
+                   centre_point=(xc, yc, 0.5 * (sp.z_bottom + sp.z_top)), width=d)
+    else:
+        geo = dict(axis=2, low=sp.z_bottom, length=sp.z_top - sp.z_bottom,
+                   centre_point=(0.0, 0.0, 0.5 * (sp.z_bottom + sp.z_top)),
+                   width=2.0 * sp.radius0)
+    bi, bj = m.bond_pairs()
+    return run_summary(res.cracks, peak_step, n_balls=m.n, bond_i=bi, bond_j=bj,
+                       bond_state=m.Bd.state, radius=m.B.radius,
+                       half_thickness=3.0 * float(np.mean(r0)), **geo)
 
 
 def bts_inputs(params: dict, seed: int, geometry: Geometry, settings) -> dict:
