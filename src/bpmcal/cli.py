@@ -87,7 +87,7 @@ def run_geometry(a):
 
     return Geometry(scale=a.scale, diameter_mm=a.diameter, height_mm=a.height,
                     sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
-                    relax_ratio=a.relax_ratio)
+                    relax_ratio=a.relax_ratio, genesis=a.genesis)
 
 
 def run_settings(a, cls=None, **extra):
@@ -129,7 +129,7 @@ def cmd_bts(a) -> int:
 
     geo = bts_geometry(scale=a.scale, diameter_mm=a.diameter, thickness_mm=a.thickness,
                        sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
-                       relax_ratio=a.relax_ratio)
+                       relax_ratio=a.relax_ratio, genesis=a.genesis)
     st = BTSSettings(platen_velocity=a.platen_velocity, platen_fric=a.platen_fric,
                      damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
                      record_strain=a.record_strain)
@@ -401,6 +401,9 @@ def add_budget_args(p):
                         f"run (default {GENESIS_MAX_STEPS:,})")
 
 
+GENESES = ("bpmcal", "pfc")  # = lab.specimen.GENESES (tested equal)
+
+
 def add_specimen_args(p, geo=None, what: str = "the 50 x 100 mm cylinder"):
     """The specimen of a DEM command (``Geometry``'s fields; defaults from ``geo``)."""
     from .lab.runner import Geometry
@@ -413,7 +416,13 @@ def add_specimen_args(p, geo=None, what: str = "the 50 x 100 mm cylinder"):
                                                 f"[MPa] (default {geo.sigma0_MPa:g})")
     p.add_argument("--install-gap", type=number("install-gap", 0.0, 1.0, unit="mm"),
                    default=geo.install_gap_mm,
-                   help=f"bond pairs with surface gap <= this [mm] (default {geo.install_gap_mm:g})")
+                   help="bond pairs with surface gap <= this [mm] (default: the genesis's, 0 "
+                        "for bpmcal, 0.0625 Rmin for pfc)")
+    p.add_argument("--genesis", choices=GENESES, default=geo.genesis,
+                   help="specimen genesis after the packing: bpmcal (locked-in stress relieved "
+                        "to --sigma0, bonds on touching pairs) or pfc (Itasca's tutorial "
+                        "practice: every overlap relieved to zero force, bonds within a "
+                        f"positive gap); default {geo.genesis}")
     p.add_argument("--relax-ratio", type=number("relax-ratio", 0.0, 0.1, lo_open=True),
                    default=geo.relax_ratio,
                    help="genesis equilibrium: mean unbalanced-force ratio "

@@ -50,7 +50,7 @@ def specimen_args(cfg=config, scale=None):
         "--diameter": sp["diameter_mm"],
         "--height": sp["height_mm"],
         "--sigma0": sp["sigma0_MPa"],
-        "--install-gap": sp["install_gap_mm"],
+        "--genesis": sp["genesis"],
         "--relax-ratio": sp["relax_ratio"],
         "--platen-velocity": u["platen_velocity"],
         "--damping": u["damping"],
@@ -63,4 +63,6 @@ def specimen_args(cfg=config, scale=None):
         "--mem-budget-mb": r["ucs_mem_mb"],
         "--genesis-max-steps": r["genesis_max_steps"],
     }
+    if sp["install_gap_mm"] is not None:  # null: the genesis's own gap
+        opts["--install-gap"] = sp["install_gap_mm"]
     return [str(x) for k, v in opts.items() for x in (k, v)]

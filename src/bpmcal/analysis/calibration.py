@@ -66,17 +66,31 @@ Bootstrap (:func:`bootstrap_intervals`)
 
 Closed loop (:class:`ClosedLoop`)
     The regression models only approximate the DEM, so their solution is corrected with the
-    DEM itself. Each round: ``simulate(params)`` → relative errors ``e_k`` → stop if every
-    ``|e_k| <= rtol_k`` (default 0.01) → otherwise a damped Newton step in the unit-cube
+    DEM itself. A DEM response also scatters with the packing seed (a CV of 1.5-3 % for σc
+    at the default specimen size), so every round runs the candidate on the same ``k``
+    packing seeds (``seeds_per_round``, default 3; ``seeds``, default 1..k) and steers the
+    *mean*. Each round: ``simulate(params, seed=s)`` for every seed → the mean ``ȳ_k`` and
+    its relative errors ``e_k = (ȳ_k - t_k) / |t_k|`` → stop if every
+    ``|e_k| <= max(rtol_k, z · SE_k)`` (the *convergence rule*; ``rtol`` default 0.01,
+    ``z`` default 2), where ``SE_k = CV_k / sqrt(k)`` is the relative standard error of the
+    mean and ``CV_k`` the seed coefficient of variation pooled over all rounds so far
+    (``sqrt(Σ (k-1) cv²_round / Σ (k-1))``; the scatter hardly changes between nearby
+    parameter sets, and three seeds alone give a poor estimate): a mean within ``z``
+    standard errors of the target cannot be told apart from it, and chasing it further
+    would fit the packings, not the rock. Otherwise a damped Newton step in the unit-cube
     coordinates, ``Δu = -damping · J⁺ e`` (``J⁺`` the pseudo-inverse; damping default 0.8),
     shortened so that no parameter moves by more than ``max_step`` (default 0.25) of its
     range, then projected onto the bounds (the ratio constraint holds by construction).
     The initial Jacobian ``J`` of the relative errors is the regression models' analytic
-    Jacobian at the starting point; after each new simulation it is corrected by
-    Broyden's ("good") secant update ``J += (Δe - J s) sᵀ / (sᵀ s)`` with the step ``s``
-    actually taken. Every round (parameters, simulated responses, errors, step) is recorded.
-    :func:`seed_scatter` judges whether a tolerance is meaningful given the packing-seed
-    scatter of the DEM responses.
+    Jacobian at the starting point; after each new round it is corrected by Broyden's
+    ("good") secant update ``J += (Δe - J s) sᵀ / (sᵀ s)`` with the step ``s`` actually
+    taken. The same seeds in every round (common random numbers) keep the packing scatter
+    out of the differences between rounds, which the secant update needs. Every round
+    (parameters, mean responses, seed CV, standard error, tolerance used, k, errors, step)
+    and every single run (``samples``) is recorded. A simulator ``simulate(params)``
+    without a ``seed`` argument is a single-seed simulator: k = 1, SE = 0, and the rule is
+    ``|e_k| <= rtol_k`` (the loop before seed averaging). :func:`seed_scatter` judges
+    whether a tolerance is meaningful given the packing-seed scatter of the DEM responses.
 """
 from __future__ import annotations
 
@@ -777,9 +791,15 @@ class ClosedLoopResult:
 
     ``status``: ``"converged"``, ``"max_rounds"``, ``"stalled"`` (the step was blocked by
     the bounds) or ``"failed"`` (a simulation returned no finite value). ``params`` and
-    ``responses`` are those of the best round (smallest max |error|), which is the last one
-    when converged. ``history`` has one row per simulation; ``jacobian`` is the final
-    Broyden estimate of ∂response/∂parameter in physical units.
+    ``responses`` (the seed means) are those of the best round (smallest max |error| of
+    the mean), which is the last one when converged; ``seed_cv`` holds that round's seed
+    coefficient of variation per response (NaN with one seed) and ``n_seeds`` its k.
+    ``history`` has one row per round: the parameters, the mean of every response, its
+    seed CV ``cv_<r>`` in that round, the pooled relative standard error ``se_<r>``, the
+    tolerance used ``tol_<r>`` = max(rtol, z · se), the relative error ``err_<r>`` of the
+    mean, ``n_seeds`` and the step; ``samples`` one row per simulation (round, seed,
+    responses). ``jacobian`` is the final Broyden estimate of ∂response/∂parameter in
+    physical units.
     """
 
     status: str
@@ -788,6 +808,10 @@ class ClosedLoopResult:
     params: dict[str, float]
     responses: dict[str, float]
     jacobian: pd.DataFrame
+    samples: pd.DataFrame = field(default_factory=pd.DataFrame)
+    seed_cv: dict[str, float] = field(default_factory=dict)
+    n_seeds: int = 1
+    seeds: tuple = ()
 
     @property
     def converged(self) -> bool:
@@ -797,11 +821,16 @@ class ClosedLoopResult:
     def n_rounds(self) -> int:
         return len(self.history)
 
+    @property
+    def n_simulations(self) -> int:
+        return len(self.samples)
+
     def to_frame(self) -> pd.DataFrame:
         return self.history
 
     def summary(self) -> str:
-        head = f"Closed loop: {self.status} after {self.n_rounds} simulation(s) - {self.message}"
+        head = (f"Closed loop: {self.status} after {self.n_rounds} round(s) of {self.n_seeds} "
+                f"seed(s) - {self.message}")
         return "\n".join([head, "", self.history.to_string(index=False)])
 
 
@@ -811,8 +840,10 @@ class ClosedLoop:
     Parameters
     ----------
     simulate:
-        ``simulate(params) -> {response: value, ...}`` for a full parameter dict (paper
-        units), e.g. one DEM UCS test; must return every target response.
+        ``simulate(params, seed=s) -> {response: value, ...}`` for a full parameter dict
+        (paper units) and a packing seed, e.g. one DEM UCS test; must return every target
+        response. A callable without a ``seed`` parameter, ``simulate(params)``, is a
+        single-seed simulator (one run per round).
     targets:
         response -> laboratory value.
     free, ratio, ranges, bounds:
@@ -823,9 +854,17 @@ class ClosedLoop:
         updates (alternatively ``jacobian``: DataFrame responses × free parameters,
         ∂response/∂parameter in physical units).
     rtol:
-        Relative tolerance, one number or response -> number (default 0.01).
+        Relative tolerance, one number or response -> number (default 0.01); the loop
+        stops when every mean is within max(rtol, z · SE) of its target (module docstring).
     max_rounds:
-        Maximum number of simulations (default 5).
+        Maximum number of rounds (default 5), each of ``seeds_per_round`` simulations.
+    seeds_per_round, seeds:
+        The packing seeds every round runs (the same in every round): ``seeds`` (distinct
+        integers), else 1..``seeds_per_round``; default 3 seeds for a simulator with a
+        ``seed`` parameter, 1 (and no seed) for ``simulate(params)``, which cannot take
+        more.
+    z:
+        Standard errors of the mean within which a target counts as met (default 2).
     damping, max_step:
         Newton step factor (default 0.8) and cap on the move of any parameter per round
         as a fraction of its range (default 0.25).
@@ -839,9 +878,14 @@ class ClosedLoop:
                  bounds: Mapping[str, Sequence[float]] | None = None,
                  models: Mapping[str, RegressionModel] | None = None, jacobian: pd.DataFrame | None = None,
                  rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 5, damping: float = 0.8,
-                 max_step: float = 0.25, broyden: bool = True):
+                 max_step: float = 0.25, broyden: bool = True, seeds_per_round: int | None = None,
+                 seeds: Sequence[int] | None = None, z: float = 2.0):
         if not callable(simulate):
-            raise TypeError(f"simulate={simulate!r}: expected a callable params -> responses")
+            raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
+        self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
+        if not (math.isfinite(float(z)) and float(z) >= 0):
+            raise ValueError(f"z={z!r}: expected a number of standard errors >= 0")
+        self.z = float(z)
         self.responses, self.t = _check_targets(targets, models)
         if (models is None) == (jacobian is None):
             raise ValueError("give exactly one of models (analytic Jacobian) or jacobian")
@@ -886,8 +930,12 @@ class ClosedLoop:
             Jx = jac.loc[list(self.responses), list(space.free)].to_numpy(float)
         return Jx * space.width / np.abs(self.t)[:, None]
 
-    def _simulate(self, params: dict[str, float]) -> np.ndarray:
-        out = self.simulate(dict(params))
+    @property
+    def seeds_per_round(self) -> int:
+        return len(self.seeds)
+
+    def _simulate(self, params: dict[str, float], seed: int | None) -> np.ndarray:
+        out = self.simulate(dict(params)) if seed is None else self.simulate(dict(params), seed=seed)
         return np.array([float(out.get(r, np.nan)) if out is not None else np.nan for r in self.responses])
 
     def run(self, initial: Mapping[str, float]) -> ClosedLoopResult:
@@ -903,19 +951,39 @@ class ClosedLoop:
         u = np.clip(u, 0.0, 1.0)
         J = self._initial_jacobian(space, space.x(u))
         scale = np.abs(self.t)
-        history, prev = [], None
-        status, message = "max_rounds", f"tolerance not met within {self.max_rounds} simulations"
+        k = self.seeds_per_round
+        history, samples, prev = [], [], None
+        pooled, dof = np.zeros(len(self.responses)), 0  # Σ (k-1) cv², Σ (k-1)
+        status, message = "max_rounds", f"tolerance not met within {self.max_rounds} rounds"
         for rnd in range(self.max_rounds):
             params = space.full(space.x(u))
-            y = self._simulate(params)
+            ys = np.empty((k, len(self.responses)))
+            for i, sd in enumerate(self.seeds):
+                ys[i] = self._simulate(params, sd)
+                samples.append({"round": rnd, "seed": sd, **dict(zip(self.responses, ys[i]))})
+            y = ys.mean(axis=0)
             rec = {"round": rnd, **{p: params[p] for p in space.calibrated},
-                   **dict(zip(self.responses, y))}
-            if not np.all(np.isfinite(y)):
+                   **dict(zip(self.responses, y)), "n_seeds": k}
+            bad = [(sd, dict(zip(self.responses, row))) for sd, row in zip(self.seeds, ys)
+                   if not np.all(np.isfinite(row))]
+            if bad:
                 history.append(rec)
                 status = "failed"
-                message = f"simulation {rnd} returned non-finite responses {dict(zip(self.responses, y))}"
+                which = "; ".join(f"seed {sd}: {v}" if sd is not None else str(v) for sd, v in bad)
+                message = f"round {rnd} returned non-finite responses ({which})"
                 break
+            cv = ys.std(axis=0, ddof=1) / np.abs(y) if k > 1 else np.full(len(y), np.nan)
+            if k > 1:
+                pooled += (k - 1) * cv ** 2
+                dof += k - 1
+                se = np.sqrt(pooled / dof) / math.sqrt(k)
+            else:
+                se = np.zeros(len(y))
+            tol = np.maximum(self.rtol, self.z * se)
             e = (y - self.t) / scale
+            rec.update({f"cv_{r}": v for r, v in zip(self.responses, cv)})
+            rec.update({f"se_{r}": v for r, v in zip(self.responses, se)})
+            rec.update({f"tol_{r}": v for r, v in zip(self.responses, tol)})
             rec.update({f"err_{r}": v for r, v in zip(self.responses, e)})
             rec["max_abs_err"] = float(np.max(np.abs(e)))
             updated = False
@@ -925,10 +993,14 @@ class ClosedLoop:
                     J = J + np.outer(de - J @ s, s) / (s @ s)
                     updated = True
             rec["broyden_update"] = updated
-            if np.all(np.abs(e) <= self.rtol):
+            if np.all(np.abs(e) <= tol):
                 history.append(rec)
                 status = "converged"
-                message = f"all relative errors within tolerance after {rnd + 1} simulation(s)"
+                if k > 1:
+                    message = (f"every mean of {k} seeds within max(rtol, {self.z:g} standard "
+                               f"errors) of its target after {rnd + 1} round(s)")
+                else:
+                    message = f"all relative errors within tolerance after {rnd + 1} simulation(s)"
                 break
             if rnd == self.max_rounds - 1:
                 history.append(rec)
@@ -959,7 +1031,48 @@ class ClosedLoop:
         return ClosedLoopResult(
             status=status, message=message, history=hist, params=space.full(x_best),
             responses={r: float(best[r]) for r in self.responses},
-            jacobian=pd.DataFrame(J_phys, index=list(self.responses), columns=list(space.free)))
+            jacobian=pd.DataFrame(J_phys, index=list(self.responses), columns=list(space.free)),
+            samples=pd.DataFrame.from_records(samples),
+            seed_cv={r: float(best.get(f"cv_{r}", np.nan)) for r in self.responses},
+            n_seeds=k, seeds=self.seeds)
+
+
+def _takes_seed(simulate: Callable) -> bool:
+    """Whether ``simulate`` accepts a keyword ``seed`` (a parameter of that name or
+    ``**kwargs``)."""
+    import inspect
+
+    try:
+        sig = inspect.signature(simulate)
+    except (TypeError, ValueError):
+        return False
+    return any(p.name == "seed" and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+               or p.kind == p.VAR_KEYWORD for p in sig.parameters.values())
+
+
+def _round_seeds(simulate: Callable, seeds_per_round: int | None, seeds: Sequence[int] | None) -> tuple:
+    """The packing seeds of every closed-loop round (``(None,)``: a single-seed simulator)."""
+    if seeds_per_round is not None and (isinstance(seeds_per_round, bool)
+                                        or not isinstance(seeds_per_round, (int, np.integer))
+                                        or seeds_per_round < 1):
+        raise ValueError(f"seeds_per_round={seeds_per_round!r}: expected an integer >= 1")
+    if not _takes_seed(simulate):
+        if (seeds_per_round or 1) > 1 or seeds is not None:
+            raise ValueError("simulate(params) takes no seed argument, so it cannot run several packing "
+                             "seeds per round: give it a 'seed' parameter, or use seeds_per_round=1")
+        return (None,)
+    if seeds is None:
+        return tuple(range(1, (3 if seeds_per_round is None else int(seeds_per_round)) + 1))
+    out = []
+    for sd in seeds:
+        if isinstance(sd, bool) or not isinstance(sd, (int, np.integer)) or sd < 0:
+            raise ValueError(f"seeds: {sd!r} is not a packing seed (an integer >= 0)")
+        out.append(int(sd))
+    if not out or len(set(out)) != len(out):
+        raise ValueError(f"seeds={list(seeds)!r}: expected distinct packing seeds, at least one")
+    if seeds_per_round is not None and seeds_per_round != len(out):
+        raise ValueError(f"seeds_per_round={seeds_per_round} but {len(out)} seeds given")
+    return tuple(out)
 
 
 def seed_scatter(sims: pd.DataFrame | Sequence[Mapping[str, float]], rtol: float | Mapping[str, float] = 0.01,

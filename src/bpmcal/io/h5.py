@@ -51,7 +51,7 @@ SCHEMA_VERSION = 1
 
 #: units of the series columns (SI; strains dimensionless, compression positive)
 SERIES_UNITS = {
-    "step": "", "time": "s", "axial_strain": "", "lateral_strain": "",
+    "step": "", "time": "s", "axial_strain": "", "lateral_strain": "", "axial_strain_central": "",
     "volumetric_strain": "", "axial_stress": "Pa", "stress_top": "Pa", "stress_bottom": "Pa",
     "cracks_tension": "", "cracks_shear": "", "kinetic": "J", "strain_linear": "J",
     "strain_bond": "J", "slip": "J", "damping": "J", "dashpot": "J", "released": "J",

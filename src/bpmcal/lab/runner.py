@@ -20,6 +20,8 @@ import math
 import time
 from dataclasses import dataclass
 
+import numpy as np
+
 from .. import params as P
 from ..dem._jit import set_threads
 from ..dem.errors import InputError, InstabilityError
@@ -28,7 +30,15 @@ from .brazilian import settings_dict as bts_dict
 from .impact import ImpactSettings, run_impact
 from .impact import settings_dict as impact_dict
 from .servo import ServoError
-from .specimen import GenesisError, SpecimenSpec, build_specimen, get_packing, paper_material
+from .specimen import (
+    GENESES,
+    GenesisError,
+    SpecimenSpec,
+    build_specimen,
+    default_install_gap,
+    get_packing,
+    paper_material,
+)
 from .triaxial import TriaxialSettings, run_triaxial
 from .triaxial import settings_dict as tx_dict
 from .ucs import UCSSettings, run_ucs, settings_dict
@@ -42,11 +52,14 @@ class Geometry:
     scale: float = 1.0
     diameter_mm: float = 50.0
     height_mm: float = 100.0
-    sigma0_MPa: float = 0.1  # locked-in isotropic stress after genesis
-    install_gap_mm: float = 0.0  # bonds on pairs with gap <= this
+    sigma0_MPa: float = 0.1  # locked-in isotropic stress after genesis ("bpmcal" only)
+    install_gap_mm: float | None = None  # bonds on pairs with gap <= this (None: genesis's)
     relax_ratio: float = 1e-2
+    genesis: str = "bpmcal"  # steps 4-5 of the genesis: "bpmcal" | "pfc" (lab.specimen)
 
     def __post_init__(self):
+        if self.genesis not in GENESES:
+            raise InputError(f"genesis={self.genesis!r}: expected one of {', '.join(GENESES)}")
         checks = (  # name, value, low, high, low end open
             ("scale", self.scale, 0.0, 10.0, True),
             ("diameter_mm", self.diameter_mm, 0.0, math.inf, True),
@@ -55,15 +68,29 @@ class Geometry:
             ("install_gap_mm", self.install_gap_mm, 0.0, 1e3, False),
             ("relax_ratio", self.relax_ratio, 0.0, 1.0, True))
         for name, v, lo, hi, lo_open in checks:
+            if v is None and name == "install_gap_mm":
+                continue
             v = P.as_number(v, name, "a number", InputError)
             if (v <= lo if lo_open else v < lo) or v > hi:
                 raise InputError(f"{name}={v!r}: expected a number in {'(' if lo_open else '['}"
                                  f"{lo:g}, {hi:g}]")
 
-    def to_dict(self):
+    def install_gap(self, rmin_mm: float) -> float:
+        """The installation gap [mm] used with balls of minimum radius ``rmin_mm``: the
+        given one, or the genesis's default (``specimen.default_install_gap``)."""
+        if self.install_gap_mm is not None:
+            return float(self.install_gap_mm)
+        return default_install_gap(self.genesis, 1.0) * float(rmin_mm)
+
+    def to_dict(self, rmin_mm: float | None = None):
+        """The run file's geometry inputs; ``install_gap_mm`` is the gap used (needs
+        ``rmin_mm`` when the genesis's default applies; NaN without it)."""
+        gap = (self.install_gap(rmin_mm) if rmin_mm is not None or self.install_gap_mm is not None
+               else math.nan)
         return {"scale": self.scale, "diameter_mm": self.diameter_mm * self.scale,
                 "height_mm": self.height_mm * self.scale, "sigma0_MPa": self.sigma0_MPa,
-                "install_gap_mm": self.install_gap_mm, "relax_ratio": self.relax_ratio}
+                "install_gap_mm": gap, "relax_ratio": self.relax_ratio,
+                "genesis": self.genesis}
 
 
 @dataclass
@@ -97,8 +124,9 @@ def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, c
     mat = paper_material(p["pb_emod_GPa"], p["pb_kratio"], p["pb_ten_MPa"], p["pb_coh_MPa"],
                          p["pb_fa_deg"], p["fric"])
     return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6,
-                          install_gap=geometry.install_gap_mm * 1e-3, threads=threads,
-                          progress=progress, max_steps=genesis_max_steps, boundary=boundary)
+                          install_gap=geometry.install_gap(p["rmin_mm"]) * 1e-3, threads=threads,
+                          progress=progress, max_steps=genesis_max_steps, boundary=boundary,
+                          genesis=geometry.genesis)
 
 
 #: the ISRM Brazilian disc at full size: D = 50 mm, t = D / 2 (scaled like the cylinder)
@@ -115,7 +143,7 @@ def bts_geometry(scale: float = 1.0, diameter_mm: float = BTS_DIAMETER_MM,
 # ------------------------------------------------------------------ the inputs a run records
 def _base_inputs(params: dict, seed: int, geometry: Geometry) -> dict:
     d = {k: float(params[k]) for k in P.PARAMS if k in params}
-    d.update(geometry.to_dict())
+    d.update(geometry.to_dict(params.get("rmin_mm")))
     d["seed"] = int(seed)
     return d
 
@@ -156,6 +184,36 @@ def _crack_arrays(ev: dict) -> dict:
             "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
 
 
+#: the series whose maximum is the peak of each test (for the morphology)
+_PEAK_SERIES = {"ucs": "axial_stress", "triaxial": "deviator", "bts": "load"}
+
+
+def _morphology(test: str, sp, res, ini: dict) -> dict:
+    """Failure morphology of a finished run (``lab.morphology``): crack heights along the
+    loading axis (the cylinder's axis; a Brazilian disc's loaded diameter, y), the
+    principal fracture plane (fitted with a half-thickness of 1.5 mean ball diameters)
+    and the fragments."""
+    from .morphology import run_summary
+
+    m = sp.model
+    ip = int(np.argmax(res.series[_PEAK_SERIES[test]]))
+    peak_step = int(res.series["step"][ip])
+    r0 = ini["radius"]
+    if test == "bts":
+        xc, yc = (float(v) for v in ini["position"][:, :2].mean(axis=0))
+        d = 2.0 * sp.radius0
+        geo = dict(axis=1, low=yc - 0.5 * d, length=d,
+                   centre_point=(xc, yc, 0.5 * (sp.z_bottom + sp.z_top)), width=d)
+    else:
+        geo = dict(axis=2, low=sp.z_bottom, length=sp.z_top - sp.z_bottom,
+                   centre_point=(0.0, 0.0, 0.5 * (sp.z_bottom + sp.z_top)),
+                   width=2.0 * sp.radius0)
+    bi, bj = m.bond_pairs()
+    return run_summary(res.cracks, peak_step, n_balls=m.n, bond_i=bi, bond_j=bj,
+                       bond_state=m.Bd.state, radius=m.B.radius,
+                       half_thickness=3.0 * float(np.mean(r0)), **geo)
+
+
 def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
               boundary: str, run, *, cache, threads, keep_particles, progress=None,
               genesis_max_steps=None, finite=()) -> LabRun:
@@ -171,10 +229,13 @@ def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: di
     ini = {"position": m.B.pos.copy(), "radius": m.B.radius.copy()}
     res = run(sp)
     summ = dict(res.summary)
+    summ.update(_morphology(test, sp, res, ini))
     g = sp.report
     summ.update({"n_balls": g["n_balls"], "n_bonds": g["n_bonds"],
                  "porosity_achieved": g["porosity_achieved"],
                  "coordination": g["coordination"],
+                 "bonds_per_ball": g["bonds_per_ball"], "bonds_per_cm3": g["bonds_per_cm3"],
+                 "install_gap_mm": g["install_gap_mm"], "genesis": g["genesis"],
                  "locked_in_stress_MPa": g["locked_in_stress_MPa"],
                  "genesis_s": t_gen, "wall_s": time.perf_counter() - t0,
                  "test_s": summ["wall_s"]})
@@ -255,6 +316,8 @@ def impact_test(params: dict, seed: int, geometry: Geometry = Geometry(),
     summ["velocity"] = st.velocity
     summ["hammer_mass"] = st.hammer_mass
     summ["total_s"] = time.perf_counter() - t0
+    summ.update({k: sp.report[k] for k in ("genesis", "install_gap_mm", "coordination",
+                                           "bonds_per_ball", "bonds_per_cm3")})
     bi, bj = m.bond_pairs()
     return LabRun(test="impact", inputs=inputs, summary=summ, genesis=sp.report,
                   series=res.series, cracks=_crack_arrays(res.cracks), particles_initial=ini,

@@ -37,6 +37,25 @@ Procedure (after Potyondy & Cundall 2004 and PFC's ``ball distribute``):
    servo-controlled confining wall), the Brazilian test none of it (the disc settles
    free and gets its own platens across a diameter).
 
+Two ways to do steps 4-5 (``build_specimen(genesis=...)``; both start from the same cached
+packing, so they can be compared on one packing):
+
+- ``"bpmcal"`` (the default): as above; the pairs are bonded at ``install_gap`` (default
+  0: touching/overlapping pairs only) and the locked-in stress is relieved to ``sigma0``.
+- ``"pfc"``: the relief and bonding of Itasca's tutorial scripts (``contact method bond
+  gap``, then the linear part in incremental mode, ``lin_mode 1``, with its forces reset,
+  ``lin_force 0``): every pair within a *positive* installation gap (default
+  ``PFC_GAP_RATIO`` x Rmin = 0.0625 Rmin, the tutorials' 0.5e-4 m at Rmin = 0.8 mm) is
+  bonded, and every existing overlap - ball-ball and ball-wall - carries no force from
+  then on: the linear reference gap of an overlapping pair is set to its current gap
+  (the equivalent of PFC's incremental mode after ``lin_force 0`` while the pair stays in
+  contact), that of a bonded pair with a positive gap stays 0 (its linear part, as in
+  PFC, starts when the surfaces touch). ``sigma0`` does not apply: the locked-in stress
+  is zero. No dashpot is added: the tutorials' normal dashpot (dp_nratio 0.5) changed
+  sigma_c by -2.4 and +3.0 % and E by < 0.3 % on two packings (A1, scale 0.4),
+  within the packing scatter, and the paper does not mention one; give the material a
+  ``dp_nratio`` to use it.
+
 Everything is seeded; the same inputs give bitwise-identical specimens.
 
 Bounds and feedback: the relaxation stops after ``SpecimenSpec.max_relax_steps``
@@ -77,6 +96,19 @@ SETTLE_RATIO = 1e-3
 #: genesis version: part of the cache key; bump when the procedure changes (5: ball masses
 #: from the C library's pow, so packings no longer depend on the host's numpy kernels)
 GENESIS_VERSION = 5
+#: genesis procedures of steps 4-5 (``build_specimen(genesis=...)``)
+GENESES = ("bpmcal", "pfc")
+#: installation gap of the PFC-style genesis / Rmin: Itasca's tutorial scripts bond pairs
+#: within 0.5e-4 m at Rmin = 0.8 mm (0.0625 Rmin), scaled here with Rmin
+PFC_GAP_RATIO = 0.0625
+
+
+def default_install_gap(genesis: str, rmin: float) -> float:
+    """Installation gap [m] of a genesis when none is given: 0 for ``"bpmcal"``,
+    ``PFC_GAP_RATIO`` x ``rmin`` for ``"pfc"``."""
+    if genesis not in GENESES:
+        raise InputError(f"genesis={genesis!r}: expected one of {', '.join(GENESES)}")
+    return PFC_GAP_RATIO * float(rmin) if genesis == "pfc" else 0.0
 
 
 class GenesisError(RuntimeError):
@@ -220,6 +252,38 @@ def _solve(m: Model, tol: float, max_steps: int, chunk: int = 500, progress=None
     return {"steps": m.step - s0, "ratio": float(ratio), "converged": bool(ratio <= tol)}
 
 
+#: reference stress of the pfc genesis's settling criterion [Pa] (P&C's locked-in 0.1 MPa)
+PFC_SETTLE_STRESS = 0.1e6
+
+
+def _settle_force_free(m: Model, spec: SpecimenSpec, chunk: int = 500, progress=None,
+                       budget: _StepBudget | None = None) -> dict:
+    """Settling of the pfc genesis, whose specimen starts with no force at all (every
+    overlap relieved): cycle until the mean unbalanced force of the balls is at most
+    ``SETTLE_RATIO`` x ``PFC_SETTLE_STRESS`` x pi Rmin^2 (the unbalanced-force ratio of
+    ``_solve`` would divide round-off by round-off). ``ratio`` in the result is that mean
+    force over the reference force."""
+    fref = PFC_SETTLE_STRESS * math.pi * spec.rmin ** 2
+    s0, t0 = m.step, time.perf_counter()
+    limit = spec.max_relax_steps if budget is None else budget.limit(spec.max_relax_steps)
+
+    def mean_force():
+        f, _ = m.ball_forces()
+        free = m.B.fix == 0
+        return float(np.linalg.norm(f[free], axis=1).mean()) / fref if free.any() else 0.0
+
+    ratio = mean_force()
+    while ratio > SETTLE_RATIO and m.step - s0 < limit:
+        cycle(m, chunk)
+        ratio = mean_force()
+        if progress is not None:
+            progress({"phase": "settle bonded", "steps": m.step - s0, "ratio": ratio,
+                      "target": SETTLE_RATIO, "wall_s": time.perf_counter() - t0})
+    if budget is not None:
+        budget.spend(m.step - s0, "settle bonded", ratio, SETTLE_RATIO)
+    return {"steps": m.step - s0, "ratio": ratio, "converged": bool(ratio <= SETTLE_RATIO)}
+
+
 def _fix_floaters(pos, radius, ncontacts, max_overlap, rmax_factor=1.25):
     """Enlarge balls with fewer than 3 contacts until they touch three neighbours, when
     that costs at most +25 % radius and overlaps no neighbour by more than
@@ -359,10 +423,12 @@ def speed_guard(material: Material, density: float) -> float:
 
 
 def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e6,
-                   install_gap: float = 0.0, damping: float = 0.7, threads=None,
+                   install_gap: float | None = None, damping: float = 0.7, threads=None,
                    progress=None, max_steps: int | None = None,
-                   boundary: str = "platens") -> Specimen:
-    """Steps 4-5: install the material, relieve the locked-in stress to ``sigma0``, bond,
+                   boundary: str = "platens", genesis: str = "bpmcal") -> Specimen:
+    """Steps 4-5: install the material, relieve the locked-in stress (to ``sigma0`` with
+    ``genesis="bpmcal"``, to zero with ``"pfc"``: see the module docstring), bond the
+    pairs within ``install_gap`` [m] (None: the genesis's default, ``default_install_gap``),
     remove (part of) the vessel, settle (at most ``max_steps`` steps in total, else
     GenesisError).
 
@@ -374,6 +440,10 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     spec = packing.spec
     if not (sigma0 >= 0 and math.isfinite(sigma0)):
         raise InputError(f"sigma0={sigma0!r}: expected an isotropic stress >= 0 Pa")
+    if genesis not in GENESES:
+        raise InputError(f"genesis={genesis!r}: expected one of {', '.join(GENESES)}")
+    if install_gap is None:
+        install_gap = default_install_gap(genesis, spec.rmin)
     if not (install_gap >= 0 and math.isfinite(install_gap)):
         raise InputError(f"install_gap={install_gap!r}: expected a surface gap >= 0 m")
     if max_steps is not None and int(max_steps) < 1:
@@ -382,8 +452,9 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
         raise InputError(f"boundary={boundary!r}: expected one of {', '.join(BOUNDARIES)}")
     budget = _StepBudget(max_steps)
     frictionless = material.replace(fric=0.0)
+    # the Verlet skin must reach beyond the installation gap (bonds come from the list)
     m = Model(packing.pos, packing.radius, spec.density, frictionless, damping=damping,
-              skin=0.25 * spec.rmin, threads=threads,
+              skin=max(0.25 * spec.rmin, 1.5 * install_gap), threads=threads,
               max_speed=speed_guard(material, spec.density))
     _vessel(m, spec)
     m.set_timestep(None)
@@ -396,18 +467,28 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
                           phase="settle in vessel", budget=budget)
     s_ax, s_lat = wall_stresses(m, spec)
     sigma_m = (s_ax + 2 * s_lat) / 3.0
-    f = 1.0 if sigma_m <= sigma0 or sigma_m <= 0 else sigma0 / sigma_m
+    if genesis == "pfc":
+        f = 0.0  # lin_force 0: no overlap carries force after bonding
+    else:
+        f = 1.0 if sigma_m <= sigma0 or sigma_m <= 0 else sigma0 / sigma_m
     # surface balls: those touching the lateral wall now
     ns = int(m.iprm[3])
     touching = m.S.w[:ns] == 0
     surface = np.unique(m.S.b[:ns][touching & (np.linalg.norm(m.S.f[:ns], axis=1) > 0)])
     # bond every touching pair; the linear reference gap scales its overlap force by f,
     # and so do the reference gaps of the ball-wall contacts (the end walls stay as platens)
+    # (with f = 0, the pfc genesis, rgap = the current gap of every overlapping pair: its
+    # linear force is zero now and grows with any further overlap, PFC's incremental mode)
+    if install_gap > 0.0:
+        # a fresh neighbour list holds every pair within the skin; one built steps ago may
+        # miss pairs with a positive gap
+        m.set_positions(np.arange(m.n), m.B.pos.copy())
     i, j = m.pairs()
     gaps = m.pair_gaps(i, j)
     sel = gaps <= install_gap
     rg = np.where(gaps[sel] < 0.0, gaps[sel] * (1.0 - f), 0.0)
     n_touching = _count_touching(m.B.pos, m.B.radius, install_gap)
+    n_overlapping = int(np.count_nonzero(gaps < 0.0))
     nb = m.bond(gap=install_gap, rgap=rg)
     for w in range(3):
         m.scale_wall_overlaps(w, f)
@@ -425,8 +506,13 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     m.set_timestep(None)
     # calm (PFC): the bonded specimen starts at rest, then settles to a tight equilibrium
     m.set_velocity(np.arange(m.n), vel=np.zeros((m.n, 3)), angvel=np.zeros((m.n, 3)))
-    settle_free = _solve(m, min(spec.relax_ratio, SETTLE_RATIO), spec.max_relax_steps,
-                         progress=progress, phase="settle bonded", budget=budget)
+    if genesis == "pfc":
+        # force-free by construction: the ratio criterion is 0/0 here, so equilibrium is
+        # judged by the mean unbalanced force against a reference contact force
+        settle_free = _settle_force_free(m, spec, progress=progress, budget=budget)
+    else:
+        settle_free = _solve(m, min(spec.relax_ratio, SETTLE_RATIO), spec.max_relax_steps,
+                             progress=progress, phase="settle bonded", budget=budget)
     pos, r = m.B.pos, m.B.radius
     z_bot = 0.0
     z_top = spec.height
@@ -434,16 +520,23 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     vol = float((4 / 3 * np.pi * libm_pow(r, 3)).sum())
     report = dict(packing.report)
     report.update({
+        "genesis": genesis,
+        "install_gap_mm": float(install_gap * 1e3),
+        "install_gap_rmin": float(install_gap / spec.rmin),
         "n_balls": int(m.n),
         "n_bonds": int(nb),
         "contacts_at_bonding": int(n_touching),
+        "overlapping_at_bonding": n_overlapping,
         "coordination": float(z.mean()),
+        "bonds_per_ball": float(2.0 * nb / m.n),
+        "bonds_per_cm3": float(nb / (spec.volume * 1e6)),
         "porosity_requested": float(spec.porosity),
         "porosity_achieved": float(1.0 - vol / spec.volume),
         "relaxed_stress_MPa": float(sigma_m / 1e6),
         "relaxed_stress_axial_MPa": float(s_ax / 1e6),
         "relaxed_stress_lateral_MPa": float(s_lat / 1e6),
-        "locked_in_stress_MPa": float(min(sigma_m, sigma0) / 1e6) if sigma_m > 0 else 0.0,
+        "locked_in_stress_MPa": (float(min(sigma_m, sigma0) / 1e6)
+                                 if sigma_m > 0 and genesis == "bpmcal" else 0.0),
         "overlap_force_scale": float(f),
         "settle_walls_steps": settle_walls["steps"],
         "settle_free_steps": settle_free["steps"],
