@@ -9,7 +9,8 @@ from lab_util import A1, FAST, SMALL
 
 from bpmcal.dem.errors import InputError
 from bpmcal.io import h5
-from bpmcal.lab.runner import Geometry, make_specimen, run_ucs_file
+from bpmcal.lab.runner import Geometry, make_specimen
+from bpmcal.stages.runs import run_ucs_file
 from bpmcal.lab.specimen import (
     PFC_GAP_RATIO,
     SpecimenSpec,

@@ -131,7 +131,7 @@ def test_ucs_run_file_carries_the_morphology(tmp_path, cache):
     from lab_util import A1, FAST, SMALL
 
     from bpmcal.io import h5
-    from bpmcal.lab.runner import run_ucs_file
+    from bpmcal.stages.runs import run_ucs_file
 
     out = tmp_path / "a1.h5"
     assert run_ucs_file(out, A1, 3, SMALL, FAST, cache=cache).status == "ok"
