@@ -36,7 +36,7 @@ def fig_envelopes(points: pd.DataFrame, env: pd.DataFrame, lab: pd.DataFrame | N
         for card, pts in points[points["specimen"] == spec].groupby("card", sort=False):
             col, mk = _COLOURS.get(card, "k"), _MARKERS.get(card, "^")
             ok = pts[pts["status"] == "ok"]
-            ax.plot(ok["sigma3_MPa"], ok["sigma1_MPa"], mk, color=col, ms=4,
+            ax.plot(ok["sigma3_MPa"], ok["sigma1_MPa"], mk, color=col, ms=4, clip_on=False,
                     label=f"DEM, {card} card")
             bad = pts[pts["status"] != "ok"]
             if len(bad):
@@ -54,7 +54,7 @@ def fig_envelopes(points: pd.DataFrame, env: pd.DataFrame, lab: pd.DataFrame | N
         if lab is not None and len(lab):
             lp = lab[lab["specimen"] == spec]
             if len(lp):
-                ax.plot(lp["sigma3_MPa"], lp["sigma1_MPa"], "D", mfc="none", color=C_LAB,
+                ax.plot(lp["sigma3_MPa"], lp["sigma1_MPa"], "D", mfc="none", color=C_LAB, clip_on=False,
                         ms=5, label="lab")
         ax.set_xlabel(r"confining stress $\sigma_3$ (MPa)")
         ax.set_title(spec)

@@ -551,8 +551,8 @@ def _triaxial(lay, cfg, ref=False) -> str:
                    "envelopes\n\n" + markdown_table(rows, [
                        "specimen", "card", "σ3 (MPa)", "lab σ1 (MPa)", "MC σ1 (MPa)",
                        "MC error %", "HB σ1 (MPa)", "HB error %"]) + "\n")
-        out.append("The triaxial points are compared, not calibrated against: the inversion "
-                   "uses the UCS targets (and σt where the lab CSV gives it).\n")
+        out.append("The lab triaxial points are compared with the cards, not calibrated "
+                   "against: the inversion does not use them.\n")
     if ref:
         out.append("**What the paper does not publish:** Yu et al. (2026) give only uniaxial "
                    "data for the green sandstone (σc, E, ν and the pre-peak energy of B1–B3): "
