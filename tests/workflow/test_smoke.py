@@ -199,9 +199,8 @@ def _published_values():
 
 
 def test_report_holds_every_table_and_figure(smoke):
-    from bpmcal.report.build import FIGURES, TABLES
-
     from bpmcal.io.layout import TRIAXIAL_LAB
+    from bpmcal.report.build import FIGURES, TABLES
 
     rep = smoke / OUTDIR / "report"
     for stem in TABLES:

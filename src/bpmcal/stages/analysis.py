@@ -38,8 +38,8 @@ from ..analysis import (
     table3_markdown,
 )
 from ..analysis import seed_scatter as scatter_table
-from ..analysis.calibration import check_calibration_space
 from ..analysis._common import usable_rows
+from ..analysis.calibration import check_calibration_space
 from ..io.atomic import write_text
 from ..io.card import read_card, write_card
 from ..io.checks import BadInput, read_json
