@@ -523,7 +523,9 @@ def _triaxial(lay, cfg, ref=False) -> str:
     for r in env.itertuples():
         rows.append([r.specimen, r.card, src(r.sigma_c_MPa, getattr(r, "sigma_c_source", "")),
                      src(getattr(r, "sigma_t_MPa", math.nan),
-                         getattr(r, "sigma_t_source", "")),
+                         getattr(r, "sigma_t_source", ""))
+                     + (f"; lab {_f(r.lab_sigma_t_MPa, '.2f')}"
+                        if _f(getattr(r, "lab_sigma_t_MPa", math.nan)) != "–" else ""),
                      _f(getattr(r, "sigma_c_over_sigma_t", math.nan), ".1f"),
                      f"{_f(r.c_MPa, '.2f')} ± {_f(r.c_se_MPa, '.2f')}",
                      f"{_f(r.phi_deg, '.1f')} ± {_f(r.phi_se_deg, '.1f')}",
@@ -534,8 +536,7 @@ def _triaxial(lay, cfg, ref=False) -> str:
                                      "c (MPa)", "φ (°)", "mi", "MC rms (MPa)",
                                      "HB rms (MPa)", "runs ok"]) + "\n")
     out.append("± is one standard error of the fit (– with two points: an exact fit). "
-               "Parallel-bond models are known to give σc/σt near 4–8 where rocks give "
-               "10–20 (Potyondy & Cundall 2004).\n")
+               "Parallel-bond models tend to give σc/σt well below the 10–20 of most rocks.\n")
     notes = [f"- **{r.specimen} ({r.card})**: {r.note}" for r in env.itertuples()
              if isinstance(r.note, str) and r.note]
     if notes:
