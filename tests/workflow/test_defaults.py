@@ -17,7 +17,7 @@ from bpmcal.lab.impact import ImpactSettings
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.stages import defaults_of
-from bpmcal.stages.analysis import calibrate, verify
+from bpmcal.stages.analysis import calibrate, transfer, verify
 from bpmcal.stages.fracture import sweep_analyse, sweep_plan
 from bpmcal.stages.runs import impact_file
 from bpmcal.study.design import lhs_design
@@ -43,6 +43,7 @@ DEFAULTS = {
     "specimen.sigma0_MPa": (GEO.sigma0_MPa, ("ucs", "sigma0", None)),
     "specimen.install_gap_mm": (GEO.install_gap_mm, ("ucs", "install_gap", None)),
     "specimen.relax_ratio": (GEO.relax_ratio, ("ucs", "relax_ratio", None)),
+    "specimen.genesis": (GEO.genesis, ("ucs", "genesis", None)),
     "ucs.platen_velocity": (UCS.platen_velocity, ("ucs", "platen_velocity", None)),
     "ucs.damping": (UCS.damping, ("ucs", "damping", None)),
     "ucs.stop_drop": (UCS.stop_drop, ("ucs", "stop_drop", None)),
@@ -72,8 +73,12 @@ DEFAULTS = {
     "verification.rtol": (LOOP["rtol"], ("verify", "rtol", None)),
     "verification.max_rounds": (LOOP["max_rounds"], ("verify", "max_rounds", None)),
     "verification.seed": (VER["seed"], ("verify", "seed", None)),
+    "verification.seeds_per_round": (VER["seeds_per_round"], ("verify", "seeds_per_round", None)),
     "verification.from_unreachable": (VER["from_unreachable"],
                                       ("verify", "from_unreachable", None)),
+    "transfer.scale": (GEO.scale, ("transfer", "scale", None)),
+    "transfer.max_rounds": (defaults_of(transfer)["max_rounds"],
+                            ("transfer", "max_rounds", None)),
     "ratio_sweep.ratios": (list(DEFAULT_RATIOS), ("sweep-plan", "ratios", _ratios)),
     "ratio_sweep.criterion": (defaults_of(sweep_analyse)["criterion"],
                               ("sweep-analyse", "criterion", None)),
@@ -97,6 +102,7 @@ STUDY_ONLY = {
     "calibration.bounds",  # {} = no narrowing; the stage's bounds=None means the same
     "verification.scatter_seeds",  # the seeds of the scatter job
     "ratio_sweep.enabled",  # whether the DAG has the sweep
+    "transfer.enabled",  # whether the DAG has the full-size transfer
     "impact.sweep_velocities",  # the velocity sweep's extra runs
 }
 
