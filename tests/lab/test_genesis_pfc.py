@@ -10,7 +10,6 @@ from lab_util import A1, FAST, SMALL
 from bpmcal.dem.errors import InputError
 from bpmcal.io import h5
 from bpmcal.lab.runner import Geometry, make_specimen
-from bpmcal.stages.runs import run_ucs_file
 from bpmcal.lab.specimen import (
     PFC_GAP_RATIO,
     SpecimenSpec,
@@ -20,6 +19,7 @@ from bpmcal.lab.specimen import (
     paper_material,
 )
 from bpmcal.lab.ucs import run_ucs
+from bpmcal.stages.runs import run_ucs_file
 
 #: the first 3,000 steps of a test (before the peak): enough to compare two runs
 SHORT = replace(FAST, max_steps=3_000)
