@@ -132,7 +132,8 @@ def cmd_bts(a) -> int:
                        relax_ratio=a.relax_ratio, genesis=a.genesis)
     st = BTSSettings(platen_velocity=a.platen_velocity, platen_fric=a.platen_fric,
                      damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
-                     record_strain=a.record_strain)
+                     record_strain=a.record_strain, post_peak_min=a.post_peak_min,
+                     approach_velocity=a.approach_velocity)
     return _lab_test(
         a, "bts", geo, st,
         lambda s: (f"sigma_t = {s['bts_MPa']:.3f} MPa (peak load {s['peak_load_N']:.1f} N, "
@@ -192,7 +193,7 @@ def cmd_design(a) -> int:
 def cmd_gather(a) -> int:
     from .stages.study import gather
 
-    _, report = gather(a.design, a.runs, a.out)
+    _, report = gather(a.design, a.runs, a.out, bts_runs=a.bts_runs)
     print(report)
     return 0
 
@@ -561,6 +562,15 @@ def _add_bts(p):
     p.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
                    default=bd.record_strain,
                    help=f"platen approach / D between records (default {bd.record_strain:g})")
+    p.add_argument("--post-peak-min", type=number("post-peak-min", 0.0, 0.5),
+                   default=bd.post_peak_min,
+                   help="stop only this much platen approach / D past the peak (default "
+                        f"{bd.post_peak_min:g}; 0 stops at the load drop, enough for sigma_t)")
+    p.add_argument("--approach-velocity", type=number("approach-velocity", 0.0, 100.0,
+                                                      unit="m/s"),
+                   default=bd.approach_velocity,
+                   help="speed of each platen until the first crack [m/s] (default "
+                        f"{bd.approach_velocity:g}: off, the whole test at --platen-velocity)")
     add_specimen_args(p, bts_geometry(), "the ISRM 50 x 25 mm disc")
     add_outcome_args(p)
     p.set_defaults(func=cmd_bts)
@@ -638,6 +648,9 @@ def _add_gather(p):
     p.add_argument("--design", required=True, help="design CSV")
     _file(p, "--runs", "the run files, one per sample: <sample_id>.h5 (a sample without one "
                        "is 'missing')", nargs="+")
+    p.add_argument("--bts-runs", nargs="+", default=None,
+                   help="the Brazilian run files, one per sample: <sample_id>.h5 (adds "
+                        "bts_MPa, bts_status, bts_error; a sample without one is 'missing')")
     p.add_argument("--out", required=True, help="output CSV")
     p.set_defaults(func=cmd_gather)
 

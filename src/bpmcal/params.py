@@ -94,10 +94,20 @@ RESPONSES: dict[str, Response] = {r.name: r for r in [
     Response("u_pre_MJm3", "Up", r"$U_p$", "MJ/m3", 1e6, "pre-peak energy density", "Up"),
     Response("cracks_tension", "Nt", r"$N_t$", "", 1.0, "tensile cracks", "Nt"),
     Response("cracks_shear", "Ns", r"$N_s$", "", 1.0, "shear cracks", "Ns"),
+    Response("bts_MPa", "sigma_t", r"$\sigma_t$", "MPa", 1e6,
+             "Brazilian tensile strength 2 P_peak / (pi D t)", "σt"),
 ]}
 
 #: Responses the paper calibrates against.
 TARGETS: tuple[str, ...] = ("ucs_MPa", "E_GPa", "nu")
+
+#: The Brazilian tensile strength of every design sample (the study's ``bts`` job), a
+#: column of the dataset when the study runs the Brazilian test.
+TENSILE = "bts_MPa"
+
+#: Responses the study screens (Table 3) and regresses (Table 4, models.json): the
+#: calibration targets, and sigma_t when the dataset has it.
+ANALYSED: tuple[str, ...] = (*TARGETS, TENSILE)
 
 #: Fixed by the paper (section 2.2).
 RADIUS_RATIO = 1.66  # Rmax / Rmin

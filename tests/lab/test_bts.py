@@ -116,6 +116,32 @@ def test_halving_the_default_platen_speed_changes_sigma_t_by_less_than_2_percent
     assert r.summary["bts_MPa"] == pytest.approx(base.summary["bts_MPa"], rel=0.02)
 
 
+@pytest.mark.slow
+def test_the_study_settings_give_the_sigma_t_of_the_default_settings(base, cache):
+    """The study's Brazilian test (config/config.yaml ``bts``: a fast approach until the
+    first crack, a faster platen, a stop once the disc has split) against the careful
+    default on the A1 disc: the same sigma_t within 2 %, in fewer steps; the platens
+    switch to the loading speed at the first crack."""
+    import yaml
+
+    repo = __import__("pathlib").Path(__file__).resolve().parents[2]
+    b = yaml.safe_load((repo / "config" / "config.yaml").read_text())["bts"]
+    keys = ("platen_velocity", "approach_velocity", "post_peak_min", "stop_drop")
+    r, _ = bts(A1, cache, **{k: b[k] for k in keys})
+    s = r.summary
+    assert s["bts_MPa"] == pytest.approx(base.summary["bts_MPa"], rel=0.02)
+    assert s["steps"] < 0.7 * base.summary["steps"]
+    ser = r.series
+    cracks = ser["cracks_tension"] + ser["cracks_shear"]
+    k = int(np.argmax(cracks > 0))  # the first record with a crack: the switch
+    assert s["approach_strain"] == ser["diametral_strain"][k] > 0
+    dstep = np.diff(ser["step"])
+    fast, slow = dstep[: k - 1], dstep[k + 1:]
+    ratio = b["approach_velocity"] / b["platen_velocity"]
+    assert (fast == fast[0]).all() and (slow == slow[0]).all()
+    assert slow[0] / fast[0] == pytest.approx(ratio, rel=0.05)
+
+
 def test_analyse_against_a_closed_form_load_curve():
     """A parabolic load-displacement curve with a known peak and platen loads that differ
     by a known 1 %: sigma_t = 2 P / (pi D t), the peak position and the mismatch."""
@@ -146,7 +172,8 @@ def test_settings_refuse_bad_values():
     for kw, needle in [(dict(platen_velocity=-1.0), "platen_velocity=-1.0"),
                        (dict(platen_fric=float("nan")), "platen_fric=nan"),
                        (dict(stop_drop=1.5), "stop_drop=1.5"),
-                       (dict(seat_stress=0.0), "seat_stress=0.0")]:
+                       (dict(seat_stress=0.0), "seat_stress=0.0"),
+                       (dict(approach_velocity=-1.0), "approach_velocity=-1.0")]:
         with pytest.raises(InputError, match=needle):
             BTSSettings(**kw)
 

@@ -12,9 +12,10 @@ import yaml
 from bpmcal import params as P
 from bpmcal.analysis import DEFAULT_FREE, PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
 from bpmcal.cli import build_parser
+from bpmcal.lab.brazilian import BTSSettings
 from bpmcal.lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
 from bpmcal.lab.impact import ImpactSettings
-from bpmcal.lab.runner import Geometry
+from bpmcal.lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM, Geometry
 from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.stages import defaults_of
@@ -28,7 +29,7 @@ from bpmcal.study.sweep import DEFAULT_RATIOS
 REPO = Path(__file__).resolve().parents[2]
 SCHEMA = yaml.safe_load((REPO / "workflow" / "schemas" / "config.schema.yaml").read_text())
 
-GEO, UCS, IMP = Geometry(), UCSSettings(), ImpactSettings()
+GEO, UCS, IMP, BTS = Geometry(), UCSSettings(), ImpactSettings(), BTSSettings()
 SCR, REG, LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
 CAL, VER = defaults_of(calibrate), defaults_of(verify)
 
@@ -52,6 +53,11 @@ DEFAULTS = {
     "ucs.max_strain": (UCS.max_strain, ("ucs", "max_strain", None)),
     "ucs.platen_fric": (UCS.platen_fric, ("ucs", "platen_fric", None)),
     "ucs.record_strain": (UCS.record_strain, ("ucs", "record_strain", None)),
+    "bts.diameter_mm": (BTS_DIAMETER_MM, ("bts", "diameter", None)),
+    "bts.thickness_mm": (BTS_THICKNESS_MM, ("bts", "thickness", None)),
+    **{f"bts.{k}": (getattr(BTS, k), ("bts", k, None))
+       for k in ("platen_velocity", "damping", "platen_fric", "stop_drop", "max_strain",
+                 "record_strain", "post_peak_min", "approach_velocity")},
     "resources.max_balls": (MAX_BALLS, ("ucs", "max_balls", None)),
     "resources.genesis_max_steps": (GENESIS_MAX_STEPS, ("ucs", "genesis_max_steps", None)),
     "study.lhs_optimization": (defaults_of(lhs_design)["optimization"],
@@ -107,6 +113,7 @@ STUDY_ONLY = {
     "verification.scatter_seeds",  # the seeds of the scatter job
     "ratio_sweep.enabled",  # whether the DAG has the sweep
     "transfer.enabled",  # whether the DAG has the full-size transfer
+    "bts", "bts.enabled",  # whether the DAG has the Brazilian jobs ({}: the defaults)
     "impact.sweep_velocities",  # the velocity sweep's extra runs
     "triaxial",  # the section itself ({}: a config without it gets the defaults below)
     "triaxial.enabled", "triaxial.cards",  # whether and which cards the DAG tests

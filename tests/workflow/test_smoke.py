@@ -102,6 +102,33 @@ def test_smoke_study_gathers_every_sample(smoke):
         assert (ds[c].to_numpy() == design[c].to_numpy()).all()
     for sid in ds["sample_id"]:
         assert (out / "logs" / "ucs" / f"{sid}.log").stat().st_size > 0
+        assert (out / "logs" / "bts" / f"{sid}.log").stat().st_size > 0
+
+
+def test_every_sample_has_a_brazilian_test_in_the_dataset_and_the_analyses(smoke):
+    """bts.enabled (the default): sigma_t of every sample, its own status; the planted
+    sample's UCS file is unreadable, its Brazilian test is not; Table 3 and the regression
+    have sigma_t."""
+    out = smoke / OUTDIR
+    ds = pd.read_csv(out / "dataset.csv").set_index("sample_id")
+    assert set(ds["bts_status"]) <= {"ok", "failed"}
+    okb = ds[ds["bts_status"] == "ok"]
+    assert len(okb) >= len(ds) - 2
+    assert (okb["bts_MPa"] > 0).all() and (okb["bts_MPa"] < 100).all()
+    assert ds[ds["bts_status"] != "ok"]["bts_MPa"].isna().all()
+    assert ds.loc[PLANTED, "status"] == "unreadable"
+    assert ds.loc[PLANTED, "bts_status"] == "ok" and ds.loc[PLANTED, "bts_MPa"] > 0
+    # the disc is weaker in tension than the cylinder in compression, sample by sample
+    both = ds[(ds["status"] == "ok") & (ds["bts_status"] == "ok")]
+    assert (both["bts_MPa"] < both["ucs_MPa"]).all()
+    t3 = pd.read_csv(out / "tables" / "table3_importance.csv", index_col=0)
+    assert "bts_MPa" in t3.columns and t3["bts_MPa"].sum() == pytest.approx(100.0)
+    models = json.loads((out / "regression" / "models.json").read_text())
+    assert "bts_MPa" in models["models"]
+    assert "bts_MPa" in (out / "regression" / "equations.md").read_text()
+    index = (out / "report" / "index.md").read_text()
+    assert f"- Brazilian tests: {len(okb)} of {len(ds)} ok" in index
+    assert "σt" in index
 
 
 def test_the_report_lists_the_failed_sample(smoke):
@@ -379,7 +406,7 @@ def test_every_file_a_stage_reads_is_declared_by_the_rule_graph(smoke):
     assert {j["rule"] for j in jobs.values()} == {jobs[p["argv"]]["rule"] for p in procs}
     reads = {f for p in procs for f in p["reads"]}
     for f in ("tables/regression_fit.csv", "tables/jk_fit.json", "regression/equations.md",
-              "verification/B1/best_round.h5", "ucs/s000.h5"):
+              "verification/B1/best_round.h5", "ucs/s000.h5", "bts/s000.h5"):
         assert str((smoke / OUTDIR / f).resolve()) in reads, f
 
 

@@ -24,6 +24,7 @@ FILES = L.Layout(config["outdir"])
 SAMPLES = L.sample_ids(config["study"]["n_samples"])
 SPECIMENS = list(_lab["specimen"])
 SWEEP_ON = bool(config["ratio_sweep"]["enabled"])
+BTS_ON = bool(config["bts"]["enabled"])  # a Brazilian test of every design sample
 SWEEP_SPEC = SPECIMENS[0]  # the sweep starts from the first specimen's initial card
 IMPACT_SPEC = SPECIMENS[0]  # the impact uses the first specimen's verified card
 TRANSFER_ON = bool(config["transfer"]["enabled"])
@@ -76,5 +77,32 @@ def specimen_args(cfg=config, scale=None):
         "--genesis-max-steps": r["genesis_max_steps"],
     }
     if sp["install_gap_mm"] is not None:  # null: the genesis's own gap
+        opts["--install-gap"] = sp["install_gap_mm"]
+    return [str(x) for k, v in opts.items() for x in (k, v)]
+
+
+def bts_args(cfg=config):
+    """bpmcal bts options of the bts, specimen and resources sections (the disc D x D/2 at
+    the specimen scale, packed by the same genesis), as a list of arguments."""
+    sp, b, r = cfg["specimen"], cfg["bts"], cfg["resources"]
+    opts = {
+        "--scale": sp["scale"],
+        "--diameter": b["diameter_mm"],
+        "--thickness": b["thickness_mm"],
+        "--sigma0": sp["sigma0_MPa"],
+        "--genesis": sp["genesis"],
+        "--relax-ratio": sp["relax_ratio"],
+        "--platen-velocity": b["platen_velocity"],
+        "--damping": b["damping"],
+        "--platen-fric": b["platen_fric"],
+        "--stop-drop": b["stop_drop"],
+        "--max-strain": b["max_strain"],
+        "--record-strain": b["record_strain"],
+        "--specimen-cache": FILES.packings,
+        "--max-balls": r["max_balls"],
+        "--mem-budget-mb": r["ucs_mem_mb"],
+        "--genesis-max-steps": r["genesis_max_steps"],
+    }
+    if sp["install_gap_mm"] is not None:
         opts["--install-gap"] = sp["install_gap_mm"]
     return [str(x) for k, v in opts.items() for x in (k, v)]

@@ -1,4 +1,5 @@
-# The spine of the study: design -> one UCS job per sample -> gathered dataset.
+# The spine of the study: design -> one UCS job (and, with bts.enabled, one Brazilian
+# job) per sample -> gathered dataset.
 # A sample whose DEM run fails writes a failure record (--failed-ok: exit 0), so the DAG
 # goes on and the dataset carries the sample with its status and reason.
 
@@ -42,16 +43,41 @@ rule ucs:
         "--threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
 
 
+rule bts:
+    input:
+        FILES.design,
+    output:
+        FILES.bts_run("{sample}"),
+    log:
+        FILES.log("bts", "{sample}"),
+    wildcard_constraints:
+        sample=r"s\d+",
+    conda:
+        "../envs/bpmcal.yaml"
+    threads: config["resources"]["ucs_threads"]
+    resources:
+        runtime=config["resources"]["ucs_runtime_min"],
+        mem_mb=config["resources"]["ucs_mem_mb"],
+    params:
+        opts=bts_args(),
+    shell:
+        "bpmcal bts --design {input:q} --sample {wildcards.sample:q} --out {output:q} "
+        "--threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
+
+
 rule gather:
     input:
         design=FILES.design,
         runs=[FILES.ucs_run(s) for s in SAMPLES],
+        bts=[FILES.bts_run(s) for s in SAMPLES] if BTS_ON else [],
     output:
         FILES.dataset,
     log:
         FILES.log("gather"),
     conda:
         "../envs/bpmcal.yaml"
+    params:
+        bts=lambda wc, input: ["--bts-runs", *input.bts] if input.bts else [],
     shell:
-        "bpmcal gather --design {input.design:q} --runs {input.runs:q} --out {output:q} "
-        "> {log:q} 2>&1"
+        "bpmcal gather --design {input.design:q} --runs {input.runs:q} {params.bts:q} "
+        "--out {output:q} > {log:q} 2>&1"

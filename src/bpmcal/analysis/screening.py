@@ -236,6 +236,8 @@ class ScreeningResults:
     cv: pd.DataFrame
     rows: dict[str, int]
     settings: dict = field(default_factory=dict)
+    #: row counts of responses screened on other rows than ``rows`` (:func:`combine`)
+    response_rows: dict[str, dict[str, int]] = field(default_factory=dict)
 
     @property
     def n_dropped(self) -> int:
@@ -312,8 +314,11 @@ class ScreeningResults:
         """Plain-text report: rows used, CV R², shares of every type, shadow maxima, selection."""
         lines = [f"XGBoost screening: {self.rows['n_used']} rows used, {self.rows['n_dropped']} dropped "
                  f"({self.rows['n_failed']} failed, {self.rows['n_missing']} missing values); "
-                 f"{self.settings.get('n_splits')}-fold shuffled CV, seed {self.settings.get('seed')}",
-                 "", "Validation R² of the XGBoost models:", self.cv_r2.round(3).to_string(), ""]
+                 f"{self.settings.get('n_splits')}-fold shuffled CV, seed {self.settings.get('seed')}"]
+        lines += [f"  {r}: screened on its own rows: {n['n_used']} used, {n['n_dropped']} dropped "
+                  f"({n['n_failed']} failed, {n['n_missing']} missing values)"
+                  for r, n in self.response_rows.items()]
+        lines += ["", "Validation R² of the XGBoost models:", self.cv_r2.round(3).to_string(), ""]
         for kind in IMPORTANCE_TYPES:
             mean, std = self.share(kind), self.share_std(kind)
             tab = mean.round(2).astype(str) + " ± " + std.round(2).astype(str)
@@ -322,6 +327,32 @@ class ScreeningResults:
                   f"Selected (share of {self.select_by} > {self.threshold:g} %):"]
         lines += [f"  {r}: {', '.join(s) if s else '(none)'}" for r, s in self.selected.items()]
         return "\n".join(lines)
+
+
+def combine(first: ScreeningResults, *others: ScreeningResults) -> ScreeningResults:
+    """One result of screenings of different responses over the same parameters, with the
+    same threshold and importance type, fitted on different rows (e.g. sigma_t on the
+    samples whose Brazilian test is ok): the responses of ``others`` follow those of
+    ``first``, their row counts are kept in ``response_rows``. Each response's shares
+    are its own screening's (a response's random stream does not depend on the others)."""
+    resp, rows = list(first.responses), dict(first.response_rows)
+    for o in others:
+        if o.params != first.params or o.threshold != first.threshold or \
+                o.select_by != first.select_by:
+            raise ValueError("combine: the screenings differ in parameters, threshold or "
+                             "importance type")
+        dup = set(o.responses) & set(resp)
+        if dup:
+            raise ValueError(f"combine: response(s) {sorted(dup)} screened twice")
+        resp += list(o.responses)
+        rows.update({r: dict(o.rows) for r in o.responses})
+    return ScreeningResults(
+        params=first.params, responses=tuple(resp), threshold=first.threshold,
+        select_by=first.select_by,
+        importances=pd.concat([first.importances, *(o.importances for o in others)],
+                              ignore_index=True),
+        cv=pd.concat([first.cv, *(o.cv for o in others)], ignore_index=True),
+        rows=dict(first.rows), settings=dict(first.settings), response_rows=rows)
 
 
 def table3(results: ScreeningResults, importance: str = "gain", symbols: bool = False) -> pd.DataFrame:

@@ -551,6 +551,8 @@ class StepwiseResults:
     steps: pd.DataFrame
     rows: dict[str, int]
     settings: dict
+    #: row counts of responses fitted on other rows than ``rows`` (:func:`combine`)
+    response_rows: dict[str, dict[str, int]] = field(default_factory=dict)
 
     @property
     def n_dropped(self) -> int:
@@ -630,6 +632,9 @@ class StepwiseResults:
                  f"({self.rows['n_failed']} failed, {self.rows['n_missing']} missing values)",
                  f"entry p < {s['alpha_in']:g} and adjusted R² gain; removal p > {s['alpha_out']:g}; "
                  f"VIF (centred terms) <= {s['vif_max']:g}; hierarchy: {s['hierarchy']}",
+                 *(f"  {r}: fitted on its own rows: {n['n_used']} used, {n['n_dropped']} "
+                   f"dropped ({n['n_failed']} failed, {n['n_missing']} missing values)"
+                   for r, n in self.response_rows.items()),
                  "", self.fit_table().round(4).to_string(), ""]
         for r, st in self.models.items():
             lines.append(f"{r} (candidates: {', '.join(self.candidates[r]) or 'none'})")
@@ -640,10 +645,13 @@ class StepwiseResults:
     def to_dict(self) -> dict:
         """JSON-serialisable representation of everything but the statsmodels objects."""
         steps = self.steps.astype(object).where(self.steps.notna(), None).to_dict(orient="records")
-        return {"format": FORMAT, "settings": dict(self.settings), "rows": dict(self.rows),
-                "candidates": {r: list(c) for r, c in self.candidates.items()},
-                "models": {r: {s: m.to_dict() for s, m in st.items()} for r, st in self.models.items()},
-                "steps": steps}
+        d = {"format": FORMAT, "settings": dict(self.settings), "rows": dict(self.rows),
+             "candidates": {r: list(c) for r, c in self.candidates.items()},
+             "models": {r: {s: m.to_dict() for s, m in st.items()} for r, st in self.models.items()},
+             "steps": steps}
+        if self.response_rows:
+            d["response_rows"] = {r: dict(n) for r, n in self.response_rows.items()}
+        return d
 
     @classmethod
     def from_dict(cls, d: Mapping) -> StepwiseResults:
@@ -653,7 +661,26 @@ class StepwiseResults:
                   for r, st in d["models"].items()}
         steps = pd.DataFrame.from_records(d.get("steps") or [], columns=list(STEP_COLUMNS))
         return cls(models=models, candidates={r: tuple(c) for r, c in d["candidates"].items()},
-                   steps=steps, rows=dict(d["rows"]), settings=dict(d["settings"]))
+                   steps=steps, rows=dict(d["rows"]), settings=dict(d["settings"]),
+                   response_rows={r: dict(n) for r, n in (d.get("response_rows") or {}).items()})
+
+
+def combine(first: StepwiseResults, *others: StepwiseResults) -> StepwiseResults:
+    """One result of regressions of different responses fitted on different rows (e.g.
+    sigma_t on the samples whose Brazilian test is ok): the models of ``others`` follow
+    those of ``first``; their row counts are kept in ``response_rows``."""
+    models, cands = dict(first.models), dict(first.candidates)
+    rows = dict(first.response_rows)
+    for o in others:
+        dup = set(o.models) & set(models)
+        if dup:
+            raise ValueError(f"combine: response(s) {sorted(dup)} fitted twice")
+        models.update(o.models)
+        cands.update(o.candidates)
+        rows.update({r: dict(o.rows) for r in o.models})
+    steps = pd.concat([first.steps, *(o.steps for o in others)], ignore_index=True)
+    return StepwiseResults(models=models, candidates=cands, steps=steps, rows=dict(first.rows),
+                           settings=dict(first.settings), response_rows=rows)
 
 
 def models_from_dict(d: Mapping) -> dict[str, RegressionModel]:
@@ -664,4 +691,4 @@ def models_from_dict(d: Mapping) -> dict[str, RegressionModel]:
 
 __all__ = ["STAGES", "HIERARCHIES", "Term", "term_name", "parse_term", "term_label", "stage_pool",
            "design_matrix", "vif", "cv_r2", "RegressionModel", "fit_terms", "StepwiseRegression",
-           "StepwiseResults", "models_from_dict"]
+           "StepwiseResults", "models_from_dict", "combine"]

@@ -147,9 +147,14 @@ class Layout:
         """The UCS run file of one design sample (or its failure record)."""
         return self.path("ucs", f"{sample}.h5")
 
+    def bts_run(self, sample: str) -> str:
+        """The Brazilian run file of one design sample (or its failure record)."""
+        return self.path("bts", f"{sample}.h5")
+
     @property
     def dataset(self) -> str:
-        """One row per sample: design, responses, status, error."""
+        """One row per sample: design, responses, status, error (and, when the study runs
+        the Brazilian test, bts_MPa, bts_status, bts_error)."""
         return self.path("dataset.csv")
 
     @property

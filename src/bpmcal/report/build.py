@@ -213,6 +213,16 @@ def _settings(lay, cfg, ref=False) -> str:
         if len(w):
             lines.append(f"- DEM time per sample: median {w.median():.1f} s "
                          f"(range {w.min():.1f}-{w.max():.1f} s)")
+        if "bts_status" in ds.columns:  # the Brazilian test of every sample
+            bb = ds[ds["bts_status"] != "ok"]
+            lines.append(f"- Brazilian tests: {len(ds) - len(bb)} of {len(ds)} ok"
+                         + (" (failed ones left out of the σt analysis):" if len(bb) else ""))
+            for r in bb.itertuples():
+                lines.append(f"  - {r.sample_id}: Brazilian {r.bts_status}: {r.bts_error}")
+            w = ds.loc[ds["bts_status"] == "ok", "bts_wall_s"]
+            if len(w):
+                lines.append(f"- Brazilian time per sample: median {w.median():.1f} s "
+                             f"(range {w.min():.1f}-{w.max():.1f} s)")
     return "\n".join(lines) + "\n"
 
 
@@ -246,10 +256,15 @@ def _table3(lay, comp, ref=False) -> str:
                 r.append(f"{_f(ours, '.1f')} ({theirs:.1f})")
             else:
                 r.append(_f(ours, ".1f"))
+        if P.TENSILE in t3.columns:  # the Brazilian test of every sample (the paper has none)
+            r.append(_f(t3.loc[p, P.TENSILE], ".1f") + (" (–)" if ref else ""))
         rows.append(r)
     head = ("## Table 3: XGBoost screening (ours, paper in brackets, % of gain)\n\n" if ref
             else "## Table 3: XGBoost screening (% of gain)\n\n")
-    return head + markdown_table(rows, ["parameter", "σc", "E", "ν"]) + "\n"
+    cols = ["parameter", "σc", "E", "ν", *(["σt"] if P.TENSILE in t3.columns else [])]
+    note = ("\nσt: the Brazilian test of every sample; the paper publishes no tensile data.\n"
+            if ref and P.TENSILE in t3.columns else "")
+    return head + markdown_table(rows, cols) + "\n" + note
 
 
 def _regression(lay, comp, ref=False) -> str:

@@ -40,6 +40,8 @@ from ..analysis import (
 from ..analysis import seed_scatter as scatter_table
 from ..analysis._common import usable_rows
 from ..analysis.calibration import check_calibration_space
+from ..analysis.screening import combine as combine_screenings
+from ..analysis.stepwise import combine as combine_regressions
 from ..io.atomic import write_text
 from ..io.card import card_parameters, read_card, write_card
 from ..io.checks import BadInput, read_json
@@ -50,6 +52,7 @@ from ..io.tables import write_json, write_table
 from ..lab.budget import check_budget
 from ..lab.runner import ucs_inputs
 from ..plots.calibration import fig_importance, fig_pred_vs_sim, fig_stress_strain
+from ..study.gather import has_tensile, tensile_view
 from . import defaults_of
 from .inputs import (
     CSV,
@@ -97,6 +100,18 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
         n_splits = k
     res = XGBScreening(n_splits=n_splits, threshold=threshold, select_by=importance,
                        n_repeats=n_repeats, seed=seed).fit(df)
+    if has_tensile(df):  # sigma_t: screened on the samples whose Brazilian test is ok
+        tv = tensile_view(df)
+        n_t = usable_rows(tv, [*P.PARAMS, P.TENSILE]).n_used
+        k = min(n_splits, n_t // 2)
+        if k < 2:
+            note += (f"; sigma_t not screened: {n_t} samples have a usable Brazilian test, "
+                     "at least 4 are needed (see the dataset's bts_status and bts_error)")
+        else:
+            note += f"; sigma_t: {tensile_note(tv)}"
+            res = combine_screenings(res, XGBScreening(
+                responses=(P.TENSILE,), n_splits=k, threshold=threshold, select_by=importance,
+                n_repeats=n_repeats, seed=seed).fit(tv))
     write_table(table3(res, importance=importance), table3_csv,
                 markdown=table3_markdown(res, importance=importance))
     write_table(res.to_frame(), importance_table)
@@ -109,6 +124,15 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
     write_text(summary, res.summary() + "\n" + note + "\n")
     save_figure(fig_importance(res.to_frame(), res.shadow_max, importance, threshold), figure)
     return {"selected": sel, "note": note}
+
+
+def tensile_note(tv: pd.DataFrame) -> str:
+    """How many samples the sigma_t analyses use (``tv``: the dataset's
+    ``study.gather.tensile_view``), and which Brazilian tests they leave out."""
+    bad = tv[tv["status"] != "ok"]
+    return (f"{len(tv) - len(bad)} of {len(tv)} Brazilian tests used"
+            + (f" ({len(bad)} failed/missing dropped: {', '.join(bad['sample_id'])})"
+               if len(bad) else ""))
 
 
 # ------------------------------------------------------------------------ regression
@@ -131,9 +155,24 @@ def regress(dataset, selected, *, models, equations, summaries, coefficients, ca
             (candidates, "--candidates", CSV), (table4, "--table4", CSV),
             (fit_table, "--fit-table", CSV), (figure, "--figure", PNG))
     note = usable(df)
-    res = StepwiseRegression(alpha_in=alpha_in, alpha_out=alpha_out, vif_max=vif_max,
+    reg = StepwiseRegression(alpha_in=alpha_in, alpha_out=alpha_out, vif_max=vif_max,
                              hierarchy=hierarchy, cv_folds=cv_folds, cv_repeats=cv_repeats,
-                             seed=seed).fit(df, sel["selected"])
+                             seed=seed)
+    chosen = dict(sel["selected"])
+    tensile = chosen.pop(P.TENSILE, None)  # sigma_t: fitted on its own rows
+    res = reg.fit(df, chosen)
+    if tensile is not None:
+        if not has_tensile(df):
+            raise BadInput(f"--selected {selected} screens {P.TENSILE}, but --dataset "
+                           f"{dataset} has no Brazilian columns (bts_MPa, bts_status)")
+        tv = tensile_view(df)
+        n_t = usable_rows(tv, [*P.PARAMS, P.TENSILE]).n_used
+        if n_t < max(cv_folds, 4):
+            note += (f"; sigma_t not regressed: {n_t} samples have a usable Brazilian test, "
+                     f"at least {max(cv_folds, 4)} are needed")
+        else:
+            note += f"; sigma_t: {tensile_note(tv)}"
+            res = combine_regressions(res, reg.fit(tv, {P.TENSILE: tensile}))
     d = res.to_dict()
     d["note"] = note
     d["provenance"] = provenance({"dataset": str(dataset), "seed": seed})
@@ -155,6 +194,9 @@ def regress(dataset, selected, *, models, equations, summaries, coefficients, ca
     write_text(equations, text)
     write_text(summaries, res.summary() + "\n")
     ok = df[df["status"] == "ok"]
+    if P.TENSILE in res.models:  # sigma_t over the samples whose Brazilian test is ok
+        ok = df[(df["status"] == "ok") | (df["bts_status"] == "ok")].copy()
+        ok.loc[ok["status"] != "ok", list(chosen)] = np.nan
     save_figure(fig_pred_vs_sim(ok, res.predict(ok), res.fit_table()), figure)
     return {"note": note, "equations": text}
 

@@ -112,6 +112,14 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
         msgs.append(f"specimen.scale: {sp['scale']:g} gives a {d:g} x {h:g} mm specimen, less "
                     f"than 3 ball diameters across for Rmax = {rmax:g} mm "
                     f"(ranges.rmin_mm up to {max(cfg['ranges']['rmin_mm']):g} mm)")
+    b = cfg.get("bts", {})
+    if b.get("enabled"):  # the Brazilian disc of every sample must fit its balls too
+        bd, bt = sp["scale"] * b["diameter_mm"], sp["scale"] * b["thickness_mm"]
+        if bd < 6 * rmax or bt < 6 * rmax:
+            msgs.append(f"bts: specimen.scale {sp['scale']:g} gives a {bd:g} x {bt:g} mm disc, "
+                        f"less than 3 ball diameters across for Rmax = {rmax:g} mm "
+                        f"(ranges.rmin_mm up to {max(cfg['ranges']['rmin_mm']):g} mm); "
+                        "enlarge bts.diameter_mm and bts.thickness_mm or set bts.enabled: false")
     msgs.extend(_budget_checks(cfg))
     msgs.extend(_sweep_checks(cfg))
     if not path_problem(cfg["lab"]["csv"]):
