@@ -94,6 +94,8 @@ RESPONSES: dict[str, Response] = {r.name: r for r in [
     Response("u_pre_MJm3", "Up", r"$U_p$", "MJ/m3", 1e6, "pre-peak energy density", "Up"),
     Response("cracks_tension", "Nt", r"$N_t$", "", 1.0, "tensile cracks", "Nt"),
     Response("cracks_shear", "Ns", r"$N_s$", "", 1.0, "shear cracks", "Ns"),
+    Response("bts_MPa", "sigma_t", r"$\sigma_t$", "MPa", 1e6,
+             "Brazilian tensile strength 2 P / (pi D t)", "σt"),
 ]}
 
 #: Responses the paper calibrates against.
