@@ -248,7 +248,7 @@ def cmd_verify(a) -> int:
                geometry=run_geometry(a), settings=run_settings(a), seed=a.seed,
                rtol=a.rtol, max_rounds=a.max_rounds, cache=a.specimen_cache,
                threads=a.threads, progress=prog, from_unreachable=a.from_unreachable,
-               **_budget(a))["verification"]
+               bts_run=a.bts_run, **_budget(a))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
 
@@ -688,6 +688,10 @@ def _add_verify(p):
     _file(p, "--out-card", "output: the verified card")
     _file(p, "--rounds", "output table: one row per DEM round")
     _file(p, "--run", "output: the run file of the best round")
+    p.add_argument("--bts-run", default=None,
+                   help="output (optional): the Brazilian run file of the best round when the "
+                        "card has a tensile-strength target (bts_MPa), else a failure record "
+                        "saying so; the disc is the ISRM 50 x 25 mm one at --scale")
     p.add_argument("--seed", type=SEED, default=d["seed"],
                    help=f"packing seed of the DEM runs (default {d['seed']})")
     p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],

@@ -224,7 +224,9 @@ def _check_reference(cfg: dict, lab: Path) -> list[str]:
 
 
 LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
-LAB_OPTIONAL = ("u_pre_MJm3",)
+#: optional columns: empty = not given for that specimen; ``bts_MPa`` (Brazilian tensile
+#: strength) makes σt a calibration target of that specimen (``stages.analysis.calibrate``)
+LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa")
 
 
 def lab_problems(df, key: str) -> list[str]:
