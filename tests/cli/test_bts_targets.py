@@ -287,3 +287,16 @@ def test_the_report_names_the_missed_target_and_the_ratio_set_by_sigma_t(cards, 
                           table6=lay.table(L.TABLE6), figure=tmp_path / "f6.png")
     text = _verification(lay, [])
     assert "| B2 | sigma_t |" in text and "B2: target(s) missed by the closed loop" in text
+
+
+def test_a_disc_too_small_for_the_balls_is_refused_before_any_run(cards, d, tmp_path, dem):
+    """At scale 0.3 the ISRM disc is 15 x 7.5 mm, less than 3 diameters of Rmax = 1.66 x
+    0.8 mm: refused before the first round (not after its UCS run)."""
+    from bpmcal.io.checks import BadInput
+
+    o = tmp_path / "o"
+    with pytest.raises(BadInput, match=r"Brazilian disc at scale 0.3 \(15 x 7.5 mm\)"):
+        A.verify(cards["dir"] / "B1.yaml", d / "models.json", out_card=o / "B1.yaml",
+                 rounds=o / "B1.csv", run=o / "B1.h5", geometry=Geometry(scale=0.3),
+                 settings=UCSSettings(), seed=7)
+    assert dem.calls == [] and not o.exists()

@@ -256,7 +256,7 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
     if with_bts:
         note = "; ".join(x for x in (note, (
             f"the tensile strength (bts_MPa) sets the bond-strength ratio of {with_bts} "
-            "(pb_ten_MPa free, not the ratio above)")) if x)
+            "(pb_ten_MPa free; the configured or swept ratio is not used for them)")) if x)
     rows = []
     for rec, targets in jobs:
         spec = str(rec["specimen"])
@@ -407,6 +407,16 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     if with_bts and BTS not in model_set:
         raise BadInput(f"--card {card}: a tensile-strength target (bts_MPa) but --models "
                        f"{models} has no model of bts_MPa")
+    if with_bts:  # the disc must hold 3 of the largest balls across, for every round
+        rmin = (max(c["ranges"]["rmin_mm"]) if c["roles"].get("rmin_mm") == "free"
+                else float(c["parameters"]["rmin_mm"]))
+        rmax = P.RADIUS_RATIO * rmin
+        dd, tt = disc.diameter_mm * disc.scale, disc.height_mm * disc.scale
+        if min(dd, tt) < 6 * rmax:
+            raise BadInput(f"--card {card}: a tensile-strength target (bts_MPa), but the "
+                           f"Brazilian disc at scale {disc.scale:g} ({dd:g} x {tt:g} mm) is "
+                           f"less than 3 ball diameters across for Rmax = {rmax:g} mm: use "
+                           "a larger --scale")
     if max_balls is not None:
         check_budget(c["parameters"], geometry, max_balls=max_balls,
                      mem_budget_mb=mem_budget_mb)
