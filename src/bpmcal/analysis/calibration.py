@@ -661,7 +661,7 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
     diagnose:
         For ``unreachable`` and ``no-exact-fit``, search the extrapolated regression for
         which configured limit to widen and how far (``widen``, ``advice``; costs one more
-        multi-start).
+        multi-start), and with a σt target the spans the models reach (``reach``).
     """
     space = _Space(free, fixed, ratio, ranges, bounds)
     responses, t = _check_targets(targets, models)
@@ -703,7 +703,7 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
                    seed + 2)
         if sub[0][1] <= tol:
             reach = _bts_reach(space, models, others, t_other, tol,
-                               [f[2] for f in sub if f[1] <= tol], seed + 3)
+                               [f[2] for f in sub if f[1] <= tol], seed + 3) if diagnose else {}
             t_bts = float(t[responses.index(BTS)])
             span = (f"while meeting {', '.join(others)} the models give σt in "
                     f"[{reach['bts_MPa'][0]:.4g}, {reach['bts_MPa'][1]:.4g}] MPa"
