@@ -300,3 +300,31 @@ def test_a_disc_too_small_for_the_balls_is_refused_before_any_run(cards, d, tmp_
                  rounds=o / "B1.csv", run=o / "B1.h5", geometry=Geometry(scale=0.3),
                  settings=UCSSettings(), seed=7)
     assert dem.calls == [] and not o.exists()
+
+
+@pytest.mark.parametrize("scale, ok", [(0.25, False), (0.4, True)])
+def test_the_study_config_refuses_a_disc_too_small_for_a_lab_sigma_t(tmp_path, scale, ok):
+    """Rmax = 1.66 x 1.0 mm (the default ranges): the 25 mm-thick disc needs scale >= 0.398;
+    checked with the config, before any job; a lab CSV without σt is not concerned."""
+    from bpmcal.study.config import ConfigError, validate_config
+
+    repo = Path(__file__).resolve().parents[2]
+    schema = repo / "workflow" / "schemas" / "config.schema.yaml"
+    cfg = yaml.safe_load((repo / "config" / "config.yaml").read_text())
+    cfg["study"]["reference"] = "none"
+    cfg["specimen"]["scale"] = scale
+    lab = tmp_path / "lab.csv"
+    lab.write_text(HEAD + ",bts_MPa\n" + lab_row("B1", T, "8.0"))
+    cfg["lab"]["csv"] = str(lab)
+    if ok:
+        validate_config(cfg, schema, base_dir=repo)
+        return
+    with pytest.raises(ConfigError) as e:
+        validate_config(cfg, schema, base_dir=repo)
+    assert "specimen(s) ['B1'] give bts_MPa" in str(e.value)
+    assert "12.5 x 6.25 mm" in str(e.value) and "at least 0.398" in str(e.value)
+    lab.write_text(HEAD + ",bts_MPa\n" + lab_row("B1", T, ""))  # no σt: no disc, no problem
+    try:
+        validate_config(cfg, schema, base_dir=repo)
+    except ConfigError as e2:
+        assert "bts_MPa" not in str(e2)
