@@ -114,6 +114,7 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
                     f"(ranges.rmin_mm up to {max(cfg['ranges']['rmin_mm']):g} mm)")
     msgs.extend(_budget_checks(cfg))
     msgs.extend(_sweep_checks(cfg))
+    msgs.extend(_check_bts_disc(cfg, base))
     if not path_problem(cfg["lab"]["csv"]):
         lab = base / cfg["lab"]["csv"]
         if not lab.is_file():
@@ -123,37 +124,9 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
             msgs.extend(lab_msgs)
             if not lab_msgs:
                 msgs.extend(_check_reference(cfg, lab))
-                msgs.extend(_check_bts_disc(cfg, lab))
     if not msgs:
         msgs.extend(_check_calibration_space(cfg))
     return msgs
-
-
-def _check_bts_disc(cfg: dict, lab: Path) -> list[str]:
-    """A lab tensile strength (``bts_MPa``) is verified with a Brazilian disc (ISRM 50 x 25
-    mm) at ``specimen.scale`` (``stages.analysis.verify``): it must hold 3 of the largest
-    balls across its thickness, or the closed loop would stop after its first UCS run."""
-    import pandas as pd
-
-    df = read_lab(lab)
-    if "bts_MPa" not in df.columns:
-        return []
-    given = [str(s) for s, v in zip(df["specimen"], pd.to_numeric(df["bts_MPa"], errors="coerce"))
-             if math.isfinite(v)]
-    if not given:
-        return []
-    from ..lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM
-
-    scale = cfg["specimen"]["scale"]
-    rmax = P.RADIUS_RATIO * max(cfg["ranges"]["rmin_mm"])
-    t = scale * BTS_THICKNESS_MM
-    if t >= 6 * rmax:
-        return []
-    return [f"lab.csv: specimen(s) {given} give bts_MPa, which the closed loop verifies with a "
-            f"Brazilian disc at specimen.scale {scale:g}: {scale * BTS_DIAMETER_MM:g} x "
-            f"{t:g} mm, less than 3 ball diameters across for Rmax = {rmax:g} mm (ranges.rmin_mm "
-            f"up to {max(cfg['ranges']['rmin_mm']):g} mm): raise specimen.scale to at least "
-            f"{6 * rmax / BTS_THICKNESS_MM:.3g}, or leave bts_MPa empty"]
 
 
 def _budget_checks(cfg: dict) -> list[str]:
@@ -313,6 +286,39 @@ def read_lab(path):
             ValueError) as e:
         raise ConfigError(f"lab.csv: cannot read {str(path)!r}: "
                           f"{' '.join(str(e).split())[:200]}") from None
+
+
+def _check_bts_disc(cfg: dict, base: Path) -> list[str]:
+    """A lab tensile strength (``bts_MPa``) is verified with a Brazilian disc (ISRM 50 x 25
+    mm) at ``specimen.scale`` (``stages.analysis.verify``): it must hold 3 of the largest
+    balls across its thickness, or the closed loop would stop after its first UCS run."""
+    import pandas as pd
+
+    lab = base / cfg["lab"]["csv"]
+    if path_problem(cfg["lab"]["csv"]) or not lab.is_file():
+        return []  # reported by the lab checks
+    try:
+        df = read_lab(lab)
+    except ConfigError:
+        return []  # reported by the lab checks
+    if "bts_MPa" not in df.columns:
+        return []
+    given = [str(s) for s, v in zip(df["specimen"], pd.to_numeric(df["bts_MPa"], errors="coerce"))
+             if math.isfinite(v)]
+    if not given:
+        return []
+    from ..lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM
+
+    scale = cfg["specimen"]["scale"]
+    rmax = P.RADIUS_RATIO * max(cfg["ranges"]["rmin_mm"])
+    t = scale * BTS_THICKNESS_MM
+    if t >= 6 * rmax:
+        return []
+    return [f"lab.csv: specimen(s) {given} give bts_MPa, which the closed loop verifies with a "
+            f"Brazilian disc at specimen.scale {scale:g}: {scale * BTS_DIAMETER_MM:g} x "
+            f"{t:g} mm, less than 3 ball diameters across for Rmax = {rmax:g} mm (ranges.rmin_mm "
+            f"up to {max(cfg['ranges']['rmin_mm']):g} mm): raise specimen.scale to at least "
+            f"{6 * rmax / BTS_THICKNESS_MM:.3g}, or leave bts_MPa empty"]
 
 
 def _check_lab(path: Path, key: str) -> list[str]:
