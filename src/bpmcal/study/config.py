@@ -310,15 +310,21 @@ def _check_bts_disc(cfg: dict, base: Path) -> list[str]:
     from ..lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM
 
     scale = cfg["specimen"]["scale"]
-    rmax = P.RADIUS_RATIO * max(cfg["ranges"]["rmin_mm"])
+    fixed = (cfg.get("calibration") or {}).get("fixed") or {}
+    if "rmin_mm" in fixed:  # the cards' Rmin (verify's check uses the card's)
+        rmin, where = float(fixed["rmin_mm"]), f"calibration.fixed.rmin_mm {fixed['rmin_mm']:g} mm"
+    else:
+        rmin = max(cfg["ranges"]["rmin_mm"])
+        where = f"ranges.rmin_mm up to {rmin:g} mm"
+    rmax = P.RADIUS_RATIO * rmin
     t = scale * BTS_THICKNESS_MM
     if t >= 6 * rmax:
         return []
     return [f"lab.csv: specimen(s) {given} give bts_MPa, which the closed loop verifies with a "
             f"Brazilian disc at specimen.scale {scale:g}: {scale * BTS_DIAMETER_MM:g} x "
-            f"{t:g} mm, less than 3 ball diameters across for Rmax = {rmax:g} mm (ranges.rmin_mm "
-            f"up to {max(cfg['ranges']['rmin_mm']):g} mm): raise specimen.scale to at least "
-            f"{6 * rmax / BTS_THICKNESS_MM:.3g}, or leave bts_MPa empty"]
+            f"{t:g} mm, less than 3 ball diameters across for Rmax = {rmax:g} mm ({where}): "
+            f"raise specimen.scale to at least {6 * rmax / BTS_THICKNESS_MM:.3g}, or leave "
+            "bts_MPa empty"]
 
 
 def _check_lab(path: Path, key: str) -> list[str]:
