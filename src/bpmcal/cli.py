@@ -250,9 +250,26 @@ def cmd_verify(a) -> int:
                seeds_per_round=a.seeds_per_round, rtol=a.rtol, max_rounds=a.max_rounds,
                cache=a.specimen_cache,
                threads=a.threads, progress=prog, from_unreachable=a.from_unreachable,
+               bts_run=a.bts_run, bts_geometry=_verify_disc(a), bts_settings=_verify_bts(a),
                **_budget(a))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
+
+
+def _verify_disc(a):
+    """The Brazilian disc of the closed loop (a card with a σt target): the --bts-diameter
+    x --bts-thickness disc at --scale, with the cylinder's genesis options."""
+    from .lab.runner import bts_geometry
+
+    return bts_geometry(scale=a.scale, diameter_mm=a.bts_diameter, thickness_mm=a.bts_thickness,
+                        sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
+                        relax_ratio=a.relax_ratio, genesis=a.genesis)
+
+
+def _verify_bts(a):
+    from .lab.brazilian import BTSSettings
+
+    return BTSSettings(**{f: getattr(a, "bts_" + f) for f in _VERIFY_BTS})
 
 
 def cmd_transfer(a) -> int:
@@ -748,6 +765,10 @@ def _add_verify(p):
     _file(p, "--out-card", "output: the verified card")
     _file(p, "--rounds", "output table: one row per DEM round")
     _file(p, "--run", "output: the run file of the best round")
+    p.add_argument("--bts-run", default=None,
+                   help="output (optional): the Brazilian run file of the best round when the "
+                        "card has a tensile-strength target (bts_MPa), else a failure record "
+                        "saying so; the disc is the ISRM 50 x 25 mm one at --scale")
     p.add_argument("--seed", type=SEED, default=d["seed"],
                    help=f"first packing seed of the DEM runs (default {d['seed']})")
     p.add_argument("--seeds-per-round", type=integer("seeds-per-round", 1, 50),
@@ -764,7 +785,41 @@ def _add_verify(p):
                         "(default: do not; the verified card says why)")
     p.add_argument("--quiet", action="store_true")
     add_run_args(p)
+    _add_verify_bts(p)
     p.set_defaults(func=cmd_verify)
+
+
+#: BTSSettings fields of the closed loop's Brazilian test (--bts-FIELD; the study passes
+#: its `bts` section, so σt is measured as for the regression's σt model)
+_VERIFY_BTS = ("platen_velocity", "approach_velocity", "platen_fric", "damping", "stop_drop",
+               "post_peak_min", "max_strain", "record_strain")
+
+
+def _add_verify_bts(p):
+    from .lab.brazilian import BTSSettings
+    from .lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM
+
+    bd = BTSSettings()
+    g = p.add_argument_group("Brazilian test of a card with a tensile-strength target")
+    g.add_argument("--bts-diameter", type=positive("bts-diameter", "mm"),
+                   default=BTS_DIAMETER_MM,
+                   help=f"disc diameter before scaling [mm] (default {BTS_DIAMETER_MM:g})")
+    g.add_argument("--bts-thickness", type=positive("bts-thickness", "mm"),
+                   default=BTS_THICKNESS_MM,
+                   help=f"disc thickness before scaling [mm] (default {BTS_THICKNESS_MM:g})")
+    kinds = {"platen_velocity": number("bts-platen-velocity", 0.0, 100.0, lo_open=True,
+                                       unit="m/s"),
+             "approach_velocity": number("bts-approach-velocity", 0.0, 100.0, unit="m/s"),
+             "platen_fric": number("bts-platen-fric", 0.0, 10.0),
+             "damping": number("bts-damping", 0.0, 1.0, hi_open=True),
+             "stop_drop": fraction("bts-stop-drop"),
+             "post_peak_min": number("bts-post-peak-min", 0.0, 0.5),
+             "max_strain": number("bts-max-strain", 0.0, 0.5, lo_open=True),
+             "record_strain": number("bts-record-strain", 0.0, 0.01, lo_open=True)}
+    for f in _VERIFY_BTS:
+        g.add_argument("--bts-" + f.replace("_", "-"), type=kinds[f], default=getattr(bd, f),
+                       help=f"as `bpmcal bts --{f.replace('_', '-')}` "
+                            f"(default {getattr(bd, f):g})")
 
 
 def _add_transfer(p):

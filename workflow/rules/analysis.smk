@@ -160,6 +160,7 @@ rule verify:
     params:
         v=config["verification"],
         opts=specimen_args(),
+        bts=verify_bts_args(),
         unreachable=(
             ["--from-unreachable"]
             if config["verification"]["from_unreachable"]
@@ -170,7 +171,7 @@ rule verify:
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
         "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
-        "{params.opts:q} > {log:q} 2>&1"
+        "{params.opts:q} {params.bts:q} > {log:q} 2>&1"
 
 
 rule transfer:

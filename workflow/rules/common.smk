@@ -81,6 +81,25 @@ def specimen_args(cfg=config, scale=None):
     return [str(x) for k, v in opts.items() for x in (k, v)]
 
 
+def verify_bts_args(cfg=config):
+    """bpmcal verify's Brazilian options from the bts section: a card with a tensile
+    strength target measures sigma_t in its closed loop as the study's samples did."""
+    b = cfg["bts"]
+    opts = {"--bts-diameter": b["diameter_mm"], "--bts-thickness": b["thickness_mm"]}
+    for f in (
+        "platen_velocity",
+        "approach_velocity",
+        "platen_fric",
+        "damping",
+        "stop_drop",
+        "post_peak_min",
+        "max_strain",
+        "record_strain",
+    ):
+        opts[f"--bts-{f.replace('_', '-')}"] = b[f]
+    return [str(x) for k, v in opts.items() for x in (k, v)]
+
+
 def bts_args(cfg=config):
     """bpmcal bts options of the bts, specimen and resources sections (the disc D x D/2 at
     the specimen scale, packed by the same genesis), as a list of arguments."""

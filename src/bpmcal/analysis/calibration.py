@@ -52,6 +52,26 @@ Inversion (:func:`invert`)
     Multi-start finds separate solutions only if some start lies in each basin; 24 starts
     are ample for the low-order polynomials of the stepwise models.
 
+Tensile strength (σt, ``bts_MPa``)
+    A Brazilian tensile strength among the targets (a ``bts_MPa`` model must exist) is
+    matched like any other target. :func:`bts_strengths` frees the bond-strength ratio for
+    it: ``pb_ten_MPa`` becomes a free parameter beside ``pb_coh_MPa`` (``ratio`` None), so
+    σt, not a configured ratio or the crack-share criterion of the ratio sweep, sets
+    ``a = pb_ten / pb_coh``. The parallel-bond model reaches only a limited σc/σt (about
+    4-8 in Potyondy & Cundall 2004, where rocks show 10-20), so a target set may be out of
+    reach even though every target alone is not. When the fit misses (some |r_k| > tol)
+    and the targets *without* σt are met together by parameter sets inside the bounds,
+    the status is ``"no-exact-fit"`` (never ``"unreachable"``: the card is still a
+    calibration, of the best compromise) and ``reach`` gives the σt interval, and the
+    σc/σt interval, that the models span while they meet the other targets exactly
+    (:func:`_bts_reach`: the smallest and largest σt over that solution set, SLSQP with the
+    other targets as equality constraints, multi-start). The compromise is the minimum of
+    the objective every inversion minimises, Σ_k r_k² with equal weights on the relative
+    residuals (the closed loop's Gauss-Newton step minimises the same sum), so the miss is
+    shared between σt and the targets that pull against it; ``missed`` lists every target
+    with |r_k| > tol, its value, the predicted value and the error in %. No target is
+    dropped: every target stays in the sum and in ``missed``.
+
 Bootstrap (:func:`bootstrap_intervals`)
     Case resampling of the usable dataset rows (n rows drawn with replacement, ``n_boot``
     times, seeded). In each resample every model is refitted by least squares *with the
@@ -112,6 +132,7 @@ PAPER_RATIO = 1.4
 PAPER_FIXED: dict[str, float] = {"porosity": 0.34, "rmin_mm": 0.8}
 DEFAULT_FREE: tuple[str, ...] = ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa")
 _TEN, _COH = "pb_ten_MPa", "pb_coh_MPa"
+BTS = "bts_MPa"  # the Brazilian tensile strength response
 _EDGE = 1e-6  # |u| or |1 - u| below this counts as "on the bound"
 _EXTEND = (2.0, 5.0, 20.0)  # range widths added on each side, in turn, for the "what to widen" search
 
@@ -121,6 +142,22 @@ def _default_free(free: Sequence[str] | None, ratio: float | None) -> tuple[str,
     if free is not None:
         return tuple(free)
     return DEFAULT_FREE if ratio is not None else DEFAULT_FREE + (_TEN,)
+
+
+def bts_strengths(targets: Mapping[str, float], free: Sequence[str] | None, fixed: Mapping[str, float],
+                  ratio: float | None) -> tuple[tuple[str, ...] | None, float | None, str]:
+    """The free parameters and ratio of a calibration against ``targets``: with a tensile
+    strength target (``bts_MPa``) σt sets the bond-strength ratio, so ``pb_ten_MPa`` is
+    freed beside ``pb_coh_MPa`` and the ratio is None; without it ``free`` and ``ratio``
+    are returned unchanged. The third value says where the ratio comes from: ``"bts_MPa"``
+    or ``"ratio"`` (the given one: configured, or the ratio sweep's choice).
+    ``pb_ten_MPa`` fixed by the user keeps σt a plain target (``"ratio"``)."""
+    if BTS not in targets or _TEN in fixed:
+        return (tuple(free) if free is not None else None), ratio, "ratio"
+    base = tuple(free) if free is not None else DEFAULT_FREE
+    if _TEN not in base:
+        base = base + (_TEN,)
+    return base, None, BTS
 
 
 class _Space:
@@ -400,6 +437,14 @@ class InversionResult:
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     widen: list[dict] = field(default_factory=list)
     advice: str = ""
+    reach: dict = field(default_factory=dict)  # σt / σc/σt spans when σt misses (see the module doc)
+
+    @property
+    def missed(self) -> list[dict]:
+        """Every target the solution misses by more than ``tol``: target, value, predicted,
+        error_pct (100 × relative residual), in the order of the targets."""
+        return [{"target": r, "value": self.targets[r], "predicted": self.predicted[r],
+                 "error_pct": 100 * v} for r, v in self.residuals.items() if abs(v) > self.tol]
 
     @property
     def ok(self) -> bool:
@@ -616,7 +661,7 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
     diagnose:
         For ``unreachable`` and ``no-exact-fit``, search the extrapolated regression for
         which configured limit to widen and how far (``widen``, ``advice``; costs one more
-        multi-start).
+        multi-start), and with a σt target the spans the models reach (``reach``).
     """
     space = _Space(free, fixed, ratio, ranges, bounds)
     responses, t = _check_targets(targets, models)
@@ -649,6 +694,27 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
     if not reachable and diagnose:
         widen, advice = _what_to_widen(space, models, responses, t, space.x(best_u), tol, n_starts,
                                        seed + 1)
+    reach: dict = {}
+    joint = ""  # the σt target set is out of reach although the other targets are not
+    if not reachable and BTS in responses and len(responses) > 1:
+        others = [r for r in responses if r != BTS]
+        t_other = np.array([t[responses.index(r)] for r in others])
+        sub = _fit(space, models, others, t_other, space.lo, space.hi, [space.x(best_u)], n_starts,
+                   seed + 2)
+        if sub[0][1] <= tol:
+            reach = _bts_reach(space, models, others, t_other, tol,
+                               [f[2] for f in sub if f[1] <= tol], seed + 3) if diagnose else {}
+            t_bts = float(t[responses.index(BTS)])
+            span = (f"while meeting {', '.join(others)} the models give σt in "
+                    f"[{reach['bts_MPa'][0]:.4g}, {reach['bts_MPa'][1]:.4g}] MPa"
+                    + (f" (σc/σt in [{reach['ucs_over_bts'][0]:.3g}, {reach['ucs_over_bts'][1]:.3g}])"
+                       if "ucs_over_bts" in reach else "")
+                    if reach else f"{', '.join(others)} are met together inside the bounds")
+            target_ratio = (f", σc/σt = {targets['ucs_MPa'] / t_bts:.3g}" if "ucs_MPa" in responses
+                            else "")
+            joint = (f"the target set cannot be met at once: σt = {t_bts:g} MPa{target_ratio} is "
+                     f"outside what the parallel-bond models reach ({span})")
+    missed = "; ".join(f"{r} {100 * v:+.2f} %" for r, v in zip(responses, best_r) if abs(v) > tol)
     if reachable and len(kept) == 1:
         status, message = "ok", f"targets met within {tol:g} (relative): {_fmt_pct(responses, best_r)}"
     elif reachable:
@@ -657,6 +723,13 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
         status = "non-unique"
         message = (f"{len(kept)} distinct parameter sets meet the targets within {tol:g}{extra}; "
                    "see alternatives (the best-fitting one is returned)")
+    elif joint:
+        where = ", ".join(space.edge_text(p, side, v) for p, side, v in edges)
+        status = "no-exact-fit"
+        message = (f"{joint}. The card keeps the best compromise (least squares of the relative "
+                   f"residuals, equal weights){' with ' + where if where else ''}; targets missed: "
+                   f"{missed} (relative residuals {_fmt_pct(responses, best_r)}, tol {tol:g})."
+                   + (f" {advice}" if advice else ""))
     elif edges:
         where = ", ".join(space.edge_text(p, side, v) for p, side, v in edges)
         status = "unreachable"
@@ -675,7 +748,60 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
         residuals=dict(zip(responses, best_r.tolist())),
         bounds=space.bounds(),
         at_bound=edges, alternatives=alternatives, starts=start_frame, tol=tol,
-        bound_origins=space.bound_origins(), ranges=dict(space.ranges), widen=widen, advice=advice)
+        bound_origins=space.bound_origins(), ranges=dict(space.ranges), widen=widen, advice=advice,
+        reach=reach)
+
+
+def _bts_reach(space: _Space, models, others: Sequence[str], t_other: np.ndarray, tol: float,
+               x_starts: Sequence[np.ndarray], seed: int, n_starts: int = 8) -> dict:
+    """The smallest and largest σt (and σc/σt) the models give over the parameter sets
+    inside the bounds that meet the ``others`` targets (relative residuals <= ``tol``):
+    SLSQP in the unit cube with those residuals as equality constraints, from the given
+    solutions and ``n_starts`` Latin-hypercube points. ``{}`` if no start converges."""
+    from scipy.optimize import minimize
+
+    lo, width = space.lo, space.width
+    scale = np.abs(t_other)
+    m_bts = models[BTS]
+
+    def point(u):
+        return space.full(lo + np.clip(u, 0.0, 1.0) * width)
+
+    def cons(u):
+        p = point(u)
+        return np.array([models[r].predict(p) for r in others]) - t_other
+
+    def cons_jac(u):
+        return space.jacobian(models, others, lo + np.clip(u, 0.0, 1.0) * width) * width
+
+    def bts(u):
+        return float(m_bts.predict(point(u)))
+
+    def bts_grad(u):
+        return space.jacobian(models, [BTS], lo + np.clip(u, 0.0, 1.0) * width)[0] * width
+
+    starts = [space.u(x) for x in x_starts] + list(_lhs(n_starts, len(space.free), seed))
+    found = []
+    for sign in (1.0, -1.0):
+        for u0 in starts:
+            sol = minimize(lambda u: sign * bts(u), np.clip(u0, 0, 1), jac=lambda u: sign * bts_grad(u),
+                           method="SLSQP", bounds=[(0.0, 1.0)] * len(space.free),
+                           constraints=[{"type": "eq", "fun": cons, "jac": cons_jac}],
+                           options={"maxiter": 300, "ftol": 1e-12})
+            u = np.clip(sol.x, 0.0, 1.0)
+            if np.max(np.abs(cons(u)) / scale) <= tol:
+                p = point(u)
+                found.append((bts(u), float(models["ucs_MPa"].predict(p)) if "ucs_MPa" in models
+                              and "ucs_MPa" in others else math.nan))
+    if not found:
+        return {}
+    v = np.array(found)
+    out = {"bts_MPa": [float(v[:, 0].min()), float(v[:, 0].max())],
+           "met": list(others)}
+    if np.all(np.isfinite(v[:, 1])) and np.all(v[:, 0] > 0):
+        q = v[:, 1] / v[:, 0]
+        out["ucs_over_bts"] = [float(q.min()), float(q.max())]
+    return out
 
 
 # -- bootstrap ------------------------------------------------------------------------------
@@ -1108,5 +1234,5 @@ def seed_scatter(sims: pd.DataFrame | Sequence[Mapping[str, float]], rtol: float
     return pd.DataFrame.from_records(recs).set_index("response")
 
 
-__all__ = ["PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "InversionResult", "invert", "BootstrapResults",
-           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "seed_scatter"]
+__all__ = ["PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "BTS", "bts_strengths", "InversionResult", "invert",
+           "BootstrapResults", "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "seed_scatter"]

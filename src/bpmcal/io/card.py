@@ -11,15 +11,23 @@ Format 1 (keys in this order; paper units)::
     card_format: 1
     specimen            the lab specimen's name
     status, message     the inversion's outcome (ok | non-unique | no-exact-fit | unreachable)
-    ratio_ten_coh       the bond-strength ratio pb_ten/pb_coh used (null: both free)
+    ratio_ten_coh       the bond-strength ratio pb_ten/pb_coh used (null: both free, as when
+                        the lab's tensile strength sets it)
+    strength_ratio      value: pb_ten/pb_coh of ``parameters``; set_by: bts_MPa target |
+                        ratio sweep | config calibration.ratio | both strengths free
     parameters          the 8 meso-parameters (the regression's answer)
     roles               free | derived | fixed, per parameter
     ranges              the design space (the config's ranges)
     calibration_bounds  the config's calibration.bounds
     bounds              effective bounds of the calibrated parameters, and where each comes from
     at_bound, widen, advice   what stops the fit and what to widen
-    targets, lab        the lab values calibrated against, and the whole lab row
+    targets, lab        the lab values calibrated against (σc, E, ν, and σt = bts_MPa when the
+                        lab row gives it), and the whole lab row
     predicted, residuals_pct  the regression's responses at ``parameters``
+    missed              every target missed by more than the inversion's tolerance: target,
+                        value, predicted, error_pct (empty when all are met)
+    reach               for a no-exact-fit with σt: the σt and σc/σt spans the models reach
+                        while they meet the other targets
     alternatives        other solutions that fit as well
     bootstrap           n_boot, scheme and the 95 % intervals
     dataset_note        how many samples the regression used
@@ -27,10 +35,16 @@ Format 1 (keys in this order; paper units)::
     verification        (verified cards) status, message, rounds, rtol, seed, best_round,
                         single_pass and closed_loop responses, the closed loop's parameters,
                         geometry, widen; per round shown the seed mean of every
-                        response, seed_sd, seed_cv and n_seeds
+                        response, seed_sd, seed_cv and n_seeds; missed (every target the
+                        best round misses by more than rtol: target, value, dem,
+                        error_pct); bts_geometry (with σt)
     calibrated_at_scale (verified cards) the specimen scale the parameters were last fitted at
     transfer            (transferred cards, ``bpmcal transfer``) status, rounds, scale,
                         tolerance_pct, at_transfer and final responses, parameters
+
+Keys added within format 1 (``strength_ratio``, ``missed``, ``reach``,
+``verification.missed``, ``verification.bts_geometry``) are optional for readers: cards
+written before them stay readable.
 
 A card without ``card_format`` (bpmcal before this format was versioned) or of a newer
 format is refused with a message that says what to do (:class:`CardError`).

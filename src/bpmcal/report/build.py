@@ -331,6 +331,15 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
             rows.append(row + [card["status"]])
         if card["status"] != "ok":
             notes.append(f"- **{spec}: {card['status']}** — {card['message']}")
+        sr = card.get("strength_ratio") or {}
+        if sr.get("set_by") == "bts_MPa target":
+            notes.append(f"- {spec}: the lab tensile strength σt = {_f(card['targets']['bts_MPa'])} "
+                         f"MPa sets the bond-strength ratio: {_f(sr['value'])} (not the ratio "
+                         "in the title)")
+        for m in card.get("missed") or []:
+            notes.append(f"- {spec}: target {m['target']} missed by the calibration: lab "
+                         f"{_f(m['value'])}, regression {_f(m['predicted'])} "
+                         f"({_f(m['error_pct'], '+.2f')} %)")
     chosen = Path(lay.sweep_chosen)
     sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
     ratio = (json.loads(chosen.read_text())["chosen_ratio"] if sweep and chosen.exists()
@@ -370,8 +379,12 @@ def _verification(lay, comp, ref=False) -> str:
         ran = r.get("status") != "not-run"
         if not ran:
             notes.append(f"- **{spec}: closed loop not run** — {r.get('note', '')}")
-        for k in P.TARGETS:
-            if th and ran:
+        bts = "lab_bts_MPa" in t5.columns and pd.notna(r.get("lab_bts_MPa"))  # σt a target
+        if ran and isinstance(r.get("missed"), str) and r["missed"]:
+            notes.append(f"- **{spec}: target(s) missed by the closed loop** — {r['missed']} "
+                         "(error of the DEM in % of the lab value; no target is left out)")
+        for k in (*P.TARGETS, "bts_MPa") if bts else P.TARGETS:
+            if th and ran and k in P.TARGETS:
                 _cmp(comp, "Table 5", f"{spec} {k}, DEM (closed loop vs paper's PFC3D)",
                      r[f"closed_loop_{k}"], th[k], P.RESPONSES[k].unit)
                 _cmp(comp, "Table 5", f"{spec} {k} error % (closed loop vs paper)",
@@ -385,7 +398,8 @@ def _verification(lay, comp, ref=False) -> str:
                 row = [spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]), "not run", "", "not run", "",
                        ""]
             if ref:
-                row += [_f(th[k]) if th else "–", _f(th["err_pct"][k], ".2f") if th else "–"]
+                row += ([_f(th[k]) if th else "–", _f(th["err_pct"][k], ".2f") if th else "–"]
+                        if k in P.TARGETS else ["–", "–"])
             rows.append(row)
     header = ["specimen", "response", "lab", "DEM, single pass", "error", "DEM, closed loop", "error",
               "seeds"]

@@ -39,7 +39,7 @@ from ..analysis import (
 )
 from ..analysis import seed_scatter as scatter_table
 from ..analysis._common import usable_rows
-from ..analysis.calibration import check_calibration_space
+from ..analysis.calibration import BTS, bts_strengths, check_calibration_space
 from ..analysis.screening import combine as combine_screenings
 from ..analysis.stepwise import combine as combine_regressions
 from ..io.atomic import write_text
@@ -49,8 +49,10 @@ from ..io.figures import save_figure
 from ..io.h5 import read_series
 from ..io.provenance import provenance
 from ..io.tables import write_json, write_table
+from ..lab.brazilian import BTSSettings
 from ..lab.budget import check_budget
-from ..lab.runner import ucs_inputs
+from ..lab.runner import bts_geometry as _isrm_disc
+from ..lab.runner import bts_inputs, ucs_inputs
 from ..plots.calibration import fig_importance, fig_pred_vs_sim, fig_stress_strain
 from ..study.gather import has_tensile, tensile_view
 from . import defaults_of
@@ -69,7 +71,7 @@ from .inputs import (
     read_models,
     usable,
 )
-from .runs import run_ucs_file, write_failure
+from .runs import run_bts_file, run_ucs_file, write_failure
 
 #: the defaults of the stages are those of the analyses they run
 _SCREEN, _REGR, _LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
@@ -238,7 +240,17 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
     Every card records the configured ``ranges``, the effective ``bounds`` of the calibrated
     parameters with the configured key each side comes from, and, when the targets are not
     met, ``widen``: which configured limit to move and how far (see
-    :func:`bpmcal.analysis.invert`). Returns the table and a note on the ratio."""
+    :func:`bpmcal.analysis.invert`). Returns the table and a note on the ratio.
+
+    A specimen whose lab row gives ``bts_MPa`` is also calibrated against σt (a ``bts_MPa``
+    model in ``models`` is then required): σt sets its bond-strength ratio
+    (:func:`bpmcal.analysis.calibration.bts_strengths`: ``pb_ten_MPa`` free, the card's
+    ``ratio_ten_coh`` null), instead of ``ratio`` or the sweep's choice. When the set of
+    targets cannot be met at once (e.g. a σc/σt beyond the parallel-bond model's) the card
+    is ``no-exact-fit``, keeps the least-squares compromise and lists every missed target
+    (``missed``: target, value, predicted, error_pct) and what the models reach (``reach``).
+    Every card records ``strength_ratio``: the ratio pb_ten/pb_coh of its parameters and
+    what set it. A lab row without σt is calibrated exactly as before."""
     lab_df = read_lab(lab)
     specs = [str(s) for s in lab_df["specimen"]]
     by_spec = {Path(c).stem: c for c in cards}
@@ -266,19 +278,37 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
             raise BadInput(f"{name}: expected a JSON mapping of parameter name to "
                            f"[low, high] (paper units), got {val!r}")
     check_calibration_space(free, fixed, ratio, ranges, bounds)
+    jobs = [(rec, lab_targets(rec)) for rec in lab_df.to_dict("records")]
+    with_bts = [str(rec["specimen"]) for rec, t in jobs if BTS in t]
+    if with_bts:  # σt sets the ratio of these specimens: their space must be valid too
+        f_bts, r_bts, _ = bts_strengths({BTS: 1.0}, free, fixed, ratio)
+        check_calibration_space(f_bts, fixed, r_bts, ranges, bounds)
     df = read_dataset(dataset)
     model_set = read_models(models)
+    if with_bts:
+        if BTS not in model_set:
+            raise BadInput(f"--lab {lab}: specimen(s) {with_bts} have a tensile strength "
+                           f"(bts_MPa) but --models {models} has no model of bts_MPa: run the "
+                           "study with a Brazilian test per sample, or leave bts_MPa empty")
+        if n_boot and BTS not in df.columns:
+            raise BadInput(f"--dataset {dataset}: no bts_MPa column, which the bootstrap of "
+                           f"the tensile-strength target of {with_bts} refits")
     outputs(*((c, "--cards", YAML) for c in cards), (table, "--table", CSV))
     dnote = usable(df)
+    if with_bts:
+        note = "; ".join(x for x in (note, (
+            f"the tensile strength (bts_MPa) sets the bond-strength ratio of {with_bts} "
+            "(pb_ten_MPa free; the configured or swept ratio is not used for them)")) if x)
     rows = []
-    for rec in lab_df.to_dict("records"):
+    for rec, targets in jobs:
         spec = str(rec["specimen"])
-        targets = {k: float(rec[k]) for k in P.TARGETS}
-        inv = invert(model_set, targets, fixed, free=free, bounds=bounds, ratio=ratio,
+        s_free, s_ratio, ratio_by = bts_strengths(targets, free, fixed, ratio)
+        inv = invert(model_set, targets, fixed, free=s_free, bounds=bounds, ratio=s_ratio,
                      ranges=ranges, seed=seed)
         if n_boot:
-            boot = bootstrap_intervals(df, model_set, targets, fixed, free=free, bounds=bounds,
-                                       ratio=ratio, ranges=ranges, n_boot=n_boot, seed=seed)
+            boot = bootstrap_intervals(df, model_set, targets, fixed, free=s_free,
+                                       bounds=bounds, ratio=s_ratio, ranges=ranges,
+                                       n_boot=n_boot, seed=seed)
             bootstrap = {"n_boot": n_boot, "scheme": boot.scheme,
                          "unreachable_resamples": boot.n_unreachable,
                          "intervals": boot.intervals.reset_index().to_dict("records")}
@@ -289,7 +319,13 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
             "specimen": spec,
             "status": inv.status,
             "message": inv.message,
-            "ratio_ten_coh": ratio,
+            "ratio_ten_coh": s_ratio,
+            "strength_ratio": {
+                "value": float(inv.solution["pb_ten_MPa"] / inv.solution["pb_coh_MPa"]),
+                "set_by": ("bts_MPa target" if ratio_by == BTS else
+                           "ratio sweep" if ratio_from and not note_is_fallback(note)
+                           else "config calibration.ratio" if s_ratio is not None
+                           else "both strengths free")},
             "parameters": {k: float(inv.solution[k]) for k in P.PARAMS},
             "roles": {k: ("free" if k in inv.free else "derived" if k in inv.derived
                           else "fixed") for k in P.PARAMS},
@@ -306,6 +342,8 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
                     for k, v in rec.items() if k != "specimen"},
             "predicted": inv.predicted,
             "residuals_pct": {k: 100 * v for k, v in inv.residuals.items()},
+            "missed": inv.missed,
+            "reach": inv.reach,
             "alternatives": inv.alternatives.to_dict("records"),
             "bootstrap": bootstrap,
             "dataset_note": dnote,
@@ -322,6 +360,22 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
     return {"table": out, "note": note}
 
 
+def lab_targets(rec: dict) -> dict:
+    """The calibration targets of one lab row: σc, E, ν, and σt (``bts_MPa``) when the
+    row gives it (an empty optional value is not a target)."""
+    targets = {k: float(rec[k]) for k in P.TARGETS}
+    v = rec.get(BTS)
+    if v is not None and math.isfinite(float(v)):
+        targets[BTS] = float(v)
+    return targets
+
+
+def note_is_fallback(note: str) -> bool:
+    """Whether :func:`chosen_ratio`'s note says the sweep chose no ratio (the configured
+    one was used)."""
+    return "the sweep chose no ratio" in note
+
+
 # ------------------------------------------------------------------------ verification
 #: responses a verified card records per round besides the targets
 _EXTRA = ("u_pre_MJm3", "peak_strain", "cracks_tension", "cracks_shear")
@@ -331,13 +385,14 @@ def _responses(rows: list[dict], targets: dict) -> dict:
     """The seed mean of every response over the runs of one round (``rows``: one summary
     per seed), its seed spread (``seed_sd``, ``seed_cv``: sample standard deviation and
     coefficient of variation, NaN with one seed), ``n_seeds`` and the errors of the mean
-    in % of the lab value."""
+    in % of the lab value. σt (``bts_MPa``) is among them when it is a target."""
     ok = [r for r in rows if r.get("status") == "ok"]
+    scattered = [*P.TARGETS, *([BTS] if BTS in targets else [])]
     d, sd, cv = {}, {}, {}
-    for k in [*P.TARGETS, *_EXTRA]:
+    for k in [*scattered, *_EXTRA]:
         v = np.array([float(r.get(k, math.nan)) for r in ok], float)
         d[k] = float(v.mean()) if len(v) else math.nan
-        if k in P.TARGETS:
+        if k in scattered:
             sd[k] = float(v.std(ddof=1)) if len(v) > 1 else math.nan
             cv[k] = sd[k] / abs(d[k]) if len(v) > 1 and d[k] != 0 else math.nan
     d["errors_pct"] = {k: 100 * (d[k] / v - 1) for k, v in targets.items()}
@@ -348,15 +403,33 @@ def _responses(rows: list[dict], targets: dict) -> dict:
     return d
 
 
+def _missed(resp: dict, targets: dict, rtol: float) -> list[dict]:
+    """Every target the DEM misses by more than ``rtol``: target, value, dem, error_pct."""
+    return [{"target": k, "value": v, "dem": resp[k], "error_pct": resp["errors_pct"][k]}
+            for k, v in targets.items()
+            if not abs(resp["errors_pct"][k]) <= 100 * rtol]  # NaN (a failed run) is missed
+
+
+def disc_geometry(geometry):
+    """The Brazilian disc (ISRM 50 x 25 mm) at the scale and with the genesis options of
+    the UCS cylinder ``geometry``."""
+    return _isrm_disc(scale=geometry.scale, sigma0_MPa=geometry.sigma0_MPa,
+                      install_gap_mm=geometry.install_gap_mm,
+                      relax_ratio=geometry.relax_ratio, genesis=geometry.genesis)
+
+
 def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, geometry,
               settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
-              free=None):
-    """The closed loop of the UCS responses on ``seeds`` (every round runs each seed into
-    a temporary file; the first seed's run file of the best round becomes ``run``).
+              free=None, disc=None, bts_settings=None, bts_run=None):
+    """The closed loop on ``seeds`` (every round runs each seed into a temporary file: the
+    UCS test and, when σt is a target, the Brazilian test on ``disc`` with the same seed;
+    the first seed's run files of the best round become ``run`` and ``bts_run``).
     Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
     ratio = c.get("ratio_ten_coh")
+    with_bts = BTS in targets
     by_round: list[list[dict]] = []
     paths: list[list[Path]] = []
+    bts_paths: list[list[Path]] = []
     folder = Path(run).parent
     tmpdir = tempfile.mkdtemp(prefix=f".{Path(run).stem}.rounds.", dir=folder)
     try:
@@ -364,15 +437,26 @@ def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
             if not by_round or len(by_round[-1]) == len(seeds):
                 by_round.append([])
                 paths.append([])
+                bts_paths.append([])
             k = len(by_round)
             res = run_ucs_file(Path(tmpdir) / f"round{k}_seed{seed}.h5", params, seed,
                                geometry, settings, cache=cache, threads=threads,
                                progress=progress, genesis_max_steps=genesis_max_steps)
-            by_round[-1].append(dict(res.summary, status=res.status, seed=seed))
+            row = dict(res.summary, status=res.status, seed=seed)
             paths[-1].append(res.path)
-            if res.status != "ok":
-                return {r: float("nan") for r in targets}
-            return {r: float(res.summary[r]) for r in targets}
+            out = ({r: float(res.summary[r]) for r in targets if r != BTS}
+                   if res.status == "ok" else {r: math.nan for r in targets if r != BTS})
+            if with_bts:
+                b = run_bts_file(Path(tmpdir) / f"round{k}_seed{seed}.bts.h5", params, seed,
+                                 disc, bts_settings, cache=cache, threads=threads,
+                                 progress=progress, genesis_max_steps=genesis_max_steps)
+                bts_paths[-1].append(b.path)
+                row[BTS] = float(b.summary[BTS]) if b.status == "ok" else math.nan
+                if b.status != "ok":
+                    row["status"] = "failed"
+                out[BTS] = row[BTS]
+            by_round[-1].append(row)
+            return out
 
         free = free or [k for k, v in c["roles"].items() if v == "free"]
         loop = ClosedLoop(simulate, targets, free=free, ratio=ratio, models=model_set,
@@ -384,6 +468,8 @@ def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                             errors="coerce").to_numpy(float)
         best = int(np.nanargmin(err)) if np.isfinite(err).any() else len(by_round) - 1
         os.replace(paths[best][0], run)  # the best round's first seed is the run file
+        if bts_run is not None and with_bts:
+            os.replace(bts_paths[best][0], bts_run)
     finally:
         for f in Path(tmpdir).glob("*"):
             f.unlink()
@@ -394,7 +480,8 @@ def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
 def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            seeds_per_round=3, rtol=_LOOP["rtol"], max_rounds=_LOOP["max_rounds"], cache=None,
            threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
-           mem_budget_mb=None, genesis_max_steps=None) -> dict:
+           mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
+           bts_run=None) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -418,7 +505,17 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     ``from_unreachable`` (config ``verification.from_unreachable``) the DEM is not run, the
     verified card says so (``verification.status: not-run`` with the reason and what to
     widen), ``rounds`` has its header only and ``run`` is a failure record ("not run: ...").
-    Returns the verified card."""
+    Returns the verified card.
+
+    Every target of the card is verified: a card with a tensile-strength target
+    (``bts_MPa``) runs, in every round, a Brazilian test beside the UCS test (the same
+    packing seed; the disc ``bts_geometry``, default the ISRM disc at the cylinder's scale
+    and genesis options, :func:`disc_geometry`; loading ``bts_settings``, default
+    ``BTSSettings()``), and the loop steers σt with the other responses; ``bts_run``
+    (optional) receives the best round's Brazilian run file (a failure record when the
+    card has no σt target). The verified card lists every target the best round misses by
+    more than ``rtol`` (``verification.missed``: target, lab value, DEM value, error in %);
+    it is empty only when all are met."""
     c = read_card(card, "--card", need=("parameters", "targets", "roles"))
     if "ranges" not in c:
         raise P.ParameterError(f"--card {card}: the card has no 'ranges' (the design space); "
@@ -427,12 +524,32 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             or seeds_per_round < 1:
         raise BadInput(f"--seeds-per-round {seeds_per_round!r}: expected an integer >= 1")
     model_set = read_models(models)
+    targets = {k: float(v) for k, v in c["targets"].items()}
+    with_bts = BTS in targets
+    disc = bts_geometry or disc_geometry(geometry)
+    bts_settings = bts_settings or BTSSettings()
+    if with_bts and BTS not in model_set:
+        raise BadInput(f"--card {card}: a tensile-strength target (bts_MPa) but --models "
+                       f"{models} has no model of bts_MPa")
+    if with_bts:  # the disc must hold 3 of the largest balls across, for every round
+        rmin = (max(c["ranges"]["rmin_mm"]) if c["roles"].get("rmin_mm") == "free"
+                else float(c["parameters"]["rmin_mm"]))
+        rmax = P.RADIUS_RATIO * rmin
+        dd, tt = disc.diameter_mm * disc.scale, disc.height_mm * disc.scale
+        if min(dd, tt) < 6 * rmax:
+            raise BadInput(f"--card {card}: a tensile-strength target (bts_MPa), but the "
+                           f"Brazilian disc at scale {disc.scale:g} ({dd:g} x {tt:g} mm) is "
+                           f"less than 3 ball diameters across for Rmax = {rmax:g} mm: use "
+                           "a larger --scale")
     if max_balls is not None:
         check_budget(c["parameters"], geometry, max_balls=max_balls,
                      mem_budget_mb=mem_budget_mb)
-    outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5))
+        if with_bts:
+            check_budget(c["parameters"], disc, max_balls=max_balls,
+                         mem_budget_mb=mem_budget_mb)
+    outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5),
+            (bts_run, "--bts-run", H5))
     output_dirs((cache, "--specimen-cache"))
-    targets = {k: float(v) for k, v in c["targets"].items()}
     seeds = [int(seed) + i for i in range(seeds_per_round)]
     if c.get("status") == "unreachable" and not from_unreachable:
         reason = ("the calibration is unreachable, so the closed loop did not start from it "
@@ -441,6 +558,10 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         write_failure(run, test="ucs", inputs=ucs_inputs(c["parameters"], seed, geometry,
                                                           settings),
                       error=f"not run: {reason}")
+        if bts_run is not None:
+            write_failure(bts_run, test="bts",
+                          inputs=bts_inputs(c["parameters"], seed, disc, bts_settings),
+                          error=f"not run: {reason}")
         verified = dict(c)
         verified["verification"] = {
             "status": "not-run", "message": reason, "rounds": 0, "rtol": rtol, "seed": seed,
@@ -452,7 +573,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     res, by_round, best = _ucs_loop(
         c, model_set, targets, params=c["parameters"], run=run, seeds=seeds,
         geometry=geometry, settings=settings, rtol=rtol, max_rounds=max_rounds, cache=cache,
-        threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free)
+        threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
+        disc=disc, bts_settings=bts_settings, bts_run=bts_run)
     write_table(res.history, rounds, index=False)
     message = res.message
     if c.get("status") == "unreachable":
@@ -471,7 +593,15 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             "parameters": {k: float(v) for k, v in res.params.items() if k in P.PARAMS},
             "geometry": geometry.to_dict(),
         }})
+    v = verified["verification"]
+    v["missed"] = _missed(v["closed_loop"], targets, rtol)
+    if with_bts:
+        v["bts_geometry"] = disc.to_dict()
     write_card(out_card, verified)
+    if bts_run is not None and not with_bts:
+        write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
+                                                             bts_settings),
+                      error="not run: the card has no tensile-strength target (bts_MPa)")
     return verified
 
 
@@ -527,7 +657,8 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         c, model_set, targets, params=params, run=run, seeds=[int(seed)],
         geometry=geometry, settings=settings, rtol=tol, max_rounds=1 + max_rounds,
         cache=cache, threads=threads, progress=progress,
-        genesis_max_steps=genesis_max_steps)
+        genesis_max_steps=genesis_max_steps, disc=disc_geometry(geometry),
+        bts_settings=BTSSettings())  # a σt target: the ISRM disc at the transfer's scale
     write_table(res.history, rounds, index=False)
     if res.status == "converged":
         status = "within-scatter" if len(by_round) == 1 else "corrected"
@@ -619,7 +750,10 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
     (single pass and closed loop), its seed standard deviation (``_sd``) and CV
     (``_cv_pct``), the error of the mean and ``n_seeds``. A card whose closed loop did not run
     (``not-run``) keeps its row, with empty responses, status ``not-run`` and the reason in
-    ``note``; its Fig. 6 panel says why it has no curve."""
+    ``note``; its Fig. 6 panel says why it has no curve. When some card has a tensile
+    strength target, Table 5 also has the σt columns (empty for the specimens without
+    one) and ``missed``: every target the closed loop misses by more than its tolerance,
+    with the error in %."""
     if len(runs) != len(cards):
         raise BadInput(f"--runs: {len(runs)} run file(s) for {len(cards)} card(s); expected "
                        "one per card, in the same order")
@@ -628,6 +762,7 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
     lab_df = read_lab(lab)
     outputs((table5, "--table5", CSV), (table6, "--table6", CSV), (figure, "--figure", PNG))
     t5, t6, curves = [], [], {}
+    any_bts = any(BTS in c["targets"] for c in loaded)
     for c, run in zip(loaded, runs):
         spec = str(c["specimen"])
         v = c["verification"]
@@ -637,10 +772,10 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
             r = v[which] if ran else None
             for k in P.TARGETS:
                 row[f"{which}_{k}"] = r[k] if ran else math.nan
-                row[f"{which}_{k}_sd"] = (r.get("seed_sd") or {}).get(k, math.nan) if ran \
-                    else math.nan
-                row[f"{which}_{k}_cv_pct"] = 100 * (r.get("seed_cv") or {}).get(k, math.nan) \
-                    if ran else math.nan
+                sd = (r.get("seed_sd") or {}).get(k) if ran else None
+                cv = (r.get("seed_cv") or {}).get(k) if ran else None  # None: one seed (NaN)
+                row[f"{which}_{k}_sd"] = math.nan if sd is None else float(sd)
+                row[f"{which}_{k}_cv_pct"] = math.nan if cv is None else 100 * float(cv)
                 row[f"{which}_{k}_err_pct"] = r["errors_pct"][k] if ran else math.nan
         for k in P.TARGETS:
             row[f"lab_{k}"] = c["targets"][k]
@@ -649,6 +784,15 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
         row["status"] = v["status"]
         row["calibration_status"] = c.get("status")
         row["note"] = "" if ran else v["message"]
+        if any_bts:
+            has = BTS in c["targets"]
+            for which in ("single_pass", "closed_loop"):
+                row[f"{which}_{BTS}"] = v[which][BTS] if ran and has else math.nan
+                row[f"{which}_{BTS}_err_pct"] = (v[which]["errors_pct"][BTS] if ran and has
+                                                 else math.nan)
+            row[f"lab_{BTS}"] = c["targets"][BTS] if has else math.nan
+            row["missed"] = "; ".join(f"{m['target']} {m['error_pct']:+.2f} %"
+                                      for m in v.get("missed") or [])
         t5.append(row)
         up_lab = c["lab"].get("u_pre_MJm3")
         up_sim = v["closed_loop"]["u_pre_MJm3"] if ran else math.nan

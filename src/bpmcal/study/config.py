@@ -122,6 +122,7 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
                         "enlarge bts.diameter_mm and bts.thickness_mm or set bts.enabled: false")
     msgs.extend(_budget_checks(cfg))
     msgs.extend(_sweep_checks(cfg))
+    msgs.extend(_check_bts_disc(cfg, base))
     if not path_problem(cfg["lab"]["csv"]):
         lab = base / cfg["lab"]["csv"]
         if not lab.is_file():
@@ -253,7 +254,9 @@ def _check_reference(cfg: dict, lab: Path) -> list[str]:
 
 
 LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
-LAB_OPTIONAL = ("u_pre_MJm3",)
+#: optional columns: empty = not given for that specimen; ``bts_MPa`` (Brazilian tensile
+#: strength) makes σt a calibration target of that specimen (``stages.analysis.calibrate``)
+LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa")
 
 
 def lab_problems(df, key: str) -> list[str]:
@@ -312,6 +315,50 @@ def read_lab(path):
             ValueError) as e:
         raise ConfigError(f"lab.csv: cannot read {str(path)!r}: "
                           f"{' '.join(str(e).split())[:200]}") from None
+
+
+def _check_bts_disc(cfg: dict, base: Path) -> list[str]:
+    """A lab tensile strength (``bts_MPa``) is verified with the study's Brazilian disc
+    (``bts.diameter_mm`` x ``bts.thickness_mm``, default ISRM 50 x 25 mm) at
+    ``specimen.scale`` (``stages.analysis.verify``): it must hold 3 of the largest balls
+    across its thickness, or the closed loop would stop after its first UCS run."""
+    import pandas as pd
+
+    lab = base / cfg["lab"]["csv"]
+    if path_problem(cfg["lab"]["csv"]) or not lab.is_file():
+        return []  # reported by the lab checks
+    try:
+        df = read_lab(lab)
+    except ConfigError:
+        return []  # reported by the lab checks
+    if "bts_MPa" not in df.columns:
+        return []
+    given = [str(s) for s, v in zip(df["specimen"], pd.to_numeric(df["bts_MPa"], errors="coerce"))
+             if math.isfinite(v)]
+    if not given:
+        return []
+    from ..lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM
+
+    disc = cfg.get("bts") or {}
+    dia = float(disc.get("diameter_mm", BTS_DIAMETER_MM))
+    thick = float(disc.get("thickness_mm", BTS_THICKNESS_MM))
+    scale = cfg["specimen"]["scale"]
+    fixed = (cfg.get("calibration") or {}).get("fixed") or {}
+    if "rmin_mm" in fixed:  # the cards' Rmin (verify's check uses the card's)
+        rmin, where = float(fixed["rmin_mm"]), f"calibration.fixed.rmin_mm {fixed['rmin_mm']:g} mm"
+    else:
+        rmin = max(cfg["ranges"]["rmin_mm"])
+        where = f"ranges.rmin_mm up to {rmin:g} mm"
+    rmax = P.RADIUS_RATIO * rmin
+    t = scale * thick
+    if t >= 6 * rmax:
+        return []
+    return [f"lab.csv: specimen(s) {given} give bts_MPa, which the closed loop verifies with a "
+            f"Brazilian disc (bts.diameter_mm {dia:g} x bts.thickness_mm {thick:g}) at "
+            f"specimen.scale {scale:g}: {scale * dia:g} x {t:g} mm, less than 3 ball diameters "
+            f"across for Rmax = {rmax:g} mm ({where}): raise bts.thickness_mm to at least "
+            f"{6 * rmax / scale:.3g} (and bts.diameter_mm to twice that), or leave bts_MPa "
+            "empty"]
 
 
 def _check_lab(path: Path, key: str) -> list[str]:
