@@ -19,7 +19,9 @@ from collections import namedtuple
 import numpy as np
 
 from . import bondblock as bb
+from . import diagnostics as D
 from . import kernels as K
+from . import neighbors as NB
 from ._jit import set_threads
 from .errors import InputError, InstabilityError
 from .layout import (
@@ -38,6 +40,7 @@ from .layout import (
     I_NEED_P,
     I_NEED_W,
     I_NPAIRS,
+    I_NREBUILDS,
     I_NSLOTS,
     I_REBUILD,
     I_STEP,
@@ -89,6 +92,13 @@ def aligned_zeros(shape, align=64):
     raw = np.zeros(n + align // 8)
     off = (-raw.ctypes.data % align) // 8
     return raw[off:off + n].reshape(shape)
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    """A read-only view of an engine array (no copy; reflects later steps)."""
+    v = a.view()
+    v.flags.writeable = False
+    return v
 
 
 def _vec3(name, v):
@@ -294,10 +304,15 @@ class Model:
     def step(self) -> int:
         return int(self.iprm[I_STEP])
 
+    @property
+    def skin(self) -> float:
+        """Verlet skin [m]: pairs closer than this are in the neighbour list."""
+        return float(self.prm[P_SKIN])
+
     def critical_timestep(self) -> tuple[float, int]:
         """(dt_crit, limiting ball): min over balls of sqrt(m/k_tran), sqrt(I/k_rot)."""
         self._ensure_lists()
-        dtc, arg = K.stiffness_timestep(self.B.radius, self.B.mass, self.B.inertia, self.B.fix,
+        dtc, arg = D.stiffness_timestep(self.B.radius, self.B.mass, self.B.inertia, self.B.fix,
                                         self.P.pi, self.P.pj, int(self.iprm[I_NPAIRS]),
                                         int(self.iprm[I_NB]), self.Bd.state, self.S.b,
                                         int(self.iprm[I_NSLOTS]), self.prm)
@@ -326,6 +341,33 @@ class Model:
         return dt
 
     # ------------------------------------------------------------------ balls
+    # Read-only views of the ball state (no copies: they follow the model as it steps;
+    # take ``.copy()`` for a snapshot). Change the state with the methods below.
+    @property
+    def positions(self) -> np.ndarray:
+        """Ball centres x_n (N, 3) [m]."""
+        return _readonly(self.B.pos)
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """Ball velocities v_{n-1/2} (N, 3) [m/s] (half-step values of the leapfrog)."""
+        return _readonly(self.B.vel)
+
+    @property
+    def angular_velocities(self) -> np.ndarray:
+        """Ball spins (N, 3) [rad/s] (half-step values)."""
+        return _readonly(self.B.angvel)
+
+    @property
+    def radii(self) -> np.ndarray:
+        """Ball radii (N,) [m]."""
+        return _readonly(self.B.radius)
+
+    @property
+    def masses(self) -> np.ndarray:
+        """Ball masses (N,) [kg]."""
+        return _readonly(self.B.mass)
+
     def fix(self, idx, flags=FIX_ALL):
         """Fix degrees of freedom of balls ``idx`` (bits of layout.FIX_*); their current
         velocities are then prescribed."""
@@ -415,7 +457,7 @@ class Model:
         S.slip[:ns] = 0.0
         S.dash[:ns] = 0.0
         wout = np.zeros((nw, 3))
-        K.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
+        D.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
         if W.mass[w] == 0.0:  # a rigid wall's work is internal to the system
             self._removed_work += float(W.work[w] + wout[w, 1])
         self._removed_grav += float(W.grav[w] + wout[w, 2])
@@ -448,11 +490,43 @@ class Model:
         """Force the balls exert on wall ``w`` at the last step [N]."""
         return self.W.force[w].copy()
 
+    def wall_radial_force(self, w) -> float:
+        """Sum over the contacts of wall ``w`` of the outward radial component of the force
+        the balls exert on it [N] (cylinders: the lateral pressure times the wall area;
+        0 for planes), at the last step."""
+        return -float(self.W.radsum[w])
+
+    def wall_position(self, w) -> np.ndarray:
+        """Reference point of wall ``w`` [m] (walls move with their velocity)."""
+        return self.W.pos[w].copy()
+
+    def wall_velocity(self, w) -> np.ndarray:
+        """Velocity of wall ``w`` [m/s] (prescribed, or of a rigid wall: v_{n+1/2})."""
+        return self.W.vel[w].copy()
+
+    def set_wall_friction(self, w, fric: float):
+        """Friction coefficient of the contacts of wall(s) ``w`` (takes effect at the next
+        force evaluation, like a velocity change; the current forces stay)."""
+        f = float(fric)
+        if not (f >= 0 and math.isfinite(f)):
+            raise InputError(f"wall fric={fric!r}: expected a friction coefficient >= 0")
+        idx = np.atleast_1d(np.asarray(w))
+        if idx.size and not ((idx >= 0) & (idx < self.n_walls)).all():
+            raise InputError(f"wall id {w!r}: expected 0..{self.n_walls - 1}")
+        self.W.fric[idx] = f
+
+    def wall_contact_balls(self, w) -> np.ndarray:
+        """Balls (sorted, unique) that touch wall ``w`` with a non-zero force now."""
+        ns = int(self.iprm[I_NSLOTS])
+        S = self.S
+        on = (S.w[:ns] == w) & (np.linalg.norm(S.f[:ns], axis=1) > 0)
+        return np.unique(S.b[:ns][on])
+
     # ------------------------------------------------------------------ contacts & bonds
     def _ensure_lists(self):
         if self.iprm[I_REBUILD]:
             while True:
-                st = K._rebuild(self.B, self.P, self.Bd, self.S, self.W, self.prm, self.iprm,
+                st = NB.rebuild_lists(self.B, self.P, self.Bd, self.S, self.W, self.prm, self.iprm,
                                 self.eacc)
                 if st == 0:
                     break
@@ -489,6 +563,27 @@ class Model:
     @property
     def n_broken(self) -> int:
         return int(self.iprm[I_NBROKEN])
+
+    @property
+    def bond_states(self) -> np.ndarray:
+        """State of every bond pair (read-only view): 0 intact, 1 broken in tension,
+        2 broken in shear (``BOND_*``), in the order of :meth:`bond_pairs`."""
+        return _readonly(self.Bd.state)
+
+    @property
+    def bond_break_steps(self) -> np.ndarray:
+        """Step at which each bond broke, -1 if intact (read-only view)."""
+        return _readonly(self.Bd.step)
+
+    @property
+    def n_rebuilds(self) -> int:
+        """Neighbour-list rebuilds so far (diagnostics)."""
+        return int(self.iprm[I_NREBUILDS])
+
+    @property
+    def n_wall_slots(self) -> int:
+        """Ball-wall pairs in the wall-contact list now (touching or within the skin)."""
+        return int(self.iprm[I_NSLOTS])
 
     def bond(self, gap: float = 0.0, rgap=None) -> int:
         """Install parallel bonds on every unbonded pair with surface gap <= ``gap`` (PFC
@@ -678,15 +773,15 @@ class Model:
                 self.iprm[I_FORCES] = 1
             self.cycle(0, record=True)
         B, P, Bd, S, W = self.B, self.P, self.Bd, self.S, self.W
-        lin, bond, slip, dash, damp, grav, fixw, rel = K.sum_energies(
+        lin, bond, slip, dash, damp, grav, fixw, rel = D.sum_energies(
             B.edamp, B.egrav, B.efix, P.estr, P.slip, P.dash, int(self.iprm[I_NPAIRS]),
             Bd.estr, Bd.energy, Bd.state, int(self.iprm[I_NB]), S.estr, S.slip, S.dash,
             int(self.iprm[I_NSLOTS]), self.eacc)
-        kin, dmp2, grv2, cst2 = K.measure_balls(B.vel, B.angvel, B.force, B.moment, B.mass,
+        kin, dmp2, grv2, cst2 = D.measure_balls(B.vel, B.angvel, B.force, B.moment, B.mass,
                                                 B.inertia, B.fix, B.fbuf, S.ptr, S.f, S.m,
                                                 self.prm)
         wout = np.zeros((self.n_walls, 3))
-        K.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
+        D.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
         ww = W.work + wout[:, 1]
         e = {"kinetic": kin, "kinetic_walls": float(wout[:, 0].sum()), "strain_linear": lin,
              "strain_bond": bond, "slip": slip, "dashpot": dash, "damping": damp + dmp2,
@@ -723,7 +818,7 @@ class Model:
             return 0.0
         self.energies()  # current resultant forces (measure pass)
         fu = np.linalg.norm(self.B.force[free], axis=1).mean()
-        fc, cnt = K.contact_force_mean(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
+        fc, cnt = D.contact_force_mean(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                                        self.P.fs, int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]),
                                        self.Bd.state, self.Bd.blk, self.prm)
         if cnt == 0 or fc == 0.0:
@@ -733,7 +828,7 @@ class Model:
     def coordination_numbers(self) -> np.ndarray:
         """Contacts per ball now (bonded or touching)."""
         self._ensure_lists()
-        return K.coordination(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
+        return D.coordination(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                               int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]), self.Bd.state,
                               self.Bd.blk)
 

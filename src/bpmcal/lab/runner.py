@@ -83,7 +83,7 @@ def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
         sp = make_specimen(p, seed, geometry, cache=cache, threads=threads)
         t_gen = time.perf_counter() - t0
         m = sp.model
-        ini = {"position": m.B.pos.copy(), "radius": m.B.radius.copy()}
+        ini = {"position": m.positions.copy(), "radius": m.radii.copy()}
         res = run_ucs(sp, settings, progress=progress)
     except (InstabilityError, GenesisError) as e:
         msg = f"{type(e).__name__}: {e}"
@@ -108,9 +108,9 @@ def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
               "energy": ev["energy"], "sigma": ev["sigma"], "tau": ev["tau"],
               "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
     bi, bj = m.bond_pairs()
-    bonds = {"i": bi, "j": bj, "state": m.Bd.state.copy(), "break_step": m.Bd.step.copy()}
-    fin = {"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
-           "angular_velocity": m.B.angvel.copy()} if keep_particles else None
+    bonds = {"i": bi, "j": bj, "state": m.bond_states.copy(), "break_step": m.bond_break_steps.copy()}
+    fin = {"position": m.positions.copy(), "velocity": m.velocities.copy(),
+           "angular_velocity": m.angular_velocities.copy()} if keep_particles else None
     write_run(out, test="ucs", inputs=inputs, summary=summ, genesis=g, series=res.series,
               cracks=cracks, particles_initial=ini if keep_particles else None,
               particles_final=fin, bonds=bonds if keep_particles else None)
@@ -135,7 +135,7 @@ def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(
     t0 = time.perf_counter()
     try:
         sp = make_specimen(p, seed, geometry, cache=cache, threads=threads)
-        ini = {"position": sp.model.B.pos.copy(), "radius": sp.model.B.radius.copy()}
+        ini = {"position": sp.model.positions.copy(), "radius": sp.model.radii.copy()}
         res = run_impact(sp, st, progress=progress)
     except (InstabilityError, GenesisError) as e:
         msg = f"{type(e).__name__}: {e}"
@@ -155,11 +155,11 @@ def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(
     bi, bj = m.bond_pairs()
     write_run(out, test="impact", inputs=inputs, summary=summ, genesis=sp.report,
               series=res.series, cracks=cracks, particles_initial=ini,
-              particles_final={"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
-                               "angular_velocity": m.B.angvel.copy(),
+              particles_final={"position": m.positions.copy(), "velocity": m.velocities.copy(),
+                               "angular_velocity": m.angular_velocities.copy(),
                                "fragment": res.fragments["label"]},
-              bonds={"i": bi, "j": bj, "state": m.Bd.state.copy(),
-                     "break_step": m.Bd.step.copy()},
+              bonds={"i": bi, "j": bj, "state": m.bond_states.copy(),
+                     "break_step": m.bond_break_steps.copy()},
               groups={"fragments": {"mass": res.fragments["mass"],
                                     "size": res.fragments["size"]}})
     return RunOutcome(status="ok", summary=summ, path=out)
