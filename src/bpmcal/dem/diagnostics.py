@@ -36,7 +36,8 @@ from .motion import ball_update, constraint_power, gather, wall_power
 
 
 @jit
-def measure_balls(vel, angvel, force, moment, mass, inertia, fix, fbuf, sptr, sf, sm, prm):
+def measure_balls(vel, angvel, force, moment, mass, inertia, fix, fbuf, pmask, sptr, sf, sm,
+                  prm):
     """Ball energy terms at the current step n (forces F_n, velocities v_{n-1/2}):
     kinetic energy 1/2 m v_{n-1/2}.v_{n+1/2} (v_{n+1/2} predicted exactly as ``integrate``
     will compute it) and the first half of step n of damping dissipation, gravity work
@@ -53,7 +54,7 @@ def measure_balls(vel, angvel, force, moment, mass, inertia, fix, fbuf, sptr, sf
     grv = 0.0
     cst = 0.0
     for i in range(n):
-        f0, f1, f2, m0, m1, m2 = gather(i, fbuf, sptr, sf, sm, False)
+        f0, f1, f2, m0, m1, m2 = gather(i, fbuf, pmask, sptr, sf, sm, False)
         mi = mass[i]
         f0 += mi * gx
         f1 += mi * gy

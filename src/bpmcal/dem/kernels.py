@@ -80,11 +80,11 @@ from .neighbors import max_displacement, rebuild_lists
 # ---------------------------------------------------------------------------------------
 # 1. ball-ball pairs
 # ---------------------------------------------------------------------------------------
-@jit_parallel
-def pair_forces(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash, pestr,
-                blk, bstate, bstep, bpos, bnrm, be, bestr, bsig, part, fbuf, prm, step, nb,
-                record, idt):
-    """Force-displacement for every ball-ball pair; scatter into per-partition buffers.
+@jit
+def pair_partition(p, pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash,
+                   pestr, blk, bstate, bstep, bpos, bnrm, be, bestr, bsig, part, fbuf, prm, step,
+                   nb, record, idt):
+    """Force-displacement for the pairs of partition ``p``, scattered into ``fbuf[p]``.
 
     Pairs are split into fixed index ranges ``part`` (one per partition); partition p adds
     the forces and moments of its pairs to ``fbuf[p]`` (ball-major, 6 components), in
@@ -107,18 +107,30 @@ def pair_forces(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, p
     betan = prm[P_DP_N]
     betas = prm[P_DP_S]
     nbroken = 0
+    T = bond_scratch()
+    k0 = part[p]
+    k1 = part[p + 1]
+    kb = min(k1, nb)
+    if kb > k0:  # bond pairs: vectorised blocks
+        nbroken += bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash,
+                              pestr, bstate, bstep, bpos, bnrm, be, bestr, bsig, fbuf[p],
+                              k0, kb, T, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten,
+                              pb_coh, tanfa, rmul, mcf, betan, betas, step, record)
+    _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash,
+                pestr, fbuf[p], max(k0, nb), k1, dt, emod, ikr, fric, betan, betas, record)
+    return nbroken
+
+
+@jit_parallel
+def pair_forces(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash, pestr,
+                blk, bstate, bstep, bpos, bnrm, be, bestr, bsig, part, fbuf, prm, step, nb,
+                record, idt):
+    """``pair_partition`` for every partition, in parallel. Returns bonds broken."""
+    nbroken = 0
     for p in prange(part.shape[0] - 1):
-        T = bond_scratch()
-        k0 = part[p]
-        k1 = part[p + 1]
-        kb = min(k1, nb)
-        if kb > k0:  # bond pairs: vectorised blocks
-            nbroken += bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash,
-                                  pestr, bstate, bstep, bpos, bnrm, be, bestr, bsig, fbuf[p],
-                                  k0, kb, T, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten,
-                                  pb_coh, tanfa, rmul, mcf, betan, betas, step, record)
-        _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash,
-                    pestr, fbuf[p], max(k0, nb), k1, dt, emod, ikr, fric, betan, betas, record)
+        nbroken += pair_partition(p, pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact,
+                                  pslip, pdash, pestr, blk, bstate, bstep, bpos, bnrm, be,
+                                  bestr, bsig, part, fbuf, prm, step, nb, record, idt)
     return nbroken
 
 
@@ -220,16 +232,17 @@ def _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, p
 # ---------------------------------------------------------------------------------------
 # 2. ball-wall slots (geometry of one ball-wall contact: laws.wall_contact_geometry)
 # ---------------------------------------------------------------------------------------
-@jit_parallel
-def wall_forces(pos, vel, angvel, radius, mass, sb, sw, sfs, sdf, srg, sf, sm, srad, sslip, sdash,
-                sestr, wtype, wpos, wnrm, wrad, wdisk, wvel, wradv, wfric, prm, nslots,
-                record, idt):
+@jit
+def wall_range(s0, s1, pos, vel, angvel, radius, mass, sb, sw, sfs, sdf, srg, sf, sm, srad,
+               sslip, sdash, sestr, wtype, wpos, wnrm, wrad, wdisk, wvel, wradv, wfric, prm,
+               record, idt):
+    """Linear contact (+ dashpots) of ball-wall slots s0..s1 with their walls."""
     dt = idt
     emod = prm[P_EMOD]
     ikr = 1.0 / prm[P_KRATIO]
     betan = prm[P_DP_N]
     betas = prm[P_DP_S]
-    for s in prange(nslots):
+    for s in range(s0, s1):
         b = sb[s]
         w = sw[s]
         r = radius[b]
@@ -316,6 +329,22 @@ def wall_forces(pos, vel, angvel, radius, mass, sb, sw, sfs, sdf, srg, sf, sm, s
         srad[s] = fx * ex + fy * ey + fz * ez
 
 
+#: wall slots per chunk of the parallel wall loop
+SLOT_CHUNK = 256
+
+
+@jit_parallel
+def wall_forces(pos, vel, angvel, radius, mass, sb, sw, sfs, sdf, srg, sf, sm, srad, sslip,
+                sdash, sestr, wtype, wpos, wnrm, wrad, wdisk, wvel, wradv, wfric, prm, nslots,
+                record, idt):
+    """``wall_range`` over all slots, in parallel chunks (slots are independent)."""
+    nc = (nslots + SLOT_CHUNK - 1) // SLOT_CHUNK
+    for c in prange(nc):
+        wall_range(c * SLOT_CHUNK, min(nslots, (c + 1) * SLOT_CHUNK), pos, vel, angvel,
+                   radius, mass, sb, sw, sfs, sdf, srg, sf, sm, srad, sslip, sdash, sestr,
+                   wtype, wpos, wnrm, wrad, wdisk, wvel, wradv, wfric, prm, record, idt)
+
+
 # ---------------------------------------------------------------------------------------
 # 3. wall resultants, rigid-body walls, wall motion and boundary work
 # ---------------------------------------------------------------------------------------
@@ -377,10 +406,10 @@ def advance_walls(wpos, wrad, wvel, wradv, wmass, wforce, wradsum, wwork, wgrav,
 # ---------------------------------------------------------------------------------------
 # 4. gather + integrate
 # ---------------------------------------------------------------------------------------
-@jit_parallel
-def integrate(pos, vel, angvel, mass, inertia, fix, fbuf, sptr, sf, sm, edamp, egrav, efix,
-              prm):
-    """Step n for the balls: gather F_n, add gravity and local damping, v_{n+1/2}, x_{n+1}.
+@jit
+def integrate_range(i0, i1, pos, vel, angvel, mass, inertia, fix, fbuf, pmask, sptr, sf, sm,
+                    edamp, egrav, efix, prm):
+    """Step n for balls i0..i1: gather F_n, add gravity and local damping, v_{n+1/2}, x_{n+1}.
 
     Per-ball accumulators get the damping dissipation, gravity work and work of velocity
     constraints of step n, each as F . (v_{n-1/2} + v_{n+1/2})/2 dt. Returns (largest
@@ -388,7 +417,6 @@ def integrate(pos, vel, angvel, mass, inertia, fix, fbuf, sptr, sf, sm, edamp, e
     guard, or 0). The largest speed bounds the displacements for the Verlet criterion, so
     the step does not read the reference positions.
     """
-    n = pos.shape[0]
     dt = prm[P_DT]
     alpha = prm[P_ALPHA]
     vmax2 = prm[P_MAXSPEED] * prm[P_MAXSPEED]
@@ -399,8 +427,8 @@ def integrate(pos, vel, angvel, mass, inertia, fix, fbuf, sptr, sf, sm, edamp, e
     vcap = prm[P_VCAP]
     maxv2 = 0.0
     bad = 0
-    for i in prange(n):
-        f0, f1, f2, m0, m1, m2 = gather(i, fbuf, sptr, sf, sm, True)
+    for i in range(i0, i1):
+        f0, f1, f2, m0, m1, m2 = gather(i, fbuf, pmask, sptr, sf, sm, True)
         mi = mass[i]
         f0 += mi * gx
         f1 += mi * gy
@@ -452,26 +480,59 @@ def integrate(pos, vel, angvel, mass, inertia, fix, fbuf, sptr, sf, sm, edamp, e
     return maxv2, bad
 
 
+#: balls per chunk of the parallel integration loop
+BALL_CHUNK = 1024
+
+
+@jit_parallel
+def integrate(pos, vel, angvel, mass, inertia, fix, fbuf, pmask, sptr, sf, sm, edamp, egrav,
+              efix, prm):
+    """``integrate_range`` over all balls, in parallel chunks. Returns (largest squared
+    speed, 1 + largest index of a ball that blew up, or 0), as integrate_range."""
+    n = pos.shape[0]
+    nc = (n + BALL_CHUNK - 1) // BALL_CHUNK
+    maxv2 = 0.0
+    bad = 0
+    for c in prange(nc):
+        v2, b = integrate_range(c * BALL_CHUNK, min(n, (c + 1) * BALL_CHUNK), pos, vel, angvel,
+                                mass, inertia, fix, fbuf, pmask, sptr, sf, sm, edamp, egrav,
+                                efix, prm)
+        maxv2 = max(maxv2, v2)
+        bad = max(bad, b)
+    return maxv2, bad
+
+
 # ---------------------------------------------------------------------------------------
 # 5. the chunk runner: numba runs the steps, Python runs chunks
 # ---------------------------------------------------------------------------------------
 @jit
-def _forces(B, P, Bd, S, W, prm, iprm, record, idt):
-    """Force-displacement at the current positions; increments use velocity x ``idt``."""
-    nbk = pair_forces(B.pos, B.vel, B.angvel, B.radius, B.mass, P.pi, P.pj, P.fs, P.df, P.act,
-                      P.slip, P.dash, P.estr, Bd.blk, Bd.state, Bd.step, Bd.pos, Bd.nrm,
-                      Bd.energy, Bd.estr, Bd.sig, P.part, B.fbuf, prm, iprm[I_STEP],
-                      iprm[I_NB], record, idt)
+def _forces(B, P, Bd, S, W, prm, iprm, record, idt, serial):
+    """Force-displacement at the current positions; increments use velocity x ``idt``.
+    ``serial``: call the kernels directly (one thread: no parallel-region overhead)."""
+    if serial:
+        nbk = 0
+        for p in range(P.part.shape[0] - 1):
+            nbk += pair_partition(p, B.pos, B.vel, B.angvel, B.radius, B.mass, P.pi, P.pj,
+                                  P.fs, P.df, P.act, P.slip, P.dash, P.estr, Bd.blk, Bd.state,
+                                  Bd.step, Bd.pos, Bd.nrm, Bd.energy, Bd.estr, Bd.sig, P.part,
+                                  B.fbuf, prm, iprm[I_STEP], iprm[I_NB], record, idt)
+        wall_range(0, iprm[I_NSLOTS], B.pos, B.vel, B.angvel, B.radius, B.mass, S.b, S.w,
+                   S.fs, S.df, S.rg, S.f, S.m, S.rad, S.slip, S.dash, S.estr, W.type, W.pos,
+                   W.nrm, W.rad, W.disk, W.vel, W.radv, W.fric, prm, record, idt)
+    else:
+        nbk = pair_forces(B.pos, B.vel, B.angvel, B.radius, B.mass, P.pi, P.pj, P.fs, P.df,
+                          P.act, P.slip, P.dash, P.estr, Bd.blk, Bd.state, Bd.step, Bd.pos,
+                          Bd.nrm, Bd.energy, Bd.estr, Bd.sig, P.part, B.fbuf, prm,
+                          iprm[I_STEP], iprm[I_NB], record, idt)
+        wall_forces(B.pos, B.vel, B.angvel, B.radius, B.mass, S.b, S.w, S.fs, S.df, S.rg, S.f,
+                    S.m, S.rad, S.slip, S.dash, S.estr, W.type, W.pos, W.nrm, W.rad, W.disk,
+                    W.vel, W.radv, W.fric, prm, iprm[I_NSLOTS], record, idt)
     iprm[I_NBROKEN] += nbk
-    wall_forces(B.pos, B.vel, B.angvel, B.radius, B.mass, S.b, S.w, S.fs, S.df, S.rg, S.f, S.m,
-                S.rad,
-                S.slip, S.dash, S.estr, W.type, W.pos, W.nrm, W.rad, W.disk, W.vel, W.radv,
-                W.fric, prm, iprm[I_NSLOTS], record, idt)
     wall_resultants(S.w, S.f, S.rad, iprm[I_NSLOTS], W.force, W.radsum)
 
 
 @jit
-def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last):
+def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last, serial):
     """Advance ``nsteps`` steps (PFC cycle order: law of motion, then force-displacement).
     Returns (status, steps_done).
 
@@ -480,6 +541,8 @@ def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last):
     iprm[I_FORCES]: 0 forces are current; 1 recompute them without increments (after a
     change made from Python); 2 the last step's force-displacement is still due.
     B, P, Bd, S, W: namedtuples of ball, pair, bond, slot and wall arrays (model.py).
+    ``serial``: one thread; the kernels are called directly instead of through numba's
+    parallel regions (same arithmetic, so the same results).
     """
     dt = prm[P_DT]
     skin = prm[P_SKIN]
@@ -490,11 +553,16 @@ def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last):
             if rebuild_lists(B, P, Bd, S, W, prm, iprm, eacc) != 0:
                 return 1, 0
         _forces(B, P, Bd, S, W, prm, iprm, record_last and nsteps == 0,
-                dt if iprm[I_FORCES] == 2 else 0.0)
+                dt if iprm[I_FORCES] == 2 else 0.0, serial)
         iprm[I_FORCES] = 0
     for s in range(nsteps):
-        maxv2, bad = integrate(B.pos, B.vel, B.angvel, B.mass, B.inertia, B.fix, B.fbuf,
-                               S.ptr, S.f, S.m, B.edamp, B.egrav, B.efix, prm)
+        if serial:
+            maxv2, bad = integrate_range(0, B.pos.shape[0], B.pos, B.vel, B.angvel, B.mass,
+                                         B.inertia, B.fix, B.fbuf, B.pmask, S.ptr, S.f, S.m,
+                                         B.edamp, B.egrav, B.efix, prm)
+        else:
+            maxv2, bad = integrate(B.pos, B.vel, B.angvel, B.mass, B.inertia, B.fix, B.fbuf,
+                                   B.pmask, S.ptr, S.f, S.m, B.edamp, B.egrav, B.efix, prm)
         wmax = advance_walls(W.pos, W.rad, W.vel, W.radv, W.mass, W.force, W.radsum, W.work,
                              W.grav, W.disp, prm)
         iprm[I_STEP] += 1
@@ -515,5 +583,5 @@ def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last):
             if rebuild_lists(B, P, Bd, S, W, prm, iprm, eacc) != 0:
                 iprm[I_FORCES] = 2
                 return 1, s + 1
-        _forces(B, P, Bd, S, W, prm, iprm, record_last and s == nsteps - 1, dt)
+        _forces(B, P, Bd, S, W, prm, iprm, record_last and s == nsteps - 1, dt, serial)
     return 0, nsteps

@@ -22,7 +22,7 @@ from . import bondblock as bb
 from . import diagnostics as D
 from . import kernels as K
 from . import neighbors as NB
-from ._jit import set_threads
+from ._jit import numba, set_threads
 from .errors import InputError, InstabilityError
 from .layout import (
     BOND_INTACT,
@@ -72,7 +72,7 @@ from .layout import (
 from .material import Material
 
 Balls = namedtuple("Balls", "pos vel angvel force moment radius mass inertia fix pos_ref "
-                   "edamp egrav efix fbuf")
+                   "edamp egrav efix fbuf pmask")
 Pairs = namedtuple("Pairs", "pi pj fs df act slip dash estr vptr pi2 pj2 fs2 vptr2 cand part")
 Bonds = namedtuple("Bonds", "blk state step pos nrm energy estr sig ptr part")
 Slots = namedtuple("Slots", "b w fs df rg f m rad slip dash estr ptr b2 w2 fs2 ptr2")
@@ -83,6 +83,12 @@ Walls = namedtuple("Walls", "type pos nrm rad disk vel radv fric mass force rads
 ENERGY_TERMS = ("kinetic", "kinetic_walls", "strain_linear", "strain_bond", "slip",
                 "dashpot", "damping", "released", "removed", "work_walls", "work_gravity",
                 "work_constraints")
+
+
+#: type of the ball indices in the pair and wall-slot lists: unsigned, so that numba
+#: emits no negative-index wraparound code where the kernels index ball arrays with them
+#: (the public methods return int32 copies)
+IDX = np.uint32
 
 
 def aligned_zeros(shape, align=64):
@@ -160,8 +166,8 @@ class Model:
             raise InputError(f"max_speed={max_speed!r}: expected a positive speed in m/s")
         set_threads(threads)
         npart = int(partitions)
-        if npart < 1:
-            raise InputError(f"partitions={partitions!r}: expected an integer >= 1")
+        if not 1 <= npart <= 63:
+            raise InputError(f"partitions={partitions!r}: expected an integer in [1, 63]")
         self._npart = npart
 
         mass = dens * (4.0 / 3.0) * math.pi * rad ** 3
@@ -170,7 +176,8 @@ class Model:
         self.B = Balls(pos=pos, vel=z3(), angvel=z3(), force=z3(), moment=z3(), radius=rad,
                        mass=mass, inertia=inertia, fix=np.zeros(n, np.uint8),
                        pos_ref=pos.copy(), edamp=np.zeros(n), egrav=np.zeros(n),
-                       efix=np.zeros(n), fbuf=aligned_zeros((npart, n, 8)))
+                       efix=np.zeros(n), fbuf=aligned_zeros((npart, n, 8)),
+                       pmask=np.full(n, (1 << npart) - 1, np.int64))
         self.prm = np.zeros(N_PRM)
         self.iprm = np.zeros(N_IPRM, np.int64)
         self.eacc = np.zeros(N_EACC)
@@ -197,11 +204,11 @@ class Model:
     def _alloc_pairs(self, cap, old: Pairs | None = None):
         n = self.n
         ccap = 64 if old is None else old.cand.shape[0]
-        P = Pairs(pi=np.zeros(cap, np.int32), pj=np.zeros(cap, np.int32),
+        P = Pairs(pi=np.zeros(cap, IDX), pj=np.zeros(cap, IDX),
                   fs=np.zeros((cap, 3)), df=np.zeros((cap, 3)), act=np.zeros(cap, np.uint8),
                   slip=np.zeros(cap), dash=np.zeros(cap), estr=np.zeros(cap),
-                  vptr=np.zeros(n + 1, np.int64), pi2=np.zeros(cap, np.int32),
-                  pj2=np.zeros(cap, np.int32), fs2=np.zeros((cap, 6)),
+                  vptr=np.zeros(n + 1, np.int64), pi2=np.zeros(cap, IDX),
+                  pj2=np.zeros(cap, IDX), fs2=np.zeros((cap, 6)),
                   vptr2=np.zeros(n + 1, np.int64),
                   cand=np.zeros(ccap, np.int64), part=np.zeros(self._npart + 1, np.int64))
         if old is not None:
@@ -214,11 +221,11 @@ class Model:
 
     def _alloc_slots(self, cap, old: Slots | None = None):
         n = self.n
-        S = Slots(b=np.zeros(cap, np.int32), w=np.zeros(cap, np.int32), fs=np.zeros((cap, 3)),
+        S = Slots(b=np.zeros(cap, IDX), w=np.zeros(cap, IDX), fs=np.zeros((cap, 3)),
                   df=np.zeros((cap, 3)), rg=np.zeros(cap), f=np.zeros((cap, 3)),
                   m=np.zeros((cap, 3)), rad=np.zeros(cap), slip=np.zeros(cap),
                   dash=np.zeros(cap), estr=np.zeros(cap), ptr=np.zeros(n + 1, np.int64),
-                  b2=np.zeros(cap, np.int32), w2=np.zeros(cap, np.int32),
+                  b2=np.zeros(cap, IDX), w2=np.zeros(cap, IDX),
                   fs2=np.zeros((cap, 7)), ptr2=np.zeros(n + 1, np.int64))
         if old is not None:
             m = int(self.iprm[I_NSLOTS])
@@ -520,7 +527,7 @@ class Model:
         ns = int(self.iprm[I_NSLOTS])
         S = self.S
         on = (S.w[:ns] == w) & (np.linalg.norm(S.f[:ns], axis=1) > 0)
-        return np.unique(S.b[:ns][on])
+        return np.unique(S.b[:ns][on]).astype(np.int32)
 
     # ------------------------------------------------------------------ contacts & bonds
     def _ensure_lists(self):
@@ -536,7 +543,7 @@ class Model:
         """(i, j) of all pairs in the neighbour list (bond pairs first)."""
         self._ensure_lists()
         m = int(self.iprm[I_NPAIRS])
-        return self.P.pi[:m].copy(), self.P.pj[:m].copy()
+        return self.P.pi[:m].astype(np.int32), self.P.pj[:m].astype(np.int32)
 
     def pair_gaps(self, i=None, j=None) -> np.ndarray:
         """Surface gaps |xj - xi| - Ri - Rj [m] of the pairs (default: all listed pairs)."""
@@ -626,8 +633,8 @@ class Model:
                                  f"got shape {rg.shape}")
             new.blk[bb.field_index(bb.S_RG, nbt)[newk]] = rg
         oi, oj = P.pi[:nb].copy(), P.pj[:nb].copy()
-        ai = np.concatenate([oi, ni]).astype(np.int32)
-        aj = np.concatenate([oj, nj]).astype(np.int32)
+        ai = np.concatenate([oi, ni]).astype(IDX)
+        aj = np.concatenate([oj, nj]).astype(IDX)
         if nbt > P.pi.shape[0]:
             self._alloc_pairs(int(nbt * 1.5) + 8 * self.n)
             P = self.P
@@ -652,7 +659,7 @@ class Model:
 
     def bond_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         nb = self.n_bonds
-        return self.P.pi[:nb].copy(), self.P.pj[:nb].copy()
+        return self.P.pi[:nb].astype(np.int32), self.P.pj[:nb].astype(np.int32)
 
     def set_bond_rgap(self, rgap):
         """Reference gaps [m] of the linear component of the bond pairs (PFC ``rgap``)."""
@@ -693,7 +700,7 @@ class Model:
         st = self.Bd.state
         k = np.flatnonzero(st != BOND_INTACT)
         k = k[np.lexsort((k, self.Bd.step[k]))]
-        i, j = self.P.pi[k], self.P.pj[k]
+        i, j = self.P.pi[k].astype(np.int32), self.P.pj[k].astype(np.int32)
         r = self.material.pb_rmul * np.minimum(self.B.radius[i], self.B.radius[j])
         return {"step": self.Bd.step[k].copy(), "bond": k, "i": i.copy(), "j": j.copy(),
                 "mode": st[k].astype(np.int64), "pos": self.Bd.pos[k].copy(),
@@ -740,7 +747,7 @@ class Model:
         done = 0
         while True:
             st, k = K.run_steps(self.B, self.P, self.Bd, self.S, self.W, self.prm, self.iprm,
-                                self.eacc, nsteps - done, record)
+                                self.eacc, nsteps - done, record, numba.get_num_threads() == 1)
             done += int(k)
             if st == 0 and done >= nsteps:
                 break
@@ -778,8 +785,8 @@ class Model:
             Bd.estr, Bd.energy, Bd.state, int(self.iprm[I_NB]), S.estr, S.slip, S.dash,
             int(self.iprm[I_NSLOTS]), self.eacc)
         kin, dmp2, grv2, cst2 = D.measure_balls(B.vel, B.angvel, B.force, B.moment, B.mass,
-                                                B.inertia, B.fix, B.fbuf, S.ptr, S.f, S.m,
-                                                self.prm)
+                                                B.inertia, B.fix, B.fbuf, B.pmask, S.ptr,
+                                                S.f, S.m, self.prm)
         wout = np.zeros((self.n_walls, 3))
         D.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
         ww = W.work + wout[:, 1]

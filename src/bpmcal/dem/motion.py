@@ -18,17 +18,24 @@ from .layout import FIX_VX, FIX_VY, FIX_VZ, FIX_WX, FIX_WY, FIX_WZ
 _inl = numba.njit(cache=True, inline="always")
 
 
-@jit
-def gather(i, fbuf, sptr, sf, sm, clear):
+@_inl
+def gather(i, fbuf, pmask, sptr, sf, sm, clear):
     """Resultant contact force and moment on ball i: the partition buffers in partition
-    order, then the ball's wall slots. ``clear`` zeroes the buffers for the next step."""
+    order, then the ball's wall slots. ``clear`` zeroes the buffers for the next step.
+
+    Bit ``p`` of ``pmask[i]`` is set when partition p has a pair with ball i; the other
+    partitions' rows of ball i are zero and are skipped (adding +0.0 to a sum that
+    starts at +0.0 changes nothing, so the result is the same bit for bit)."""
     f0 = 0.0
     f1 = 0.0
     f2 = 0.0
     m0 = 0.0
     m1 = 0.0
     m2 = 0.0
+    mk = pmask[i]
     for p in range(fbuf.shape[0]):
+        if not (mk >> p) & 1:
+            continue
         f0 += fbuf[p, i, 0]
         f1 += fbuf[p, i, 1]
         f2 += fbuf[p, i, 2]
@@ -48,7 +55,7 @@ def gather(i, fbuf, sptr, sf, sm, clear):
     return f0, f1, f2, m0, m1, m2
 
 
-@jit
+@_inl
 def local_damping(f, v, alpha):
     """PFC local damping force of one degree of freedom: -alpha |F| sign(v), sign(0) = 0.
     Written with selects: the sign of a velocity is a coin toss for the branch predictor."""
@@ -56,7 +63,7 @@ def local_damping(f, v, alpha):
     return -alpha * abs(f) * sgn
 
 
-@jit
+@_inl
 def dof(v, f, im, alpha, dt, fixed):
     """New half-step velocity of one degree of freedom and its damping force."""
     if fixed:

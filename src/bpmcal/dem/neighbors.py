@@ -15,7 +15,6 @@ import math
 import numpy as np
 
 from ._jit import jit
-from .bondblock import BLK
 from .laws import wall_contact_geometry
 from .layout import (
     E_DASH,
@@ -88,6 +87,10 @@ def _cell_grid(pos, radius, skin, ncap):
     return cell, start, order, dims
 
 
+#: partition boundaries inside the bond pairs are multiples of this (a multiple of
+#: bondblock.BLK); it fixes the summation order of the forces, so it must not change
+PART_ALIGN = 64
+
 #: cost of an unbonded (Verlet) pair relative to a bond pair, for balancing partitions
 VERLET_COST = 0.15
 
@@ -96,7 +99,7 @@ VERLET_COST = 0.15
 def set_partitions(part, npairs, nb):
     """Split pairs 0..npairs into len(part)-1 contiguous ranges of about equal work (a
     Verlet pair costs ``VERLET_COST`` of a bond pair); boundaries inside the bond pairs
-    fall on block boundaries (bondblock.BLK)."""
+    fall on multiples of ``PART_ALIGN``."""
     npart = part.shape[0] - 1
     work = nb + VERLET_COST * (npairs - nb)
     part[0] = 0
@@ -105,10 +108,23 @@ def set_partitions(part, npairs, nb):
         target = work * p / npart
         if target <= nb:
             b = int(target)
-            b = (b // BLK) * BLK
+            b = (b // PART_ALIGN) * PART_ALIGN
         else:
             b = nb + int((target - nb) / VERLET_COST)
         part[p] = min(max(b, part[p - 1]), npairs)
+
+
+@jit
+def partition_masks(pmask, part, pi, pj):
+    """Bit p of ``pmask[i]`` is set when partition p has a pair with ball i (the
+    integrator reads only those partitions' force buffers)."""
+    for i in range(pmask.shape[0]):
+        pmask[i] = 0
+    for p in range(part.shape[0] - 1):
+        bit = 1 << p
+        for k in range(part[p], part[p + 1]):
+            pmask[pi[k]] |= bit
+            pmask[pj[k]] |= bit
 
 
 @jit
@@ -120,9 +136,10 @@ def _bonded(i, j, bptr, bpart):
 
 
 @jit
-def rebuild(pos, radius, pos_ref, pi, pj, pfs, pdf, pact, pslip, pdash, vptr, bptr, bpart,
-            pi2, pj2, pfs2, vptr2, cand, part, sb, sw, sfs, sdf, srg, sslip, sdash, sptr, sb2,
-            sw2, sfs2, sptr2, wtype, wpos, wnrm, wrad, wdisk, wdisp, prm, iprm, eacc):
+def rebuild(pos, radius, pos_ref, pmask, pi, pj, pfs, pdf, pact, pslip, pdash, vptr, bptr,
+            bpart, pi2, pj2, pfs2, vptr2, cand, part, sb, sw, sfs, sdf, srg, sslip, sdash,
+            sptr, sb2, sw2, sfs2, sptr2, wtype, wpos, wnrm, wrad, wdisk, wdisp, prm, iprm,
+            eacc):
     """Rebuild the Verlet pair list and the ball-wall slots; carry contact history over.
 
     Bond pairs (the first nb entries) are permanent and not searched. A new Verlet pair
@@ -267,6 +284,7 @@ def rebuild(pos, radius, pos_ref, pi, pj, pfs, pdf, pact, pslip, pdash, vptr, bp
     iprm[I_NPAIRS] = cnt
     iprm[I_NSLOTS] = ns
     set_partitions(part, cnt, nb)
+    partition_masks(pmask, part, pi, pj)
     for i in range(n):
         for c in range(3):
             pos_ref[i, c] = pos[i, c]
@@ -281,7 +299,7 @@ def rebuild(pos, radius, pos_ref, pi, pj, pfs, pdf, pact, pslip, pdash, vptr, bp
 @jit
 def rebuild_lists(B, P, Bd, S, W, prm, iprm, eacc):
     """``rebuild`` on the model's namedtuples of arrays (model.py)."""
-    return rebuild(B.pos, B.radius, B.pos_ref, P.pi, P.pj, P.fs, P.df, P.act, P.slip, P.dash,
+    return rebuild(B.pos, B.radius, B.pos_ref, B.pmask, P.pi, P.pj, P.fs, P.df, P.act, P.slip, P.dash,
                    P.vptr, Bd.ptr, Bd.part, P.pi2, P.pj2, P.fs2, P.vptr2, P.cand, P.part,
                    S.b, S.w, S.fs, S.df, S.rg, S.slip, S.dash, S.ptr, S.b2, S.w2, S.fs2,
                    S.ptr2, W.type,
