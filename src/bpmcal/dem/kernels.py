@@ -116,8 +116,13 @@ def pair_partition(p, pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, ps
                               pestr, bstate, bstep, bpos, bnrm, be, bestr, bsig, fbuf[p],
                               k0, kb, T, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten,
                               pb_coh, tanfa, rmul, mcf, betan, betas, step, record)
-    _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash,
-                pestr, fbuf[p], max(k0, nb), k1, dt, emod, ikr, fric, betan, betas, record)
+    if fric == 0.0 and betan == 0.0 and betas == 0.0:
+        _pair_range_frictionless(pos, vel, angvel, radius, pi, pj, pfs, pact, pestr, fbuf[p],
+                                 max(k0, nb), k1, dt, emod, ikr, record)
+    else:
+        _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash,
+                    pestr, fbuf[p], max(k0, nb), k1, dt, emod, ikr, fric, betan, betas,
+                    record)
     return nbroken
 
 
@@ -212,6 +217,67 @@ def _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, p
         if eslip != 0.0:
             pslip[k] += eslip
         # force on j (-F on i) and moments M_j = aj n x F, M_i = -ai n x F
+        cx = ny * fz - nz * fy
+        cy = nz * fx - nx * fz
+        cz = nx * fy - ny * fx
+        fb[i, 0] -= fx
+        fb[i, 1] -= fy
+        fb[i, 2] -= fz
+        fb[i, 3] -= ai * cx
+        fb[i, 4] -= ai * cy
+        fb[i, 5] -= ai * cz
+        fb[j, 0] += fx
+        fb[j, 1] += fy
+        fb[j, 2] += fz
+        fb[j, 3] += aj * cx
+        fb[j, 4] += aj * cy
+        fb[j, 5] += aj * cz
+
+
+@jit
+def _pair_range_frictionless(pos, vel, angvel, radius, pi, pj, pfs, pact, pestr, fb, k0, k1,
+                             dt, emod, ikr, record):
+    """``_pair_range`` for friction 0 and no dashpots (the genesis relaxation), with the
+    same results bit for bit: with a zero slip limit the stored shear force is always a
+    signed zero, so the shear spring, the slip energy and the stored force reduce to
+    zeros. The additions of those zeros are kept (``+ 0.0``; not optimised away without
+    fast-math), so the force expressions round exactly as in the general kernel."""
+    for k in range(k0, k1):
+        i = pi[k]
+        j = pj[k]
+        dx = pos[j, 0] - pos[i, 0]
+        dy = pos[j, 1] - pos[i, 1]
+        dz = pos[j, 2] - pos[i, 2]
+        ri = radius[i]
+        rj = radius[j]
+        sr = ri + rj
+        if dx * dx + dy * dy + dz * dz >= sr * sr and pact[k] == 0:
+            if record:
+                pestr[k] = 0.0
+            continue
+        (nx, ny, nz, gap, inv_l, ai, aj, vrx, vry, vrz, vn, dun, dusx, dusy, dusz,
+         dphi) = kinematics(dx, dy, dz, vel[j, 0] - vel[i, 0], vel[j, 1] - vel[i, 1],
+                            vel[j, 2] - vel[i, 2], angvel[i, 0], angvel[i, 1], angvel[i, 2],
+                            angvel[j, 0], angvel[j, 1], angvel[j, 2], ri, rj, dt)
+        pfs[k, 0] = 0.0
+        pfs[k, 1] = 0.0
+        pfs[k, 2] = 0.0
+        if gap < 0.0:
+            kn, ks = linear_stiffness(ri, rj, inv_l, emod, ikr)
+            fn = -kn * gap
+            fx = fn * nx + 0.0
+            fy = fn * ny + 0.0
+            fz = fn * nz + 0.0
+            if record:
+                pestr[k] = 0.5 * fn * fn / kn + 0.5 * (0.0 * 0.0 + 0.0 * 0.0 + 0.0 * 0.0) / ks
+            pact[k] = 1
+        else:
+            # contact lost this step: nothing to scatter (adding zeros leaves the
+            # buffers, which never hold -0.0, unchanged)
+            pact[k] = 0
+            if record:
+                pestr[k] = 0.0
+            continue
         cx = ny * fz - nz * fy
         cy = nz * fx - nx * fz
         cz = nx * fy - ny * fx

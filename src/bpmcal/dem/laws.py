@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 
-from ._jit import jit, numba
+from ._jit import numba
 from .layout import WALL_CYLINDER
 
 _inl = numba.njit(cache=True, inline="always")
@@ -174,7 +174,7 @@ def bond_strength_stresses(fn, smag, mt, mbmag, rb, mcf):
     return sig, tau, fn / area
 
 
-@jit
+@_inl
 def wall_contact_geometry(px, py, pz, r, w, wtype, wpos, wnrm, wrad, wdisk):
     """Gap and unit normal (from wall to ball) of ball (p, r) with wall w.
 

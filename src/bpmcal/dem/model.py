@@ -203,7 +203,7 @@ class Model:
 
     def _alloc_pairs(self, cap, old: Pairs | None = None):
         n = self.n
-        ccap = 64 if old is None else old.cand.shape[0]
+        ccap = cap if old is None else max(cap, old.cand.shape[0])  # unbonded pairs found
         P = Pairs(pi=np.zeros(cap, IDX), pj=np.zeros(cap, IDX),
                   fs=np.zeros((cap, 3)), df=np.zeros((cap, 3)), act=np.zeros(cap, np.uint8),
                   slip=np.zeros(cap), dash=np.zeros(cap), estr=np.zeros(cap),

@@ -36,7 +36,9 @@ from .layout import (
 
 @jit
 def _cell_grid(pos, radius, skin, ncap):
-    """Bin balls into a uniform grid of cells at least 2 Rmax + skin wide."""
+    """Bin balls into a uniform grid of cells at least 2 Rmax + skin wide. Returns the cell
+    of every ball, the CSR start of every cell, the balls in cell order (increasing ball
+    index within a cell), their positions and radii in that order, and the grid size."""
     n = pos.shape[0]
     lo = np.empty(3)
     hi = np.empty(3)
@@ -65,7 +67,7 @@ def _cell_grid(pos, radius, skin, ncap):
         cs *= 1.25
     ncell = dims[0] * dims[1] * dims[2]
     cell = np.empty(n, np.int64)
-    start = np.zeros(ncell + 1, np.int64)
+    cnt = np.zeros(ncell + 1, np.int64)
     for i in range(n):
         ic = 0
         for c in range(3):
@@ -76,15 +78,28 @@ def _cell_grid(pos, radius, skin, ncap):
                 q = 0
             ic = ic * dims[c] + q
         cell[i] = ic
-        start[ic + 1] += 1
+        cnt[ic + 1] += 1
+    # unsigned CSR and ball indices, and the coordinates in four flat arrays: the search
+    # loop then indexes without sign fix-ups or stride multiplications
+    start = np.empty(ncell + 1, np.uint64)
+    acc = 0
+    for c in range(ncell + 1):
+        acc += cnt[c]
+        start[c] = acc
+    fill = cnt[:-1].copy()
     for c in range(ncell):
-        start[c + 1] += start[c]
-    fill = start[:-1].copy()
-    order = np.empty(n, np.int64)
+        fill[c] = start[c]
+    order = np.empty(n, np.uint32)
+    cp = np.empty((4, n))  # x, y, z, radius in cell order: the search reads them in sequence
     for i in range(n):
-        order[fill[cell[i]]] = i
+        e = fill[cell[i]]
+        order[e] = i
+        cp[0, e] = pos[i, 0]
+        cp[1, e] = pos[i, 1]
+        cp[2, e] = pos[i, 2]
+        cp[3, e] = radius[i]
         fill[cell[i]] += 1
-    return cell, start, order, dims
+    return cell, start, order, cp, dims
 
 
 #: partition boundaries inside the bond pairs are multiples of this (a multiple of
@@ -152,75 +167,113 @@ def rebuild(pos, radius, pos_ref, pmask, pi, pj, pfs, pdf, pact, pslip, pdash, v
     nb = iprm[I_NB]
     npo = iprm[I_NPAIRS]
     cap = pi.shape[0]
-    cell, start, order, dims = _cell_grid(pos, radius, skin, 4 * n + 64)
+    cell, start, order, cp, dims = _cell_grid(pos, radius, skin, 4 * n + 64)
     d0 = dims[0]
     d1 = dims[1]
     d2 = dims[2]
-    cnt = nb
     ccap = cand.shape[0]
-    cmax = 0
-    for i in range(n):
-        ic = cell[i]
-        cz = ic % d2
-        cy = (ic // d2) % d1
-        cx = ic // (d1 * d2)
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        zi = pos[i, 2]
-        ri = radius[i]
-        nc = 0
-        for ox in range(-1, 2):
-            qx = cx + ox
-            if qx < 0 or qx >= d0:
-                continue
-            for oy in range(-1, 2):
-                qy = cy + oy
-                if qy < 0 or qy >= d1:
-                    continue
-                for oz in range(-1, 2):
-                    qz = cz + oz
-                    if qz < 0 or qz >= d2:
+    # 1. candidate pairs, each found once: a ball's own cell (later entries) and the 13
+    #    "forward" neighbour cells (half shell); found pairs go to pi2/pj2 (as lo < hi)
+    #    and are counted per row lo in vptr2
+    for i in range(n + 1):
+        vptr2[i] = 0
+    room = cap - nb
+    found = 0
+    cx_ = cp[0]
+    cy_ = cp[1]
+    cz_ = cp[2]
+    cr_ = cp[3]
+    one = np.uint64(1)
+    for c in range(d0 * d1 * d2):
+        cz = c % d2
+        cy = (c // d2) % d1
+        cx = c // (d1 * d2)
+        for e in range(start[c], start[c + 1]):
+            a = order[e]
+            xa = cx_[e]
+            ya = cy_[e]
+            za = cz_[e]
+            ra = cr_[e]
+            for h in range(14):  # 0: own cell; 1..13: forward cells
+                if h == 0:
+                    e0 = e + one
+                    e1 = start[c + 1]
+                else:
+                    k = h + 13  # offsets 14..26 of the 3x3x3 stencil (x fastest)
+                    qx = cx + k // 9 - 1
+                    qy = cy + (k // 3) % 3 - 1
+                    qz = cz + k % 3 - 1
+                    if qx >= d0 or qy < 0 or qy >= d1 or qz < 0 or qz >= d2:
                         continue
                     q = (qx * d1 + qy) * d2 + qz
-                    for e in range(start[q], start[q + 1]):
-                        j = order[e]
-                        if j <= i:
-                            continue
-                        dx = pos[j, 0] - xi
-                        dy = pos[j, 1] - yi
-                        dz = pos[j, 2] - zi
-                        lim = ri + radius[j] + skin
-                        if dx * dx + dy * dy + dz * dz < lim * lim:
-                            if not _bonded(i, j, bptr, bpart):
-                                if nc < ccap:
-                                    cand[nc] = j
-                                nc += 1
-        if nc > cmax:
-            cmax = nc
-        if nc > ccap:
-            continue
-        # insertion sort: pairs of a row in increasing j (deterministic order)
-        for a in range(1, nc):
+                    e0 = start[q]
+                    e1 = start[q + 1]
+                for e2 in range(e0, e1):
+                    b = order[e2]
+                    # the same test, bit for bit, as from the row ball lo = min(a, b):
+                    # IEEE subtraction is antisymmetric (squares equal) and addition
+                    # commutative, so the order of a and b does not matter
+                    dx = cx_[e2] - xa
+                    dy = cy_[e2] - ya
+                    dz = cz_[e2] - za
+                    lim = ra + cr_[e2] + skin
+                    if dx * dx + dy * dy + dz * dz < lim * lim:
+                        lo = min(a, b)
+                        hi = max(a, b)
+                        if not _bonded(lo, hi, bptr, bpart):
+                            if found < room:
+                                pi2[nb + found] = lo
+                                pj2[nb + found] = hi
+                            found += 1
+                            vptr2[lo] += 1
+    cnt = nb + found
+    cmax = found
+    if found > room or found > ccap:
+        iprm[I_NEED_P] = cnt
+        iprm[I_NEED_W] = sb.shape[0]
+        iprm[I_NEED_C] = cmax
+        return 1
+    # 2. rows in increasing i, each sorted by j (deterministic order): counting sort into
+    #    cand, then insertion sort per row
+    acc = 0
+    for i in range(n):
+        k = vptr2[i]
+        vptr2[i] = acc
+        acc += k
+    vptr2[n] = acc
+    fillp = vptr2[:n].copy()
+    for t in range(found):
+        lo = pi2[nb + t]
+        cand[fillp[lo]] = pj2[nb + t]
+        fillp[lo] += 1
+    cnt = nb
+    for i in range(n):
+        r0 = vptr2[i]
+        r1 = vptr2[i + 1]
+        for a in range(r0 + 1, r1):
             v = cand[a]
             b = a - 1
-            while b >= 0 and cand[b] > v:
+            while b >= r0 and cand[b] > v:
                 cand[b + 1] = cand[b]
                 b -= 1
             cand[b + 1] = v
         vptr2[i] = cnt
-        for a in range(nc):
+        # history: the old row is sorted by j too, so one pass over both finds every match
+        e = vptr[i]
+        e1 = vptr[i + 1]
+        for a in range(r0, r1):
             j = cand[a]
-            if cnt < cap:
-                pi2[cnt] = i
-                pj2[cnt] = j
+            while e < e1 and pj[e] < j:
+                e += 1
+            pi2[cnt] = i
+            pj2[cnt] = j
+            if e < e1 and pj[e] == j:
+                for c in range(3):
+                    pfs2[cnt, c] = pfs[e, c]
+                    pfs2[cnt, 3 + c] = pdf[e, c]
+            else:
                 for c in range(6):
                     pfs2[cnt, c] = 0.0
-                for e in range(vptr[i], vptr[i + 1]):
-                    if pj[e] == j:
-                        for c in range(3):
-                            pfs2[cnt, c] = pfs[e, c]
-                            pfs2[cnt, 3 + c] = pdf[e, c]
-                        break
             cnt += 1
     vptr2[n] = cnt
     # ball-wall slots
