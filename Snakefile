@@ -4,7 +4,13 @@
 #   snakemake --cores 2 --configfile config/smoke.yaml    # a few tiny samples (CI)
 #   snakemake --workflow-profile workflow/profiles/slurm --configfile config/paper.yaml
 #
-# The config is validated against workflow/schemas/config.schema.yaml before any job runs.
+# The config is validated against workflow/schemas/config.schema.yaml before any job runs
+# (every key: config/README.md). Every file of the study is named in one place,
+# bpmcal.io.layout (docs/architecture.md); the rules declare each file they read and write.
+from snakemake.utils import min_version
+
+min_version("8.0")
+
 
 configfile: "config/config.yaml"
 
@@ -39,14 +45,14 @@ include: "workflow/rules/report.smk"
 
 
 rule all:
+    default_target: True
     input:
-        DATASET,
+        FILES.dataset,
         rules.screen.output,
         rules.regress.output,
         rules.calibrate.output,
         rules.verification_tables.output,
         rules.seed_scatter.output,
-        rules.sweep_analyse.output if config["ratio_sweep"]["enabled"] else [],
+        rules.sweep_analyse.output if SWEEP_ON else [],
         rules.impact_analyse.output,
         rules.report.output,
-    default_target: True

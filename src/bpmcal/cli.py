@@ -1,62 +1,56 @@
 """The ``bpmcal`` command: one subcommand per job of the study (workflow rules call these).
 
     bpmcal ucs --params FILE.yaml --out RUN.h5 [--set NAME=VALUE ...] [--scale S] [--seed N]
+    bpmcal bts --params FILE.yaml --out RUN.h5 [--scale S] [--seed N] [--platen-velocity V]
+    bpmcal triaxial --params FILE.yaml --sigma3 MPA --out RUN.h5 [--scale S] [--seed N]
     bpmcal summary RUN.h5 [--json]
     bpmcal vtk RUN.h5 --out DIR
 
 Parameters are in the paper's units at this edge (mm, GPa, MPa, degrees); the package
-works in SI inside. Bad or missing parameters are reported before any work starts.
+works in SI inside. Bad input (arguments, parameter values, input files, output paths,
+resource budgets) is reported before any work starts as one line on stderr,
+``bpmcal CMD: error: ...``, with exit code 2, and nothing is written. Exit codes: 0 done,
+1 internal error (a bug: traceback and a hint), 2 bad input, 3 the DEM run failed and its
+failure record was written (0 with ``--failed-ok``, what the workflow rules pass),
+4 system error (disk full, permission), 130 interrupted.
+
+This module only parses arguments and calls one stage (``bpmcal.stages``, the report) or
+one I/O helper; argument types and exit codes: ``bpmcal.cli_args``. Every default comes
+from the settings it sets (the lab tests' settings dataclasses, ``Geometry``, the
+analysis classes and the stage functions: :func:`defaults_of`), never a literal here.
+Each subcommand's options are added by its ``_add_<cmd>`` function, which imports what
+that command needs, and ``main`` builds only the parser of the command it runs: a DEM
+job (``bpmcal ucs``, 150 per study) does not load xgboost, statsmodels or matplotlib.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
-import time
+import traceback
 from pathlib import Path
 
 from . import params as P
-
-EXIT_BAD_INPUT = 2
-
-
-class Progress:
-    """A one-line progress bar on a terminal, plain log lines (every ``every`` s) otherwise."""
-
-    def __init__(self, label: str, stream=None, every: float = 10.0, enabled: bool = True):
-        self.stream = stream or sys.stderr
-        self.tty = self.stream.isatty()
-        self.label = label
-        self.every = every
-        self.enabled = enabled
-        self._last = 0.0
-        self._t0 = time.perf_counter()
-
-    def __call__(self, d: dict):
-        if not self.enabled:
-            return
-        now = time.perf_counter()
-        if not self.tty and now - self._last < self.every:
-            return
-        self._last = now
-        rate = d.get("steps", 0) / max(d.get("wall_s", now - self._t0), 1e-9)
-        line = (f"{self.label}: strain {d.get('strain', 0) * 100:6.3f} %  stress "
-                f"{d.get('stress_MPa', 0):7.2f} MPa (peak {d.get('peak_MPa', 0):7.2f})  cracks "
-                f"{d.get('cracks', 0):6d}  {d.get('steps', 0):8d} steps  {rate:8.0f} steps/s")
-        if self.tty:
-            self.stream.write("\r" + line)
-        else:
-            self.stream.write(line + "\n")
-        self.stream.flush()
-
-    def done(self, msg: str = ""):
-        if self.enabled and self.tty:
-            self.stream.write("\n")
-        if msg and self.enabled:
-            self.stream.write(msg + "\n")
-            self.stream.flush()
+from .cli_args import (
+    EXIT_BAD_INPUT,
+    EXIT_BUG,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_RUN_FAILED,
+    EXIT_SYSTEM,
+    SEED,
+    THREADS,
+    Parser,
+    fraction,
+    integer,
+    number,
+    positive,
+)
+from .io.checks import BadInput, parse_json
+from .lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
+from .stages import defaults_of
+from .stages.progress import Progress
 
 
 def _param_help() -> str:
@@ -65,158 +59,150 @@ def _param_help() -> str:
         unit = p.unit or "-"
         rows.append(f"  {p.name:12s} {p.symbol:9s} [{unit:3s}] Table 2 range {p.lo:g}-{p.hi:g}:"
                     f" {p.description}")
+    rows.append("exit codes: 0 done, 2 bad input (nothing written), 3 the run failed and its "
+                "failure record was written (0 with --failed-ok), 1 internal error, "
+                "4 system error, 130 interrupted")
     return "\n".join(rows)
 
 
-def _parse_set(items) -> dict:
-    out = {}
-    for it in items or []:
-        if "=" not in it:
-            raise P.ParameterError(f"--set {it!r}: expected NAME=VALUE")
-        k, v = it.split("=", 1)
-        k = k.strip()
-        try:
-            out[k] = float(v)
-        except ValueError:
-            raise P.ParameterError(f"--set {k}={v!r}: expected a number") from None
-    return out
+# ------------------------------------------------------------------------ DEM runs
+def _run_done(a, cmd: str, out) -> int:
+    """Exit code of a DEM run command; the FAILED line is printed even with --quiet."""
+    if out.status == "ok":
+        return EXIT_OK
+    where = (f"failure record written to {out.path}; the good run in {out.kept} was kept"
+             if out.kept else "failure record written")
+    print(f"bpmcal {cmd}: FAILED: {a.out}: {out.error} ({where})", file=sys.stderr)
+    sys.stderr.flush()
+    return EXIT_OK if a.failed_ok and not out.kept else EXIT_RUN_FAILED
 
 
-def load_params(path, overrides=()) -> dict:
-    """Parameters from a YAML file (a flat mapping of the 8 names, or a material card whose
-    ``parameters`` hold them) plus NAME=VALUE overrides, validated (unknown, missing,
-    non-numeric or out-of-domain values raise)."""
-    import yaml
-
-    d = {}
-    if path is not None:
-        try:
-            with open(path) as f:
-                d = yaml.safe_load(f) or {}
-        except FileNotFoundError:
-            raise P.ParameterError(f"--params {path}: no such file") from None
-        if not isinstance(d, dict):
-            raise P.ParameterError(f"--params {path}: expected a mapping of parameter names "
-                                   "to values")
-        if isinstance(d.get("parameters"), dict):  # a material card
-            d = dict(d["parameters"])
-    d.update(_parse_set(overrides))
-    return P.validate_params(d)
+def _budget(a) -> dict:
+    return {"max_balls": a.max_balls, "mem_budget_mb": a.mem_budget_mb,
+            "genesis_max_steps": a.genesis_max_steps}
 
 
-def _positive(name):
-    def conv(s):
-        try:
-            v = float(s)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a number") from None
-        if not (v > 0 and math.isfinite(v)):
-            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a positive number")
-        return v
-    return conv
+def run_geometry(a):
+    from .lab.runner import Geometry
+
+    return Geometry(scale=a.scale, diameter_mm=a.diameter, height_mm=a.height,
+                    sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
+                    relax_ratio=a.relax_ratio, genesis=a.genesis)
 
 
-def _fraction(name):
-    def conv(s):
-        v = _positive(name)(s)
-        if v >= 1:
-            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a fraction in (0, 1)")
-        return v
-    return conv
+def run_settings(a, cls=None, **extra):
+    """The loading settings (``cls``: UCSSettings, the default, or TriaxialSettings)."""
+    if cls is None:
+        from .lab.ucs import UCSSettings as cls
+    return cls(platen_velocity=a.platen_velocity, strain_rate=a.strain_rate,
+               damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
+               platen_fric=a.platen_fric, record_strain=a.record_strain, **extra)
 
 
-def params_from_design(path, sample_id) -> tuple[dict, int]:
-    """The 8 parameters and the seed of one row of a design CSV."""
-    import pandas as pd
+def _lab_test(a, test: str, geometry, settings, done_line) -> int:
+    """``ucs``, ``bts`` and ``triaxial``: the run file (``stages.runs.lab_test_file``), its
+    one-line result and the exit code."""
+    from .stages.runs import lab_test_file
 
-    try:
-        d = pd.read_csv(path)
-    except FileNotFoundError:
-        raise P.ParameterError(f"--design {path}: no such file") from None
-    row = d[d["sample_id"] == sample_id]
-    if len(row) != 1:
-        raise P.ParameterError(f"--sample {sample_id!r}: not in {path} "
-                               f"({len(d)} samples: {d['sample_id'].iloc[0]}..."
-                               f"{d['sample_id'].iloc[-1]})")
-    r = row.iloc[0]
-    return {k: float(r[k]) for k in P.PARAMS}, int(r["seed"])
+    prog = Progress(f"{test} {Path(a.out).name}", enabled=not a.quiet)
+    out = lab_test_file(test, a.out, geometry=geometry, settings=settings,
+                        params_file=a.params, sets=a.set, design=a.design, sample=a.sample,
+                        seed=a.seed, cache=a.specimen_cache, threads=a.threads,
+                        progress=prog, **_budget(a))
+    prog.done(f"{a.out}: {done_line(out.summary)}" if out.status == "ok" and out.summary
+              else "")
+    return _run_done(a, test, out)
 
 
 def cmd_ucs(a) -> int:
-    from .lab.runner import run_ucs_file
+    return _lab_test(
+        a, "ucs", run_geometry(a), run_settings(a),
+        lambda s: (f"sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
+                   f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
+                   f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
+                   f"({s['stop_reason']})"))
 
-    if a.design is not None:
-        if a.sample is None:
-            raise P.ParameterError("--design needs --sample ID")
-        params, seed = params_from_design(a.design, a.sample)
-        params.update(_parse_set(a.set))
-        params = P.validate_params(params)
-        a.seed = seed if a.seed is None else a.seed
-    else:
-        params = load_params(a.params, a.set)
-    a.seed = 1 if a.seed is None else a.seed
-    geo = run_geometry(a)
-    st = run_settings(a)
-    prog = Progress(f"ucs {Path(a.out).name}", enabled=not a.quiet)
-    out = run_ucs_file(a.out, params, a.seed, geo, st, cache=a.specimen_cache, progress=prog,
-                       threads=a.threads)
+
+def cmd_bts(a) -> int:
+    from .lab.brazilian import BTSSettings
+    from .lab.runner import bts_geometry
+
+    geo = bts_geometry(scale=a.scale, diameter_mm=a.diameter, thickness_mm=a.thickness,
+                       sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
+                       relax_ratio=a.relax_ratio, genesis=a.genesis)
+    st = BTSSettings(platen_velocity=a.platen_velocity, platen_fric=a.platen_fric,
+                     damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
+                     record_strain=a.record_strain)
+    return _lab_test(
+        a, "bts", geo, st,
+        lambda s: (f"sigma_t = {s['bts_MPa']:.3f} MPa (peak load {s['peak_load_N']:.1f} N, "
+                   f"platen forces differ by {100 * s['platen_mismatch']:.2f} %), cracks "
+                   f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
+                   f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})"))
+
+
+def cmd_triaxial(a) -> int:
+    from .lab.triaxial import TriaxialSettings
+
+    st = run_settings(a, TriaxialSettings, sigma3=a.sigma3 * 1e6, servo_alpha=a.servo_gain,
+                      servo_interval=a.servo_interval)
+
+    def line(s):
+        dev = (f"{100 * s['sigma3_maxdev_rel']:.2f} %" if a.sigma3 > 0
+               else f"{s['sigma3_maxdev_MPa']:.3f} MPa")
+        return (f"sigma3 = {a.sigma3:g} MPa, sigma1 = {s['sigma1_MPa']:.3f} MPa, "
+                f"E = {s['E_GPa']:.3f} GPa, nu = {s['nu']:.3f}, sigma3 held within {dev} "
+                f"up to the peak, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
+                f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+
+    return _lab_test(a, "triaxial", run_geometry(a), st, line)
+
+
+def cmd_impact(a) -> int:
+    from .lab.impact import ImpactSettings
+    from .stages.runs import impact_file
+
+    st = ImpactSettings(velocity=a.velocity, hammer_mass=a.hammer_mass * a.scale ** 3,
+                        dp_ratio=a.dp_ratio, platen_fric=a.anvil_fric,
+                        duration=a.duration_ms * 1e-3, record_dt=a.record_us * 1e-6)
+    prog = Progress(f"impact {Path(a.out).name}", enabled=not a.quiet)
+    out = impact_file(a.card, a.out, geometry=run_geometry(a), settings=st, seed=a.seed,
+                      cache=a.specimen_cache, threads=a.threads, progress=prog, **_budget(a))
     if out.status == "ok":
         s = out.summary
-        prog.done(f"{a.out}: sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
-                  f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
-                  f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
-                  f"({s['stop_reason']})")
+        prog.done(f"{a.out}: W_in = {s['W_in_J']:.3f} J, G_f = {s['G_f_J']:.3f} J, eta_f = "
+                  f"{100 * s['eta_f']:.1f} %, t10 = {s['t10_pct']:.1f} %, closure "
+                  f"{100 * s['closure_rel_max']:.3f} %, {s['steps']} steps, {s['wall_s']:.0f} s")
     else:
-        prog.done(f"{a.out}: FAILED ({out.error}); failure record written")
-    return 0
+        prog.done()
+    return _run_done(a, "impact", out)
 
 
+# ------------------------------------------------------------------------ the study
 def cmd_design(a) -> int:
-    from .study.design import lhs_design
+    from .stages.study import design
 
-    try:
-        ranges = json.loads(a.ranges)
-    except json.JSONDecodeError as e:
-        raise P.ParameterError(f"--ranges: not valid JSON ({e})") from None
+    ranges = parse_json(a.ranges, "--ranges")
     opt = None if a.optimization == "none" else a.optimization
-    df = lhs_design(ranges, a.n, a.seed, optimization=opt)
-    _write_csv(df, a.out)
+    df = design(ranges, a.n, a.seed, a.out, optimization=opt)
     print(f"{a.out}: {len(df)} samples over {sorted(ranges)} (seed {a.seed})")
     return 0
 
 
 def cmd_gather(a) -> int:
-    import pandas as pd
+    from .stages.study import gather
 
-    from .study.gather import gather, status_report
-
-    design = pd.read_csv(a.design)
-    runs = {sid: Path(a.runs) / f"{sid}.h5" for sid in design["sample_id"]}
-    df = gather(design, runs)
-    _write_csv(df, a.out)
-    print(status_report(df))
+    _, report = gather(a.design, a.runs, a.out)
+    print(report)
     return 0
 
 
-def _write_csv(df, path):
-    """Write a table atomically (temporary name, then rename)."""
-    from .io.atomic import atomic_path
-
-    with atomic_path(path) as tmp:
-        df.to_csv(tmp, index=False)
-
-
-def _json_arg(text, name):
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as e:
-        raise P.ParameterError(f"{name}: not valid JSON ({e})") from None
-
-
 def cmd_screen(a) -> int:
-    from .study.pipeline import screen
+    from .stages.analysis import screen
 
-    r = screen(a.dataset, a.out, a.tables, a.figures, threshold=a.threshold,
+    r = screen(a.dataset, selected=a.selected, table3_csv=a.table3, figure=a.figure,
+               importance_table=a.importance_table, cv_table=a.cv_table,
+               shadow_table=a.shadow_table, summary=a.summary, threshold=a.threshold,
                importance=a.importance, n_splits=a.splits, n_repeats=a.repeats, seed=a.seed)
     print(r["note"])
     for k, v in r["selected"].items():
@@ -225,180 +211,131 @@ def cmd_screen(a) -> int:
 
 
 def cmd_regress(a) -> int:
-    from .study.pipeline import regress
+    from .stages.analysis import regress
 
-    r = regress(a.dataset, a.selected, a.out, a.tables, a.figures, alpha_in=a.alpha_in,
-                alpha_out=a.alpha_out, vif_max=a.vif_max, hierarchy=a.hierarchy,
-                cv_folds=a.cv_folds, cv_repeats=a.cv_repeats, seed=a.seed)
+    r = regress(a.dataset, a.selected, models=a.models, equations=a.equations,
+                summaries=a.summaries, coefficients=a.coefficients, candidates=a.candidates,
+                table4=a.table4, fit_table=a.fit_table, figure=a.figure,
+                alpha_in=a.alpha_in, alpha_out=a.alpha_out, vif_max=a.vif_max,
+                hierarchy=a.hierarchy, cv_folds=a.cv_folds, cv_repeats=a.cv_repeats,
+                seed=a.seed)
     print(r["note"])
-    print((Path(a.out) / "equations.md").read_text())
+    print(r["equations"])
     return 0
 
 
 def cmd_calibrate(a) -> int:
-    from .study.pipeline import calibrate
+    from .stages.analysis import calibrate
 
-    fixed = P.validate_params(_json_arg(a.fixed, "--fixed"), require_all=False)
-    if a.n_boot == 1 or a.n_boot < 0:
-        raise P.ParameterError(f"--n-boot {a.n_boot}: expected 0 (no bootstrap) "
-                               "or an integer >= 2")
-    free = a.free.split(",") if a.free else None
-    ratio = None if a.ratio is not None and a.ratio <= 0 else a.ratio
-    if a.ratio_from:
-        ratio = float(json.loads(Path(a.ratio_from).read_text())["chosen_ratio"])
-    r = calibrate(a.dataset, a.models, a.lab, a.out, fixed=fixed, ratio=ratio, free=free,
-                  n_boot=a.n_boot, seed=a.seed, tables_dir=a.tables)
+    fixed = parse_json(a.fixed, "--fixed")
+    ranges = parse_json(a.ranges, "--ranges")
+    bounds = parse_json(a.bounds, "--bounds") if a.bounds else {}
+    r = calibrate(a.dataset, a.models, a.lab, cards=a.cards, table=a.table, fixed=fixed,
+                  ranges=ranges, bounds=bounds, ratio=None if a.ratio <= 0 else a.ratio,
+                  ratio_from=a.ratio_from, free=a.free.split(",") if a.free else None,
+                  n_boot=a.n_boot, seed=a.seed)
+    if r["note"]:
+        print(r["note"])
     print(r["table"].to_string())
     return 0
 
 
 def cmd_verify(a) -> int:
-    from .study.pipeline import verify
+    from .stages.analysis import verify
 
     prog = Progress(f"verify {Path(a.card).stem}", enabled=not a.quiet)
-    v = verify(a.card, a.models, a.out, geometry=run_geometry(a), settings=run_settings(a),
-               seed=a.seed, rtol=a.rtol, max_rounds=a.max_rounds, cache=a.specimen_cache,
-               threads=a.threads, progress=prog)["verification"]
+    v = verify(a.card, a.models, out_card=a.out_card, rounds=a.rounds, run=a.run,
+               geometry=run_geometry(a), settings=run_settings(a), seed=a.seed,
+               rtol=a.rtol, max_rounds=a.max_rounds, cache=a.specimen_cache,
+               threads=a.threads, progress=prog, from_unreachable=a.from_unreachable,
+               **_budget(a))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
 
 
-def cmd_scatter(a) -> int:
-    from .study.pipeline import seed_scatter_runs
+def _seeds(text) -> list[int]:
+    try:
+        seeds = [int(x) for x in text.split(",")]
+    except ValueError:
+        raise BadInput(f"--seeds {text!r}: expected comma-separated integers") from None
+    bad = [x for x in seeds if not 0 <= x < 2 ** 32]
+    if bad or len(seeds) < 2 or len(set(seeds)) != len(seeds):
+        raise BadInput(f"--seeds {text!r}: expected at least 2 different seeds in [0, 2^32)")
+    return seeds
 
-    seeds = [int(x) for x in a.seeds.split(",")]
-    sc = seed_scatter_runs(a.card, a.out, geometry=run_geometry(a), settings=run_settings(a),
-                           seeds=seeds, rtol=a.rtol, cache=a.specimen_cache, threads=a.threads)
+
+def cmd_scatter(a) -> int:
+    from .stages.analysis import seed_scatter
+
+    sc = seed_scatter(a.card, runs=a.runs, seeds=_seeds(a.seeds), seed_runs=a.seed_runs,
+                      table=a.table, geometry=run_geometry(a), settings=run_settings(a),
+                      rtol=a.rtol, cache=a.specimen_cache, threads=a.threads, **_budget(a))
     print(sc.to_string())
     return 0
 
 
 def cmd_vtables(a) -> int:
-    from .study.pipeline import verification_tables
+    from .stages.analysis import verification_tables
 
-    cards = {Path(c).parent.name: c for c in a.cards}
-    r = verification_tables(cards, a.lab, a.tables, a.figures)
+    r = verification_tables(a.cards, a.runs, a.lab, table5=a.table5, table6=a.table6,
+                            figure=a.figure)
     print(r["table5"].to_string())
     print(r["table6"].to_string())
     return 0
 
 
-def cmd_sweep_plan(a) -> int:
-    from .analysis import models_from_dict
-    from .study.pipeline import read_card
-    from .study.sweep import ratio_grid, sweep_plan
+def _ratios(text) -> tuple[float, float, float]:
+    try:
+        start, stop, step = (float(x) for x in text.split(","))
+    except ValueError:
+        raise BadInput(f"--ratios {text!r}: expected start,stop,step (three numbers)") from None
+    return start, stop, step
 
-    start, stop, step = (float(x) for x in a.ratios.split(","))
-    card = read_card(a.card)
-    models = models_from_dict(json.loads(Path(a.models).read_text()))
-    plan = sweep_plan(card, models["ucs_MPa"], ratio_grid(start, stop, step), a.seed)
-    _write_csv(plan, a.out)
+
+def cmd_sweep_plan(a) -> int:
+    from .stages.fracture import sweep_plan
+
+    plan = sweep_plan(a.card, a.models, ratios=_ratios(a.ratios), seed=a.seed, out=a.out)
     print(plan.to_string())
+    for r in plan[plan["status"] != "planned"].itertuples():
+        print(f"{r.sample_id}: {r.status}: {r.reason}")
     return 0
 
 
 def cmd_sweep_analyse(a) -> int:
-    import pandas as pd
+    from .stages.fracture import sweep_analyse
 
-    from .io.h5 import read_cracks
-    from .io.vtk import export_run
-    from .plots.fracture import fig_failure_patterns, fig_ratio_cracks
-    from .plots.style import save
-    from .study.pipeline import write_table
-    from .study.sweep import analyse_sweep, write_chosen
-
-    plan = pd.read_csv(a.plan)
-    df, chosen = analyse_sweep(plan, a.runs, a.criterion, a.target)
-    write_table(df, Path(a.tables) / "ratio_sweep.csv", index=False)
-    write_chosen(a.chosen, chosen)
-    save(fig_ratio_cracks(df, chosen), Path(a.figures) / "fig4_ratio_cracks.png")
-    show = sorted({plan["ratio"].iloc[0], chosen["chosen_ratio"], 1.0,
-                   plan["ratio"].iloc[-1]} & set(plan["ratio"]))
-    panels = {}
-    for r in show:
-        sid = plan.loc[plan["ratio"] == r, "sample_id"].iloc[0]
-        run = Path(a.runs) / f"{sid}.h5"
-        panels[f"a = {r:.1f}"] = read_cracks(run)
-        export_run(run, Path(a.vtk) / sid)
-    save(fig_failure_patterns(panels), Path(a.figures) / "fig5_failure_patterns.png")
+    df, chosen = sweep_analyse(a.plan, a.runs, criterion=a.criterion, target=a.target,
+                               table=a.table, chosen=a.chosen, fig4=a.fig4, fig5=a.fig5,
+                               vtk=a.vtk)
     print(df.to_string())
     print(f"chosen: {chosen}")
     return 0
 
 
-def cmd_impact(a) -> int:
-    from .lab.impact import ImpactSettings
-    from .lab.runner import run_impact_file
-    from .study.pipeline import read_card
-
-    card = read_card(a.card)
-    params = dict(card.get("verification", {}).get("parameters") or card["parameters"])
-    st = ImpactSettings(velocity=a.velocity, hammer_mass=a.hammer_mass * a.scale ** 3,
-                        dp_ratio=a.dp_ratio, platen_fric=a.anvil_fric,
-                        duration=a.duration_ms * 1e-3, record_dt=a.record_us * 1e-6)
-    prog = Progress(f"impact {Path(a.out).name}", enabled=not a.quiet)
-    out = run_impact_file(a.out, params, a.seed, run_geometry(a), st, cache=a.specimen_cache,
-                          threads=a.threads, progress=prog)
-    if out.status == "ok":
-        s = out.summary
-        prog.done(f"{a.out}: W_in = {s['W_in_J']:.3f} J, G_f = {s['G_f_J']:.3f} J, eta_f = "
-                  f"{100 * s['eta_f']:.1f} %, t10 = {s['t10_pct']:.1f} %, closure "
-                  f"{100 * s['closure_rel_max']:.3f} %, {s['steps']} steps, {s['wall_s']:.0f} s")
-    else:
-        prog.done(f"{a.out}: FAILED ({out.error})")
-    return 0
-
-
 def cmd_impact_analyse(a) -> int:
-    import pandas as pd
+    from .stages.fracture import impact_analyse
 
-    from .io.h5 import read_series, read_summary
-    from .lab.fragments import fit_jk
-    from .plots.fracture import fig_impact, fig_t10
-    from .plots.style import save
-    from .study.pipeline import write_table, write_text
-
-    main_s = read_summary(a.main)
-    ser = read_series(a.main)
-    ser["cracks_total"] = ser["cracks_tension"] + ser["cracks_shear"]
-    write_table(ser, Path(a.tables) / "impact_energy.csv", index=False)
-    save(fig_impact(ser, main_s), Path(a.figures) / "fig7_impact_energy.png")
-    rows = []
-    for f in a.runs:
-        s = read_summary(f)
-        if s.get("status") != "ok":
-            continue
-        rows.append({"velocity": s["velocity"], "W_in_J": s["W_in_J"], "G_f_J": s["G_f_J"],
-                     "eta_f": s["eta_f"], "ecs_kWh_t": s["ecs_kWh_t"], "t10_pct": s["t10_pct"],
-                     "n_fragments": s["n_fragments"],
-                     "largest_fragment_frac": s["largest_fragment_frac"],
-                     "balls_per_t10_fragment": s["balls_per_t10_fragment"]})
-    t = pd.DataFrame(rows).sort_values("velocity")
-    try:
-        fit = fit_jk(t["ecs_kWh_t"], t["t10_pct"])
-    except (ValueError, RuntimeError) as e:
-        fit = None
-        print(f"JK fit failed: {e}")
-    write_table(t, Path(a.tables) / "t10_ecs.csv", index=False)
-    write_text(Path(a.tables) / "jk_fit.json", json.dumps(fit, indent=2) + "\n")
-    save(fig_t10(t, fit), Path(a.figures) / "t10_ecs.png")
-    print(t.to_string())
-    print(f"JK fit: {fit}")
+    r = impact_analyse(a.main, a.runs, energy=a.energy, t10=a.t10, jk_fit=a.jk_fit,
+                       fig7=a.fig7, fig_t10_png=a.fig_t10)
+    for n in r["notes"]:
+        print(n)
+    print(r["t10"].to_string())
+    print(f"JK fit: {r['fit']}")
     return 0
 
 
 def cmd_report(a) -> int:
-    from .report.build import build
+    from .report.build import report
 
-    cfg = _json_arg(Path(a.config).read_text(), "--config") if a.config.endswith(".json") \
-        else __import__("yaml").safe_load(Path(a.config).read_text())
-    index = build(a.outdir, cfg, a.out)
-    print(index)
+    print(report(a.outdir, config=a.config, config_json=a.config_json,
+                 config_out=a.config_out))
     return 0
 
 
 def cmd_summary(a) -> int:
     from .io.h5 import json_safe, read_summary
+
     s = read_summary(a.run)
     if a.json:
         print(json.dumps(json_safe(s), sort_keys=True))
@@ -409,230 +346,486 @@ def cmd_summary(a) -> int:
 
 
 def cmd_vtk(a) -> int:
+    from .io.checks import out_dir
+    from .io.h5 import read_summary
     from .io.vtk import export_run
-    files = export_run(a.run, a.out)
-    for f in files:
+
+    s = read_summary(a.run)
+    if s.get("status") != "ok":
+        raise BadInput(f"{a.run}: a failure record (status {s.get('status')}: "
+                       f"{s.get('error', '')}), no particles to export")
+    out_dir(a.out, "--out")
+    for f in export_run(a.run, a.out):
         print(f)
     return 0
 
 
-def add_run_args(p):
-    """Options of the specimen and of the UCS loading (shared by ucs, verify, scatter)."""
-    p.add_argument("--scale", type=_positive("scale"), default=1.0,
-                   help="specimen size factor on the 50 x 100 mm cylinder (default 1)")
-    p.add_argument("--diameter", type=_positive("diameter"), default=50.0,
-                   help="specimen diameter before scaling [mm] (default 50)")
-    p.add_argument("--height", type=_positive("height"), default=100.0,
-                   help="specimen height before scaling [mm] (default 100)")
-    p.add_argument("--relax-ratio", type=_positive("relax-ratio"), default=1e-2,
-                   help="genesis equilibrium: mean unbalanced-force ratio (default 1e-2)")
-    p.add_argument("--record-strain", type=_positive("record-strain"), default=1e-5,
-                   help="axial strain between records (default 1e-5)")
-    p.add_argument("--platen-velocity", type=_positive("platen-velocity"), default=0.05,
-                   help="speed of each platen [m/s] (default 0.05)")
-    p.add_argument("--strain-rate", type=_positive("strain-rate"), default=None,
-                   help="axial strain rate [1/s]; overrides --platen-velocity "
-                        "(each platen then moves at rate x H / 2)")
-    p.add_argument("--damping", type=float, default=0.7, help="local damping (default 0.7)")
-    p.add_argument("--stop-drop", type=_fraction("stop-drop"), default=0.7,
-                   help="stop when stress < this fraction of the peak after it (default 0.7)")
-    p.add_argument("--max-strain", type=_positive("max-strain"), default=0.03,
-                   help="stop at this axial strain (default 0.03)")
-    p.add_argument("--platen-fric", type=float, default=0.0,
-                   help="platen friction coefficient (default 0, frictionless)")
-    p.add_argument("--sigma0", type=float, default=0.1,
-                   help="locked-in isotropic stress after genesis [MPa] (default 0.1)")
-    p.add_argument("--install-gap", type=float, default=0.0,
-                   help="bond pairs with surface gap <= this [mm] (default 0)")
-    p.add_argument("--threads", type=int, default=None, help="numba threads")
+# ------------------------------------------------------------------------ shared options
+def add_source_args(p):
+    """Where a DEM run command takes its parameters and seed from, and its output file."""
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--params", default=None,
+                     help="YAML file with the 8 meso-parameters (or a material card)")
+    src.add_argument("--design", default=None,
+                     help="take the parameters and the seed from this design CSV ...")
+    p.add_argument("--sample", default=None, help="... row with this sample_id")
+    p.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="override one parameter (repeatable)")
+    p.add_argument("--seed", type=SEED, default=None,
+                   help="packing seed (default 1, or the design row's)")
+
+
+FAILED_OK_HELP = ("a failed run (failure record written) exits 0 instead of 3; the workflow "
+                  "passes this so that one failed sample does not stop the study")
+
+
+def add_outcome_args(p):
+    """How a DEM run command reports: progress, and the exit code of a failed run."""
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress output (a FAILED line is still printed)")
+    p.add_argument("--failed-ok", action="store_true", help=FAILED_OK_HELP)
+
+
+def add_budget_args(p):
+    """Resource guards of a DEM command (checked before any work)."""
+    p.add_argument("--max-balls", type=integer("max-balls", 1), default=MAX_BALLS,
+                   help="refuse a specimen estimated to hold more balls than this "
+                        f"(default {MAX_BALLS:,})")
+    p.add_argument("--mem-budget-mb", type=positive("mem-budget-mb", "MB"), default=None,
+                   help="refuse a run estimated to need more memory than this [MB] "
+                        "(default 80 %% of this machine's memory)")
+    p.add_argument("--genesis-max-steps", type=integer("genesis-max-steps", 1000),
+                   default=GENESIS_MAX_STEPS,
+                   help="a specimen that has not settled after this many steps is a failed "
+                        f"run (default {GENESIS_MAX_STEPS:,})")
+
+
+GENESES = ("bpmcal", "pfc")  # = lab.specimen.GENESES (tested equal)
+
+
+def add_specimen_args(p, geo=None, what: str = "the 50 x 100 mm cylinder"):
+    """The specimen of a DEM command (``Geometry``'s fields; defaults from ``geo``)."""
+    from .lab.runner import Geometry
+
+    geo = geo or Geometry()
+    p.add_argument("--scale", type=number("scale", 0.0, 10.0, lo_open=True), default=geo.scale,
+                   help=f"specimen size factor on {what} (default {geo.scale:g})")
+    p.add_argument("--sigma0", type=number("sigma0", 0.0, 100.0, unit="MPa"),
+                   default=geo.sigma0_MPa, help="locked-in isotropic stress after genesis "
+                                                f"[MPa] (default {geo.sigma0_MPa:g})")
+    p.add_argument("--install-gap", type=number("install-gap", 0.0, 1.0, unit="mm"),
+                   default=geo.install_gap_mm,
+                   help="bond pairs with surface gap <= this [mm] (default: the genesis's, 0 "
+                        "for bpmcal, 0.0625 Rmin for pfc)")
+    p.add_argument("--genesis", choices=GENESES, default=geo.genesis,
+                   help="specimen genesis after the packing: bpmcal (locked-in stress relieved "
+                        "to --sigma0, bonds on touching pairs) or pfc (Itasca's tutorial "
+                        "practice: every overlap relieved to zero force, bonds within a "
+                        f"positive gap); default {geo.genesis}")
+    p.add_argument("--relax-ratio", type=number("relax-ratio", 0.0, 0.1, lo_open=True),
+                   default=geo.relax_ratio,
+                   help="genesis equilibrium: mean unbalanced-force ratio "
+                        f"(default {geo.relax_ratio:g})")
+    p.add_argument("--threads", type=THREADS, default=None, help="numba threads (>= 1)")
     p.add_argument("--specimen-cache", default=None,
                    help="directory of cached packings (default ~/.cache/bpmcal/packings or "
                         "$BPMCAL_SPECIMEN_CACHE)")
+    add_budget_args(p)
 
 
-def run_geometry(a):
+def add_run_args(p, loading=None):
+    """Options of the cylinder and of its axial loading (shared by ucs, triaxial, verify,
+    scatter, impact); the loading defaults are ``loading``'s (default ``UCSSettings()``)."""
     from .lab.runner import Geometry
-    return Geometry(scale=a.scale, diameter_mm=a.diameter, height_mm=a.height,
-                    sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
-                    relax_ratio=a.relax_ratio)
-
-
-def run_settings(a):
     from .lab.ucs import UCSSettings
-    return UCSSettings(platen_velocity=a.platen_velocity, strain_rate=a.strain_rate,
-                       damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
-                       platen_fric=a.platen_fric, record_strain=a.record_strain)
+
+    geo, ld = Geometry(), loading or UCSSettings()
+    p.add_argument("--diameter", type=positive("diameter", "mm"), default=geo.diameter_mm,
+                   help=f"specimen diameter before scaling [mm] (default {geo.diameter_mm:g})")
+    p.add_argument("--height", type=positive("height", "mm"), default=geo.height_mm,
+                   help=f"specimen height before scaling [mm] (default {geo.height_mm:g})")
+    p.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
+                   default=ld.record_strain,
+                   help=f"axial strain between records (default {ld.record_strain:g})")
+    p.add_argument("--platen-velocity", type=number("platen-velocity", 0.0, 100.0,
+                                                    lo_open=True, unit="m/s"),
+                   default=ld.platen_velocity,
+                   help=f"speed of each platen [m/s] (default {ld.platen_velocity:g})")
+    p.add_argument("--strain-rate", type=positive("strain-rate", "1/s"), default=ld.strain_rate,
+                   help="axial strain rate [1/s]; overrides --platen-velocity "
+                        "(each platen then moves at rate x H / 2)")
+    p.add_argument("--damping", type=number("damping", 0.0, 1.0, hi_open=True),
+                   default=ld.damping, help=f"local damping in [0, 1) (default {ld.damping:g})")
+    p.add_argument("--stop-drop", type=fraction("stop-drop"), default=ld.stop_drop,
+                   help="stop when stress < this fraction of the peak after it "
+                        f"(default {ld.stop_drop:g})")
+    p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
+                   default=ld.max_strain,
+                   help=f"stop at this axial strain (default {ld.max_strain:g})")
+    p.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0),
+                   default=ld.platen_fric,
+                   help=f"platen friction coefficient in [0, 10] (default {ld.platen_fric:g})")
+    add_specimen_args(p, geo)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="bpmcal", description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+def _file(p, flag, help_, nargs=None):
+    """A required file option (an input or a declared output of the job)."""
+    p.add_argument(flag, required=True, nargs=nargs, help=help_)
+
+
+# ------------------------------------------------------------------------ subcommands
+def _add_ucs(p):
+    add_source_args(p)
+    add_run_args(p)
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_ucs)
+
+
+def _add_bts(p):
+    from .lab.brazilian import BTSSettings
+    from .lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM, bts_geometry
+
+    bd = BTSSettings()  # the defaults of the Brazilian test live in its settings
+    add_source_args(p)
+    p.add_argument("--diameter", type=positive("diameter", "mm"), default=BTS_DIAMETER_MM,
+                   help=f"disc diameter before scaling [mm] (default {BTS_DIAMETER_MM:g})")
+    p.add_argument("--thickness", type=positive("thickness", "mm"), default=BTS_THICKNESS_MM,
+                   help=f"disc thickness before scaling [mm] (default {BTS_THICKNESS_MM:g}, "
+                        "ISRM t = D/2)")
+    p.add_argument("--platen-velocity", type=number("platen-velocity", 0.0, 100.0,
+                                                    lo_open=True, unit="m/s"),
+                   default=bd.platen_velocity,
+                   help=f"speed of each platen [m/s] (default {bd.platen_velocity:g}: halving "
+                        "it changes sigma_t by < 2 %%, see the README)")
+    p.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0),
+                   default=bd.platen_fric,
+                   help=f"platen friction coefficient (default {bd.platen_fric:g}; with 0 the "
+                        "free disc spins on the platens before it seats, and sigma_t is ~15 %% "
+                        "lower)")
+    p.add_argument("--damping", type=number("damping", 0.0, 1.0, hi_open=True),
+                   default=bd.damping, help=f"local damping in [0, 1) (default {bd.damping:g})")
+    p.add_argument("--stop-drop", type=fraction("stop-drop"), default=bd.stop_drop,
+                   help="stop when the load < this fraction of the peak after it "
+                        f"(default {bd.stop_drop:g})")
+    p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
+                   default=bd.max_strain,
+                   help=f"stop at this platen approach / D (default {bd.max_strain:g})")
+    p.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
+                   default=bd.record_strain,
+                   help=f"platen approach / D between records (default {bd.record_strain:g})")
+    add_specimen_args(p, bts_geometry(), "the ISRM 50 x 25 mm disc")
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_bts)
+
+
+def _add_triaxial(p):
+    from .lab.triaxial import TriaxialSettings
+
+    td = TriaxialSettings()
+    add_source_args(p)
+    p.add_argument("--sigma3", required=True, metavar="MPA",
+                   type=number("sigma3", 0.0, 1000.0, unit="MPa"),
+                   help="confining stress [MPa] in [0, 1000], held by a servo-controlled "
+                        "lateral wall")
+    p.add_argument("--servo-gain", type=number("servo-gain", 0.0, 1.0, lo_open=True),
+                   default=td.servo_alpha,
+                   help=f"servo relaxation factor alpha in (0, 1] (default {td.servo_alpha:g}, "
+                        "as PFC)")
+    p.add_argument("--servo-interval", type=integer("servo-interval", 1, 1000),
+                   default=td.servo_interval,
+                   help=f"steps between servo updates (default {td.servo_interval})")
+    add_run_args(p, loading=td)
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_triaxial)
+
+
+def _add_impact(p):
+    from .lab.impact import ImpactSettings
+    from .stages.runs import impact_file
+
+    im, seed = ImpactSettings(), defaults_of(impact_file)["seed"]
+    p.add_argument("--card", required=True,
+                   help="material card (verified or calibrated) or a YAML of the 8 parameters")
+    p.add_argument("--out", required=True)
+    p.add_argument("--velocity", type=number("velocity", 0.0, 100.0, lo_open=True,
+                                             unit="m/s"), default=im.velocity,
+                   help=f"hammer velocity [m/s] (default {im.velocity:g})")
+    p.add_argument("--hammer-mass", type=positive("hammer-mass", "kg"), default=im.hammer_mass,
+                   help="hammer mass at full size [kg]; scaled by scale^3 "
+                        f"(default {im.hammer_mass:g})")
+    p.add_argument("--dp-ratio", type=number("dp-ratio", 0.0, 1.0), default=im.dp_ratio,
+                   help="contact dashpot critical-damping ratio in [0, 1] "
+                        f"(default {im.dp_ratio:g})")
+    p.add_argument("--anvil-fric", dest="anvil_fric", type=number("anvil-fric", 0.0, 10.0),
+                   default=im.platen_fric,
+                   help=f"friction of anvil and hammer (default {im.platen_fric:g})")
+    p.add_argument("--duration-ms", type=positive("duration-ms", "ms"),
+                   default=im.duration * 1e3,
+                   help=f"run at most this long [ms] (default {im.duration * 1e3:g})")
+    p.add_argument("--record-us", type=positive("record-us", "us"),
+                   default=im.record_dt * 1e6,
+                   help=f"time between records [us] (default {im.record_dt * 1e6:g})")
+    p.add_argument("--seed", type=SEED, default=seed, help=f"packing seed (default {seed})")
+    add_outcome_args(p)
+    add_run_args(p)
+    p.set_defaults(func=cmd_impact)
+
+
+def _add_design(p):
+    from .study.design import lhs_design
+
+    opt = defaults_of(lhs_design)["optimization"]
+    p.add_argument("--ranges", required=True,
+                   help='JSON mapping of parameter name to [low, high] (paper units)')
+    p.add_argument("--n", type=integer("n", 2, 1_000_000), required=True,
+                   help="number of samples")
+    p.add_argument("--seed", type=SEED, required=True, help="design seed")
+    p.add_argument("--optimization", default=opt, choices=["random-cd", "lloyd", "none"],
+                   help=f"LHS optimisation (default {opt})")
+    p.add_argument("--out", required=True, help="output CSV")
+    p.set_defaults(func=cmd_design)
+
+
+def _add_gather(p):
+    p.add_argument("--design", required=True, help="design CSV")
+    _file(p, "--runs", "the run files, one per sample: <sample_id>.h5 (a sample without one "
+                       "is 'missing')", nargs="+")
+    p.add_argument("--out", required=True, help="output CSV")
+    p.set_defaults(func=cmd_gather)
+
+
+def _add_screen(p):
+    from .analysis import XGBScreening
+
+    d = defaults_of(XGBScreening)
+    p.add_argument("--dataset", required=True)
+    for flag, h in (("--selected", "output JSON: the selected candidates per response"),
+                    ("--table3", "output table (CSV, Markdown beside): Table 3"),
+                    ("--figure", "output figure (PNG, PDF beside): importance shares"),
+                    ("--importance-table", "output table: every importance type"),
+                    ("--cv-table", "output table: cross-validated R² of the models"),
+                    ("--shadow-table", "output table: largest shadow-feature share"),
+                    ("--summary", "output text: the screening summary")):
+        _file(p, flag, h)
+    p.add_argument("--threshold", type=number("threshold", 0.0, 100.0), default=d["threshold"],
+                   help=f"selection threshold [%%] (default {d['threshold']:g})")
+    p.add_argument("--importance", default=d["select_by"],
+                   choices=["gain", "total_gain", "permutation", "shap"],
+                   help=f"importance type that drives the selection (default {d['select_by']})")
+    p.add_argument("--splits", type=integer("splits", 2, 100), default=d["n_splits"],
+                   help=f"CV folds (default {d['n_splits']})")
+    p.add_argument("--repeats", type=integer("repeats", 1, 1000), default=d["n_repeats"],
+                   help=f"permutation repeats (default {d['n_repeats']})")
+    p.add_argument("--seed", type=SEED, default=d["seed"])
+    p.set_defaults(func=cmd_screen)
+
+
+def _add_regress(p):
+    from .analysis import StepwiseRegression
+
+    d = defaults_of(StepwiseRegression)
+    p.add_argument("--dataset", required=True)
+    p.add_argument("--selected", required=True, help="selected.json of the screening")
+    for flag, h in (("--models", "output JSON: the fitted models"),
+                    ("--equations", "output Markdown: the equations of every stage"),
+                    ("--summaries", "output text: the statsmodels summaries"),
+                    ("--coefficients", "output table: coefficients"),
+                    ("--candidates", "output table: Table 4 over all candidate terms"),
+                    ("--table4", "output table: Table 4 (retained terms)"),
+                    ("--fit-table", "output table: adjusted and CV R² per stage"),
+                    ("--figure", "output figure: predicted vs simulated")):
+        _file(p, flag, h)
+    p.add_argument("--alpha-in", type=number("alpha-in", 0.0, 0.5, lo_open=True),
+                   default=d["alpha_in"])
+    p.add_argument("--alpha-out", type=number("alpha-out", 0.0, 0.5, lo_open=True),
+                   default=d["alpha_out"])
+    p.add_argument("--vif-max", type=number("vif-max", 1.0), default=d["vif_max"])
+    p.add_argument("--hierarchy", default=d["hierarchy"], choices=["strong", "weak", "none"])
+    p.add_argument("--cv-folds", type=integer("cv-folds", 2, 100), default=d["cv_folds"])
+    p.add_argument("--cv-repeats", type=integer("cv-repeats", 1, 1000), default=d["cv_repeats"])
+    p.add_argument("--seed", type=SEED, default=d["seed"])
+    p.set_defaults(func=cmd_regress)
+
+
+def _add_calibrate(p):
+    from .stages.analysis import calibrate
+
+    d = defaults_of(calibrate)
+    p.add_argument("--dataset", required=True)
+    p.add_argument("--models", required=True, help="models.json of the regression")
+    p.add_argument("--lab", required=True, help="lab CSV")
+    _file(p, "--cards", "output material cards, one per lab specimen: <specimen>.yaml",
+          nargs="+")
+    p.add_argument("--table", default=None, help="output table: the calibrated parameters")
+    p.add_argument("--fixed", required=True, help="JSON of the fixed parameters")
+    p.add_argument("--ranges", required=True,
+                   help="JSON of the design space {name: [low, high]} the dataset was sampled "
+                        "over (the config's ranges); it bounds the free parameters")
+    p.add_argument("--bounds", default=None,
+                   help="JSON {name: [low, high]} narrowing --ranges for free parameters "
+                        "(the config's calibration.bounds; wider than --ranges is an error)")
+    p.add_argument("--free", default=None, help="comma-separated free parameters")
+    p.add_argument("--ratio", type=number("ratio", None, 100.0), default=d["ratio"],
+                   help=f"bond-strength ratio pb_ten/pb_coh (<= 0: both free; default "
+                        f"{d['ratio']:g})")
+    p.add_argument("--ratio-from", default=None,
+                   help="JSON file with the chosen ratio (the ratio sweep's choice; when it "
+                        "holds none, --ratio is used)")
+    p.add_argument("--n-boot", type=integer("n-boot", 0, 1_000_000), default=d["n_boot"],
+                   help="bootstrap resamples for the intervals (0: no bootstrap, else >= 2; "
+                        f"default {d['n_boot']})")
+    p.add_argument("--seed", type=SEED, default=d["seed"])
+    p.set_defaults(func=cmd_calibrate)
+
+
+def _add_verify(p):
+    from .stages.analysis import verify
+
+    d = defaults_of(verify)
+    p.add_argument("--card", required=True)
+    p.add_argument("--models", required=True)
+    _file(p, "--out-card", "output: the verified card")
+    _file(p, "--rounds", "output table: one row per DEM round")
+    _file(p, "--run", "output: the run file of the best round")
+    p.add_argument("--seed", type=SEED, default=d["seed"],
+                   help=f"packing seed of the DEM runs (default {d['seed']})")
+    p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
+                   help=f"relative tolerance (default {d['rtol']:g})")
+    p.add_argument("--max-rounds", type=integer("max-rounds", 1, 50), default=d["max_rounds"],
+                   help=f"DEM runs at most (default {d['max_rounds']})")
+    p.add_argument("--from-unreachable", action="store_true",
+                   help="run the closed loop even when the card's inversion is unreachable "
+                        "(default: do not; the verified card says why)")
+    p.add_argument("--quiet", action="store_true")
+    add_run_args(p)
+    p.set_defaults(func=cmd_verify)
+
+
+def _add_scatter(p):
+    from .stages.analysis import seed_scatter
+
+    d = defaults_of(seed_scatter)
+    p.add_argument("--card", required=True)
+    p.add_argument("--seeds", required=True, help="comma-separated packing seeds")
+    _file(p, "--runs", "output run files, one per seed in the order of --seeds", nargs="+")
+    _file(p, "--seed-runs", "output table: the responses of every seed")
+    _file(p, "--table", "output table: CV and noise floor per response")
+    p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"])
+    add_run_args(p)
+    p.set_defaults(func=cmd_scatter)
+
+
+def _add_vtables(p):
+    _file(p, "--cards", "verified cards", nargs="+")
+    _file(p, "--runs", "their best rounds' run files, in the same order", nargs="+")
+    p.add_argument("--lab", required=True)
+    _file(p, "--table5", "output table: Table 5")
+    _file(p, "--table6", "output table: Table 6")
+    _file(p, "--figure", "output figure: Fig. 6")
+    p.set_defaults(func=cmd_vtables)
+
+
+def _add_sweep_plan(p):
+    from .stages.fracture import sweep_plan
+
+    d = defaults_of(sweep_plan)
+    p.add_argument("--card", required=True, help="material card (the initial calibration)")
+    p.add_argument("--models", required=True)
+    p.add_argument("--ratios", default=",".join(f"{x:g}" for x in d["ratios"]),
+                   help="start,stop,step (default %(default)s)")
+    p.add_argument("--seed", type=SEED, default=d["seed"],
+                   help=f"packing seed of the runs (default {d['seed']})")
+    p.add_argument("--out", required=True)
+    p.set_defaults(func=cmd_sweep_plan)
+
+
+def _add_sweep_analyse(p):
+    from .stages.fracture import sweep_analyse
+
+    d = defaults_of(sweep_analyse)
+    p.add_argument("--plan", required=True)
+    _file(p, "--runs", "the run files of the plan's rows: <sample_id>.h5", nargs="+")
+    p.add_argument("--criterion", default=d["criterion"], choices=["tensile_share", "crack_count"])
+    p.add_argument("--target", type=number("target", 0.0), default=d["target"])
+    _file(p, "--table", "output table: cracks per ratio")
+    _file(p, "--chosen", "output JSON: the chosen ratio")
+    _file(p, "--fig4", "output figure: Fig. 4")
+    _file(p, "--fig5", "output figure: Fig. 5")
+    _file(p, "--vtk", "output folder: ParaView files of the runs Fig. 5 shows")
+    p.set_defaults(func=cmd_sweep_analyse)
+
+
+def _add_impact_analyse(p):
+    p.add_argument("--main", required=True, help="the reference impact run (6 m/s)")
+    _file(p, "--runs", "impact runs of the velocity sweep", nargs="+")
+    _file(p, "--energy", "output table: energy budget of the reference run")
+    _file(p, "--t10", "output table: t10 vs specific energy")
+    _file(p, "--jk-fit", "output JSON: the JK fit")
+    _file(p, "--fig7", "output figure: Fig. 7")
+    _file(p, "--fig-t10", "output figure: t10 vs Ecs")
+    p.set_defaults(func=cmd_impact_analyse)
+
+
+def _add_report(p):
+    p.add_argument("--outdir", default=None,
+                   help="the study's output directory (its files: bpmcal.io.layout; default: "
+                        "the config's outdir)")
+    p.add_argument("--config", default=None, help="the study's (merged) config, JSON/YAML")
+    p.add_argument("--config-json", default=None,
+                   help="... or the config as JSON text (what the workflow passes)")
+    p.add_argument("--config-out", default=None, help="also write the config as JSON to this file")
+    p.set_defaults(func=cmd_report)
+
+
+def _add_summary(p):
+    p.add_argument("run")
+    p.add_argument("--json", action="store_true", help="one JSON object")
+    p.set_defaults(func=cmd_summary)
+
+
+def _add_vtk(p):
+    p.add_argument("run")
+    p.add_argument("--out", required=True, help="output directory")
+    p.set_defaults(func=cmd_vtk)
+
+
+#: subcommand -> (help, adds its options, whether its help lists the parameters)
+COMMANDS = {
+    "ucs": ("one virtual uniaxial compression test -> HDF5", _add_ucs, True),
+    "bts": ("one virtual Brazilian (diametral compression) test -> HDF5", _add_bts, True),
+    "triaxial": ("one virtual triaxial compression test -> HDF5", _add_triaxial, True),
+    "impact": ("drop-hammer impact of a calibrated specimen", _add_impact, False),
+    "design": ("Latin-hypercube design over parameter ranges -> CSV", _add_design, False),
+    "gather": ("collect per-sample run files into one dataset CSV", _add_gather, False),
+    "screen": ("XGBoost screening of the dataset (Table 3)", _add_screen, False),
+    "regress": ("three-stage stepwise regression (Table 4)", _add_regress, False),
+    "calibrate": ("invert the models for the lab specimens", _add_calibrate, False),
+    "verify": ("closed-loop DEM verification of a material card", _add_verify, False),
+    "scatter": ("one card, several packing seeds: DEM scatter", _add_scatter, False),
+    "verification-tables": ("Tables 5 and 6 and Fig. 6", _add_vtables, False),
+    "sweep-plan": ("bond-strength-ratio sweep: one row per ratio", _add_sweep_plan, False),
+    "sweep-analyse": ("crack counts per ratio, the chosen ratio", _add_sweep_analyse, False),
+    "impact-analyse": ("impact energy table, Fig. 7, t10-Ecs and JK fit", _add_impact_analyse,
+                       False),
+    "report": ("OUTDIR/report: every table and figure + index.md", _add_report, False),
+    "summary": ("print the summary attributes of a run file", _add_summary, False),
+    "vtk": ("export particles and cracks of a run for ParaView", _add_vtk, False),
+}
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The ``bpmcal`` parser; with ``only``, the options of that subcommand alone (the
+    others are listed by name)."""
+    ap = Parser(prog="bpmcal", description=__doc__.split("\n\n")[0],
+                formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--version", action="version", version=f"bpmcal {_version()}")
     sub = ap.add_subparsers(dest="cmd", required=True)
-
-    u = sub.add_parser("ucs", help="one virtual uniaxial compression test -> HDF5",
-                       formatter_class=argparse.RawDescriptionHelpFormatter,
-                       epilog=_param_help())
-    u.add_argument("--params", help="YAML file with the 8 meso-parameters", default=None)
-    u.add_argument("--design", default=None,
-                   help="take the parameters and the seed from this design CSV ...")
-    u.add_argument("--sample", default=None, help="... row with this sample_id")
-    u.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
-    u.add_argument("--set", action="append", metavar="NAME=VALUE",
-                   help="override one parameter (repeatable)")
-    u.add_argument("--seed", type=int, default=None,
-                   help="packing seed (default 1, or the design row's)")
-    add_run_args(u)
-    u.add_argument("--quiet", action="store_true", help="no progress output")
-    u.set_defaults(func=cmd_ucs)
-
-    d = sub.add_parser("design", help="Latin-hypercube design over parameter ranges -> CSV")
-    d.add_argument("--ranges", required=True,
-                   help='JSON mapping of parameter name to [low, high] (paper units)')
-    d.add_argument("--n", type=int, required=True, help="number of samples")
-    d.add_argument("--seed", type=int, required=True, help="design seed")
-    d.add_argument("--optimization", default="random-cd",
-                   choices=["random-cd", "lloyd", "none"], help="LHS optimisation")
-    d.add_argument("--out", required=True, help="output CSV")
-    d.set_defaults(func=cmd_design)
-
-    g = sub.add_parser("gather", help="collect per-sample run files into one dataset CSV")
-    g.add_argument("--design", required=True, help="design CSV")
-    g.add_argument("--runs", required=True, help="directory of <sample_id>.h5 run files")
-    g.add_argument("--out", required=True, help="output CSV")
-    g.set_defaults(func=cmd_gather)
-
-    sc = sub.add_parser("screen", help="XGBoost screening of the dataset (Table 3)")
-    sc.add_argument("--dataset", required=True)
-    sc.add_argument("--out", required=True, help="output directory (screening)")
-    sc.add_argument("--tables", required=True, help="tables directory")
-    sc.add_argument("--figures", required=True, help="figures directory")
-    sc.add_argument("--threshold", type=float, default=10.0, help="selection threshold [%%]")
-    sc.add_argument("--importance", default="gain",
-                    choices=["gain", "total_gain", "permutation", "shap"],
-                    help="importance type that drives the selection (default gain)")
-    sc.add_argument("--splits", type=int, default=5, help="CV folds (default 5)")
-    sc.add_argument("--repeats", type=int, default=10, help="permutation repeats")
-    sc.add_argument("--seed", type=int, default=0)
-    sc.set_defaults(func=cmd_screen)
-
-    rg = sub.add_parser("regress", help="three-stage stepwise regression (Table 4)")
-    rg.add_argument("--dataset", required=True)
-    rg.add_argument("--selected", required=True, help="selected.json of the screening")
-    rg.add_argument("--out", required=True, help="output directory (regression)")
-    rg.add_argument("--tables", required=True)
-    rg.add_argument("--figures", required=True)
-    rg.add_argument("--alpha-in", type=float, default=0.05)
-    rg.add_argument("--alpha-out", type=float, default=0.05)
-    rg.add_argument("--vif-max", type=float, default=10.0)
-    rg.add_argument("--hierarchy", default="strong", choices=["strong", "weak", "none"])
-    rg.add_argument("--cv-folds", type=int, default=5)
-    rg.add_argument("--cv-repeats", type=int, default=10)
-    rg.add_argument("--seed", type=int, default=0)
-    rg.set_defaults(func=cmd_regress)
-
-    ca = sub.add_parser("calibrate", help="invert the models for the lab specimens")
-    ca.add_argument("--dataset", required=True)
-    ca.add_argument("--models", required=True, help="models.json of the regression")
-    ca.add_argument("--lab", required=True, help="lab CSV")
-    ca.add_argument("--out", required=True, help="directory of the material cards")
-    ca.add_argument("--tables", default=None)
-    ca.add_argument("--fixed", required=True, help="JSON of the fixed parameters")
-    ca.add_argument("--free", default=None, help="comma-separated free parameters")
-    ca.add_argument("--ratio", type=float, default=1.4,
-                    help="bond-strength ratio pb_ten/pb_coh (<= 0: both free)")
-    ca.add_argument("--ratio-from", default=None,
-                    help="JSON file with the chosen ratio (the ratio sweep's choice)")
-    ca.add_argument("--n-boot", type=int, default=200,
-                    help="bootstrap resamples for the intervals (0: no bootstrap, else >= 2)")
-    ca.add_argument("--seed", type=int, default=0)
-    ca.set_defaults(func=cmd_calibrate)
-
-    ve = sub.add_parser("verify", help="closed-loop DEM verification of a material card")
-    ve.add_argument("--card", required=True)
-    ve.add_argument("--models", required=True)
-    ve.add_argument("--out", required=True, help="output directory")
-    ve.add_argument("--seed", type=int, default=1, help="packing seed of the DEM runs")
-    ve.add_argument("--rtol", type=float, default=0.01, help="relative tolerance (0.01)")
-    ve.add_argument("--max-rounds", type=int, default=5, help="DEM runs at most")
-    ve.add_argument("--quiet", action="store_true")
-    add_run_args(ve)
-    ve.set_defaults(func=cmd_verify)
-
-    ss = sub.add_parser("scatter", help="one card, several packing seeds: DEM scatter")
-    ss.add_argument("--card", required=True)
-    ss.add_argument("--out", required=True)
-    ss.add_argument("--seeds", required=True, help="comma-separated packing seeds")
-    ss.add_argument("--rtol", type=float, default=0.01)
-    add_run_args(ss)
-    ss.set_defaults(func=cmd_scatter)
-
-    vt = sub.add_parser("verification-tables", help="Tables 5 and 6 and Fig. 6")
-    vt.add_argument("--cards", nargs="+", required=True, help="verification card.yaml files")
-    vt.add_argument("--lab", required=True)
-    vt.add_argument("--tables", required=True)
-    vt.add_argument("--figures", required=True)
-    vt.set_defaults(func=cmd_vtables)
-
-    sp = sub.add_parser("sweep-plan", help="bond-strength-ratio sweep: one row per ratio")
-    sp.add_argument("--card", required=True, help="material card (the initial calibration)")
-    sp.add_argument("--models", required=True)
-    sp.add_argument("--ratios", default="0.5,2.0,0.1", help="start,stop,step")
-    sp.add_argument("--seed", type=int, default=1)
-    sp.add_argument("--out", required=True)
-    sp.set_defaults(func=cmd_sweep_plan)
-
-    sa = sub.add_parser("sweep-analyse", help="crack counts per ratio, the chosen ratio")
-    sa.add_argument("--plan", required=True)
-    sa.add_argument("--runs", required=True, help="directory of <sample_id>.h5")
-    sa.add_argument("--criterion", default="tensile_share",
-                    choices=["tensile_share", "crack_count"])
-    sa.add_argument("--target", type=float, default=0.6)
-    sa.add_argument("--tables", required=True)
-    sa.add_argument("--figures", required=True)
-    sa.add_argument("--vtk", required=True, help="VTK output directory of the shown runs")
-    sa.add_argument("--chosen", required=True, help="output JSON with the chosen ratio")
-    sa.set_defaults(func=cmd_sweep_analyse)
-
-    im = sub.add_parser("impact", help="drop-hammer impact of a calibrated specimen")
-    im.add_argument("--card", required=True, help="material card (verified or calibrated)")
-    im.add_argument("--out", required=True)
-    im.add_argument("--velocity", type=_positive("velocity"), default=6.0, help="m/s")
-    im.add_argument("--hammer-mass", type=_positive("hammer-mass"), default=4.383,
-                    help="hammer mass at full size [kg]; scaled by scale^3 (default 4.383)")
-    im.add_argument("--dp-ratio", type=float, default=0.1,
-                    help="contact dashpot critical-damping ratio (default 0.1)")
-    im.add_argument("--anvil-fric", dest="anvil_fric", type=float, default=0.3,
-                    help="friction of anvil and hammer (default 0.3)")
-    im.add_argument("--duration-ms", type=_positive("duration-ms"), default=10.0)
-    im.add_argument("--record-us", type=_positive("record-us"), default=5.0)
-    im.add_argument("--seed", type=int, default=1)
-    im.add_argument("--quiet", action="store_true")
-    add_run_args(im)
-    im.set_defaults(func=cmd_impact)
-
-    ia = sub.add_parser("impact-analyse", help="impact energy table, Fig. 7, t10-Ecs and JK fit")
-    ia.add_argument("--main", required=True, help="the reference impact run (6 m/s)")
-    ia.add_argument("--runs", nargs="+", required=True, help="impact runs of the velocity sweep")
-    ia.add_argument("--tables", required=True)
-    ia.add_argument("--figures", required=True)
-    ia.set_defaults(func=cmd_impact_analyse)
-
-    rp = sub.add_parser("report", help="results/report: every table and figure + index.md")
-    rp.add_argument("--outdir", required=True, help="the study's output directory")
-    rp.add_argument("--config", required=True, help="the study's (merged) config, JSON/YAML")
-    rp.add_argument("--out", default=None, help="report directory (default OUTDIR/report)")
-    rp.set_defaults(func=cmd_report)
-
-    s = sub.add_parser("summary", help="print the summary attributes of a run file")
-    s.add_argument("run")
-    s.add_argument("--json", action="store_true", help="one JSON object")
-    s.set_defaults(func=cmd_summary)
-
-    v = sub.add_parser("vtk", help="export particles and cracks of a run for ParaView")
-    v.add_argument("run")
-    v.add_argument("--out", required=True, help="output directory")
-    v.set_defaults(func=cmd_vtk)
+    for name, (help_, add, epilog) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_, formatter_class=argparse.RawDescriptionHelpFormatter,
+                           epilog=_param_help() if epilog else None)
+        if only is None or only == name:
+            add(p)
     return ap
 
 
@@ -641,16 +834,54 @@ def _version():
     return __version__
 
 
-def main(argv=None) -> int:
-    os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
-    ap = build_parser()
-    a = ap.parse_args(argv)
+def _bad_input_types() -> tuple:
     from .dem.errors import InputError
+    from .io.h5 import RunFileError
+    from .study.config import ConfigError
+
+    return (BadInput, P.ParameterError, InputError, ConfigError, RunFileError)
+
+
+def _one_line(e) -> str:
+    return " ".join(str(e).split())
+
+
+def main(argv=None) -> int:
+    """Run one subcommand; returns the exit code (see the module doc)."""
+    os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
+    argv = sys.argv[1:] if argv is None else list(argv)
+    cmd = next((x for x in argv if not x.startswith("-")), None)
+    ap = build_parser(only=cmd if cmd in COMMANDS else None)
+    try:
+        a = ap.parse_args(argv)
+    except SystemExit as e:  # --help, --version, usage errors (one line, exit 2)
+        return e.code if isinstance(e.code, int) else (0 if e.code is None else EXIT_BAD_INPUT)
+    try:
+        bad_input = _bad_input_types()
+    except Exception:  # noqa: BLE001 - a broken install is a bug, reported below
+        bad_input = (BadInput, P.ParameterError)
+    where = f"bpmcal {a.cmd}"
     try:
         return a.func(a)
-    except (P.ParameterError, InputError) as e:
-        print(f"bpmcal {a.cmd}: error: {e}", file=sys.stderr)
+    except bad_input as e:
+        print(f"{where}: error: {_one_line(e)}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"\n{where}: interrupted; the file being written was discarded", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # e.g. `bpmcal summary run.h5 | head`
+        sys.stdout = open(os.devnull, "w")
+        return EXIT_OK
+    except OSError as e:
+        name = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        print(f"{where}: error: {name}{e.strerror or _one_line(e)} (system error)",
+              file=sys.stderr)
+        return EXIT_SYSTEM
+    except Exception:  # noqa: BLE001 - a bug: keep the traceback, add a hint
+        traceback.print_exc()
+        print(f"{where}: internal error (a bug in bpmcal, not in your input): please report it "
+              "with the traceback above and the command line", file=sys.stderr)
+        return EXIT_BUG
 
 
 if __name__ == "__main__":

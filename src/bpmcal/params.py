@@ -1,7 +1,7 @@
 """Names, units and ranges of the study's parameters and responses: the one place where
 the paper's units (mm, GPa, MPa, degrees) are converted to SI and back.
 
-Meso-parameters use PFC property names with the unit in the name (../shared/DESIGN.md):
+Meso-parameters use PFC property names with the unit in the name (docs/architecture.md):
 
 ======================  =========  ======  ===============  =======================
 name                    symbol     unit    Table 2 range    SI factor
@@ -18,6 +18,10 @@ name                    symbol     unit    Table 2 range    SI factor
 
 Responses: ``ucs_MPa`` (sigma_c), ``E_GPa``, ``nu``, ``peak_strain``, ``u_pre_MJm3``
 (pre-peak energy density), ``cracks_tension``, ``cracks_shear``.
+
+This is the one table of names, symbols (``symbol`` plain text for logs and the CLI,
+``unicode`` for tables, ``latex`` for figures), units and physical domains: the config
+schema's parameter limits are tested against it (``tests/workflow/test_defaults.py``).
 """
 from __future__ import annotations
 
@@ -38,29 +42,37 @@ class Param:
     phys_hi: float
     lo_open: bool = False
     description: str = ""
+    hi_open: bool = False
+    unicode: str = ""  # the paper's symbol for tables (σcp, ...)
 
 
 #: The 8 meso-parameters of the LHS design, in the paper's Table 2 order.
 PARAMS: dict[str, Param] = {p.name: p for p in [
     Param("rmin_mm", "Rmin", r"$R_\mathrm{min}$", "mm", 1e-3, 0.6, 1.0, 0.0, math.inf, True,
-          "minimum ball radius (radii uniform in [Rmin, 1.66 Rmin])"),
+          "minimum ball radius (radii uniform in [Rmin, 1.66 Rmin])", unicode="Rmin"),
     Param("porosity", "n", r"$n$", "", 1.0, 0.20, 0.36, 0.0, 0.9, True,
-          "nominal porosity as PFC's ball distribute (summed ball volume = (1-n) V)"),
+          "nominal porosity as PFC's ball distribute (summed ball volume = (1-n) V)", unicode="n"),
     Param("pb_emod_GPa", "Ecp", r"$E_c^p$", "GPa", 1e9, 10.0, 50.0, 0.0, math.inf, True,
-          "parallel-bond effective modulus (= linear emod)"),
+          "parallel-bond effective modulus (= linear emod)", unicode="Ecp"),
     Param("pb_kratio", "kp*", r"$k_p^*$", "", 1.0, 1.0, 5.0, 0.0, math.inf, True,
-          "parallel-bond normal-to-shear stiffness ratio (= linear kratio)"),
+          "parallel-bond normal-to-shear stiffness ratio (= linear kratio)", unicode="kp*"),
     Param("pb_ten_MPa", "sigma_cp", r"$\sigma_c^p$", "MPa", 1e6, 10.0, 50.0, 0.0, math.inf,
-          False, "parallel-bond tensile strength"),
+          False, "parallel-bond tensile strength", unicode="σcp"),
     Param("pb_coh_MPa", "tau_cp", r"$\tau_c^p$", "MPa", 1e6, 10.0, 50.0, 0.0, math.inf, False,
-          "parallel-bond cohesion (shear strength at zero normal stress)"),
+          "parallel-bond cohesion (shear strength at zero normal stress)", unicode="τcp"),
     Param("pb_fa_deg", "phi_p", r"$\varphi_p$", "deg", 1.0, 15.0, 55.0, 0.0, 90.0, False,
-          "parallel-bond friction angle"),
+          "parallel-bond friction angle", hi_open=True, unicode="φp"),
     Param("fric", "mu_p", r"$\mu_p$", "", 1.0, 0.15, 0.55, 0.0, math.inf, False,
-          "ball-ball friction coefficient"),
+          "ball-ball friction coefficient", unicode="μp"),
 ]}
 
 PARAM_NAMES: tuple[str, ...] = tuple(PARAMS)
+
+
+def table2_ranges() -> dict[str, tuple[float, float]]:
+    """The paper's Table 2 sampling ranges (paper units): the design space of the default
+    study. Calibration bounds come from a study's own ``ranges``, never from these."""
+    return {p.name: (p.lo, p.hi) for p in PARAMS.values()}
 
 
 @dataclass(frozen=True)
@@ -71,16 +83,17 @@ class Response:
     unit: str
     si: float
     description: str
+    unicode: str = ""  # the paper's symbol for tables
 
 
 RESPONSES: dict[str, Response] = {r.name: r for r in [
-    Response("ucs_MPa", "sigma_c", r"$\sigma_c$", "MPa", 1e6, "peak axial stress (UCS)"),
-    Response("E_GPa", "E", r"$E$", "GPa", 1e9, "Young's modulus (fit over 40-60 % of peak)"),
-    Response("nu", "nu", r"$\nu$", "", 1.0, "Poisson's ratio (fit over 40-60 % of peak)"),
-    Response("peak_strain", "eps_p", r"$\varepsilon_p$", "", 1.0, "axial strain at peak"),
-    Response("u_pre_MJm3", "Up", r"$U_p$", "MJ/m3", 1e6, "pre-peak energy density"),
-    Response("cracks_tension", "Nt", r"$N_t$", "", 1.0, "tensile cracks"),
-    Response("cracks_shear", "Ns", r"$N_s$", "", 1.0, "shear cracks"),
+    Response("ucs_MPa", "sigma_c", r"$\sigma_c$", "MPa", 1e6, "peak axial stress (UCS)", "σc"),
+    Response("E_GPa", "E", r"$E$", "GPa", 1e9, "Young's modulus (fit over 40-60 % of peak)", "E"),
+    Response("nu", "nu", r"$\nu$", "", 1.0, "Poisson's ratio (fit over 40-60 % of peak)", "ν"),
+    Response("peak_strain", "eps_p", r"$\varepsilon_p$", "", 1.0, "axial strain at peak", "εp"),
+    Response("u_pre_MJm3", "Up", r"$U_p$", "MJ/m3", 1e6, "pre-peak energy density", "Up"),
+    Response("cracks_tension", "Nt", r"$N_t$", "", 1.0, "tensile cracks", "Nt"),
+    Response("cracks_shear", "Ns", r"$N_s$", "", 1.0, "shear cracks", "Ns"),
 ]}
 
 #: Responses the paper calibrates against.
@@ -114,6 +127,24 @@ def from_si(name: str, value: float) -> float:
     raise ParameterError(f"unknown quantity {name!r}")
 
 
+def as_number(v, name: str, expected: str = "a number", error=None) -> float:
+    """``v`` as a finite float; booleans (YAML ``true``), strings, None and NaN/inf raise
+    ``error`` (default :class:`ParameterError`) naming the value and what was expected."""
+    error = error or ParameterError
+    if type(v).__module__ == "numpy" and hasattr(v, "item"):
+        v = v.item()  # numpy scalar -> Python (plain repr in messages)
+    if isinstance(v, bool) or v is None or isinstance(v, (str, bytes)):
+        raise error(f"{name}={v!r}: expected {expected}, got "
+                    f"{'a boolean' if isinstance(v, bool) else type(v).__name__}")
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        raise error(f"{name}={v!r}: expected {expected}") from None
+    if not math.isfinite(x):
+        raise error(f"{name}={v!r}: expected a finite number ({expected})")
+    return x
+
+
 def validate_params(values: dict, *, require_all: bool = True, within_table2: bool = False
                     ) -> dict[str, float]:
     """Check a dict of meso-parameters (paper units). Returns floats.
@@ -132,18 +163,16 @@ def validate_params(values: dict, *, require_all: bool = True, within_table2: bo
     out = {}
     for k, v in values.items():
         p = PARAMS[k]
-        try:
-            x = float(v)
-        except (TypeError, ValueError):
-            raise ParameterError(f"{k}={v!r}: expected a number in {p.unit or 'dimensionless'}") from None
+        x = as_number(v, k, f"a number in {p.unit}" if p.unit else "a dimensionless number",
+                      ParameterError)
         unit = f" {p.unit}" if p.unit else ""
-        if not math.isfinite(x):
-            raise ParameterError(f"{k}={v!r}: expected a finite number")
         bad_lo = x <= p.phys_lo if p.lo_open else x < p.phys_lo
-        if bad_lo or x > p.phys_hi:
+        bad_hi = x >= p.phys_hi if p.hi_open else x > p.phys_hi
+        if bad_lo or bad_hi:
             b = "(" if p.lo_open else "["
+            e = ")" if p.hi_open else "]"
             raise ParameterError(f"{k}={x:g}{unit} is outside its physical domain "
-                                 f"{b}{p.phys_lo:g}, {p.phys_hi:g}] ({p.description})")
+                                 f"{b}{p.phys_lo:g}, {p.phys_hi:g}{e} ({p.description})")
         if within_table2 and not (p.lo <= x <= p.hi):
             raise ParameterError(f"{k}={x:g}{unit} is outside the Table 2 range "
                                  f"[{p.lo:g}, {p.hi:g}]{unit}")

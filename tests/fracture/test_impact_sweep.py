@@ -5,9 +5,10 @@ import pandas as pd
 import pytest
 
 from bpmcal.analysis import fit_terms
+from bpmcal.io.layout import ratio_grid
 from bpmcal.lab.impact import ImpactSettings, crack_stages, run_impact
 from bpmcal.lab.runner import Geometry, make_specimen
-from bpmcal.study.sweep import analyse_sweep, ratio_grid, sweep_plan
+from bpmcal.study.sweep import analyse_sweep, sweep_plan
 
 A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
           pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
@@ -59,12 +60,20 @@ def test_sweep_plan_holds_the_predicted_ucs_at_the_target():
     df["ucs_MPa"] = 1.2 * df["pb_ten_MPa"] + 2.0 * df["pb_coh_MPa"] - 0.01 * df["pb_coh_MPa"] ** 2
     df["status"] = "ok"
     model = fit_terms(df, "ucs_MPa", ["pb_ten_MPa", "pb_coh_MPa", ("pb_coh_MPa", "pb_coh_MPa")])
-    card = {"parameters": dict(A1), "targets": {"ucs_MPa": 60.0}}
+    ranges = {"pb_ten_MPa": [15.0, 50.0], "pb_coh_MPa": [15.0, 50.0]}
+    card = {"parameters": dict(A1), "targets": {"ucs_MPa": 60.0}, "ranges": ranges}
     plan = sweep_plan(card, model, ratio_grid(0.5, 2.0, 0.1), seed=3)
     assert list(plan["sample_id"])[:3] == ["a050", "a060", "a070"] and len(plan) == 16
     assert np.allclose(plan["pb_ten_MPa"], plan["ratio"] * plan["pb_coh_MPa"])
     assert np.allclose(model.predict(plan), 60.0, atol=1e-6)
     assert (plan["seed"] == 3).all()
+    # "extrapolated" is judged against the card's ranges (the study's design space)
+    inside = plan[["pb_ten_MPa", "pb_coh_MPa"]].apply(lambda c: c.between(15.0, 50.0)).all(axis=1)
+    assert (plan["extrapolated"] == ~inside).all() and plan["extrapolated"].any()
+    wide = sweep_plan({**card, "ranges": {"pb_ten_MPa": [1.0, 200.0], "pb_coh_MPa": [1.0, 200.0]}},
+                      model, ratio_grid(0.5, 2.0, 0.1), seed=3)
+    assert not wide["extrapolated"].any()
+    np.testing.assert_allclose(wide["pb_coh_MPa"], plan["pb_coh_MPa"], rtol=1e-9)
 
 
 def test_sweep_choice_picks_the_tensile_share_closest_to_the_target(tmp_path):
@@ -75,6 +84,7 @@ def test_sweep_choice_picks_the_tensile_share_closest_to_the_target(tmp_path):
     for sid, nt, ns in (("a050", 10, 90), ("a100", 55, 45), ("a150", 90, 10)):
         write_run(tmp_path / f"{sid}.h5", test="ucs", inputs={},
                   summary={"cracks_tension": nt, "cracks_shear": ns, "ucs_MPa": 50.0})
-    df, chosen = analyse_sweep(plan, tmp_path, "tensile_share", 0.6)
+    runs = {sid: tmp_path / f"{sid}.h5" for sid in plan["sample_id"]}
+    df, chosen = analyse_sweep(plan, runs, "tensile_share", 0.6)
     assert chosen["chosen_ratio"] == 1.0
     assert df["tensile_share"].tolist() == [0.1, 0.55, 0.9]

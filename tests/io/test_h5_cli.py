@@ -16,8 +16,9 @@ from bpmcal.dem.errors import InstabilityError
 from bpmcal.io import h5
 from bpmcal.io.vtk import export_run
 from bpmcal.lab import runner
-from bpmcal.lab.runner import Geometry, run_ucs_file
+from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
+from bpmcal.stages.runs import run_ucs_file
 
 A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
           pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
@@ -42,7 +43,7 @@ def test_round_trip_through_the_reader(run):
               "steps", "wall_s", "stop_reason"):
         assert s[k] == res.summary[k], k
     assert s["schema_version"] == h5.SCHEMA_VERSION and s["status"] == "ok"
-    assert s["git_commit"] and s["bpmcal_version"] and len(s["config_hash"]) == 16
+    assert s["git_commit"] and s["bpmcal_version"] and len(s["inputs_hash"]) == 16
     inp = h5.read_inputs(path)
     for k, v in A1.items():
         assert inp[k] == v
@@ -155,13 +156,12 @@ def test_cli_rejects_bad_parameters_before_any_work(tmp_path, capsys, args, need
 
 
 def test_load_params_takes_a_material_card_and_applies_overrides(tmp_path):
-    import yaml
-
-    from bpmcal.cli import load_params
+    from bpmcal.io.card import write_card
+    from bpmcal.stages.runs import load_params
 
     card = tmp_path / "B1.yaml"
-    card.write_text(yaml.safe_dump({"specimen": "B1", "status": "ok",
-                                    "parameters": dict(A1), "targets": {"ucs_MPa": 60.0}}))
+    write_card(card, {"specimen": "B1", "status": "ok", "parameters": dict(A1),
+                      "targets": {"ucs_MPa": 60.0}})
     p = load_params(card, ["fric=0.5"])
     assert p == {**A1, "fric": 0.5}
 

@@ -7,7 +7,8 @@
 3. writes a ``slurm.conf`` into a private directory (this host, its real CPUs and
    RealMemory from ``slurmd -C``, no accounting, private state/spool/pid/log paths, free
    ports) and makes it reachable at ``/etc/slurm/slurm.conf`` through a symlink (the
-   jobstep plugin strips ``SLURM_CONF`` before its inner ``srun``; see shared/SLURM.md),
+   jobstep plugin strips ``SLURM_CONF`` before its inner ``srun``, so the job steps find
+   the configuration only at the default path),
 4. starts ``slurmctld`` and ``slurmd`` in the foreground as our own child processes, waits
    for ``scontrol ping`` and for the node to be idle,
 5. and on exit, also on exceptions, KeyboardInterrupt and SIGTERM, cancels the jobs,
@@ -787,9 +788,9 @@ def run_snakemake_on_slurm(
 ) -> SnakemakeRun:
     """Run ``snakemake --executor slurm --workflow-profile <profile_dir>`` in ``workflow_dir``.
 
-    The run is wrapped in ``timeout -s INT`` (shared/SLURM.md, trap 2: a run that lost
-    track of its jobs waits forever and ignores SIGTERM; SIGINT makes Snakemake cancel
-    its Slurm jobs and stop), with a SIGKILL 60 s later if even that does not help.
+    The run is wrapped in ``timeout -s INT`` (a run that lost track of its jobs waits
+    forever and ignores SIGTERM; SIGINT makes Snakemake cancel its Slurm jobs and stop),
+    with a SIGKILL 60 s later if even that does not help.
     Pass the cluster's ``env`` (it carries SLURM_CONF). Output goes to
     ``<workflow_dir>/<log_name>`` and into the returned :class:`SnakemakeRun`.
     """
@@ -823,7 +824,7 @@ def run_snakemake_on_slurm(
             returncode = proc.wait()
         except BaseException:
             # `timeout` forwards the SIGINT: Snakemake cancels its Slurm jobs and exits
-            # (it ignores SIGTERM while waiting for jobs, shared/SLURM.md)
+            # (it ignores SIGTERM while waiting for its jobs)
             with contextlib.suppress(ProcessLookupError):
                 proc.send_signal(signal.SIGINT)
             try:

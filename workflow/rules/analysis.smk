@@ -1,166 +1,222 @@
 # Dataset -> screening (Table 3) -> stepwise regression (Table 4) -> calibration to the
 # lab specimens -> closed-loop DEM verification (Tables 5, 6, Fig. 6).
 
-SCREEN = f"{OUT}/screening"
-REGR = f"{OUT}/regression"
-CALIB = f"{OUT}/calibration"
-CALIB0 = f"{OUT}/calibration_initial"
-VERIF = f"{OUT}/verification"
-TABLES = f"{OUT}/tables"
-FIGS = f"{OUT}/figures"
-
 
 rule screen:
     input:
-        DATASET,
+        FILES.dataset,
     output:
-        selected=f"{SCREEN}/selected.json",
-        table3=f"{TABLES}/table3_importance.csv",
-        table3_md=f"{TABLES}/table3_importance.md",
-        fig=report(f"{FIGS}/screening_importance.png", caption="../report/screening.rst",
-                   category="Calibration"),
+        beside(
+            FILES.table(L.TABLE3),
+            FILES.figure(L.FIG_SCREENING),
+            FILES.importance_table,
+            FILES.screening_cv,
+            FILES.screening_shadow,
+        ),
+        selected=FILES.selected,
+        table3=FILES.table(L.TABLE3),
+        fig=report(
+            FILES.figure(L.FIG_SCREENING),
+            caption="../report/screening.rst",
+            category="Calibration",
+        ),
+        importance=FILES.importance_table,
+        cv=FILES.screening_cv,
+        shadow=FILES.screening_shadow,
+        summary=FILES.screening_summary,
     log:
-        f"{LOGS}/screen.log",
+        FILES.log("screen"),
+    conda:
+        "../envs/bpmcal.yaml"
     params:
-        figs=parent_of("fig"),
-        screen=parent_of("selected"),
-        tables=parent_of("table3"),
         s=config["screening"],
     shell:
-        "bpmcal screen --dataset {input} --out {params.screen} --tables {params.tables} --figures {params.figs} "
-        "--threshold {params.s[threshold_pct]} --importance {params.s[importance]} "
-        "--splits {params.s[n_splits]} --repeats {params.s[n_repeats]} "
-        "--seed {params.s[seed]} > {log} 2>&1"
+        "bpmcal screen --dataset {input:q} --selected {output.selected:q} "
+        "--table3 {output.table3:q} --figure {output.fig:q} "
+        "--importance-table {output.importance:q} --cv-table {output.cv:q} "
+        "--shadow-table {output.shadow:q} --summary {output.summary:q} "
+        "--threshold {params.s[threshold_pct]:q} --importance {params.s[importance]:q} "
+        "--splits {params.s[n_splits]:q} --repeats {params.s[n_repeats]:q} "
+        "--seed {params.s[seed]:q} > {log:q} 2>&1"
 
 
 rule regress:
     input:
-        dataset=DATASET,
-        selected=f"{SCREEN}/selected.json",
+        dataset=FILES.dataset,
+        selected=FILES.selected,
     output:
-        models=f"{REGR}/models.json",
-        table4=f"{TABLES}/table4_terms.csv",
-        equations=f"{REGR}/equations.md",
-        fig=report(f"{FIGS}/regression_fit.png", caption="../report/regression.rst",
-                   category="Calibration"),
+        beside(
+            FILES.table(L.TABLE4),
+            FILES.table(L.REGRESSION_FIT),
+            FILES.figure(L.FIG_REGRESSION),
+            FILES.coefficients,
+            FILES.candidate_terms,
+        ),
+        models=FILES.models,
+        equations=FILES.equations,
+        summaries=FILES.regression_summaries,
+        coefficients=FILES.coefficients,
+        candidates=FILES.candidate_terms,
+        table4=FILES.table(L.TABLE4),
+        fit=FILES.table(L.REGRESSION_FIT),
+        fig=report(
+            FILES.figure(L.FIG_REGRESSION),
+            caption="../report/regression.rst",
+            category="Calibration",
+        ),
     log:
-        f"{LOGS}/regress.log",
+        FILES.log("regress"),
+    conda:
+        "../envs/bpmcal.yaml"
     params:
-        figs=parent_of("fig"),
-        regr=parent_of("models"),
-        tables=parent_of("table4"),
         r=config["regression"],
     shell:
-        "bpmcal regress --dataset {input.dataset} --selected {input.selected} --out {params.regr} "
-        "--tables {params.tables} --figures {params.figs} --alpha-in {params.r[alpha_in]} "
-        "--alpha-out {params.r[alpha_out]} --vif-max {params.r[vif_max]} "
-        "--hierarchy {params.r[hierarchy]} --cv-folds {params.r[cv_folds]} "
-        "--cv-repeats {params.r[cv_repeats]} --seed {params.r[seed]} > {log} 2>&1"
+        "bpmcal regress --dataset {input.dataset:q} --selected {input.selected:q} "
+        "--models {output.models:q} --equations {output.equations:q} "
+        "--summaries {output.summaries:q} --coefficients {output.coefficients:q} "
+        "--candidates {output.candidates:q} --table4 {output.table4:q} "
+        "--fit-table {output.fit:q} --figure {output.fig:q} "
+        "--alpha-in {params.r[alpha_in]:q} --alpha-out {params.r[alpha_out]:q} "
+        "--vif-max {params.r[vif_max]:q} --hierarchy {params.r[hierarchy]:q} "
+        "--cv-folds {params.r[cv_folds]:q} --cv-repeats {params.r[cv_repeats]:q} "
+        "--seed {params.r[seed]:q} > {log:q} 2>&1"
 
 
 rule calibrate_initial:
     input:
-        dataset=DATASET,
-        models=f"{REGR}/models.json",
+        dataset=FILES.dataset,
+        models=FILES.models,
         lab=config["lab"]["csv"],
     output:
-        cards=expand(f"{CALIB0}/{{spec}}.yaml", spec=SPECIMENS),
+        cards=[FILES.initial_card(s) for s in SPECIMENS],
     log:
-        f"{LOGS}/calibrate_initial.log",
+        FILES.log("calibrate_initial"),
+    conda:
+        "../envs/bpmcal.yaml"
     params:
-        calib0=parent_of("cards"),
         c=config["calibration"],
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
+        ranges=json.dumps(config["ranges"]),
+        bounds=json.dumps(config["calibration"]["bounds"]),
     shell:
-        "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
-        "--out {params.calib0} --fixed '{params.fixed}' --free {params.free} "
-        "--ratio {params.c[ratio]} --n-boot 0 --seed {params.c[seed]} > {log} 2>&1"
+        "bpmcal calibrate --dataset {input.dataset:q} --models {input.models:q} "
+        "--lab {input.lab:q} --cards {output.cards:q} --fixed {params.fixed:q} "
+        "--free {params.free:q} --ranges {params.ranges:q} --bounds {params.bounds:q} "
+        "--ratio {params.c[ratio]:q} --n-boot 0 --seed {params.c[seed]:q} > {log:q} 2>&1"
 
 
 rule calibrate:
     input:
-        dataset=DATASET,
-        models=f"{REGR}/models.json",
+        dataset=FILES.dataset,
+        models=FILES.models,
         lab=config["lab"]["csv"],
-        chosen=SWEEP_CHOSEN if config["ratio_sweep"]["enabled"] else [],
+        chosen=FILES.sweep_chosen if SWEEP_ON else [],
     output:
-        cards=expand(f"{CALIB}/{{spec}}.yaml", spec=SPECIMENS),
-        table=f"{TABLES}/calibration.csv",
+        beside(FILES.table(L.CALIBRATION)),
+        cards=[FILES.card(s) for s in SPECIMENS],
+        table=FILES.table(L.CALIBRATION),
     log:
-        f"{LOGS}/calibrate.log",
+        FILES.log("calibrate"),
+    conda:
+        "../envs/bpmcal.yaml"
     params:
-        calib=parent_of("cards"),
-        tables=parent_of("table"),
         c=config["calibration"],
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
-        ratio=(lambda wc, input: f"--ratio-from {input.chosen}" if input.chosen
-               else f"--ratio {config['calibration']['ratio']}"),
+        ratio_from=lambda wc, input: (
+            ["--ratio-from", input.chosen] if input.chosen else []
+        ),
+        ranges=json.dumps(config["ranges"]),
+        bounds=json.dumps(config["calibration"]["bounds"]),
     shell:
-        "bpmcal calibrate --dataset {input.dataset} --models {input.models} --lab {input.lab} "
-        "--out {params.calib} --tables {params.tables} --fixed '{params.fixed}' --free {params.free} "
-        "{params.ratio} --n-boot {params.c[n_boot]} --seed {params.c[seed]} > {log} 2>&1"
+        "bpmcal calibrate --dataset {input.dataset:q} --models {input.models:q} "
+        "--lab {input.lab:q} --cards {output.cards:q} --table {output.table:q} "
+        "--fixed {params.fixed:q} --free {params.free:q} --ranges {params.ranges:q} "
+        "--bounds {params.bounds:q} --ratio {params.c[ratio]:q} "
+        "{params.ratio_from:q} --n-boot {params.c[n_boot]:q} --seed {params.c[seed]:q} "
+        "> {log:q} 2>&1"
 
 
 rule verify:
     input:
-        card=f"{CALIB}/{{spec}}.yaml",
-        models=f"{REGR}/models.json",
+        card=FILES.card("{spec}"),
+        models=FILES.models,
     output:
-        card=f"{VERIF}/{{spec}}/card.yaml",
-        rounds=f"{VERIF}/{{spec}}/rounds.csv",
+        beside(FILES.verification_rounds("{spec}")),
+        card=FILES.verified_card("{spec}"),
+        rounds=FILES.verification_rounds("{spec}"),
+        run=FILES.verification_run("{spec}"),
     log:
-        f"{LOGS}/verify/{{spec}}.log",
+        FILES.log("verify", "{spec}"),
+    conda:
+        "../envs/bpmcal.yaml"
     threads: config["resources"]["ucs_threads"]
     resources:
-        runtime=config["resources"]["ucs_runtime_min"] * config["verification"]["max_rounds"],
+        runtime=config["resources"]["ucs_runtime_min"]
+        * config["verification"]["max_rounds"],
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
-        verif=parent_of("card", up=2),
         v=config["verification"],
         opts=specimen_args(),
+        unreachable=(
+            ["--from-unreachable"]
+            if config["verification"]["from_unreachable"]
+            else []
+        ),
     shell:
-        "bpmcal verify --card {input.card} --models {input.models} --out {params.verif}/{wildcards.spec} "
-        "--seed {params.v[seed]} --rtol {params.v[rtol]} --max-rounds {params.v[max_rounds]} "
-        "--threads {threads} {params.opts} > {log} 2>&1"
+        "bpmcal verify --card {input.card:q} --models {input.models:q} "
+        "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
+        "--seed {params.v[seed]:q} --rtol {params.v[rtol]:q} "
+        "--max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
+        "{params.opts:q} > {log:q} 2>&1"
 
 
 rule seed_scatter:
     input:
-        card=f"{CALIB}/{SPECIMENS[0]}.yaml",
+        card=FILES.card(SPECIMENS[0]),
     output:
-        f"{VERIF}/seed_scatter/seed_scatter.csv",
+        beside(FILES.scatter_runs, FILES.seed_scatter),
+        runs=[FILES.scatter_run(s) for s in SCATTER_SEEDS],
+        seed_runs=FILES.scatter_runs,
+        table=FILES.seed_scatter,
     log:
-        f"{LOGS}/seed_scatter.log",
+        FILES.log("seed_scatter"),
+    conda:
+        "../envs/bpmcal.yaml"
     threads: config["resources"]["ucs_threads"]
     resources:
-        runtime=config["resources"]["ucs_runtime_min"] * len(config["verification"]["scatter_seeds"]),
+        runtime=config["resources"]["ucs_runtime_min"] * len(SCATTER_SEEDS),
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
-        verif=parent_of(0, up=2),
-        seeds=",".join(str(s) for s in config["verification"]["scatter_seeds"]),
+        seeds=",".join(str(s) for s in SCATTER_SEEDS),
         rtol=config["verification"]["rtol"],
         opts=specimen_args(),
     shell:
-        "bpmcal scatter --card {input.card} --out {params.verif}/seed_scatter --seeds {params.seeds} "
-        "--rtol {params.rtol} --threads {threads} {params.opts} > {log} 2>&1"
+        "bpmcal scatter --card {input.card:q} --seeds {params.seeds:q} --runs {output.runs:q} "
+        "--seed-runs {output.seed_runs:q} --table {output.table:q} --rtol {params.rtol:q} "
+        "--threads {threads} {params.opts:q} > {log:q} 2>&1"
 
 
 rule verification_tables:
     input:
-        cards=expand(f"{VERIF}/{{spec}}/card.yaml", spec=SPECIMENS),
+        cards=[FILES.verified_card(s) for s in SPECIMENS],
+        runs=[FILES.verification_run(s) for s in SPECIMENS],
         lab=config["lab"]["csv"],
     output:
-        table5=f"{TABLES}/table5_verification.csv",
-        table6=f"{TABLES}/table6_prepeak_energy.csv",
-        fig6=report(f"{FIGS}/fig6_stress_strain.png", caption="../report/fig6.rst",
-                    category="Verification"),
+        beside(FILES.table(L.TABLE5), FILES.table(L.TABLE6), FILES.figure(L.FIG6)),
+        table5=FILES.table(L.TABLE5),
+        table6=FILES.table(L.TABLE6),
+        fig6=report(
+            FILES.figure(L.FIG6),
+            caption="../report/fig6.rst",
+            category="Verification",
+        ),
     log:
-        f"{LOGS}/verification_tables.log",
-    params:
-        figs=parent_of("fig6"),
-        tables=parent_of("table5"),
+        FILES.log("verification_tables"),
+    conda:
+        "../envs/bpmcal.yaml"
     shell:
-        "bpmcal verification-tables --cards {input.cards} --lab {input.lab} --tables {params.tables} "
-        "--figures {params.figs} > {log} 2>&1"
+        "bpmcal verification-tables --cards {input.cards:q} --runs {input.runs:q} "
+        "--lab {input.lab:q} --table5 {output.table5:q} --table6 {output.table6:q} "
+        "--figure {output.fig6:q} > {log:q} 2>&1"

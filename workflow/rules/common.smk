@@ -1,69 +1,68 @@
-# Helpers shared by the rules: config validation, paths, sample ids, CLI options.
+# Helpers shared by the rules: config validation, the study's files and ids, CLI options.
+#
+# Every file name comes from bpmcal.io.layout (Layout: the study's file contract; the stages
+# use the same module). Rules declare every file their command reads (in input) and writes
+# (in output) and pass each one on the command line; a table's Markdown and a figure's PDF
+# are written beside the CSV/PNG (companions) and declared too.
+#
+# Shell safety: every value that comes from the config or from a file name reaches a shell
+# command only through Snakemake's quoting ({x:q}; a list is quoted element by element),
+# never spliced as text. outdir, lab.csv and specimen names are also checked against safe
+# patterns at validation (bpmcal.io.paths).
 import json
-import os
 
-from bpmcal.study.config import ConfigError, validate_config
+from bpmcal.io import layout as L
+from bpmcal.study.config import ConfigError, load_lab, validate_config
 
 try:
     validate_config(config, workflow.source_path("../schemas/config.schema.yaml"))
+    _lab = load_lab(config["lab"]["csv"])
 except ConfigError as e:
     raise WorkflowError(str(e)) from None
 
-OUT = config["outdir"]
-N = int(config["study"]["n_samples"])
-SAMPLES = [f"s{i:0{max(3, len(str(N)))}d}" for i in range(N)]
-DESIGN = f"{OUT}/design/samples.csv"
-DATASET = f"{OUT}/dataset.csv"
-PACKINGS = f"{OUT}/cache/packings"
-LOGS = f"{OUT}/logs"
-SWEEP = f"{OUT}/ratio_sweep"
-SWEEP_PLAN = f"{SWEEP}/plan.csv"
-SWEEP_CHOSEN = f"{SWEEP}/chosen.json"
-IMPACT = f"{OUT}/impact"
-
-import pandas as _pd
-
-SPECIMENS = [str(s) for s in _pd.read_csv(config["lab"]["csv"])["specimen"]]
+FILES = L.Layout(config["outdir"])
+SAMPLES = L.sample_ids(config["study"]["n_samples"])
+SPECIMENS = list(_lab["specimen"])
+SWEEP_ON = bool(config["ratio_sweep"]["enabled"])
+SWEEP_SPEC = SPECIMENS[0]  # the sweep starts from the first specimen's initial card
+IMPACT_SPEC = SPECIMENS[0]  # the impact uses the first specimen's verified card
+SWEEP_IDS = L.sweep_ids(config["ratio_sweep"]["ratios"])
+IMPACT_V0 = L.velocity_tag(config["impact"]["velocity"])
+IMPACT_VS = L.impact_tags(
+    config["impact"]["velocity"], config["impact"]["sweep_velocities"]
+)
+SCATTER_SEEDS = config["verification"]["scatter_seeds"]
+REFERENCE = config["study"].get("reference") == "yu2026"
 
 
-def _vtag(v):
-    """6.0 -> "6", 2.5 -> "2.5" (file names of the impact runs)."""
-    return f"{float(v):g}"
-
-
-SWEEP_SPEC = SPECIMENS[0]
-IMPACT_SPEC = SPECIMENS[0]
-_r0, _r1, _rs = config["ratio_sweep"]["ratios"]
-SWEEP_IDS = [f"a{int(round((_r0 + k * _rs) * 100)):03d}"
-             for k in range(int((_r1 - _r0) / _rs + 1e-9) + 1)]
-IMPACT_V0 = _vtag(config["impact"]["velocity"])
-IMPACT_VS = sorted({_vtag(v) for v in [config["impact"]["velocity"],
-                                       *config["impact"]["sweep_velocities"]]}, key=float)
+def beside(*files):
+    """The files written beside ``files`` (a table's .md, a figure's .pdf), to declare."""
+    return [c for f in files for c in L.companions(f)[1:]]
 
 
 def specimen_args(cfg=config, scale=None):
-    """bpmcal ucs options of the specimen and loading sections."""
-    sp, u = cfg["specimen"], cfg["ucs"]
+    """bpmcal ucs/impact options of the specimen, loading and resources sections, as a list
+    of arguments (for {params.opts:q}: each one is shell-quoted)."""
+    sp, u, r = cfg["specimen"], cfg["ucs"], cfg["resources"]
     scale = sp["scale"] if scale is None else scale
-    return (f"--scale {scale} --diameter {sp['diameter_mm']} --height {sp['height_mm']} "
-            f"--sigma0 {sp['sigma0_MPa']} --install-gap {sp['install_gap_mm']} "
-            f"--relax-ratio {sp['relax_ratio']} --platen-velocity {u['platen_velocity']} "
-            f"--damping {u['damping']} --stop-drop {u['stop_drop']} "
-            f"--max-strain {u['max_strain']} --platen-fric {u['platen_fric']} "
-            f"--record-strain {u['record_strain']} --specimen-cache {PACKINGS}")
-
-
-def parent_of(key, up=1, io="output"):
-    """A params function: the folder ``up`` levels above a rule's output (or input) ``key``
-    (a name or an index; the first file of a list), so shell commands get folders that
-    follow the declared files instead of hard-coded prefixes."""
-
-    def f(wildcards, input, output):
-        files = output if io == "output" else input
-        v = files[key] if isinstance(key, int) else getattr(files, key)
-        path = v if isinstance(v, str) else v[0]
-        for _ in range(up):
-            path = os.path.dirname(path)
-        return path
-
-    return f
+    opts = {
+        "--scale": scale,
+        "--diameter": sp["diameter_mm"],
+        "--height": sp["height_mm"],
+        "--sigma0": sp["sigma0_MPa"],
+        "--genesis": sp["genesis"],
+        "--relax-ratio": sp["relax_ratio"],
+        "--platen-velocity": u["platen_velocity"],
+        "--damping": u["damping"],
+        "--stop-drop": u["stop_drop"],
+        "--max-strain": u["max_strain"],
+        "--platen-fric": u["platen_fric"],
+        "--record-strain": u["record_strain"],
+        "--specimen-cache": FILES.packings,
+        "--max-balls": r["max_balls"],
+        "--mem-budget-mb": r["ucs_mem_mb"],
+        "--genesis-max-steps": r["genesis_max_steps"],
+    }
+    if sp["install_gap_mm"] is not None:  # null: the genesis's own gap
+        opts["--install-gap"] = sp["install_gap_mm"]
+    return [str(x) for k, v in opts.items() for x in (k, v)]

@@ -3,29 +3,33 @@
 
 rule sweep_plan:
     input:
-        card=f"{CALIB0}/{SWEEP_SPEC}.yaml",
-        models=f"{REGR}/models.json",
+        card=FILES.initial_card(SWEEP_SPEC),
+        models=FILES.models,
     output:
-        SWEEP_PLAN,
+        FILES.sweep_plan,
     log:
-        f"{LOGS}/sweep_plan.log",
+        FILES.log("sweep_plan"),
+    conda:
+        "../envs/bpmcal.yaml"
     params:
         ratios=",".join(str(x) for x in config["ratio_sweep"]["ratios"]),
         seed=config["ratio_sweep"]["seed"],
     shell:
-        "bpmcal sweep-plan --card {input.card} --models {input.models} --ratios {params.ratios} "
-        "--seed {params.seed} --out {output} > {log} 2>&1"
+        "bpmcal sweep-plan --card {input.card:q} --models {input.models:q} "
+        "--ratios {params.ratios:q} --seed {params.seed:q} --out {output:q} > {log:q} 2>&1"
 
 
 rule sweep_ucs:
     input:
-        SWEEP_PLAN,
+        FILES.sweep_plan,
     output:
-        f"{SWEEP}/runs/{{rid}}.h5",
+        FILES.sweep_run("{rid}"),
     log:
-        f"{LOGS}/sweep/{{rid}}.log",
+        FILES.log("sweep", "{rid}"),
     wildcard_constraints:
         rid=r"a\d+",
+    conda:
+        "../envs/bpmcal.yaml"
     threads: config["resources"]["ucs_threads"]
     resources:
         runtime=config["resources"]["ucs_runtime_min"],
@@ -33,41 +37,57 @@ rule sweep_ucs:
     params:
         opts=specimen_args(),
     shell:
-        "bpmcal ucs --design {input} --sample {wildcards.rid} --out {output} "
-        "--threads {threads} {params.opts} > {log} 2>&1"
+        "bpmcal ucs --design {input:q} --sample {wildcards.rid:q} --out {output:q} "
+        "--threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
 
 
 rule sweep_analyse:
     input:
-        plan=SWEEP_PLAN,
-        runs=expand(f"{SWEEP}/runs/{{rid}}.h5", rid=SWEEP_IDS),
+        plan=FILES.sweep_plan,
+        runs=[FILES.sweep_run(r) for r in SWEEP_IDS],
     output:
-        table=f"{TABLES}/ratio_sweep.csv",
-        chosen=SWEEP_CHOSEN,
-        fig4=report(f"{FIGS}/fig4_ratio_cracks.png", caption="../report/fig4.rst",
-                    category="Failure and fragmentation"),
-        fig5=report(f"{FIGS}/fig5_failure_patterns.png", caption="../report/fig5.rst",
-                    category="Failure and fragmentation"),
+        beside(
+            FILES.table(L.RATIO_SWEEP),
+            FILES.figure(L.FIG4),
+            FILES.figure(L.FIG5),
+        ),
+        table=FILES.table(L.RATIO_SWEEP),
+        chosen=FILES.sweep_chosen,
+        fig4=report(
+            FILES.figure(L.FIG4),
+            caption="../report/fig4.rst",
+            category="Failure and fragmentation",
+        ),
+        fig5=report(
+            FILES.figure(L.FIG5),
+            caption="../report/fig5.rst",
+            category="Failure and fragmentation",
+        ),
+        vtk=directory(FILES.sweep_vtk),
     log:
-        f"{LOGS}/sweep_analyse.log",
+        FILES.log("sweep_analyse"),
+    conda:
+        "../envs/bpmcal.yaml"
     params:
-        figs=parent_of("fig4"),
-        sweep=parent_of("plan", io="input"),
-        tables=parent_of("table"),
         s=config["ratio_sweep"],
     shell:
-        "bpmcal sweep-analyse --plan {input.plan} --runs {params.sweep}/runs "
-        "--criterion {params.s[criterion]} --target {params.s[target]} --tables {params.tables} "
-        "--figures {params.figs} --vtk {params.sweep}/vtk --chosen {output.chosen} > {log} 2>&1"
+        "bpmcal sweep-analyse --plan {input.plan:q} --runs {input.runs:q} "
+        "--criterion {params.s[criterion]:q} --target {params.s[target]:q} "
+        "--table {output.table:q} --chosen {output.chosen:q} --fig4 {output.fig4:q} "
+        "--fig5 {output.fig5:q} --vtk {output.vtk:q} > {log:q} 2>&1"
 
 
 rule impact:
     input:
-        card=f"{VERIF}/{IMPACT_SPEC}/card.yaml",
+        card=FILES.verified_card(IMPACT_SPEC),
     output:
-        f"{IMPACT}/impact_{{v}}ms.h5",
+        FILES.impact_run("{v}"),
     log:
-        f"{LOGS}/impact/impact_{{v}}ms.log",
+        FILES.log("impact", "impact_{v}ms"),
+    wildcard_constraints:
+        v=r"[0-9][0-9.e+-]*",
+    conda:
+        "../envs/bpmcal.yaml"
     threads: config["resources"]["ucs_threads"]
     resources:
         runtime=config["resources"]["ucs_runtime_min"] * 2,
@@ -76,29 +96,42 @@ rule impact:
         i=config["impact"],
         opts=specimen_args(scale=config["impact"]["scale"]),
     shell:
-        "bpmcal impact --card {input.card} --out {output} --velocity {wildcards.v} "
-        "--hammer-mass {params.i[hammer_mass_kg]} --dp-ratio {params.i[dp_ratio]} "
-        "--anvil-fric {params.i[anvil_fric]} --duration-ms {params.i[duration_ms]} "
-        "--record-us {params.i[record_us]} --seed {params.i[seed]} --threads {threads} "
-        "{params.opts} > {log} 2>&1"
+        "bpmcal impact --card {input.card:q} --out {output:q} --velocity {wildcards.v:q} "
+        "--hammer-mass {params.i[hammer_mass_kg]:q} --dp-ratio {params.i[dp_ratio]:q} "
+        "--anvil-fric {params.i[anvil_fric]:q} --duration-ms {params.i[duration_ms]:q} "
+        "--record-us {params.i[record_us]:q} --seed {params.i[seed]:q} --threads {threads} "
+        "--failed-ok {params.opts:q} > {log:q} 2>&1"
 
 
 rule impact_analyse:
     input:
-        main=f"{IMPACT}/impact_{IMPACT_V0}ms.h5",
-        runs=expand(f"{IMPACT}/impact_{{v}}ms.h5", v=IMPACT_VS),
+        main=FILES.impact_run(IMPACT_V0),
+        runs=[FILES.impact_run(v) for v in IMPACT_VS],
     output:
-        energy=f"{TABLES}/impact_energy.csv",
-        t10=f"{TABLES}/t10_ecs.csv",
-        fig7=report(f"{FIGS}/fig7_impact_energy.png", caption="../report/fig7.rst",
-                    category="Failure and fragmentation"),
-        figt10=report(f"{FIGS}/t10_ecs.png", caption="../report/t10.rst",
-                      category="Failure and fragmentation"),
+        beside(
+            FILES.table(L.IMPACT_ENERGY),
+            FILES.table(L.T10_ECS),
+            FILES.figure(L.FIG7),
+            FILES.figure(L.FIG_T10),
+        ),
+        energy=FILES.table(L.IMPACT_ENERGY),
+        t10=FILES.table(L.T10_ECS),
+        jk_fit=FILES.jk_fit,
+        fig7=report(
+            FILES.figure(L.FIG7),
+            caption="../report/fig7.rst",
+            category="Failure and fragmentation",
+        ),
+        figt10=report(
+            FILES.figure(L.FIG_T10),
+            caption="../report/t10.rst",
+            category="Failure and fragmentation",
+        ),
     log:
-        f"{LOGS}/impact_analyse.log",
-    params:
-        figs=parent_of("fig7"),
-        tables=parent_of("energy"),
+        FILES.log("impact_analyse"),
+    conda:
+        "../envs/bpmcal.yaml"
     shell:
-        "bpmcal impact-analyse --main {input.main} --runs {input.runs} --tables {params.tables} "
-        "--figures {params.figs} > {log} 2>&1"
+        "bpmcal impact-analyse --main {input.main:q} --runs {input.runs:q} "
+        "--energy {output.energy:q} --t10 {output.t10:q} --jk-fit {output.jk_fit:q} "
+        "--fig7 {output.fig7:q} --fig-t10 {output.figt10:q} > {log:q} 2>&1"

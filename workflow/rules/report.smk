@@ -1,22 +1,22 @@
-# The report: every table and figure next to the paper's published values.
+# The report: every table and figure next to the paper's published values. It reads the
+# study's files through bpmcal.io.layout (the files declared here) and writes its own.
+
+_REPORT_OUT = FILES.report_outputs(SWEEP_ON, REFERENCE)
 
 
 rule report:
     input:
-        tables=[rules.screen.output.table3, rules.regress.output.table4,
-                rules.calibrate.output.table, rules.verification_tables.output.table5,
-                rules.verification_tables.output.table6, rules.impact_analyse.output.energy,
-                rules.impact_analyse.output.t10,
-                rules.sweep_analyse.output.table if config["ratio_sweep"]["enabled"] else []],
-        scatter=rules.seed_scatter.output,
+        **FILES.report_inputs(SPECIMENS, IMPACT_V0, SWEEP_ON),
     output:
-        index=f"{OUT}/report/index.md",
-        config=f"{OUT}/report/config.json",
+        [f for f in _REPORT_OUT if f not in (FILES.report_index, FILES.report_config)],
+        index=FILES.report_index,
+        config=FILES.report_config,
     log:
-        f"{LOGS}/report.log",
+        FILES.log("report"),
+    conda:
+        "../envs/bpmcal.yaml"
     params:
-        out=parent_of("index", up=2),
-        config=json.dumps(config),
+        config=json.dumps(config),  # JSON text, shell-quoted below; never echoed
     shell:
-        "echo '{params.config}' > {output.config} && "
-        "bpmcal report --outdir {params.out} --config {output.config} --out {params.out}/report > {log} 2>&1"
+        "bpmcal report --config-json {params.config:q} --config-out {output.config:q} "
+        "> {log:q} 2>&1"

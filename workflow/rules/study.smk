@@ -1,30 +1,36 @@
 # The spine of the study: design -> one UCS job per sample -> gathered dataset.
+# A sample whose DEM run fails writes a failure record (--failed-ok: exit 0), so the DAG
+# goes on and the dataset carries the sample with its status and reason.
 
 
 rule design:
     output:
-        DESIGN,
+        FILES.design,
     log:
-        f"{LOGS}/design.log",
+        FILES.log("design"),
+    conda:
+        "../envs/bpmcal.yaml"
     params:
         ranges=json.dumps(config["ranges"]),
-        n=N,
+        n=config["study"]["n_samples"],
         seed=config["study"]["lhs_seed"],
         opt=config["study"]["lhs_optimization"],
     shell:
-        "bpmcal design --ranges '{params.ranges}' --n {params.n} --seed {params.seed} "
-        "--optimization {params.opt} --out {output} > {log} 2>&1"
+        "bpmcal design --ranges {params.ranges:q} --n {params.n:q} --seed {params.seed:q} "
+        "--optimization {params.opt:q} --out {output:q} > {log:q} 2>&1"
 
 
 rule ucs:
     input:
-        DESIGN,
+        FILES.design,
     output:
-        f"{OUT}/ucs/{{sample}}.h5",
+        FILES.ucs_run("{sample}"),
     log:
-        f"{LOGS}/ucs/{{sample}}.log",
+        FILES.log("ucs", "{sample}"),
     wildcard_constraints:
         sample=r"s\d+",
+    conda:
+        "../envs/bpmcal.yaml"
     threads: config["resources"]["ucs_threads"]
     resources:
         runtime=config["resources"]["ucs_runtime_min"],
@@ -32,20 +38,20 @@ rule ucs:
     params:
         opts=specimen_args(),
     shell:
-        "bpmcal ucs --design {input} --sample {wildcards.sample} --out {output} "
-        "--threads {threads} {params.opts} > {log} 2>&1"
+        "bpmcal ucs --design {input:q} --sample {wildcards.sample:q} --out {output:q} "
+        "--threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
 
 
 rule gather:
     input:
-        design=DESIGN,
-        runs=expand(f"{OUT}/ucs/{{sample}}.h5", sample=SAMPLES),
+        design=FILES.design,
+        runs=[FILES.ucs_run(s) for s in SAMPLES],
     output:
-        DATASET,
+        FILES.dataset,
     log:
-        f"{LOGS}/gather.log",
-    params:
-        runs=parent_of("runs", io="input"),
+        FILES.log("gather"),
+    conda:
+        "../envs/bpmcal.yaml"
     shell:
-        "bpmcal gather --design {input.design} --runs {params.runs} --out {output} "
-        "> {log} 2>&1"
+        "bpmcal gather --design {input.design:q} --runs {input.runs:q} --out {output:q} "
+        "> {log:q} 2>&1"

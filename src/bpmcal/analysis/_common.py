@@ -1,5 +1,5 @@
 """Helpers shared by the analysis modules: selecting usable dataset rows, seeded k-fold
-splits, paper symbols for tables and a dependency-free Markdown table renderer.
+splits and the paper's symbols for tables (from ``bpmcal.params``, the one symbol table).
 
 Dataset contract (``results/dataset.csv``): one row per LHS sample with the 8
 meso-parameters (:data:`bpmcal.params.PARAM_NAMES`, paper units), the responses
@@ -18,20 +18,12 @@ import pandas as pd
 
 from bpmcal.params import PARAMS, RESPONSES, ParameterError
 
-#: Unicode renderings of the paper's symbols (tables in the paper's layout).
-PARAM_SYMBOLS: dict[str, str] = {
-    "rmin_mm": "Rmin", "porosity": "n", "pb_emod_GPa": "Ecp", "pb_kratio": "kp*",
-    "pb_ten_MPa": "σcp", "pb_coh_MPa": "τcp", "pb_fa_deg": "φp", "fric": "μp",
-}
-RESPONSE_SYMBOLS: dict[str, str] = {
-    "ucs_MPa": "σc", "E_GPa": "E", "nu": "ν", "peak_strain": "εp", "u_pre_MJm3": "Up",
-    "cracks_tension": "Nt", "cracks_shear": "Ns",
-}
-
 
 def symbol(name: str) -> str:
-    """The paper's symbol of a parameter or response name (the name itself if unknown)."""
-    return PARAM_SYMBOLS.get(name, RESPONSE_SYMBOLS.get(name, name))
+    """The paper's symbol (Unicode) of a parameter or response name (the name itself if
+    unknown)."""
+    q = PARAMS.get(name) or RESPONSES.get(name)
+    return q.unicode if q is not None else name
 
 
 def check_params(names: Iterable[str], what: str = "parameter") -> tuple[str, ...]:
@@ -128,23 +120,6 @@ def r2_score(y: np.ndarray, yhat: np.ndarray) -> float:
     ss_tot = float(np.sum((y - y.mean()) ** 2))
     ss_res = float(np.sum((y - np.asarray(yhat, float)) ** 2))
     return 1.0 - ss_res / ss_tot if ss_tot > 0 else float("nan")
-
-
-def markdown_table(df: pd.DataFrame, floatfmt: str = ".2f", index: bool = True) -> str:
-    """Render ``df`` as a GitHub-flavoured Markdown pipe table (no ``tabulate`` needed)."""
-    def fmt(v) -> str:
-        if isinstance(v, (float, np.floating)):
-            return "" if np.isnan(v) else format(float(v), floatfmt)
-        return str(v)
-
-    cols = ([str(df.index.name or "")] if index else []) + [str(c) for c in df.columns]
-    rows = [([fmt(i)] if index else []) + [fmt(v) for v in row]
-            for i, row in zip(df.index, df.itertuples(index=False, name=None))]
-    numeric = ([False] if index else []) + [pd.api.types.is_numeric_dtype(t) for t in df.dtypes]
-    lines = ["| " + " | ".join(cols) + " |",
-             "|" + "|".join("---:" if num else ":---" for num in numeric) + "|"]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines)
 
 
 def seed_from(rng: np.random.Generator) -> int:

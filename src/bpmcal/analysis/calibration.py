@@ -7,10 +7,15 @@ Parametrisation (shared by everything here)
     ``pb_emod_GPa``, ``pb_kratio``, ``pb_coh_MPa``) and, with a bond-strength ratio
     ``a = σcp/τcp`` (``ratio``, default 1.4 as in the paper; ``None`` = both strengths
     free), the *derived* ``pb_ten_MPa = ratio × pb_coh_MPa``. Free parameters are bounded
-    by the Table 2 ranges unless ``bounds`` says otherwise; with the ratio the bounds of
-    ``pb_coh_MPa`` are intersected with those of ``pb_ten_MPa`` divided by the ratio (for
-    a = 1.4: 10-35.71 MPa), so the derived value stays in its range too. Internally the
-    free parameters are mapped to the unit cube ``u = (x - lo) / (hi - lo)``.
+    by ``ranges``, the design space the dataset was sampled over (the study config's
+    ``ranges``; a regression is not valid outside it, so there are no default bounds),
+    optionally narrowed by ``bounds`` (bounds wider than ``ranges`` are an error, as is a
+    fixed value outside its range). With the ratio the bounds of ``pb_coh_MPa`` are
+    intersected with those of ``pb_ten_MPa`` divided by the ratio (for the paper's Table 2
+    ranges and a = 1.4: 10-35.71 MPa), so the derived value stays in its range too. Every
+    effective bound remembers the configured key it comes from, so a message can say
+    "pb_coh_MPa at the upper bound 35.7 (= upper bound 50 of ranges.pb_ten_MPa / ratio 1.4)".
+    Internally the free parameters are mapped to the unit cube ``u = (x - lo) / (hi - lo)``.
 
 Inversion (:func:`invert`)
     Minimise Σ_k r_k² with relative residuals ``r_k = (model_k(x) - target_k) / |target_k|``
@@ -26,9 +31,23 @@ Inversion (:func:`invert`)
     ``"unreachable"``  the best fit has residuals above ``tol`` with a parameter on a bound:
                        the targets lie outside what the sampled ranges can reach. The
                        returned point is the closest one inside the bounds and is *not* a
-                       calibration (``ok`` is False, ``message`` says which bound);
+                       calibration (``ok`` is False, ``message`` says which bound of which
+                       configured range stops it);
     ``"no-exact-fit"`` residuals above ``tol`` at an interior optimum (the models cannot meet
                        all targets at once, e.g. more targets than free parameters).
+
+    What to widen: for the last two outcomes the regression is extrapolated into a box 2,
+    then 5, then 20 range widths wider on each side (inside each parameter's physical
+    domain) until some point meets the targets; among the
+    points that meet the targets there, the one least outside the configured limits names
+    every configured key to widen (``ranges.<p>`` or ``calibration.bounds.<p>``) and the value
+    it must reach (``widen``, ``advice``). If even the extrapolated models cannot meet every
+    target, their best compromise is used instead: the keys to widen to reach it, and what it
+    still misses (which may need another free parameter or other fixed values); if that
+    compromise lies inside the configured limits, an ``unreachable`` card names the limits
+    that stop the fit without a value and a ``no-exact-fit`` card says that with these models
+    widening does not help. All these values are indicative: the regression is not validated
+    outside the sampled space.
 
     Multi-start finds separate solutions only if some start lies in each basin; 24 starts
     are ample for the low-order polynomials of the stepwise models.
@@ -47,23 +66,37 @@ Bootstrap (:func:`bootstrap_intervals`)
 
 Closed loop (:class:`ClosedLoop`)
     The regression models only approximate the DEM, so their solution is corrected with the
-    DEM itself. Each round: ``simulate(params)`` → relative errors ``e_k`` → stop if every
-    ``|e_k| <= rtol_k`` (default 0.01) → otherwise a damped Newton step in the unit-cube
+    DEM itself. A DEM response also scatters with the packing seed (a CV of 1.5-3 % for σc
+    at the default specimen size), so every round runs the candidate on the same ``k``
+    packing seeds (``seeds_per_round``, default 3; ``seeds``, default 1..k) and steers the
+    *mean*. Each round: ``simulate(params, seed=s)`` for every seed → the mean ``ȳ_k`` and
+    its relative errors ``e_k = (ȳ_k - t_k) / |t_k|`` → stop if every
+    ``|e_k| <= max(rtol_k, z · SE_k)`` (the *convergence rule*; ``rtol`` default 0.01,
+    ``z`` default 2), where ``SE_k = CV_k / sqrt(k)`` is the relative standard error of the
+    mean and ``CV_k`` the seed coefficient of variation pooled over all rounds so far
+    (``sqrt(Σ (k-1) cv²_round / Σ (k-1))``; the scatter hardly changes between nearby
+    parameter sets, and three seeds alone give a poor estimate): a mean within ``z``
+    standard errors of the target cannot be told apart from it, and chasing it further
+    would fit the packings, not the rock. Otherwise a damped Newton step in the unit-cube
     coordinates, ``Δu = -damping · J⁺ e`` (``J⁺`` the pseudo-inverse; damping default 0.8),
     shortened so that no parameter moves by more than ``max_step`` (default 0.25) of its
     range, then projected onto the bounds (the ratio constraint holds by construction).
     The initial Jacobian ``J`` of the relative errors is the regression models' analytic
-    Jacobian at the starting point; after each new simulation it is corrected by
-    Broyden's ("good") secant update ``J += (Δe - J s) sᵀ / (sᵀ s)`` with the step ``s``
-    actually taken. Every round (parameters, simulated responses, errors, step) is recorded.
-    :func:`seed_scatter` judges whether a tolerance is meaningful given the packing-seed
-    scatter of the DEM responses.
+    Jacobian at the starting point; after each new round it is corrected by Broyden's
+    ("good") secant update ``J += (Δe - J s) sᵀ / (sᵀ s)`` with the step ``s`` actually
+    taken. The same seeds in every round (common random numbers) keep the packing scatter
+    out of the differences between rounds, which the secant update needs. Every round
+    (parameters, mean responses, seed CV, standard error, tolerance used, k, errors, step)
+    and every single run (``samples``) is recorded. A simulator ``simulate(params)``
+    without a ``seed`` argument is a single-seed simulator: k = 1, SE = 0, and the rule is
+    ``|e_k| <= rtol_k`` (the loop before seed averaging). :func:`seed_scatter` judges
+    whether a tolerance is meaningful given the packing-seed scatter of the DEM responses.
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -80,6 +113,7 @@ PAPER_FIXED: dict[str, float] = {"porosity": 0.34, "rmin_mm": 0.8}
 DEFAULT_FREE: tuple[str, ...] = ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa")
 _TEN, _COH = "pb_ten_MPa", "pb_coh_MPa"
 _EDGE = 1e-6  # |u| or |1 - u| below this counts as "on the bound"
+_EXTEND = (2.0, 5.0, 20.0)  # range widths added on each side, in turn, for the "what to widen" search
 
 
 # -- parametrisation ------------------------------------------------------------------------
@@ -90,10 +124,16 @@ def _default_free(free: Sequence[str] | None, ratio: float | None) -> tuple[str,
 
 
 class _Space:
-    """Free parameters <-> unit cube, with fixed values and the strength-ratio constraint."""
+    """Free parameters <-> unit cube, with fixed values and the strength-ratio constraint.
+
+    ``ranges``: the design space (the sampled ranges, paper units) of every free parameter,
+    of ``pb_ten_MPa`` when it is derived, and of any fixed parameter that should be checked;
+    ``bounds``: optional narrower limits of free (or derived) parameters. Every effective
+    bound remembers which configured range it comes from (:meth:`edge_text`).
+    """
 
     def __init__(self, free, fixed: Mapping[str, float], ratio: float | None,
-                 bounds: Mapping[str, Sequence[float]] | None):
+                 ranges: Mapping[str, Sequence[float]], bounds: Mapping[str, Sequence[float]] | None):
         if ratio is not None:
             ratio = float(ratio)
             if not (math.isfinite(ratio) and ratio > 0):
@@ -112,26 +152,73 @@ class _Space:
                                      "free/fixed or pass ratio=None")
             if _COH not in self.free and _COH not in self.fixed:
                 raise ParameterError(f"the strength ratio needs {_COH} to be free or fixed")
-        box = {p: (PARAMS[p].lo, PARAMS[p].hi) for p in PARAMS}
+        self.ranges = _check_ranges(ranges)
+        needed = list(self.free) + ([_TEN] if ratio is not None else [])
+        missing = [p for p in needed if p not in self.ranges]
+        if missing:
+            raise ParameterError(f"ranges lacks {missing}: the sampled range (design space) of every free "
+                                 "parameter" + (f" and of the derived {_TEN}" if ratio is not None else "")
+                                 + " is needed; the regression is valid only there")
+        for p in needed:
+            lo, hi = self.ranges[p]
+            if not lo < hi:
+                raise ParameterError(f"ranges.{p}=[{lo:g}, {hi:g}] has no width: {p} was not sampled, so it "
+                                     "cannot be calibrated (fix it instead)")
+        for p, v in self.fixed.items():
+            if p in self.ranges and not _inside(v, *self.ranges[p]):
+                lo, hi = self.ranges[p]
+                raise ParameterError(f"fixed {p}={v:g} is outside ranges.{p}=[{lo:g}, {hi:g}], the sampled "
+                                     "space (the regression is not valid there): fix a value inside it, or "
+                                     f"widen ranges.{p} and rerun the design")
+        # box: the configured limits of every calibrated parameter; origin: where each side comes from
+        box = {p: self.ranges[p] for p in needed}
+        origin = {p: {s: (f"ranges.{p}", None) for s in ("lower", "upper")} for p in needed}
         for name, b in (bounds or {}).items():
             check_params([name], "bounded parameter")
-            lo, hi = (float(v) for v in b)
+            try:
+                lo, hi = (float(v) for v in b)
+            except (TypeError, ValueError):
+                raise ParameterError(f"calibration.bounds.{name}={b!r}: expected [lo, hi]") from None
             if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-                raise ParameterError(f"bounds[{name!r}]={tuple(b)!r}: expected finite (lo, hi) with lo < hi")
-            box[name] = (lo, hi)
+                raise ParameterError(f"calibration.bounds.{name}={list(b)!r}: expected finite [lo, hi] "
+                                     "with lo < hi")
+            if name not in needed:
+                derived = f", derived: {_TEN}" if ratio is not None else ""
+                raise ParameterError(f"calibration.bounds.{name}: {name} is not calibrated (free: "
+                                     f"{list(self.free)}{derived}); bounds apply to calibrated "
+                                     "parameters only")
+            rlo, rhi = self.ranges[name]
+            if not (_inside(lo, rlo, rhi) and _inside(hi, rlo, rhi)):
+                raise ParameterError(f"calibration.bounds.{name}=[{lo:g}, {hi:g}] reaches beyond "
+                                     f"ranges.{name}=[{rlo:g}, {rhi:g}], the sampled space (the regression "
+                                     "is not valid outside it): narrow the bounds, or widen "
+                                     f"ranges.{name} and rerun the design")
+            box[name] = (max(lo, rlo), min(hi, rhi))
+            if lo > rlo:
+                origin[name]["lower"] = (f"calibration.bounds.{name}", None)
+            if hi < rhi:
+                origin[name]["upper"] = (f"calibration.bounds.{name}", None)
+        self.box = box
         lo = np.array([box[p][0] for p in self.free])
         hi = np.array([box[p][1] for p in self.free])
+        self.origin = {p: dict(origin[p]) for p in self.free}
         if ratio is not None and _COH in self.free:
             j = self.free.index(_COH)
-            lo[j], hi[j] = max(lo[j], box[_TEN][0] / ratio), min(hi[j], box[_TEN][1] / ratio)
+            if box[_TEN][0] / ratio > lo[j]:
+                lo[j] = box[_TEN][0] / ratio
+                self.origin[_COH]["lower"] = (origin[_TEN]["lower"][0], box[_TEN][0])
+            if box[_TEN][1] / ratio < hi[j]:
+                hi[j] = box[_TEN][1] / ratio
+                self.origin[_COH]["upper"] = (origin[_TEN]["upper"][0], box[_TEN][1])
             if not lo[j] < hi[j]:
-                raise ParameterError(f"no {_COH} in {box[_COH]} gives {_TEN} = {ratio:g} × {_COH} inside "
-                                     f"{box[_TEN]}")
+                raise ParameterError(f"no {_COH} in {list(box[_COH])} gives {_TEN} = {ratio:g} × {_COH} "
+                                     f"inside {list(box[_TEN])} (ranges.{_COH} and ranges.{_TEN} do not "
+                                     "overlap at this ratio): widen one of them and rerun the design")
         if ratio is not None and _COH in self.fixed:
             ten = ratio * self.fixed[_COH]
-            if not box[_TEN][0] <= ten <= box[_TEN][1]:
-                raise ParameterError(f"{_TEN} = {ratio:g} × {self.fixed[_COH]:g} = {ten:g} is outside its "
-                                     f"bounds {box[_TEN]}")
+            if not _inside(ten, *box[_TEN]):
+                raise ParameterError(f"{_TEN} = {ratio:g} × {self.fixed[_COH]:g} = {ten:g} is outside "
+                                     f"{origin[_TEN]['lower'][0]}={list(box[_TEN])}")
         self.lo, self.hi = lo, hi
         self.width = hi - lo
 
@@ -150,6 +237,26 @@ class _Space:
         if self.ratio is not None and _COH in out:
             out[_TEN] = (self.ratio * out[_COH][0], self.ratio * out[_COH][1])
         return out
+
+    def bound_origins(self) -> dict[str, dict[str, str]]:
+        """For every effective bound: the configured key it comes from, e.g.
+        ``{"pb_coh_MPa": {"lower": "ranges.pb_coh_MPa", "upper": "ranges.pb_ten_MPa / ratio 1.4"}}``."""
+        out = {}
+        for p in self.free:
+            out[p] = {s: key + (f" / ratio {self.ratio:g}" if via is not None else "")
+                      for s, (key, via) in self.origin[p].items()}
+        if self.ratio is not None and _COH in self.free:
+            out[_TEN] = {s: key + (f" × ratio {self.ratio:g}" if via is None else "")
+                         for s, (key, via) in self.origin[_COH].items()}
+        return out
+
+    def edge_text(self, p: str, side: str, value: float) -> str:
+        """``pb_coh_MPa at the upper bound 35.7 (= upper bound 50 of ranges.pb_ten_MPa / ratio 1.4)``."""
+        key, via = self.origin[p][side]
+        if via is None:
+            return f"{p} at the {side} bound {value:g} of {key}"
+        return (f"{p} at the {side} bound {value:g} (= {side} bound {via:g} of {key} / ratio {self.ratio:g}; "
+                f"{_TEN} = {via:g})")
 
     def x(self, u: np.ndarray) -> np.ndarray:
         return self.lo + np.asarray(u, float) * self.width
@@ -198,6 +305,46 @@ class _Space:
                 out.append((p, "upper", float(self.hi[j])))
         return out
 
+    def extended(self, factor: float) -> tuple[np.ndarray, np.ndarray]:
+        """The free-parameter box widened by ``factor`` range widths on each side, kept inside
+        each parameter's physical domain (for the extrapolated "what to widen" search)."""
+        lo, hi = self.lo - factor * self.width, self.hi + factor * self.width
+        for j, p in enumerate(self.free):
+            d = PARAMS[p]
+            lo[j] = max(lo[j], d.phys_lo + (1e-3 * self.width[j] if d.lo_open else 0.0))
+            hi[j] = min(hi[j], d.phys_hi)
+        return lo, hi
+
+
+def check_calibration_space(free, fixed: Mapping[str, float], ratio: float | None,
+                            ranges: Mapping[str, Sequence[float]],
+                            bounds: Mapping[str, Sequence[float]] | None = None) -> None:
+    """Raise :class:`ParameterError` if free/fixed/ratio/ranges/bounds do not define a valid
+    calibration space (the checks :func:`invert` makes first), so a caller can reject bad
+    input before it writes anything."""
+    _Space(free, fixed, ratio, ranges, bounds)
+
+def _check_ranges(ranges) -> dict[str, tuple[float, float]]:
+    if ranges is None:
+        raise ParameterError("ranges is required: the sampled range (design space) of the parameters, "
+                             "e.g. the study config's ranges")
+    out = {}
+    for name, r in dict(ranges).items():
+        check_params([name], "ranged parameter")
+        try:
+            lo, hi = (float(v) for v in r)
+        except (TypeError, ValueError):
+            raise ParameterError(f"ranges.{name}={r!r}: expected [low, high]") from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise ParameterError(f"ranges.{name}={list(r)!r}: expected finite [low, high] with low <= high")
+        out[name] = (lo, hi)
+    return out
+
+
+def _inside(v: float, lo: float, hi: float) -> bool:
+    tol = 1e-9 * max(abs(lo), abs(hi), hi - lo, 1e-300)
+    return lo - tol <= v <= hi + tol
+
 
 def _check_targets(targets: Mapping[str, float], models: Mapping[str, RegressionModel] | None
                    ) -> tuple[tuple[str, ...], np.ndarray]:
@@ -226,7 +373,14 @@ class InversionResult:
 
     ``solution`` holds every parameter (fixed, free, derived) of the best fit;
     ``alternatives`` one row per distinct solution that fits equally well (best first);
-    ``starts`` the end point of every start.
+    ``starts`` the end point of every start. ``bounds`` are the effective bounds of the
+    calibrated parameters and ``bound_origins`` the configured key each side comes from
+    (``ranges.<p>``, ``calibration.bounds.<p>``, or ``ranges.pb_ten_MPa / ratio a``);
+    ``ranges`` the design space. When the targets are not met, ``widen`` lists each
+    configured limit to move (parameter, side, key, bound, needed value, and whether the
+    extrapolated models meet every target there, ``reaches_targets``; ``needed`` is None when
+    they cannot tell how far) and ``advice`` says it in words (empty when the diagnosis was
+    not run).
     """
 
     status: str
@@ -242,6 +396,10 @@ class InversionResult:
     alternatives: pd.DataFrame
     starts: pd.DataFrame
     tol: float
+    bound_origins: dict[str, dict[str, str]] = field(default_factory=dict)
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+    widen: list[dict] = field(default_factory=list)
+    advice: str = ""
 
     @property
     def ok(self) -> bool:
@@ -284,10 +442,145 @@ def _lhs(n: int, d: int, seed: int) -> np.ndarray:
     return qmc.LatinHypercube(d=d, seed=np.random.default_rng(seed)).random(n) if n > 0 else np.empty((0, d))
 
 
+def _fit(space: _Space, models, responses, t, lo, hi, x_starts, n_starts: int, seed: int) -> list[tuple]:
+    """Multi-start bounded least squares of the relative residuals in the box [lo, hi] of the
+    free parameters; one (sum of squares, max |r|, x, r) per start, best first."""
+    width = hi - lo
+    scale = np.abs(t)
+
+    def resid_x(x):
+        point = space.full(x)
+        return (np.array([models[r].predict(point) for r in responses]) - t) / scale
+
+    def resid(u):
+        return resid_x(lo + u * width)
+
+    def jac(u):
+        return space.jacobian(models, responses, lo + u * width) * width / scale[:, None]
+
+    starts = [np.clip((np.asarray(x, float) - lo) / width, 0.0, 1.0) for x in x_starts]
+    starts += list(_lhs(int(n_starts), len(space.free), seed))
+    if not starts:
+        raise ValueError("no starting point: expected n_starts > 0 or x0")
+    fits = []
+    for u0 in starts:
+        sol = least_squares(resid, u0, jac=jac, bounds=(0.0, 1.0), method="trf", xtol=1e-12, ftol=1e-12,
+                            gtol=1e-12)
+        u = np.clip(sol.x, 0.0, 1.0)
+        r = resid(u)
+        fits.append((float(r @ r), float(np.max(np.abs(r))), lo + u * width, r))
+    fits.sort(key=lambda f: f[0])
+    return fits
+
+
+def _what_to_widen(space: _Space, models, responses, t, x_best, tol: float, n_starts: int, seed: int
+                   ) -> tuple[list[dict], str]:
+    """Which configured limit keeps the targets out of reach, and how far it must move.
+
+    The regression is extrapolated into a box 2, then 5, then 20 range widths wider on each
+    side (:data:`_EXTEND`, within each parameter's physical domain) until some point meets
+    the targets; among the points that meet the targets there,
+    the one least outside the configured limits is taken, and every calibrated parameter
+    (free or derived) outside its configured range or bound is reported with the configured
+    key to widen and the value it must reach. Indicative only: outside the sampled ranges
+    the regression is not validated.
+    """
+    for factor in _EXTEND:
+        elo, ehi = space.extended(factor)
+        fits = _fit(space, models, responses, t, elo, ehi, [x_best], n_starts, seed)
+        reach = [f for f in fits if f[1] <= tol]
+        if reach:
+            break
+    box = space.box
+
+    def needs(x):
+        point = space.full(x)
+        out = []
+        for p in space.calibrated:
+            lo, hi = box[p]
+            w = hi - lo
+            v = point[p]
+            for side, beyond in (("lower", v < lo - 1e-9 * w), ("upper", v > hi + 1e-9 * w)):
+                if not beyond:
+                    continue
+                key = (f"calibration.bounds.{p}" if (side == "lower" and lo > space.ranges[p][0])
+                       or (side == "upper" and hi < space.ranges[p][1]) else f"ranges.{p}")
+                rlo, rhi = space.ranges[p]
+                out.append({"parameter": p, "side": side, "key": key,
+                            "bound": lo if side == "lower" else hi, "needed": float(v),
+                            "beyond_ranges": bool(v < rlo or v > rhi)})
+        return out
+
+    def distance(x):
+        point = space.full(x)
+        return sum(max(0.0, box[p][0] - point[p], point[p] - box[p][1]) / (box[p][1] - box[p][0])
+                   for p in space.calibrated)
+
+    if not reach:
+        best = fits[0]
+        point = space.full(best[2])
+        missed = ", ".join(f"{r} {100 * v:+.2f} %" for r, v in zip(responses, best[3]) if abs(v) > tol)
+        models_say = (f"The fitted models, extrapolated up to {_EXTEND[-1]:g} range widths beyond the "
+                      f"sampled space, cannot meet all targets either (best relative residuals "
+                      f"{_fmt_pct(responses, best[3])})")
+        items = needs(best[2])
+        if items:
+            for it in items:
+                it["reaches_targets"] = False
+            where = ", ".join(f"{p} = {point[p]:.4g}" for p in space.calibrated)
+            parts = [f"{it['key']} {'below' if it['side'] == 'lower' else 'above'} {it['needed']:.4g} "
+                     f"(its {it['side']} bound is now {it['bound']:.4g})" for it in items]
+            return items, (f"{models_say}. Their best compromise lies at {where}: widen {'; '.join(parts)} "
+                           "and rerun the design so that a new regression covers it. What it still misses "
+                           f"({missed}) may need another free parameter (calibration.free) or other fixed "
+                           "values (calibration.fixed). Indicative only: the regression is not validated "
+                           "outside the sampled space.")
+        u_best = space.u(x_best)
+        for p, side, v in space.at_bound(u_best):
+            key, via = space.origin[p][side]
+            name = key.split(".", 1)[1] if key.startswith("ranges.") else key.rsplit(".", 1)[1]
+            items.append({"parameter": name, "side": side, "key": key,
+                          "bound": float(via) if via is not None else float(v), "needed": None,
+                          "beyond_ranges": key.startswith("ranges."), "reaches_targets": False})
+        if items:
+            keys = ", ".join(f"{it['key']} ({it['side']} bound {it['bound']:.4g})" for it in items)
+            return items, (f"{models_say}, and their best compromise lies inside the configured limits, "
+                           f"so they cannot tell how far to widen. The limits that stop the fit are {keys}: "
+                           "widen them and rerun the design so that a new regression covers the targets, "
+                           "or free another parameter (calibration.free) or change a fixed value "
+                           "(calibration.fixed).")
+        return [], (f"{models_say}, and no configured bound is active: with these models widening the "
+                    "ranges does not help; free another parameter (calibration.free) or change a fixed "
+                    "value (calibration.fixed), then rerun.")
+    x = min(reach, key=lambda f: (distance(f[2]), f[0]))[2]
+    items = needs(x)
+    for it in items:
+        it["reaches_targets"] = True
+    if not items:  # a point inside the limits meets the targets: the multi-start missed it
+        return [], ("A point inside the configured limits meets the targets when started from the "
+                    "extrapolated search; the multi-start missed it (increase n_starts).")
+    parts = []
+    for it in items:
+        word = "below" if it["side"] == "lower" else "above"
+        parts.append(f"{it['key']} {word} {it['needed']:.4g} "
+                     f"(its {it['side']} bound is now {it['bound']:.4g})")
+        if it["key"].startswith("calibration.bounds") and it["beyond_ranges"]:
+            parts.append(f"ranges.{it['parameter']} {word} {it['needed']:.4g}")
+    rerun = any(it["key"].startswith("ranges") or it["beyond_ranges"] for it in items)
+    point = space.full(x)
+    where = ", ".join(f"{p} = {point[p]:.4g}" for p in space.calibrated)
+    advice = (f"To reach the targets widen {'; '.join(parts)}"
+              + (" and rerun the design (new samples, screening, regression)" if rerun else "")
+              + f". The regression extrapolated beyond the sampled space meets the targets at {where}: "
+              "indicative only (the regression is not validated there), so leave a margin.")
+    return items, advice
+
+
 def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], fixed: Mapping[str, float],
            free: Sequence[str] | None = None, bounds: Mapping[str, Sequence[float]] | None = None,
-           ratio: float | None = PAPER_RATIO, *, n_starts: int = 24, seed: int = 0, tol: float = 1e-3,
-           distinct: float = 0.02, x0: Sequence[Mapping[str, float]] = ()) -> InversionResult:
+           ratio: float | None = PAPER_RATIO, *, ranges: Mapping[str, Sequence[float]], n_starts: int = 24,
+           seed: int = 0, tol: float = 1e-3, distinct: float = 0.02, x0: Sequence[Mapping[str, float]] = (),
+           diagnose: bool = True) -> InversionResult:
     """Solve the regression models for the free parameters that reproduce ``targets``.
 
     Parameters
@@ -298,14 +591,19 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
         response -> laboratory value, e.g. ``{"ucs_MPa": 62.1, "E_GPa": 14.07, "nu": 0.267}``.
     fixed:
         parameter -> value for the parameters held fixed (paper: :data:`PAPER_FIXED` plus
-        ``pb_fa_deg`` and ``fric``).
+        ``pb_fa_deg`` and ``fric``). A fixed value outside its range in ``ranges`` is an error.
     free:
         parameters to solve for (default :data:`DEFAULT_FREE`, plus ``pb_ten_MPa`` when
         ``ratio`` is None).
     bounds:
-        parameter -> (lo, hi) overriding the Table 2 ranges.
+        parameter -> (lo, hi) narrowing ``ranges`` for a free (or the derived) parameter;
+        bounds reaching beyond ``ranges`` are an error (the regression is not valid there).
     ratio:
         ``pb_ten_MPa / pb_coh_MPa`` (default 1.4), or None for independent strengths.
+    ranges:
+        The design space: parameter -> (lo, hi) the dataset was sampled over (the study
+        config's ``ranges``, paper units); required for every free parameter and for
+        ``pb_ten_MPa`` with a ratio. The free parameters are confined to it.
     n_starts, seed:
         Latin-hypercube starting points in the free-parameter box (seeded).
     tol:
@@ -315,33 +613,19 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
         are distinct.
     x0:
         Extra starting points (mappings holding the free parameters), tried first.
+    diagnose:
+        For ``unreachable`` and ``no-exact-fit``, search the extrapolated regression for
+        which configured limit to widen and how far (``widen``, ``advice``; costs one more
+        multi-start).
     """
-    space = _Space(free, fixed, ratio, bounds)
+    space = _Space(free, fixed, ratio, ranges, bounds)
     responses, t = _check_targets(targets, models)
     space.check_models(models, responses)
     if not tol > 0 or not distinct > 0:
         raise ValueError(f"tol={tol!r}, distinct={distinct!r}: expected positive numbers")
-    scale = np.abs(t)
-
-    def resid(u):
-        point = space.full(space.x(u))
-        return (np.array([models[r].predict(point) for r in responses]) - t) / scale
-
-    def jac(u):
-        return space.jacobian(models, responses, space.x(u)) * space.width / scale[:, None]
-
-    starts = [np.clip(space.u(space.free_values(p)), 0.0, 1.0) for p in x0]
-    starts += list(_lhs(int(n_starts), len(space.free), seed))
-    if not starts:
-        raise ValueError("no starting point: expected n_starts > 0 or x0")
-    fits = []
-    for u0 in starts:
-        sol = least_squares(resid, u0, jac=jac, bounds=(0.0, 1.0), method="trf", xtol=1e-12, ftol=1e-12,
-                            gtol=1e-12)
-        u = np.clip(sol.x, 0.0, 1.0)
-        r = resid(u)
-        fits.append((float(r @ r), float(np.max(np.abs(r))), u, r))
-    fits.sort(key=lambda f: f[0])
+    fits = _fit(space, models, responses, t, space.lo, space.hi, [space.free_values(p) for p in x0],
+                n_starts, seed)
+    fits = [(c, m, space.u(x), r) for c, m, x, r in fits]
     best_cost, best_max, best_u, best_r = fits[0]
     reachable = best_max <= tol
     good = [f for f in fits if (f[1] <= tol if reachable else f[0] <= best_cost * (1 + 1e-6) + 1e-14)]
@@ -361,6 +645,10 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
     start_frame = pd.DataFrame.from_records([row(f) for f in fits])
     solution = space.full(space.x(best_u))
     edges = space.at_bound(best_u)
+    widen, advice = [], ""
+    if not reachable and diagnose:
+        widen, advice = _what_to_widen(space, models, responses, t, space.x(best_u), tol, n_starts,
+                                       seed + 1)
     if reachable and len(kept) == 1:
         status, message = "ok", f"targets met within {tol:g} (relative): {_fmt_pct(responses, best_r)}"
     elif reachable:
@@ -370,24 +658,24 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
         message = (f"{len(kept)} distinct parameter sets meet the targets within {tol:g}{extra}; "
                    "see alternatives (the best-fitting one is returned)")
     elif edges:
-        where = ", ".join(f"{p} at its {side} bound {v:g}"
-                          + (f" ({_TEN} = {solution[_TEN]:g})" if p == _COH and space.ratio else "")
-                          for p, side, v in edges)
+        where = ", ".join(space.edge_text(p, side, v) for p, side, v in edges)
         status = "unreachable"
         message = (f"targets lie outside what the sampled ranges can reach: the closest point inside the "
-                   f"bounds has {where} and relative residuals {_fmt_pct(responses, best_r)}; "
-                   "this point is not a calibration")
+                   f"bounds has {where}, relative residuals {_fmt_pct(responses, best_r)}; "
+                   "this point is not a calibration." + (f" {advice}" if advice else ""))
     else:
         status = "no-exact-fit"
-        message = (f"the models cannot meet all targets at once (interior optimum, relative residuals "
-                   f"{_fmt_pct(responses, best_r)} exceed {tol:g})")
+        message = (f"the models cannot meet all targets at once: the best compromise is an interior optimum "
+                   f"(no bound of the configured ranges is active), relative residuals "
+                   f"{_fmt_pct(responses, best_r)} exceed {tol:g}." + (f" {advice}" if advice else ""))
     return InversionResult(
         status=status, message=message, solution=solution, free=space.free, derived=space.derived,
         targets=dict(zip(responses, t.tolist())),
         predicted={r: float(models[r].predict(solution)) for r in responses},
         residuals=dict(zip(responses, best_r.tolist())),
         bounds=space.bounds(),
-        at_bound=edges, alternatives=alternatives, starts=start_frame, tol=tol)
+        at_bound=edges, alternatives=alternatives, starts=start_frame, tol=tol,
+        bound_origins=space.bound_origins(), ranges=dict(space.ranges), widen=widen, advice=advice)
 
 
 # -- bootstrap ------------------------------------------------------------------------------
@@ -426,8 +714,8 @@ class BootstrapResults:
 def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel], targets: Mapping[str, float],
                         fixed: Mapping[str, float], free: Sequence[str] | None = None,
                         bounds: Mapping[str, Sequence[float]] | None = None,
-                        ratio: float | None = PAPER_RATIO, *, n_boot: int = 1000, level: float = 0.95,
-                        seed: int = 0,
+                        ratio: float | None = PAPER_RATIO, *, ranges: Mapping[str, Sequence[float]],
+                        n_boot: int = 1000, level: float = 0.95, seed: int = 0,
                         reselect: StepwiseRegression | None = None,
                         candidates: Mapping[str, Sequence[str]] | None = None, n_starts: int = 0,
                         tol: float = 1e-3) -> BootstrapResults:
@@ -436,7 +724,8 @@ def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel],
     ``models`` are the full-data models whose terms are refitted in every resample (or,
     with ``reselect``, re-selected from ``candidates``; use ``cv_folds=0`` there for
     speed). Each resample's inversion starts from the full-data solution plus ``n_starts``
-    Latin-hypercube points.
+    Latin-hypercube points. ``ranges`` and ``bounds`` confine every inversion as in
+    :func:`invert` (the design space, optionally narrowed).
     """
     if not isinstance(n_boot, (int, np.integer)) or n_boot < 2:
         raise ValueError(f"n_boot={n_boot!r}: expected an integer >= 2")
@@ -450,7 +739,7 @@ def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel],
     rows = usable_rows(df, needed)
     data = rows.data
     rng = np.random.default_rng(seed)
-    base = invert(models, targets, fixed, free, bounds, ratio, seed=seed_from(rng), tol=tol)
+    base = invert(models, targets, fixed, free, bounds, ratio, ranges=ranges, seed=seed_from(rng), tol=tol)
     designs = {r: (models[r].design(data), data[r].to_numpy(float)) for r in responses}
     start = [{p: base.solution[p] for p in base.free}]
     recs = []
@@ -465,8 +754,8 @@ def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel],
                 boot[r] = models[r].with_coefficients(beta[0], beta[1:])
         else:
             boot = reselect.fit(data.iloc[idx], {r: candidates[r] for r in responses}).final_models
-        inv = invert(boot, targets, fixed, free, bounds, ratio, n_starts=n_starts, seed=seed_from(rng),
-                     tol=tol, x0=start)
+        inv = invert(boot, targets, fixed, free, bounds, ratio, ranges=ranges, n_starts=n_starts,
+                     seed=seed_from(rng), tol=tol, x0=start, diagnose=False)
         rec = {"resample": b, "status": inv.status, "reachable": inv.reachable}
         rec.update({p: inv.solution[p] for p in inv.free + inv.derived})
         rec.update({f"{r}@estimate": float(boot[r].predict(base.solution)) for r in responses})
@@ -502,9 +791,15 @@ class ClosedLoopResult:
 
     ``status``: ``"converged"``, ``"max_rounds"``, ``"stalled"`` (the step was blocked by
     the bounds) or ``"failed"`` (a simulation returned no finite value). ``params`` and
-    ``responses`` are those of the best round (smallest max |error|), which is the last one
-    when converged. ``history`` has one row per simulation; ``jacobian`` is the final
-    Broyden estimate of ∂response/∂parameter in physical units.
+    ``responses`` (the seed means) are those of the best round (smallest max |error| of
+    the mean), which is the last one when converged; ``seed_cv`` holds that round's seed
+    coefficient of variation per response (NaN with one seed) and ``n_seeds`` its k.
+    ``history`` has one row per round: the parameters, the mean of every response, its
+    seed CV ``cv_<r>`` in that round, the pooled relative standard error ``se_<r>``, the
+    tolerance used ``tol_<r>`` = max(rtol, z · se), the relative error ``err_<r>`` of the
+    mean, ``n_seeds`` and the step; ``samples`` one row per simulation (round, seed,
+    responses). ``jacobian`` is the final Broyden estimate of ∂response/∂parameter in
+    physical units.
     """
 
     status: str
@@ -513,6 +808,10 @@ class ClosedLoopResult:
     params: dict[str, float]
     responses: dict[str, float]
     jacobian: pd.DataFrame
+    samples: pd.DataFrame = field(default_factory=pd.DataFrame)
+    seed_cv: dict[str, float] = field(default_factory=dict)
+    n_seeds: int = 1
+    seeds: tuple = ()
 
     @property
     def converged(self) -> bool:
@@ -522,11 +821,16 @@ class ClosedLoopResult:
     def n_rounds(self) -> int:
         return len(self.history)
 
+    @property
+    def n_simulations(self) -> int:
+        return len(self.samples)
+
     def to_frame(self) -> pd.DataFrame:
         return self.history
 
     def summary(self) -> str:
-        head = f"Closed loop: {self.status} after {self.n_rounds} simulation(s) - {self.message}"
+        head = (f"Closed loop: {self.status} after {self.n_rounds} round(s) of {self.n_seeds} "
+                f"seed(s) - {self.message}")
         return "\n".join([head, "", self.history.to_string(index=False)])
 
 
@@ -536,20 +840,31 @@ class ClosedLoop:
     Parameters
     ----------
     simulate:
-        ``simulate(params) -> {response: value, ...}`` for a full parameter dict (paper
-        units), e.g. one DEM UCS test; must return every target response.
+        ``simulate(params, seed=s) -> {response: value, ...}`` for a full parameter dict
+        (paper units) and a packing seed, e.g. one DEM UCS test; must return every target
+        response. A callable without a ``seed`` parameter, ``simulate(params)``, is a
+        single-seed simulator (one run per round).
     targets:
         response -> laboratory value.
-    free, ratio, bounds:
-        As for :func:`invert`; every other parameter of the initial set stays fixed.
+    free, ratio, ranges, bounds:
+        As for :func:`invert` (``ranges`` the design space, required; ``bounds`` optional
+        narrower limits); every other parameter of the initial set stays fixed.
     models:
         Regression models whose analytic Jacobian at the initial point starts the Broyden
         updates (alternatively ``jacobian``: DataFrame responses × free parameters,
         ∂response/∂parameter in physical units).
     rtol:
-        Relative tolerance, one number or response -> number (default 0.01).
+        Relative tolerance, one number or response -> number (default 0.01); the loop
+        stops when every mean is within max(rtol, z · SE) of its target (module docstring).
     max_rounds:
-        Maximum number of simulations (default 6).
+        Maximum number of rounds (default 5), each of ``seeds_per_round`` simulations.
+    seeds_per_round, seeds:
+        The packing seeds every round runs (the same in every round): ``seeds`` (distinct
+        integers), else 1..``seeds_per_round``; default 3 seeds for a simulator with a
+        ``seed`` parameter, 1 (and no seed) for ``simulate(params)``, which cannot take
+        more.
+    z:
+        Standard errors of the mean within which a target counts as met (default 2).
     damping, max_step:
         Newton step factor (default 0.8) and cap on the move of any parameter per round
         as a fraction of its range (default 0.25).
@@ -559,12 +874,18 @@ class ClosedLoop:
 
     def __init__(self, simulate: Callable[[dict], Mapping[str, float]], targets: Mapping[str, float], *,
                  free: Sequence[str] | None = None, ratio: float | None = PAPER_RATIO,
+                 ranges: Mapping[str, Sequence[float]],
                  bounds: Mapping[str, Sequence[float]] | None = None,
                  models: Mapping[str, RegressionModel] | None = None, jacobian: pd.DataFrame | None = None,
-                 rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 6, damping: float = 0.8,
-                 max_step: float = 0.25, broyden: bool = True):
+                 rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 5, damping: float = 0.8,
+                 max_step: float = 0.25, broyden: bool = True, seeds_per_round: int | None = None,
+                 seeds: Sequence[int] | None = None, z: float = 2.0):
         if not callable(simulate):
-            raise TypeError(f"simulate={simulate!r}: expected a callable params -> responses")
+            raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
+        self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
+        if not (math.isfinite(float(z)) and float(z) >= 0):
+            raise ValueError(f"z={z!r}: expected a number of standard errors >= 0")
+        self.z = float(z)
         self.responses, self.t = _check_targets(targets, models)
         if (models is None) == (jacobian is None):
             raise ValueError("give exactly one of models (analytic Jacobian) or jacobian")
@@ -578,7 +899,7 @@ class ClosedLoop:
         if not 0 < max_step <= 1:
             raise ValueError(f"max_step={max_step!r}: expected a fraction of the range in (0, 1]")
         self.simulate = simulate
-        self.free, self.ratio, self.bounds = free, ratio, bounds
+        self.free, self.ratio, self.ranges, self.bounds = free, ratio, _check_ranges(ranges), bounds
         self.models, self.jacobian = models, jacobian
         self.rtol = np.array([rt[r] for r in self.responses])
         self.max_rounds, self.damping, self.max_step = int(max_rounds), float(damping), float(max_step)
@@ -588,7 +909,7 @@ class ClosedLoop:
         free = _default_free(self.free, self.ratio)
         derived = (_TEN,) if self.ratio is not None else ()
         fixed = {k: v for k, v in initial.items() if k not in free and k not in derived}
-        space = _Space(free, fixed, self.ratio, self.bounds)
+        space = _Space(free, fixed, self.ratio, self.ranges, self.bounds)
         if self.ratio is not None and _TEN in initial and _COH in initial:
             if not math.isclose(float(initial[_TEN]), self.ratio * float(initial[_COH]), rel_tol=1e-9):
                 raise ParameterError(f"initial {_TEN}={initial[_TEN]!r} differs from ratio × {_COH} = "
@@ -609,8 +930,12 @@ class ClosedLoop:
             Jx = jac.loc[list(self.responses), list(space.free)].to_numpy(float)
         return Jx * space.width / np.abs(self.t)[:, None]
 
-    def _simulate(self, params: dict[str, float]) -> np.ndarray:
-        out = self.simulate(dict(params))
+    @property
+    def seeds_per_round(self) -> int:
+        return len(self.seeds)
+
+    def _simulate(self, params: dict[str, float], seed: int | None) -> np.ndarray:
+        out = self.simulate(dict(params)) if seed is None else self.simulate(dict(params), seed=seed)
         return np.array([float(out.get(r, np.nan)) if out is not None else np.nan for r in self.responses])
 
     def run(self, initial: Mapping[str, float]) -> ClosedLoopResult:
@@ -618,25 +943,47 @@ class ClosedLoop:
         space = self._space(initial)
         u = space.u(space.free_values(initial))
         if np.any(u < -1e-12) or np.any(u > 1 + 1e-12):
-            bad = [p for p, v in zip(space.free, u) if not -1e-12 <= v <= 1 + 1e-12]
-            raise ParameterError(f"initial value(s) of {bad} outside the bounds "
-                                 f"{[(float(a), float(b)) for a, b in zip(space.lo, space.hi)]}")
+            bad = [f"{p}={x:g} outside [{lo:g}, {hi:g}] ({space.bound_origins()[p]['lower']} .. "
+                   f"{space.bound_origins()[p]['upper']})"
+                   for p, v, x, lo, hi in zip(space.free, u, space.x(u), space.lo, space.hi)
+                   if not -1e-12 <= v <= 1 + 1e-12]
+            raise ParameterError(f"initial value(s) outside the bounds: {'; '.join(bad)}")
         u = np.clip(u, 0.0, 1.0)
         J = self._initial_jacobian(space, space.x(u))
         scale = np.abs(self.t)
-        history, prev = [], None
-        status, message = "max_rounds", f"tolerance not met within {self.max_rounds} simulations"
+        k = self.seeds_per_round
+        history, samples, prev = [], [], None
+        pooled, dof = np.zeros(len(self.responses)), 0  # Σ (k-1) cv², Σ (k-1)
+        status, message = "max_rounds", f"tolerance not met within {self.max_rounds} rounds"
         for rnd in range(self.max_rounds):
             params = space.full(space.x(u))
-            y = self._simulate(params)
+            ys = np.empty((k, len(self.responses)))
+            for i, sd in enumerate(self.seeds):
+                ys[i] = self._simulate(params, sd)
+                samples.append({"round": rnd, "seed": sd, **dict(zip(self.responses, ys[i]))})
+            y = ys.mean(axis=0)
             rec = {"round": rnd, **{p: params[p] for p in space.calibrated},
-                   **dict(zip(self.responses, y))}
-            if not np.all(np.isfinite(y)):
+                   **dict(zip(self.responses, y)), "n_seeds": k}
+            bad = [(sd, dict(zip(self.responses, row))) for sd, row in zip(self.seeds, ys)
+                   if not np.all(np.isfinite(row))]
+            if bad:
                 history.append(rec)
                 status = "failed"
-                message = f"simulation {rnd} returned non-finite responses {dict(zip(self.responses, y))}"
+                which = "; ".join(f"seed {sd}: {v}" if sd is not None else str(v) for sd, v in bad)
+                message = f"round {rnd} returned non-finite responses ({which})"
                 break
+            cv = ys.std(axis=0, ddof=1) / np.abs(y) if k > 1 else np.full(len(y), np.nan)
+            if k > 1:
+                pooled += (k - 1) * cv ** 2
+                dof += k - 1
+                se = np.sqrt(pooled / dof) / math.sqrt(k)
+            else:
+                se = np.zeros(len(y))
+            tol = np.maximum(self.rtol, self.z * se)
             e = (y - self.t) / scale
+            rec.update({f"cv_{r}": v for r, v in zip(self.responses, cv)})
+            rec.update({f"se_{r}": v for r, v in zip(self.responses, se)})
+            rec.update({f"tol_{r}": v for r, v in zip(self.responses, tol)})
             rec.update({f"err_{r}": v for r, v in zip(self.responses, e)})
             rec["max_abs_err"] = float(np.max(np.abs(e)))
             updated = False
@@ -646,10 +993,14 @@ class ClosedLoop:
                     J = J + np.outer(de - J @ s, s) / (s @ s)
                     updated = True
             rec["broyden_update"] = updated
-            if np.all(np.abs(e) <= self.rtol):
+            if np.all(np.abs(e) <= tol):
                 history.append(rec)
                 status = "converged"
-                message = f"all relative errors within tolerance after {rnd + 1} simulation(s)"
+                if k > 1:
+                    message = (f"every mean of {k} seeds within max(rtol, {self.z:g} standard "
+                               f"errors) of its target after {rnd + 1} round(s)")
+                else:
+                    message = f"all relative errors within tolerance after {rnd + 1} simulation(s)"
                 break
             if rnd == self.max_rounds - 1:
                 history.append(rec)
@@ -663,7 +1014,7 @@ class ClosedLoop:
             rec["clipped"] = ",".join(p for p, want, got in zip(space.free, u + du, u_new) if want != got)
             history.append(rec)
             if np.max(np.abs(u_new - u)) < 1e-9:
-                edges = ", ".join(f"{p} at its {side} bound {v:g}" for p, side, v in space.at_bound(u))
+                edges = ", ".join(space.edge_text(p, side, v) for p, side, v in space.at_bound(u))
                 status = "stalled"
                 message = (f"the Newton step points out of the bounds ({edges}); the targets appear "
                            "unreachable within the parameter ranges")
@@ -680,7 +1031,48 @@ class ClosedLoop:
         return ClosedLoopResult(
             status=status, message=message, history=hist, params=space.full(x_best),
             responses={r: float(best[r]) for r in self.responses},
-            jacobian=pd.DataFrame(J_phys, index=list(self.responses), columns=list(space.free)))
+            jacobian=pd.DataFrame(J_phys, index=list(self.responses), columns=list(space.free)),
+            samples=pd.DataFrame.from_records(samples),
+            seed_cv={r: float(best.get(f"cv_{r}", np.nan)) for r in self.responses},
+            n_seeds=k, seeds=self.seeds)
+
+
+def _takes_seed(simulate: Callable) -> bool:
+    """Whether ``simulate`` accepts a keyword ``seed`` (a parameter of that name or
+    ``**kwargs``)."""
+    import inspect
+
+    try:
+        sig = inspect.signature(simulate)
+    except (TypeError, ValueError):
+        return False
+    return any(p.name == "seed" and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+               or p.kind == p.VAR_KEYWORD for p in sig.parameters.values())
+
+
+def _round_seeds(simulate: Callable, seeds_per_round: int | None, seeds: Sequence[int] | None) -> tuple:
+    """The packing seeds of every closed-loop round (``(None,)``: a single-seed simulator)."""
+    if seeds_per_round is not None and (isinstance(seeds_per_round, bool)
+                                        or not isinstance(seeds_per_round, (int, np.integer))
+                                        or seeds_per_round < 1):
+        raise ValueError(f"seeds_per_round={seeds_per_round!r}: expected an integer >= 1")
+    if not _takes_seed(simulate):
+        if (seeds_per_round or 1) > 1 or seeds is not None:
+            raise ValueError("simulate(params) takes no seed argument, so it cannot run several packing "
+                             "seeds per round: give it a 'seed' parameter, or use seeds_per_round=1")
+        return (None,)
+    if seeds is None:
+        return tuple(range(1, (3 if seeds_per_round is None else int(seeds_per_round)) + 1))
+    out = []
+    for sd in seeds:
+        if isinstance(sd, bool) or not isinstance(sd, (int, np.integer)) or sd < 0:
+            raise ValueError(f"seeds: {sd!r} is not a packing seed (an integer >= 0)")
+        out.append(int(sd))
+    if not out or len(set(out)) != len(out):
+        raise ValueError(f"seeds={list(seeds)!r}: expected distinct packing seeds, at least one")
+    if seeds_per_round is not None and seeds_per_round != len(out):
+        raise ValueError(f"seeds_per_round={seeds_per_round} but {len(out)} seeds given")
+    return tuple(out)
 
 
 def seed_scatter(sims: pd.DataFrame | Sequence[Mapping[str, float]], rtol: float | Mapping[str, float] = 0.01,

@@ -55,13 +55,13 @@ import numpy as np
 import pandas as pd
 import xgboost as xgb
 
+from bpmcal.io.tables import markdown_table
 from bpmcal.params import PARAM_NAMES, TARGETS
 
 from ._common import (
     check_params,
     check_responses,
     kfold_indices,
-    markdown_table,
     r2_score,
     seed_from,
     symbol,

@@ -71,13 +71,13 @@ import numpy as np
 import pandas as pd
 import statsmodels.api as sm
 
+from bpmcal.io.tables import markdown_table
 from bpmcal.params import ParameterError
 
 from ._common import (
     check_params,
     check_responses,
     kfold_indices,
-    markdown_table,
     symbol,
     usable_rows,
 )
@@ -621,7 +621,7 @@ class StepwiseResults:
         return out
 
     def table4_markdown(self, which: str = "retained") -> str:
-        return markdown_table(self.table4_terms(which, symbols=True))
+        return markdown_table(self.table4_terms(which, symbols=True), floatfmt=".2f")
 
     def summary(self) -> str:
         """Plain-text report: rules, rows, fit statistics per stage, equations, coefficients."""

@@ -3,14 +3,19 @@
 Layout (``SCHEMA_VERSION`` 1)::
 
     /                 attrs: schema_version, bpmcal_version, git_commit, created_utc,
-                             test ("ucs" | "impact"), status ("ok" | "failed"), error,
-                             config_hash
+                             test ("ucs" | "bts" | "triaxial" | "impact"),
+                             status ("ok" | "failed"), error,
+                             inputs_hash (of /inputs; older files: config_hash),
+                             hostname, slurm_job_id
     /inputs           attrs: meso-parameters (paper units, names of params.py), geometry
                              (diameter_mm, height_mm, scale), seed, test settings
     /summary          attrs: results (``ucs_MPa``, ``E_GPa``, ``nu``, ``peak_strain``,
                              ``u_pre_MJm3``, ``cracks_tension``, ``cracks_shear``, ``n_balls``,
                              ``n_bonds``, ``porosity_achieved``, ``coordination``, ``steps``,
-                             ``wall_s``, ``stop_reason``, ...)
+                             ``wall_s``, ``stop_reason``, ...); Brazilian runs
+                             ``bts_MPa``, ``peak_load_N``, ``platen_mismatch``, ...;
+                             triaxial runs ``sigma1_MPa``, ``sigma3_MPa``, ``E_GPa``,
+                             ``nu``, ``sigma3_maxdev_rel``, ...
     /genesis          attrs: the specimen genesis report
     /series/<name>    1-D datasets, one row per record (attr ``unit``)
     /cracks/<name>    one row per broken bond: step, time [s], position [m] (n, 3),
@@ -24,11 +29,16 @@ Layout (``SCHEMA_VERSION`` 1)::
 
 A file is written under a temporary name in the same directory and renamed when
 complete, so a file that exists is complete (``write_run``).
+
+Readers raise :class:`RunFileError` (a ``ValueError``) naming the file when it is missing,
+a directory, not HDF5 (another format, or truncated) or an HDF5 file that is not a bpmcal
+run file; ``check_run_file`` does that check alone and returns the root attributes.
 """
 from __future__ import annotations
 
 import json
 import math
+from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
@@ -41,11 +51,16 @@ SCHEMA_VERSION = 1
 
 #: units of the series columns (SI; strains dimensionless, compression positive)
 SERIES_UNITS = {
-    "step": "", "time": "s", "axial_strain": "", "lateral_strain": "",
+    "step": "", "time": "s", "axial_strain": "", "lateral_strain": "", "axial_strain_central": "",
     "volumetric_strain": "", "axial_stress": "Pa", "stress_top": "Pa", "stress_bottom": "Pa",
     "cracks_tension": "", "cracks_shear": "", "kinetic": "J", "strain_linear": "J",
     "strain_bond": "J", "slip": "J", "damping": "J", "dashpot": "J", "released": "J",
     "work_walls": "J", "unbalanced": "",
+    # Brazilian runs
+    "displacement": "m", "diametral_strain": "", "load": "N", "load_bottom": "N",
+    "load_top": "N", "tensile_stress": "Pa",
+    # triaxial runs
+    "lateral_strain_wall": "", "confining_stress": "Pa", "deviator": "Pa", "wall_radius": "m",
     # impact runs
     "hammer_z": "m", "hammer_v": "m/s", "W_in": "J", "W_in_paper": "J", "work_gravity": "J",
     "eta_f": "", "closure_rel": "",
@@ -83,7 +98,7 @@ def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
     """Write one run atomically (temporary file in the same directory, then rename)."""
     path = Path(path)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        prov = provenance(inputs)
+        prov = provenance(inputs, stamp=True)
         _put_attrs(f, {"schema_version": SCHEMA_VERSION, "test": test, "status": status,
                        "error": error, **prov})
         _put_attrs(f.create_group("inputs"), inputs)
@@ -126,16 +141,62 @@ def _decode(v):
     return v
 
 
+class RunFileError(ValueError):
+    """A file is not a readable bpmcal run file (missing, not HDF5, truncated, foreign)."""
+
+
+@contextmanager
+def _open(path):
+    """Open a run file for reading; every failure to open or read it is a RunFileError."""
+    p = Path(path)
+    if not p.exists():
+        raise RunFileError(f"{path}: no such file")
+    if p.is_dir():
+        raise RunFileError(f"{path}: is a directory, expected an HDF5 run file")
+    try:
+        f = h5py.File(p, "r")
+    except OSError as e:
+        reason = str(e).split("(")[-1].rstrip(")") if "(" in str(e) else str(e)
+        raise RunFileError(f"{path}: not a readable HDF5 file ({reason.strip()}); "
+                           "expected a bpmcal run file (truncated, or another format?)") from None
+    try:
+        with f:
+            yield f
+    except (OSError, KeyError) as e:  # a damaged file that opens but cannot be read
+        raise RunFileError(f"{path}: damaged HDF5 run file ({type(e).__name__}: "
+                           f"{' '.join(str(e).split())})") from None
+
+
+def check_run_file(path) -> dict:
+    """The root attributes of a bpmcal run file; RunFileError if ``path`` is not one."""
+    with _open(path) as f:
+        attrs = {k: _decode(v) for k, v in f.attrs.items()}
+    missing = [k for k in ("schema_version", "test", "status") if k not in attrs]
+    if missing:
+        raise RunFileError(f"{path}: an HDF5 file but not a bpmcal run file (no {', '.join(missing)} "
+                           "attribute)")
+    try:
+        version = int(attrs["schema_version"])
+    except (TypeError, ValueError):
+        raise RunFileError(f"{path}: schema_version={attrs['schema_version']!r} is not an "
+                           "integer") from None
+    if version > SCHEMA_VERSION:
+        raise RunFileError(f"{path}: run file schema_version {version} is newer than this bpmcal "
+                           f"reads ({SCHEMA_VERSION}); update bpmcal")
+    return attrs
+
+
 def read_attrs(path, group: str = "/") -> dict:
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if group not in f:
             return {}
         return {k: _decode(v) for k, v in f[group].attrs.items()}
 
 
 def read_summary(path) -> dict:
-    """Summary results plus status/error/test and provenance, as one flat dict."""
-    out = {k: v for k, v in read_attrs(path, "/").items()}
+    """Summary results plus status/error/test and provenance, as one flat dict (a
+    RunFileError if ``path`` is not a bpmcal run file)."""
+    out = check_run_file(path)
     out.update(read_attrs(path, "summary"))
     return out
 
@@ -151,7 +212,7 @@ def read_genesis(path) -> dict:
 def read_series(path):
     """Time series as a pandas DataFrame (SI units; see ``SERIES_UNITS``)."""
     import pandas as pd
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if "series" not in f:
             return pd.DataFrame()
         return pd.DataFrame({k: f["series"][k][()] for k in f["series"]})
@@ -160,7 +221,7 @@ def read_series(path):
 def read_cracks(path):
     """Crack events as a DataFrame (x, y, z, nx, ny, nz split out)."""
     import pandas as pd
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if "cracks" not in f:
             return pd.DataFrame()
         g = f["cracks"]
@@ -177,7 +238,7 @@ def read_cracks(path):
 
 
 def read_particles(path, which: str = "final") -> dict:
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         key = f"particles/{which}"
         if key not in f:
             return {}
@@ -185,14 +246,14 @@ def read_particles(path, which: str = "final") -> dict:
 
 
 def read_group(path, name) -> dict:
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if name not in f:
             return {}
         return {k: f[name][k][()] for k in f[name]}
 
 
 def read_bonds(path) -> dict:
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if "bonds" not in f:
             return {}
         return {k: f["bonds"][k][()] for k in f["bonds"]}

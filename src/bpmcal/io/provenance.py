@@ -1,4 +1,7 @@
-"""Provenance stamped on every output: package version, git commit, time, input hash."""
+"""Provenance stamped on every output: package version, git commit and a hash of the
+inputs (:func:`provenance`); run files also get the time, host and Slurm job
+(``stamp=True``). Material cards, models and selections carry the unstamped form, so the
+same inputs give the same file."""
 from __future__ import annotations
 
 import datetime as _dt
@@ -35,8 +38,13 @@ def config_hash(d: dict) -> str:
     return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def provenance(inputs: dict) -> dict:
-    return {"bpmcal_version": __version__, "git_commit": git_commit(),
-            "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-            "config_hash": config_hash(inputs), "hostname": socket.gethostname(),
-            "slurm_job_id": os.environ.get("SLURM_JOB_ID", "")}
+def provenance(inputs: dict, *, stamp: bool = False) -> dict:
+    """``bpmcal_version``, ``git_commit`` and ``inputs_hash`` (:func:`config_hash` of
+    ``inputs``); with ``stamp`` also ``created_utc``, ``hostname`` and ``slurm_job_id``."""
+    d = {"bpmcal_version": __version__, "git_commit": git_commit(),
+         "inputs_hash": config_hash(inputs)}
+    if stamp:
+        d.update({"created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+                  "hostname": socket.gethostname(),
+                  "slurm_job_id": os.environ.get("SLURM_JOB_ID", "")})
+    return d

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import write_text
-from .h5 import read_bonds, read_cracks, read_particles
+from .h5 import check_run_file, read_bonds, read_cracks, read_particles
 
 
 def _arr(name, a, ncomp=1):
@@ -55,8 +55,10 @@ def write_vtp(path, points: np.ndarray, point_data: dict) -> Path:
 
 
 def export_run(h5path, outdir) -> list[Path]:
-    """particles_initial.vtp, particles_final.vtp, cracks.vtp and run.pvd for one run."""
+    """particles_initial.vtp, particles_final.vtp, cracks.vtp and run.pvd for one run
+    (a RunFileError, before anything is written, if ``h5path`` is not a bpmcal run file)."""
     h5path = Path(h5path)
+    check_run_file(h5path)
     out = Path(outdir)
     files = []
     ini = read_particles(h5path, "initial")
@@ -87,6 +89,6 @@ def export_run(h5path, outdir) -> list[Path]:
         files.append(write_vtp(out / "cracks.vtp", np.zeros((0, 3)), {}))
     pvd = out / "run.pvd"
     items = "\n".join(f'<DataSet part="{i}" file="{f.name}"/>' for i, f in enumerate(files))
-    pvd.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
-                   f'<Collection>\n{items}\n</Collection>\n</VTKFile>\n')
+    write_text(pvd, '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
+               f'<Collection>\n{items}\n</Collection>\n</VTKFile>\n')
     return files + [pvd]

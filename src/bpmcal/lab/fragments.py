@@ -25,6 +25,8 @@ from scipy.optimize import curve_fit
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from ..portable import libm_exp, libm_pow
+
 KWH_PER_T = 3600.0  # J/kg in 1 kWh/t
 
 
@@ -39,9 +41,9 @@ def fragments(n_balls: int, bond_i, bond_j, intact) -> np.ndarray:
 
 def fragment_sizes(labels, radius, density: float) -> tuple[np.ndarray, np.ndarray]:
     """(mass [kg], equivalent-sphere diameter [m]) of every fragment."""
-    vol = 4.0 / 3.0 * np.pi * np.asarray(radius, float) ** 3
+    vol = 4.0 / 3.0 * np.pi * libm_pow(radius, 3)
     v = np.bincount(labels, weights=vol)
-    return v * density, (6.0 * v / np.pi) ** (1.0 / 3.0)
+    return v * density, libm_pow(6.0 * v / np.pi, 1.0 / 3.0)
 
 
 def passing(mass, size, x) -> float:
@@ -56,7 +58,7 @@ def t10(mass, size, original_size: float) -> float:
 
 
 def jk_model(ecs, A, b):
-    return A * (1.0 - np.exp(-b * np.asarray(ecs, float)))
+    return A * (1.0 - libm_exp(-b * np.asarray(ecs, float)))
 
 
 def fit_jk(ecs, t10_values) -> dict:

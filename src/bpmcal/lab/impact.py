@@ -36,8 +36,10 @@ import numpy as np
 
 from ..dem.errors import InputError
 from ..dem.layout import BOND_INTACT, BOND_SHEAR, BOND_TENSION
+from ..portable import libm_pow
 from . import fragments as F
 from .specimen import Specimen
+from .stepping import cycle
 
 IMPACT_SERIES = ("step", "time", "hammer_z", "hammer_v", "W_in", "W_in_paper", "cracks_tension",
                  "cracks_shear", "kinetic", "strain_linear", "strain_bond", "slip", "damping",
@@ -51,9 +53,9 @@ class ImpactSettings:
     dp_ratio: float = 0.1  # contact dashpot critical-damping ratio (normal and shear)
     platen_fric: float = 0.3
     gravity: float = 9.81
-    duration: float = 5e-3  # s, at most
+    duration: float = 10e-3  # s, at most (the study: impact.duration_ms)
     after_rebound: float = 2e-4  # s, kept running after the hammer moves up
-    record_dt: float = 1e-5  # s between records
+    record_dt: float = 5e-6  # s between records (the study: impact.record_us)
     gap: float = 1e-5  # m, initial hammer gap above the top face
 
     def __post_init__(self):
@@ -63,6 +65,9 @@ class ImpactSettings:
                 raise InputError(f"{k}={v!r}: expected a positive number")
         if not (0.0 <= self.dp_ratio <= 1.0):
             raise InputError(f"dp_ratio={self.dp_ratio!r}: expected in [0, 1]")
+        if not (0.0 <= self.platen_fric <= 10.0):  # NaN fails too
+            raise InputError(f"platen_fric={self.platen_fric!r}: expected a friction "
+                             "coefficient in [0, 10]")
 
 
 @dataclass
@@ -159,7 +164,7 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     reason = "duration"
     z_floor = float(m.wall_position(wb)[2]) + 4.0 * float(m.radii.max())
     while m.time - t0 < st.duration:
-        m.cycle(n_rec)
+        cycle(m, n_rec)
         v = rec()
         if progress is not None:
             progress({"strain": 0.0, "stress_MPa": 0.0, "peak_MPa": 0.0,
@@ -180,7 +185,7 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     bi, bj = m.bond_pairs()
     labels = F.fragments(m.n, bi, bj, m.bond_states == BOND_INTACT)
     fmass, fsize = F.fragment_sizes(labels, m.radii, sp.spec.density)
-    solid = float((4 / 3 * np.pi * m.radii ** 3).sum())
+    solid = float((4 / 3 * np.pi * libm_pow(m.radii, 3)).sum())
     orig = (6 * solid / np.pi) ** (1 / 3)
     mean_d = 2 * float(m.radii.mean())
     w_in = float(series["W_in"][-1])

@@ -1,24 +1,50 @@
-"""One complete virtual UCS test from the paper's parameters to an HDF5 file.
+"""One complete virtual lab test from the paper's parameters: validate the 8 meso-
+parameters (paper units), get the packing (cached), build the specimen, run the test, and
+return everything a run file holds as a :class:`LabRun` (no file is written here: the
+stages in ``bpmcal.stages.runs`` write it, or a failure record).
 
-``run_ucs_file`` is what ``bpmcal ucs`` and the workflow call: validate the 8 meso-
-parameters (paper units), get the packing (cached), build the specimen, run the test,
-write the HDF5 file atomically. A run that goes numerically unstable, or a parameter
-combination that cannot be built, produces a *failure record* (status "failed" and the
-message) instead of an exception, so a study is not stopped by one bad sample; any other
-exception is a bug and propagates.
+``ucs_test``, ``bts_test`` (Brazilian), ``triaxial_test`` and ``impact_test`` share these
+conventions. A run that goes numerically unstable, a specimen that cannot be built or
+does not settle, or a servo stage that does not converge raises one of
+:data:`RUN_FAILURES`: the run failed, which a study records as data (a failure record);
+any other exception is a bug. ``*_inputs`` give the inputs a run file records, also for
+a run that failed or was not run.
+
+``genesis_max_steps`` bounds the settling of the specimen (``specimen.build_specimen``);
+``progress`` receives the genesis phases (``{"phase", "steps", "ratio", "target",
+"wall_s"}``), then the records of the test.
 """
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+
+import numpy as np
 
 from .. import params as P
 from ..dem._jit import set_threads
-from ..dem.errors import InstabilityError
-from ..io.h5 import write_run
-from .specimen import GenesisError, SpecimenSpec, build_specimen, get_packing, paper_material
+from ..dem.errors import InputError, InstabilityError
+from .brazilian import BTSSettings, run_bts
+from .brazilian import settings_dict as bts_dict
+from .impact import ImpactSettings, run_impact
+from .impact import settings_dict as impact_dict
+from .servo import ServoError
+from .specimen import (
+    GENESES,
+    GenesisError,
+    SpecimenSpec,
+    build_specimen,
+    default_install_gap,
+    get_packing,
+    paper_material,
+)
+from .triaxial import TriaxialSettings, run_triaxial
+from .triaxial import settings_dict as tx_dict
 from .ucs import UCSSettings, run_ucs, settings_dict
+
+#: the exceptions that mean "this run failed" (a failure record, not a bug)
+RUN_FAILURES = (InstabilityError, GenesisError, ServoError)
 
 
 @dataclass(frozen=True)
@@ -26,140 +52,279 @@ class Geometry:
     scale: float = 1.0
     diameter_mm: float = 50.0
     height_mm: float = 100.0
-    sigma0_MPa: float = 0.1  # locked-in isotropic stress after genesis
-    install_gap_mm: float = 0.0  # bonds on pairs with gap <= this
+    sigma0_MPa: float = 0.1  # locked-in isotropic stress after genesis ("bpmcal" only)
+    install_gap_mm: float | None = None  # bonds on pairs with gap <= this (None: genesis's)
     relax_ratio: float = 1e-2
+    genesis: str = "bpmcal"  # steps 4-5 of the genesis: "bpmcal" | "pfc" (lab.specimen)
 
-    def to_dict(self):
+    def __post_init__(self):
+        if self.genesis not in GENESES:
+            raise InputError(f"genesis={self.genesis!r}: expected one of {', '.join(GENESES)}")
+        checks = (  # name, value, low, high, low end open
+            ("scale", self.scale, 0.0, 10.0, True),
+            ("diameter_mm", self.diameter_mm, 0.0, math.inf, True),
+            ("height_mm", self.height_mm, 0.0, math.inf, True),
+            ("sigma0_MPa", self.sigma0_MPa, 0.0, 1e4, False),
+            ("install_gap_mm", self.install_gap_mm, 0.0, 1e3, False),
+            ("relax_ratio", self.relax_ratio, 0.0, 1.0, True))
+        for name, v, lo, hi, lo_open in checks:
+            if v is None and name == "install_gap_mm":
+                continue
+            v = P.as_number(v, name, "a number", InputError)
+            if (v <= lo if lo_open else v < lo) or v > hi:
+                raise InputError(f"{name}={v!r}: expected a number in {'(' if lo_open else '['}"
+                                 f"{lo:g}, {hi:g}]")
+
+    def install_gap(self, rmin_mm: float) -> float:
+        """The installation gap [mm] used with balls of minimum radius ``rmin_mm``: the
+        given one, or the genesis's default (``specimen.default_install_gap``)."""
+        if self.install_gap_mm is not None:
+            return float(self.install_gap_mm)
+        return default_install_gap(self.genesis, 1.0) * float(rmin_mm)
+
+    def to_dict(self, rmin_mm: float | None = None):
+        """The run file's geometry inputs; ``install_gap_mm`` is the gap used (needs
+        ``rmin_mm`` when the genesis's default applies; NaN without it)."""
+        gap = (self.install_gap(rmin_mm) if rmin_mm is not None or self.install_gap_mm is not None
+               else math.nan)
         return {"scale": self.scale, "diameter_mm": self.diameter_mm * self.scale,
                 "height_mm": self.height_mm * self.scale, "sigma0_MPa": self.sigma0_MPa,
-                "install_gap_mm": self.install_gap_mm, "relax_ratio": self.relax_ratio}
+                "install_gap_mm": gap, "relax_ratio": self.relax_ratio,
+                "genesis": self.genesis}
 
 
 @dataclass
-class RunOutcome:
-    status: str
-    summary: dict = field(default_factory=dict)
-    error: str = ""
-    path: object = None
+class LabRun:
+    """A finished virtual test: what its run file holds (``bpmcal.io.h5.write_run``)."""
+
+    test: str  # "ucs" | "bts" | "triaxial" | "impact"
+    inputs: dict
+    summary: dict
+    genesis: dict
+    series: dict
+    cracks: dict
+    particles_initial: dict | None = None
+    particles_final: dict | None = None
+    bonds: dict | None = None
+    groups: dict | None = None
 
 
 def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, cache=None,
-                  threads=None, progress=None):
-    """Validated parameters (paper units) -> a bonded Specimen (packing from the cache)."""
+                  threads=None, progress=None, genesis_max_steps=None,
+                  boundary: str = "platens"):
+    """Validated parameters (paper units) -> a bonded Specimen (packing from the cache);
+    ``boundary``: which vessel walls stay (``build_specimen``)."""
     p = P.validate_params(params)
     spec = SpecimenSpec.from_paper_units(p["rmin_mm"], p["porosity"], seed,
                                          scale=geometry.scale,
                                          diameter_mm=geometry.diameter_mm,
                                          height_mm=geometry.height_mm,
                                          relax_ratio=geometry.relax_ratio)
-    pk = get_packing(spec, cache=cache)
+    pk = get_packing(spec, cache=cache, progress=progress)
     mat = paper_material(p["pb_emod_GPa"], p["pb_kratio"], p["pb_ten_MPa"], p["pb_coh_MPa"],
                          p["pb_fa_deg"], p["fric"])
     return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6,
-                          install_gap=geometry.install_gap_mm * 1e-3, threads=threads,
-                          progress=progress)
+                          install_gap=geometry.install_gap(p["rmin_mm"]) * 1e-3, threads=threads,
+                          progress=progress, max_steps=genesis_max_steps, boundary=boundary,
+                          genesis=geometry.genesis)
+
+
+#: the ISRM Brazilian disc at full size: D = 50 mm, t = D / 2 (scaled like the cylinder)
+BTS_DIAMETER_MM = 50.0
+BTS_THICKNESS_MM = 25.0
+
+
+def bts_geometry(scale: float = 1.0, diameter_mm: float = BTS_DIAMETER_MM,
+                 thickness_mm: float = BTS_THICKNESS_MM, **kw) -> Geometry:
+    """Geometry of a Brazilian disc (``height_mm`` is the disc thickness)."""
+    return Geometry(scale=scale, diameter_mm=diameter_mm, height_mm=thickness_mm, **kw)
+
+
+# ------------------------------------------------------------------ the inputs a run records
+def _base_inputs(params: dict, seed: int, geometry: Geometry) -> dict:
+    d = {k: float(params[k]) for k in P.PARAMS if k in params}
+    d.update(geometry.to_dict(params.get("rmin_mm")))
+    d["seed"] = int(seed)
+    return d
 
 
 def ucs_inputs(params: dict, seed: int, geometry: Geometry, settings: UCSSettings) -> dict:
-    d = {k: float(params[k]) for k in P.PARAMS if k in params}
-    d.update(geometry.to_dict())
-    d["seed"] = int(seed)
+    d = _base_inputs(params, seed, geometry)
     d.update({f"ucs_{k}": v for k, v in settings_dict(settings).items()})
     return d
 
 
-def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
-                 settings: UCSSettings = UCSSettings(), *, cache=None, threads=None,
-                 progress=None, keep_particles: bool = True) -> RunOutcome:
-    """Run one UCS test and write ``out`` (HDF5). Returns the outcome; unstable runs and
-    unbuildable specimens give status "failed" (and a failure-record file)."""
-    p = P.validate_params(params)  # bad input: raise before any work
-    inputs = ucs_inputs(p, seed, geometry, settings)
+def bts_inputs(params: dict, seed: int, geometry: Geometry, settings: BTSSettings) -> dict:
+    d = _base_inputs(params, seed, geometry)
+    d["thickness_mm"] = d["height_mm"]
+    d.update({f"bts_{k}": v for k, v in bts_dict(settings).items()})
+    return d
+
+
+def triaxial_inputs(params: dict, seed: int, geometry: Geometry,
+                    settings: TriaxialSettings) -> dict:
+    d = _base_inputs(params, seed, geometry)
+    d["sigma3_MPa"] = settings.sigma3 / 1e6
+    d.update({f"triaxial_{k}": v for k, v in tx_dict(settings).items()})
+    return d
+
+
+def impact_inputs(params: dict, seed: int, geometry: Geometry,
+                  settings: ImpactSettings) -> dict:
+    d = _base_inputs(params, seed, geometry)
+    d.update({f"impact_{k}": v for k, v in impact_dict(settings).items()})
+    return d
+
+
+# ------------------------------------------------------------------ the tests
+def _crack_arrays(ev: dict) -> dict:
+    return {"step": ev["step"], "time": ev["time"], "position": ev["pos"],
+            "normal": ev["normal"], "mode": ev["mode"], "radius": ev["radius"],
+            "energy": ev["energy"], "sigma": ev["sigma"], "tau": ev["tau"],
+            "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
+
+
+#: the series whose maximum is the peak of each test (for the morphology)
+_PEAK_SERIES = {"ucs": "axial_stress", "triaxial": "deviator", "bts": "load"}
+
+
+def _morphology(test: str, sp, res, ini: dict) -> dict:
+    """Failure morphology of a finished run (``lab.morphology``): crack heights along the
+    loading axis (the cylinder's axis; a Brazilian disc's loaded diameter, y), the
+    principal fracture plane (fitted with a half-thickness of 1.5 mean ball diameters)
+    and the fragments."""
+    from .morphology import run_summary
+
+    m = sp.model
+    ip = int(np.argmax(res.series[_PEAK_SERIES[test]]))
+    peak_step = int(res.series["step"][ip])
+    r0 = ini["radius"]
+    if test == "bts":
+        xc, yc = (float(v) for v in ini["position"][:, :2].mean(axis=0))
+        d = 2.0 * sp.radius0
+        geo = dict(axis=1, low=yc - 0.5 * d, length=d,
+                   centre_point=(xc, yc, 0.5 * (sp.z_bottom + sp.z_top)), width=d)
+    else:
+        geo = dict(axis=2, low=sp.z_bottom, length=sp.z_top - sp.z_bottom,
+                   centre_point=(0.0, 0.0, 0.5 * (sp.z_bottom + sp.z_top)),
+                   width=2.0 * sp.radius0)
+    bi, bj = m.bond_pairs()
+    return run_summary(res.cracks, peak_step, n_balls=m.n, bond_i=bi, bond_j=bj,
+                       bond_state=m.Bd.state, radius=m.B.radius,
+                       half_thickness=3.0 * float(np.mean(r0)), **geo)
+
+
+def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
+              boundary: str, run, *, cache, threads, keep_particles, progress=None,
+              genesis_max_steps=None, finite=()) -> LabRun:
+    """Shared body of the UCS, Brazilian and triaxial tests: specimen, test, results."""
     if threads:
         set_threads(threads)  # for the whole run, genesis included
     t0 = time.perf_counter()
-    try:
-        sp = make_specimen(p, seed, geometry, cache=cache, threads=threads)
-        t_gen = time.perf_counter() - t0
-        m = sp.model
-        ini = {"position": m.positions.copy(), "radius": m.radii.copy()}
-        res = run_ucs(sp, settings, progress=progress)
-    except (InstabilityError, GenesisError) as e:
-        msg = f"{type(e).__name__}: {e}"
-        write_run(out, test="ucs", inputs=inputs, status="failed", error=msg,
-                  summary={"wall_s": time.perf_counter() - t0})
-        return RunOutcome(status="failed", error=msg, path=out)
+    sp = make_specimen(params, seed, geometry, cache=cache, threads=threads,
+                       progress=progress, genesis_max_steps=genesis_max_steps,
+                       boundary=boundary)
+    t_gen = time.perf_counter() - t0
+    m = sp.model
+    ini = {"position": m.positions.copy(), "radius": m.radii.copy()}
+    res = run(sp)
     summ = dict(res.summary)
+    summ.update(_morphology(test, sp, res, ini))
     g = sp.report
     summ.update({"n_balls": g["n_balls"], "n_bonds": g["n_bonds"],
                  "porosity_achieved": g["porosity_achieved"],
                  "coordination": g["coordination"],
+                 "bonds_per_ball": g["bonds_per_ball"], "bonds_per_cm3": g["bonds_per_cm3"],
+                 "install_gap_mm": g["install_gap_mm"], "genesis": g["genesis"],
                  "locked_in_stress_MPa": g["locked_in_stress_MPa"],
                  "genesis_s": t_gen, "wall_s": time.perf_counter() - t0,
                  "test_s": summ["wall_s"]})
-    for k in ("ucs_MPa", "E_GPa", "nu"):
-        if not math.isfinite(summ[k]):
-            summ["warning"] = (f"{k} is not finite: too few records in the fit window or no "
-                               "peak; see the series")
-    ev = res.cracks
-    cracks = {"step": ev["step"], "time": ev["time"], "position": ev["pos"],
-              "normal": ev["normal"], "mode": ev["mode"], "radius": ev["radius"],
-              "energy": ev["energy"], "sigma": ev["sigma"], "tau": ev["tau"],
-              "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
+    bad = [k for k in finite if not math.isfinite(summ[k])]
+    if bad:
+        summ["warning"] = (f"{', '.join(bad)} not finite: too few records in the fit window "
+                           "or no peak; see the series")
     bi, bj = m.bond_pairs()
     bonds = {"i": bi, "j": bj, "state": m.bond_states.copy(), "break_step": m.bond_break_steps.copy()}
     fin = {"position": m.positions.copy(), "velocity": m.velocities.copy(),
            "angular_velocity": m.angular_velocities.copy()} if keep_particles else None
-    write_run(out, test="ucs", inputs=inputs, summary=summ, genesis=g, series=res.series,
-              cracks=cracks, particles_initial=ini if keep_particles else None,
-              particles_final=fin, bonds=bonds if keep_particles else None)
-    return RunOutcome(status="ok", summary=summ, path=out)
+    return LabRun(test=test, inputs=inputs, summary=summ, genesis=g, series=res.series,
+                  cracks=_crack_arrays(res.cracks),
+                  particles_initial=ini if keep_particles else None, particles_final=fin,
+                  bonds=bonds if keep_particles else None)
 
 
-def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
-                    settings=None, *, cache=None, threads=None, progress=None) -> RunOutcome:
-    """Drop-hammer impact on a specimen of the given parameters -> HDF5 file (test
-    "impact"; the same conventions as the UCS run files)."""
-    from .impact import ImpactSettings, run_impact
-    from .impact import settings_dict as impact_dict
+def ucs_test(params: dict, seed: int, geometry: Geometry = Geometry(),
+             settings: UCSSettings = UCSSettings(), *, cache=None, threads=None,
+             progress=None, keep_particles: bool = True,
+             genesis_max_steps: int | None = None) -> LabRun:
+    """One UCS test (``lab.ucs``) on the cylinder of ``geometry``."""
+    p = P.validate_params(params)  # bad input: raise before any work
+    return _lab_test("ucs", p, seed, geometry, ucs_inputs(p, seed, geometry, settings),
+                     "platens", lambda sp: run_ucs(sp, settings, progress=progress),
+                     cache=cache, threads=threads, keep_particles=keep_particles,
+                     progress=progress, genesis_max_steps=genesis_max_steps,
+                     finite=("ucs_MPa", "E_GPa", "nu"))
 
+
+def bts_test(params: dict, seed: int, geometry: Geometry | None = None,
+             settings: BTSSettings | None = None, *, cache=None, threads=None, progress=None,
+             keep_particles: bool = True, genesis_max_steps: int | None = None) -> LabRun:
+    """One Brazilian test (``lab.brazilian``); ``geometry`` defaults to the ISRM disc
+    50 x 25 mm at scale 1 (``bts_geometry``)."""
+    st = settings or BTSSettings()
+    geo = geometry or bts_geometry()
+    p = P.validate_params(params)
+    return _lab_test("bts", p, seed, geo, bts_inputs(p, seed, geo, st), "free",
+                     lambda sp: run_bts(sp, st, progress=progress), cache=cache,
+                     threads=threads, keep_particles=keep_particles, progress=progress,
+                     genesis_max_steps=genesis_max_steps, finite=("bts_MPa",))
+
+
+def triaxial_test(params: dict, seed: int, geometry: Geometry = Geometry(),
+                  settings: TriaxialSettings | None = None, *, cache=None, threads=None,
+                  progress=None, keep_particles: bool = True,
+                  genesis_max_steps: int | None = None) -> LabRun:
+    """One triaxial test (``lab.triaxial``; sigma3 in ``settings``) on the UCS cylinder of
+    ``geometry``."""
+    st = settings or TriaxialSettings()
+    p = P.validate_params(params)
+    return _lab_test("triaxial", p, seed, geometry, triaxial_inputs(p, seed, geometry, st),
+                     "vessel", lambda sp: run_triaxial(sp, st, progress=progress),
+                     cache=cache, threads=threads, keep_particles=keep_particles,
+                     progress=progress, genesis_max_steps=genesis_max_steps,
+                     finite=("sigma1_MPa", "E_GPa", "nu"))
+
+
+def impact_test(params: dict, seed: int, geometry: Geometry = Geometry(),
+                settings: ImpactSettings | None = None, *, cache=None, threads=None,
+                progress=None, genesis_max_steps: int | None = None) -> LabRun:
+    """Drop-hammer impact (``lab.impact``) on the cylinder of ``geometry``; the final
+    particles carry their fragment label, ``groups["fragments"]`` every fragment's mass
+    and size."""
     st = settings or ImpactSettings()
     p = P.validate_params(params)
-    inputs = {k: float(p[k]) for k in P.PARAMS}
-    inputs.update(geometry.to_dict())
-    inputs["seed"] = int(seed)
-    inputs.update({f"impact_{k}": v for k, v in impact_dict(st).items()})
+    inputs = impact_inputs(p, seed, geometry, st)
     if threads:
         set_threads(threads)
     t0 = time.perf_counter()
-    try:
-        sp = make_specimen(p, seed, geometry, cache=cache, threads=threads)
-        ini = {"position": sp.model.positions.copy(), "radius": sp.model.radii.copy()}
-        res = run_impact(sp, st, progress=progress)
-    except (InstabilityError, GenesisError) as e:
-        msg = f"{type(e).__name__}: {e}"
-        write_run(out, test="impact", inputs=inputs, status="failed", error=msg,
-                  summary={"wall_s": time.perf_counter() - t0})
-        return RunOutcome(status="failed", error=msg, path=out)
+    sp = make_specimen(p, seed, geometry, cache=cache, threads=threads, progress=progress,
+                       genesis_max_steps=genesis_max_steps)
+    ini = {"position": sp.model.positions.copy(), "radius": sp.model.radii.copy()}
+    res = run_impact(sp, st, progress=progress)
     m = sp.model
     summ = dict(res.summary)
     summ["velocity"] = st.velocity
     summ["hammer_mass"] = st.hammer_mass
     summ["total_s"] = time.perf_counter() - t0
-    ev = res.cracks
-    cracks = {"step": ev["step"], "time": ev["time"], "position": ev["pos"],
-              "normal": ev["normal"], "mode": ev["mode"], "radius": ev["radius"],
-              "energy": ev["energy"], "sigma": ev["sigma"], "tau": ev["tau"],
-              "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
+    summ.update({k: sp.report[k] for k in ("genesis", "install_gap_mm", "coordination",
+                                           "bonds_per_ball", "bonds_per_cm3")})
     bi, bj = m.bond_pairs()
-    write_run(out, test="impact", inputs=inputs, summary=summ, genesis=sp.report,
-              series=res.series, cracks=cracks, particles_initial=ini,
-              particles_final={"position": m.positions.copy(), "velocity": m.velocities.copy(),
-                               "angular_velocity": m.angular_velocities.copy(),
-                               "fragment": res.fragments["label"]},
-              bonds={"i": bi, "j": bj, "state": m.bond_states.copy(),
-                     "break_step": m.bond_break_steps.copy()},
-              groups={"fragments": {"mass": res.fragments["mass"],
-                                    "size": res.fragments["size"]}})
-    return RunOutcome(status="ok", summary=summ, path=out)
+    return LabRun(test="impact", inputs=inputs, summary=summ, genesis=sp.report,
+                  series=res.series, cracks=_crack_arrays(res.cracks), particles_initial=ini,
+                  particles_final={"position": m.positions.copy(), "velocity": m.velocities.copy(),
+                                   "angular_velocity": m.angular_velocities.copy(),
+                                   "fragment": res.fragments["label"]},
+                  bonds={"i": bi, "j": bj, "state": m.bond_states.copy(),
+                         "break_step": m.bond_break_steps.copy()},
+                  groups={"fragments": {"mass": res.fragments["mass"],
+                                        "size": res.fragments["size"]}})

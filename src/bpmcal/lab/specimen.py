@@ -32,9 +32,38 @@ Procedure (after Potyondy & Cundall 2004 and PFC's ``ball distribute``):
    relieve the ball-wall contacts the same way, set the friction, remove the lateral
    wall and let the specimen settle (same ratio criterion) between the end walls, which
    stay in place as the loading platens (PFC practice: the end faces are flat because
-   they were packed against them).
+   they were packed against them). Other tests keep other parts of the vessel
+   (``boundary``): the triaxial test keeps all of it (the cylinder becomes the
+   servo-controlled confining wall), the Brazilian test none of it (the disc settles
+   free and gets its own platens across a diameter).
+
+Two ways to do steps 4-5 (``build_specimen(genesis=...)``; both start from the same cached
+packing, so they can be compared on one packing):
+
+- ``"bpmcal"`` (the default): as above; the pairs are bonded at ``install_gap`` (default
+  0: touching/overlapping pairs only) and the locked-in stress is relieved to ``sigma0``.
+- ``"pfc"``: the relief and bonding of Itasca's tutorial scripts (``contact method bond
+  gap``, then the linear part in incremental mode, ``lin_mode 1``, with its forces reset,
+  ``lin_force 0``): every pair within a *positive* installation gap (default
+  ``PFC_GAP_RATIO`` x Rmin = 0.0625 Rmin, the tutorials' 0.5e-4 m at Rmin = 0.8 mm) is
+  bonded, and every existing overlap - ball-ball and ball-wall - carries no force from
+  then on: the linear reference gap of an overlapping pair is set to its current gap
+  (the equivalent of PFC's incremental mode after ``lin_force 0`` while the pair stays in
+  contact), that of a bonded pair with a positive gap stays 0 (its linear part, as in
+  PFC, starts when the surfaces touch). ``sigma0`` does not apply: the locked-in stress
+  is zero. No dashpot is added: the tutorials' normal dashpot (dp_nratio 0.5) changed
+  sigma_c by -2.4 and +3.0 % and E by < 0.3 % on two packings (A1, scale 0.4),
+  within the packing scatter, and the paper does not mention one; give the material a
+  ``dp_nratio`` to use it.
 
 Everything is seeded; the same inputs give bitwise-identical specimens.
+
+Bounds and feedback: the relaxation stops after ``SpecimenSpec.max_relax_steps``
+(200,000; a GenesisError), the settling of steps 4-5 after ``max_steps`` in total when
+given (the genesis step budget, ``bpmcal ucs --genesis-max-steps``; a GenesisError
+naming the phase and its unbalanced-force ratio); ``progress`` receives
+``{"phase", "steps", "ratio", "target", "wall_s"}`` after every 500 steps; steps run
+through ``stepping.cycle`` so that Ctrl-C is honoured within a fraction of a second.
 """
 from __future__ import annotations
 
@@ -42,6 +71,7 @@ import hashlib
 import json
 import math
 import os
+import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -52,6 +82,8 @@ from ..dem import Material, Model
 from ..dem.errors import InputError
 from ..dem.order import morton_order
 from ..io.atomic import atomic_path
+from ..portable import libm_pow
+from .stepping import cycle
 
 #: modulus used while relaxing the packing (the relaxed geometry does not depend on it)
 E_REF = 1.0e9
@@ -61,8 +93,22 @@ RELAX_DAMPING = 0.5
 #: unbalanced-force ratio of the bonded specimen's final settling (bonded packs
 #: equilibrate quickly, and a drifting specimen would corrupt the lateral strain)
 SETTLE_RATIO = 1e-3
-#: genesis version: part of the cache key; bump when the procedure changes
-GENESIS_VERSION = 4
+#: genesis version: part of the cache key; bump when the procedure changes (5: ball masses
+#: from the C library's pow, so packings no longer depend on the host's numpy kernels)
+GENESIS_VERSION = 5
+#: genesis procedures of steps 4-5 (``build_specimen(genesis=...)``)
+GENESES = ("bpmcal", "pfc")
+#: installation gap of the PFC-style genesis / Rmin: Itasca's tutorial scripts bond pairs
+#: within 0.5e-4 m at Rmin = 0.8 mm (0.0625 Rmin), scaled here with Rmin
+PFC_GAP_RATIO = 0.0625
+
+
+def default_install_gap(genesis: str, rmin: float) -> float:
+    """Installation gap [m] of a genesis when none is given: 0 for ``"bpmcal"``,
+    ``PFC_GAP_RATIO`` x ``rmin`` for ``"pfc"``."""
+    if genesis not in GENESES:
+        raise InputError(f"genesis={genesis!r}: expected one of {', '.join(GENESES)}")
+    return PFC_GAP_RATIO * float(rmin) if genesis == "pfc" else 0.0
 
 
 class GenesisError(RuntimeError):
@@ -169,16 +215,73 @@ def _genesis_material(emod=E_REF, kratio=1.0) -> Material:
                     pb_ten=1.0, pb_coh=1.0, pb_fa=0.0)
 
 
-def _solve(m: Model, tol: float, max_steps: int, chunk: int = 500, progress=None) -> dict:
-    """Cycle until the mean unbalanced-force ratio is <= tol (or max_steps)."""
-    s0 = m.step
+class _StepBudget:
+    """Total steps allowed for the settling phases of ``build_specimen``."""
+
+    def __init__(self, total):
+        self.total = None if total is None else int(total)
+        self.used = 0
+
+    def limit(self, max_steps: int) -> int:
+        return max_steps if self.total is None else min(max_steps, max(0, self.total - self.used))
+
+    def spend(self, steps: int, phase: str, ratio: float, tol: float):
+        self.used += int(steps)
+        if self.total is not None and ratio > tol and self.used >= self.total:
+            raise GenesisError(
+                f"the specimen did not settle within the genesis step budget of "
+                f"{self.total:,} steps (--genesis-max-steps): phase '{phase}' stopped at "
+                f"unbalanced-force ratio {ratio:.3g} > {tol:g}")
+
+
+def _solve(m: Model, tol: float, max_steps: int, chunk: int = 500, progress=None,
+           phase: str = "", budget: _StepBudget | None = None) -> dict:
+    """Cycle until the mean unbalanced-force ratio is <= tol (or max_steps, or the budget
+    is used up: GenesisError)."""
+    s0, t0 = m.step, time.perf_counter()
     ratio = m.unbalanced_ratio()
-    while ratio > tol and m.step - s0 < max_steps:
-        m.cycle(chunk)
+    limit = max_steps if budget is None else budget.limit(max_steps)
+    while ratio > tol and m.step - s0 < limit:
+        cycle(m, chunk)
         ratio = m.unbalanced_ratio()
         if progress is not None:
-            progress(m.step - s0, ratio)
+            progress({"phase": phase, "steps": m.step - s0, "ratio": float(ratio),
+                      "target": tol, "wall_s": time.perf_counter() - t0})
+    if budget is not None:
+        budget.spend(m.step - s0, phase, ratio, tol)
     return {"steps": m.step - s0, "ratio": float(ratio), "converged": bool(ratio <= tol)}
+
+
+#: reference stress of the pfc genesis's settling criterion [Pa] (P&C's locked-in 0.1 MPa)
+PFC_SETTLE_STRESS = 0.1e6
+
+
+def _settle_force_free(m: Model, spec: SpecimenSpec, chunk: int = 500, progress=None,
+                       budget: _StepBudget | None = None) -> dict:
+    """Settling of the pfc genesis, whose specimen starts with no force at all (every
+    overlap relieved): cycle until the mean unbalanced force of the balls is at most
+    ``SETTLE_RATIO`` x ``PFC_SETTLE_STRESS`` x pi Rmin^2 (the unbalanced-force ratio of
+    ``_solve`` would divide round-off by round-off). ``ratio`` in the result is that mean
+    force over the reference force."""
+    fref = PFC_SETTLE_STRESS * math.pi * spec.rmin ** 2
+    s0, t0 = m.step, time.perf_counter()
+    limit = spec.max_relax_steps if budget is None else budget.limit(spec.max_relax_steps)
+
+    def mean_force():
+        f, _ = m.ball_forces()
+        free = m.B.fix == 0
+        return float(np.linalg.norm(f[free], axis=1).mean()) / fref if free.any() else 0.0
+
+    ratio = mean_force()
+    while ratio > SETTLE_RATIO and m.step - s0 < limit:
+        cycle(m, chunk)
+        ratio = mean_force()
+        if progress is not None:
+            progress({"phase": "settle bonded", "steps": m.step - s0, "ratio": ratio,
+                      "target": SETTLE_RATIO, "wall_s": time.perf_counter() - t0})
+    if budget is not None:
+        budget.spend(m.step - s0, "settle bonded", ratio, SETTLE_RATIO)
+    return {"steps": m.step - s0, "ratio": ratio, "converged": bool(ratio <= SETTLE_RATIO)}
 
 
 def _fix_floaters(pos, radius, ncontacts, max_overlap, rmax_factor=1.25):
@@ -229,12 +332,13 @@ def relax_packing(spec: SpecimenSpec, progress=None) -> Packing:
     # clear the initial overlaps: speeds clipped to 2 % of Rmin per step
     m.set_speed_cap(0.02 * spec.rmin / m.dt)
     for _ in range(10):
-        m.cycle(200)
+        cycle(m, 200)
         m.set_timestep(None)
         m.set_speed_cap(0.02 * spec.rmin / m.dt)
     m.set_speed_cap(0.0)
     m.set_timestep(None)
-    info = _solve(m, spec.relax_ratio, spec.max_relax_steps, progress=progress)
+    info = _solve(m, spec.relax_ratio, spec.max_relax_steps, progress=progress,
+                  phase="relax packing")
     if not info["converged"]:
         raise GenesisError(f"packing did not reach equilibrium: unbalanced-force ratio "
                            f"{info['ratio']:.3g} > {spec.relax_ratio:g} after {info['steps']} "
@@ -250,7 +354,8 @@ def relax_packing(spec: SpecimenSpec, progress=None) -> Packing:
         "relax_converged": info["converged"],
         "floaters": nfloat,
         "floaters_enlarged": nfixed,
-        "porosity_nominal_distributed": float(1.0 - (4 / 3 * np.pi * r ** 3).sum() / spec.volume),
+        "porosity_nominal_distributed": float(1.0 - (4 / 3 * np.pi * libm_pow(r, 3)).sum()
+                                               / spec.volume),
     }
     return Packing(spec=spec, pos=m.positions.copy(), radius=r2, report=report)
 
@@ -290,6 +395,8 @@ class Specimen:
     z_top: float  # top face [m]
     radius0: float  # specimen radius at the start of testing [m]
     platens: tuple = (0, 1)  # wall ids of the bottom and top platens (the vessel's ends)
+    lateral_wall: int | None = None  # wall id of the vessel's cylinder when it was kept
+    boundary: str = "platens"  # which vessel walls were kept (see build_specimen)
 
 
 def wall_stresses(m: Model, spec: SpecimenSpec) -> tuple[float, float]:
@@ -301,64 +408,133 @@ def wall_stresses(m: Model, spec: SpecimenSpec) -> tuple[float, float]:
     return float(s_ax), float(s_lat)
 
 
+#: which walls of the vessel stay after bonding (``build_specimen(boundary=...)``)
+BOUNDARIES = ("platens", "vessel", "free")
+
+
+def speed_guard(material: Material, density: float) -> float:
+    """Blow-up guard [m/s] of a specimen's model: twice the P-wave speed of the stiffer
+    spring, sqrt(max(E*, Ebar) / rho), but at least 500 m/s. While the overlapped packing
+    settles under the real moduli, ball speeds scale with that wave speed (~200-500 m/s
+    at 100 GPa), so a fixed 500 m/s would stop a stiff rock's genesis although nothing
+    blew up; a real blow-up grows without bound and is still caught."""
+    e = max(float(material.emod), float(material.pb_emod))
+    return max(500.0, 2.0 * math.sqrt(e / float(density)))
+
+
 def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e6,
-                   install_gap: float = 0.0, damping: float = 0.7, threads=None,
-                   progress=None) -> Specimen:
-    """Steps 4-5: install the material, relieve the locked-in stress to ``sigma0``, bond,
-    remove the vessel, settle."""
+                   install_gap: float | None = None, damping: float = 0.7, threads=None,
+                   progress=None, max_steps: int | None = None,
+                   boundary: str = "platens", genesis: str = "bpmcal") -> Specimen:
+    """Steps 4-5: install the material, relieve the locked-in stress (to ``sigma0`` with
+    ``genesis="bpmcal"``, to zero with ``"pfc"``: see the module docstring), bond the
+    pairs within ``install_gap`` [m] (None: the genesis's default, ``default_install_gap``),
+    remove (part of) the vessel, settle (at most ``max_steps`` steps in total, else
+    GenesisError).
+
+    ``boundary`` says which vessel walls stay for the test: ``"platens"`` (UCS, impact)
+    removes the cylinder and keeps the end walls as platens (wall ids 0, 1);
+    ``"vessel"`` (triaxial) keeps the cylinder (wall 0) and the end walls (1, 2), and the
+    specimen settles inside the closed vessel at the locked-in stress; ``"free"``
+    (Brazilian) removes all three walls and the specimen settles free."""
     spec = packing.spec
     if not (sigma0 >= 0 and math.isfinite(sigma0)):
         raise InputError(f"sigma0={sigma0!r}: expected an isotropic stress >= 0 Pa")
+    if genesis not in GENESES:
+        raise InputError(f"genesis={genesis!r}: expected one of {', '.join(GENESES)}")
+    if install_gap is None:
+        install_gap = default_install_gap(genesis, spec.rmin)
+    if not (install_gap >= 0 and math.isfinite(install_gap)):
+        raise InputError(f"install_gap={install_gap!r}: expected a surface gap >= 0 m")
+    if max_steps is not None and int(max_steps) < 1:
+        raise InputError(f"max_steps={max_steps!r}: expected a step budget >= 1")
+    if boundary not in BOUNDARIES:
+        raise InputError(f"boundary={boundary!r}: expected one of {', '.join(BOUNDARIES)}")
+    budget = _StepBudget(max_steps)
     frictionless = material.replace(fric=0.0)
+    # the Verlet skin must reach beyond the installation gap (bonds come from the list)
     m = Model(packing.pos, packing.radius, spec.density, frictionless, damping=damping,
-              skin=0.25 * spec.rmin, threads=threads)
+              skin=max(0.25 * spec.rmin, 1.5 * install_gap), threads=threads,
+              max_speed=speed_guard(material, spec.density))
     _vessel(m, spec)
     m.set_timestep(None)
     # enlarged floaters overlap their nearest neighbours: clip speeds while they settle
     m.set_speed_cap(0.02 * spec.rmin / m.dt)
-    m.cycle(500)
+    cycle(m, 500)
+    budget.used += 500
     m.set_speed_cap(0.0)
-    settle_walls = _solve(m, spec.relax_ratio, spec.max_relax_steps, progress=progress)
+    settle_walls = _solve(m, spec.relax_ratio, spec.max_relax_steps, progress=progress,
+                          phase="settle in vessel", budget=budget)
     s_ax, s_lat = wall_stresses(m, spec)
     sigma_m = (s_ax + 2 * s_lat) / 3.0
-    f = 1.0 if sigma_m <= sigma0 or sigma_m <= 0 else sigma0 / sigma_m
+    if genesis == "pfc":
+        f = 0.0  # lin_force 0: no overlap carries force after bonding
+    else:
+        f = 1.0 if sigma_m <= sigma0 or sigma_m <= 0 else sigma0 / sigma_m
     # surface balls: those touching the lateral wall now
     surface = m.wall_contact_balls(0)
     # bond every touching pair; the linear reference gap scales its overlap force by f,
     # and so do the reference gaps of the ball-wall contacts (the end walls stay as platens)
+    # (with f = 0, the pfc genesis, rgap = the current gap of every overlapping pair: its
+    # linear force is zero now and grows with any further overlap, PFC's incremental mode)
+    if install_gap > 0.0:
+        # a fresh neighbour list holds every pair within the skin; one built steps ago may
+        # miss pairs with a positive gap
+        m.set_positions(np.arange(m.n), m.B.pos.copy())
     i, j = m.pairs()
     gaps = m.pair_gaps(i, j)
     sel = gaps <= install_gap
     rg = np.where(gaps[sel] < 0.0, gaps[sel] * (1.0 - f), 0.0)
     n_touching = _count_touching(m.positions, m.radii, install_gap)
+    n_overlapping = int(np.count_nonzero(gaps < 0.0))
     nb = m.bond(gap=install_gap, rgap=rg)
     for w in range(3):
         m.scale_wall_overlaps(w, f)
     z = m.coordination_numbers()
-    m.remove_wall(0)  # the lateral wall; walls 0 and 1 are now the bottom and top platens
+    if boundary == "platens":
+        m.remove_wall(0)  # the lateral wall; walls 0 and 1 are now the bottom and top platens
+        platens, lateral = (0, 1), None
+    elif boundary == "vessel":
+        platens, lateral = (1, 2), 0
+    else:
+        for _ in range(3):
+            m.remove_wall(0)
+        platens, lateral = (), None
     m.set_material(material)
     m.set_timestep(None)
     # calm (PFC): the bonded specimen starts at rest, then settles to a tight equilibrium
     m.set_velocity(np.arange(m.n), vel=np.zeros((m.n, 3)), angvel=np.zeros((m.n, 3)))
-    settle_free = _solve(m, min(spec.relax_ratio, SETTLE_RATIO), spec.max_relax_steps,
-                         progress=progress)
+    if genesis == "pfc":
+        # force-free by construction: the ratio criterion is 0/0 here, so equilibrium is
+        # judged by the mean unbalanced force against a reference contact force
+        settle_free = _settle_force_free(m, spec, progress=progress, budget=budget)
+    else:
+        settle_free = _solve(m, min(spec.relax_ratio, SETTLE_RATIO), spec.max_relax_steps,
+                             progress=progress, phase="settle bonded", budget=budget)
     pos, r = m.positions, m.radii
     z_bot = 0.0
     z_top = spec.height
     rho = np.hypot(pos[:, 0], pos[:, 1]) + r
-    vol = float((4 / 3 * np.pi * r ** 3).sum())
+    vol = float((4 / 3 * np.pi * libm_pow(r, 3)).sum())
     report = dict(packing.report)
     report.update({
+        "genesis": genesis,
+        "install_gap_mm": float(install_gap * 1e3),
+        "install_gap_rmin": float(install_gap / spec.rmin),
         "n_balls": int(m.n),
         "n_bonds": int(nb),
         "contacts_at_bonding": int(n_touching),
+        "overlapping_at_bonding": n_overlapping,
         "coordination": float(z.mean()),
+        "bonds_per_ball": float(2.0 * nb / m.n),
+        "bonds_per_cm3": float(nb / (spec.volume * 1e6)),
         "porosity_requested": float(spec.porosity),
         "porosity_achieved": float(1.0 - vol / spec.volume),
         "relaxed_stress_MPa": float(sigma_m / 1e6),
         "relaxed_stress_axial_MPa": float(s_ax / 1e6),
         "relaxed_stress_lateral_MPa": float(s_lat / 1e6),
-        "locked_in_stress_MPa": float(min(sigma_m, sigma0) / 1e6) if sigma_m > 0 else 0.0,
+        "locked_in_stress_MPa": (float(min(sigma_m, sigma0) / 1e6)
+                                 if sigma_m > 0 and genesis == "bpmcal" else 0.0),
         "overlap_force_scale": float(f),
         "settle_walls_steps": settle_walls["steps"],
         "settle_free_steps": settle_free["steps"],
@@ -367,7 +543,8 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
         "diameter_after_settle_mm": 2e3 * float(np.percentile(rho, 99.5)),
     })
     return Specimen(model=m, spec=spec, material=material, report=report, surface=surface,
-                    z_bottom=z_bot, z_top=z_top, radius0=0.5 * spec.diameter)
+                    z_bottom=z_bot, z_top=z_top, radius0=0.5 * spec.diameter,
+                    platens=platens, lateral_wall=lateral, boundary=boundary)
 
 
 def paper_material(pb_emod_GPa, pb_kratio, pb_ten_MPa, pb_coh_MPa, pb_fa_deg, fric,

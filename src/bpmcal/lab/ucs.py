@@ -17,12 +17,19 @@ Measurements, recorded every ``record_strain`` of axial strain (compression posi
   that touched the lateral vessel wall at the end of genesis) whose centres lie within
   the central band ``lateral_band`` (10-90 %) of the height (compression positive, so
   expansion is negative); volumetric strain eps_v = eps_a + 2 eps_r;
-- cracks (broken bonds) by mode, the energy terms of the engine.
+- cracks (broken bonds) by mode, the energy terms of the engine;
+- a central axial gauge, ``axial_strain_central``: the change of the distance between the
+  mean heights of two slabs of balls (centres within 0.05 H of 0.25 H and 0.75 H) over
+  their initial distance. It sees the bulk only, without the compliance of the platen
+  contacts and of the end layers (a layer of balls packed against a platen has ~17 %
+  fewer bonds per ball than the bulk; README).
 
 Results: sigma_c = peak stress; E = least-squares slope of sigma vs eps_a and
 nu = -slope of eps_r vs eps_a over the pre-peak records with 0.4 <= sigma/sigma_c <= 0.6
 (``fit_window``); strain at peak; pre-peak energy density U_p = integral of sigma d eps_a
-from 0 to the peak (trapezoids, the paper's Table 6); crack-initiation stress = sigma when
+from 0 to the peak (trapezoids, the paper's Table 6); ``E_central_GPa``, the slope of
+sigma vs the central gauge's strain over the same window (the bulk modulus of the
+specimen's middle half, not what the paper calls E); crack-initiation stress = sigma when
 the crack count first reaches ``ci_fraction`` (1 %) of the count at peak (at least one).
 The test stops when sigma falls below ``stop_drop`` (70 %) of the peak after the peak, at
 ``max_strain``, or after ``max_steps``; ``stop_reason`` says which.
@@ -37,13 +44,18 @@ import numpy as np
 
 from ..dem.errors import InputError
 from ..dem.layout import BOND_SHEAR, BOND_TENSION
+from ..portable import lsq_slope
 from .specimen import Specimen
+from .stepping import cycle
 
 #: columns of the recorded time series
 SERIES = ("step", "time", "axial_strain", "lateral_strain", "volumetric_strain",
           "axial_stress", "stress_top", "stress_bottom", "cracks_tension", "cracks_shear",
           "kinetic", "strain_linear", "strain_bond", "slip", "damping", "dashpot",
-          "released", "work_walls", "unbalanced")
+          "released", "work_walls", "unbalanced", "axial_strain_central")
+#: the central axial gauge: two slabs of balls at these fractions of the height (centres
+#: within +-0.05 H), their mean axial displacements give ``axial_strain_central``
+CENTRAL_GAUGE = (0.25, 0.75)
 
 
 @dataclass(frozen=True)
@@ -68,6 +80,9 @@ class UCSSettings:
         if not (self.platen_velocity > 0 and math.isfinite(self.platen_velocity)):
             raise InputError(f"platen_velocity={self.platen_velocity!r}: expected a positive "
                              "speed in m/s")
+        if not (0.0 <= self.platen_fric <= 10.0):  # NaN fails too
+            raise InputError(f"platen_fric={self.platen_fric!r}: expected a friction "
+                             "coefficient in [0, 10]")
         if not (0.0 <= self.damping < 1.0):
             raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
         if not (0.0 < self.stop_drop < 1.0):
@@ -77,7 +92,7 @@ class UCSSettings:
         lo, hi = self.fit_window
         if not (0.0 <= lo < hi <= 1.0):
             raise InputError(f"fit_window={self.fit_window!r}: expected 0 <= lo < hi <= 1")
-        if not (self.record_strain > 0):
+        if not (self.record_strain > 0 and math.isfinite(self.record_strain)):
             raise InputError(f"record_strain={self.record_strain!r}: expected > 0")
 
 
@@ -94,12 +109,9 @@ class UCSResult:
 
 
 def fit_slope(x, y):
-    """Least-squares slope of y on x (NaN if fewer than 3 points)."""
-    x = np.asarray(x, float)
-    y = np.asarray(y, float)
-    if x.size < 3 or np.ptp(x) == 0:
-        return math.nan
-    return float(np.polyfit(x, y, 1)[0])
+    """Least-squares slope of y on x (NaN if fewer than 3 points), computed without BLAS
+    so that E and nu do not depend on the host (bpmcal.portable.lsq_slope)."""
+    return lsq_slope(np.asarray(x, float), np.asarray(y, float))
 
 
 def analyse(series: dict, settings: UCSSettings) -> dict:
@@ -114,12 +126,14 @@ def analyse(series: dict, settings: UCSSettings) -> dict:
     lo, hi = settings.fit_window
     win = (s[pre] >= lo * peak) & (s[pre] <= hi * peak)
     E = fit_slope(ea[pre][win], s[pre][win])
+    ec = series.get("axial_strain_central")
+    E_c = fit_slope(np.asarray(ec)[pre][win], s[pre][win]) if ec is not None else math.nan
     nu = -fit_slope(ea[pre][win], er[pre][win])
     up = float(np.trapezoid(s[: ip + 1], ea[: ip + 1])) if ip > 0 else 0.0
     ci_target = max(1.0, settings.ci_fraction * cr[ip])
     hit = np.flatnonzero(cr >= ci_target)
     ci = float(s[hit[0]]) if hit.size and hit[0] <= ip else math.nan
-    return {"ucs_MPa": peak / 1e6, "E_GPa": E / 1e9, "nu": nu,
+    return {"ucs_MPa": peak / 1e6, "E_GPa": E / 1e9, "E_central_GPa": E_c / 1e9, "nu": nu,
             "peak_strain": float(ea[ip]), "u_pre_MJm3": up / 1e6,
             "crack_init_MPa": ci / 1e6, "fit_points": int(win.sum()),
             "cracks_tension_peak": int(series["cracks_tension"][ip]),
@@ -152,6 +166,9 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
         raise InputError(f"only {gauge.size} surface balls in the lateral strain band: the "
                          "specimen is too small for a lateral strain measurement")
     rho0 = np.hypot(pos0[gauge, 0], pos0[gauge, 1])
+    slabs = [np.flatnonzero(np.abs(pos0[:, 2] - (sp.z_bottom + f * H0)) <= 0.05 * H0)
+             for f in CENTRAL_GAUGE]
+    zc0 = [pos0[g, 2].mean() for g in slabs]
     ser = {k: [] for k in SERIES}
     e0 = m.energies()
     step0 = m.step
@@ -172,6 +189,9 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
         ser["time"].append(m.time - t_start)
         ser["axial_strain"].append(ea)
         ser["lateral_strain"].append(er)
+        ser["axial_strain_central"].append(
+            -((m.B.pos[slabs[1], 2].mean() - zc0[1]) - (m.B.pos[slabs[0], 2].mean() - zc0[0]))
+            / (zc0[1] - zc0[0]))
         ser["volumetric_strain"].append(ea + 2 * er)
         ser["axial_stress"].append(0.5 * (ft + fb) / area)
         ser["stress_top"].append(ft / area)
@@ -194,7 +214,7 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
         if m.step - step0 >= st.max_steps:
             reason = "max_steps"
             break
-        m.cycle(n_rec)
+        cycle(m, n_rec)
         s, ea = record()
         if s > peak:
             peak, peak_strain = s, ea

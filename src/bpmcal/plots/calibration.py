@@ -68,13 +68,20 @@ def fig_pred_vs_sim(df: pd.DataFrame, predicted: pd.DataFrame, fit_table: pd.Dat
 def fig_stress_strain(curves: dict, lab: pd.DataFrame):
     """Fig. 6: simulated stress-strain curves of the calibrated specimens, the lab peak
     strength (dashed) and the lab modulus (slope line through the origin) marked.
-    ``curves``: specimen -> DataFrame with axial_strain, axial_stress (SI)."""
+    ``curves``: specimen -> DataFrame with axial_strain, axial_stress (SI), or a text saying
+    why the specimen has no simulated curve (e.g. its closed loop did not run): the panel
+    then shows the lab values and that text."""
     fig, axes = figure(DOUBLE, 2.4, ncols=len(curves), sharey=True)
     axes = np.atleast_1d(axes)
     for ax, (spec, ser) in zip(axes, curves.items()):
-        eps = ser["axial_strain"].to_numpy() * 100
-        sig = ser["axial_stress"].to_numpy() / 1e6
-        ax.plot(eps, sig, color=C_SIM, label="simulated")
+        if isinstance(ser, str):  # the reason the closed loop did not run
+            ax.text(0.5, 0.5, ser, transform=ax.transAxes, ha="center", va="center", wrap=True)
+        elif "axial_strain" in ser:  # a failed run has no series
+            eps = ser["axial_strain"].to_numpy() * 100
+            sig = ser["axial_stress"].to_numpy() / 1e6
+            ax.plot(eps, sig, color=C_SIM, label="simulated")
+        else:
+            ax.text(0.5, 0.5, "DEM run failed", ha="center", transform=ax.transAxes)
         row = lab.set_index("specimen").loc[spec]
         ax.axhline(row["ucs_MPa"], color=C_LAB, ls="--", lw=0.7, label=r"lab $\sigma_c$")
         e_lab = row["E_GPa"] * 1e3 / 100  # MPa per % strain

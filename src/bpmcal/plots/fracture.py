@@ -7,7 +7,8 @@ import numpy as np
 import pandas as pd
 
 from ..lab.fragments import jk_model
-from .style import C_ALT, C_SHEAR, C_SIM, C_TENSION, COLUMN, DOUBLE, figure
+from ..lab.impact import primary_burst
+from .style import C_ALT, C_SHEAR, C_SIM, C_TENSION, COLUMN, DOUBLE, fig_note, figure
 
 
 def fig_ratio_cracks(sweep: pd.DataFrame, chosen: dict):
@@ -25,13 +26,16 @@ def fig_ratio_cracks(sweep: pd.DataFrame, chosen: dict):
     ax2.set_ylabel("proportion of cracks (%) (dashed)")
     ax2.set_ylim(0, 100)
     ax2.spines["right"].set_visible(True)
-    ax.axvline(chosen["chosen_ratio"], color=C_ALT, lw=0.8, ls=":")
-    ax.text(chosen["chosen_ratio"], ax.get_ylim()[1], f" a = {chosen['chosen_ratio']:.1f}",
-            color=C_ALT, va="top", fontsize=7)
+    if chosen.get("chosen_ratio") is not None:
+        ax.axvline(chosen["chosen_ratio"], color=C_ALT, lw=0.8, ls=":")
+        ax.text(chosen["chosen_ratio"], ax.get_ylim()[1], f" a = {chosen['chosen_ratio']:.1f}",
+                color=C_ALT, va="top", fontsize=7)
+    else:
+        ax.set_title(f"no ratio chosen: {chosen.get('reason', '')}"[:80], fontsize=6)
     ext = sweep["extrapolated"].astype(bool)
     if ext.any():
         ax.plot(a[ext], sweep["cracks_total"][ext], "o", mfc="none", mec="0.5", ms=6,
-                label="outside Table 2 range")
+                label="outside the sampled ranges")
     ax.legend(frameon=False, loc="upper left", fontsize=6)
     fig.tight_layout()
     return fig
@@ -39,11 +43,17 @@ def fig_ratio_cracks(sweep: pd.DataFrame, chosen: dict):
 
 def fig_failure_patterns(panels: dict):
     """Fig. 5: broken bonds of selected runs, seen from the side (x-z), coloured by mode;
-    the intact specimen is hidden. ``panels``: title -> crack table (x, z, mode)."""
+    the intact specimen is hidden. ``panels``: title -> crack table (x, z, mode); no panels
+    (no successful run): a note instead."""
+    if not panels:
+
+        return fig_note("Fig. 5 not available", "no run of the ratio sweep succeeded")
     fig, axes = figure(DOUBLE, 2.9, ncols=len(panels), sharey=True)
     axes = np.atleast_1d(axes)
     for ax, (title, cr) in zip(axes, panels.items()):
         for mode, c, lab in ((1, C_TENSION, "tensile"), (2, C_SHEAR, "shear")):
+            if not len(cr):
+                continue
             sel = cr["mode"] == mode
             ax.scatter(cr.loc[sel, "x"] * 1e3, cr.loc[sel, "z"] * 1e3, s=1.2, c=c,
                        linewidths=0, label=lab)
@@ -70,7 +80,6 @@ def _fracture_window(t: np.ndarray, n: np.ndarray) -> float:
     below 1 % of its peak; its crack count is the reference instead of the final count,
     so a slow late phase (e.g. crushing of the fragment bed) does not stretch the window
     over the whole record. Without a late phase both references coincide."""
-    from ..lab.impact import primary_burst
 
     t_end = float(t[-1]) if t.size else 0.0
     if t.size < 3 or n[-1] <= 0:

@@ -1,16 +1,12 @@
 """One figure style for every plot: readable at journal column width (3.5 in), symbols and
-units as in the paper. Functions in this package return matplotlib Figures; saving is
-done by the caller (``save``)."""
+units as in the paper. Functions in this package return matplotlib Figures and write no
+file; the stages save them (``bpmcal.io.figures.save_figure``: PNG and PDF)."""
 from __future__ import annotations
-
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-
-from ..io.atomic import atomic_path  # noqa: E402
 
 COLUMN = 3.5  # in, single column
 DOUBLE = 7.2  # in, double column
@@ -47,15 +43,14 @@ def figure(width=COLUMN, height=2.6, **kw):
     return plt.subplots(figsize=(width, height), **kw)
 
 
-def save(fig, path_png) -> list[Path]:
-    """Save ``fig`` as PNG and PDF (same stem), atomically, and close it."""
-    p = Path(path_png)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    out = []
-    for ext in (".png", ".pdf"):
-        f = p.with_suffix(ext)
-        with atomic_path(f) as tmp:
-            fig.savefig(tmp, format=ext[1:], bbox_inches="tight")
-        out.append(f)
-    plt.close(fig)
-    return out
+def fig_note(title: str, text: str):
+    """A figure that says why the real one is missing (e.g. its run failed), so that the
+    report shows the reason in place of the figure."""
+    import textwrap
+
+    fig, ax = figure(COLUMN, 1.6)
+    ax.set_axis_off()
+    ax.set_title(title)
+    ax.text(0.5, 0.5, "\n".join(textwrap.wrap(text, 60)), ha="center", va="center",
+            transform=ax.transAxes, fontsize=7)
+    return fig

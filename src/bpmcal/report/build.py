@@ -1,6 +1,13 @@
 """Assemble ``results/report/``: every table (CSV + Markdown) and figure (PNG + PDF) of the
-study, and ``index.md`` that puts each result next to the value the paper publishes, with
-the difference, the settings and seeds used, and the failed samples."""
+study, and ``index.md`` with the settings and seeds used, the failed samples, and every
+result. For the paper's own study (``study.reference: yu2026``) each result stands next to
+the value Yu et al. (2026) publish, with the difference (and ``tables/comparison.csv``); for
+any other rock (``reference: none``) the paper's columns, shares and comparisons are left
+out, not filled with dashes.
+
+The report reads the files of the study's layout (``bpmcal.io.layout``: the report rule
+declares every one of them as its input) and writes the files ``Layout.report_outputs``
+names; a file that is not there (a partial study) leaves its section out."""
 from __future__ import annotations
 
 import json
@@ -9,34 +16,38 @@ import shutil
 from pathlib import Path
 
 import pandas as pd
-import yaml
 
 from .. import __version__
 from .. import params as P
+from ..io import layout as L
 from ..io.atomic import write_text
+from ..io.card import read_card
+from ..io.checks import BadInput, out_file, parse_json, read_json, read_yaml
+from ..io.h5 import read_summary
 from ..io.provenance import git_commit
-from . import paper
+from ..io.tables import markdown_table, write_table
+from ..study import paper
 
 #: tables and figures of the report (stem -> caption)
 TABLES = {
-    "table3_importance": "Table 3: XGBoost importance (%) of the meso-parameters",
-    "table4_terms": "Table 4: quadratic and interaction terms retained by the stepwise regression",
-    "regression_fit": "Adjusted and cross-validated R² of every stage",
-    "calibration": "Calibrated meso-parameters of the lab specimens",
-    "table5_verification": "Table 5: verification - DEM vs lab (single pass and closed loop)",
-    "table6_prepeak_energy": "Table 6: pre-peak energy density, DEM vs lab",
-    "ratio_sweep": "Bond-strength-ratio sweep: cracks and proportions",
-    "impact_energy": "Drop-hammer impact: energy budget over time",
-    "t10_ecs": "t10 against specific energy (impact-velocity sweep)",
+    L.TABLE3: "Table 3: XGBoost importance (%) of the meso-parameters",
+    L.TABLE4: "Table 4: quadratic and interaction terms retained by the stepwise regression",
+    L.REGRESSION_FIT: "Adjusted and cross-validated R² of every stage",
+    L.CALIBRATION: "Calibrated meso-parameters of the lab specimens",
+    L.TABLE5: "Table 5: verification - DEM vs lab (single pass and closed loop)",
+    L.TABLE6: "Table 6: pre-peak energy density, DEM vs lab",
+    L.RATIO_SWEEP: "Bond-strength-ratio sweep: cracks and proportions",
+    L.IMPACT_ENERGY: "Drop-hammer impact: energy budget over time",
+    L.T10_ECS: "t10 against specific energy (impact-velocity sweep)",
 }
 FIGURES = {
-    "screening_importance": "XGBoost importance shares with fold spread and shadow reference",
-    "regression_fit": "Stepwise regression: predicted vs simulated",
-    "fig4_ratio_cracks": "Fig. 4: cracks and their proportions vs bond-strength ratio",
-    "fig5_failure_patterns": "Fig. 5: failure patterns (broken bonds) at selected ratios",
-    "fig6_stress_strain": "Fig. 6: stress-strain curves of the calibrated specimens",
-    "fig7_impact_energy": "Fig. 7: energy and crack evolution of the 6 m/s impact",
-    "t10_ecs": "t10 vs specific energy with the JK breakage model",
+    L.FIG_SCREENING: "XGBoost importance shares with fold spread and shadow reference",
+    L.FIG_REGRESSION: "Stepwise regression: predicted vs simulated",
+    L.FIG4: "Fig. 4: cracks and their proportions vs bond-strength ratio",
+    L.FIG5: "Fig. 5: failure patterns (broken bonds) at selected ratios",
+    L.FIG6: "Fig. 6: stress-strain curves of the calibrated specimens",
+    L.FIG7: "Fig. 7: energy and crack evolution of the 6 m/s impact",
+    L.FIG_T10: "t10 vs specific energy with the JK breakage model",
 }
 
 
@@ -54,61 +65,86 @@ def _f(v, fmt=".3f"):
     return "–" if not math.isfinite(x) else format(x, fmt)
 
 
-def _md(rows, header):
-    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return "\n".join(out)
+def _copy(lay: L.Layout, src: str) -> bool:
+    """Copy a table, figure or the equations into the report folder (if it exists)."""
+    if not Path(src).exists():
+        return False
+    dst = Path(lay.report_copy(src))
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(src, dst)
+    return True
 
 
-def copy_outputs(outdir: Path, report: Path) -> dict:
-    """Copy the tables and figures into the report folder; returns what was found."""
+def copy_outputs(lay: L.Layout, sweep: bool = True) -> dict:
+    """Copy the tables, figures and equations into the report folder; returns the stems
+    of the tables and figures found."""
     found = {"tables": [], "figures": []}
-    for stem in TABLES:
-        for ext in (".csv", ".md"):
-            src = outdir / "tables" / f"{stem}{ext}"
-            if src.exists():
-                dst = report / "tables" / src.name
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy2(src, dst)
-        if (outdir / "tables" / f"{stem}.csv").exists():
-            found["tables"].append(stem)
-    for stem in FIGURES:
-        for ext in (".png", ".pdf"):
-            src = outdir / "figures" / f"{stem}{ext}"
-            if src.exists():
-                dst = report / "figures" / src.name
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy2(src, dst)
-        if (outdir / "figures" / f"{stem}.png").exists():
-            found["figures"].append(stem)
+    for kind, files in (("tables", lay.report_tables(sweep)), ("figures", lay.report_figures(sweep))):
+        for f in files:
+            copied = [_copy(lay, c) for c in L.companions(f)]
+            if copied[0]:
+                found[kind].append(Path(f).stem)
+    _copy(lay, lay.equations)
     return found
 
 
-def build(outdir, config: dict, report_dir=None) -> Path:
-    outdir = Path(outdir)
-    report = Path(report_dir) if report_dir else outdir / "report"
-    report.mkdir(parents=True, exist_ok=True)
-    found = copy_outputs(outdir, report)
-    eq = outdir / "regression" / "equations.md"
-    if eq.exists():
-        shutil.copy2(eq, report / "equations.md")
-    S = []  # sections of index.md
-    cfg = config
-    S.append(f"# {cfg['study']['name']}: the paper, regenerated\n")
-    S.append(f"Reproduction of {paper.REFERENCE}\n")
-    S.append(f"bpmcal {__version__}, commit `{git_commit()}`.\n")
-    S.append(_settings(outdir, cfg))
-    comp: list[dict] = []  # every published value we compare against, one row each
-    S.append(_table3(outdir, comp))
-    S.append(_regression(outdir, comp))
-    S.append(_calibration(outdir, cfg, comp))
-    S.append(_verification(outdir, comp))
-    S.append(_ratio(outdir, comp))
-    S.append(_impact(outdir, cfg, comp))
-    if comp:
-        from ..study.pipeline import write_table
+def report(outdir=None, *, config=None, config_json=None, config_out=None) -> Path:
+    """The job of ``bpmcal report``: the study config from ``config`` (a JSON or YAML file)
+    or ``config_json`` (the text the workflow passes), checked; written to ``config_out``
+    (JSON) when given; then :func:`build` for the study in ``outdir`` (default: the
+    config's ``outdir``). Returns the index file."""
+    if (config is None) == (config_json is None):
+        raise BadInput("give the study config with exactly one of --config FILE and "
+                       "--config-json TEXT")
+    if config_json is not None:
+        cfg = parse_json(config_json, "--config-json")
+    elif str(config).endswith(".json"):
+        cfg = read_json(config, "--config")
+    else:
+        cfg = read_yaml(config, "--config")
+    if not isinstance(cfg, dict) or not isinstance(cfg.get("study"), dict):
+        raise BadInput("--config: not a study config (no 'study' section)")
+    if outdir is None:
+        if not isinstance(cfg.get("outdir"), str):
+            raise BadInput("--config: no 'outdir' (give --outdir)")
+        outdir = cfg["outdir"]
+    if not Path(outdir).is_dir():
+        raise BadInput(f"--outdir {outdir}: not a directory (expected the study's output "
+                       "folder)")
+    if config_out is not None:
+        out_file(config_out, "--config-out", suffixes=(".json",))
+    out_file(L.Layout(outdir).report_index, "--outdir", suffixes=(".md",))
+    if config_out is not None:
+        write_text(config_out, json.dumps(cfg, indent=1, sort_keys=True) + "\n")
+    return build(outdir, cfg)
 
-        write_table(pd.DataFrame(comp), report / "tables" / "comparison.csv", index=False)
+
+def build(outdir, config: dict) -> Path:
+    """Write the report of the study in ``outdir`` (its layout) for ``config``."""
+    lay = L.Layout(outdir)
+    cfg = config
+    sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
+    Path(lay.report_dir).mkdir(parents=True, exist_ok=True)
+    found = copy_outputs(lay, sweep)
+    S = []  # sections of index.md
+    ref = is_paper_study(cfg)
+    if ref:
+        S.append(f"# {cfg['study']['name']}: the paper, regenerated\n")
+        S.append(f"Reproduction of {paper.REFERENCE}\n")
+    else:
+        S.append(f"# {cfg['study']['name']}: calibration report\n")
+        S.append(f"Lab data: `{cfg['lab']['csv']}`.\n")
+    S.append(f"bpmcal {__version__}, commit `{git_commit()}`.\n")
+    S.append(_settings(lay, cfg, ref))
+    comp: list[dict] = []  # every published value we compare against, one row each
+    S.append(_table3(lay, comp, ref))
+    S.append(_regression(lay, comp, ref))
+    S.append(_calibration(lay, cfg, comp, ref))
+    S.append(_verification(lay, comp, ref))
+    S.append(_ratio(lay, comp, ref) if sweep else "")
+    S.append(_impact(lay, cfg, comp, ref))
+    if comp:
+        write_table(pd.DataFrame(comp), lay.comparison, index=False)
         S.append("All of these comparisons, one row per published value: "
                  "[tables/comparison.md](tables/comparison.md) "
                  "([CSV](tables/comparison.csv)).\n")
@@ -121,26 +157,35 @@ def build(outdir, config: dict, report_dir=None) -> Path:
     S.append("## Tables\n")
     for stem in found["tables"]:
         S.append(f"- [{TABLES[stem]}](tables/{stem}.md) ([CSV](tables/{stem}.csv))")
-    S.append("\n## Notes on the paper\n")
-    S.extend(f"- {n}" for n in paper.NOTES)
-    index = report / "index.md"
-    return write_text(index, "\n".join(S) + "\n")
+    if ref:
+        S.append("\n## Notes on the paper\n")
+        S.extend(f"- {n}" for n in paper.NOTES)
+    return write_text(lay.report_index, "\n".join(S) + "\n")
 
 
-def _settings(outdir, cfg) -> str:
-    ds_path = outdir / "dataset.csv"
+def is_paper_study(cfg: dict) -> bool:
+    """True when the study is the paper's (``study.reference: yu2026``): only then does the
+    report show the paper's values, columns and comparisons."""
+    return (cfg.get("study") or {}).get("reference") == "yu2026"
+
+
+def _settings(lay, cfg, ref=False) -> str:
+    ds_path = Path(lay.dataset)
     lines = ["## Settings\n"]
     sp, u = cfg["specimen"], cfg["ucs"]
     lines.append(f"- Samples: {cfg['study']['n_samples']} (Latin hypercube, seed "
                  f"{cfg['study']['lhs_seed']}, packing seeds derived from it)")
+    lines.append("- Sampled ranges (the design space; the calibration stays inside them): "
+                 + ", ".join(f"{k} [{lo:g}, {hi:g}]" for k, (lo, hi) in cfg["ranges"].items()))
     lines.append(f"- Specimen scale {sp['scale']:g}: {sp['scale'] * sp['diameter_mm']:g} x "
-                 f"{sp['scale'] * sp['height_mm']:g} mm (the paper: 50 x 100 mm); radii uniform "
-                 "in [Rmin, 1.66 Rmin], ρ = 2294 kg/m³")
+                 f"{sp['scale'] * sp['height_mm']:g} mm" + (" (the paper: 50 x 100 mm)" if ref else "")
+                 + "; radii uniform in [Rmin, 1.66 Rmin], ρ = 2294 kg/m³")
     lines.append(f"- UCS: platens at {u['platen_velocity']:g} m/s each, local damping "
                  f"{u['damping']:g}, E and ν fitted over 40-60 % of the peak")
     c = cfg["calibration"]
-    lines.append(f"- Calibration: fixed {c['fixed']}, free {c['free']}, "
-                 f"verification seed {cfg['verification']['seed']}")
+    lines.append(f"- Calibration: fixed {c['fixed']}, free {c['free']}"
+                 + (f", bounds {c['bounds']}" if c.get("bounds") else "")
+                 + f", verification seed {cfg['verification']['seed']}")
     lines.append(f"- Impact: scale {cfg['impact']['scale']:g}, hammer "
                  f"{cfg['impact']['hammer_mass_kg'] * cfg['impact']['scale'] ** 3:.3f} kg "
                  f"({cfg['impact']['hammer_mass_kg']:g} kg at full size), dashpot ratio "
@@ -152,7 +197,7 @@ def _settings(outdir, cfg) -> str:
         if len(bad):
             lines.append("- Failed samples (left out of the analysis):")
             for r in bad.itertuples():
-                lines.append(f"  - {r.sample_id}: {r.error}")
+                lines.append(f"  - {r.sample_id}: {r.status}: {r.error}")
         else:
             lines.append("- Failed samples: none")
         w = ds.loc[ds["status"] == "ok", "wall_s"]
@@ -174,8 +219,8 @@ def _cmp(comp, section, item, ours, theirs, unit=""):
                  "difference_pct": 100 * (o - t) / abs(t) if math.isfinite(o) and t else math.nan})
 
 
-def _table3(outdir, comp) -> str:
-    f = outdir / "tables" / "table3_importance.csv"
+def _table3(lay, comp, ref=False) -> str:
+    f = Path(lay.table(L.TABLE3))
     if not f.exists():
         return ""
     t3 = pd.read_csv(f, index_col=0)
@@ -186,144 +231,231 @@ def _table3(outdir, comp) -> str:
         r = [P.PARAMS[p].symbol]
         for resp in P.TARGETS:
             ours = t3.loc[p, resp] if resp in t3.columns else math.nan
-            theirs = paper.TABLE3[p][resp]
-            _cmp(comp, "Table 3", f"importance of {p} for {resp}", ours, theirs, "%")
-            r.append(f"{_f(ours, '.1f')} ({theirs:.1f})")
+            if ref:
+                theirs = paper.TABLE3[p][resp]
+                _cmp(comp, "Table 3", f"importance of {p} for {resp}", ours, theirs, "%")
+                r.append(f"{_f(ours, '.1f')} ({theirs:.1f})")
+            else:
+                r.append(_f(ours, ".1f"))
         rows.append(r)
-    return ("## Table 3: XGBoost screening (ours, paper in brackets, % of gain)\n\n"
-            + _md(rows, ["parameter", "σc", "E", "ν"]) + "\n")
+    head = ("## Table 3: XGBoost screening (ours, paper in brackets, % of gain)\n\n" if ref
+            else "## Table 3: XGBoost screening (% of gain)\n\n")
+    return head + markdown_table(rows, ["parameter", "σc", "E", "ν"]) + "\n"
 
 
-def _regression(outdir, comp) -> str:
-    f = outdir / "tables" / "regression_fit.csv"
+def _regression(lay, comp, ref=False) -> str:
+    f = Path(lay.table(L.REGRESSION_FIT))
     if not f.exists():
         return ""
     fit = pd.read_csv(f)
     rows = []
     for r in fit.itertuples():
+        if not ref:
+            rows.append([r.response, r.stage, _f(r.adj_r2), _f(r.cv_r2_mean)])
+            continue
         theirs = paper.ADJ_R2.get(r.response, {}).get(r.stage)
         if theirs:
             _cmp(comp, "Regression", f"adjusted R² of {r.response}, {r.stage}", r.adj_r2, theirs)
         rows.append([r.response, r.stage, _f(r.adj_r2), _f(theirs) if theirs else "–",
                      (f"{r.adj_r2 - theirs:+.3f}" if theirs else "–"), _f(r.cv_r2_mean)])
-    eq = outdir / "regression" / "equations.md"
-    s = ("## Stepwise regression: adjusted R² per stage\n\n"
-         + _md(rows, ["response", "stage", "ours", "paper", "difference", "CV R² (ours)"]))
+    eq = Path(lay.equations)
+    header = (["response", "stage", "ours", "paper", "difference", "CV R² (ours)"] if ref
+              else ["response", "stage", "adjusted R²", "CV R²"])
+    s = "## Stepwise regression: adjusted R² per stage\n\n" + markdown_table(rows, header)
     if eq.exists():
-        s += "\n\nOur equations (all stages): [equations.md](equations.md)\n"
-        s += "\nThe paper's main-effect equations: " + "; ".join(
-            paper.EQUATIONS["main"].values()) + "\n"
+        s += ("\n\nOur equations (all stages): " if ref else "\n\nThe equations (all stages): ")
+        s += "[equations.md](equations.md)\n"
+        if ref:
+            s += "\nThe paper's main-effect equations: " + "; ".join(
+                paper.EQUATIONS["main"].values()) + "\n"
     return s + "\n"
 
 
-def _calibration(outdir, cfg, comp) -> str:
-    cal = outdir / "calibration"
-    if not cal.exists():
+def _specimens(lay) -> list[str]:
+    """The lab specimens in the lab CSV's order (the calibration table's)."""
+    t = Path(lay.table(L.CALIBRATION))
+    if not t.exists():
+        return []
+    return [str(x) for x in pd.read_csv(t, dtype={"specimen": str})["specimen"]]
+
+
+def _calibration(lay, cfg, comp, ref=False) -> str:
+    specs = [s for s in _specimens(lay) if Path(lay.card(s)).exists()]
+    if not specs:
         return ""
-    rows = []
-    for spec, theirs in paper.CALIBRATED.items():
-        f = cal / f"{spec}.yaml"
-        if not f.exists():
-            continue
-        card = yaml.safe_load(f.read_text())
+    rows, notes = [], []
+    for spec in specs:
+        card = read_card(lay.card(spec))
         p = card["parameters"]
-        for k in ("pb_emod_GPa", "pb_kratio", "pb_ten_MPa", "pb_coh_MPa"):
+        theirs = paper.CALIBRATED.get(spec) if ref else None
+        bounds = card.get("bounds") or {}
+        shown = [k for k, role in card["roles"].items() if role in ("free", "derived")]
+        for k in shown:
             ci = next((i for i in card["bootstrap"]["intervals"] if i.get("quantity") == k),
                       None)
             ci_s = (f"[{_f(ci.get('lower'))}, {_f(ci.get('upper'))}] (n={ci.get('n')})"
                     if ci else "–")
-            _cmp(comp, "Calibration", f"{spec} {k}", p[k], theirs[k], P.PARAMS[k].unit)
-            rows.append([spec, P.PARAMS[k].symbol, _f(p[k]), ci_s, _f(theirs[k]),
-                         _pct(p[k], theirs[k]), card["status"]])
-    chosen = outdir / "ratio_sweep" / "chosen.json"
-    ratio = (json.loads(chosen.read_text())["chosen_ratio"] if chosen.exists()
-             else cfg["calibration"]["ratio"])
-    return (f"## Calibrated meso-parameters (bond-strength ratio {ratio:g}; paper 1.4)\n\n"
-            + _md(rows, ["specimen", "parameter", "ours", "95 % bootstrap interval", "paper",
-                         "difference", "inversion status"]) + "\n")
+            b = bounds.get(k)
+            b_s = f"[{_f(b['lower'], '.4g')}, {_f(b['upper'], '.4g')}]" if b else "–"
+            row = [spec, P.PARAMS[k].symbol, _f(p[k]), ci_s, b_s]
+            if ref:
+                th = theirs.get(k) if theirs else None
+                if th is not None:
+                    _cmp(comp, "Calibration", f"{spec} {k}", p[k], th, P.PARAMS[k].unit)
+                row += [_f(th) if th is not None else "–",
+                        _pct(p[k], th) if th is not None else "–"]
+            rows.append(row + [card["status"]])
+        if card["status"] != "ok":
+            notes.append(f"- **{spec}: {card['status']}** — {card['message']}")
+    chosen = Path(lay.sweep_chosen)
+    sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
+    ratio = (json.loads(chosen.read_text())["chosen_ratio"] if sweep and chosen.exists()
+             else None)
+    if ratio is None:  # no sweep, or it chose no ratio: the configured one was used
+        ratio = cfg["calibration"]["ratio"]
+    header = ["specimen", "parameter", "calibrated", "95 % bootstrap interval", "bounds"]
+    if ref:
+        header += ["paper", "difference"]
+    header += ["inversion status"]
+    title = (f"## Calibrated meso-parameters (bond-strength ratio {ratio:g}; paper 1.4)\n\n" if ref
+             else f"## Calibrated meso-parameters (bond-strength ratio {ratio:g})\n\n")
+    out = title + markdown_table(rows, header) + "\n"
+    out += ("\nBounds: the configured ranges (the design space), narrowed by calibration.bounds "
+            "and, for τcp, by ranges.pb_ten_MPa / ratio; each card names where every bound comes "
+            "from.\n")
+    if notes:
+        out += "\n" + "\n".join(notes) + "\n"
+    return out
 
 
-def _verification(outdir, comp) -> str:
-    f = outdir / "tables" / "table5_verification.csv"
+def _verification(lay, comp, ref=False) -> str:
+    f = Path(lay.table(L.TABLE5))
     if not f.exists():
         return ""
     t5 = pd.read_csv(f, index_col=0)
-    rows = []
+    rows, notes = [], []
     for spec, r in t5.iterrows():
-        th = paper.VERIFIED.get(spec)
+        th = paper.VERIFIED.get(spec) if ref else None
+        ran = r.get("status") != "not-run"
+        if not ran:
+            notes.append(f"- **{spec}: closed loop not run** — {r.get('note', '')}")
         for k in P.TARGETS:
-            if th:
+            if th and ran:
                 _cmp(comp, "Table 5", f"{spec} {k}, DEM (closed loop vs paper's PFC3D)",
                      r[f"closed_loop_{k}"], th[k], P.RESPONSES[k].unit)
                 _cmp(comp, "Table 5", f"{spec} {k} error % (closed loop vs paper)",
                      r[f"closed_loop_{k}_err_pct"], th["err_pct"][k], "%")
-            rows.append([spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]),
-                         _f(r[f"single_pass_{k}"]), _f(r[f"single_pass_{k}_err_pct"], "+.2f"),
-                         _f(r[f"closed_loop_{k}"]), _f(r[f"closed_loop_{k}_err_pct"], "+.2f"),
-                         _f(th[k]) if th else "–",
-                         _f(th["err_pct"][k], ".2f") if th else "–"])
+            if ran:
+                row = [spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]),
+                       _f(r[f"single_pass_{k}"]), _f(r[f"single_pass_{k}_err_pct"], "+.2f"),
+                       _f(r[f"closed_loop_{k}"]), _f(r[f"closed_loop_{k}_err_pct"], "+.2f")]
+            else:
+                row = [spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]), "not run", "", "not run", ""]
+            if ref:
+                row += [_f(th[k]) if th else "–", _f(th["err_pct"][k], ".2f") if th else "–"]
+            rows.append(row)
+    header = ["specimen", "response", "lab", "DEM, single pass", "error", "DEM, closed loop", "error"]
+    if ref:
+        header += ["paper (PFC3D)", "paper error"]
     s = ("## Table 5: verification (errors in % of the lab value)\n\n"
-         + _md(rows, ["specimen", "response", "lab", "DEM, single pass", "error",
-                      "DEM, closed loop", "error", "paper (PFC3D)", "paper error"]) + "\n")
-    f6 = outdir / "tables" / "table6_prepeak_energy.csv"
+         + markdown_table(rows, header) + "\n")
+    if notes:
+        s += "\n" + "\n".join(notes) + "\n"
+    f6 = Path(lay.table(L.TABLE6))
     if f6.exists():
         t6 = pd.read_csv(f6, index_col=0)
         rows = []
         for spec, r in t6.iterrows():
-            th = paper.PREPEAK.get(spec, {})
+            th = paper.PREPEAK.get(spec, {}) if ref else {}
             if th:
                 _cmp(comp, "Table 6", f"{spec} Up, DEM", r["sim_Up_MJm3"], th["sim"], "MJ/m³")
                 _cmp(comp, "Table 6", f"{spec} Up error %", r["rel_error_pct"], th["err_pct"],
                      "%")
-            rows.append([spec, _f(r["lab_Up_MJm3"]), _f(r["sim_Up_MJm3"]),
-                         _f(r["rel_error_pct"], ".1f"), _f(th.get("sim")),
-                         _f(th.get("err_pct"), ".1f")])
+            row = [spec, _f(r["lab_Up_MJm3"]), _f(r["sim_Up_MJm3"]), _f(r["rel_error_pct"], ".1f")]
+            if ref:
+                row += [_f(th.get("sim")), _f(th.get("err_pct"), ".1f")]
+            rows.append(row)
+        header = ["specimen", "lab", "DEM (ours)" if ref else "DEM", "error %"]
+        if ref:
+            header += ["paper PFC3D", "paper error %"]
         s += ("\n## Table 6: pre-peak energy density Up (MJ/m³)\n\n"
-              + _md(rows, ["specimen", "lab", "DEM (ours)", "error %", "paper PFC3D",
-                           "paper error %"]) + "\n")
-    sc = outdir / "verification" / "seed_scatter" / "seed_scatter.csv"
+              + markdown_table(rows, header) + "\n")
+    sc = Path(lay.seed_scatter)
     if sc.exists():
         t = pd.read_csv(sc)
         rows = [[r["response"], _f(r["cv"] * 100, ".2f"), _f(r["noise_floor"] * 100, ".2f"),
                  "yes" if r["noise_limited"] else "no"] for _, r in t.iterrows()]
         s += ("\n### Packing-seed scatter of one calibrated set\n\n"
-              + _md(rows, ["response", "CV of one run (%)", "noise floor 2 se (%)",
+              + markdown_table(rows, ["response", "CV of one run (%)", "noise floor 2 se (%)",
                            "1 % tolerance below the noise?"]) + "\n")
     return s
 
 
-def _ratio(outdir, comp) -> str:
-    f = outdir / "ratio_sweep" / "chosen.json"
+def _ratio(lay, comp, ref=False) -> str:
+    f = Path(lay.sweep_chosen)
     if not f.exists():
         return ""
     ch = json.loads(f.read_text())
+    failed = ""
+    t = Path(lay.table(L.RATIO_SWEEP))
+    if t.exists():
+        sw = pd.read_csv(t)
+        bad = sw[sw["status"] != "ok"] if "status" in sw.columns else sw.iloc[:0]
+        if len(bad):
+            failed = "\nRuns of the sweep left out (failed, unreadable or not run):\n\n" + "\n".join(
+                f"- a = {r.ratio:g} ({r.sample_id}): {r.status}: "
+                f"{getattr(r, 'reason', '') if isinstance(getattr(r, 'reason', ''), str) else ''}"
+                for r in bad.itertuples()) + "\n"
+    if ch.get("chosen_ratio") is None:
+        s = (f"## Bond-strength ratio\n\nNo ratio chosen: {ch.get('reason', '')}. The "
+             "calibration used the configured ratio (calibration.ratio)")
+        if not ref:
+            return s + ".\n" + failed
+        _cmp(comp, "Ratio sweep", "bond-strength ratio a", None, paper.RATIO)
+        return s + f"; the paper chose {paper.RATIO:g}.\n" + failed
+    s = (f"## Bond-strength ratio\n\nChosen a = σcp/τcp = {ch['chosen_ratio']:g} "
+         f"({ch['criterion']} {_f(ch['value'])} vs target {ch['target']:g})")
+    if not ref:
+        return s + ".\n" + failed
     _cmp(comp, "Ratio sweep", "bond-strength ratio a", ch["chosen_ratio"], paper.RATIO)
-    return (f"## Bond-strength ratio\n\nChosen a = σcp/τcp = {ch['chosen_ratio']:g} "
-            f"({ch['criterion']} {_f(ch['value'])} vs target {ch['target']:g}); the paper "
-            f"chose {paper.RATIO:g} (difference {ch['chosen_ratio'] - paper.RATIO:+.1f}).\n")
+    return (s + f"; the paper chose {paper.RATIO:g} (difference "
+            f"{ch['chosen_ratio'] - paper.RATIO:+.1f}).\n" + failed)
 
 
-def _impact(outdir, cfg, comp) -> str:
-    from ..io.h5 import read_summary
-
-    v = f"{float(cfg['impact']['velocity']):g}"
-    f = outdir / "impact" / f"impact_{v}ms.h5"
+def _impact(lay, cfg, comp, ref=False) -> str:
+    v = L.velocity_tag(cfg["impact"]["velocity"])
+    f = Path(lay.impact_run(v))
     if not f.exists():
         return ""
     s = read_summary(f)
+    if s.get("status") != "ok":
+        if ref:
+            _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", None,
+                 paper.IMPACT["W_in_J"], "J")
+            _cmp(comp, "Impact", "eta_f = G_f / W_in", None, paper.IMPACT["eta_f"])
+        return (f"## Drop-hammer impact at {v} m/s\n\nThe impact run failed: "
+                f"{s.get('error', '')}\n")
     sc = float(cfg["impact"]["scale"]) ** 3
     w_full = s["W_in_J"] / sc
-    _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", w_full,
-         paper.IMPACT["W_in_J"], "J")
-    _cmp(comp, "Impact", "eta_f = G_f / W_in", s["eta_f"], paper.IMPACT["eta_f"])
-    rows = [["W_in (J), scaled to full size", _f(w_full, ".1f"),
-             _f(paper.IMPACT["W_in_J"], ".1f"), _pct(w_full, paper.IMPACT["W_in_J"])],
-            ["η_f = G_f / W_in", _f(100 * s["eta_f"], ".1f") + " %",
-             _f(100 * paper.IMPACT["eta_f"], ".1f") + " %", _pct(s["eta_f"], paper.IMPACT["eta_f"])],
-            ["energy closure (max over time)", _f(100 * s["closure_rel_max"], ".3f") + " %",
-             "–", "–"]]
-    out = (f"## Drop-hammer impact at {v} m/s\n\n"
-           + _md(rows, ["quantity", "ours", "paper", "difference"]) + "\n")
+    if ref:
+        _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", w_full,
+             paper.IMPACT["W_in_J"], "J")
+        _cmp(comp, "Impact", "eta_f = G_f / W_in", s["eta_f"], paper.IMPACT["eta_f"])
+        rows = [["W_in (J), scaled to full size", _f(w_full, ".1f"),
+                 _f(paper.IMPACT["W_in_J"], ".1f"), _pct(w_full, paper.IMPACT["W_in_J"])],
+                ["η_f = G_f / W_in", _f(100 * s["eta_f"], ".1f") + " %",
+                 _f(100 * paper.IMPACT["eta_f"], ".1f") + " %",
+                 _pct(s["eta_f"], paper.IMPACT["eta_f"])],
+                ["energy closure (max over time)", _f(100 * s["closure_rel_max"], ".3f") + " %",
+                 "–", "–"]]
+        header = ["quantity", "ours", "paper", "difference"]
+    else:
+        rows = [["W_in (J), scaled to full size", _f(w_full, ".1f")],
+                ["η_f = G_f / W_in", _f(100 * s["eta_f"], ".1f") + " %"],
+                ["energy closure (max over time)", _f(100 * s["closure_rel_max"], ".3f") + " %"]]
+        header = ["quantity", "value"]
+    out = f"## Drop-hammer impact at {v} m/s\n\n" + markdown_table(rows, header) + "\n"
+    out += _impact_card_note(lay)
     out += (f"\nStages: crack initiation {1e3 * s['t_initiation_s']:.3f} ms, peak crack rate "
             f"{1e3 * s['t_peak_rate_s']:.3f} ms, through-failure {1e3 * s['t_through_s']:.3f} ms"
             f" after first contact ({s.get('cracks_after_burst', 0)} of the "
@@ -333,10 +465,27 @@ def _impact(outdir, cfg, comp) -> str:
             f"(a t10-size fragment holds ~{s['balls_per_t10_fragment']:.1f} balls"
             + ("; below ~30 balls t10 reflects the ball size more than the rock)"
                if s["balls_per_t10_fragment"] < 30 else ")") + "\n")
-    jk = outdir / "tables" / "jk_fit.json"
+    jk = Path(lay.jk_fit)
     if jk.exists():
         fit = json.loads(jk.read_text())
         if fit:
             out += (f"\nJK fit t10 = A (1 − exp(−b Ecs)): A = {fit['A']:.1f} %, b = "
                     f"{fit['b']:.3g} t/kWh, A·b = {fit['Ab']:.1f} ({fit['n']} velocities)\n")
     return out
+
+
+def _impact_card_note(lay) -> str:
+    """Say so when the impact's specimen has no verified calibration (the impact rule uses
+    the first lab specimen's verified card; if its closed loop did not run, or did not
+    converge from an unreachable start, the parameters are not a calibrated rock)."""
+    specs = _specimens(lay)
+    if not specs or not Path(lay.verified_card(specs[0])).exists():
+        return ""
+    first = specs[0]
+    card = read_card(lay.verified_card(first))
+    if card.get("status") == "unreachable":
+        v = card.get("verification", {})
+        return (f"\n**Not a calibrated rock:** the impact used specimen {first}'s card, whose "
+                f"inversion is unreachable (closed loop: {v.get('status')}); its parameters are the "
+                "closest point inside the sampled ranges, not a calibration.\n")
+    return ""

@@ -5,11 +5,17 @@ any job runs.
 from __future__ import annotations
 
 import copy
+import json
+import math
 from pathlib import Path
 
 import yaml
 
 from .. import params as P
+from ..io.layout import ratio_grid, ratio_id
+from ..io.paths import name_problem, path_problem
+from ..lab.budget import budget_problem
+from .paper import LAB as PAPER_LAB
 
 
 class ConfigError(ValueError):
@@ -69,8 +75,32 @@ def validate_config(config: dict, schema_path, base_dir=".") -> dict:
     return config
 
 
+def _finite_problems(v, key="") -> list[str]:
+    """NaN and inf anywhere in the config (YAML ``.nan``/``.inf``), by key."""
+    if isinstance(v, dict):
+        return [m for k, x in v.items() for m in _finite_problems(x, f"{key}.{k}" if key else k)]
+    if isinstance(v, list):
+        return [m for i, x in enumerate(v) for m in _finite_problems(x, f"{key}[{i}]")]
+    if isinstance(v, float) and not math.isfinite(v):
+        return [f"{key}: {v!r} is not a finite number"]
+    return []
+
+
+#: at most this many ratios in the strength-ratio sweep (one DEM job each)
+MAX_SWEEP_RATIOS = 200
+
+
 def _semantic_checks(cfg: dict, base: Path) -> list[str]:
-    msgs = []
+    msgs = _finite_problems(cfg)
+    if msgs:
+        return msgs  # the checks below compare numbers
+    for key in ("outdir",):
+        m = path_problem(cfg[key])
+        if m:
+            msgs.append(f"{key}: {m}")
+    m = path_problem(cfg["lab"]["csv"])
+    if m:
+        msgs.append(f"lab.csv: {m}")
     for name, (lo, hi) in cfg["ranges"].items():
         if lo > hi:
             msgs.append(f"ranges.{name}: low {lo:g} exceeds high {hi:g}")
@@ -82,43 +112,271 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
         msgs.append(f"specimen.scale: {sp['scale']:g} gives a {d:g} x {h:g} mm specimen, less "
                     f"than 3 ball diameters across for Rmax = {rmax:g} mm "
                     f"(ranges.rmin_mm up to {max(cfg['ranges']['rmin_mm']):g} mm)")
-    lab = base / cfg["lab"]["csv"]
-    if not lab.exists():
-        msgs.append(f"lab.csv: file {cfg['lab']['csv']!r} not found (relative to {base})")
-    else:
-        msgs.extend(_check_lab(lab, cfg["lab"]["csv"]))
+    msgs.extend(_budget_checks(cfg))
+    msgs.extend(_sweep_checks(cfg))
+    if not path_problem(cfg["lab"]["csv"]):
+        lab = base / cfg["lab"]["csv"]
+        if not lab.is_file():
+            msgs.append(f"lab.csv: file {cfg['lab']['csv']!r} not found (relative to {base})")
+        else:
+            lab_msgs = _check_lab(lab, cfg["lab"]["csv"])
+            msgs.extend(lab_msgs)
+            if not lab_msgs:
+                msgs.extend(_check_reference(cfg, lab))
+    if not msgs:
+        msgs.extend(_check_calibration_space(cfg))
     return msgs
 
 
+def _budget_checks(cfg: dict) -> list[str]:
+    """The largest specimen the study can build (smallest Rmin and porosity of the ranges
+    and of the fixed calibration values, at the UCS and the impact scale) must fit
+    ``resources.max_balls`` and ``resources.ucs_mem_mb``."""
+    res = cfg["resources"]
+    rg, fx = cfg["ranges"], cfg["calibration"]["fixed"]
+    rmin = min([min(rg["rmin_mm"])] + ([fx["rmin_mm"]] if "rmin_mm" in fx else []))
+    por = min([min(rg["porosity"])] + ([fx["porosity"]] if "porosity" in fx else []))
+    sp = cfg["specimen"]
+    out = []
+    for what, scale in (("specimen.scale", sp["scale"]), ("impact.scale", cfg["impact"]["scale"])):
+        m = budget_problem(rmin, por, scale=scale, diameter_mm=sp["diameter_mm"],
+                           height_mm=sp["height_mm"], max_balls=res["max_balls"],
+                           mem_budget_mb=res["ucs_mem_mb"],
+                           what=f"{what}={scale:g} with the smallest ")
+        if m:
+            out.append(f"resources: {m}")
+    return out
+
+
+def _sweep_checks(cfg: dict) -> list[str]:
+    rs = cfg["ratio_sweep"]
+    start, stop, step = rs["ratios"]
+    if not (start <= stop):
+        return [f"ratio_sweep.ratios: start {start:g} exceeds stop {stop:g} (expected "
+                "[start, stop, step] with start <= stop)"]
+    n = int(math.floor((stop - start) / step + 1e-9)) + 1
+    if n > MAX_SWEEP_RATIOS:
+        return [f"ratio_sweep.ratios: {rs['ratios']} gives {n} ratios, more than "
+                f"{MAX_SWEEP_RATIOS} (one DEM run each); use a larger step"]
+    ids = [ratio_id(a) for a in ratio_grid(start, stop, step)]
+    if len(set(ids)) != len(ids):
+        return [f"ratio_sweep.ratios: step {step:g} is finer than 0.01: ratios would share "
+                "a run name (a{100 x ratio})"]
+    return []
+
+
+def _check_calibration_space(cfg: dict) -> list[str]:
+    """The calibration works inside the design space: fixed values inside their ranges,
+    ``calibration.bounds`` only narrowing the ranges of calibrated parameters, and (with a
+    strength ratio) some cohesion whose derived tensile strength lies in its range."""
+    msgs = []
+    rng, cal = cfg["ranges"], cfg["calibration"]
+    ratio = cal.get("ratio")
+    free = list(cal.get("free", []))
+    derived = ["pb_ten_MPa"] if ratio and "pb_ten_MPa" not in free else []
+    for name, v in cal["fixed"].items():
+        lo, hi = rng[name]
+        if not lo <= v <= hi:
+            msgs.append(f"calibration.fixed.{name}: {v:g} is outside ranges.{name} [{lo:g}, {hi:g}], "
+                        "the sampled space (the regression is not valid there): fix a value inside "
+                        f"it, or widen ranges.{name}")
+    box = {k: tuple(rng[k]) for k in rng}
+    for name, (lo, hi) in (cal.get("bounds") or {}).items():
+        rlo, rhi = rng[name]
+        if not lo < hi:
+            msgs.append(f"calibration.bounds.{name}: low {lo:g} must be below high {hi:g}")
+        elif name not in free + derived:
+            msgs.append(f"calibration.bounds.{name}: {name} is not calibrated (calibration.free: "
+                        f"{free}" + (", derived: pb_ten_MPa" if derived else "")
+                        + "); bounds apply to calibrated parameters only")
+        elif lo < rlo or hi > rhi:
+            msgs.append(f"calibration.bounds.{name}: [{lo:g}, {hi:g}] reaches beyond ranges.{name} "
+                        f"[{rlo:g}, {rhi:g}], the sampled space (the regression is not valid "
+                        f"outside it): narrow the bounds, or widen ranges.{name}")
+        else:
+            box[name] = (lo, hi)
+    if not msgs and derived and "pb_coh_MPa" in free:
+        (clo, chi), (tlo, thi) = box["pb_coh_MPa"], box["pb_ten_MPa"]
+        if not max(clo, tlo / ratio) < min(chi, thi / ratio):
+            msgs.append(f"calibration.ratio: {ratio:g} x pb_coh_MPa in [{clo:g}, {chi:g}] never falls "
+                        f"inside pb_ten_MPa [{tlo:g}, {thi:g}]: widen ranges.pb_ten_MPa or "
+                        "ranges.pb_coh_MPa, or change the ratio")
+    return msgs
+
+
+def _check_reference(cfg: dict, lab: Path) -> list[str]:
+    """``study.reference: yu2026`` puts the paper's published values beside the results;
+    that only means something for the paper's specimens B1-B3."""
+    if cfg["study"].get("reference") != "yu2026":
+        return []
+    df = read_lab(lab)
+    bad = []
+    for rec in df.to_dict("records"):
+        pub = PAPER_LAB.get(str(rec["specimen"]))
+        if pub is None or any(abs(float(rec[k]) - pub[k]) > 1e-9 * abs(pub[k])
+                              for k in ("ucs_MPa", "E_GPa", "nu")):
+            bad.append(str(rec["specimen"]))
+    if bad:
+        return [f"study.reference: yu2026 compares the results with the paper's green sandstone "
+                f"specimens {sorted(PAPER_LAB)}, but lab.csv {cfg['lab']['csv']!r} holds other data "
+                f"(specimen(s) {bad}); set study.reference: none for another rock"]
+    return []
+
+
 LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
+LAB_OPTIONAL = ("u_pre_MJm3",)
 
 
-def _check_lab(path: Path, key: str) -> list[str]:
+def lab_problems(df, key: str) -> list[str]:
+    """Problems of a lab table (a DataFrame read with ``read_lab``), named by column and
+    specimen."""
     import pandas as pd
 
-    try:
-        df = pd.read_csv(path)
-    except Exception as e:  # noqa: BLE001 - any parse error is reported by key
-        return [f"lab.csv: cannot read {key!r}: {e}"]
     missing = [c for c in LAB_COLUMNS if c not in df.columns]
     if missing:
         return [f"lab.csv: {key!r} lacks column(s) {missing}; expected {list(LAB_COLUMNS)} "
-                "(+ optional u_pre_MJm3)"]
+                f"(+ optional {', '.join(LAB_OPTIONAL)})"]
+    if len(df) == 0:
+        return [f"lab.csv: {key!r} has no specimen rows"]
     msgs = []
+    for s in df["specimen"]:
+        m = name_problem(s)
+        if m:
+            msgs.append(f"lab.csv: {key!r} specimen {m} (it becomes a file name)")
     if df["specimen"].duplicated().any():
-        msgs.append(f"lab.csv: {key!r} has duplicate specimen names")
-    for c in ("ucs_MPa", "E_GPa", "nu"):
-        v = pd.to_numeric(df[c], errors="coerce")
-        if v.isna().any() or (v <= 0).any():
-            msgs.append(f"lab.csv: {key!r} column {c} must hold positive numbers")
-    nu = pd.to_numeric(df["nu"], errors="coerce")
-    if (nu >= 0.5).any():
-        msgs.append(f"lab.csv: {key!r} column nu must be below 0.5")
+        dup = sorted(set(df.loc[df["specimen"].duplicated(), "specimen"]))
+        msgs.append(f"lab.csv: {key!r} has duplicate specimen names {dup}")
+    for c in ("ucs_MPa", "E_GPa", "nu", *[o for o in LAB_OPTIONAL if o in df.columns]):
+        optional = c in LAB_OPTIONAL
+        for spec, raw in zip(df["specimen"], df[c]):
+            if optional and (raw is None or (isinstance(raw, float) and math.isnan(raw))
+                             or (isinstance(raw, str) and not raw.strip())):
+                continue  # an empty optional value
+            try:
+                v = float(pd.to_numeric(pd.Series([raw]), errors="coerce").iloc[0])
+            except (TypeError, ValueError):
+                v = math.nan
+            if not (math.isfinite(v) and v > 0):
+                msgs.append(f"lab.csv: {key!r} specimen {spec} {c}={raw!r}: expected a "
+                            f"positive number{' (or empty)' if optional else ''}")
+            elif c == "nu" and v >= 0.5:
+                msgs.append(f"lab.csv: {key!r} specimen {spec} nu={raw!r}: expected below 0.5")
     return msgs
 
 
 def read_lab(path):
-    """The lab specimens table (validated columns)."""
+    """The lab specimens table as read everywhere: lines whose first non-blank character is
+    ``#`` are comments (the data's source, units, notes) and are skipped; specimen names
+    are kept as text ("007" stays "007") and the values as text until checked. Raises
+    ConfigError for a file that is not a CSV table."""
+    import io
+
     import pandas as pd
 
-    return pd.read_csv(path)
+    try:
+        text = Path(path).read_text()
+        body = "".join(ln for ln in text.splitlines(keepends=True)
+                       if not ln.lstrip().startswith("#"))
+        return pd.read_csv(io.StringIO(body), dtype=str, keep_default_na=False,
+                           na_values=[""])
+    except (OSError, pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError,
+            ValueError) as e:
+        raise ConfigError(f"lab.csv: cannot read {str(path)!r}: "
+                          f"{' '.join(str(e).split())[:200]}") from None
+
+
+def _check_lab(path: Path, key: str) -> list[str]:
+    try:
+        df = read_lab(path)
+    except ConfigError as e:
+        return [str(e)]
+    return lab_problems(df, key)
+
+
+def load_lab(path):
+    """The validated lab table (ConfigError listing every problem): specimen as text,
+    the values as floats (NaN for an empty optional value)."""
+    import pandas as pd
+
+    df = read_lab(path)
+    msgs = lab_problems(df, str(path))
+    if msgs:
+        raise ConfigError("invalid lab table:\n  " + "\n  ".join(msgs))
+    for c in (*LAB_COLUMNS[1:], *LAB_OPTIONAL):
+        if c in df.columns:
+            df[c] = pd.to_numeric(df[c], errors="coerce")
+    return df
+
+
+# ------------------------------------------------------------------------ documentation
+def _allowed(node: dict) -> str:
+    """The values a schema node accepts, in words."""
+    if "enum" in node:
+        return " \\| ".join("null" if v is None else str(v) for v in node["enum"])
+    t = node.get("type")
+    if t == "array":
+        n = ""
+        if node.get("minItems") == node.get("maxItems") and "minItems" in node:
+            n = f"{node['minItems']} "
+        elif "minItems" in node:
+            n = f"≥ {node['minItems']} "
+        inner = _allowed(node.get("items", {}))
+        return f"list of {n}{inner or 'items'}".strip()
+    a = node.get("exclusiveMinimum", node.get("minimum"))
+    b = node.get("exclusiveMaximum", node.get("maximum"))
+    lo = "(" if "exclusiveMinimum" in node or a is None else "["
+    hi = ")" if "exclusiveMaximum" in node or b is None else "]"
+    if a is None and b is None:
+        return ""
+    return f"{lo}{'-∞' if a is None else f'{a:g}'}, {'∞' if b is None else f'{b:g}'}{hi}"
+
+
+def _type(node: dict) -> str:
+    t = node.get("type", "")
+    if isinstance(t, list):
+        t = " or ".join(t)
+    if t == "array":
+        t = f"list of {node.get('items', {}).get('type', 'items')}"
+    return t
+
+
+def _default(node: dict, required: bool) -> str:
+    if "default" in node:
+        return f"`{json.dumps(node['default'], ensure_ascii=False)}`"
+    return "required" if required else "–"
+
+
+def schema_reference(schema: dict) -> str:
+    """Every section and key of the config schema as Markdown tables (type, default,
+    allowed values, meaning): the reference part of config/README.md, generated from the
+    schema so that the two cannot disagree (tests/workflow/test_config_doc.py)."""
+    out = []
+    top = schema["properties"]
+    for sec, node in top.items():
+        out.append(f"### `{sec}`\n")
+        desc = " ".join(str(node.get("description", "")).split())
+        if node.get("type") != "object":
+            out.append(f"{desc}\n")
+            out.append("| type | default | allowed |\n|---|---|---|")
+            out.append(f"| {_type(node)} | {_default(node, sec in schema.get('required', []))} "
+                       f"| {_allowed(node) or '–'} |\n")
+            continue
+        out.append(f"{desc}\n")
+        out.append("| key | type | default | allowed | meaning |\n|---|---|---|---|---|")
+        req = set(node.get("required", []))
+        for key, sub in node.get("properties", {}).items():
+            meaning = " ".join(str(sub.get("description", "")).split())
+            props = sub.get("properties", {})
+            if sub.get("type") == "object" and set(props) <= set(P.PARAMS) and props:
+                items = ", ".join(f"`{k}` {_allowed(v) or _type(v)}" for k, v in props.items())
+                meaning = f"{meaning} Keys, each optional: {items}.".strip()
+            out.append(f"| `{key}` | {_type(sub)} | {_default(sub, key in req)} | "
+                       f"{_allowed(sub) or '–'} | {meaning or '–'} |")
+        out.append("")
+    return "\n".join(out).rstrip() + "\n"
+
+
+if __name__ == "__main__":  # python -m bpmcal.study.config SCHEMA: print the reference
+    import sys
+
+    print(schema_reference(load_schema(sys.argv[1])), end="")

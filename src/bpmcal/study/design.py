@@ -3,8 +3,8 @@
 ``lhs_design(ranges, n, seed)`` draws ``n`` points with scipy.stats.qmc.LatinHypercube
 (optionally optimised for space filling), scales them to the ranges (paper units) and
 gives every sample its own packing seed, derived from the design seed so that the whole
-study is reproducible from one number. Output columns: ``sample_id``, the parameters in
-the order of the ranges, ``seed``.
+study is reproducible from one number. Output columns: ``sample_id``
+(``bpmcal.io.layout.sample_ids``: s000, s001, ...), the 8 parameters, ``seed``.
 """
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import pandas as pd
 from scipy.stats import qmc
 
 from .. import params as P
+from ..io.layout import sample_ids
 
 
 def validate_ranges(ranges: dict) -> dict[str, tuple[float, float]]:
@@ -22,10 +23,10 @@ def validate_ranges(ranges: dict) -> dict[str, tuple[float, float]]:
     if unknown:
         raise P.ParameterError(f"ranges: unknown parameter(s) {unknown}")
     for name, r in ranges.items():
-        try:
-            lo, hi = (float(r[0]), float(r[1]))
-        except (TypeError, ValueError, IndexError):
-            raise P.ParameterError(f"ranges.{name}={r!r}: expected [low, high]") from None
+        if not isinstance(r, (list, tuple)) or len(r) != 2:
+            raise P.ParameterError(f"ranges.{name}={r!r}: expected [low, high]")
+        lo = P.as_number(r[0], f"ranges.{name}[0]", "a number (low)")
+        hi = P.as_number(r[1], f"ranges.{name}[1]", "a number (high)")
         if not lo <= hi:
             raise P.ParameterError(f"ranges.{name}=[{lo:g}, {hi:g}]: low must not exceed high")
         P.validate_params({name: lo}, require_all=False)
@@ -35,7 +36,7 @@ def validate_ranges(ranges: dict) -> dict[str, tuple[float, float]]:
 
 
 def lhs_design(ranges: dict, n: int, seed: int, optimization: str | None = "random-cd",
-               fixed: dict | None = None, id_prefix: str = "s") -> pd.DataFrame:
+               fixed: dict | None = None) -> pd.DataFrame:
     """Latin-hypercube design over ``ranges`` (paper units); ``fixed`` parameters are
     constant columns. Parameters with lo == hi are treated as fixed."""
     if int(n) < 2:
@@ -56,8 +57,7 @@ def lhs_design(ranges: dict, n: int, seed: int, optimization: str | None = "rand
     for k, v in fixed.items():
         df[k] = float(v)
     df = df[[p for p in P.PARAMS]]
-    width = max(3, len(str(int(n))))
-    df.insert(0, "sample_id", [f"{id_prefix}{i:0{width}d}" for i in range(int(n))])
+    df.insert(0, "sample_id", sample_ids(n))
     seeds = np.random.SeedSequence(int(seed)).generate_state(int(n), dtype=np.uint32)
     df["seed"] = (seeds % 2_000_000_000).astype(np.int64)
     return df

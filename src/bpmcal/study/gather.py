@@ -1,9 +1,17 @@
 """Gather per-sample run files into one dataset table (``results/dataset.csv``).
 
 One row per design sample: the design (sample id, the 8 parameters, seed), the
-responses of its UCS run, ``status`` ("ok", "failed" or "missing") and ``error``. A failed
-run (instability, unbuildable specimen) is carried with its message, never dropped; the
-analysis steps use the "ok" rows and say how many they left out.
+responses of its UCS run, ``status`` and ``error``:
+
+- "ok": the run succeeded (``error`` empty);
+- "failed": the run wrote a failure record (instability, unbuildable specimen, genesis
+  step budget); ``error`` is its reason;
+- "missing": no run file;
+- "unreadable": the run file is not a readable bpmcal run file (truncated, corrupt,
+  another format); ``error`` says what is wrong with it.
+
+No sample is ever dropped; the analysis steps use the "ok" rows and say how many they left
+out.
 """
 from __future__ import annotations
 
@@ -13,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from .. import params as P
-from ..io.h5 import read_summary
+from ..io.h5 import RunFileError, read_summary
 
 #: response columns of the dataset, in order
 RESPONSE_COLUMNS = ("ucs_MPa", "E_GPa", "nu", "peak_strain", "u_pre_MJm3", "cracks_tension",
@@ -33,9 +41,15 @@ def gather(design: pd.DataFrame, run_files: dict) -> pd.DataFrame:
             row.update({c: np.nan for c in RESPONSE_COLUMNS})
             row.update(status="missing", error=f"no run file for {sid}")
         else:
-            s = read_summary(path)
+            try:
+                s = read_summary(path)
+            except RunFileError as e:
+                row.update({c: np.nan for c in RESPONSE_COLUMNS})
+                row.update(status="unreadable", error=str(e))
+                rows.append(row)
+                continue
             row.update({c: s.get(c, np.nan) for c in RESPONSE_COLUMNS})
-            row["status"] = s.get("status", "missing")
+            row["status"] = s.get("status", "failed")
             row["error"] = s.get("error", "")
         rows.append(row)
     cols = ["sample_id", *P.PARAMS, "seed", *RESPONSE_COLUMNS, "status", "error"]

@@ -4,96 +4,135 @@ With a calibrated parameter set held otherwise fixed, the ratio a = sigma_cp / t
 over a grid (0.5 to 2.0 by 0.1). For every a, tau_cp is chosen so that the regression's
 predicted sigma_c stays at the calibration target (sigma_cp = a tau_cp; a bracketing
 root search on the final sigma_c model) - the constraint the paper's procedure implies.
-A ratio whose tau_cp or sigma_cp falls outside the sampled Table 2 range is still run but
-flagged ``extrapolated``.
+The root is searched from near zero up to four times the largest cohesion the sampled
+ranges allow at that ratio (``max(ranges.pb_coh_MPa, ranges.pb_ten_MPa / a)``; the ranges
+are the card's, i.e. the study's design space). A ratio whose tau_cp or sigma_cp falls
+outside the sampled ranges is still run but flagged ``extrapolated``. A ratio for which
+no tau_cp in that interval reaches the target (e.g. the refitted sigma_c model no longer
+depends on tau_cp) is kept in the plan with
+``status`` "unreachable" and the reason: its run becomes a failure record (``bpmcal ucs``
+does not run it), the analysis leaves it out, and when no ratio is usable the chosen-ratio
+file says so (``chosen_ratio`` null) and the calibration keeps the configured ratio.
 
-The ratio is then chosen by a criterion on the simulated cracks: by default the tensile
+Run names come from ``bpmcal.io.layout`` (``ratio_id``: "a050" for a = 0.50, over
+``ratio_grid``). The ratio is then chosen by a criterion on the simulated cracks: by default the tensile
 share of all cracks closest to 60 % (the brittle/shear split the paper cites), or the
 crack count closest to a target.
 """
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import brentq
 
 from .. import params as P
-from ..io.atomic import write_text
+from ..io.h5 import RunFileError, read_summary
+from ..io.layout import ratio_id
 
+#: plan rows: "planned" (run it) or "unreachable" (no tau_cp gives the target)
+PLANNED, UNREACHABLE = "planned", "unreachable"
 
-def ratio_grid(start: float, stop: float, step: float) -> list[float]:
-    if not (start > 0 and stop >= start and step > 0):
-        raise P.ParameterError(f"ratio grid [{start}, {stop}] step {step}: expected "
-                               "0 < start <= stop and step > 0")
-    n = int(math.floor((stop - start) / step + 1e-9)) + 1
-    return [round(start + k * step, 10) for k in range(n)]
+#: the paper's grid of ratios a = sigma_cp / tau_cp: start, stop, step
+DEFAULT_RATIOS = (0.5, 2.0, 0.1)
 
 
 def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
     """One row per ratio: sample_id ("a050" for a = 0.50), the 8 parameters, seed,
-    ratio, extrapolated flag. ``ucs_model``: the final regression model of sigma_c."""
+    ratio, extrapolated flag, status ("planned" or "unreachable") and reason.
+    ``ucs_model``: the final regression model of sigma_c; ``card``: a material card (its
+    ``ranges`` are the study's design space)."""
+    from scipy.optimize import brentq
+
+    if "ranges" not in card:
+        raise P.ParameterError("the card has no 'ranges' (the design space); it was written by "
+                               "an older bpmcal: rerun the calibrate step")
+
+    ids = [ratio_id(a) for a in ratios]
+    if len(set(ids)) != len(ids):
+        raise P.ParameterError(f"ratios {list(ratios)}: two ratios share a run name "
+                               "(a step finer than 0.01)")
     base = {k: float(v) for k, v in card["parameters"].items()}
     target = float(card["targets"]["ucs_MPa"])
-    lo, hi = P.PARAMS["pb_coh_MPa"].lo, P.PARAMS["pb_coh_MPa"].hi
+    clo, chi = (float(v) for v in card["ranges"]["pb_coh_MPa"])
+    tlo, thi = (float(v) for v in card["ranges"]["pb_ten_MPa"])
     rows = []
     for a in ratios:
         def resid(coh):
             p = dict(base, pb_coh_MPa=coh, pb_ten_MPa=a * coh)
             return float(ucs_model.predict(pd.DataFrame([p]))[0]) - target
-        grid = np.linspace(1.0, 300.0, 600)
+        top = 4.0 * max(chi, thi / a)
+        grid = np.linspace(top / 600, top, 600)
         vals = np.array([resid(c) for c in grid])
         cross = np.flatnonzero(np.sign(vals[:-1]) != np.sign(vals[1:]))
-        if cross.size == 0:
-            raise P.ParameterError(f"ratio {a}: no tau_cp in [1, 300] MPa gives the target "
-                                   f"sigma_c {target:g} MPa with the regression model")
+        if cross.size == 0 or not np.isfinite(vals).all():
+            fin = vals[np.isfinite(vals)] + target
+            if fin.size == 0:
+                span = "the predicted sigma_c is not finite"
+            elif np.ptp(fin) <= 1e-9 * max(1.0, abs(fin[0])):
+                span = (f"the sigma_c model does not depend on the bond strengths: it predicts "
+                        f"{fin[0]:.4g} MPa for every tau_cp")
+            else:
+                span = f"predicted sigma_c {fin.min():.4g}-{fin.max():.4g} MPa"
+            rows.append({"sample_id": ratio_id(a), **base, "pb_coh_MPa": math.nan,
+                         "pb_ten_MPa": math.nan, "seed": int(seed), "ratio": a,
+                         "extrapolated": False, "status": UNREACHABLE,
+                         "reason": f"no tau_cp in [{grid[0]:.3g}, {top:.4g}] MPa gives the target sigma_c "
+                                   f"{target:g} MPa at a = {a:g} ({span})"})
+            continue
         # the root nearest the calibrated cohesion
         roots = [brentq(resid, grid[c], grid[c + 1]) for c in cross]
         coh = min(roots, key=lambda r: abs(r - base["pb_coh_MPa"]))
         ten = a * coh
-        extrap = not (lo <= coh <= hi and P.PARAMS["pb_ten_MPa"].lo <= ten
-                      <= P.PARAMS["pb_ten_MPa"].hi)
-        rows.append({"sample_id": f"a{int(round(a * 100)):03d}", **base, "pb_coh_MPa": coh,
+        extrap = not (clo <= coh <= chi and tlo <= ten <= thi)
+        rows.append({"sample_id": ratio_id(a), **base, "pb_coh_MPa": coh,
                      "pb_ten_MPa": ten, "seed": int(seed), "ratio": a,
-                     "extrapolated": extrap})
-    cols = ["sample_id", *P.PARAMS, "seed", "ratio", "extrapolated"]
+                     "extrapolated": extrap, "status": PLANNED, "reason": ""})
+    cols = ["sample_id", *P.PARAMS, "seed", "ratio", "extrapolated", "status", "reason"]
     return pd.DataFrame(rows)[cols]
 
 
-def analyse_sweep(plan: pd.DataFrame, runs_dir, criterion="tensile_share", target=0.6):
-    """Crack counts and proportions per ratio, and the chosen ratio."""
-    from ..io.h5 import read_summary
-
+def analyse_sweep(plan: pd.DataFrame, run_files, criterion="tensile_share", target=0.6):
+    """Crack counts and proportions per ratio, and the chosen ratio. ``run_files``: the run
+    file of every plan row, by sample_id. A run that failed, is unreadable or was not run
+    (unreachable ratio) is a row with its status and reason and no counts; when no run is
+    usable, ``chosen_ratio`` is None and ``reason`` says why."""
     rows = []
     for r in plan.to_dict("records"):
-        s = read_summary(Path(runs_dir) / f"{r['sample_id']}.h5")
-        ok = s.get("status") == "ok"
+        f = run_files.get(r["sample_id"])
+        try:
+            if f is None:
+                raise RunFileError(f"no run file for {r['sample_id']}")
+            s = read_summary(f)
+            status, reason = s.get("status", "failed"), s.get("error", "")
+        except RunFileError as e:
+            s, status, reason = {}, "unreadable", str(e)
+        if r.get("status", PLANNED) == UNREACHABLE:
+            status, reason = UNREACHABLE, r.get("reason", "")
+        ok = status == "ok"
         nt = float(s.get("cracks_tension", np.nan)) if ok else np.nan
         ns = float(s.get("cracks_shear", np.nan)) if ok else np.nan
         tot = nt + ns
         rows.append({"ratio": r["ratio"], "sample_id": r["sample_id"],
                      "pb_ten_MPa": r["pb_ten_MPa"], "pb_coh_MPa": r["pb_coh_MPa"],
-                     "extrapolated": r["extrapolated"], "status": s.get("status"),
+                     "extrapolated": r["extrapolated"], "status": status,
+                     "reason": "" if ok else reason,
                      "ucs_MPa": s.get("ucs_MPa", np.nan) if ok else np.nan,
                      "cracks_tension": nt, "cracks_shear": ns, "cracks_total": tot,
                      "tensile_share": nt / tot if tot > 0 else np.nan,
                      "shear_share": ns / tot if tot > 0 else np.nan,
-                     "cracks_tension_peak": s.get("cracks_tension_peak", np.nan),
-                     "cracks_shear_peak": s.get("cracks_shear_peak", np.nan)})
+                     "cracks_tension_peak": s.get("cracks_tension_peak", np.nan) if ok else np.nan,
+                     "cracks_shear_peak": s.get("cracks_shear_peak", np.nan) if ok else np.nan})
     df = pd.DataFrame(rows)
     key = {"tensile_share": "tensile_share", "crack_count": "cracks_total"}[criterion]
-    dist = (df[key] - target).abs()
+    dist = (df[key].astype(float) - target).abs()
     if dist.notna().sum() == 0:
-        raise RuntimeError("ratio sweep: no successful run to choose from")
+        bad = "; ".join(f"{r.sample_id}: {r.status}" for r in df.itertuples())
+        return df, {"chosen_ratio": None, "criterion": criterion, "target": target,
+                    "value": None, "sample_id": None,
+                    "reason": f"no ratio of the sweep gave a usable run ({bad})"}
     best = int(dist.idxmin())
     chosen = {"chosen_ratio": float(df.loc[best, "ratio"]), "criterion": criterion,
               "target": target, "value": float(df.loc[best, key]),
               "sample_id": df.loc[best, "sample_id"]}
     return df, chosen
-
-
-def write_chosen(path, chosen: dict):
-    write_text(path, json.dumps(chosen, indent=2) + "\n")

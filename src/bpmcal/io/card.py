@@ -1,0 +1,106 @@
+"""Material cards: the calibrated parameters of one lab specimen with everything that
+explains them, as YAML, in a versioned format (``CARD_FORMAT``).
+
+Written by ``bpmcal calibrate`` (one card per specimen) and extended by ``bpmcal verify``
+(the ``verification`` section); read by every command that takes a card (``verify``,
+``scatter``, ``sweep-plan``, ``impact``, ``ucs/bts/triaxial --params``) and by the report,
+all through :func:`read_card`.
+
+Format 1 (keys in this order; paper units)::
+
+    card_format: 1
+    specimen            the lab specimen's name
+    status, message     the inversion's outcome (ok | non-unique | no-exact-fit | unreachable)
+    ratio_ten_coh       the bond-strength ratio pb_ten/pb_coh used (null: both free)
+    parameters          the 8 meso-parameters (the regression's answer)
+    roles               free | derived | fixed, per parameter
+    ranges              the design space (the config's ranges)
+    calibration_bounds  the config's calibration.bounds
+    bounds              effective bounds of the calibrated parameters, and where each comes from
+    at_bound, widen, advice   what stops the fit and what to widen
+    targets, lab        the lab values calibrated against, and the whole lab row
+    predicted, residuals_pct  the regression's responses at ``parameters``
+    alternatives        other solutions that fit as well
+    bootstrap           n_boot, scheme and the 95 % intervals
+    dataset_note        how many samples the regression used
+    provenance          bpmcal_version, git_commit, inputs_hash
+    verification        (verified cards) status, message, rounds, rtol, seed, best_round,
+                        single_pass and closed_loop responses, the closed loop's parameters,
+                        geometry, widen
+
+A card without ``card_format`` (bpmcal before this format was versioned) or of a newer
+format is refused with a message that says what to do (:class:`CardError`).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from .. import params as P
+from .checks import BadInput, read_yaml
+from .tables import write_yaml
+
+#: the format of the cards this bpmcal writes and reads
+CARD_FORMAT = 1
+
+
+class CardError(BadInput):
+    """A file is not a material card this bpmcal can read."""
+
+
+def write_card(path, card: dict) -> Path:
+    """Write ``card`` (a mapping of the keys above) with ``card_format`` first, atomically."""
+    body = {k: v for k, v in card.items() if k != "card_format"}
+    return write_yaml(path, {"card_format": CARD_FORMAT, **body})
+
+
+def is_card(d) -> bool:
+    """Whether a YAML mapping claims to be a material card (rather than a flat mapping of
+    the 8 parameters)."""
+    return isinstance(d, dict) and ("card_format" in d or "parameters" in d)
+
+
+def check_card(d, where: str, need=("parameters",)) -> dict:
+    """Check a mapping read from ``where`` as a card of :data:`CARD_FORMAT` with the keys
+    ``need`` and valid parameters; returns it. CardError / ParameterError name ``where``."""
+    if not isinstance(d, dict):
+        raise CardError(f"{where}: expected a material card (a YAML mapping)")
+    fmt = d.get("card_format")
+    if fmt is None:
+        raise CardError(f"{where}: no card_format: a material card of an older bpmcal (or "
+                        f"not a card); this bpmcal reads card format {CARD_FORMAT}: rerun "
+                        "'bpmcal calibrate' (in a study: snakemake reruns it)")
+    if isinstance(fmt, bool) or not isinstance(fmt, int):
+        raise CardError(f"{where}: card_format={fmt!r}: expected the integer {CARD_FORMAT}")
+    if fmt > CARD_FORMAT:
+        raise CardError(f"{where}: card_format {fmt} is newer than this bpmcal reads "
+                        f"({CARD_FORMAT}); update bpmcal")
+    if fmt < CARD_FORMAT:
+        raise CardError(f"{where}: card_format {fmt} is older than this bpmcal reads "
+                        f"({CARD_FORMAT}); rerun 'bpmcal calibrate'")
+    missing = [k for k in need if k not in d]
+    if missing:
+        raise CardError(f"{where}: not a complete material card (no {', '.join(missing)}; "
+                        "expected the output of 'bpmcal calibrate' or 'bpmcal verify')")
+    if "parameters" in d:
+        if not isinstance(d["parameters"], dict):
+            raise CardError(f"{where}: 'parameters' is not a mapping of parameter names to "
+                            "values")
+        try:
+            P.validate_params(d["parameters"])
+        except P.ParameterError as e:
+            raise P.ParameterError(f"{where}: {e}") from None
+    return d
+
+
+def read_card(path, flag: str = "", need=("parameters",)) -> dict:
+    """Read and check a material card (:func:`check_card`); ``flag`` names the command-line
+    option it came from in messages."""
+    where = f"{flag} {path}" if flag else str(path)
+    return check_card(read_yaml(path, flag or "card"), where, need)
+
+
+def card_parameters(card: dict) -> dict:
+    """The parameters a card stands for: the closed loop's when it ran, else the
+    calibration's."""
+    verified = (card.get("verification") or {}).get("parameters")
+    return dict(verified or card["parameters"])

@@ -1,0 +1,332 @@
+"""The study's file contract: every file the workflow writes under ``outdir``, and the ids
+in their names, defined once.
+
+``workflow/rules/common.smk`` declares every rule's inputs and outputs with
+:class:`Layout` and passes each file to the ``bpmcal`` command; the stages open only the
+files they are given (the report, the files of this layout); a file a stage reads is
+always one that a rule declares (``tests/workflow/test_contract.py`` checks that on a
+real run). Nothing walks the output tree to find names again.
+
+Conventions that hold for every file here:
+
+- **A table** is a CSV with its Markdown rendering beside it (same stem, ``.md``); a
+  **figure** is a PNG with a PDF beside it. :func:`companions` lists both, and the writers
+  (``bpmcal.io.tables.write_table``, ``bpmcal.io.tables.save_figure``) write both.
+- **Ids** in file names come from the functions here: sample ids ``s000`` ...
+  (:func:`sample_ids`), strength-ratio sweep ids ``a050`` for a = 0.50 (:func:`ratio_id`,
+  over :func:`ratio_grid`), impact velocity tags ``6`` for 6.0 m/s (:func:`velocity_tag`).
+  Lab specimen names come from the lab CSV (checked safe names, ``bpmcal.io.paths``).
+- Paths are strings joined with ``/`` (Snakemake's wildcards such as ``"{sample}"`` pass
+  through the functions unchanged, so the rules use the same functions as the code).
+
+Adding a file: add a method (or a stem constant) here, declare it in the rule that writes
+it (``output:``) and in every rule that reads it (``input:``), and pass it on the command
+line. ``docs/architecture.md`` walks through adding a stage.
+"""
+from __future__ import annotations
+
+import math
+
+from .. import params as P
+
+# ------------------------------------------------------------------------ conventions
+#: extensions of a table (CSV, Markdown) and of a figure (PNG, PDF); the first is the
+#: file a command is given, the others are written beside it with the same stem
+TABLE_EXTS = (".csv", ".md")
+FIGURE_EXTS = (".png", ".pdf")
+
+
+def companions(path: str) -> list[str]:
+    """The files written for ``path``: a table's CSV and Markdown, a figure's PNG and
+    PDF, else ``path`` alone."""
+    for exts in (TABLE_EXTS, FIGURE_EXTS):
+        if path.endswith(exts[0]):
+            stem = path[: -len(exts[0])]
+            return [stem + e for e in exts]
+    return [path]
+
+
+# ------------------------------------------------------------------------ ids
+def sample_ids(n: int, prefix: str = "s") -> list[str]:
+    """The design's sample ids: ``s000`` ... (at least three digits, more for n > 999)."""
+    n = int(n)
+    width = max(3, len(str(n)))
+    return [f"{prefix}{i:0{width}d}" for i in range(n)]
+
+
+def ratio_grid(start: float, stop: float, step: float) -> list[float]:
+    """The strength ratios of the sweep: start, start + step, ... <= stop (rounded to 10
+    digits); ParameterError for a reversed, empty or non-finite grid."""
+    ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+             for x in (start, stop, step))
+    if not (ok and start > 0 and stop >= start and step > 0):
+        raise P.ParameterError(f"ratio grid [{start}, {stop}] step {step}: expected "
+                               "finite numbers with 0 < start <= stop and step > 0")
+    n = int(math.floor((stop - start) / step + 1e-9)) + 1
+    return [round(start + k * step, 10) for k in range(n)]
+
+
+def ratio_id(a: float) -> str:
+    """The run name of ratio ``a`` ("a050" for a = 0.50)."""
+    return f"a{int(round(a * 100)):03d}"
+
+
+def sweep_ids(ratios) -> list[str]:
+    """The run names of the sweep ``ratios`` = [start, stop, step] (the config's)."""
+    return [ratio_id(a) for a in ratio_grid(*ratios)]
+
+
+def velocity_tag(v: float) -> str:
+    """The file-name tag of an impact velocity: 6.0 -> "6", 2.5 -> "2.5" [m/s]."""
+    return f"{float(v):g}"
+
+
+def impact_tags(reference: float, others=()) -> list[str]:
+    """Tags of the impact runs: the reference velocity and the sweep's, unique, by speed."""
+    return sorted({velocity_tag(v) for v in [reference, *others]}, key=float)
+
+
+# ------------------------------------------------------------------------ tables, figures
+#: table stems (``tables/<stem>.csv`` + ``.md``) and what they hold
+TABLE3 = "table3_importance"  # XGBoost importance shares (screen)
+TABLE4 = "table4_terms"  # terms retained by the stepwise regression (regress)
+REGRESSION_FIT = "regression_fit"  # adjusted and CV R² of every stage (regress)
+CALIBRATION = "calibration"  # calibrated parameters of every specimen (calibrate)
+TABLE5 = "table5_verification"  # DEM vs lab, single pass and closed loop (verification_tables)
+TABLE6 = "table6_prepeak_energy"  # pre-peak energy density (verification_tables)
+RATIO_SWEEP = "ratio_sweep"  # cracks per strength ratio (sweep_analyse)
+IMPACT_ENERGY = "impact_energy"  # energy budget of the reference impact (impact_analyse)
+T10_ECS = "t10_ecs"  # t10 vs specific energy (impact_analyse)
+
+#: figure stems (``figures/<stem>.png`` + ``.pdf``)
+FIG_SCREENING = "screening_importance"
+FIG_REGRESSION = "regression_fit"
+FIG4 = "fig4_ratio_cracks"
+FIG5 = "fig5_failure_patterns"
+FIG6 = "fig6_stress_strain"
+FIG7 = "fig7_impact_energy"
+FIG_T10 = "t10_ecs"
+
+
+class Layout:
+    """Every file of a study under ``outdir`` (a string path; no trailing slash needed).
+
+    Methods that take an id (``ucs_run("s007")``, ``card("B1")``) accept a Snakemake
+    wildcard too (``ucs_run("{sample}")``)."""
+
+    def __init__(self, outdir):
+        self.outdir = str(outdir).rstrip("/") or "."
+
+    def __repr__(self):
+        return f"Layout({self.outdir!r})"
+
+    def path(self, *parts: str) -> str:
+        return "/".join([self.outdir, *parts])
+
+    # ---------------------------------------------------------------- the spine
+    @property
+    def design(self) -> str:
+        """The LHS design: sample_id, the 8 meso-parameters, seed."""
+        return self.path("design", "samples.csv")
+
+    def ucs_run(self, sample: str) -> str:
+        """The UCS run file of one design sample (or its failure record)."""
+        return self.path("ucs", f"{sample}.h5")
+
+    @property
+    def dataset(self) -> str:
+        """One row per sample: design, responses, status, error."""
+        return self.path("dataset.csv")
+
+    @property
+    def packings(self) -> str:
+        """The specimen-packing cache of the DEM jobs (a cache folder, not a contract file)."""
+        return self.path("cache", "packings")
+
+    def log(self, *name: str) -> str:
+        """``logs/<name>.log`` (``log("ucs", "s007")`` -> ``logs/ucs/s007.log``)."""
+        return self.path("logs", *name[:-1], f"{name[-1]}.log")
+
+    # ---------------------------------------------------------------- tables, figures
+    def table(self, stem: str) -> str:
+        """A table's CSV (``tables/<stem>.csv``; its ``.md`` beside it)."""
+        return self.path("tables", f"{stem}.csv")
+
+    def figure(self, stem: str) -> str:
+        """A figure's PNG (``figures/<stem>.png``; its ``.pdf`` beside it)."""
+        return self.path("figures", f"{stem}.png")
+
+    # ---------------------------------------------------------------- screening
+    @property
+    def selected(self) -> str:
+        """The screening's selected candidates per response (JSON)."""
+        return self.path("screening", "selected.json")
+
+    @property
+    def importance_table(self) -> str:
+        """Every importance type per parameter and response (table)."""
+        return self.path("screening", "importance_all_types.csv")
+
+    @property
+    def screening_cv(self) -> str:
+        """Cross-validated R² of the XGBoost models (table)."""
+        return self.path("screening", "xgb_cv_r2.csv")
+
+    @property
+    def screening_shadow(self) -> str:
+        """Largest importance of the shadow (permuted) features (table)."""
+        return self.path("screening", "shadow_max.csv")
+
+    @property
+    def screening_summary(self) -> str:
+        return self.path("screening", "summary.txt")
+
+    # ---------------------------------------------------------------- regression
+    @property
+    def models(self) -> str:
+        """The fitted stepwise models (JSON, ``bpmcal.analysis.stepwise.FORMAT``)."""
+        return self.path("regression", "models.json")
+
+    @property
+    def equations(self) -> str:
+        return self.path("regression", "equations.md")
+
+    @property
+    def regression_summaries(self) -> str:
+        return self.path("regression", "summaries.txt")
+
+    @property
+    def coefficients(self) -> str:
+        """Coefficients of every model and stage (table)."""
+        return self.path("regression", "coefficients.csv")
+
+    @property
+    def candidate_terms(self) -> str:
+        """Table 4 over all candidate terms (table)."""
+        return self.path("regression", "table4_candidate_terms.csv")
+
+    # ---------------------------------------------------------------- calibration
+    def initial_card(self, specimen: str) -> str:
+        """The material card of the calibration at the configured ratio (feeds the sweep)."""
+        return self.path("calibration_initial", f"{specimen}.yaml")
+
+    def card(self, specimen: str) -> str:
+        """The material card of the final calibration (``bpmcal.io.card``)."""
+        return self.path("calibration", f"{specimen}.yaml")
+
+    # ---------------------------------------------------------------- verification
+    def verified_card(self, specimen: str) -> str:
+        """The card with its closed-loop DEM verification."""
+        return self.path("verification", specimen, "card.yaml")
+
+    def verification_rounds(self, specimen: str) -> str:
+        """One row per DEM round of the closed loop (table)."""
+        return self.path("verification", specimen, "rounds.csv")
+
+    def verification_run(self, specimen: str) -> str:
+        """The run file of the best round (a failure record when the loop did not run)."""
+        return self.path("verification", specimen, "best_round.h5")
+
+    def scatter_run(self, seed) -> str:
+        """The UCS run of the first specimen's card with packing seed ``seed``."""
+        return self.path("verification", "seed_scatter", f"seed{seed}.h5")
+
+    @property
+    def scatter_runs(self) -> str:
+        """The responses of every seed's run (table)."""
+        return self.path("verification", "seed_scatter", "seed_runs.csv")
+
+    @property
+    def seed_scatter(self) -> str:
+        """Coefficient of variation and noise floor per response (table)."""
+        return self.path("verification", "seed_scatter", "seed_scatter.csv")
+
+    # ---------------------------------------------------------------- strength-ratio sweep
+    @property
+    def sweep_plan(self) -> str:
+        """One row per ratio: the parameters to run, or why not (unreachable)."""
+        return self.path("ratio_sweep", "plan.csv")
+
+    def sweep_run(self, rid: str) -> str:
+        return self.path("ratio_sweep", "runs", f"{rid}.h5")
+
+    @property
+    def sweep_chosen(self) -> str:
+        """The chosen ratio (JSON; ``chosen_ratio`` null when no run was usable)."""
+        return self.path("ratio_sweep", "chosen.json")
+
+    @property
+    def sweep_vtk(self) -> str:
+        """ParaView files of the runs Fig. 5 shows (a folder: which runs depends on the
+        chosen ratio)."""
+        return self.path("ratio_sweep", "vtk")
+
+    # ---------------------------------------------------------------- impact
+    def impact_run(self, tag: str) -> str:
+        """The drop-hammer run at velocity tag ``tag`` (:func:`velocity_tag`)."""
+        return self.path("impact", f"impact_{tag}ms.h5")
+
+    @property
+    def jk_fit(self) -> str:
+        """The JK breakage-model fit of t10 vs Ecs (JSON; null when the fit failed)."""
+        return self.path("tables", "jk_fit.json")
+
+    # ---------------------------------------------------------------- report
+    @property
+    def report_dir(self) -> str:
+        return self.path("report")
+
+    @property
+    def report_index(self) -> str:
+        return self.path("report", "index.md")
+
+    @property
+    def report_config(self) -> str:
+        """The merged study config the report was built with (JSON)."""
+        return self.path("report", "config.json")
+
+    def report_copy(self, path: str) -> str:
+        """Where the report keeps its copy of a table, figure or the equations."""
+        folder = {".csv": "tables", ".md": "tables", ".png": "figures", ".pdf": "figures"}
+        name = path.rsplit("/", 1)[-1]
+        if path == self.equations:
+            return self.path("report", name)
+        return self.path("report", folder[name[name.rfind("."):]], name)
+
+    @property
+    def comparison(self) -> str:
+        """Every published value next to ours (report of the paper's study only)."""
+        return self.path("report", "tables", "comparison.csv")
+
+    # ---------------------------------------------------------------- what the report shows
+    def report_tables(self, sweep: bool = True) -> list[str]:
+        """The tables the report shows (CSV paths), in its order."""
+        stems = [TABLE3, TABLE4, REGRESSION_FIT, CALIBRATION, TABLE5, TABLE6,
+                 *([RATIO_SWEEP] if sweep else []), IMPACT_ENERGY, T10_ECS]
+        return [self.table(s) for s in stems]
+
+    def report_figures(self, sweep: bool = True) -> list[str]:
+        """The figures the report shows (PNG paths), in its order."""
+        stems = [FIG_SCREENING, FIG_REGRESSION, *([FIG4, FIG5] if sweep else []), FIG6, FIG7,
+                 FIG_T10]
+        return [self.figure(s) for s in stems]
+
+    def report_inputs(self, specimens, impact_tag: str, sweep: bool = True) -> dict:
+        """Every file the report reads, by role (the report rule's ``input:``)."""
+        tabs = [f for t in self.report_tables(sweep) for f in companions(t)]
+        figs = [f for g in self.report_figures(sweep) for f in companions(g)]
+        return {
+            "tables": tabs, "figures": figs, "equations": [self.equations],
+            "dataset": [self.dataset], "cards": [self.card(s) for s in specimens],
+            "verified": [self.verified_card(specimens[0])], "scatter": [self.seed_scatter],
+            "impact": [self.impact_run(impact_tag)], "jk_fit": [self.jk_fit],
+            "chosen": [self.sweep_chosen] if sweep else [],
+        }
+
+    def report_outputs(self, sweep: bool = True, reference: bool = True) -> list[str]:
+        """Every file the report writes (the report rule's ``output:``)."""
+        copies = [self.report_copy(f) for f in [
+            *(f for t in self.report_tables(sweep) for f in companions(t)),
+            *(f for g in self.report_figures(sweep) for f in companions(g)), self.equations]]
+        extra = companions(self.comparison) if reference else []
+        return [self.report_index, self.report_config, *copies, *extra]

@@ -1,0 +1,105 @@
+"""Resource guards checked before a specimen is built: ball count, memory, genesis steps.
+
+A tiny ``rmin_mm`` or a large specimen asks for millions of balls; without a guard the
+genesis would fill the memory before anything is reported. ``estimate_balls`` predicts
+the ball count from the geometry alone (the same volume balance as ``distribute``: the
+summed ball volume is (1 - n) V), ``estimate_memory_mb`` the peak memory of a run, and
+:func:`check_budget` refuses a run above ``max_balls`` or ``mem_budget_mb`` with a
+:class:`BudgetError` (bad input, exit code 2) naming the parameters that drive it.
+
+The genesis step budget (``genesis_max_steps``, total steps of relaxation and settling)
+turns a specimen that does not settle (e.g. ``pb_kratio=1e-9``: the timestep collapses)
+into a failure record after a bounded time instead of a run of hours.
+
+No numba here: the study's config validation uses it at DAG-parse time.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+from .. import params as P
+
+#: default ceiling on the ball count of one specimen (the paper's full-size specimens
+#: hold 12k-70k balls; 2 million balls would take days per UCS test on one core)
+MAX_BALLS = 2_000_000
+#: default step budget of the settling phases of genesis (``build_specimen``: the
+#: material installed, in the vessel, then bonded and free); measured 0-1,000 steps for the
+#: smoke study's specimens and 500-1,000 for 24k-ball ones, so 50x headroom. The relaxed
+#: packing has its own limit (``SpecimenSpec.max_relax_steps``, 200,000)
+GENESIS_MAX_STEPS = 50_000
+#: peak memory model of a run [MB] = MEM_BASE_MB + MEM_PER_BALL_KB x balls / 1024. Measured
+#: peak RSS (UCS run, 1 thread): 222 MB at 8.6k balls and 266 MB at 23.9k with a warm numba
+#: cache (2.9 kB per ball), 364 MB at 1.9k balls when the kernels compiled (cold cache); the
+#: model adds headroom on both terms
+MEM_BASE_MB = 400.0
+MEM_PER_BALL_KB = 4.0
+
+
+class BudgetError(P.ParameterError):
+    """A run would exceed a resource budget (refused before any work)."""
+
+
+def estimate_balls(rmin_mm: float, porosity: float, *, scale: float = 1.0,
+                   diameter_mm: float = 50.0, height_mm: float = 100.0,
+                   ratio: float = P.RADIUS_RATIO) -> float:
+    """Expected ball count of a cylinder ``scale * diameter_mm`` x ``scale * height_mm``
+    with radii uniform in [rmin, ratio rmin] and nominal porosity ``porosity``."""
+    r0 = float(rmin_mm)
+    r1 = ratio * r0
+    mean_r3 = (r1 ** 4 - r0 ** 4) / (4 * (r1 - r0)) if r1 > r0 else r0 ** 3
+    mean_v = 4.0 / 3.0 * math.pi * mean_r3
+    vol = math.pi * (0.5 * scale * diameter_mm) ** 2 * scale * height_mm
+    return (1.0 - float(porosity)) * vol / mean_v
+
+
+def estimate_memory_mb(n_balls: float) -> float:
+    """Expected peak resident memory of one run [MB] (see ``MEM_PER_BALL_KB``)."""
+    return MEM_BASE_MB + MEM_PER_BALL_KB * float(n_balls) / 1024.0
+
+
+def physical_memory_mb() -> float | None:
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2 ** 20
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def default_mem_budget_mb() -> float:
+    """80 % of this machine's physical memory (8 GB when it cannot be read)."""
+    m = physical_memory_mb()
+    return 0.8 * m if m else 8192.0
+
+
+def budget_problem(rmin_mm, porosity, *, scale=1.0, diameter_mm=50.0, height_mm=100.0,
+                   max_balls=MAX_BALLS, mem_budget_mb=None, what="") -> str | None:
+    """None if the specimen fits the budgets, else a message naming what drives it."""
+    n = estimate_balls(rmin_mm, porosity, scale=scale, diameter_mm=diameter_mm,
+                       height_mm=height_mm)
+    spec = (f"{what}rmin_mm={float(rmin_mm):g}, porosity={float(porosity):g} on a "
+            f"{scale * diameter_mm:g} x {scale * height_mm:g} mm specimen")
+    nb = f"{n:,.0f}" if n < 1e12 else f"{n:.3g}"
+    if max_balls is not None and n > max_balls:
+        return (f"{spec} needs about {nb} balls, more than the budget of {max_balls:,} "
+                "(raise --max-balls / resources.max_balls, or a larger rmin_mm / smaller "
+                "specimen)")
+    if mem_budget_mb is not None:
+        mb = estimate_memory_mb(n)
+        if mb > mem_budget_mb:
+            return (f"{spec} needs about {nb} balls and ~{mb:,.0f} MB of memory, more "
+                    f"than the budget of {mem_budget_mb:,.0f} MB (raise --mem-budget-mb / "
+                    "resources.ucs_mem_mb, or a larger rmin_mm / smaller specimen)")
+    return None
+
+
+def check_budget(params: dict, geometry, *, max_balls=MAX_BALLS, mem_budget_mb=None):
+    """Raise :class:`BudgetError` if the specimen of ``params`` (paper units) and
+    ``geometry`` (a runner.Geometry) exceeds a budget; ``mem_budget_mb=None`` uses
+    :func:`default_mem_budget_mb`."""
+    if mem_budget_mb is None:
+        mem_budget_mb = default_mem_budget_mb()
+    msg = budget_problem(params["rmin_mm"], params["porosity"], scale=geometry.scale,
+                         diameter_mm=geometry.diameter_mm, height_mm=geometry.height_mm,
+                         max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    if msg:
+        raise BudgetError(msg)

@@ -1,0 +1,376 @@
+"""Conventional triaxial compression test (sigma1 > sigma2 = sigma3) of a bonded cylinder.
+
+Confinement: the genesis vessel's rigid, frictionless cylindrical wall is kept
+(``build_specimen(boundary="vessel")``) and its radius is servo-controlled (PFC's wall
+servo, ``servo.Servo``: v_r = G (sigma_measured - sigma3) A, G = alpha / (K dt), capped
+at ``servo_vmax``) so that the lateral wall stress, the radial force sum / (2 pi R_c H)
+with R_c the current wall radius and H the current platen distance, equals sigma3. This
+is the confinement of PFC's material-modeling package for a cylindrical vessel. Its
+limitation: a rigid cylinder imposes one radial displacement on the whole lateral
+surface (a lab membrane lets the specimen barrel or shear through), so localisation
+through the lateral surface is restrained and post-peak behaviour is stiffer than in the
+laboratory; the peak is less affected. The alternative, a pressure on the exposed area
+of the surface balls (a flexible membrane), needs a surface-tracking algorithm and is
+not implemented.
+
+Stages:
+
+1. **Consolidation**: all three walls are servo-controlled to the isotropic stress sigma3
+   (the platens to sigma3 pi R_c^2, at least the seating stress ``seat_stress``, 0.1 MPa,
+   so that the platens stay in contact when sigma3 = 0) until every wall stress is within
+   ``consol_tol`` of its target and the specimen is in equilibrium (mean unbalanced-force
+   ratio <= ``consol_ratio``).
+2. **Axial loading**: the platens approach each other at ``platen_velocity`` each (as in
+   the UCS test) while the lateral servo holds sigma3; the servo acts every
+   ``servo_interval`` steps (default every step) from Python, the engine is unchanged.
+
+Measurements, recorded every ``record_strain`` of axial strain, strains counted from the
+start of axial loading (compression positive):
+
+- axial stress sigma1 = mean platen force / (pi R_c0^2), the cross-section at the start
+  of axial loading (R_c0: wall radius after consolidation), as the UCS test and ASTM
+  D7012 (initial area). Not the current wall radius: at low sigma3 the wall follows the
+  most bulging balls, not the mean surface, and would overstate the area;
+- confining stress sigma3 as measured on the lateral wall (recorded: it is what the
+  servo holds), deviator q = sigma1 - sigma3 (measured);
+- axial strain eps_a = platen approach / H0 (H0: platen distance after consolidation);
+- lateral strain eps_r from the *surface balls* in the central band, as in the UCS
+  test (so sigma3 = 0 gives the UCS definition), and ``lateral_strain_wall`` = -(R_c -
+  R_c0) / R_c0 from the wall radius; volumetric strain eps_a + 2 eps_r;
+- cracks by mode and the energy terms of the engine.
+
+Results: the peak is the largest deviator q_p; ``sigma1_MPa`` = sigma3 (target) + q_p,
+i.e. the peak axial stress with the servo's small deviation from sigma3 removed
+(``sigma1_measured_MPa`` is the platen stress at that record); E = slope of q vs eps_a
+and nu = -slope of eps_r vs eps_a over the pre-peak records with q in ``fit_window``
+(40-60 %) of q_p (``nu_wall`` from the wall radius); ``u_pre_MJm3`` = integral of q d eps_a
+up to the peak; ``crack_init_MPa`` = q when the crack count first reaches 1 % of the count
+at the peak; ``sigma3_maxdev_rel`` = max |sigma3
+measured - sigma3| / sigma3 over the records up to the peak (the servo's accuracy; NaN
+for sigma3 = 0, where ``sigma3_maxdev_MPa`` gives it in MPa). The test stops as the UCS
+test: q below ``stop_drop`` of q_p after the peak, ``max_strain`` or ``max_steps``.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..dem.errors import InputError
+from ..dem.layout import BOND_SHEAR, BOND_TENSION
+from .servo import Servo, ServoError, ServoLoop
+from .specimen import Specimen
+from .ucs import fit_slope
+
+#: columns of the recorded time series
+TRIAXIAL_SERIES = ("step", "time", "axial_strain", "lateral_strain", "lateral_strain_wall",
+                   "volumetric_strain", "axial_stress", "confining_stress", "deviator",
+                   "stress_top", "stress_bottom", "wall_radius", "cracks_tension",
+                   "cracks_shear", "kinetic", "strain_linear", "strain_bond", "slip",
+                   "damping", "dashpot", "released", "work_walls", "unbalanced")
+
+
+@dataclass(frozen=True)
+class TriaxialSettings:
+    sigma3: float = 0.0  # Pa, confining stress
+    platen_velocity: float = 0.05  # m/s, each platen (used when strain_rate is None)
+    strain_rate: float | None = None  # 1/s; if given, each platen moves at rate * H0 / 2
+    damping: float = 0.7
+    platen_fric: float = 0.0
+    wall_fric: float = 0.0  # lateral wall (a membrane carries no shear)
+    servo_alpha: float = 0.8  # relaxation factor of the servo gain (PFC default)
+    servo_vmax: float = 5.0  # m/s, velocity cap of the servo-controlled walls
+    servo_interval: int = 1  # steps between servo updates
+    servo_feedforward: bool = True  # add the contacting balls' mean velocity (servo.py)
+    gain_update: int = 10  # steps between gain updates
+    seat_stress: float = 0.1e6  # Pa, least platen stress during consolidation
+    consol_tol: float = 0.005  # consolidated: every wall stress within this of its target
+    consol_tol_abs: float = 0.005e6  # Pa, ... or within this (sigma3 near zero)
+    consol_ratio: float = 1e-2  # ... and the mean unbalanced-force ratio below this
+    max_consol_steps: int = 1_000_000
+    stop_drop: float = 0.7  # stop when q < stop_drop * peak q after the peak
+    max_strain: float = 0.03
+    max_steps: int = 3_000_000
+    record_strain: float = 1e-5  # axial strain between records
+    fit_window: tuple = (0.4, 0.6)
+    lateral_band: tuple = (0.1, 0.9)
+    post_peak_min: float = 0.002  # also require this much strain past the peak to stop
+    ci_fraction: float = 0.01
+
+    def __post_init__(self):
+        s3 = self.sigma3
+        if not (isinstance(s3, (int, float)) and math.isfinite(s3) and s3 >= 0):
+            raise InputError(f"sigma3={s3!r}: expected a confining stress >= 0 Pa")
+        if self.strain_rate is not None and not (self.strain_rate > 0
+                                                 and math.isfinite(self.strain_rate)):
+            raise InputError(f"strain_rate={self.strain_rate!r}: expected a positive rate in 1/s")
+        for k in ("platen_velocity", "servo_vmax", "seat_stress", "record_strain"):
+            v = getattr(self, k)
+            if not (v > 0 and math.isfinite(v)):
+                raise InputError(f"{k}={v!r}: expected a positive number (SI units)")
+        for k in ("platen_fric", "wall_fric", "consol_tol_abs"):
+            v = getattr(self, k)
+            if not (v >= 0 and math.isfinite(v)):
+                raise InputError(f"{k}={v!r}: expected a number >= 0")
+        if not (0.0 <= self.damping < 1.0):
+            raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
+        if not (0.0 < self.servo_alpha <= 1.0):
+            raise InputError(f"servo_alpha={self.servo_alpha!r}: expected 0 < alpha <= 1")
+        if int(self.servo_interval) < 1 or int(self.gain_update) < 1:
+            raise InputError(f"servo_interval={self.servo_interval!r}, gain_update="
+                             f"{self.gain_update!r}: expected integers >= 1")
+        if not (0.0 < self.consol_tol < 1.0 and self.consol_ratio > 0):
+            raise InputError(f"consol_tol={self.consol_tol!r}, consol_ratio="
+                             f"{self.consol_ratio!r}: expected 0 < tol < 1, ratio > 0")
+        if not (0.0 < self.stop_drop < 1.0):
+            raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
+        if not (0.0 < self.max_strain <= 0.5):
+            raise InputError(f"max_strain={self.max_strain!r}: expected a strain in (0, 0.5]")
+        lo, hi = self.fit_window
+        if not (0.0 <= lo < hi <= 1.0):
+            raise InputError(f"fit_window={self.fit_window!r}: expected 0 <= lo < hi <= 1")
+
+
+@dataclass
+class TriaxialResult:
+    summary: dict
+    series: dict  # column -> np.ndarray
+    cracks: dict  # event arrays (Model.breaks()), steps relative to the start of loading
+    settings: TriaxialSettings
+
+
+class _Cell:
+    """The three walls of the triaxial cell and the stresses they measure."""
+
+    def __init__(self, sp: Specimen):
+        if sp.lateral_wall is None or len(sp.platens) != 2:
+            raise InputError("the triaxial test needs a specimen built with "
+                             "boundary='vessel' (cylinder and both platens kept)")
+        self.m = sp.model
+        self.wl = sp.lateral_wall
+        self.wb, self.wt = sp.platens
+
+    def radius(self) -> float:
+        return float(self.m.W.rad[self.wl])
+
+    def height(self) -> float:
+        W = self.m.W
+        return float(W.pos[self.wt, 2] - W.pos[self.wb, 2])
+
+    def area(self) -> float:
+        return math.pi * self.radius() ** 2
+
+    def lateral_area(self) -> float:
+        return 2.0 * math.pi * self.radius() * self.height()
+
+    def platen_stresses(self, area: float | None = None) -> tuple[float, float]:
+        """Axial stresses on the two platens over ``area`` (default: the current
+        cross-section pi R_c^2)."""
+        W = self.m.W
+        a = self.area() if area is None else area
+        return abs(float(W.force[self.wb, 2])) / a, abs(float(W.force[self.wt, 2])) / a
+
+    def lateral_stress(self) -> float:
+        return -float(self.m.W.radsum[self.wl]) / self.lateral_area()
+
+
+def consolidate(sp: Specimen, st: TriaxialSettings) -> dict:
+    """Stage 1: servo all three walls to the isotropic stress sigma3 (platens at least to
+    ``seat_stress``) until the targets are held and the specimen is in equilibrium."""
+    m = sp.model
+    c = _Cell(sp)
+    s_ax = max(st.sigma3, st.seat_stress)
+    kw = dict(alpha=st.servo_alpha, vmax=st.servo_vmax, approach=st.platen_velocity,
+              feedforward=st.servo_feedforward)
+    servos = [Servo(m, c.wl, lambda: st.sigma3 * c.lateral_area(), **kw),
+              Servo(m, c.wb, lambda: s_ax * c.area(), **kw),
+              Servo(m, c.wt, lambda: s_ax * c.area(), **kw)]
+    loop = ServoLoop(m, servos, interval=st.servo_interval, gain_update=st.gain_update)
+    H0, R0 = c.height(), c.radius()
+    s0 = m.step
+    ratio = math.inf
+    done = False
+    while m.step - s0 < st.max_consol_steps:
+        loop.run(200, record=False)
+        errs = [abs(c.lateral_stress() - st.sigma3)] + [abs(s - s_ax)
+                                                        for s in c.platen_stresses()]
+        tol = [max(st.consol_tol * st.sigma3, st.consol_tol_abs)] + [
+            max(st.consol_tol * s_ax, st.consol_tol_abs)] * 2
+        if all(e <= t for e, t in zip(errs, tol)):
+            ratio = m.unbalanced_ratio()
+            if ratio <= st.consol_ratio:
+                done = True
+                break
+    for s in servos[1:]:
+        s.stop()
+    if not done:
+        raise ServoError(
+            f"consolidation to sigma3 = {st.sigma3 / 1e6:g} MPa did not converge: wall "
+            f"stresses {c.lateral_stress() / 1e6:.4g} (lateral), "
+            f"{', '.join(f'{s / 1e6:.4g}' for s in c.platen_stresses())} MPa (platens), "
+            f"unbalanced-force ratio {ratio:.3g} after {m.step - s0} steps")
+    return {"consol_steps": int(m.step - s0), "consol_ratio": float(ratio),
+            "consol_axial_strain": (H0 - c.height()) / H0,
+            "consol_lateral_strain": (R0 - c.radius()) / R0,
+            "servo": servos[0]}
+
+
+def analyse(series: dict, settings: TriaxialSettings) -> dict:
+    """Peak, sigma1, E, nu and the servo accuracy from a recorded series."""
+    st = settings
+    q = np.asarray(series["deviator"], float)
+    ea = np.asarray(series["axial_strain"], float)
+    er = np.asarray(series["lateral_strain"], float)
+    erw = np.asarray(series["lateral_strain_wall"], float)
+    s3m = np.asarray(series["confining_stress"], float)
+    cr = np.asarray(series["cracks_tension"]) + np.asarray(series["cracks_shear"])
+    ip = int(np.argmax(q))
+    qp = float(q[ip])
+    pre = slice(0, ip + 1)
+    lo, hi = st.fit_window
+    win = (q[pre] >= lo * qp) & (q[pre] <= hi * qp)
+    E = fit_slope(ea[pre][win], q[pre][win])
+    nu = -fit_slope(ea[pre][win], er[pre][win])
+    nu_w = -fit_slope(ea[pre][win], erw[pre][win])
+    dev = np.abs(s3m[pre] - st.sigma3)
+    up = float(np.trapezoid(q[: ip + 1], ea[: ip + 1])) if ip > 0 else 0.0
+    ci_target = max(1.0, st.ci_fraction * cr[ip])
+    hit = np.flatnonzero(cr >= ci_target)
+    ci = float(q[hit[0]]) if hit.size and hit[0] <= ip else math.nan
+    return {"sigma1_MPa": (st.sigma3 + qp) / 1e6,
+            "sigma3_MPa": st.sigma3 / 1e6,
+            "deviator_MPa": qp / 1e6,
+            "sigma1_measured_MPa": float(series["axial_stress"][ip]) / 1e6,
+            "E_GPa": E / 1e9, "nu": nu, "nu_wall": nu_w,
+            "peak_strain": float(ea[ip]), "u_pre_MJm3": up / 1e6,
+            "crack_init_MPa": ci / 1e6, "fit_points": int(win.sum()),
+            "sigma3_maxdev_MPa": float(dev.max()) / 1e6,
+            "sigma3_maxdev_rel": float(dev.max()) / st.sigma3 if st.sigma3 > 0 else math.nan,
+            "sigma3_mean_MPa": float(s3m[pre].mean()) / 1e6,
+            "cracks_tension_peak": int(series["cracks_tension"][ip]),
+            "cracks_shear_peak": int(series["cracks_shear"][ip])}
+
+
+def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
+                 progress=None) -> TriaxialResult:
+    """Consolidate specimen ``sp`` (built with ``boundary="vessel"``) to sigma3 and load
+    it axially; its model is modified. ``progress(dict)`` is called after every record."""
+    st = settings
+    m = sp.model
+    cell = _Cell(sp)
+    wb, wt, wl = cell.wb, cell.wt, cell.wl
+    m.W.fric[[wb, wt]] = st.platen_fric
+    m.W.fric[wl] = st.wall_fric
+    m.set_damping(st.damping)
+    m.set_timestep(None)
+    dt = m.dt
+    t_c = time.perf_counter()
+    con = consolidate(sp, st)
+    lateral = con.pop("servo")
+    consol_s = time.perf_counter() - t_c
+    H0 = cell.height()
+    Rc0 = cell.radius()
+    A0 = math.pi * Rc0 ** 2
+    v = st.platen_velocity if st.strain_rate is None else 0.5 * st.strain_rate * H0
+    m.set_wall_velocity(wb, velocity=(0.0, 0.0, v))
+    m.set_wall_velocity(wt, velocity=(0.0, 0.0, -v))
+    loop = ServoLoop(m, [lateral], interval=st.servo_interval, gain_update=st.gain_update)
+    n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
+    pos0 = m.B.pos.copy()
+    z0 = pos0[sp.surface, 2]
+    zb = float(m.W.pos[wb, 2])
+    band = (z0 >= zb + st.lateral_band[0] * H0) & (z0 <= zb + st.lateral_band[1] * H0)
+    gauge = sp.surface[band]
+    if gauge.size < 3:
+        raise InputError(f"only {gauge.size} surface balls in the lateral strain band: the "
+                         "specimen is too small for a lateral strain measurement")
+    rho0 = np.hypot(pos0[gauge, 0], pos0[gauge, 1])
+    R0 = sp.radius0
+    ser = {k: [] for k in TRIAXIAL_SERIES}
+    e0 = m.energies()
+    walls = (wb, wt, wl)
+    e0_walls = sum(e0["work_walls_each"][w] for w in walls)
+    step0 = m.step
+    t_start = m.time
+    t0 = time.perf_counter()
+    peak = -math.inf
+    peak_strain = 0.0
+    reason = "max_steps"
+
+    def record():
+        e = m.energies()
+        sb, stp = cell.platen_stresses(A0)
+        s1 = 0.5 * (sb + stp)
+        s3 = cell.lateral_stress()
+        ea = (H0 - cell.height()) / H0
+        rho = np.hypot(m.B.pos[gauge, 0], m.B.pos[gauge, 1])
+        er = -float((rho - rho0).mean()) / R0
+        erw = -(cell.radius() - Rc0) / Rc0
+        states = m.Bd.state
+        ser["step"].append(m.step - step0)
+        ser["time"].append(m.time - t_start)
+        ser["axial_strain"].append(ea)
+        ser["lateral_strain"].append(er)
+        ser["lateral_strain_wall"].append(erw)
+        ser["volumetric_strain"].append(ea + 2 * er)
+        ser["axial_stress"].append(s1)
+        ser["confining_stress"].append(s3)
+        ser["deviator"].append(s1 - s3)
+        ser["stress_top"].append(stp)
+        ser["stress_bottom"].append(sb)
+        ser["wall_radius"].append(cell.radius())
+        ser["cracks_tension"].append(int(np.count_nonzero(states == BOND_TENSION)))
+        ser["cracks_shear"].append(int(np.count_nonzero(states == BOND_SHEAR)))
+        for k in ("kinetic", "strain_linear", "strain_bond", "slip", "damping", "dashpot",
+                  "released"):
+            ser[k].append(e[k] - e0[k] if k in ("slip", "damping", "dashpot", "released")
+                          else e[k])
+        ser["work_walls"].append(sum(e["work_walls_each"][w] for w in walls) - e0_walls)
+        ser["unbalanced"].append(m.unbalanced_ratio())
+        return s1 - s3, ea
+
+    record()
+    while True:
+        if m.step - step0 >= st.max_steps:
+            reason = "max_steps"
+            break
+        loop.run(n_rec)
+        q, ea = record()
+        if q > peak:
+            peak, peak_strain = q, ea
+        if progress is not None:
+            progress({"strain": ea, "stress_MPa": ser["axial_stress"][-1] / 1e6,
+                      "peak_MPa": (peak + st.sigma3) / 1e6,
+                      "cracks": ser["cracks_tension"][-1] + ser["cracks_shear"][-1],
+                      "steps": m.step - step0, "wall_s": time.perf_counter() - t0})
+        if peak > 0 and q < st.stop_drop * peak and \
+                ea - peak_strain >= min(st.post_peak_min, 0.5 * peak_strain):
+            reason = "post_peak_drop"
+            break
+        if ea >= st.max_strain:
+            reason = "max_strain"
+            break
+    wall = time.perf_counter() - t0
+    series = {k: np.asarray(vv) for k, vv in ser.items()}
+    summ = analyse(series, st)
+    summ.update({
+        "cracks_tension": int(series["cracks_tension"][-1]),
+        "cracks_shear": int(series["cracks_shear"][-1]),
+        "steps": int(m.step - step0), "wall_s": wall, "consol_s": consol_s,
+        "stop_reason": reason, "dt": dt, "platen_velocity": v, "strain_rate": 2 * v / H0,
+        "records": int(series["step"].size), "servo_interval": int(st.servo_interval),
+        "servo_alpha": float(st.servo_alpha), **con,
+    })
+    ev = m.breaks()
+    ev["step"] = ev["step"] - step0  # relative to the start of axial loading
+    ev["time"] = ev["step"] * dt
+    return TriaxialResult(summary=summ, series=series, cracks=ev, settings=st)
+
+
+def settings_dict(st: TriaxialSettings) -> dict:
+    d = asdict(st)
+    d["fit_window"] = list(d["fit_window"])
+    d["lateral_band"] = list(d["lateral_band"])
+    return d

@@ -1,0 +1,24 @@
+"""bpmcal.stages: one function per job of the workflow, above ``analysis`` and ``plots``.
+
+A stage reads the files it is given, checks them and its output paths before any work
+(bad input: one error naming the value, nothing written), calls ``lab``, ``analysis`` and
+``plots``, and writes exactly the files it is given. File names come from
+``bpmcal.io.layout`` (the rules declare them), never from a stage.
+
+- :mod:`.runs` — DEM run files (``ucs``, ``bts``, ``triaxial``, ``impact``) and failure
+  records;
+- :mod:`.study` — the design and the gathered dataset (``study.smk``);
+- :mod:`.analysis` — screening, regression, calibration, verification (``analysis.smk``);
+- :mod:`.fracture` — the strength-ratio sweep and the impact analysis (``fracture.smk``);
+- :mod:`.inputs`, :mod:`.progress` — reading checked inputs; progress on stderr.
+
+``docs/architecture.md`` shows how to add a stage.
+"""
+import inspect
+
+
+def defaults_of(f) -> dict:
+    """The keyword defaults of a function or class (its ``__init__``): how the stages and
+    the ``bpmcal`` command take their defaults from the settings they set."""
+    return {k: p.default for k, p in inspect.signature(f).parameters.items()
+            if p.default is not inspect.Parameter.empty}

@@ -1,0 +1,463 @@
+"""The calibration stages (``workflow/rules/analysis.smk``), one function per job; each
+reads the files it is given, checks them and its output paths before any work, and
+writes exactly the files it is given:
+
+- :func:`screen`: XGBoost screening -> Table 3, selected candidates, importance figure.
+- :func:`regress`: stepwise regression -> Table 4, models.json, equations, summaries,
+  fit table, predicted-vs-simulated figure.
+- :func:`calibrate`: inversion for every lab specimen + bootstrap intervals -> one
+  material card per specimen (``bpmcal.io.card``) and the calibration table.
+- :func:`verify`: re-run the DEM with a card; closed loop (Newton-Broyden) until every
+  response is within the tolerance or the rounds are used up -> verified card, rounds
+  table, the best round's run file.
+- :func:`seed_scatter`: one card, several packing seeds -> run files and scatter tables.
+- :func:`verification_tables`: Tables 5 and 6 and Fig. 6 from the verified cards.
+
+Tables are CSV with Markdown beside them, figures PNG with PDF beside them
+(``bpmcal.io.layout``).
+"""
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .. import params as P
+from ..analysis import (
+    PAPER_RATIO,
+    ClosedLoop,
+    StepwiseRegression,
+    XGBScreening,
+    bootstrap_intervals,
+    invert,
+    table3,
+    table3_markdown,
+)
+from ..analysis import seed_scatter as scatter_table
+from ..analysis._common import usable_rows
+from ..analysis.calibration import check_calibration_space
+from ..io.atomic import write_text
+from ..io.card import read_card, write_card
+from ..io.checks import BadInput, read_json
+from ..io.figures import save_figure
+from ..io.h5 import read_series
+from ..io.provenance import provenance
+from ..io.tables import write_json, write_table
+from ..lab.budget import check_budget
+from ..lab.runner import ucs_inputs
+from ..plots.calibration import fig_importance, fig_pred_vs_sim, fig_stress_strain
+from . import defaults_of
+from .inputs import (
+    CSV,
+    H5,
+    JSON,
+    MD,
+    PNG,
+    TXT,
+    YAML,
+    output_dirs,
+    outputs,
+    read_dataset,
+    read_lab,
+    read_models,
+    usable,
+)
+from .runs import RunOutcome, run_ucs_file, write_failure
+
+#: the defaults of the stages are those of the analyses they run
+_SCREEN, _REGR, _LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
+
+
+# ------------------------------------------------------------------------ screening
+def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
+           shadow_table, summary, threshold=_SCREEN["threshold"],
+           importance=_SCREEN["select_by"], n_splits=_SCREEN["n_splits"],
+           n_repeats=_SCREEN["n_repeats"], seed=_SCREEN["seed"]) -> dict:
+    """XGBoost screening of ``dataset`` -> ``selected`` (JSON), Table 3, the importance
+    figure and the supplementary tables (every importance type, CV R², shadow maxima) and
+    ``summary`` (text). Returns the selection and the note on left-out samples."""
+    df = read_dataset(dataset, min_ok=4)  # the smallest K-fold CV (2 folds) needs 4 rows
+    outputs((selected, "--selected", JSON), (table3_csv, "--table3", CSV),
+            (figure, "--figure", PNG), (importance_table, "--importance-table", CSV),
+            (cv_table, "--cv-table", CSV), (shadow_table, "--shadow-table", CSV),
+            (summary, "--summary", TXT))
+    note = usable(df)
+    n_ok = usable_rows(df, [*P.PARAMS, *P.TARGETS]).n_used
+    if n_ok < 2 * n_splits:  # failed samples left too few rows for the configured CV
+        k = n_ok // 2
+        if k < 2:
+            raise BadInput(f"--dataset {dataset}: only {n_ok} usable samples (status ok, "
+                           "finite responses); the screening needs at least 4 - see the "
+                           "dataset's status and error columns")
+        note += f"; {n_splits}-fold CV needs {2 * n_splits} usable samples, so {k}-fold CV was used"
+        n_splits = k
+    res = XGBScreening(n_splits=n_splits, threshold=threshold, select_by=importance,
+                       n_repeats=n_repeats, seed=seed).fit(df)
+    write_table(table3(res, importance=importance), table3_csv,
+                markdown=table3_markdown(res, importance=importance))
+    write_table(res.to_frame(), importance_table)
+    write_table(res.cv_r2, cv_table)
+    write_table(res.shadow_max, shadow_table)
+    sel = {r: list(v) for r, v in res.selected.items()}
+    write_json(selected, {"selected": sel, "threshold_pct": threshold, "importance": importance,
+                          "note": note,
+                          "provenance": provenance({"dataset": str(dataset), "seed": seed})})
+    write_text(summary, res.summary() + "\n" + note + "\n")
+    save_figure(fig_importance(res.to_frame(), res.shadow_max, importance, threshold), figure)
+    return {"selected": sel, "note": note}
+
+
+# ------------------------------------------------------------------------ regression
+def regress(dataset, selected, *, models, equations, summaries, coefficients, candidates,
+            table4, fit_table, figure, alpha_in=_REGR["alpha_in"],
+            alpha_out=_REGR["alpha_out"], vif_max=_REGR["vif_max"],
+            hierarchy=_REGR["hierarchy"], cv_folds=_REGR["cv_folds"],
+            cv_repeats=_REGR["cv_repeats"], seed=_REGR["seed"]) -> dict:
+    """Three-stage stepwise regression of the screened candidates -> ``models`` (JSON),
+    ``equations`` (Markdown), ``summaries`` (text), the coefficient and candidate-term
+    tables, Table 4, the fit table (adjusted and CV R² per stage) and the
+    predicted-vs-simulated figure. Returns the note and the equations text."""
+    df = read_dataset(dataset, min_ok=max(cv_folds, 4))
+    sel = read_json(selected, "--selected")
+    if not isinstance(sel, dict) or not isinstance(sel.get("selected"), dict):
+        raise BadInput(f"--selected {selected}: not a selected.json of 'bpmcal screen' "
+                       "(no 'selected' mapping)")
+    outputs((models, "--models", JSON), (equations, "--equations", MD),
+            (summaries, "--summaries", TXT), (coefficients, "--coefficients", CSV),
+            (candidates, "--candidates", CSV), (table4, "--table4", CSV),
+            (fit_table, "--fit-table", CSV), (figure, "--figure", PNG))
+    note = usable(df)
+    res = StepwiseRegression(alpha_in=alpha_in, alpha_out=alpha_out, vif_max=vif_max,
+                             hierarchy=hierarchy, cv_folds=cv_folds, cv_repeats=cv_repeats,
+                             seed=seed).fit(df, sel["selected"])
+    d = res.to_dict()
+    d["note"] = note
+    d["provenance"] = provenance({"dataset": str(dataset), "seed": seed})
+    write_json(models, d, indent=1)
+    write_table(res.table4_terms("retained"), table4)
+    write_table(res.table4_terms("candidates"), candidates)
+    write_table(res.fit_table(), fit_table)
+    write_table(res.to_frame(), coefficients)
+    eq = ["# Regression equations (physical units, paper style)", ""]
+    for stage in res.fit_table().index.get_level_values("stage").unique():
+        eq.append(f"## stage: {stage}")
+        for r, e in res.equations(stage=stage).items():
+            row = res.fit_table().loc[(r, stage)]
+            eq.append(f"- `{e}`  (adj. R² = {row['adj_r2']:.3f}, CV R² = "
+                      f"{row['cv_r2_mean']:.3f})")
+        eq.append("")
+    eq.append(note)
+    text = "\n".join(eq) + "\n"
+    write_text(equations, text)
+    write_text(summaries, res.summary() + "\n")
+    ok = df[df["status"] == "ok"]
+    save_figure(fig_pred_vs_sim(ok, res.predict(ok), res.fit_table()), figure)
+    return {"note": note, "equations": text}
+
+
+# ------------------------------------------------------------------------ calibration
+def chosen_ratio(ratio_from, ratio: float | None) -> tuple[float | None, str]:
+    """The ratio the calibration uses: the sweep's choice in ``ratio_from`` (its chosen
+    JSON), or ``ratio`` when there is no sweep or it chose none; and a note saying which."""
+    if not ratio_from:
+        return ratio, ""
+    ch = read_json(ratio_from, "--ratio-from")
+    if not isinstance(ch, dict) or "chosen_ratio" not in ch:
+        raise BadInput(f"--ratio-from {ratio_from}: no 'chosen_ratio' (expected the "
+                       "chosen.json of 'bpmcal sweep-analyse')")
+    if ch["chosen_ratio"] is None:
+        shown = "none (both strengths free)" if ratio is None else f"{ratio:g}"
+        return ratio, (f"--ratio-from {ratio_from}: the sweep chose no ratio "
+                       f"({ch.get('reason', 'no usable run')}); using --ratio {shown}")
+    a = P.as_number(ch["chosen_ratio"], f"--ratio-from {ratio_from}: chosen_ratio",
+                    "a positive ratio", BadInput)
+    if a <= 0:
+        raise BadInput(f"--ratio-from {ratio_from}: chosen_ratio={a:g}: expected a positive "
+                       "ratio")
+    return a, ""
+
+
+def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=None,
+              ratio: float | None = PAPER_RATIO, ratio_from=None, free=None, n_boot=200,
+              seed=0, table=None) -> dict:
+    """Invert the final regression models for every lab specimen; bootstrap intervals;
+    one material card per specimen: ``cards`` holds one file per lab specimen, named
+    ``<specimen>.yaml`` (``bpmcal.io.layout``); ``table``: the calibration table (optional).
+    ``ranges`` is the design space the dataset was sampled over (the config's ``ranges``)
+    and bounds the free parameters; ``bounds`` (the config's ``calibration.bounds``) may
+    narrow it. ``ratio_from``: the strength-ratio sweep's chosen JSON (its ratio replaces
+    ``ratio`` when it chose one). ``n_boot=0`` skips the bootstrap (the initial calibration
+    that only seeds the strength-ratio sweep needs the point estimate).
+
+    Every card records the configured ``ranges``, the effective ``bounds`` of the calibrated
+    parameters with the configured key each side comes from, and, when the targets are not
+    met, ``widen``: which configured limit to move and how far (see
+    :func:`bpmcal.analysis.invert`). Returns the table and a note on the ratio."""
+    lab_df = read_lab(lab)
+    specs = [str(s) for s in lab_df["specimen"]]
+    by_spec = {Path(c).stem: c for c in cards}
+    if sorted(by_spec) != sorted(specs) or len(by_spec) != len(cards):
+        raise BadInput(f"--cards {' '.join(map(str, cards))}: expected one card per lab "
+                       f"specimen, named <specimen>.yaml: {specs}")
+    if not isinstance(fixed, dict):
+        raise BadInput(f"--fixed {fixed!r}: expected a JSON object of parameter values")
+    try:
+        fixed = P.validate_params(fixed, require_all=False)
+    except P.ParameterError as e:
+        raise P.ParameterError(f"--fixed: {e}") from None
+    if n_boot == 1:
+        raise P.ParameterError(f"--n-boot {n_boot}: expected 0 (no bootstrap) or an integer "
+                               ">= 2")
+    if free:
+        bad = [f for f in free if f not in P.PARAMS]
+        if bad:
+            raise BadInput(f"--free {','.join(free)}: unknown parameter(s) {bad}; expected "
+                           f"names from {list(P.PARAMS)}")
+    ratio, note = chosen_ratio(ratio_from, ratio)
+    bounds = dict(bounds or {})
+    for name, val in (("--ranges", ranges), ("--bounds", bounds)):
+        if not isinstance(val, dict):
+            raise BadInput(f"{name}: expected a JSON mapping of parameter name to "
+                           f"[low, high] (paper units), got {val!r}")
+    check_calibration_space(free, fixed, ratio, ranges, bounds)
+    df = read_dataset(dataset)
+    model_set = read_models(models)
+    outputs(*((c, "--cards", YAML) for c in cards), (table, "--table", CSV))
+    dnote = usable(df)
+    rows = []
+    for rec in lab_df.to_dict("records"):
+        spec = str(rec["specimen"])
+        targets = {k: float(rec[k]) for k in P.TARGETS}
+        inv = invert(model_set, targets, fixed, free=free, bounds=bounds, ratio=ratio,
+                     ranges=ranges, seed=seed)
+        if n_boot:
+            boot = bootstrap_intervals(df, model_set, targets, fixed, free=free, bounds=bounds,
+                                       ratio=ratio, ranges=ranges, n_boot=n_boot, seed=seed)
+            bootstrap = {"n_boot": n_boot, "scheme": boot.scheme,
+                         "unreachable_resamples": boot.n_unreachable,
+                         "intervals": boot.intervals.reset_index().to_dict("records")}
+        else:
+            bootstrap = {"n_boot": 0, "scheme": None, "unreachable_resamples": None,
+                         "intervals": []}
+        card = {
+            "specimen": spec,
+            "status": inv.status,
+            "message": inv.message,
+            "ratio_ten_coh": ratio,
+            "parameters": {k: float(inv.solution[k]) for k in P.PARAMS},
+            "roles": {k: ("free" if k in inv.free else "derived" if k in inv.derived
+                          else "fixed") for k in P.PARAMS},
+            "ranges": {k: [float(a), float(b)] for k, (a, b) in inv.ranges.items()},
+            "calibration_bounds": {k: [float(a), float(b)] for k, (a, b) in bounds.items()},
+            "bounds": {k: {"lower": lo, "upper": hi, "lower_from": inv.bound_origins[k]["lower"],
+                           "upper_from": inv.bound_origins[k]["upper"]}
+                       for k, (lo, hi) in inv.bounds.items()},
+            "at_bound": [{"parameter": p, "side": side, "value": v} for p, side, v in inv.at_bound],
+            "widen": inv.widen,
+            "advice": inv.advice,
+            "targets": targets,
+            "lab": {k: (None if (isinstance(v, float) and not math.isfinite(v)) else v)
+                    for k, v in rec.items() if k != "specimen"},
+            "predicted": inv.predicted,
+            "residuals_pct": {k: 100 * v for k, v in inv.residuals.items()},
+            "alternatives": inv.alternatives.to_dict("records"),
+            "bootstrap": bootstrap,
+            "dataset_note": dnote,
+            "provenance": provenance({"dataset": str(dataset), "models": str(models),
+                                      "lab": str(lab), "fixed": fixed, "ratio": ratio,
+                                      "seed": seed, "ranges": ranges, "bounds": bounds}),
+        }
+        write_card(by_spec[spec], card)
+        rows.append({"specimen": spec, "status": inv.status, **card["parameters"],
+                     **{f"pred_{k}": v for k, v in inv.predicted.items()}})
+    out = pd.DataFrame(rows).set_index("specimen")
+    if table is not None:
+        write_table(out, table)
+    return {"table": out, "note": note}
+
+
+# ------------------------------------------------------------------------ verification
+def _responses(s: dict, targets: dict) -> dict:
+    d = {k: float(s.get(k, math.nan)) for k in [*P.TARGETS, "u_pre_MJm3", "peak_strain",
+                                                  "cracks_tension", "cracks_shear"]}
+    d["errors_pct"] = {k: 100 * (d[k] / v - 1) for k, v in targets.items()}
+    d["run_status"] = s.get("status")
+    return d
+
+
+def _max_err(s: dict, targets: dict) -> float:
+    if s.get("status") != "ok":
+        return math.inf
+    return max(abs(float(s[k]) / v - 1) for k, v in targets.items())
+
+
+def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
+           rtol=_LOOP["rtol"], max_rounds=_LOOP["max_rounds"], cache=None, threads=None,
+           free=None, progress=None, from_unreachable=False, max_balls=None, mem_budget_mb=None,
+           genesis_max_steps=None) -> dict:
+    """Closed-loop verification of one material card: round 1 is the paper's single pass
+    (the regression's answer), later rounds correct the free parameters with a
+    Newton-Broyden step until every response is within ``rtol`` (relative) of the lab
+    value, or ``max_rounds`` DEM runs are used up. Writes the verified card (``out_card``),
+    the rounds table (``rounds``: parameters, responses, errors and step of every round)
+    and ``run``, the run file of the best round (each round runs into a temporary file;
+    any round can be rerun with ``bpmcal ucs --params`` from its row, the runs being
+    deterministic). The loop stays inside the card's bounds (its design ``ranges``,
+    narrowed by its ``calibration_bounds``).
+
+    A card whose inversion is ``unreachable`` is not a calibration: unless
+    ``from_unreachable`` (config ``verification.from_unreachable``) the DEM is not run, the
+    verified card says so (``verification.status: not-run`` with the reason and what to
+    widen), ``rounds`` has its header only and ``run`` is a failure record ("not run: ...").
+    Returns the verified card."""
+    c = read_card(card, "--card", need=("parameters", "targets", "roles"))
+    if "ranges" not in c:
+        raise P.ParameterError(f"--card {card}: the card has no 'ranges' (the design space); "
+                               "rerun the calibrate step")
+    model_set = read_models(models)
+    if max_balls is not None:
+        check_budget(c["parameters"], geometry, max_balls=max_balls,
+                     mem_budget_mb=mem_budget_mb)
+    outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5))
+    output_dirs((cache, "--specimen-cache"))
+    targets = {k: float(v) for k, v in c["targets"].items()}
+    if c.get("status") == "unreachable" and not from_unreachable:
+        reason = ("the calibration is unreachable, so the closed loop did not start from it "
+                  "(verification.from_unreachable: false); " + str(c.get("message", "")))
+        write_table(pd.DataFrame(columns=["round"]), rounds, index=False)
+        write_failure(run, test="ucs", inputs=ucs_inputs(c["parameters"], seed, geometry,
+                                                          settings),
+                      error=f"not run: {reason}")
+        verified = dict(c)
+        verified["verification"] = {
+            "status": "not-run", "message": reason, "rounds": 0, "rtol": rtol, "seed": seed,
+            "best_round": None, "single_pass": None, "closed_loop": None, "parameters": None,
+            "widen": c.get("widen", []), "geometry": geometry.to_dict()}
+        write_card(out_card, verified)
+        return verified
+    ratio = c.get("ratio_ten_coh")
+    runs: list[RunOutcome] = []
+    folder = Path(run).parent
+    tmpdir = tempfile.mkdtemp(prefix=f".{Path(run).stem}.rounds.", dir=folder)
+    try:
+        def simulate(params: dict) -> dict:
+            k = len(runs) + 1
+            res = run_ucs_file(Path(tmpdir) / f"round{k}.h5", params, seed, geometry,
+                               settings, cache=cache, threads=threads, progress=progress,
+                               genesis_max_steps=genesis_max_steps)
+            runs.append(res)
+            if res.status != "ok":
+                return {r: float("nan") for r in targets}
+            return {r: float(res.summary[r]) for r in [*targets, "u_pre_MJm3", "peak_strain"]}
+
+        free = free or [k for k, v in c["roles"].items() if v == "free"]
+        loop = ClosedLoop(simulate, targets, free=free, ratio=ratio, models=model_set,
+                          rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
+                          bounds=c.get("calibration_bounds") or None)
+        res = loop.run(c["parameters"])
+        summaries = [dict(r.summary, status=r.status) for r in runs]
+        best = int(np.argmin([_max_err(s, targets) for s in summaries]))
+        os.replace(runs[best].path, run)  # the best round is the run file
+    finally:
+        for f in Path(tmpdir).glob("*"):
+            f.unlink()
+        os.rmdir(tmpdir)
+    write_table(res.history, rounds, index=False)
+    message = res.message
+    if c.get("status") == "unreachable":
+        message = ("started from an unreachable calibration at the user's request "
+                   f"(verification.from_unreachable: true): {message}")
+    verified = dict(c)
+    verified.update({
+        "verification": {
+            "status": res.status, "message": message, "rounds": len(runs),
+            "rtol": rtol, "seed": seed, "best_round": best + 1,
+            "single_pass": _responses(summaries[0], targets),
+            "closed_loop": _responses(summaries[best], targets),
+            "parameters": {k: float(v) for k, v in res.params.items() if k in P.PARAMS},
+            "geometry": geometry.to_dict(),
+        }})
+    write_card(out_card, verified)
+    return verified
+
+
+def seed_scatter(card, *, runs, seeds, seed_runs, table, geometry, settings, rtol=_LOOP["rtol"],
+                 cache=None, threads=None, max_balls=None, mem_budget_mb=None,
+                 genesis_max_steps=None) -> pd.DataFrame:
+    """One parameter set (a card's), several packing seeds (``runs[i]`` is the run file of
+    ``seeds[i]``): the scatter of the DEM responses (``seed_runs``: one row per seed;
+    ``table``: coefficient of variation and noise floor per response), and whether the
+    closed-loop tolerance is below it."""
+    c = read_card(card, "--card", need=("parameters", "specimen"))
+    if len(runs) != len(seeds):
+        raise BadInput(f"--runs: {len(runs)} run file(s) for {len(seeds)} seed(s); expected "
+                       "one per seed, in the order of --seeds")
+    if max_balls is not None:
+        check_budget(c["parameters"], geometry, max_balls=max_balls,
+                     mem_budget_mb=mem_budget_mb)
+    outputs(*((r, "--runs", H5) for r in runs), (seed_runs, "--seed-runs", CSV),
+            (table, "--table", CSV))
+    output_dirs((cache, "--specimen-cache"))
+    rows = []
+    for s, f in zip(seeds, runs):
+        out = run_ucs_file(f, c["parameters"], int(s), geometry, settings, cache=cache,
+                           threads=threads, keep_particles=False,
+                           genesis_max_steps=genesis_max_steps)
+        r = dict(out.summary, status=out.status)
+        rows.append({"seed": s, "status": r["status"],
+                     **{k: r.get(k, math.nan) for k in (*P.TARGETS, "u_pre_MJm3")}})
+    done = pd.DataFrame(rows)
+    write_table(done, seed_runs, index=False)
+    sc = scatter_table(done[done["status"] == "ok"], rtol=rtol)
+    sc.insert(0, "specimen", c["specimen"])
+    write_table(sc, table)
+    return sc
+
+
+def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
+    """Tables 5 and 6 and Fig. 6 from the verified cards and their best rounds' run files
+    (``runs[i]`` belongs to ``cards[i]``). A card whose closed loop did not run
+    (``not-run``) keeps its row, with empty responses, status ``not-run`` and the reason in
+    ``note``; its Fig. 6 panel says why it has no curve."""
+    if len(runs) != len(cards):
+        raise BadInput(f"--runs: {len(runs)} run file(s) for {len(cards)} card(s); expected "
+                       "one per card, in the same order")
+    loaded = [read_card(c, "--cards", need=("specimen", "parameters", "targets",
+                                            "verification", "lab")) for c in cards]
+    lab_df = read_lab(lab)
+    outputs((table5, "--table5", CSV), (table6, "--table6", CSV), (figure, "--figure", PNG))
+    t5, t6, curves = [], [], {}
+    for c, run in zip(loaded, runs):
+        spec = str(c["specimen"])
+        v = c["verification"]
+        row = {"specimen": spec}
+        ran = v["status"] != "not-run"
+        for which in ("single_pass", "closed_loop"):
+            r = v[which] if ran else None
+            for k in P.TARGETS:
+                row[f"{which}_{k}"] = r[k] if ran else math.nan
+                row[f"{which}_{k}_err_pct"] = r["errors_pct"][k] if ran else math.nan
+        for k in P.TARGETS:
+            row[f"lab_{k}"] = c["targets"][k]
+        row["rounds"] = v["rounds"]
+        row["status"] = v["status"]
+        row["calibration_status"] = c.get("status")
+        row["note"] = "" if ran else v["message"]
+        t5.append(row)
+        up_lab = c["lab"].get("u_pre_MJm3")
+        up_sim = v["closed_loop"]["u_pre_MJm3"] if ran else math.nan
+        t6.append({"specimen": spec, "sim_Up_MJm3": up_sim, "lab_Up_MJm3": up_lab,
+                   "rel_error_pct": (100 * abs(up_sim - up_lab) / up_lab
+                                     if up_lab and ran else math.nan),
+                   "sim_peak_strain": v["closed_loop"]["peak_strain"] if ran else math.nan})
+        curves[spec] = read_series(run) if ran else f"not run: {c.get('status')} calibration"
+    t5 = pd.DataFrame(t5).set_index("specimen")
+    t6 = pd.DataFrame(t6).set_index("specimen")
+    write_table(t5, table5)
+    write_table(t6, table6)
+    save_figure(fig_stress_strain(curves, lab_df), figure)
+    return {"table5": t5, "table6": t6}

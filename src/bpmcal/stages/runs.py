@@ -1,0 +1,296 @@
+"""DEM run files: one virtual lab test (``bpmcal.lab.runner``) written to one HDF5 file
+(``bpmcal.io.h5``), or its failure record.
+
+``run_ucs_file`` is what ``bpmcal ucs`` and the workflow's ``ucs`` and ``sweep_ucs`` rules
+call; ``run_bts_file``, ``run_triaxial_file`` and ``run_impact_file`` the same for the
+other tests. A run that failed (one of ``lab.runner.RUN_FAILURES``: numerical
+instability, a specimen that cannot be built or does not settle, a servo that does not
+converge) produces a *failure record* (status "failed" and the message) instead of an
+exception, so a study is not stopped by one bad sample; any other exception is a bug and
+propagates. A failure record never replaces a good run file: if ``out`` already holds a
+run with status "ok", the record goes beside it as ``NAME.failed.h5`` and the outcome
+says so (``kept``).
+
+``lab_test_file`` and ``impact_file`` are the whole jobs of ``bpmcal ucs|bts|triaxial``
+and ``bpmcal impact``: where the parameters come from (a parameter file or material card,
+``--set`` overrides, or a design row), the resource budget and the output, all checked
+before any work.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .. import params as P
+from ..io.card import card_parameters, check_card, is_card
+from ..io.checks import BadInput, out_dir, out_file, read_csv, read_yaml
+from ..io.h5 import RunFileError, check_run_file, write_run
+from ..lab.brazilian import BTSSettings
+from ..lab.budget import MAX_BALLS, check_budget
+from ..lab.impact import ImpactSettings
+from ..lab.runner import (
+    RUN_FAILURES,
+    Geometry,
+    LabRun,
+    bts_geometry,
+    bts_inputs,
+    bts_test,
+    impact_inputs,
+    impact_test,
+    triaxial_inputs,
+    triaxial_test,
+    ucs_inputs,
+    ucs_test,
+)
+from ..lab.triaxial import TriaxialSettings
+from ..lab.ucs import UCSSettings
+from ..study.sweep import UNREACHABLE
+
+
+@dataclass
+class RunOutcome:
+    status: str
+    summary: dict = field(default_factory=dict)
+    error: str = ""
+    path: object = None
+    kept: object = None  # a good run file left in place (the record went beside it)
+
+
+def failed_path(out):
+    """Where a failure record goes when ``out`` already holds a good run."""
+    out = Path(out)
+    return out.with_name(f"{out.stem}.failed{out.suffix}")
+
+
+def write_failure(out, *, test: str, inputs: dict, error: str, wall_s: float = 0.0
+                  ) -> RunOutcome:
+    """Write a failure record (status "failed", the reason) to ``out``, or beside it if
+    ``out`` is a good run file (never overwrite a good result with a failure)."""
+    out = Path(out)
+    kept = None
+    if out.is_file():
+        try:
+            if check_run_file(out).get("status") == "ok":
+                kept, out = out, failed_path(out)
+        except RunFileError:
+            pass  # not a good run: replace it
+    write_run(out, test=test, inputs=inputs, status="failed", error=error,
+              summary={"wall_s": wall_s})
+    return RunOutcome(status="failed", error=error, path=out, kept=kept)
+
+
+def write_lab_run(out, r: LabRun) -> RunOutcome:
+    """Write a finished test to ``out`` (HDF5, atomically)."""
+    write_run(out, test=r.test, inputs=r.inputs, summary=r.summary, genesis=r.genesis,
+              series=r.series, cracks=r.cracks, particles_initial=r.particles_initial,
+              particles_final=r.particles_final, bonds=r.bonds, groups=r.groups)
+    return RunOutcome(status="ok", summary=r.summary, path=out)
+
+
+def _run_file(out, test: str, inputs: dict, run) -> RunOutcome:
+    """``run()`` -> LabRun written to ``out``, or the failure record of a failed run."""
+    t0 = time.perf_counter()
+    try:
+        r = run()
+    except RUN_FAILURES as e:
+        return write_failure(out, test=test, inputs=inputs, error=f"{type(e).__name__}: {e}",
+                             wall_s=time.perf_counter() - t0)
+    return write_lab_run(out, r)
+
+
+def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
+                 settings: UCSSettings = UCSSettings(), *, cache=None, threads=None,
+                 progress=None, keep_particles: bool = True,
+                 genesis_max_steps: int | None = None) -> RunOutcome:
+    """Run one UCS test and write ``out`` (HDF5). Returns the outcome; unstable runs and
+    unbuildable specimens give status "failed" (and a failure-record file)."""
+    p = P.validate_params(params)  # bad input: raise before any work
+    return _run_file(out, "ucs", ucs_inputs(p, seed, geometry, settings),
+                     lambda: ucs_test(p, seed, geometry, settings, cache=cache,
+                                      threads=threads, progress=progress,
+                                      keep_particles=keep_particles,
+                                      genesis_max_steps=genesis_max_steps))
+
+
+def run_bts_file(out, params: dict, seed: int, geometry: Geometry | None = None,
+                 settings: BTSSettings | None = None, *, cache=None, threads=None,
+                 progress=None, keep_particles: bool = True,
+                 genesis_max_steps: int | None = None) -> RunOutcome:
+    """Run one Brazilian test and write ``out`` (HDF5, test "bts"). ``geometry`` defaults
+    to the ISRM disc 50 x 25 mm at scale 1 (``lab.runner.bts_geometry``)."""
+    st = settings or BTSSettings()
+    geo = geometry or bts_geometry()
+    p = P.validate_params(params)
+    return _run_file(out, "bts", bts_inputs(p, seed, geo, st),
+                     lambda: bts_test(p, seed, geo, st, cache=cache, threads=threads,
+                                      progress=progress, keep_particles=keep_particles,
+                                      genesis_max_steps=genesis_max_steps))
+
+
+def run_triaxial_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
+                      settings: TriaxialSettings | None = None, *, cache=None, threads=None,
+                      progress=None, keep_particles: bool = True,
+                      genesis_max_steps: int | None = None) -> RunOutcome:
+    """Run one triaxial test (sigma3 in ``settings``) and write ``out`` (HDF5, test
+    "triaxial"); the specimen is the UCS cylinder of ``geometry``."""
+    st = settings or TriaxialSettings()
+    p = P.validate_params(params)
+    return _run_file(out, "triaxial", triaxial_inputs(p, seed, geometry, st),
+                     lambda: triaxial_test(p, seed, geometry, st, cache=cache,
+                                           threads=threads, progress=progress,
+                                           keep_particles=keep_particles,
+                                           genesis_max_steps=genesis_max_steps))
+
+
+def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
+                    settings: ImpactSettings | None = None, *, cache=None, threads=None,
+                    progress=None, genesis_max_steps: int | None = None) -> RunOutcome:
+    """Drop-hammer impact on a specimen of the given parameters -> HDF5 file (test
+    "impact"; the same conventions as the UCS run files)."""
+    st = settings or ImpactSettings()
+    p = P.validate_params(params)
+    return _run_file(out, "impact", impact_inputs(p, seed, geometry, st),
+                     lambda: impact_test(p, seed, geometry, st, cache=cache, threads=threads,
+                                         progress=progress,
+                                         genesis_max_steps=genesis_max_steps))
+
+
+# ------------------------------------------------------------------ the run commands
+def parse_set(items) -> dict:
+    """``NAME=VALUE`` overrides (``--set``) as numbers."""
+    out = {}
+    for it in items or []:
+        if "=" not in it:
+            raise P.ParameterError(f"--set {it!r}: expected NAME=VALUE")
+        k, v = it.split("=", 1)
+        k = k.strip()
+        try:
+            out[k] = float(v)
+        except ValueError:
+            raise P.ParameterError(f"--set {k}={v!r}: expected a number") from None
+    return out
+
+
+def load_params(path, overrides=()) -> dict:
+    """Parameters from a YAML file (a flat mapping of the 8 names, or a material card whose
+    ``parameters`` hold them) plus NAME=VALUE overrides, validated (unknown, missing,
+    non-numeric, boolean, NaN or out-of-domain values raise)."""
+    d = {}
+    if path is not None:
+        d = read_yaml(path, "--params")
+        if is_card(d):
+            d = dict(check_card(d, f"--params {path}")["parameters"])
+    d.update(parse_set(overrides))
+    try:
+        return P.validate_params(d)
+    except P.ParameterError as e:
+        raise P.ParameterError(f"--params {path}: {e}" if path is not None else str(e)) from None
+
+
+def params_from_design(path, sample_id) -> tuple[dict, int, str]:
+    """The 8 parameters, the seed and a skip reason ("" to run) of one row of a design CSV.
+    A sweep-plan row with status "unreachable" is not run: its reason is returned and its
+    parameters (NaN strengths) are not validated."""
+    d = read_csv(path, "--design", ["sample_id", *P.PARAMS, "seed"], dtype={"sample_id": str})
+    row = d[d["sample_id"] == sample_id]
+    if len(row) != 1:
+        raise BadInput(f"--sample {sample_id!r}: {'not in' if len(row) == 0 else 'repeated in'} "
+                       f"{path} ({len(d)} samples: {d['sample_id'].iloc[0]}..."
+                       f"{d['sample_id'].iloc[-1]})")
+    r = row.iloc[0]
+    raw = r["seed"].item() if hasattr(r["seed"], "item") else r["seed"]
+    try:
+        seed = float(raw)
+    except (TypeError, ValueError):
+        seed = math.nan
+    if not (math.isfinite(seed) and seed == int(seed) and 0 <= seed < 2 ** 32):
+        raise BadInput(f"--design {path} sample {sample_id}: seed={raw!r}: expected an "
+                       "integer in [0, 2^32)")
+    if "status" in d.columns and str(r["status"]) == UNREACHABLE:
+        reason = r["reason"] if "reason" in d.columns and isinstance(r["reason"], str) else ""
+        return {k: r[k] for k in P.PARAMS}, int(seed), f"not run: unreachable ratio: {reason}"
+    try:
+        params = P.validate_params({k: r[k] for k in P.PARAMS})
+    except P.ParameterError as e:
+        raise P.ParameterError(f"--design {path} sample {sample_id}: {e}") from None
+    return params, int(seed), ""
+
+
+def run_source(*, params_file=None, sets=(), design=None, sample=None, seed=None
+               ) -> tuple[dict, int, str]:
+    """Parameters, packing seed and (for a plan row not to be run) the reason, of a DEM run
+    command: ``params_file`` (+ ``sets``) or a ``design`` row ``sample`` (exclusive)."""
+    skip = ""
+    if design is not None:
+        if sample is None:
+            raise BadInput("--design needs --sample ID (the row to run)")
+        params, row_seed, skip = params_from_design(design, sample)
+        if not skip and sets:
+            params = P.validate_params({**params, **parse_set(sets)})
+        seed = row_seed if seed is None else seed
+    else:
+        if sample is not None:
+            raise BadInput(f"--sample {sample}: needs --design FILE")
+        params = load_params(params_file, sets)
+        seed = 1 if seed is None else seed
+    return params, int(seed), skip
+
+
+def _float_or_nan(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+#: the run file of each test: (inputs of the record, function writing the file)
+_TESTS = {"ucs": (ucs_inputs, run_ucs_file), "bts": (bts_inputs, run_bts_file),
+          "triaxial": (triaxial_inputs, run_triaxial_file)}
+
+
+def lab_test_file(test: str, out, *, geometry, settings, params_file=None, sets=(),
+                  design=None, sample=None, seed=None, max_balls=MAX_BALLS,
+                  mem_budget_mb=None, cache=None, threads=None, progress=None,
+                  genesis_max_steps=None, keep_particles: bool = True) -> RunOutcome:
+    """The job of ``bpmcal ucs|bts|triaxial``: parameters and seed (a parameter file or a
+    design row), the resource budget, the output path and the cache folder, all checked
+    before any work; then the run file, or the failure record of a failed run or of a plan
+    row that is not to be run."""
+    inputs_of, run_file = _TESTS[test]
+    params, seed, skip = run_source(params_file=params_file, sets=sets, design=design,
+                                    sample=sample, seed=seed)
+    if not skip:
+        check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    out_file(out)
+    if cache is not None:
+        out_dir(cache, "--specimen-cache")
+    if skip:
+        inp = inputs_of({k: _float_or_nan(v) for k, v in params.items()}, seed, geometry,
+                        settings)
+        return write_failure(out, test=test, inputs=inp, error=skip)
+    return run_file(out, params, seed, geometry, settings, cache=cache, threads=threads,
+                    progress=progress, keep_particles=keep_particles,
+                    genesis_max_steps=genesis_max_steps)
+
+
+def impact_file(card, out, *, geometry, settings, seed=1, max_balls=MAX_BALLS,
+                mem_budget_mb=None, cache=None, threads=None, progress=None,
+                genesis_max_steps=None) -> RunOutcome:
+    """The job of ``bpmcal impact``: the parameters of ``card`` (a verified card's closed
+    loop, else its calibration, or a flat mapping of the 8 parameters), checked with the
+    budget, the output and the cache folder before any work; then the run file."""
+    d = read_yaml(card, "--card")
+    if is_card(d) or "verification" in d:
+        d = card_parameters(check_card(d, f"--card {card}"))
+    try:
+        params = P.validate_params(d)
+    except P.ParameterError as e:
+        raise P.ParameterError(f"--card {card}: {e}") from None
+    check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    out_file(out)
+    if cache is not None:
+        out_dir(cache, "--specimen-cache")
+    return run_impact_file(out, params, seed, geometry, settings, cache=cache, threads=threads,
+                           progress=progress, genesis_max_steps=genesis_max_steps)

@@ -1,0 +1,40 @@
+"""The spine of the study (``workflow/rules/study.smk``): the design, and the dataset
+gathered from one UCS run file per sample (the runs themselves: ``stages.runs``)."""
+from __future__ import annotations
+
+import pandas as pd
+
+from .. import params as P
+from ..io.checks import BadInput, out_file, read_csv
+from ..io.tables import write_csv
+from ..study.design import lhs_design, validate_ranges
+from ..study.gather import gather as gather_rows
+from ..study.gather import status_report
+from .inputs import check_ids, runs_by_id
+
+
+def design(ranges: dict, n: int, seed: int, out, *, optimization: str | None = "random-cd"
+           ) -> pd.DataFrame:
+    """Latin-hypercube design over ``ranges`` (paper units) -> ``out`` (CSV)."""
+    if not isinstance(ranges, dict):
+        raise BadInput(f"--ranges {ranges!r}: expected a JSON object "
+                       '{"name": [low, high], ...}')
+    validate_ranges(ranges)
+    out_file(out, suffixes=(".csv",))
+    df = lhs_design(ranges, n, seed, optimization=optimization)
+    write_csv(df, out)
+    return df
+
+
+def gather(design_csv, runs, out) -> tuple[pd.DataFrame, str]:
+    """One row per design sample from its run file (``runs``: the files, named
+    ``<sample_id>.h5``) -> ``out`` (the dataset CSV); a sample without a run file is
+    "missing", an unreadable one "unreadable". Returns the table and a status report."""
+    d = read_csv(design_csv, "--design", ["sample_id", *P.PARAMS, "seed"],
+                 dtype={"sample_id": str})
+    check_ids(d["sample_id"], f"--design {design_csv}")
+    files = runs_by_id(runs, "--runs", ids=list(d["sample_id"]))
+    out_file(out, suffixes=(".csv",))
+    df = gather_rows(d, files)
+    write_csv(df, out)
+    return df, status_report(df)

@@ -1,0 +1,190 @@
+"""Brazilian test: scaling law, loading rate, platen balance, sigma_t against sigma_c, the
+split along the loaded diameter, the run file and the command line."""
+import json
+import math
+import time
+import xml.etree.ElementTree as ET
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from lab_util import A1, FAST, SMALL
+
+from bpmcal.cli import main
+from bpmcal.dem.errors import InputError
+from bpmcal.io import h5
+from bpmcal.io.vtk import export_run
+from bpmcal.lab.brazilian import BTSSettings, analyse, run_bts, tensile_strength
+from bpmcal.lab.runner import bts_geometry, make_specimen
+from bpmcal.lab.ucs import run_ucs
+
+#: the smallest ISRM disc the genesis accepts with Rmin 0.8 mm: 16 x 8 mm (~200 balls)
+DISC = bts_geometry(scale=0.32)
+SEED = 2
+DEFAULT = BTSSettings()
+
+
+def scaled(p, k):
+    return dict(p, pb_emod_GPa=p["pb_emod_GPa"] * k, pb_ten_MPa=p["pb_ten_MPa"] * k,
+                pb_coh_MPa=p["pb_coh_MPa"] * k)
+
+
+def bts(params, cache, seed=SEED, **kw):
+    sp = make_specimen(params, seed, DISC, cache=cache, boundary="free")
+    return run_bts(sp, BTSSettings(**kw)), sp
+
+
+@pytest.fixture(scope="module")
+def base(cache, tmp_path_factory):
+    """The A1 disc at the default settings, through the command line (one HDF5 file)."""
+    d = tmp_path_factory.mktemp("bts")
+    pf = d / "a1.yaml"
+    pf.write_text("\n".join(f"{k}: {v}" for k, v in A1.items()))
+    f = d / "a1.h5"
+    assert main(["bts", "--params", str(pf), "--out", str(f), "--scale", str(DISC.scale),
+                 "--seed", str(SEED), "--specimen-cache", str(cache), "--quiet"]) == 0
+    ser = h5.read_series(f)
+    return SimpleNamespace(summary=h5.read_summary(f), path=f,
+                           series={k: ser[k].to_numpy() for k in ser})
+
+
+def test_disc_geometry_is_the_isrm_disc_scaled_like_the_cylinder(base):
+    inp = h5.read_inputs(base.path)
+    assert inp["diameter_mm"] == pytest.approx(50 * 0.32)
+    assert inp["thickness_mm"] == pytest.approx(25 * 0.32) == inp["height_mm"]
+    s = base.summary
+    assert s["test"] == "bts" and s["status"] == "ok"
+    assert s["diameter_mm"] == pytest.approx(16.0) and s["thickness_mm"] == pytest.approx(8.0)
+    assert s["platen_velocity"] == DEFAULT.platen_velocity
+
+
+def test_sigma_t_is_2P_over_pi_D_t_of_the_peak_mean_platen_load(base):
+    s, ser = base.summary, base.series
+    P = 0.5 * (ser["load_bottom"] + ser["load_top"])
+    assert np.allclose(ser["load"], P)
+    ip = int(np.argmax(P))
+    D, t = 16e-3, 8e-3
+    assert s["bts_MPa"] == pytest.approx(2 * P[ip] / (math.pi * D * t) / 1e6, rel=1e-12)
+    assert s["stop_reason"] == "post_peak_drop"
+    # the split: the load collapses after the peak
+    assert ser["load"][-1] < DEFAULT.stop_drop * P[ip]
+
+
+def test_the_two_platen_forces_agree(base):
+    """Quasi-static loading: the two platens carry the same load (no net force on the
+    disc) at the peak and along the pre-peak curve once the load is established; only
+    the stress waves of single bond breaks near one platen separate them for a moment."""
+    s, ser = base.summary, base.series
+    assert s["platen_mismatch"] < 0.005
+    ip = int(np.argmax(ser["load"]))
+    up = slice(0, ip + 1)
+    loaded = ser["load"][up] > 0.2 * ser["load"][ip]
+    rel = np.abs(ser["load_bottom"][up] - ser["load_top"][up])[loaded] / ser["load"][up][loaded]
+    assert rel.size > 100
+    assert rel.mean() < 0.005 and np.percentile(rel, 95) < 0.01, (rel.mean(), rel.max())
+
+
+def test_the_disc_splits_along_the_loaded_diameter(base):
+    """The cracks of a Brazilian test line up with the loading axis (y): most lie in the
+    strip |x| < D/6 around the loaded diameter."""
+    cr = h5.read_cracks(base.path)
+    ini = h5.read_particles(base.path, "initial")
+    xc = ini["position"][:, 0].mean()
+    assert len(cr) >= 20
+    assert np.mean(np.abs(cr["x"] - xc) < 16e-3 / 6) > 0.6
+
+
+def test_sigma_t_is_positive_and_below_sigma_c_for_the_a1_set(base, cache):
+    u = run_ucs(make_specimen(A1, SEED, SMALL, cache=cache), FAST).summary
+    st = base.summary["bts_MPa"]
+    assert 0 < st < u["ucs_MPa"]
+    # the parallel-bond model's known weakness (Potyondy & Cundall 2004): sigma_c/sigma_t
+    # far below the 10-20 of rocks
+    assert 2 < u["ucs_MPa"] / st < 15
+
+
+def test_scaling_moduli_and_strengths_by_1_5_scales_sigma_t_by_1_5(base, cache):
+    r, _ = bts(scaled(A1, 1.5), cache)
+    assert r.summary["bts_MPa"] / base.summary["bts_MPa"] == pytest.approx(1.5, rel=0.03)
+    # strains do not change: the same diametral strain at the peak
+    assert r.summary["peak_strain"] == pytest.approx(base.summary["peak_strain"], rel=0.03)
+
+
+@pytest.mark.slow
+def test_halving_the_default_platen_speed_changes_sigma_t_by_less_than_2_percent(base, cache):
+    r, _ = bts(A1, cache, platen_velocity=0.5 * DEFAULT.platen_velocity)
+    assert r.summary["bts_MPa"] == pytest.approx(base.summary["bts_MPa"], rel=0.02)
+
+
+def test_analyse_against_a_closed_form_load_curve():
+    """A parabolic load-displacement curve with a known peak and platen loads that differ
+    by a known 1 %: sigma_t = 2 P / (pi D t), the peak position and the mismatch."""
+    D, t, Pp, dp = 0.05, 0.025, 20e3, 2e-4
+    d = np.linspace(0, 1.5 * dp, 301)
+    P = np.where(d <= dp, Pp * (1 - (1 - d / dp) ** 2), Pp * (1 - 2 * (d / dp - 1)))
+    ser = {"load": P, "load_bottom": 1.005 * P, "load_top": 0.995 * P, "displacement": d,
+           "diametral_strain": d / D, "cracks_tension": np.arange(d.size),
+           "cracks_shear": np.zeros(d.size, int)}
+    r = analyse(ser, D, t)
+    assert r["bts_MPa"] == pytest.approx(2 * Pp / (math.pi * D * t) / 1e6, rel=1e-12)
+    assert r["peak_displacement_mm"] == pytest.approx(dp * 1e3, rel=1e-9)
+    assert r["platen_mismatch"] == pytest.approx(0.01, rel=1e-9)
+    assert float(tensile_strength(1.0, 2.0, 1.0 / math.pi)) == pytest.approx(1.0)
+
+
+def test_summary_json_and_vtk_of_a_run_file(base, tmp_path, capsys):
+    assert main(["summary", str(base.path), "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["bts_MPa"] == pytest.approx(base.summary["bts_MPa"]) and d["bts_MPa"] > 0
+    files = {f.name for f in export_run(base.path, tmp_path / "vtk")}
+    assert {"particles_initial.vtp", "particles_final.vtp", "cracks.vtp", "run.pvd"} <= files
+    root = ET.parse(tmp_path / "vtk" / "cracks.vtp").getroot().find("PolyData/Piece")
+    assert int(root.get("NumberOfPoints")) == d["cracks_tension"] + d["cracks_shear"]
+
+
+def test_settings_refuse_bad_values():
+    for kw, needle in [(dict(platen_velocity=-1.0), "platen_velocity=-1.0"),
+                       (dict(platen_fric=float("nan")), "platen_fric=nan"),
+                       (dict(stop_drop=1.5), "stop_drop=1.5"),
+                       (dict(seat_stress=0.0), "seat_stress=0.0")]:
+        with pytest.raises(InputError, match=needle):
+            BTSSettings(**kw)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--platen-velocity", "abc"], "platen-velocity"),
+    (["--platen-fric", "-1"], "platen-fric='-1'"),
+    (["--set", "pb_ten_MPa=abc"], "pb_ten_MPa"),
+    (["--set", "porosity=0.95"], "porosity=0.95"),
+])
+def test_cli_rejects_bad_input_and_writes_no_file(tmp_path, capsys, args, needle):
+    pf = tmp_path / "p.yaml"
+    pf.write_text("\n".join(f"{k}: {v}" for k, v in A1.items()))
+    out = tmp_path / "o.h5"
+    t0 = time.perf_counter()
+    try:
+        rc = main(["bts", "--params", str(pf), "--out", str(out), *args])
+    except SystemExit as e:  # argparse's own type errors (usage line + error line)
+        rc = e.code
+    assert rc == 2 and time.perf_counter() - t0 < 5
+    assert needle in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_cli_defaults_are_the_settings_defaults():
+    """One source of truth: the command line's defaults are the dataclasses' defaults."""
+    from bpmcal.cli import build_parser
+    from bpmcal.lab.triaxial import TriaxialSettings
+
+    ap = build_parser()
+    sub = ap._subparsers._group_actions[0].choices
+    b = {a.dest: a.default for a in sub["bts"]._actions}
+    for k in ("platen_velocity", "platen_fric", "damping", "stop_drop", "max_strain",
+              "record_strain"):
+        assert b[k] == getattr(DEFAULT, k), k
+    t = {a.dest: a.default for a in sub["triaxial"]._actions}
+    tx = TriaxialSettings()
+    assert t["servo_gain"] == tx.servo_alpha and t["servo_interval"] == tx.servo_interval
+    for k in ("platen_velocity", "damping", "stop_drop", "max_strain", "platen_fric",
+              "record_strain"):
+        assert t[k] == getattr(tx, k), k

@@ -1,0 +1,187 @@
+"""One source of defaults: the settings dataclasses (Geometry, UCSSettings, ImpactSettings,
+...), the analysis classes and the stage functions hold every default; the ``bpmcal``
+command takes its defaults from them, and the config schema's defaults are compared with
+them here. The schema's parameter limits are compared with the physical domains of
+``bpmcal.params`` (one domain checker)."""
+import math
+from pathlib import Path
+
+import pytest
+import yaml
+
+from bpmcal import params as P
+from bpmcal.analysis import DEFAULT_FREE, PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
+from bpmcal.cli import build_parser
+from bpmcal.lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
+from bpmcal.lab.impact import ImpactSettings
+from bpmcal.lab.runner import Geometry
+from bpmcal.lab.ucs import UCSSettings
+from bpmcal.stages import defaults_of
+from bpmcal.stages.analysis import calibrate, verify
+from bpmcal.stages.fracture import sweep_analyse, sweep_plan
+from bpmcal.stages.runs import impact_file
+from bpmcal.study.design import lhs_design
+from bpmcal.study.sweep import DEFAULT_RATIOS
+
+REPO = Path(__file__).resolve().parents[2]
+SCHEMA = yaml.safe_load((REPO / "workflow" / "schemas" / "config.schema.yaml").read_text())
+
+GEO, UCS, IMP = Geometry(), UCSSettings(), ImpactSettings()
+SCR, REG, LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
+CAL, VER = defaults_of(calibrate), defaults_of(verify)
+
+
+def _ratios(text):
+    return [float(x) for x in text.split(",")]
+
+
+#: schema key -> (the default's source, the CLI option that sets it: (command, dest,
+#: conversion of the CLI value to the schema's units) or None)
+DEFAULTS = {
+    "specimen.diameter_mm": (GEO.diameter_mm, ("ucs", "diameter", None)),
+    "specimen.height_mm": (GEO.height_mm, ("ucs", "height", None)),
+    "specimen.sigma0_MPa": (GEO.sigma0_MPa, ("ucs", "sigma0", None)),
+    "specimen.install_gap_mm": (GEO.install_gap_mm, ("ucs", "install_gap", None)),
+    "specimen.relax_ratio": (GEO.relax_ratio, ("ucs", "relax_ratio", None)),
+    "ucs.platen_velocity": (UCS.platen_velocity, ("ucs", "platen_velocity", None)),
+    "ucs.damping": (UCS.damping, ("ucs", "damping", None)),
+    "ucs.stop_drop": (UCS.stop_drop, ("ucs", "stop_drop", None)),
+    "ucs.max_strain": (UCS.max_strain, ("ucs", "max_strain", None)),
+    "ucs.platen_fric": (UCS.platen_fric, ("ucs", "platen_fric", None)),
+    "ucs.record_strain": (UCS.record_strain, ("ucs", "record_strain", None)),
+    "resources.max_balls": (MAX_BALLS, ("ucs", "max_balls", None)),
+    "resources.genesis_max_steps": (GENESIS_MAX_STEPS, ("ucs", "genesis_max_steps", None)),
+    "study.lhs_optimization": (defaults_of(lhs_design)["optimization"],
+                               ("design", "optimization", None)),
+    "screening.threshold_pct": (SCR["threshold"], ("screen", "threshold", None)),
+    "screening.importance": (SCR["select_by"], ("screen", "importance", None)),
+    "screening.n_splits": (SCR["n_splits"], ("screen", "splits", None)),
+    "screening.n_repeats": (SCR["n_repeats"], ("screen", "repeats", None)),
+    "screening.seed": (SCR["seed"], ("screen", "seed", None)),
+    "regression.alpha_in": (REG["alpha_in"], ("regress", "alpha_in", None)),
+    "regression.alpha_out": (REG["alpha_out"], ("regress", "alpha_out", None)),
+    "regression.vif_max": (REG["vif_max"], ("regress", "vif_max", None)),
+    "regression.hierarchy": (REG["hierarchy"], ("regress", "hierarchy", None)),
+    "regression.cv_folds": (REG["cv_folds"], ("regress", "cv_folds", None)),
+    "regression.cv_repeats": (REG["cv_repeats"], ("regress", "cv_repeats", None)),
+    "regression.seed": (REG["seed"], ("regress", "seed", None)),
+    "calibration.free": (list(DEFAULT_FREE), None),
+    "calibration.ratio": (PAPER_RATIO, ("calibrate", "ratio", None)),
+    "calibration.n_boot": (CAL["n_boot"], ("calibrate", "n_boot", None)),
+    "calibration.seed": (CAL["seed"], ("calibrate", "seed", None)),
+    "verification.rtol": (LOOP["rtol"], ("verify", "rtol", None)),
+    "verification.max_rounds": (LOOP["max_rounds"], ("verify", "max_rounds", None)),
+    "verification.seed": (VER["seed"], ("verify", "seed", None)),
+    "verification.from_unreachable": (VER["from_unreachable"],
+                                      ("verify", "from_unreachable", None)),
+    "ratio_sweep.ratios": (list(DEFAULT_RATIOS), ("sweep-plan", "ratios", _ratios)),
+    "ratio_sweep.criterion": (defaults_of(sweep_analyse)["criterion"],
+                              ("sweep-analyse", "criterion", None)),
+    "ratio_sweep.target": (defaults_of(sweep_analyse)["target"],
+                           ("sweep-analyse", "target", None)),
+    "ratio_sweep.seed": (defaults_of(sweep_plan)["seed"], ("sweep-plan", "seed", None)),
+    "impact.scale": (GEO.scale, ("impact", "scale", None)),
+    "impact.velocity": (IMP.velocity, ("impact", "velocity", None)),
+    "impact.hammer_mass_kg": (IMP.hammer_mass, ("impact", "hammer_mass", None)),
+    "impact.dp_ratio": (IMP.dp_ratio, ("impact", "dp_ratio", None)),
+    "impact.anvil_fric": (IMP.platen_fric, ("impact", "anvil_fric", None)),
+    "impact.duration_ms": (IMP.duration * 1e3, ("impact", "duration_ms", None)),
+    "impact.record_us": (IMP.record_dt * 1e6, ("impact", "record_us", None)),
+    "impact.seed": (defaults_of(impact_file)["seed"], ("impact", "seed", None)),
+}
+
+#: schema defaults that only the study has (no command option or dataclass sets them)
+STUDY_ONLY = {
+    "study.reference",  # which published study the report compares with
+    "resources.ucs_threads", "resources.ucs_runtime_min", "resources.ucs_mem_mb",  # Slurm
+    "calibration.bounds",  # {} = no narrowing; the stage's bounds=None means the same
+    "verification.scatter_seeds",  # the seeds of the scatter job
+    "ratio_sweep.enabled",  # whether the DAG has the sweep
+    "impact.sweep_velocities",  # the velocity sweep's extra runs
+}
+
+
+def schema_defaults(node=SCHEMA, key=""):
+    """Every (dotted key, default) of the schema."""
+    out = {}
+    for name, sub in node.get("properties", {}).items():
+        k = f"{key}.{name}" if key else name
+        if "default" in sub:
+            out[k] = sub["default"]
+        out.update(schema_defaults(sub, k))
+    return out
+
+
+def cli_default(cmd, dest):
+    p = build_parser(only=cmd)._subparsers._group_actions[0].choices[cmd]
+    return next(a.default for a in p._actions if a.dest == dest)
+
+
+def same(a, b):
+    if isinstance(a, float) or isinstance(b, float):
+        return math.isclose(float(a), float(b), rel_tol=1e-12)
+    return a == b and type(a) is type(b) or (isinstance(a, list) and list(a) == list(b))
+
+
+def test_every_schema_default_has_a_source():
+    have = set(schema_defaults())
+    assert have - set(DEFAULTS) - STUDY_ONLY == set(), "schema defaults with no source"
+    assert set(DEFAULTS) - have == set(), "sources for keys without a schema default"
+
+
+@pytest.mark.parametrize("key", sorted(DEFAULTS))
+def test_schema_cli_and_settings_defaults_agree(key):
+    source, cli = DEFAULTS[key]
+    schema = schema_defaults()[key]
+    assert same(schema, source), f"{key}: schema {schema!r}, settings {source!r}"
+    if cli is not None:
+        cmd, dest, conv = cli
+        v = cli_default(cmd, dest)
+        v = conv(v) if conv else v
+        assert same(v, source), f"{key}: bpmcal {cmd} --{dest} {v!r}, settings {source!r}"
+
+
+def test_the_two_known_disagreements_are_settled_as_the_study_runs():
+    """ImpactSettings said 5 ms / 10 us where the CLI and the schema said 10 ms / 5 us, and
+    ClosedLoop 6 rounds where the study runs 5: the study's values are the defaults."""
+    assert IMP.duration == pytest.approx(10e-3) and IMP.record_dt == pytest.approx(5e-6)
+    assert LOOP["max_rounds"] == 5
+    cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    assert cfg["impact"]["duration_ms"] == 10.0 and cfg["impact"]["record_us"] == 5.0
+    assert cfg["verification"]["max_rounds"] == LOOP["max_rounds"]
+
+
+def test_the_check_can_fail(monkeypatch):
+    assert not same(0.05, 0.1) and not same("gain", "shap") and not same(5, 6)
+    monkeypatch.setitem(DEFAULTS, "ucs.damping", (0.8, ("ucs", "damping", None)))
+    with pytest.raises(AssertionError):
+        test_schema_cli_and_settings_defaults_agree("ucs.damping")
+
+
+# ------------------------------------------------------------------------ domains
+def _limits(item: dict):
+    """(low, low open, high, high open) of a JSON-schema number."""
+    lo, lo_open = item.get("minimum"), False
+    if "exclusiveMinimum" in item:
+        lo, lo_open = item["exclusiveMinimum"], True
+    hi, hi_open = item.get("maximum"), False
+    if "exclusiveMaximum" in item:
+        hi, hi_open = item["exclusiveMaximum"], True
+    return lo, lo_open, hi, hi_open
+
+
+@pytest.mark.parametrize("name", list(P.PARAMS))
+def test_schema_parameter_limits_are_the_physical_domain(name):
+    """A fixed value and a range of the config accept exactly what ``bpmcal`` accepts for
+    the parameter (``params.PARAMS``), except that a range may cap an unbounded domain."""
+    p = P.PARAMS[name]
+    props = SCHEMA["properties"]
+    fixed = props["calibration"]["properties"]["fixed"]["properties"][name]
+    rng = props["ranges"]["properties"][name]["items"]
+    for where, item in (("calibration.fixed", fixed), ("ranges", rng)):
+        lo, lo_open, hi, hi_open = _limits(item)
+        assert (lo, lo_open) == (p.phys_lo, p.lo_open), f"{where}.{name}: low end"
+        if math.isfinite(p.phys_hi):
+            assert (hi, hi_open) == (p.phys_hi, p.hi_open), f"{where}.{name}: high end"
+        else:
+            assert hi is None or hi > p.hi, f"{where}.{name}: a cap below Table 2"
