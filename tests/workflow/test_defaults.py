@@ -43,6 +43,7 @@ DEFAULTS = {
     "specimen.sigma0_MPa": (GEO.sigma0_MPa, ("ucs", "sigma0", None)),
     "specimen.install_gap_mm": (GEO.install_gap_mm, ("ucs", "install_gap", None)),
     "specimen.relax_ratio": (GEO.relax_ratio, ("ucs", "relax_ratio", None)),
+    "specimen.genesis": (GEO.genesis, ("ucs", "genesis", None)),
     "ucs.platen_velocity": (UCS.platen_velocity, ("ucs", "platen_velocity", None)),
     "ucs.damping": (UCS.damping, ("ucs", "damping", None)),
     "ucs.stop_drop": (UCS.stop_drop, ("ucs", "stop_drop", None)),
@@ -185,3 +186,12 @@ def test_schema_parameter_limits_are_the_physical_domain(name):
             assert (hi, hi_open) == (p.phys_hi, p.hi_open), f"{where}.{name}: high end"
         else:
             assert hi is None or hi > p.hi, f"{where}.{name}: a cap below Table 2"
+
+
+def test_the_cli_offers_the_geneses_of_the_specimen_module():
+    """``bpmcal.cli`` names the geneses without importing the engine (fast ``--help``);
+    they must be those ``lab.specimen`` builds."""
+    from bpmcal import cli
+    from bpmcal.lab.specimen import GENESES
+
+    assert tuple(cli.GENESES) == tuple(GENESES)
