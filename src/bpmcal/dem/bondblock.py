@@ -45,7 +45,8 @@ _S = iter(range(100))
 S_FN, S_SX, S_SY, S_SZ = next(_S), next(_S), next(_S), next(_S)  # bond normal/shear force
 S_MT, S_BX, S_BY, S_BZ = next(_S), next(_S), next(_S), next(_S)  # bond twist/bending moment
 S_LX, S_LY, S_LZ = next(_S), next(_S), next(_S)  # shear force of the linear component
-S_RG = next(_S)  # reference gap of the linear component [m]
+S_RG = next(_S)  # reference gap of the linear component [m]; max(rg, 0) once a broken
+#                  pair's surfaces are apart (re-contact starts at first touch)
 S_FLAGS = next(_S)  # 3.0 intact; broken: 1.0 if the linear part carried force last step, else 0
 S_DFX, S_DFY, S_DFZ = next(_S), next(_S), next(_S)  # dashpot force of the last step (last:
 #                     untouched without dashpots, so the rows read every step are contiguous)
@@ -206,6 +207,9 @@ def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, ta
         sb[S_LY * STR + ll] = uy
         sb[S_LZ * STR + ll] = uz
         sb[S_FLAGS * STR + ll] = FLAG_INTACT if intact else (FLAG_ACTIVE if lact else 0.0)
+        # re-contact at first touch (PFC): once the surfaces of a broken pair are apart,
+        # a negative reference gap (locked-in stress relief) no longer applies
+        sb[S_RG * STR + ll] = rg if (intact or gap < 0.0) else max(rg, 0.0)
         kfn = fnb if keep else 0.0
         ksx = sbx if keep else 0.0
         ksy = sby if keep else 0.0

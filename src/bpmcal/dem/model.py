@@ -666,7 +666,10 @@ class Model:
         return self.P.pi[:nb].astype(np.int32), self.P.pj[:nb].astype(np.int32)
 
     def set_bond_rgap(self, rgap):
-        """Reference gaps [m] of the linear component of the bond pairs (PFC ``rgap``)."""
+        """Reference gaps [m] of the linear component of the bond pairs (PFC ``rgap``).
+        Once a bond has broken and its surfaces are apart (gap >= 0), a negative reference
+        gap is set to 0: a broken pair that comes back into contact is repelled from the
+        first touch, as in PFC."""
         rg = np.asarray(rgap, float).reshape(-1)
         if rg.shape != (self.n_bonds,) or not np.all(np.isfinite(rg)):
             raise InputError(f"rgap: expected {self.n_bonds} finite values, got shape {rg.shape}")
