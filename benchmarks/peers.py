@@ -148,9 +148,9 @@ def table(cases, peers) -> str:
     def m(x):
         return "–" if x is None else f"{x / 1e6:.2f}"
 
-    head = "| N | threads | bpmcal bonded | " + " | ".join(
-        f"{'LAMMPS frictional' if p == 'lammps' else 'YADE bonded'} | bpmcal / {p}"
-        for p in peers) + " | bpmcal cpu (1 thread) | 1-min load |"
+    head = "| N | threads | bpmcal bonded | " + "".join(
+        f"{'LAMMPS frictional' if p == 'lammps' else 'YADE bonded'} | bpmcal / {p} | "
+        for p in peers) + "bpmcal cpu (1 thread) | 1-min load |"
     sep = "|" + "---|" * (head.count("|") - 1)
     rows = [head, sep]
     one = {c["n"]: c for c in cases if c["threads"] == 1}
