@@ -35,12 +35,14 @@ localrules:
     sweep_plan,
     sweep_analyse,
     impact_analyse,
+    triaxial_envelopes,
     report,
 
 
 include: "workflow/rules/study.smk"
 include: "workflow/rules/analysis.smk"
 include: "workflow/rules/fracture.smk"
+include: "workflow/rules/triaxial.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -55,4 +57,5 @@ rule all:
         rules.seed_scatter.output,
         rules.sweep_analyse.output if SWEEP_ON else [],
         rules.impact_analyse.output,
+        rules.triaxial_envelopes.output if TRIAX_ON else [],
         rules.report.output,

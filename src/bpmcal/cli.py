@@ -284,6 +284,32 @@ def cmd_vtables(a) -> int:
     return 0
 
 
+def cmd_envelopes(a) -> int:
+    from .stages.triaxial import envelopes
+
+    r = envelopes(a.cards, a.runs, sigma3=a.sigma3, table=a.table, points=a.points,
+                  figure=a.figure, lab=a.lab, lab_triaxial=a.lab_triaxial,
+                  lab_table=a.lab_table)
+    cols = ["specimen", "card", "runs_ok", "runs", "c_MPa", "phi_deg", "mi", "sigma_c_MPa",
+            "sigma_t_MPa", "note"]
+    print(r["envelopes"].reindex(columns=cols).to_string(index=False))
+    return 0
+
+
+def _sigma3_list(text) -> list[float]:
+    """--sigma3 of ``bpmcal envelopes``: comma-separated confining stresses >= 0 [MPa]."""
+    import math
+
+    try:
+        vals = [float(x) for x in str(text).split(",")]
+    except ValueError:
+        vals = []
+    if not vals or any(not (math.isfinite(v) and v >= 0) for v in vals):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected comma-separated confining "
+                                         "stresses >= 0 in MPa, e.g. 0,5,10,20")
+    return vals
+
+
 def _ratios(text) -> tuple[float, float, float]:
     try:
         start, stop, step = (float(x) for x in text.split(","))
@@ -726,6 +752,29 @@ def _add_vtables(p):
     p.set_defaults(func=cmd_vtables)
 
 
+def _add_envelopes(p):
+    from .stages.triaxial import DEFAULT_SIGMA3_MPA
+
+    _file(p, "--cards", "material cards (calibrated or verified)", nargs="+")
+    _file(p, "--runs", "their triaxial run files: for each card, one per --sigma3, in order",
+          nargs="+")
+    p.add_argument("--sigma3", type=_sigma3_list,
+                   default=list(DEFAULT_SIGMA3_MPA), metavar="MPA,MPA,...",
+                   help="the confining stresses of each card's runs [MPa] (default "
+                        f"{','.join(f'{x:g}' for x in DEFAULT_SIGMA3_MPA)})")
+    p.add_argument("--lab", default=None,
+                   help="the lab CSV: --lab-triaxial's specimens must be among its specimens")
+    p.add_argument("--lab-triaxial", default=None,
+                   help="lab triaxial points (CSV: specimen, sigma3_MPa, sigma1_MPa)")
+    _file(p, "--table", "output table: envelopes per card")
+    _file(p, "--points", "output table: every run, ok or failed")
+    _file(p, "--figure", "output figure: sigma1 vs sigma3 with the envelopes")
+    p.add_argument("--lab-table", default=None,
+                   help="output table: the lab points against each card's envelopes "
+                        "(with --lab-triaxial)")
+    p.set_defaults(func=cmd_envelopes)
+
+
 def _add_sweep_plan(p):
     from .stages.fracture import sweep_plan
 
@@ -804,6 +853,8 @@ COMMANDS = {
     "verify": ("closed-loop DEM verification of a material card", _add_verify, False),
     "scatter": ("one card, several packing seeds: DEM scatter", _add_scatter, False),
     "verification-tables": ("Tables 5 and 6 and Fig. 6", _add_vtables, False),
+    "envelopes": ("triaxial strength envelopes (Mohr-Coulomb, Hoek-Brown) per card",
+                  _add_envelopes, False),
     "sweep-plan": ("bond-strength-ratio sweep: one row per ratio", _add_sweep_plan, False),
     "sweep-analyse": ("crack counts per ratio, the chosen ratio", _add_sweep_analyse, False),
     "impact-analyse": ("impact energy table, Fig. 7, t10-Ecs and JK fit", _add_impact_analyse,

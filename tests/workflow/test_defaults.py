@@ -15,11 +15,13 @@ from bpmcal.cli import build_parser
 from bpmcal.lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
 from bpmcal.lab.impact import ImpactSettings
 from bpmcal.lab.runner import Geometry
+from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.stages import defaults_of
 from bpmcal.stages.analysis import calibrate, verify
 from bpmcal.stages.fracture import sweep_analyse, sweep_plan
 from bpmcal.stages.runs import impact_file
+from bpmcal.stages.triaxial import DEFAULT_SIGMA3_MPA
 from bpmcal.study.design import lhs_design
 from bpmcal.study.sweep import DEFAULT_RATIOS
 
@@ -89,6 +91,8 @@ DEFAULTS = {
     "impact.duration_ms": (IMP.duration * 1e3, ("impact", "duration_ms", None)),
     "impact.record_us": (IMP.record_dt * 1e6, ("impact", "record_us", None)),
     "impact.seed": (defaults_of(impact_file)["seed"], ("impact", "seed", None)),
+    "triaxial.sigma3_MPa": (list(DEFAULT_SIGMA3_MPA), ("envelopes", "sigma3", None)),
+    "triaxial.servo_gain": (TriaxialSettings().servo_alpha, ("triaxial", "servo_gain", None)),
 }
 
 #: schema defaults that only the study has (no command option or dataclass sets them)
@@ -99,6 +103,10 @@ STUDY_ONLY = {
     "verification.scatter_seeds",  # the seeds of the scatter job
     "ratio_sweep.enabled",  # whether the DAG has the sweep
     "impact.sweep_velocities",  # the velocity sweep's extra runs
+    "triaxial",  # the section itself ({}: a config without it gets the defaults below)
+    "triaxial.enabled", "triaxial.cards",  # whether and which cards the DAG tests
+    "triaxial.seed",  # packing seed of the study's triaxial jobs (bpmcal triaxial: 1 too)
+    "triaxial.lab_csv",  # optional lab points (null: none)
 }
 
 

@@ -62,6 +62,7 @@ def test_lab_csv_comment_lines_are_skipped(tmp_path):
     assert lab["specimen"].tolist() == ["R1"] and lab.loc[0, "ucs_MPa"] == 150.5
     cfg = merged(*EXAMPLE)
     cfg["lab"]["csv"] = str(f)
+    cfg["triaxial"]["lab_csv"] = None  # the example's triaxial points are LdB's, not R1's
     validate_config(cfg, SCHEMA, base_dir=REPO)  # accepted by the config validation
     assert "# Lac du Bonnet" in (REPO / "config/lab/lac_du_bonnet.csv").read_text()
 
@@ -339,3 +340,28 @@ def test_example_report_has_no_paper_column(example):
     html = (out / "report.html").read_text(errors="replace")
     assert "calibration of the rock in" in html and "the configured ranges" in html
     assert "the paper: 50" not in html and "side-by-side comparison" not in html
+
+
+@pytest.mark.slow
+def test_example_compares_its_triaxial_points_with_the_card(example):
+    """The example's lab triaxial points (on P&C's published Hoek-Brown envelope for LdB,
+    sigma_c 200 MPa, m 28.9) against the verified card's envelopes: one row per point,
+    finite errors where the card has an envelope; the lab's own fit recovers the published
+    envelope from the rounded points; the report shows the comparison."""
+    out, cfg = example
+    lab = pd.read_csv(REPO / cfg["triaxial"]["lab_csv"], comment="#")
+    env = pd.read_csv(out / "tables" / "triaxial_envelopes.csv").set_index("card")
+    own = env.loc["lab"]
+    assert own["mi"] == pytest.approx(28.9, rel=5e-3)
+    assert own["hb_sigma_ci_MPa"] == pytest.approx(200.0, rel=1e-3)
+    comp = pd.read_csv(out / "tables" / "triaxial_lab.csv")
+    assert len(comp) == len(lab) * len(cfg["triaxial"]["cards"])
+    assert sorted(comp["sigma3_MPa"]) == sorted(lab["sigma3_MPa"])
+    card = env.loc["verified"]
+    if np.isfinite(card["mc_q"]):
+        want = card["mc_sigma_c_MPa"] + card["mc_q"] * comp["sigma3_MPa"]
+        assert np.allclose(comp["mc_sigma1_MPa"], want)
+        assert np.allclose(comp["mc_err_pct"],
+                           100 * (want - comp["lab_sigma1_MPa"]) / comp["lab_sigma1_MPa"])
+    index = (out / "report" / "index.md").read_text()
+    assert "### Lab triaxial points" in index and "lac_du_bonnet_triaxial.csv" in index

@@ -33,6 +33,11 @@ IMPACT_VS = L.impact_tags(
 )
 SCATTER_SEEDS = config["verification"]["scatter_seeds"]
 REFERENCE = config["study"].get("reference") == "yu2026"
+TRIAX_ON = bool(config["triaxial"]["enabled"])
+TRIAX_KINDS = list(config["triaxial"]["cards"])
+TRIAX_S3 = [float(x) for x in config["triaxial"]["sigma3_MPa"]]
+TRIAX_TAGS = [L.sigma3_tag(x) for x in TRIAX_S3]
+TRIAX_LAB = config["triaxial"]["lab_csv"]  # None: no lab triaxial points
 
 
 def beside(*files):

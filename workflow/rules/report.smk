@@ -1,12 +1,12 @@
 # The report: every table and figure next to the paper's published values. It reads the
 # study's files through bpmcal.io.layout (the files declared here) and writes its own.
 
-_REPORT_OUT = FILES.report_outputs(SWEEP_ON, REFERENCE)
+_REPORT_OUT = FILES.report_outputs(SWEEP_ON, REFERENCE, TRIAX_ON, bool(TRIAX_LAB))
 
 
 rule report:
     input:
-        **FILES.report_inputs(SPECIMENS, IMPACT_V0, SWEEP_ON),
+        **FILES.report_inputs(SPECIMENS, IMPACT_V0, SWEEP_ON, TRIAX_ON, bool(TRIAX_LAB)),
     output:
         [f for f in _REPORT_OUT if f not in (FILES.report_index, FILES.report_config)],
         index=FILES.report_index,

@@ -81,6 +81,15 @@ def velocity_tag(v: float) -> str:
     return f"{float(v):g}"
 
 
+def sigma3_tag(s3: float) -> str:
+    """The file-name tag of a confining stress: 0.0 -> "0", 2.5 -> "2.5" [MPa]."""
+    return f"{float(s3):g}"
+
+
+#: the cards the triaxial stage runs: the calibration's and the closed loop's
+TRIAXIAL_CARDS = ("calibrated", "verified")
+
+
 def impact_tags(reference: float, others=()) -> list[str]:
     """Tags of the impact runs: the reference velocity and the sweep's, unique, by speed."""
     return sorted({velocity_tag(v) for v in [reference, *others]}, key=float)
@@ -97,6 +106,9 @@ TABLE6 = "table6_prepeak_energy"  # pre-peak energy density (verification_tables
 RATIO_SWEEP = "ratio_sweep"  # cracks per strength ratio (sweep_analyse)
 IMPACT_ENERGY = "impact_energy"  # energy budget of the reference impact (impact_analyse)
 T10_ECS = "t10_ecs"  # t10 vs specific energy (impact_analyse)
+TRIAXIAL_ENVELOPES = "triaxial_envelopes"  # c, phi, mi, sigma_c, sigma_t per card (envelopes)
+TRIAXIAL_POINTS = "triaxial_points"  # every triaxial run, ok or failed (envelopes)
+TRIAXIAL_LAB = "triaxial_lab"  # lab triaxial points vs each card's envelopes (envelopes)
 
 #: figure stems (``figures/<stem>.png`` + ``.pdf``)
 FIG_SCREENING = "screening_importance"
@@ -106,6 +118,7 @@ FIG5 = "fig5_failure_patterns"
 FIG6 = "fig6_stress_strain"
 FIG7 = "fig7_impact_energy"
 FIG_T10 = "t10_ecs"
+FIG_ENVELOPES = "triaxial_envelopes"
 
 
 class Layout:
@@ -261,6 +274,17 @@ class Layout:
         chosen ratio)."""
         return self.path("ratio_sweep", "vtk")
 
+    # ---------------------------------------------------------------- triaxial
+    def triaxial_card(self, kind: str, specimen: str) -> str:
+        """The card a triaxial run of ``kind`` ("calibrated" | "verified") uses."""
+        if kind not in TRIAXIAL_CARDS:
+            raise ValueError(f"triaxial card kind {kind!r}: expected one of {TRIAXIAL_CARDS}")
+        return self.card(specimen) if kind == "calibrated" else self.verified_card(specimen)
+
+    def triaxial_run(self, kind: str, specimen: str, tag: str) -> str:
+        """The triaxial run of a card at confining stress tag ``tag`` (:func:`sigma3_tag`)."""
+        return self.path("triaxial", kind, specimen, f"s3_{tag}MPa.h5")
+
     # ---------------------------------------------------------------- impact
     def impact_run(self, tag: str) -> str:
         """The drop-hammer run at velocity tag ``tag`` (:func:`velocity_tag`)."""
@@ -299,22 +323,32 @@ class Layout:
         return self.path("report", "tables", "comparison.csv")
 
     # ---------------------------------------------------------------- what the report shows
-    def report_tables(self, sweep: bool = True) -> list[str]:
+    def triaxial_tables(self, lab: bool = False) -> list[str]:
+        """The tables of the triaxial envelope stage (CSV paths); the lab comparison only
+        when lab triaxial points are given."""
+        return [self.table(s) for s in (TRIAXIAL_ENVELOPES, TRIAXIAL_POINTS,
+                                        *([TRIAXIAL_LAB] if lab else []))]
+
+    def report_tables(self, sweep: bool = True, triaxial: bool = False,
+                      triaxial_lab: bool = False) -> list[str]:
         """The tables the report shows (CSV paths), in its order."""
         stems = [TABLE3, TABLE4, REGRESSION_FIT, CALIBRATION, TABLE5, TABLE6,
                  *([RATIO_SWEEP] if sweep else []), IMPACT_ENERGY, T10_ECS]
-        return [self.table(s) for s in stems]
+        tx = self.triaxial_tables(triaxial_lab) if triaxial else []
+        return [self.table(s) for s in stems] + tx
 
-    def report_figures(self, sweep: bool = True) -> list[str]:
+    def report_figures(self, sweep: bool = True, triaxial: bool = False) -> list[str]:
         """The figures the report shows (PNG paths), in its order."""
         stems = [FIG_SCREENING, FIG_REGRESSION, *([FIG4, FIG5] if sweep else []), FIG6, FIG7,
-                 FIG_T10]
+                 FIG_T10, *([FIG_ENVELOPES] if triaxial else [])]
         return [self.figure(s) for s in stems]
 
-    def report_inputs(self, specimens, impact_tag: str, sweep: bool = True) -> dict:
+    def report_inputs(self, specimens, impact_tag: str, sweep: bool = True,
+                      triaxial: bool = False, triaxial_lab: bool = False) -> dict:
         """Every file the report reads, by role (the report rule's ``input:``)."""
-        tabs = [f for t in self.report_tables(sweep) for f in companions(t)]
-        figs = [f for g in self.report_figures(sweep) for f in companions(g)]
+        tabs = [f for t in self.report_tables(sweep, triaxial, triaxial_lab)
+                for f in companions(t)]
+        figs = [f for g in self.report_figures(sweep, triaxial) for f in companions(g)]
         return {
             "tables": tabs, "figures": figs, "equations": [self.equations],
             "dataset": [self.dataset], "cards": [self.card(s) for s in specimens],
@@ -323,10 +357,13 @@ class Layout:
             "chosen": [self.sweep_chosen] if sweep else [],
         }
 
-    def report_outputs(self, sweep: bool = True, reference: bool = True) -> list[str]:
+    def report_outputs(self, sweep: bool = True, reference: bool = True,
+                       triaxial: bool = False, triaxial_lab: bool = False) -> list[str]:
         """Every file the report writes (the report rule's ``output:``)."""
         copies = [self.report_copy(f) for f in [
-            *(f for t in self.report_tables(sweep) for f in companions(t)),
-            *(f for g in self.report_figures(sweep) for f in companions(g)), self.equations]]
+            *(f for t in self.report_tables(sweep, triaxial, triaxial_lab)
+              for f in companions(t)),
+            *(f for g in self.report_figures(sweep, triaxial) for f in companions(g)),
+            self.equations]]
         extra = companions(self.comparison) if reference else []
         return [self.report_index, self.report_config, *copies, *extra]

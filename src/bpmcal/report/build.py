@@ -39,6 +39,9 @@ TABLES = {
     L.RATIO_SWEEP: "Bond-strength-ratio sweep: cracks and proportions",
     L.IMPACT_ENERGY: "Drop-hammer impact: energy budget over time",
     L.T10_ECS: "t10 against specific energy (impact-velocity sweep)",
+    L.TRIAXIAL_ENVELOPES: "Triaxial envelopes per card: c, φ, mi, σc, σt, σc/σt, fit quality",
+    L.TRIAXIAL_POINTS: "Triaxial runs of the cards (every run, ok or failed)",
+    L.TRIAXIAL_LAB: "Lab triaxial points against the cards' envelopes",
 }
 FIGURES = {
     L.FIG_SCREENING: "XGBoost importance shares with fold spread and shadow reference",
@@ -48,6 +51,7 @@ FIGURES = {
     L.FIG6: "Fig. 6: stress-strain curves of the calibrated specimens",
     L.FIG7: "Fig. 7: energy and crack evolution of the 6 m/s impact",
     L.FIG_T10: "t10 vs specific energy with the JK breakage model",
+    L.FIG_ENVELOPES: "Triaxial strength envelopes (σ1 vs σ3) of the cards",
 }
 
 
@@ -75,11 +79,13 @@ def _copy(lay: L.Layout, src: str) -> bool:
     return True
 
 
-def copy_outputs(lay: L.Layout, sweep: bool = True) -> dict:
+def copy_outputs(lay: L.Layout, sweep: bool = True, triaxial: bool = False,
+                 triaxial_lab: bool = False) -> dict:
     """Copy the tables, figures and equations into the report folder; returns the stems
     of the tables and figures found."""
     found = {"tables": [], "figures": []}
-    for kind, files in (("tables", lay.report_tables(sweep)), ("figures", lay.report_figures(sweep))):
+    for kind, files in (("tables", lay.report_tables(sweep, triaxial, triaxial_lab)),
+                        ("figures", lay.report_figures(sweep, triaxial))):
         for f in files:
             copied = [_copy(lay, c) for c in L.companions(f)]
             if copied[0]:
@@ -124,8 +130,10 @@ def build(outdir, config: dict) -> Path:
     lay = L.Layout(outdir)
     cfg = config
     sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
+    tx = cfg.get("triaxial") or {}
+    triax, tlab = bool(tx.get("enabled", False)), bool(tx.get("lab_csv"))
     Path(lay.report_dir).mkdir(parents=True, exist_ok=True)
-    found = copy_outputs(lay, sweep)
+    found = copy_outputs(lay, sweep, triax, tlab)
     S = []  # sections of index.md
     ref = is_paper_study(cfg)
     if ref:
@@ -143,6 +151,7 @@ def build(outdir, config: dict) -> Path:
     S.append(_verification(lay, comp, ref))
     S.append(_ratio(lay, comp, ref) if sweep else "")
     S.append(_impact(lay, cfg, comp, ref))
+    S.append(_triaxial(lay, cfg, ref) if triax else "")
     if comp:
         write_table(pd.DataFrame(comp), lay.comparison, index=False)
         S.append("All of these comparisons, one row per published value: "
@@ -151,7 +160,7 @@ def build(outdir, config: dict) -> Path:
     S.append("## Figures\n")
     for stem in found["figures"]:
         S.append(f"### {FIGURES[stem]}\n\n![{stem}](figures/{stem}.png)\n")
-    missing = sorted(set(FIGURES) - set(found["figures"]))
+    missing = sorted(set(FIGURES) - set(found["figures"]) - (set() if triax else {L.FIG_ENVELOPES}))
     if missing:
         S.append(f"Figures not produced by this configuration: {', '.join(missing)}\n")
     S.append("## Tables\n")
@@ -489,3 +498,66 @@ def _impact_card_note(lay) -> str:
                 f"inversion is unreachable (closed loop: {v.get('status')}); its parameters are the "
                 "closest point inside the sampled ranges, not a calibration.\n")
     return ""
+
+
+def _triaxial(lay, cfg, ref=False) -> str:
+    """σt, σc/σt, c, φ and mi of every tested card, the runs left out, the lab triaxial
+    comparison, and (paper study) what the paper does not publish."""
+    f = Path(lay.table(L.TRIAXIAL_ENVELOPES))
+    if not f.exists():
+        return ""
+    env = pd.read_csv(f, dtype={"specimen": str})
+    tx = cfg.get("triaxial") or {}
+    s3 = ", ".join(f"{x:g}" for x in tx.get("sigma3_MPa", []))
+    out = ["## Tension and confinement: σt, σc/σt, Mohr–Coulomb and Hoek–Brown\n",
+           f"Triaxial runs at σ3 = {s3} MPa of the {' and '.join(tx.get('cards', []))} "
+           "card(s) (rigid servo-controlled lateral wall; loading as the UCS test), fitted "
+           "by Mohr–Coulomb (c, φ) and Hoek–Brown (σci and mi both fitted) through the runs "
+           "that are ok. σc and σt are the card's: the closed loop's DEM values when it ran, "
+           "else the regression's predictions; a card without a Brazilian value shows –.\n"]
+    rows = []
+
+    def src(v, s):
+        return f"{_f(v, '.2f')} ({s})" if isinstance(s, str) and s else _f(v, ".2f")
+
+    for r in env.itertuples():
+        rows.append([r.specimen, r.card, src(r.sigma_c_MPa, getattr(r, "sigma_c_source", "")),
+                     src(getattr(r, "sigma_t_MPa", math.nan),
+                         getattr(r, "sigma_t_source", ""))
+                     + (f"; lab {_f(r.lab_sigma_t_MPa, '.2f')}"
+                        if _f(getattr(r, "lab_sigma_t_MPa", math.nan)) != "–" else ""),
+                     _f(getattr(r, "sigma_c_over_sigma_t", math.nan), ".1f"),
+                     f"{_f(r.c_MPa, '.2f')} ± {_f(r.c_se_MPa, '.2f')}",
+                     f"{_f(r.phi_deg, '.1f')} ± {_f(r.phi_se_deg, '.1f')}",
+                     f"{_f(r.mi, '.2f')} ± {_f(r.mi_se, '.2f')}",
+                     _f(r.mc_rms_MPa, ".2f"), _f(r.hb_rms_MPa, ".2f"),
+                     f"{r.runs_ok}/{r.runs}"])
+    out.append(markdown_table(rows, ["specimen", "card", "σc (MPa)", "σt (MPa)", "σc/σt",
+                                     "c (MPa)", "φ (°)", "mi", "MC rms (MPa)",
+                                     "HB rms (MPa)", "runs ok"]) + "\n")
+    out.append("± is one standard error of the fit (– with two points: an exact fit). "
+               "Parallel-bond models tend to give σc/σt well below the 10–20 of most rocks.\n")
+    notes = [f"- **{r.specimen} ({r.card})**: {r.note}" for r in env.itertuples()
+             if isinstance(r.note, str) and r.note]
+    if notes:
+        out.append("\n".join(notes) + "\n")
+    lt = Path(lay.table(L.TRIAXIAL_LAB))
+    if tx.get("lab_csv") and lt.exists():
+        comp = pd.read_csv(lt, dtype={"specimen": str})
+        rows = [[r.specimen, r.card, _f(r.sigma3_MPa, "g"), _f(r.lab_sigma1_MPa, ".1f"),
+                 _f(r.mc_sigma1_MPa, ".1f"), _f(r.mc_err_pct, "+.1f"),
+                 _f(r.hb_sigma1_MPa, ".1f"), _f(r.hb_err_pct, "+.1f")]
+                for r in comp.itertuples()]
+        out.append(f"### Lab triaxial points (`{tx['lab_csv']}`) against the cards' "
+                   "envelopes\n\n" + markdown_table(rows, [
+                       "specimen", "card", "σ3 (MPa)", "lab σ1 (MPa)", "MC σ1 (MPa)",
+                       "MC error %", "HB σ1 (MPa)", "HB error %"]) + "\n")
+        out.append("The lab triaxial points are compared with the cards, not calibrated "
+                   "against: the inversion does not use them.\n")
+    if ref:
+        out.append("**What the paper does not publish:** Yu et al. (2026) give only uniaxial "
+                   "data for the green sandstone (σc, E, ν and the pre-peak energy of B1–B3): "
+                   "no Brazilian tensile strength and no triaxial tests. The σt, σc/σt, c, φ "
+                   "and mi above are therefore the cards' predictions, compared with no "
+                   "measurement.\n")
+    return "\n".join(out)

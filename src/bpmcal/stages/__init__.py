@@ -10,6 +10,7 @@ A stage reads the files it is given, checks them and its output paths before any
 - :mod:`.study` — the design and the gathered dataset (``study.smk``);
 - :mod:`.analysis` — screening, regression, calibration, verification (``analysis.smk``);
 - :mod:`.fracture` — the strength-ratio sweep and the impact analysis (``fracture.smk``);
+- :mod:`.triaxial` — the cards' triaxial strength envelopes (``triaxial.smk``);
 - :mod:`.inputs`, :mod:`.progress` — reading checked inputs; progress on stderr.
 
 ``docs/architecture.md`` shows how to add a stage.

@@ -174,14 +174,15 @@ def parse_set(items) -> dict:
 
 
 def load_params(path, overrides=()) -> dict:
-    """Parameters from a YAML file (a flat mapping of the 8 names, or a material card whose
-    ``parameters`` hold them) plus NAME=VALUE overrides, validated (unknown, missing,
-    non-numeric, boolean, NaN or out-of-domain values raise)."""
+    """Parameters from a YAML file (a flat mapping of the 8 names, or a material card: the
+    parameters it stands for, ``card_parameters``, i.e. a verified card's closed-loop
+    parameters) plus NAME=VALUE overrides, validated (unknown, missing, non-numeric,
+    boolean, NaN or out-of-domain values raise)."""
     d = {}
     if path is not None:
         d = read_yaml(path, "--params")
         if is_card(d):
-            d = dict(check_card(d, f"--params {path}")["parameters"])
+            d = card_parameters(check_card(d, f"--params {path}"))
     d.update(parse_set(overrides))
     try:
         return P.validate_params(d)

@@ -123,9 +123,30 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
             msgs.extend(lab_msgs)
             if not lab_msgs:
                 msgs.extend(_check_reference(cfg, lab))
+                msgs.extend(_check_lab_triaxial(cfg, lab, base))
     if not msgs:
         msgs.extend(_check_calibration_space(cfg))
     return msgs
+
+
+def _check_lab_triaxial(cfg: dict, lab: Path, base: Path) -> list[str]:
+    """``triaxial.lab_csv``: a safe path to a lab triaxial CSV whose specimens are those of
+    ``lab.csv`` (``bpmcal.study.lab_triaxial``)."""
+    from .lab_triaxial import lab_triaxial_problems
+
+    key = (cfg.get("triaxial") or {}).get("lab_csv")
+    if key is None:
+        return []
+    m = path_problem(key)
+    if m:
+        return [f"triaxial.lab_csv: {m}"]
+    if not (base / key).is_file():
+        return [f"triaxial.lab_csv: file {key!r} not found (relative to {base})"]
+    try:
+        df = read_lab(base / key)
+    except ConfigError as e:
+        return [str(e).replace("lab.csv:", "triaxial.lab_csv:", 1)]
+    return lab_triaxial_problems(df, key, list(read_lab(lab)["specimen"]))
 
 
 def _budget_checks(cfg: dict) -> list[str]:
