@@ -246,10 +246,31 @@ def cmd_verify(a) -> int:
     prog = Progress(f"verify {Path(a.card).stem}", enabled=not a.quiet)
     v = verify(a.card, a.models, out_card=a.out_card, rounds=a.rounds, run=a.run,
                geometry=run_geometry(a), settings=run_settings(a), seed=a.seed,
-               rtol=a.rtol, max_rounds=a.max_rounds, cache=a.specimen_cache,
+               seeds_per_round=a.seeds_per_round, rtol=a.rtol, max_rounds=a.max_rounds,
+               cache=a.specimen_cache,
                threads=a.threads, progress=prog, from_unreachable=a.from_unreachable,
                **_budget(a))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
+    return 0
+
+
+def cmd_transfer(a) -> int:
+    from .stages.analysis import transfer
+
+    prog = Progress(f"transfer {Path(a.card).stem}", enabled=not a.quiet)
+    t = transfer(a.card, a.models, out_card=a.out_card, rounds=a.rounds, run=a.run,
+                 geometry=run_geometry(a), settings=run_settings(a), seed=a.seed,
+                 max_rounds=a.max_rounds, rtol=a.rtol, cache=a.specimen_cache,
+                 threads=a.threads, progress=prog, **_budget(a))["transfer"]
+    prog.done(f"{t['status']} after {t['rounds']} round(s) at scale {t['scale']:g}: "
+              f"{t['message']}")
+    return 0
+
+
+def cmd_transfer_table(a) -> int:
+    from .stages.analysis import transfer_table
+
+    print(transfer_table(a.cards, table=a.table).to_string(index=False))
     return 0
 
 
@@ -715,17 +736,50 @@ def _add_verify(p):
     _file(p, "--rounds", "output table: one row per DEM round")
     _file(p, "--run", "output: the run file of the best round")
     p.add_argument("--seed", type=SEED, default=d["seed"],
-                   help=f"packing seed of the DEM runs (default {d['seed']})")
+                   help=f"first packing seed of the DEM runs (default {d['seed']})")
+    p.add_argument("--seeds-per-round", type=integer("seeds-per-round", 1, 50),
+                   default=d["seeds_per_round"],
+                   help="packing seeds per round (--seed, --seed + 1, ...); the loop steers "
+                        f"their mean (default {d['seeds_per_round']})")
     p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
                    help=f"relative tolerance (default {d['rtol']:g})")
     p.add_argument("--max-rounds", type=integer("max-rounds", 1, 50), default=d["max_rounds"],
-                   help=f"DEM runs at most (default {d['max_rounds']})")
+                   help=f"rounds at most, each of --seeds-per-round DEM runs "
+                        f"(default {d['max_rounds']})")
     p.add_argument("--from-unreachable", action="store_true",
                    help="run the closed loop even when the card's inversion is unreachable "
                         "(default: do not; the verified card says why)")
     p.add_argument("--quiet", action="store_true")
     add_run_args(p)
     p.set_defaults(func=cmd_verify)
+
+
+def _add_transfer(p):
+    from .stages.analysis import transfer
+
+    d = defaults_of(transfer)
+    p.add_argument("--card", required=True, help="a verified card (bpmcal verify)")
+    p.add_argument("--models", required=True)
+    _file(p, "--out-card", "output: the transferred card (calibrated_at_scale = --scale)")
+    _file(p, "--rounds", "output table: one row per DEM round at this size")
+    _file(p, "--run", "output: the run file of the best round")
+    p.add_argument("--seed", type=SEED, default=d["seed"],
+                   help=f"packing seed of the run(s) (default {d['seed']})")
+    p.add_argument("--max-rounds", type=integer("max-rounds", 0, 50), default=d["max_rounds"],
+                   help="correction rounds at most after the transfer run, one DEM run "
+                        f"each (default {d['max_rounds']})")
+    p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
+                   help="relative tolerance; a response within max(rtol, 2 x its seed CV "
+                        f"from the verification) needs no correction (default {d['rtol']:g})")
+    p.add_argument("--quiet", action="store_true")
+    add_run_args(p)
+    p.set_defaults(func=cmd_transfer)
+
+
+def _add_transfer_table(p):
+    _file(p, "--cards", "transferred cards", nargs="+")
+    _file(p, "--table", "output table: verified vs full-size responses per card")
+    p.set_defaults(func=cmd_transfer_table)
 
 
 def _add_scatter(p):
@@ -852,6 +906,10 @@ COMMANDS = {
     "calibrate": ("invert the models for the lab specimens", _add_calibrate, False),
     "verify": ("closed-loop DEM verification of a material card", _add_verify, False),
     "scatter": ("one card, several packing seeds: DEM scatter", _add_scatter, False),
+    "transfer": ("run a verified card at full size; correct it there if needed",
+                 _add_transfer, False),
+    "transfer-table": ("the full-size transfer of every card, one table", _add_transfer_table,
+                       False),
     "verification-tables": ("Tables 5 and 6 and Fig. 6", _add_vtables, False),
     "envelopes": ("triaxial strength envelopes (Mohr-Coulomb, Hoek-Brown) per card",
                   _add_envelopes, False),

@@ -18,7 +18,7 @@ from bpmcal.lab.runner import Geometry
 from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.stages import defaults_of
-from bpmcal.stages.analysis import calibrate, verify
+from bpmcal.stages.analysis import calibrate, transfer, verify
 from bpmcal.stages.fracture import sweep_analyse, sweep_plan
 from bpmcal.stages.runs import impact_file
 from bpmcal.stages.triaxial import DEFAULT_SIGMA3_MPA
@@ -75,8 +75,12 @@ DEFAULTS = {
     "verification.rtol": (LOOP["rtol"], ("verify", "rtol", None)),
     "verification.max_rounds": (LOOP["max_rounds"], ("verify", "max_rounds", None)),
     "verification.seed": (VER["seed"], ("verify", "seed", None)),
+    "verification.seeds_per_round": (VER["seeds_per_round"], ("verify", "seeds_per_round", None)),
     "verification.from_unreachable": (VER["from_unreachable"],
                                       ("verify", "from_unreachable", None)),
+    "transfer.scale": (GEO.scale, ("transfer", "scale", None)),
+    "transfer.max_rounds": (defaults_of(transfer)["max_rounds"],
+                            ("transfer", "max_rounds", None)),
     "ratio_sweep.ratios": (list(DEFAULT_RATIOS), ("sweep-plan", "ratios", _ratios)),
     "ratio_sweep.criterion": (defaults_of(sweep_analyse)["criterion"],
                               ("sweep-analyse", "criterion", None)),
@@ -102,6 +106,7 @@ STUDY_ONLY = {
     "calibration.bounds",  # {} = no narrowing; the stage's bounds=None means the same
     "verification.scatter_seeds",  # the seeds of the scatter job
     "ratio_sweep.enabled",  # whether the DAG has the sweep
+    "transfer.enabled",  # whether the DAG has the full-size transfer
     "impact.sweep_velocities",  # the velocity sweep's extra runs
     "triaxial",  # the section itself ({}: a config without it gets the defaults below)
     "triaxial.enabled", "triaxial.cards",  # whether and which cards the DAG tests

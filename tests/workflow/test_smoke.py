@@ -394,3 +394,43 @@ def test_the_contract_check_can_fail(tmp_path):
     bad = undeclared_reads(procs, jobs, tmp_path)
     assert bad == ["rule report read tables/jk_fit.json, not declared",
                    "a bpmcal process that is no job of the rule graph: ('screen',)"]
+
+
+def test_verify_averages_seeds_and_the_transfer_runs_at_its_scale(smoke):
+    """The smoke config runs verification.seeds_per_round = 2 seeds per round and the
+    full-size transfer at transfer.scale 0.35 (specimens at 0.3): every verified card
+    records the seed mean, CV and n_seeds; every transferred card carries
+    calibrated_at_scale; the impact runs the transferred card."""
+    from bpmcal.io.h5 import read_inputs
+    from bpmcal.io.layout import TABLE5, TRANSFER, Layout, velocity_tag
+
+    cfg = yaml.safe_load((smoke / "config" / "smoke.yaml").read_text())
+    k, scale = cfg["verification"]["seeds_per_round"], cfg["transfer"]["scale"]
+    lay = Layout(str(smoke / OUTDIR))
+    t5 = pd.read_csv(lay.table(TABLE5), index_col=0)
+    for spec in ("B1", "B2", "B3"):
+        v = yaml.safe_load(Path(lay.verified_card(spec)).read_text())["verification"]
+        assert v["status"] != "not-run"
+        assert v["n_seeds"] == k and v["seeds"] == list(range(1, k + 1))
+        rounds = pd.read_csv(lay.verification_rounds(spec))
+        assert (rounds["n_seeds"] == k).all() and len(rounds) == v["rounds"]
+        for r in ("ucs_MPa", "E_GPa", "nu"):
+            cv = v["closed_loop"]["seed_cv"][r]
+            assert 0 < cv < 0.5, (spec, r, cv)  # two packings never agree to the last bit
+            assert t5.loc[spec, f"closed_loop_{r}_cv_pct"] == pytest.approx(100 * cv)
+        assert t5.loc[spec, "n_seeds"] == k
+        assert read_inputs(lay.verification_run(spec))["seed"] == 1
+        t = yaml.safe_load(Path(lay.transferred_card(spec)).read_text())
+        assert t["transfer"]["scale"] == scale and t["transfer"]["seed"] == 1 + k
+        assert 1 <= t["transfer"]["rounds"] <= 1 + cfg["transfer"]["max_rounds"]
+        if t["transfer"]["status"] != "failed":
+            assert t["calibrated_at_scale"] == scale
+        inputs = read_inputs(lay.transfer_run(spec))
+        assert inputs["scale"] == pytest.approx(scale) and inputs["seed"] == 1 + k
+    table = pd.read_csv(lay.table(TRANSFER))
+    assert len(table) == 9 and set(table["scale"]) == {scale}
+    v0 = yaml.safe_load((smoke / "config" / "config.yaml").read_text())["impact"]["velocity"]
+    imp = read_inputs(lay.impact_run(velocity_tag(cfg["impact"].get("velocity", v0))))
+    card = yaml.safe_load(Path(lay.transferred_card("B1")).read_text())
+    if card["transfer"]["parameters"]:  # the impact runs the transferred card
+        assert imp["pb_emod_GPa"] == pytest.approx(card["transfer"]["parameters"]["pb_emod_GPa"])

@@ -154,7 +154,8 @@ rule verify:
     threads: config["resources"]["ucs_threads"]
     resources:
         runtime=config["resources"]["ucs_runtime_min"]
-        * config["verification"]["max_rounds"],
+        * config["verification"]["max_rounds"]
+        * config["verification"]["seeds_per_round"],
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
         v=config["verification"],
@@ -167,9 +168,56 @@ rule verify:
     shell:
         "bpmcal verify --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
-        "--seed {params.v[seed]:q} --rtol {params.v[rtol]:q} "
-        "--max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
+        "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
+        "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
         "{params.opts:q} > {log:q} 2>&1"
+
+
+rule transfer:
+    input:
+        card=FILES.verified_card("{spec}"),
+        models=FILES.models,
+    output:
+        beside(FILES.transfer_rounds("{spec}")),
+        card=FILES.transferred_card("{spec}"),
+        rounds=FILES.transfer_rounds("{spec}"),
+        run=FILES.transfer_run("{spec}"),
+    log:
+        FILES.log("transfer", "{spec}"),
+    conda:
+        "../envs/bpmcal.yaml"
+    threads: config["resources"]["ucs_threads"]
+    resources:
+        runtime=config["resources"]["ucs_runtime_min"]
+        * (1 + config["transfer"]["max_rounds"]),
+        mem_mb=config["resources"]["ucs_mem_mb"],
+    params:
+        t=config["transfer"],
+        # the first packing seed none of the verification's rounds used
+        seed=config["verification"]["seed"] + config["verification"]["seeds_per_round"],
+        rtol=config["verification"]["rtol"],
+        opts=specimen_args(scale=config["transfer"]["scale"]),
+    shell:
+        "bpmcal transfer --card {input.card:q} --models {input.models:q} "
+        "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
+        "--seed {params.seed:q} --rtol {params.rtol:q} "
+        "--max-rounds {params.t[max_rounds]:q} --threads {threads} "
+        "{params.opts:q} > {log:q} 2>&1"
+
+
+rule transfer_table:
+    input:
+        cards=[FILES.transferred_card(s) for s in SPECIMENS],
+    output:
+        beside(FILES.table(L.TRANSFER)),
+        table=FILES.table(L.TRANSFER),
+    log:
+        FILES.log("transfer_table"),
+    conda:
+        "../envs/bpmcal.yaml"
+    shell:
+        "bpmcal transfer-table --cards {input.cards:q} --table {output.table:q} "
+        "> {log:q} 2>&1"
 
 
 rule seed_scatter:

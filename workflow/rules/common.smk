@@ -26,6 +26,13 @@ SPECIMENS = list(_lab["specimen"])
 SWEEP_ON = bool(config["ratio_sweep"]["enabled"])
 SWEEP_SPEC = SPECIMENS[0]  # the sweep starts from the first specimen's initial card
 IMPACT_SPEC = SPECIMENS[0]  # the impact uses the first specimen's verified card
+TRANSFER_ON = bool(config["transfer"]["enabled"])
+# the card the impact runs: the full-size transfer's when it runs, else the verified one
+IMPACT_CARD = (
+    FILES.transferred_card(IMPACT_SPEC)
+    if TRANSFER_ON
+    else FILES.verified_card(IMPACT_SPEC)
+)
 SWEEP_IDS = L.sweep_ids(config["ratio_sweep"]["ratios"])
 IMPACT_V0 = L.velocity_tag(config["impact"]["velocity"])
 IMPACT_VS = L.impact_tags(

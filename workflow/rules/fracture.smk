@@ -79,7 +79,7 @@ rule sweep_analyse:
 
 rule impact:
     input:
-        card=FILES.verified_card(IMPACT_SPEC),
+        card=IMPACT_CARD,
     output:
         FILES.impact_run("{v}"),
     log:

@@ -26,7 +26,11 @@ Format 1 (keys in this order; paper units)::
     provenance          bpmcal_version, git_commit, inputs_hash
     verification        (verified cards) status, message, rounds, rtol, seed, best_round,
                         single_pass and closed_loop responses, the closed loop's parameters,
-                        geometry, widen
+                        geometry, widen; per round shown the seed mean of every
+                        response, seed_sd, seed_cv and n_seeds
+    calibrated_at_scale (verified cards) the specimen scale the parameters were last fitted at
+    transfer            (transferred cards, ``bpmcal transfer``) status, rounds, scale,
+                        tolerance_pct, at_transfer and final responses, parameters
 
 A card without ``card_format`` (bpmcal before this format was versioned) or of a newer
 format is refused with a message that says what to do (:class:`CardError`).
@@ -100,7 +104,8 @@ def read_card(path, flag: str = "", need=("parameters",)) -> dict:
 
 
 def card_parameters(card: dict) -> dict:
-    """The parameters a card stands for: the closed loop's when it ran, else the
-    calibration's."""
+    """The parameters a card stands for: the full-size transfer's when it ran, else the
+    closed loop's when it ran, else the calibration's."""
+    transferred = (card.get("transfer") or {}).get("parameters")
     verified = (card.get("verification") or {}).get("parameters")
-    return dict(verified or card["parameters"])
+    return dict(transferred or verified or card["parameters"])

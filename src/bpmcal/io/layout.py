@@ -102,6 +102,7 @@ TABLE4 = "table4_terms"  # terms retained by the stepwise regression (regress)
 REGRESSION_FIT = "regression_fit"  # adjusted and CV R² of every stage (regress)
 CALIBRATION = "calibration"  # calibrated parameters of every specimen (calibrate)
 TABLE5 = "table5_verification"  # DEM vs lab, single pass and closed loop (verification_tables)
+TRANSFER = "transfer_full_size"  # verified vs full-size responses per card (transfer_table)
 TABLE6 = "table6_prepeak_energy"  # pre-peak energy density (verification_tables)
 RATIO_SWEEP = "ratio_sweep"  # cracks per strength ratio (sweep_analyse)
 IMPACT_ENERGY = "impact_energy"  # energy budget of the reference impact (impact_analyse)
@@ -239,6 +240,18 @@ class Layout:
     def verification_run(self, specimen: str) -> str:
         """The run file of the best round (a failure record when the loop did not run)."""
         return self.path("verification", specimen, "best_round.h5")
+
+    def transferred_card(self, specimen: str) -> str:
+        """The verified card run (and, if needed, corrected) at the transfer scale."""
+        return self.path("transfer", specimen, "card.yaml")
+
+    def transfer_rounds(self, specimen: str) -> str:
+        """One row per DEM round of the full-size transfer (table)."""
+        return self.path("transfer", specimen, "rounds.csv")
+
+    def transfer_run(self, specimen: str) -> str:
+        """The run file of the transfer's best round."""
+        return self.path("transfer", specimen, "best_round.h5")
 
     def scatter_run(self, seed) -> str:
         """The UCS run of the first specimen's card with packing seed ``seed``."""

@@ -337,6 +337,13 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
     return out
 
 
+def _pm(r, col: str) -> str:
+    """A Table 5 cell: the seed mean ± the seed standard deviation (the mean alone with
+    one seed)."""
+    sd = r.get(f"{col}_sd", math.nan)
+    return _f(r[col]) + (f" ± {_f(sd)}" if pd.notna(sd) else "")
+
+
 def _verification(lay, comp, ref=False) -> str:
     f = Path(lay.table(L.TABLE5))
     if not f.exists():
@@ -356,17 +363,22 @@ def _verification(lay, comp, ref=False) -> str:
                      r[f"closed_loop_{k}_err_pct"], th["err_pct"][k], "%")
             if ran:
                 row = [spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]),
-                       _f(r[f"single_pass_{k}"]), _f(r[f"single_pass_{k}_err_pct"], "+.2f"),
-                       _f(r[f"closed_loop_{k}"]), _f(r[f"closed_loop_{k}_err_pct"], "+.2f")]
+                       _pm(r, f"single_pass_{k}"), _f(r[f"single_pass_{k}_err_pct"], "+.2f"),
+                       _pm(r, f"closed_loop_{k}"), _f(r[f"closed_loop_{k}_err_pct"], "+.2f"),
+                       _f(r.get("n_seeds", 1), ".0f")]
             else:
-                row = [spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]), "not run", "", "not run", ""]
+                row = [spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]), "not run", "", "not run", "",
+                       ""]
             if ref:
                 row += [_f(th[k]) if th else "–", _f(th["err_pct"][k], ".2f") if th else "–"]
             rows.append(row)
-    header = ["specimen", "response", "lab", "DEM, single pass", "error", "DEM, closed loop", "error"]
+    header = ["specimen", "response", "lab", "DEM, single pass", "error", "DEM, closed loop", "error",
+              "seeds"]
     if ref:
         header += ["paper (PFC3D)", "paper error"]
     s = ("## Table 5: verification (errors in % of the lab value)\n\n"
+         "DEM values are the mean of the packing seeds of the round ± their standard deviation "
+         "(the scatter of one run); the error is that of the mean.\n\n"
          + markdown_table(rows, header) + "\n")
     if notes:
         s += "\n" + "\n".join(notes) + "\n"

@@ -41,7 +41,7 @@ from ..analysis import seed_scatter as scatter_table
 from ..analysis._common import usable_rows
 from ..analysis.calibration import check_calibration_space
 from ..io.atomic import write_text
-from ..io.card import read_card, write_card
+from ..io.card import card_parameters, read_card, write_card
 from ..io.checks import BadInput, read_json
 from ..io.figures import save_figure
 from ..io.h5 import read_series
@@ -66,7 +66,7 @@ from .inputs import (
     read_models,
     usable,
 )
-from .runs import RunOutcome, run_ucs_file, write_failure
+from .runs import run_ucs_file, write_failure
 
 #: the defaults of the stages are those of the analyses they run
 _SCREEN, _REGR, _LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
@@ -281,33 +281,96 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
 
 
 # ------------------------------------------------------------------------ verification
-def _responses(s: dict, targets: dict) -> dict:
-    d = {k: float(s.get(k, math.nan)) for k in [*P.TARGETS, "u_pre_MJm3", "peak_strain",
-                                                  "cracks_tension", "cracks_shear"]}
+#: responses a verified card records per round besides the targets
+_EXTRA = ("u_pre_MJm3", "peak_strain", "cracks_tension", "cracks_shear")
+
+
+def _responses(rows: list[dict], targets: dict) -> dict:
+    """The seed mean of every response over the runs of one round (``rows``: one summary
+    per seed), its seed spread (``seed_sd``, ``seed_cv``: sample standard deviation and
+    coefficient of variation, NaN with one seed), ``n_seeds`` and the errors of the mean
+    in % of the lab value."""
+    ok = [r for r in rows if r.get("status") == "ok"]
+    d, sd, cv = {}, {}, {}
+    for k in [*P.TARGETS, *_EXTRA]:
+        v = np.array([float(r.get(k, math.nan)) for r in ok], float)
+        d[k] = float(v.mean()) if len(v) else math.nan
+        if k in P.TARGETS:
+            sd[k] = float(v.std(ddof=1)) if len(v) > 1 else math.nan
+            cv[k] = sd[k] / abs(d[k]) if len(v) > 1 and d[k] != 0 else math.nan
     d["errors_pct"] = {k: 100 * (d[k] / v - 1) for k, v in targets.items()}
-    d["run_status"] = s.get("status")
+    d["seed_sd"], d["seed_cv"] = sd, cv
+    d["n_seeds"] = len(ok)
+    d["seeds"] = [int(r["seed"]) for r in rows]
+    d["run_status"] = "ok" if ok and len(ok) == len(rows) else "failed"
     return d
 
 
-def _max_err(s: dict, targets: dict) -> float:
-    if s.get("status") != "ok":
-        return math.inf
-    return max(abs(float(s[k]) / v - 1) for k, v in targets.items())
+def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, geometry,
+              settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
+              free=None):
+    """The closed loop of the UCS responses on ``seeds`` (every round runs each seed into
+    a temporary file; the first seed's run file of the best round becomes ``run``).
+    Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
+    ratio = c.get("ratio_ten_coh")
+    by_round: list[list[dict]] = []
+    paths: list[list[Path]] = []
+    folder = Path(run).parent
+    tmpdir = tempfile.mkdtemp(prefix=f".{Path(run).stem}.rounds.", dir=folder)
+    try:
+        def simulate(params: dict, seed: int) -> dict:
+            if not by_round or len(by_round[-1]) == len(seeds):
+                by_round.append([])
+                paths.append([])
+            k = len(by_round)
+            res = run_ucs_file(Path(tmpdir) / f"round{k}_seed{seed}.h5", params, seed,
+                               geometry, settings, cache=cache, threads=threads,
+                               progress=progress, genesis_max_steps=genesis_max_steps)
+            by_round[-1].append(dict(res.summary, status=res.status, seed=seed))
+            paths[-1].append(res.path)
+            if res.status != "ok":
+                return {r: float("nan") for r in targets}
+            return {r: float(res.summary[r]) for r in targets}
+
+        free = free or [k for k, v in c["roles"].items() if v == "free"]
+        loop = ClosedLoop(simulate, targets, free=free, ratio=ratio, models=model_set,
+                          rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
+                          bounds=c.get("calibration_bounds") or None, seeds=list(seeds))
+        res = loop.run(params)
+        # the loop's best round (smallest max |error| of the seed mean; res.params are its)
+        err = pd.to_numeric(res.history.get("max_abs_err", pd.Series(dtype=float)),
+                            errors="coerce").to_numpy(float)
+        best = int(np.nanargmin(err)) if np.isfinite(err).any() else len(by_round) - 1
+        os.replace(paths[best][0], run)  # the best round's first seed is the run file
+    finally:
+        for f in Path(tmpdir).glob("*"):
+            f.unlink()
+        os.rmdir(tmpdir)
+    return res, by_round, best
 
 
 def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
-           rtol=_LOOP["rtol"], max_rounds=_LOOP["max_rounds"], cache=None, threads=None,
-           free=None, progress=None, from_unreachable=False, max_balls=None, mem_budget_mb=None,
-           genesis_max_steps=None) -> dict:
+           seeds_per_round=3, rtol=_LOOP["rtol"], max_rounds=_LOOP["max_rounds"], cache=None,
+           threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
+           mem_budget_mb=None, genesis_max_steps=None) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
-    Newton-Broyden step until every response is within ``rtol`` (relative) of the lab
-    value, or ``max_rounds`` DEM runs are used up. Writes the verified card (``out_card``),
-    the rounds table (``rounds``: parameters, responses, errors and step of every round)
-    and ``run``, the run file of the best round (each round runs into a temporary file;
-    any round can be rerun with ``bpmcal ucs --params`` from its row, the runs being
+    Newton-Broyden step until every response is within the tolerance of the lab value,
+    or ``max_rounds`` rounds are used up. Every round runs the candidate on
+    ``seeds_per_round`` packing seeds (``seed``, ``seed + 1``, ...) and steers their mean;
+    a target is met when the mean lies within max(``rtol``, 2 standard errors of the
+    mean) of it (:class:`~bpmcal.analysis.ClosedLoop`), so the loop fits the rock, not
+    one packing. A round costs ``seeds_per_round`` DEM runs.
+
+    Writes the verified card (``out_card``; per round shown, the seed mean of every
+    response, its seed standard deviation ``seed_sd`` and coefficient of variation
+    ``seed_cv``, and ``n_seeds``), the rounds table (``rounds``: parameters, seed means,
+    seed CVs, standard errors, tolerances, errors and step of every round) and ``run``,
+    the run file of the best round's first seed (each run goes to a temporary file; any
+    run can be redone with ``bpmcal ucs --params ... --seed``, the runs being
     deterministic). The loop stays inside the card's bounds (its design ``ranges``,
-    narrowed by its ``calibration_bounds``).
+    narrowed by its ``calibration_bounds``). The card records ``calibrated_at_scale``, the
+    specimen scale the loop ran at.
 
     A card whose inversion is ``unreachable`` is not a calibration: unless
     ``from_unreachable`` (config ``verification.from_unreachable``) the DEM is not run, the
@@ -318,6 +381,9 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     if "ranges" not in c:
         raise P.ParameterError(f"--card {card}: the card has no 'ranges' (the design space); "
                                "rerun the calibrate step")
+    if isinstance(seeds_per_round, bool) or not isinstance(seeds_per_round, int) \
+            or seeds_per_round < 1:
+        raise BadInput(f"--seeds-per-round {seeds_per_round!r}: expected an integer >= 1")
     model_set = read_models(models)
     if max_balls is not None:
         check_budget(c["parameters"], geometry, max_balls=max_balls,
@@ -325,6 +391,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5))
     output_dirs((cache, "--specimen-cache"))
     targets = {k: float(v) for k, v in c["targets"].items()}
+    seeds = [int(seed) + i for i in range(seeds_per_round)]
     if c.get("status") == "unreachable" and not from_unreachable:
         reason = ("the calibration is unreachable, so the closed loop did not start from it "
                   "(verification.from_unreachable: false); " + str(c.get("message", "")))
@@ -335,37 +402,15 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         verified = dict(c)
         verified["verification"] = {
             "status": "not-run", "message": reason, "rounds": 0, "rtol": rtol, "seed": seed,
+            "seeds": seeds, "n_seeds": seeds_per_round,
             "best_round": None, "single_pass": None, "closed_loop": None, "parameters": None,
             "widen": c.get("widen", []), "geometry": geometry.to_dict()}
         write_card(out_card, verified)
         return verified
-    ratio = c.get("ratio_ten_coh")
-    runs: list[RunOutcome] = []
-    folder = Path(run).parent
-    tmpdir = tempfile.mkdtemp(prefix=f".{Path(run).stem}.rounds.", dir=folder)
-    try:
-        def simulate(params: dict) -> dict:
-            k = len(runs) + 1
-            res = run_ucs_file(Path(tmpdir) / f"round{k}.h5", params, seed, geometry,
-                               settings, cache=cache, threads=threads, progress=progress,
-                               genesis_max_steps=genesis_max_steps)
-            runs.append(res)
-            if res.status != "ok":
-                return {r: float("nan") for r in targets}
-            return {r: float(res.summary[r]) for r in [*targets, "u_pre_MJm3", "peak_strain"]}
-
-        free = free or [k for k, v in c["roles"].items() if v == "free"]
-        loop = ClosedLoop(simulate, targets, free=free, ratio=ratio, models=model_set,
-                          rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
-                          bounds=c.get("calibration_bounds") or None)
-        res = loop.run(c["parameters"])
-        summaries = [dict(r.summary, status=r.status) for r in runs]
-        best = int(np.argmin([_max_err(s, targets) for s in summaries]))
-        os.replace(runs[best].path, run)  # the best round is the run file
-    finally:
-        for f in Path(tmpdir).glob("*"):
-            f.unlink()
-        os.rmdir(tmpdir)
+    res, by_round, best = _ucs_loop(
+        c, model_set, targets, params=c["parameters"], run=run, seeds=seeds,
+        geometry=geometry, settings=settings, rtol=rtol, max_rounds=max_rounds, cache=cache,
+        threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free)
     write_table(res.history, rounds, index=False)
     message = res.message
     if c.get("status") == "unreachable":
@@ -373,16 +418,124 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
                    f"(verification.from_unreachable: true): {message}")
     verified = dict(c)
     verified.update({
+        "calibrated_at_scale": float(geometry.scale),
         "verification": {
-            "status": res.status, "message": message, "rounds": len(runs),
-            "rtol": rtol, "seed": seed, "best_round": best + 1,
-            "single_pass": _responses(summaries[0], targets),
-            "closed_loop": _responses(summaries[best], targets),
+            "status": res.status, "message": message, "rounds": len(by_round),
+            "runs": sum(len(r) for r in by_round), "rtol": rtol, "seed": seed,
+            "seeds": seeds, "n_seeds": seeds_per_round, "best_round": best + 1,
+            "run_seed": seeds[0],
+            "single_pass": _responses(by_round[0], targets),
+            "closed_loop": _responses(by_round[best], targets),
             "parameters": {k: float(v) for k, v in res.params.items() if k in P.PARAMS},
             "geometry": geometry.to_dict(),
         }})
     write_card(out_card, verified)
     return verified
+
+
+def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
+             max_rounds=2, rtol=_LOOP["rtol"], z=2.0, cache=None, threads=None, progress=None,
+             max_balls=None, mem_budget_mb=None, genesis_max_steps=None) -> dict:
+    """Full-size transfer of a verified card: run its parameters once (packing ``seed``)
+    on the specimen of ``geometry`` (the study's ``transfer.scale``, 1.0 = the lab's
+    50 x 100 mm) and, when a response misses its lab target by more than the seed scatter
+    (max(``rtol``, ``z`` x the seed CV of one run that the verification measured)),
+    continue the closed loop at that size for at most ``max_rounds`` more rounds of one
+    run each (Newton-Broyden from the regression's Jacobian, as :func:`verify`).
+
+    Writes the transferred card (``out_card``: the verified card with a ``transfer``
+    section - status ``within-scatter`` (no correction needed), ``corrected`` (met after
+    corrections), ``max_rounds``/``stalled``/``failed`` (not met: the best round is
+    kept), or ``not-run`` - the responses at transfer and of the best round, the
+    tolerances, the parameters; and ``calibrated_at_scale``: the transfer's scale when the
+    loop ran), the rounds table and ``run`` (the best round's run file). Readers take the
+    transfer's parameters (:func:`bpmcal.io.card.card_parameters`)."""
+    c = read_card(card, "--card", need=("parameters", "targets", "roles", "ranges",
+                                        "verification"))
+    if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) or max_rounds < 0:
+        raise BadInput(f"--max-rounds {max_rounds!r}: expected an integer >= 0")
+    model_set = read_models(models)
+    params = card_parameters(c)
+    if max_balls is not None:
+        check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5))
+    output_dirs((cache, "--specimen-cache"))
+    targets = {k: float(v) for k, v in c["targets"].items()}
+    v = c["verification"]
+    base = {"scale": float(geometry.scale), "seed": int(seed), "max_rounds": max_rounds,
+            "from_scale": c.get("calibrated_at_scale", (v.get("geometry") or {}).get("scale")),
+            "geometry": geometry.to_dict()}
+    if v.get("status") == "not-run" or not v.get("closed_loop"):
+        reason = f"not run: the card's closed loop did not run ({v.get('message', '')})"
+        write_table(pd.DataFrame(columns=["round"]), rounds, index=False)
+        write_failure(run, test="ucs", inputs=ucs_inputs(params, seed, geometry, settings),
+                      error=reason)
+        out = dict(c)
+        out["transfer"] = {"status": "not-run", "message": reason, "rounds": 0, **base,
+                           "tolerance_pct": None, "at_transfer": None, "final": None,
+                           "parameters": None}
+        write_card(out_card, out)
+        return out
+    cv = (v["closed_loop"].get("seed_cv") or {})
+    tol = {}
+    for k in targets:
+        x = float(cv.get(k, math.nan)) if cv.get(k) is not None else math.nan
+        tol[k] = max(float(rtol), z * x) if math.isfinite(x) else float(rtol)
+    res, by_round, best = _ucs_loop(
+        c, model_set, targets, params=params, run=run, seeds=[int(seed)],
+        geometry=geometry, settings=settings, rtol=tol, max_rounds=1 + max_rounds,
+        cache=cache, threads=threads, progress=progress,
+        genesis_max_steps=genesis_max_steps)
+    write_table(res.history, rounds, index=False)
+    if res.status == "converged":
+        status = "within-scatter" if len(by_round) == 1 else "corrected"
+    else:
+        status = res.status
+    out = dict(c)
+    ran = status != "failed"
+    if ran:
+        out["calibrated_at_scale"] = float(geometry.scale)
+    out["transfer"] = {
+        "status": status, "message": res.message, "rounds": len(by_round),
+        "corrections": len(by_round) - 1, **base, "best_round": best + 1,
+        "tolerance_pct": {k: 100 * t for k, t in tol.items()},
+        "at_transfer": _responses(by_round[0], targets),
+        "final": _responses(by_round[best], targets),
+        "parameters": ({k: float(x) for k, x in res.params.items() if k in P.PARAMS}
+                       if ran else None)}
+    write_card(out_card, out)
+    return out
+
+
+def transfer_table(cards, *, table) -> pd.DataFrame:
+    """One row per transferred card and response: the verified seed mean at the
+    calibration scale, the full-size response at transfer and after the corrections,
+    their errors in % of the lab value, the tolerance and the status."""
+    loaded = [read_card(c, "--cards", need=("specimen", "targets", "verification",
+                                            "transfer")) for c in cards]
+    outputs((table, "--table", CSV))
+    rows = []
+    for c in loaded:
+        t, v = c["transfer"], c["verification"]
+        for k in P.TARGETS:
+            def val(section, key=k):
+                return (section or {}).get(key, math.nan) if section else math.nan
+
+            def err(section, key=k):
+                return ((section or {}).get("errors_pct") or {}).get(key, math.nan)
+            rows.append({
+                "specimen": c["specimen"], "response": k, "lab": c["targets"][k],
+                "verified_scale": t.get("from_scale"),
+                "verified_mean": val(v.get("closed_loop")),
+                "verified_err_pct": err(v.get("closed_loop")),
+                "scale": t["scale"], "at_transfer": val(t.get("at_transfer")),
+                "at_transfer_err_pct": err(t.get("at_transfer")),
+                "tolerance_pct": (t.get("tolerance_pct") or {}).get(k, math.nan),
+                "final": val(t.get("final")), "final_err_pct": err(t.get("final")),
+                "rounds": t.get("rounds"), "status": t["status"]})
+    df = pd.DataFrame(rows)
+    write_table(df, table, index=False)
+    return df
 
 
 def seed_scatter(card, *, runs, seeds, seed_runs, table, geometry, settings, rtol=_LOOP["rtol"],
@@ -420,7 +573,9 @@ def seed_scatter(card, *, runs, seeds, seed_runs, table, geometry, settings, rto
 
 def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
     """Tables 5 and 6 and Fig. 6 from the verified cards and their best rounds' run files
-    (``runs[i]`` belongs to ``cards[i]``). A card whose closed loop did not run
+    (``runs[i]`` belongs to ``cards[i]``). Table 5 holds the seed mean of every response
+    (single pass and closed loop), its seed standard deviation (``_sd``) and CV
+    (``_cv_pct``), the error of the mean and ``n_seeds``. A card whose closed loop did not run
     (``not-run``) keeps its row, with empty responses, status ``not-run`` and the reason in
     ``note``; its Fig. 6 panel says why it has no curve."""
     if len(runs) != len(cards):
@@ -440,9 +595,14 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
             r = v[which] if ran else None
             for k in P.TARGETS:
                 row[f"{which}_{k}"] = r[k] if ran else math.nan
+                row[f"{which}_{k}_sd"] = (r.get("seed_sd") or {}).get(k, math.nan) if ran \
+                    else math.nan
+                row[f"{which}_{k}_cv_pct"] = 100 * (r.get("seed_cv") or {}).get(k, math.nan) \
+                    if ran else math.nan
                 row[f"{which}_{k}_err_pct"] = r["errors_pct"][k] if ran else math.nan
         for k in P.TARGETS:
             row[f"lab_{k}"] = c["targets"][k]
+        row["n_seeds"] = v.get("n_seeds", 1)
         row["rounds"] = v["rounds"]
         row["status"] = v["status"]
         row["calibration_status"] = c.get("status")
