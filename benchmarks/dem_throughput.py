@@ -25,11 +25,13 @@ from pathlib import Path
 import numpy as np
 
 RMIN, RMAX, RHO = 0.8e-3, 1.328e-3, 2294.0
+E_MOD = 10e9  # E* = E-bar [Pa]
+WALL_SPEED = 0.02  # m/s, top and bottom walls (towards each other)
 
 
 def _material(fric):
     from bpmcal.dem import Material
-    return Material(emod=10e9, kratio=2.0, fric=fric, pb_emod=10e9, pb_kratio=2.0,
+    return Material(emod=E_MOD, kratio=2.0, fric=fric, pb_emod=E_MOD, pb_kratio=2.0,
                     pb_ten=1e12, pb_coh=1e12, pb_fa=30.0)
 
 
@@ -76,6 +78,20 @@ def _sorted(pos, r, L):
     return pos[o], r[o], L
 
 
+def bench_model(n: int, seed: int = 1, threads=None):
+    """The reference case, ready to cycle: (model, number of bonds). The time step is 0.8 x
+    the critical step of the bonded pack (the peers use the same dt)."""
+    from bpmcal.dem import Model
+    pos, r, L = make_pack(n, seed)
+    m = Model(pos, r, RHO, _material(0.5), damping=0.7, threads=threads)
+    _box_walls(m, L)
+    nb = m.bond(gap=0.0)
+    m.set_wall_velocity(4, velocity=(0, 0, WALL_SPEED))
+    m.set_wall_velocity(5, velocity=(0, 0, -WALL_SPEED))
+    m.set_timestep(None)
+    return m, nb
+
+
 def run(n: int, threads: int, steps: int, seed: int = 1) -> dict:
     t0 = time.perf_counter()
     from bpmcal.dem import Model
@@ -92,27 +108,27 @@ def run(n: int, threads: int, steps: int, seed: int = 1) -> dict:
     tiny.energies()
     compile_s = time.perf_counter() - t0
 
-    pos, r, L = make_pack(n, seed)
-    m = Model(pos, r, RHO, _material(0.5), damping=0.7, threads=threads)
-    _box_walls(m, L)
-    nb = m.bond(gap=0.0)
-    m.set_wall_velocity(4, velocity=(0, 0, 0.02))
-    m.set_wall_velocity(5, velocity=(0, 0, -0.02))
-    m.set_timestep(None)
+    m, nb = bench_model(n, seed, threads)
     m.cycle(200)  # warm-up (page faults, first rebuild)
     s0 = m.step
+    c1 = time.process_time()
     t1 = time.perf_counter()
     m.cycle(steps)
     wall = time.perf_counter() - t1
+    cpu = time.process_time() - c1
     ci, cj = m.contacts()
     npairs_active = ci.shape[0]  # intact bonds + touching unbonded pairs
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return {"n": n, "threads": threads, "steps": m.step - s0, "wall_s": wall,
             "particle_steps_per_s": n * steps / wall,
+            # CPU seconds of the process (all threads): on a shared machine, with one
+            # thread, N * steps / cpu_s is less sensitive to other processes than wall time
+            "cpu_s": cpu, "particle_steps_per_cpu_s": n * steps / cpu,
             "contact_steps_per_s": npairs_active * steps / wall,
             "bonds": nb, "contacts_and_bonds": int(npairs_active),
             "bonds_per_ball": 2 * nb / n, "compile_s": compile_s, "peak_rss_mb": peak,
-            "broken": m.n_broken, "rebuilds": int(m.iprm[5])}
+            "broken": m.n_broken, "rebuilds": m.n_rebuilds, "dt": m.dt,
+            "skin": float(m.skin)}
 
 
 def main(argv=None):

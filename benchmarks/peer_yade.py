@@ -8,7 +8,7 @@ temporary .npz, generates a YADE script next to it and runs
 ``yade -n -x -j<threads> <script>`` (YADE's own python, Debian's /usr/bin/python3) with
 ``OMP_NUM_THREADS=<threads>``. Then it runs ``benchmarks/dem_throughput.py --json`` with
 the same N / threads / steps in a subprocess with ``NUMBA_THREADING_LAYER=omp`` (installing
-yade pulls in TBB, which numba would otherwise pick; see shared/PERFORMANCE.md). The two runs
+yade pulls in TBB, which numba would otherwise pick; see benchmarks/README.md). The two runs
 are sequential, never concurrent. It prints one JSON object::
 
     {"n", "threads", "steps", "bpmcal": {...}, "yade": {...},
@@ -242,9 +242,11 @@ O.run(P["warmup"] - 1, True)  # warm-up (page faults, first collider runs)
 dt = O.dt
 runs0 = collider.numAction
 it0 = O.iter
+c1 = time.process_time()
 t1 = time.perf_counter()
 O.run(P["steps"], True)
 wall = time.perf_counter() - t1
+cpu = time.process_time() - c1
 steps = O.iter - it0
 
 real = bonds = 0
@@ -258,6 +260,7 @@ fz = [O.forces.f(walls[4])[2], O.forces.f(walls[5])[2]]  # bottom/top wall, last
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 res = {"n": n, "threads": P["threads"], "steps": steps, "wall_s": wall,
        "particle_steps_per_s": n * steps / wall,
+       "cpu_s": cpu, "particle_steps_per_cpu_s": n * steps / cpu,
        "contact_steps_per_s": real * steps / wall,
        "bonds": nb, "bonds_intact": bonds, "broken": nb - bonds,
        "contacts_and_bonds": real, "bonds_per_ball": 2.0 * nb / n,

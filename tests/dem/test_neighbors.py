@@ -57,12 +57,12 @@ def test_dynamic_run_never_misses_a_contact():
     m = Model(pos, r, 2294.0, material(fric=0.0), damping=0.0, skin=1e-4)
     m.set_velocity(np.arange(m.n), vel=rng(4).normal(0, 2.0, (m.n, 3)))
     m.set_timestep(None)
-    rebuilds0 = int(m.iprm[5])
+    rebuilds0 = m.n_rebuilds
     for _ in range(30):
         m.cycle(37)
         touching = brute_pairs(m.B.pos, r, 0.0)
         assert touching <= listed(m)
-    assert int(m.iprm[5]) > rebuilds0 + 3  # the skin criterion did trigger rebuilds
+    assert m.n_rebuilds > rebuilds0 + 3  # the skin criterion did trigger rebuilds
 
 
 def test_overflow_grows_capacity_and_loses_no_pair():
@@ -73,7 +73,7 @@ def test_overflow_grows_capacity_and_loses_no_pair():
     assert listed(m) == brute_pairs(pos, r, 2e-4)
     assert m.P.pi.shape[0] >= len(listed(m))
     near = np.flatnonzero((pos[:, 2] - r < 2e-4) | (0.015 - pos[:, 2] - r < 2e-4))
-    assert int(m.iprm[3]) == near.size  # every ball near a wall has its slot
+    assert m.n_wall_slots == near.size  # every ball near a wall has its slot
 
 
 def test_bonds_are_not_searched_and_survive_separation():

@@ -217,6 +217,56 @@ def test_after_failure_no_tension_and_coulomb_sliding():
     assert m.bond_state()["state"][0] == BOND_TENSION
 
 
+def test_broken_pair_recontacts_at_first_touch():
+    """A bond installed with a reference gap (locked-in stress relief) breaks, the balls
+    separate and are pushed back: the linear part repels from the first touch (PFC), not
+    only once the overlap exceeds the old reference gap."""
+    mat = material(pb_ten=5e6, pb_coh=50e6, fric=0.3)
+    rg0 = -1.5e-6
+    m = two_balls(mat, overlap=2e-6)
+    m.set_bond_rgap([rg0])
+    c = bond_constants(mat)
+
+    def gap():
+        return (m.B.pos[1, 0] - m.B.pos[0, 0]) - 2 * R
+
+    m.set_velocity([1], vel=[1e-2, 0, 0])
+    while m.n_broken == 0:
+        m.cycle(1)
+    m.cycle(1)
+    # broken, still overlapping by less than the reference gap: no force, rgap kept (the
+    # reference gap is dropped only where the linear force is zero under both)
+    assert rg0 < gap() < 0.0
+    f, _ = m.ball_forces()
+    assert np.all(f == 0.0)
+    assert m.bond_state()["rgap"][0] == rg0
+    while gap() < 0.0:
+        m.cycle(1)
+    m.cycle(5)
+    assert gap() > 0.0
+    assert m.bond_state()["rgap"][0] == 0.0
+    # push back along the axis: force from the first step with an overlap
+    m.set_velocity([1], vel=[-1e-2, 0, 0])
+    while gap() >= 0.0:
+        f, _ = m.ball_forces()
+        assert np.all(f == 0.0)
+        m.cycle(1)
+    first = True
+    while gap() > 0.5 * rg0:  # overlaps below |rg0|: no force before this change
+        f, _ = m.ball_forces()
+        overlap = -gap()
+        assert overlap > 0.0
+        assert rel(f[1, 0], c["kn"] * overlap) < TOL
+        assert rel(f[0, 0], -c["kn"] * overlap) < TOL
+        if first:
+            assert overlap < 1e-7  # really the first touch
+            first = False
+        m.cycle(1)
+    overlap = -gap()
+    assert rel(m.energies()["strain_linear"], 0.5 * c["kn"] * overlap ** 2) < 1e-8
+    assert m.bond_state()["state"][0] == BOND_TENSION
+
+
 def test_bond_created_with_zero_force_when_overlapped(mat):
     m = two_balls(mat, overlap=1e-6)
     c = bond_constants(mat)

@@ -1,13 +1,32 @@
 """bpmcal.dem: bonded-sphere DEM engine with PFC3D's linear + linear-parallel-bond semantics.
 
-Layers: ``laws`` (one contact), ``kernels`` (laws mapped over pairs, integration, neighbour
-search; numba), ``model`` (Python driver: state, walls, bonds, energies). See
-../shared/PBM.md for the contact laws and kernels.py for the stepping scheme.
+Layers (numba kernels below ``model``):
+
+- ``laws`` (one contact) and ``motion`` (one ball): the physics, as small inlined functions;
+- ``kernels``: laws mapped over pairs and wall slots, integration, the chunk runner
+  (``bondblock`` holds the vectorised bond pairs); ``neighbors``: Verlet lists and
+  ball-wall slots; ``diagnostics``: energies, critical timestep, unbalanced force;
+- ``model``: the Python driver (state, walls, bonds, measurements) and the public API.
+
+The contact laws are documented in ``docs/contact_laws.md``; the stepping scheme in the
+header of ``kernels.py``.
 """
 from .errors import InputError, InstabilityError
-from .layout import BOND_INTACT, BOND_SHEAR, BOND_TENSION, FIX_ALL
+from .layout import (
+    BOND_INTACT,
+    BOND_SHEAR,
+    BOND_TENSION,
+    FIX_ALL,
+    FIX_VX,
+    FIX_VY,
+    FIX_VZ,
+    FIX_WX,
+    FIX_WY,
+    FIX_WZ,
+)
 from .material import Material
 from .model import ENERGY_TERMS, Model
 
 __all__ = ["Model", "Material", "InputError", "InstabilityError", "ENERGY_TERMS",
-           "FIX_ALL", "BOND_INTACT", "BOND_TENSION", "BOND_SHEAR"]
+           "FIX_ALL", "FIX_VX", "FIX_VY", "FIX_VZ", "FIX_WX", "FIX_WY", "FIX_WZ",
+           "BOND_INTACT", "BOND_TENSION", "BOND_SHEAR"]

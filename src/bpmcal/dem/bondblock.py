@@ -45,10 +45,14 @@ _S = iter(range(100))
 S_FN, S_SX, S_SY, S_SZ = next(_S), next(_S), next(_S), next(_S)  # bond normal/shear force
 S_MT, S_BX, S_BY, S_BZ = next(_S), next(_S), next(_S), next(_S)  # bond twist/bending moment
 S_LX, S_LY, S_LZ = next(_S), next(_S), next(_S)  # shear force of the linear component
-S_DFX, S_DFY, S_DFZ = next(_S), next(_S), next(_S)  # dashpot force of the last step
-S_RG = next(_S)  # reference gap of the linear component [m]
-S_INTACT = next(_S)  # 1.0 intact bond, 0.0 broken (mirror of the int8 state)
-S_ACT = next(_S)  # 1.0 if the pair carried force last step
+S_RG = next(_S)  # reference gap of the linear component [m]; max(rg, 0) once a broken
+#                  pair's surfaces are apart (re-contact starts at first touch)
+S_FLAGS = next(_S)  # 3.0 intact; broken: 1.0 if the linear part carried force last step, else 0
+S_DFX, S_DFY, S_DFZ = next(_S), next(_S), next(_S)  # dashpot force of the last step (last:
+#                     untouched without dashpots, so the rows read every step are contiguous)
+#: S_FLAGS values (one field for two flags: one load and one store less per bond and step)
+FLAG_INTACT = 3.0
+FLAG_ACTIVE = 1.0
 NSF = next(_S)
 del _S
 
@@ -77,8 +81,7 @@ def n_blocks(nb: int) -> int:
 def new_state(nb: int) -> np.ndarray:
     """Zeroed state for ``nb`` bonds, all intact."""
     blk = np.zeros(n_blocks(nb) * BLOCK_SIZE)
-    set_field(blk, S_INTACT, nb, 1.0)
-    set_field(blk, S_ACT, nb, 1.0)
+    set_field(blk, S_FLAGS, nb, FLAG_INTACT)
     return blk
 
 
@@ -142,7 +145,8 @@ def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, ta
                                                      fric * fn)
         # contact lost this step: the shear spring's energy, as in kernels._pair_range
         elost = 0.5 * (sx * tx + sy * ty + sz * tz) * iks
-        wasact = sb[S_ACT * STR + ll] > 0.0
+        flags = sb[S_FLAGS * STR + ll]
+        wasact = flags > 0.0  # intact bonds always count as active
         eslip = eslip if lact else (elost if wasact else 0.0)
         ux = ux if lact else 0.0
         uy = uy if lact else 0.0
@@ -169,7 +173,7 @@ def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, ta
             fz += gz
         # ---- parallel bond
         rb, area, kna, ksa, ksj, kni = bond_geometry(ri, rj, inv_l, pb_emod, pb_ikr, rmul)
-        intact = sb[S_INTACT * STR + ll] > 0.0
+        intact = flags > 2.0
         fnb = sb[S_FN * STR + ll] + kna * dun
         ax, ay, az = rotate_shear(sb[S_SX * STR + ll], sb[S_SY * STR + ll],
                                   sb[S_SZ * STR + ll], nx, ny, nz, dphi)
@@ -202,7 +206,10 @@ def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, ta
         sb[S_LX * STR + ll] = ux
         sb[S_LY * STR + ll] = uy
         sb[S_LZ * STR + ll] = uz
-        sb[S_ACT * STR + ll] = 1.0 if (lact or intact) else 0.0
+        sb[S_FLAGS * STR + ll] = FLAG_INTACT if intact else (FLAG_ACTIVE if lact else 0.0)
+        # re-contact at first touch (PFC): once the surfaces of a broken pair are apart,
+        # a negative reference gap (locked-in stress relief) no longer applies
+        sb[S_RG * STR + ll] = rg if (intact or gap < 0.0) else max(rg, 0.0)
         kfn = fnb if keep else 0.0
         ksx = sbx if keep else 0.0
         ksy = sby if keep else 0.0
@@ -298,7 +305,7 @@ def _record_break(T, blk, base, ll, k, i, pos, bstate, bstep, bpos, bnrm, be, bs
                    + (bx * mbx + by * mby + bz * mbz) / kni)
     for f in (S_FN, S_SX, S_SY, S_SZ, S_MT, S_BX, S_BY, S_BZ):
         blk[base + f * STR + ll] = 0.0
-    blk[base + S_INTACT * STR + ll] = 0.0
+    blk[base + S_FLAGS * STR + ll] = FLAG_ACTIVE  # broken; its linear part was active
 
 
 @jit

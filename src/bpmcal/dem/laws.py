@@ -1,7 +1,8 @@
 """Contact laws for ONE contact, as small inlined numba functions (PFC3D semantics).
 
-These functions are the physics; ``kernels.py`` maps them over pairs and wall slots.
-Conventions (see ../shared/PBM.md and the Itasca linearpbond documentation):
+These functions are the physics; ``kernels.py`` maps them over pairs and wall slots
+(``wall_contact_geometry``, at the end, is the geometry of one ball-wall contact).
+Conventions (see docs/contact_laws.md and Itasca's linearpbond documentation):
 
 - unit normal ``n`` points from piece 1 to piece 2 (ball i to ball j; wall to ball);
   relative displacement increments are those of piece 2 with respect to piece 1 at
@@ -27,6 +28,7 @@ from __future__ import annotations
 import math
 
 from ._jit import numba
+from .layout import WALL_CYLINDER
 
 _inl = numba.njit(cache=True, inline="always")
 
@@ -170,3 +172,37 @@ def bond_strength_stresses(fn, smag, mt, mbmag, rb, mcf):
     sig = fn / area + mcf * mbmag * rb / inertia
     tau = smag / area + mcf * abs(mt) * rb / (2.0 * inertia)
     return sig, tau, fn / area
+
+
+@_inl
+def wall_contact_geometry(px, py, pz, r, w, wtype, wpos, wnrm, wrad, wdisk):
+    """Gap and unit normal (from wall to ball) of ball (p, r) with wall w.
+
+    Returns (gap, nx, ny, nz, ex, ey, ez, inside): e is the outward radial unit vector for
+    a cylinder (zero for planes); ``inside`` is False when the ball is off a finite disk.
+    """
+    rx = px - wpos[w, 0]
+    ry = py - wpos[w, 1]
+    rz = pz - wpos[w, 2]
+    ax = wnrm[w, 0]
+    ay = wnrm[w, 1]
+    az = wnrm[w, 2]
+    h = rx * ax + ry * ay + rz * az
+    qx = rx - h * ax
+    qy = ry - h * ay
+    qz = rz - h * az
+    if wtype[w] == WALL_CYLINDER:
+        rho = math.sqrt(qx * qx + qy * qy + qz * qz)
+        if rho > 0.0:
+            ex = qx / rho
+            ey = qy / rho
+            ez = qz / rho
+        else:
+            ex = 1.0
+            ey = 0.0
+            ez = 0.0
+        return wrad[w] - rho - r, -ex, -ey, -ez, ex, ey, ez, True
+    inside = True
+    if wdisk[w] > 0.0:
+        inside = qx * qx + qy * qy + qz * qz <= wdisk[w] * wdisk[w]
+    return h - r, ax, ay, az, 0.0, 0.0, 0.0, inside

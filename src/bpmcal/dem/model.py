@@ -19,8 +19,10 @@ from collections import namedtuple
 import numpy as np
 
 from . import bondblock as bb
+from . import diagnostics as D
 from . import kernels as K
-from ._jit import set_threads
+from . import neighbors as NB
+from ._jit import numba, set_threads
 from .errors import InputError, InstabilityError
 from .layout import (
     BOND_INTACT,
@@ -38,6 +40,7 @@ from .layout import (
     I_NEED_P,
     I_NEED_W,
     I_NPAIRS,
+    I_NREBUILDS,
     I_NSLOTS,
     I_REBUILD,
     I_STEP,
@@ -69,7 +72,7 @@ from .layout import (
 from .material import Material
 
 Balls = namedtuple("Balls", "pos vel angvel force moment radius mass inertia fix pos_ref "
-                   "edamp egrav efix fbuf")
+                   "edamp egrav efix fbuf pmask")
 Pairs = namedtuple("Pairs", "pi pj fs df act slip dash estr vptr pi2 pj2 fs2 vptr2 cand part")
 Bonds = namedtuple("Bonds", "blk state step pos nrm energy estr sig ptr part")
 Slots = namedtuple("Slots", "b w fs df rg f m rad slip dash estr ptr b2 w2 fs2 ptr2")
@@ -82,6 +85,12 @@ ENERGY_TERMS = ("kinetic", "kinetic_walls", "strain_linear", "strain_bond", "sli
                 "work_constraints")
 
 
+#: type of the ball indices in the pair and wall-slot lists: unsigned, so that numba
+#: emits no negative-index wraparound code where the kernels index ball arrays with them
+#: (the public methods return int32 copies)
+IDX = np.uint32
+
+
 def aligned_zeros(shape, align=64):
     """Zeroed float64 array whose data start on an ``align``-byte boundary (so that the
     8-float rows of the force buffers each fill exactly one cache line)."""
@@ -89,6 +98,13 @@ def aligned_zeros(shape, align=64):
     raw = np.zeros(n + align // 8)
     off = (-raw.ctypes.data % align) // 8
     return raw[off:off + n].reshape(shape)
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    """A read-only view of an engine array (no copy; reflects later steps)."""
+    v = a.view()
+    v.flags.writeable = False
+    return v
 
 
 def _vec3(name, v):
@@ -150,8 +166,8 @@ class Model:
             raise InputError(f"max_speed={max_speed!r}: expected a positive speed in m/s")
         set_threads(threads)
         npart = int(partitions)
-        if npart < 1:
-            raise InputError(f"partitions={partitions!r}: expected an integer >= 1")
+        if not 1 <= npart <= 63:
+            raise InputError(f"partitions={partitions!r}: expected an integer in [1, 63]")
         self._npart = npart
 
         # r^3 through the C library's pow, element by element: numpy's vectorised power
@@ -164,7 +180,8 @@ class Model:
         self.B = Balls(pos=pos, vel=z3(), angvel=z3(), force=z3(), moment=z3(), radius=rad,
                        mass=mass, inertia=inertia, fix=np.zeros(n, np.uint8),
                        pos_ref=pos.copy(), edamp=np.zeros(n), egrav=np.zeros(n),
-                       efix=np.zeros(n), fbuf=aligned_zeros((npart, n, 8)))
+                       efix=np.zeros(n), fbuf=aligned_zeros((npart, n, 8)),
+                       pmask=np.full(n, (1 << npart) - 1, np.int64))
         self.prm = np.zeros(N_PRM)
         self.iprm = np.zeros(N_IPRM, np.int64)
         self.eacc = np.zeros(N_EACC)
@@ -190,12 +207,12 @@ class Model:
 
     def _alloc_pairs(self, cap, old: Pairs | None = None):
         n = self.n
-        ccap = 64 if old is None else old.cand.shape[0]
-        P = Pairs(pi=np.zeros(cap, np.int32), pj=np.zeros(cap, np.int32),
+        ccap = cap if old is None else max(cap, old.cand.shape[0])  # unbonded pairs found
+        P = Pairs(pi=np.zeros(cap, IDX), pj=np.zeros(cap, IDX),
                   fs=np.zeros((cap, 3)), df=np.zeros((cap, 3)), act=np.zeros(cap, np.uint8),
                   slip=np.zeros(cap), dash=np.zeros(cap), estr=np.zeros(cap),
-                  vptr=np.zeros(n + 1, np.int64), pi2=np.zeros(cap, np.int32),
-                  pj2=np.zeros(cap, np.int32), fs2=np.zeros((cap, 6)),
+                  vptr=np.zeros(n + 1, np.int64), pi2=np.zeros(cap, IDX),
+                  pj2=np.zeros(cap, IDX), fs2=np.zeros((cap, 6)),
                   vptr2=np.zeros(n + 1, np.int64),
                   cand=np.zeros(ccap, np.int64), part=np.zeros(self._npart + 1, np.int64))
         if old is not None:
@@ -208,11 +225,11 @@ class Model:
 
     def _alloc_slots(self, cap, old: Slots | None = None):
         n = self.n
-        S = Slots(b=np.zeros(cap, np.int32), w=np.zeros(cap, np.int32), fs=np.zeros((cap, 3)),
+        S = Slots(b=np.zeros(cap, IDX), w=np.zeros(cap, IDX), fs=np.zeros((cap, 3)),
                   df=np.zeros((cap, 3)), rg=np.zeros(cap), f=np.zeros((cap, 3)),
                   m=np.zeros((cap, 3)), rad=np.zeros(cap), slip=np.zeros(cap),
                   dash=np.zeros(cap), estr=np.zeros(cap), ptr=np.zeros(n + 1, np.int64),
-                  b2=np.zeros(cap, np.int32), w2=np.zeros(cap, np.int32),
+                  b2=np.zeros(cap, IDX), w2=np.zeros(cap, IDX),
                   fs2=np.zeros((cap, 7)), ptr2=np.zeros(n + 1, np.int64))
         if old is not None:
             m = int(self.iprm[I_NSLOTS])
@@ -298,10 +315,15 @@ class Model:
     def step(self) -> int:
         return int(self.iprm[I_STEP])
 
+    @property
+    def skin(self) -> float:
+        """Verlet skin [m]: pairs closer than this are in the neighbour list."""
+        return float(self.prm[P_SKIN])
+
     def critical_timestep(self) -> tuple[float, int]:
         """(dt_crit, limiting ball): min over balls of sqrt(m/k_tran), sqrt(I/k_rot)."""
         self._ensure_lists()
-        dtc, arg = K.stiffness_timestep(self.B.radius, self.B.mass, self.B.inertia, self.B.fix,
+        dtc, arg = D.stiffness_timestep(self.B.radius, self.B.mass, self.B.inertia, self.B.fix,
                                         self.P.pi, self.P.pj, int(self.iprm[I_NPAIRS]),
                                         int(self.iprm[I_NB]), self.Bd.state, self.S.b,
                                         int(self.iprm[I_NSLOTS]), self.prm)
@@ -330,6 +352,33 @@ class Model:
         return dt
 
     # ------------------------------------------------------------------ balls
+    # Read-only views of the ball state (no copies: they follow the model as it steps;
+    # take ``.copy()`` for a snapshot). Change the state with the methods below.
+    @property
+    def positions(self) -> np.ndarray:
+        """Ball centres x_n (N, 3) [m]."""
+        return _readonly(self.B.pos)
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """Ball velocities v_{n-1/2} (N, 3) [m/s] (half-step values of the leapfrog)."""
+        return _readonly(self.B.vel)
+
+    @property
+    def angular_velocities(self) -> np.ndarray:
+        """Ball spins (N, 3) [rad/s] (half-step values)."""
+        return _readonly(self.B.angvel)
+
+    @property
+    def radii(self) -> np.ndarray:
+        """Ball radii (N,) [m]."""
+        return _readonly(self.B.radius)
+
+    @property
+    def masses(self) -> np.ndarray:
+        """Ball masses (N,) [kg]."""
+        return _readonly(self.B.mass)
+
     def fix(self, idx, flags=FIX_ALL):
         """Fix degrees of freedom of balls ``idx`` (bits of layout.FIX_*); their current
         velocities are then prescribed."""
@@ -419,7 +468,7 @@ class Model:
         S.slip[:ns] = 0.0
         S.dash[:ns] = 0.0
         wout = np.zeros((nw, 3))
-        K.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
+        D.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
         if W.mass[w] == 0.0:  # a rigid wall's work is internal to the system
             self._removed_work += float(W.work[w] + wout[w, 1])
         self._removed_grav += float(W.grav[w] + wout[w, 2])
@@ -452,11 +501,43 @@ class Model:
         """Force the balls exert on wall ``w`` at the last step [N]."""
         return self.W.force[w].copy()
 
+    def wall_radial_force(self, w) -> float:
+        """Sum over the contacts of wall ``w`` of the outward radial component of the force
+        the balls exert on it [N] (cylinders: the lateral pressure times the wall area;
+        0 for planes), at the last step."""
+        return -float(self.W.radsum[w])
+
+    def wall_position(self, w) -> np.ndarray:
+        """Reference point of wall ``w`` [m] (walls move with their velocity)."""
+        return self.W.pos[w].copy()
+
+    def wall_velocity(self, w) -> np.ndarray:
+        """Velocity of wall ``w`` [m/s] (prescribed, or of a rigid wall: v_{n+1/2})."""
+        return self.W.vel[w].copy()
+
+    def set_wall_friction(self, w, fric: float):
+        """Friction coefficient of the contacts of wall(s) ``w`` (takes effect at the next
+        force evaluation, like a velocity change; the current forces stay)."""
+        f = float(fric)
+        if not (f >= 0 and math.isfinite(f)):
+            raise InputError(f"wall fric={fric!r}: expected a friction coefficient >= 0")
+        idx = np.atleast_1d(np.asarray(w))
+        if idx.size and not ((idx >= 0) & (idx < self.n_walls)).all():
+            raise InputError(f"wall id {w!r}: expected 0..{self.n_walls - 1}")
+        self.W.fric[idx] = f
+
+    def wall_contact_balls(self, w) -> np.ndarray:
+        """Balls (sorted, unique) that touch wall ``w`` with a non-zero force now."""
+        ns = int(self.iprm[I_NSLOTS])
+        S = self.S
+        on = (S.w[:ns] == w) & (np.linalg.norm(S.f[:ns], axis=1) > 0)
+        return np.unique(S.b[:ns][on]).astype(np.int32)
+
     # ------------------------------------------------------------------ contacts & bonds
     def _ensure_lists(self):
         if self.iprm[I_REBUILD]:
             while True:
-                st = K._rebuild(self.B, self.P, self.Bd, self.S, self.W, self.prm, self.iprm,
+                st = NB.rebuild_lists(self.B, self.P, self.Bd, self.S, self.W, self.prm, self.iprm,
                                 self.eacc)
                 if st == 0:
                     break
@@ -466,7 +547,7 @@ class Model:
         """(i, j) of all pairs in the neighbour list (bond pairs first)."""
         self._ensure_lists()
         m = int(self.iprm[I_NPAIRS])
-        return self.P.pi[:m].copy(), self.P.pj[:m].copy()
+        return self.P.pi[:m].astype(np.int32), self.P.pj[:m].astype(np.int32)
 
     def pair_gaps(self, i=None, j=None) -> np.ndarray:
         """Surface gaps |xj - xi| - Ri - Rj [m] of the pairs (default: all listed pairs)."""
@@ -493,6 +574,27 @@ class Model:
     @property
     def n_broken(self) -> int:
         return int(self.iprm[I_NBROKEN])
+
+    @property
+    def bond_states(self) -> np.ndarray:
+        """State of every bond pair (read-only view): 0 intact, 1 broken in tension,
+        2 broken in shear (``BOND_*``), in the order of :meth:`bond_pairs`."""
+        return _readonly(self.Bd.state)
+
+    @property
+    def bond_break_steps(self) -> np.ndarray:
+        """Step at which each bond broke, -1 if intact (read-only view)."""
+        return _readonly(self.Bd.step)
+
+    @property
+    def n_rebuilds(self) -> int:
+        """Neighbour-list rebuilds so far (diagnostics)."""
+        return int(self.iprm[I_NREBUILDS])
+
+    @property
+    def n_wall_slots(self) -> int:
+        """Ball-wall pairs in the wall-contact list now (touching or within the skin)."""
+        return int(self.iprm[I_NSLOTS])
 
     def bond(self, gap: float = 0.0, rgap=None) -> int:
         """Install parallel bonds on every unbonded pair with surface gap <= ``gap`` (PFC
@@ -535,8 +637,8 @@ class Model:
                                  f"got shape {rg.shape}")
             new.blk[bb.field_index(bb.S_RG, nbt)[newk]] = rg
         oi, oj = P.pi[:nb].copy(), P.pj[:nb].copy()
-        ai = np.concatenate([oi, ni]).astype(np.int32)
-        aj = np.concatenate([oj, nj]).astype(np.int32)
+        ai = np.concatenate([oi, ni]).astype(IDX)
+        aj = np.concatenate([oj, nj]).astype(IDX)
         if nbt > P.pi.shape[0]:
             self._alloc_pairs(int(nbt * 1.5) + 8 * self.n)
             P = self.P
@@ -561,10 +663,13 @@ class Model:
 
     def bond_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         nb = self.n_bonds
-        return self.P.pi[:nb].copy(), self.P.pj[:nb].copy()
+        return self.P.pi[:nb].astype(np.int32), self.P.pj[:nb].astype(np.int32)
 
     def set_bond_rgap(self, rgap):
-        """Reference gaps [m] of the linear component of the bond pairs (PFC ``rgap``)."""
+        """Reference gaps [m] of the linear component of the bond pairs (PFC ``rgap``).
+        Once a bond has broken and its surfaces are apart (gap >= 0), a negative reference
+        gap is set to 0: a broken pair that comes back into contact is repelled from the
+        first touch, as in PFC."""
         rg = np.asarray(rgap, float).reshape(-1)
         if rg.shape != (self.n_bonds,) or not np.all(np.isfinite(rg)):
             raise InputError(f"rgap: expected {self.n_bonds} finite values, got shape {rg.shape}")
@@ -602,7 +707,7 @@ class Model:
         st = self.Bd.state
         k = np.flatnonzero(st != BOND_INTACT)
         k = k[np.lexsort((k, self.Bd.step[k]))]
-        i, j = self.P.pi[k], self.P.pj[k]
+        i, j = self.P.pi[k].astype(np.int32), self.P.pj[k].astype(np.int32)
         r = self.material.pb_rmul * np.minimum(self.B.radius[i], self.B.radius[j])
         return {"step": self.Bd.step[k].copy(), "bond": k, "i": i.copy(), "j": j.copy(),
                 "mode": st[k].astype(np.int64), "pos": self.Bd.pos[k].copy(),
@@ -649,7 +754,7 @@ class Model:
         done = 0
         while True:
             st, k = K.run_steps(self.B, self.P, self.Bd, self.S, self.W, self.prm, self.iprm,
-                                self.eacc, nsteps - done, record)
+                                self.eacc, nsteps - done, record, numba.get_num_threads() == 1)
             done += int(k)
             if st == 0 and done >= nsteps:
                 break
@@ -682,15 +787,15 @@ class Model:
                 self.iprm[I_FORCES] = 1
             self.cycle(0, record=True)
         B, P, Bd, S, W = self.B, self.P, self.Bd, self.S, self.W
-        lin, bond, slip, dash, damp, grav, fixw, rel = K.sum_energies(
+        lin, bond, slip, dash, damp, grav, fixw, rel = D.sum_energies(
             B.edamp, B.egrav, B.efix, P.estr, P.slip, P.dash, int(self.iprm[I_NPAIRS]),
             Bd.estr, Bd.energy, Bd.state, int(self.iprm[I_NB]), S.estr, S.slip, S.dash,
             int(self.iprm[I_NSLOTS]), self.eacc)
-        kin, dmp2, grv2, cst2 = K.measure_balls(B.vel, B.angvel, B.force, B.moment, B.mass,
-                                                B.inertia, B.fix, B.fbuf, S.ptr, S.f, S.m,
-                                                self.prm)
+        kin, dmp2, grv2, cst2 = D.measure_balls(B.vel, B.angvel, B.force, B.moment, B.mass,
+                                                B.inertia, B.fix, B.fbuf, B.pmask, S.ptr,
+                                                S.f, S.m, self.prm)
         wout = np.zeros((self.n_walls, 3))
-        K.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
+        D.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
         ww = W.work + wout[:, 1]
         e = {"kinetic": kin, "kinetic_walls": float(wout[:, 0].sum()), "strain_linear": lin,
              "strain_bond": bond, "slip": slip, "dashpot": dash, "damping": damp + dmp2,
@@ -727,7 +832,7 @@ class Model:
             return 0.0
         self.energies()  # current resultant forces (measure pass)
         fu = np.linalg.norm(self.B.force[free], axis=1).mean()
-        fc, cnt = K.contact_force_mean(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
+        fc, cnt = D.contact_force_mean(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                                        self.P.fs, int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]),
                                        self.Bd.state, self.Bd.blk, self.prm)
         if cnt == 0 or fc == 0.0:
@@ -737,7 +842,7 @@ class Model:
     def coordination_numbers(self) -> np.ndarray:
         """Contacts per ball now (bonded or touching)."""
         self._ensure_lists()
-        return K.coordination(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
+        return D.coordination(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                               int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]), self.Bd.state,
                               self.Bd.blk)
 

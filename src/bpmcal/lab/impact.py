@@ -115,11 +115,11 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     m = sp.model
     wb, wt = sp.platens
     m.remove_wall(wt)  # the top platen goes; the bottom one stays, fixed
-    m.W.fric[wb] = st.platen_fric
+    m.set_wall_friction(wb, st.platen_fric)
     m.set_damping(0.0)
     m.set_material(sp.material.replace(dp_nratio=st.dp_ratio, dp_sratio=st.dp_ratio))
     m.set_gravity((0.0, 0.0, -st.gravity))
-    z_top = float((m.B.pos[:, 2] + m.B.radius).max())
+    z_top = float((m.positions[:, 2] + m.radii).max())
     hammer = m.add_plane_wall((0.0, 0.0, z_top + st.gap), (0.0, 0.0, -1.0),
                               velocity=(0.0, 0.0, -st.velocity), fric=st.platen_fric,
                               mass=st.hammer_mass)
@@ -127,16 +127,16 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     dt = m.dt
     n_rec = max(1, int(round(st.record_dt / dt)))
     e0 = m.energies()
-    rock_mass = float(m.B.mass.sum())
+    rock_mass = float(m.masses.sum())
     step0, t0 = m.step, m.time
     ser = {k: [] for k in IMPACT_SERIES}
     wall0 = time.perf_counter()
 
     def rec():
         e = m.energies()
-        v = float(m.W.vel[hammer, 2])
+        v = float(m.wall_velocity(hammer)[2])
         w_in = e["work_walls_each"][hammer] - e0["work_walls_each"][hammer]
-        st_ = m.Bd.state
+        st_ = m.bond_states
         d = {k: e[k] - e0[k] for k in ("kinetic", "strain_linear", "strain_bond", "slip",
                                          "damping", "dashpot", "released", "removed")}
         grav_rock = (e["work_gravity"] - e["work_gravity_walls"]) - (
@@ -145,7 +145,7 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
         stored = sum(d.values())
         ser["step"].append(m.step - step0)
         ser["time"].append(m.time - t0)
-        ser["hammer_z"].append(float(m.W.pos[hammer, 2]))
+        ser["hammer_z"].append(float(m.wall_position(hammer)[2]))
         ser["hammer_v"].append(v)
         ser["W_in"].append(w_in)
         ser["W_in_paper"].append(0.5 * st.hammer_mass * (st.velocity ** 2 - v ** 2))
@@ -162,7 +162,7 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     rec()
     t_rebound = None
     reason = "duration"
-    z_floor = float(m.W.pos[wb, 2]) + 4.0 * float(m.B.radius.max())
+    z_floor = float(m.wall_position(wb)[2]) + 4.0 * float(m.radii.max())
     while m.time - t0 < st.duration:
         cycle(m, n_rec)
         v = rec()
@@ -175,7 +175,7 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
         if t_rebound is not None and m.time - t0 - t_rebound >= st.after_rebound:
             reason = "rebound"
             break
-        if float(m.W.pos[hammer, 2]) <= z_floor:
+        if float(m.wall_position(hammer)[2]) <= z_floor:
             reason = "hammer_on_anvil"
             break
     series = {k: np.asarray(v) for k, v in ser.items()}
@@ -183,11 +183,11 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     stages = crack_stages(series["time"], ncr)
     # fragments
     bi, bj = m.bond_pairs()
-    labels = F.fragments(m.n, bi, bj, m.Bd.state == BOND_INTACT)
-    fmass, fsize = F.fragment_sizes(labels, m.B.radius, sp.spec.density)
-    solid = float((4 / 3 * np.pi * libm_pow(m.B.radius, 3)).sum())
+    labels = F.fragments(m.n, bi, bj, m.bond_states == BOND_INTACT)
+    fmass, fsize = F.fragment_sizes(labels, m.radii, sp.spec.density)
+    solid = float((4 / 3 * np.pi * libm_pow(m.radii, 3)).sum())
     orig = (6 * solid / np.pi) ** (1 / 3)
-    mean_d = 2 * float(m.B.radius.mean())
+    mean_d = 2 * float(m.radii.mean())
     w_in = float(series["W_in"][-1])
     summ = {
         "W_in_J": w_in, "W_in_paper_J": float(series["W_in_paper"][-1]),

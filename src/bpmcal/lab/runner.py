@@ -226,7 +226,7 @@ def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: di
                        boundary=boundary)
     t_gen = time.perf_counter() - t0
     m = sp.model
-    ini = {"position": m.B.pos.copy(), "radius": m.B.radius.copy()}
+    ini = {"position": m.positions.copy(), "radius": m.radii.copy()}
     res = run(sp)
     summ = dict(res.summary)
     summ.update(_morphology(test, sp, res, ini))
@@ -244,9 +244,9 @@ def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: di
         summ["warning"] = (f"{', '.join(bad)} not finite: too few records in the fit window "
                            "or no peak; see the series")
     bi, bj = m.bond_pairs()
-    bonds = {"i": bi, "j": bj, "state": m.Bd.state.copy(), "break_step": m.Bd.step.copy()}
-    fin = {"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
-           "angular_velocity": m.B.angvel.copy()} if keep_particles else None
+    bonds = {"i": bi, "j": bj, "state": m.bond_states.copy(), "break_step": m.bond_break_steps.copy()}
+    fin = {"position": m.positions.copy(), "velocity": m.velocities.copy(),
+           "angular_velocity": m.angular_velocities.copy()} if keep_particles else None
     return LabRun(test=test, inputs=inputs, summary=summ, genesis=g, series=res.series,
                   cracks=_crack_arrays(res.cracks),
                   particles_initial=ini if keep_particles else None, particles_final=fin,
@@ -309,7 +309,7 @@ def impact_test(params: dict, seed: int, geometry: Geometry = Geometry(),
     t0 = time.perf_counter()
     sp = make_specimen(p, seed, geometry, cache=cache, threads=threads, progress=progress,
                        genesis_max_steps=genesis_max_steps)
-    ini = {"position": sp.model.B.pos.copy(), "radius": sp.model.B.radius.copy()}
+    ini = {"position": sp.model.positions.copy(), "radius": sp.model.radii.copy()}
     res = run_impact(sp, st, progress=progress)
     m = sp.model
     summ = dict(res.summary)
@@ -321,10 +321,10 @@ def impact_test(params: dict, seed: int, geometry: Geometry = Geometry(),
     bi, bj = m.bond_pairs()
     return LabRun(test="impact", inputs=inputs, summary=summ, genesis=sp.report,
                   series=res.series, cracks=_crack_arrays(res.cracks), particles_initial=ini,
-                  particles_final={"position": m.B.pos.copy(), "velocity": m.B.vel.copy(),
-                                   "angular_velocity": m.B.angvel.copy(),
+                  particles_final={"position": m.positions.copy(), "velocity": m.velocities.copy(),
+                                   "angular_velocity": m.angular_velocities.copy(),
                                    "fragment": res.fragments["label"]},
-                  bonds={"i": bi, "j": bj, "state": m.Bd.state.copy(),
-                         "break_step": m.Bd.step.copy()},
+                  bonds={"i": bi, "j": bj, "state": m.bond_states.copy(),
+                         "break_step": m.bond_break_steps.copy()},
                   groups={"fragments": {"mass": res.fragments["mass"],
                                         "size": res.fragments["size"]}})

@@ -346,7 +346,7 @@ def relax_packing(spec: SpecimenSpec, progress=None) -> Packing:
     z = m.coordination_numbers()
     g = m.pair_gaps()
     typical = float(np.median(-g[g < 0])) if np.any(g < 0) else 0.0
-    r2, nfloat, nfixed = _fix_floaters(m.B.pos, r, z, typical)
+    r2, nfloat, nfixed = _fix_floaters(m.positions, r, z, typical)
     report = {
         "n_balls": int(m.n),
         "relax_steps": int(m.step),
@@ -357,7 +357,7 @@ def relax_packing(spec: SpecimenSpec, progress=None) -> Packing:
         "porosity_nominal_distributed": float(1.0 - (4 / 3 * np.pi * libm_pow(r, 3)).sum()
                                                / spec.volume),
     }
-    return Packing(spec=spec, pos=m.B.pos.copy(), radius=r2, report=report)
+    return Packing(spec=spec, pos=m.positions.copy(), radius=r2, report=report)
 
 
 def cache_dir() -> Path:
@@ -403,8 +403,8 @@ def wall_stresses(m: Model, spec: SpecimenSpec) -> tuple[float, float]:
     """(axial, lateral) compressive stress on the vessel walls [Pa] at the last step."""
     m.energies()  # forces of the current state
     area = math.pi * (0.5 * spec.diameter) ** 2
-    s_ax = 0.5 * (abs(m.W.force[1, 2]) + abs(m.W.force[2, 2])) / area
-    s_lat = -float(m.W.radsum[0]) / (2 * math.pi * 0.5 * spec.diameter * spec.height)
+    s_ax = 0.5 * (abs(m.wall_force(1)[2]) + abs(m.wall_force(2)[2])) / area
+    s_lat = m.wall_radial_force(0) / (2 * math.pi * 0.5 * spec.diameter * spec.height)
     return float(s_ax), float(s_lat)
 
 
@@ -472,9 +472,7 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     else:
         f = 1.0 if sigma_m <= sigma0 or sigma_m <= 0 else sigma0 / sigma_m
     # surface balls: those touching the lateral wall now
-    ns = int(m.iprm[3])
-    touching = m.S.w[:ns] == 0
-    surface = np.unique(m.S.b[:ns][touching & (np.linalg.norm(m.S.f[:ns], axis=1) > 0)])
+    surface = m.wall_contact_balls(0)
     # bond every touching pair; the linear reference gap scales its overlap force by f,
     # and so do the reference gaps of the ball-wall contacts (the end walls stay as platens)
     # (with f = 0, the pfc genesis, rgap = the current gap of every overlapping pair: its
@@ -487,7 +485,7 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     gaps = m.pair_gaps(i, j)
     sel = gaps <= install_gap
     rg = np.where(gaps[sel] < 0.0, gaps[sel] * (1.0 - f), 0.0)
-    n_touching = _count_touching(m.B.pos, m.B.radius, install_gap)
+    n_touching = _count_touching(m.positions, m.radii, install_gap)
     n_overlapping = int(np.count_nonzero(gaps < 0.0))
     nb = m.bond(gap=install_gap, rgap=rg)
     for w in range(3):
@@ -513,7 +511,7 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     else:
         settle_free = _solve(m, min(spec.relax_ratio, SETTLE_RATIO), spec.max_relax_steps,
                              progress=progress, phase="settle bonded", budget=budget)
-    pos, r = m.B.pos, m.B.radius
+    pos, r = m.positions, m.radii
     z_bot = 0.0
     z_top = spec.height
     rho = np.hypot(pos[:, 0], pos[:, 1]) + r

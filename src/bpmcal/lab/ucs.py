@@ -152,12 +152,12 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
     wb, wt = sp.platens
     m.set_wall_velocity(wb, velocity=(0.0, 0.0, v))
     m.set_wall_velocity(wt, velocity=(0.0, 0.0, -v))
-    m.W.fric[[wb, wt]] = st.platen_fric
+    m.set_wall_friction([wb, wt], st.platen_fric)
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
     n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
-    pos0 = m.B.pos.copy()
+    pos0 = m.positions.copy()
     z0 = pos0[sp.surface, 2]
     band = (z0 >= sp.z_bottom + st.lateral_band[0] * H0) & (
         z0 <= sp.z_bottom + st.lateral_band[1] * H0)
@@ -179,12 +179,12 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
 
     def record():
         e = m.energies()
-        ft = abs(m.W.force[wt, 2])
-        fb = abs(m.W.force[wb, 2])
+        ft = abs(m.wall_force(wt)[2])
+        fb = abs(m.wall_force(wb)[2])
         ea = 2 * v * (m.time - t_start) / H0
-        rho = np.hypot(m.B.pos[gauge, 0], m.B.pos[gauge, 1])
+        rho = np.hypot(m.positions[gauge, 0], m.positions[gauge, 1])
         er = -float((rho - rho0).mean()) / R0
-        states = m.Bd.state
+        states = m.bond_states
         ser["step"].append(m.step - step0)
         ser["time"].append(m.time - t_start)
         ser["axial_strain"].append(ea)

@@ -1,0 +1,77 @@
+"""The Model accessors that lab/ and io/ use instead of the engine's internal arrays."""
+import math
+
+import numpy as np
+import pytest
+from dem_util import RHO, material
+
+from bpmcal.dem import BOND_INTACT, InputError, Model
+
+
+def _ball_on_floor():
+    """One ball resting 1 um deep on a floor (wall 0) inside a cylinder (wall 1)."""
+    r = 1e-3
+    m = Model([[0.0, 0.0, r - 1e-6]], [r], RHO, material(), damping=0.0)
+    m.add_plane_wall((0, 0, 0), (0, 0, 1))
+    m.add_cylinder_wall((0, 0, 0), (0, 0, 1), 2.5e-3)
+    m.set_timestep(None)
+    m.cycle(1)
+    return m
+
+
+def test_state_views_are_read_only_and_follow_the_model():
+    m = _ball_on_floor()
+    pos = m.positions
+    assert pos.shape == (1, 3) and m.radii.shape == (1,)
+    with pytest.raises(ValueError):
+        pos[0, 0] = 1.0
+    z0 = float(pos[0, 2])
+    m.cycle(5)
+    assert float(m.positions[0, 2]) != z0  # pushed up by the floor
+    assert float(pos[0, 2]) == float(m.positions[0, 2])  # a view, not a snapshot
+    assert m.masses[0] == pytest.approx(RHO * 4 / 3 * math.pi * 1e-9)
+    assert m.velocities[0, 2] > 0 and m.angular_velocities.shape == (1, 3)
+
+
+def test_wall_accessors():
+    m = _ball_on_floor()
+    assert m.wall_contact_balls(0).tolist() == [0]  # touching the floor
+    assert m.wall_contact_balls(1).size == 0  # far from the cylinder
+    f = m.wall_force(0)
+    assert f[2] < 0  # the ball pushes the floor down
+    assert m.wall_radial_force(1) == 0.0
+    m.set_wall_friction([0, 1], 0.3)
+    with pytest.raises(InputError, match="fric"):
+        m.set_wall_friction(0, -0.1)
+    with pytest.raises(InputError, match="wall id"):
+        m.set_wall_friction(7, 0.1)
+    m.add_plane_wall((0, 0, 5e-3), (0, 0, -1), velocity=(0, 0, -0.1))
+    assert m.wall_velocity(2).tolist() == [0.0, 0.0, -0.1]
+    z = m.wall_position(2)[2]
+    m.cycle(10)
+    assert m.wall_position(2)[2] == pytest.approx(z - 10 * m.dt * 0.1, rel=1e-12)
+
+
+def test_cylinder_radial_force_is_the_lateral_push():
+    r = 1e-3
+    m = Model([[1.5e-3 - r + 2e-6, 0.0, 0.0]], [r], RHO, material(), damping=0.0)
+    m.add_cylinder_wall((0, 0, 0), (0, 0, 1), 1.5e-3)
+    m.set_timestep(None)
+    m.cycle(0)
+    m.energies()
+    kn = math.pi * r * m.material.emod  # ball-wall stiffness
+    assert m.wall_radial_force(0) == pytest.approx(kn * 2e-6, rel=1e-9)
+    assert m.wall_contact_balls(0).tolist() == [0]
+
+
+def test_bond_views_and_counters():
+    m = Model([[0.0, 0.0, 0.0], [2e-3, 0.0, 0.0]], [1e-3, 1e-3], RHO, material())
+    assert m.bond(gap=1e-9) == 1
+    m.set_timestep(None)
+    st = m.bond_states
+    assert st.tolist() == [BOND_INTACT] and m.bond_break_steps.tolist() == [-1]
+    with pytest.raises(ValueError):
+        st[0] = 2
+    assert m.n_rebuilds >= 1 and m.n_wall_slots == 0
+    assert m.skin == pytest.approx(0.125e-3)
+    assert isinstance(m.positions, np.ndarray)
