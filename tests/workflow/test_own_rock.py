@@ -313,7 +313,15 @@ def test_example_card_is_bounded_by_the_configured_ranges_and_reachable(example)
     ok = ds[ds["status"] == "ok"]
     for k, v in LDB.items():
         assert ok[k].min() < v < ok[k].max(), (k, ok[k].min(), ok[k].max())
-    assert card["status"] in ("ok", "non-unique"), card["message"]
+    if "bts_MPa" in card["targets"]:
+        # LdB's sigma_c/sigma_t = 21.5 lies beyond the parallel-bond model (~4-8): the card is
+        # either a fit or, truthfully, no-exact-fit naming sigma_t among the missed targets
+        assert card["status"] in ("ok", "non-unique", "no-exact-fit"), card["message"]
+        if card["status"] == "no-exact-fit":
+            assert "bts_MPa" in [m["target"] for m in card["missed"]], card["missed"]
+            assert "sigma" in card["message"] or "σt" in card["message"], card["message"]
+    else:
+        assert card["status"] in ("ok", "non-unique"), card["message"]
     for p in ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa"):
         assert b[p]["lower"] <= card["parameters"][p] <= b[p]["upper"]
     assert card["parameters"]["pb_emod_GPa"] > 50.0  # outside Table 2 (10-50 GPa)
