@@ -6,6 +6,7 @@ import pytest
 from dem_util import RHO, material
 
 from bpmcal.dem import BOND_INTACT, InputError, Model
+from bpmcal.dem.layout import FIX_ALL, WALL_CYLINDER, WALL_PLANE
 
 
 def _ball_on_floor():
@@ -75,3 +76,36 @@ def test_bond_views_and_counters():
     assert m.n_rebuilds >= 1 and m.n_wall_slots == 0
     assert m.skin == pytest.approx(0.125e-3)
     assert isinstance(m.positions, np.ndarray)
+
+
+def test_wall_geometry_and_prescribed_motion():
+    """Kind, normal and radius of the walls; a cylinder's radius follows its prescribed
+    radial velocity (r = r0 + v_r t), a plane its velocity."""
+    m = _ball_on_floor()
+    assert m.wall_type(0) == WALL_PLANE and m.wall_type(1) == WALL_CYLINDER
+    assert m.wall_normal(0).tolist() == [0.0, 0.0, 1.0]
+    assert m.wall_normal(1).tolist() == [0.0, 0.0, 1.0]
+    n = m.wall_normal(0)
+    n[2] = 5.0  # a copy: the wall is unchanged
+    assert m.wall_normal(0)[2] == 1.0
+    assert m.wall_radius(0) == 0.0 and m.wall_radius(1) == 2.5e-3
+    m.set_wall_velocity(1, radial_velocity=0.2)
+    m.set_wall_velocity(0, velocity=(0.0, 0.0, -0.1))
+    z0 = m.wall_position(0)[2]
+    m.cycle(10)
+    assert m.wall_radius(1) == pytest.approx(2.5e-3 + 10 * m.dt * 0.2, rel=1e-12)
+    assert m.wall_position(0)[2] == pytest.approx(z0 - 10 * m.dt * 0.1, rel=1e-12)
+    m.set_wall_velocity(1, radial_velocity=0.0)
+    r = m.wall_radius(1)
+    m.cycle(3)
+    assert m.wall_radius(1) == r
+
+
+def test_fix_flags_view():
+    m = _ball_on_floor()
+    flags = m.fix_flags
+    assert flags.tolist() == [0]
+    m.fix([0])
+    assert flags.tolist() == [FIX_ALL]  # a view: follows the model
+    with pytest.raises(ValueError):
+        flags[0] = 0

@@ -379,6 +379,11 @@ class Model:
         """Ball masses (N,) [kg]."""
         return _readonly(self.B.mass)
 
+    @property
+    def fix_flags(self) -> np.ndarray:
+        """Fixed degrees of freedom of every ball (N,) (bits of layout.FIX_*; 0 = free)."""
+        return _readonly(self.B.fix)
+
     def fix(self, idx, flags=FIX_ALL):
         """Fix degrees of freedom of balls ``idx`` (bits of layout.FIX_*); their current
         velocities are then prescribed."""
@@ -446,6 +451,9 @@ class Model:
                               float(radial_velocity), fric, 0.0)
 
     def set_wall_velocity(self, w, velocity=None, radial_velocity=None):
+        """Prescribe the velocity of wall ``w`` [m/s] and/or, for a cylinder, the rate of
+        change of its radius [m/s] (positive = expanding); they take effect at the next
+        step."""
         if velocity is not None:
             self.W.vel[w] = _vec3("velocity", velocity)
         if radial_velocity is not None:
@@ -497,6 +505,19 @@ class Model:
     def n_walls(self) -> int:
         return int(self.W.type.shape[0])
 
+    def wall_type(self, w) -> int:
+        """Kind of wall ``w``: layout.WALL_PLANE or layout.WALL_CYLINDER."""
+        return int(self.W.type[w])
+
+    def wall_normal(self, w) -> np.ndarray:
+        """Unit normal of plane ``w`` (pointing to the balls), or axis of cylinder ``w``."""
+        return self.W.nrm[w].copy()
+
+    def wall_radius(self, w) -> float:
+        """Current radius of cylinder ``w`` [m] (it changes with its radial velocity);
+        0 for planes."""
+        return float(self.W.rad[w])
+
     def wall_force(self, w) -> np.ndarray:
         """Force the balls exert on wall ``w`` at the last step [N]."""
         return self.W.force[w].copy()
@@ -530,7 +551,7 @@ class Model:
         """Balls (sorted, unique) that touch wall ``w`` with a non-zero force now."""
         ns = int(self.iprm[I_NSLOTS])
         S = self.S
-        on = (S.w[:ns] == w) & (np.linalg.norm(S.f[:ns], axis=1) > 0)
+        on = (S.w[:ns] == w) & np.any(S.f[:ns] != 0.0, axis=1)
         return np.unique(S.b[:ns][on]).astype(np.int32)
 
     # ------------------------------------------------------------------ contacts & bonds

@@ -173,8 +173,8 @@ def add_platens(sp: Specimen, fric: float = 0.0) -> tuple[int, int]:
     if m.n_walls:
         raise InputError(f"the Brazilian disc must be free (built with boundary='free'); "
                          f"it has {m.n_walls} wall(s)")
-    y = m.B.pos[:, 1]
-    r = m.B.radius
+    y = m.positions[:, 1]
+    r = m.radii
     lo = float((y - r).min())
     hi = float((y + r).max())
     wb = m.add_plane_wall((0.0, lo, 0.0), (0.0, 1.0, 0.0), fric=fric)
@@ -204,7 +204,7 @@ def seat(sp: Specimen, platens, st: BTSSettings) -> dict:
         ok = all(abs(s.error()) <= st.seat_tol * F for s in servos)
         # at rest: the forces balance and no ball moves faster than the seating platens
         # (a disc spinning on frictionless platens balances its forces but is not seated)
-        vmax = float(np.sqrt((m.B.vel ** 2).sum(axis=1).max()))
+        vmax = float(np.sqrt((m.velocities ** 2).sum(axis=1).max()))
         if ok and vmax <= st.seat_velocity:
             ratio = m.unbalanced_ratio()
             if ratio <= st.seat_ratio:
@@ -243,8 +243,8 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
     approach = st.approach_velocity > v  # fast approach until the first crack
     n_rec = platens(st.approach_velocity if approach else v)
     approach_strain = 0.0
-    c0 = m.B.pos[:, :2].mean(axis=0)  # disc centre (x, y)
-    yb0, yt0 = float(m.W.pos[wb, 1]), float(m.W.pos[wt, 1])
+    c0 = m.positions[:, :2].mean(axis=0)  # disc centre (x, y)
+    yb0, yt0 = float(m.wall_position(wb)[1]), float(m.wall_position(wt)[1])
     ser = {k: [] for k in BTS_SERIES}
     e0 = m.energies()
     e0_walls = e0["work_walls_each"][wb] + e0["work_walls_each"][wt]
@@ -257,11 +257,11 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
 
     def record():
         e = m.energies()
-        fb = abs(m.W.force[wb, 1])
-        ft = abs(m.W.force[wt, 1])
-        delta = (float(m.W.pos[wb, 1]) - yb0) + (yt0 - float(m.W.pos[wt, 1]))
+        fb = abs(m.wall_force(wb)[1])
+        ft = abs(m.wall_force(wt)[1])
+        delta = (float(m.wall_position(wb)[1]) - yb0) + (yt0 - float(m.wall_position(wt)[1]))
         P = 0.5 * (fb + ft)
-        states = m.Bd.state
+        states = m.bond_states
         ser["step"].append(m.step - step0)
         ser["time"].append(m.time - t_start)
         ser["displacement"].append(delta)

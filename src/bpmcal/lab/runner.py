@@ -210,7 +210,7 @@ def _morphology(test: str, sp, res, ini: dict) -> dict:
                    width=2.0 * sp.radius0)
     bi, bj = m.bond_pairs()
     return run_summary(res.cracks, peak_step, n_balls=m.n, bond_i=bi, bond_j=bj,
-                       bond_state=m.Bd.state, radius=m.B.radius,
+                       bond_state=m.bond_states, radius=m.radii,
                        half_thickness=3.0 * float(np.mean(r0)), **geo)
 
 

@@ -36,7 +36,7 @@ import math
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.layout import I_NSLOTS, WALL_CYLINDER
+from ..dem.layout import WALL_CYLINDER
 from .stepping import cycle
 
 
@@ -47,25 +47,21 @@ class ServoError(RuntimeError):
 
 def wall_contacts(m, w) -> np.ndarray:
     """Indices of the balls in contact with wall ``w`` now (non-zero contact force)."""
-    ns = int(m.iprm[I_NSLOTS])
-    S = m.S
-    sel = (S.w[:ns] == w) & np.any(S.f[:ns] != 0.0, axis=1)
-    return S.b[:ns][sel]
+    return m.wall_contact_balls(w)
 
 
 def wall_stiffness(m, w) -> float:
     """Sum of the normal stiffnesses k_n = pi R E* of the ball-wall contacts of wall ``w``
     (PFC's K^c of the wall servo) [N/m]."""
-    return math.pi * float(m.material.emod) * float(m.B.radius[wall_contacts(m, w)].sum())
+    return math.pi * float(m.material.emod) * float(m.radii[wall_contacts(m, w)].sum())
 
 
 def wall_normal_force(m, w) -> float:
     """Compressive force the balls exert on wall ``w`` along its normal [N] (for a
     cylinder: the sum of the radial components, outward = compressive)."""
-    W = m.W
-    if W.type[w] == WALL_CYLINDER:
-        return -float(W.radsum[w])
-    f, n = W.force[w], W.nrm[w]
+    if m.wall_type(w) == WALL_CYLINDER:
+        return m.wall_radial_force(w)
+    f, n = m.wall_force(w), m.wall_normal(w)
     return -float(f[0] * n[0] + f[1] * n[1] + f[2] * n[2])
 
 
@@ -88,7 +84,7 @@ class Servo:
         self.alpha = float(alpha)
         self.vmax = float(vmax)
         self.approach = self.vmax if approach is None else min(float(approach), self.vmax)
-        self.cyl = int(m.W.type[w]) == WALL_CYLINDER
+        self.cyl = m.wall_type(w) == WALL_CYLINDER
         self.feedforward = bool(feedforward)
         self.K = 0.0
         self.v = 0.0
@@ -99,7 +95,7 @@ class Servo:
     def update_gain(self):
         m = self.m
         b = wall_contacts(m, self.w)
-        r = m.B.radius[b]
+        r = m.radii[b]
         self.K = math.pi * float(m.material.emod) * float(r.sum())
         self._balls = b
         self._wgt = r / r.sum() if b.size else r
@@ -112,15 +108,15 @@ class Servo:
         if b.size == 0:
             return 0.0
         m = self.m
-        v = m.B.vel[b]
+        v = m.velocities[b]
         if self.cyl:
-            p = m.B.pos[b] - m.W.pos[self.w]
-            n = m.W.nrm[self.w]
+            p = m.positions[b] - m.wall_position(self.w)
+            n = m.wall_normal(self.w)
             q = p - np.outer(p @ n, n)
             rho = np.sqrt((q * q).sum(axis=1))
             vr = (v * q).sum(axis=1) / np.where(rho > 0, rho, 1.0)
         else:
-            vr = -(v @ m.W.nrm[self.w])
+            vr = -(v @ m.wall_normal(self.w))
         return float(self._wgt @ vr)
 
     def force(self) -> float:
@@ -143,17 +139,17 @@ class Servo:
         v = min(self.vmax, max(-self.vmax, v))
         self.v = v
         if self.cyl:
-            m.W.radv[self.w] = v  # expand when pushed harder than the target
-        else:
-            m.W.vel[self.w] = -v * m.W.nrm[self.w]  # retreat when pushed harder
+            m.set_wall_velocity(self.w, radial_velocity=v)  # expand when pushed harder
+        else:  # retreat when pushed harder than the target
+            m.set_wall_velocity(self.w, velocity=-v * m.wall_normal(self.w))
         return v
 
     def stop(self):
         self.v = 0.0
         if self.cyl:
-            self.m.W.radv[self.w] = 0.0
+            self.m.set_wall_velocity(self.w, radial_velocity=0.0)
         else:
-            self.m.W.vel[self.w] = 0.0
+            self.m.set_wall_velocity(self.w, velocity=(0.0, 0.0, 0.0))
 
 
 class ServoLoop:

@@ -269,7 +269,7 @@ def _settle_force_free(m: Model, spec: SpecimenSpec, chunk: int = 500, progress=
 
     def mean_force():
         f, _ = m.ball_forces()
-        free = m.B.fix == 0
+        free = m.fix_flags == 0
         return float(np.linalg.norm(f[free], axis=1).mean()) / fref if free.any() else 0.0
 
     ratio = mean_force()
@@ -480,7 +480,7 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     if install_gap > 0.0:
         # a fresh neighbour list holds every pair within the skin; one built steps ago may
         # miss pairs with a positive gap
-        m.set_positions(np.arange(m.n), m.B.pos.copy())
+        m.set_positions(np.arange(m.n), m.positions.copy())
     i, j = m.pairs()
     gaps = m.pair_gaps(i, j)
     sel = gaps <= install_gap

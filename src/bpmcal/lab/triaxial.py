@@ -153,11 +153,11 @@ class _Cell:
         self.wb, self.wt = sp.platens
 
     def radius(self) -> float:
-        return float(self.m.W.rad[self.wl])
+        return self.m.wall_radius(self.wl)
 
     def height(self) -> float:
-        W = self.m.W
-        return float(W.pos[self.wt, 2] - W.pos[self.wb, 2])
+        m = self.m
+        return float(m.wall_position(self.wt)[2] - m.wall_position(self.wb)[2])
 
     def area(self) -> float:
         return math.pi * self.radius() ** 2
@@ -168,12 +168,13 @@ class _Cell:
     def platen_stresses(self, area: float | None = None) -> tuple[float, float]:
         """Axial stresses on the two platens over ``area`` (default: the current
         cross-section pi R_c^2)."""
-        W = self.m.W
+        m = self.m
         a = self.area() if area is None else area
-        return abs(float(W.force[self.wb, 2])) / a, abs(float(W.force[self.wt, 2])) / a
+        return (abs(float(m.wall_force(self.wb)[2])) / a,
+                abs(float(m.wall_force(self.wt)[2])) / a)
 
     def lateral_stress(self) -> float:
-        return -float(self.m.W.radsum[self.wl]) / self.lateral_area()
+        return self.m.wall_radial_force(self.wl) / self.lateral_area()
 
 
 def consolidate(sp: Specimen, st: TriaxialSettings) -> dict:
@@ -261,8 +262,8 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
     m = sp.model
     cell = _Cell(sp)
     wb, wt, wl = cell.wb, cell.wt, cell.wl
-    m.W.fric[[wb, wt]] = st.platen_fric
-    m.W.fric[wl] = st.wall_fric
+    m.set_wall_friction([wb, wt], st.platen_fric)
+    m.set_wall_friction(wl, st.wall_fric)
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
@@ -278,9 +279,9 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
     m.set_wall_velocity(wt, velocity=(0.0, 0.0, -v))
     loop = ServoLoop(m, [lateral], interval=st.servo_interval, gain_update=st.gain_update)
     n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
-    pos0 = m.B.pos.copy()
+    pos0 = m.positions.copy()
     z0 = pos0[sp.surface, 2]
-    zb = float(m.W.pos[wb, 2])
+    zb = float(m.wall_position(wb)[2])
     band = (z0 >= zb + st.lateral_band[0] * H0) & (z0 <= zb + st.lateral_band[1] * H0)
     gauge = sp.surface[band]
     if gauge.size < 3:
@@ -305,10 +306,11 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
         s1 = 0.5 * (sb + stp)
         s3 = cell.lateral_stress()
         ea = (H0 - cell.height()) / H0
-        rho = np.hypot(m.B.pos[gauge, 0], m.B.pos[gauge, 1])
+        pos = m.positions
+        rho = np.hypot(pos[gauge, 0], pos[gauge, 1])
         er = -float((rho - rho0).mean()) / R0
         erw = -(cell.radius() - Rc0) / Rc0
-        states = m.Bd.state
+        states = m.bond_states
         ser["step"].append(m.step - step0)
         ser["time"].append(m.time - t_start)
         ser["axial_strain"].append(ea)
