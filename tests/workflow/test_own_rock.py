@@ -304,10 +304,15 @@ def test_example_card_is_bounded_by_the_configured_ranges_and_reachable(example)
     b = card["bounds"]
     for p in ("pb_emod_GPa", "pb_kratio"):
         assert [b[p]["lower"], b[p]["upper"]] == rng[p]
-    coh = [max(rng["pb_coh_MPa"][0], rng["pb_ten_MPa"][0] / ratio),
-           min(rng["pb_coh_MPa"][1], rng["pb_ten_MPa"][1] / ratio)]
-    assert [b["pb_coh_MPa"]["lower"], b["pb_coh_MPa"]["upper"]] == pytest.approx(coh)
-    assert [b["pb_ten_MPa"]["lower"], b["pb_ten_MPa"]["upper"]] == pytest.approx([ratio * c for c in coh])
+    if "bts_MPa" in card["targets"]:  # sigma_t sets the ratio: both strengths free in their ranges
+        for p in ("pb_coh_MPa", "pb_ten_MPa"):
+            assert [b[p]["lower"], b[p]["upper"]] == pytest.approx(rng[p])
+    else:  # the configured ratio ties sigma_cp to tau_cp: tau_cp's bounds follow both ranges
+        coh = [max(rng["pb_coh_MPa"][0], rng["pb_ten_MPa"][0] / ratio),
+               min(rng["pb_coh_MPa"][1], rng["pb_ten_MPa"][1] / ratio)]
+        assert [b["pb_coh_MPa"]["lower"], b["pb_coh_MPa"]["upper"]] == pytest.approx(coh)
+        assert [b["pb_ten_MPa"]["lower"], b["pb_ten_MPa"]["upper"]] == pytest.approx(
+            [ratio * c for c in coh])
     # the lab targets lie inside the sampled responses, and the card reaches them
     ds = pd.read_csv(out / "dataset.csv")
     ok = ds[ds["status"] == "ok"]
