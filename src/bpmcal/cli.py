@@ -124,16 +124,7 @@ def cmd_ucs(a) -> int:
 
 
 def cmd_bts(a) -> int:
-    from .lab.brazilian import BTSSettings
-    from .lab.runner import bts_geometry
-
-    geo = bts_geometry(scale=a.scale, diameter_mm=a.diameter, thickness_mm=a.thickness,
-                       sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
-                       relax_ratio=a.relax_ratio, genesis=a.genesis)
-    st = BTSSettings(platen_velocity=a.platen_velocity, platen_fric=a.platen_fric,
-                     damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
-                     record_strain=a.record_strain, post_peak_min=a.post_peak_min,
-                     approach_velocity=a.approach_velocity)
+    geo, st = bts_disc_of(a), bts_settings_of(a)
     return _lab_test(
         a, "bts", geo, st,
         lambda s: (f"sigma_t = {s['bts_MPa']:.3f} MPa (peak load {s['peak_load_N']:.1f} N, "
@@ -250,26 +241,11 @@ def cmd_verify(a) -> int:
                seeds_per_round=a.seeds_per_round, rtol=a.rtol, max_rounds=a.max_rounds,
                cache=a.specimen_cache,
                threads=a.threads, progress=prog, from_unreachable=a.from_unreachable,
-               bts_run=a.bts_run, bts_geometry=_verify_disc(a), bts_settings=_verify_bts(a),
+               bts_run=a.bts_run, bts_geometry=bts_disc_of(a, "bts_"),
+               bts_settings=bts_settings_of(a, "bts_"),
                **_budget(a))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
-
-
-def _verify_disc(a):
-    """The Brazilian disc of the closed loop (a card with a σt target): the --bts-diameter
-    x --bts-thickness disc at --scale, with the cylinder's genesis options."""
-    from .lab.runner import bts_geometry
-
-    return bts_geometry(scale=a.scale, diameter_mm=a.bts_diameter, thickness_mm=a.bts_thickness,
-                        sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
-                        relax_ratio=a.relax_ratio, genesis=a.genesis)
-
-
-def _verify_bts(a):
-    from .lab.brazilian import BTSSettings
-
-    return BTSSettings(**{f: getattr(a, "bts_" + f) for f in _VERIFY_BTS})
 
 
 def cmd_transfer(a) -> int:
@@ -279,7 +255,8 @@ def cmd_transfer(a) -> int:
     t = transfer(a.card, a.models, out_card=a.out_card, rounds=a.rounds, run=a.run,
                  geometry=run_geometry(a), settings=run_settings(a), seed=a.seed,
                  max_rounds=a.max_rounds, rtol=a.rtol, cache=a.specimen_cache,
-                 threads=a.threads, progress=prog, **_budget(a))["transfer"]
+                 threads=a.threads, progress=prog, bts_geometry=bts_disc_of(a, "bts_"),
+                 bts_settings=bts_settings_of(a, "bts_"), **_budget(a))["transfer"]
     prog.done(f"{t['status']} after {t['rounds']} round(s) at scale {t['scale']:g}: "
               f"{t['message']}")
     return 0
@@ -548,49 +525,92 @@ def _add_ucs(p):
 
 
 def _add_bts(p):
-    from .lab.brazilian import BTSSettings
-    from .lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM, bts_geometry
+    from .lab.runner import bts_geometry
 
-    bd = BTSSettings()  # the defaults of the Brazilian test live in its settings
     add_source_args(p)
-    p.add_argument("--diameter", type=positive("diameter", "mm"), default=BTS_DIAMETER_MM,
-                   help=f"disc diameter before scaling [mm] (default {BTS_DIAMETER_MM:g})")
-    p.add_argument("--thickness", type=positive("thickness", "mm"), default=BTS_THICKNESS_MM,
-                   help=f"disc thickness before scaling [mm] (default {BTS_THICKNESS_MM:g}, "
-                        "ISRM t = D/2)")
-    p.add_argument("--platen-velocity", type=number("platen-velocity", 0.0, 100.0,
-                                                    lo_open=True, unit="m/s"),
-                   default=bd.platen_velocity,
-                   help=f"speed of each platen [m/s] (default {bd.platen_velocity:g}: halving "
-                        "it changes sigma_t by < 2 %%, see the README)")
-    p.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0),
-                   default=bd.platen_fric,
-                   help=f"platen friction coefficient (default {bd.platen_fric:g}; with 0 the "
-                        "free disc spins on the platens before it seats, and sigma_t is ~15 %% "
-                        "lower)")
-    p.add_argument("--damping", type=number("damping", 0.0, 1.0, hi_open=True),
-                   default=bd.damping, help=f"local damping in [0, 1) (default {bd.damping:g})")
-    p.add_argument("--stop-drop", type=fraction("stop-drop"), default=bd.stop_drop,
-                   help="stop when the load < this fraction of the peak after it "
-                        f"(default {bd.stop_drop:g})")
-    p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
-                   default=bd.max_strain,
-                   help=f"stop at this platen approach / D (default {bd.max_strain:g})")
-    p.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
-                   default=bd.record_strain,
-                   help=f"platen approach / D between records (default {bd.record_strain:g})")
-    p.add_argument("--post-peak-min", type=number("post-peak-min", 0.0, 0.5),
-                   default=bd.post_peak_min,
-                   help="stop only this much platen approach / D past the peak (default "
-                        f"{bd.post_peak_min:g}; 0 stops at the load drop, enough for sigma_t)")
-    p.add_argument("--approach-velocity", type=number("approach-velocity", 0.0, 100.0,
-                                                      unit="m/s"),
-                   default=bd.approach_velocity,
-                   help="speed of each platen until the first crack [m/s] (default "
-                        f"{bd.approach_velocity:g}: off, the whole test at --platen-velocity)")
+    add_bts_args(p)
     add_specimen_args(p, bts_geometry(), "the ISRM 50 x 25 mm disc")
     add_outcome_args(p)
     p.set_defaults(func=cmd_bts)
+
+
+#: BTSSettings fields that are command options: ``bpmcal bts --FIELD`` and, for the closed
+#: loop of a card with a σt target, ``bpmcal verify/transfer --bts-FIELD`` (the study
+#: passes its `bts` section to all three, so σt is measured as for the regression's model)
+BTS_OPTIONS = ("platen_velocity", "approach_velocity", "platen_fric", "damping", "stop_drop",
+               "post_peak_min", "max_strain", "record_strain")
+
+
+def add_bts_args(p, prefix: str = ""):
+    """The Brazilian disc and loading options (defaults: ``BTSSettings`` and the ISRM disc)
+    on ``p``: ``--OPTION``, or ``--bts-OPTION`` with ``prefix="bts_"`` (verify, transfer);
+    read back by :func:`bts_settings_of` and :func:`bts_disc_of` with the same prefix."""
+    from .lab.brazilian import BTSSettings
+    from .lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM
+
+    bd = BTSSettings()  # the defaults of the Brazilian test live in its settings
+    g = p.add_argument_group("Brazilian test" + (" of a card with a tensile-strength target"
+                                                 if prefix else ""))
+
+    def lab(name):  # the option without its dashes: "platen-velocity", "bts-damping"
+        return (prefix + name).replace("_", "-")
+
+    def opt(name):
+        return "--" + lab(name)
+
+    g.add_argument(opt("diameter"), type=positive(lab("diameter"), "mm"),
+                   default=BTS_DIAMETER_MM,
+                   help=f"disc diameter before scaling [mm] (default {BTS_DIAMETER_MM:g})")
+    g.add_argument(opt("thickness"), type=positive(lab("thickness"), "mm"),
+                   default=BTS_THICKNESS_MM,
+                   help=f"disc thickness before scaling [mm] (default {BTS_THICKNESS_MM:g}, "
+                        "ISRM t = D/2)")
+    spec = {
+        "platen_velocity": (number(lab("platen_velocity"), 0.0, 100.0, lo_open=True,
+                                   unit="m/s"),
+                            "speed of each platen [m/s] (default {d:g}: halving it changes "
+                            "sigma_t by < 2 %%, see the README)"),
+        "approach_velocity": (number(lab("approach_velocity"), 0.0, 100.0, unit="m/s"),
+                              "speed of each platen until the first crack [m/s] (default "
+                              "{d:g}: off, the whole test at the platen velocity)"),
+        "platen_fric": (number(lab("platen_fric"), 0.0, 10.0),
+                        "platen friction coefficient (default {d:g}; with 0 the free disc "
+                        "spins on the platens before it seats, and sigma_t is ~15 %% lower)"),
+        "damping": (number(lab("damping"), 0.0, 1.0, hi_open=True),
+                    "local damping in [0, 1) (default {d:g})"),
+        "stop_drop": (fraction(lab("stop_drop")),
+                      "stop when the load < this fraction of the peak after it "
+                      "(default {d:g})"),
+        "post_peak_min": (number(lab("post_peak_min"), 0.0, 0.5),
+                          "stop only this much platen approach / D past the peak (default "
+                          "{d:g}; 0 stops at the load drop, enough for sigma_t)"),
+        "max_strain": (number(lab("max_strain"), 0.0, 0.5, lo_open=True),
+                       "stop at this platen approach / D (default {d:g})"),
+        "record_strain": (number(lab("record_strain"), 0.0, 0.01, lo_open=True),
+                          "platen approach / D between records (default {d:g})"),
+    }
+    assert tuple(spec) == BTS_OPTIONS
+    for f, (kind, text) in spec.items():
+        d = getattr(bd, f)
+        g.add_argument(opt(f), type=kind, default=d, help=text.format(d=d))
+
+
+def bts_settings_of(a, prefix: str = ""):
+    """``BTSSettings`` from the options of :func:`add_bts_args`."""
+    from .lab.brazilian import BTSSettings
+
+    return BTSSettings(**{f: getattr(a, prefix + f) for f in BTS_OPTIONS})
+
+
+def bts_disc_of(a, prefix: str = ""):
+    """The disc of the options of :func:`add_bts_args` at --scale, with the cylinder's
+    genesis options."""
+    from .lab.runner import bts_geometry
+
+    return bts_geometry(scale=a.scale, diameter_mm=getattr(a, prefix + "diameter"),
+                        thickness_mm=getattr(a, prefix + "thickness"), sigma0_MPa=a.sigma0,
+                        install_gap_mm=a.install_gap, relax_ratio=a.relax_ratio,
+                        genesis=a.genesis)
 
 
 def _add_triaxial(p):
@@ -785,41 +805,8 @@ def _add_verify(p):
                         "(default: do not; the verified card says why)")
     p.add_argument("--quiet", action="store_true")
     add_run_args(p)
-    _add_verify_bts(p)
+    add_bts_args(p, "bts_")
     p.set_defaults(func=cmd_verify)
-
-
-#: BTSSettings fields of the closed loop's Brazilian test (--bts-FIELD; the study passes
-#: its `bts` section, so σt is measured as for the regression's σt model)
-_VERIFY_BTS = ("platen_velocity", "approach_velocity", "platen_fric", "damping", "stop_drop",
-               "post_peak_min", "max_strain", "record_strain")
-
-
-def _add_verify_bts(p):
-    from .lab.brazilian import BTSSettings
-    from .lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM
-
-    bd = BTSSettings()
-    g = p.add_argument_group("Brazilian test of a card with a tensile-strength target")
-    g.add_argument("--bts-diameter", type=positive("bts-diameter", "mm"),
-                   default=BTS_DIAMETER_MM,
-                   help=f"disc diameter before scaling [mm] (default {BTS_DIAMETER_MM:g})")
-    g.add_argument("--bts-thickness", type=positive("bts-thickness", "mm"),
-                   default=BTS_THICKNESS_MM,
-                   help=f"disc thickness before scaling [mm] (default {BTS_THICKNESS_MM:g})")
-    kinds = {"platen_velocity": number("bts-platen-velocity", 0.0, 100.0, lo_open=True,
-                                       unit="m/s"),
-             "approach_velocity": number("bts-approach-velocity", 0.0, 100.0, unit="m/s"),
-             "platen_fric": number("bts-platen-fric", 0.0, 10.0),
-             "damping": number("bts-damping", 0.0, 1.0, hi_open=True),
-             "stop_drop": fraction("bts-stop-drop"),
-             "post_peak_min": number("bts-post-peak-min", 0.0, 0.5),
-             "max_strain": number("bts-max-strain", 0.0, 0.5, lo_open=True),
-             "record_strain": number("bts-record-strain", 0.0, 0.01, lo_open=True)}
-    for f in _VERIFY_BTS:
-        g.add_argument("--bts-" + f.replace("_", "-"), type=kinds[f], default=getattr(bd, f),
-                       help=f"as `bpmcal bts --{f.replace('_', '-')}` "
-                            f"(default {getattr(bd, f):g})")
 
 
 def _add_transfer(p):
@@ -841,6 +828,7 @@ def _add_transfer(p):
                         f"from the verification) needs no correction (default {d['rtol']:g})")
     p.add_argument("--quiet", action="store_true")
     add_run_args(p)
+    add_bts_args(p, "bts_")
     p.set_defaults(func=cmd_transfer)
 
 

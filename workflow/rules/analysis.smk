@@ -198,12 +198,13 @@ rule transfer:
         seed=config["verification"]["seed"] + config["verification"]["seeds_per_round"],
         rtol=config["verification"]["rtol"],
         opts=specimen_args(scale=config["transfer"]["scale"]),
+        bts=verify_bts_args(),
     shell:
         "bpmcal transfer --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
         "--seed {params.seed:q} --rtol {params.rtol:q} "
         "--max-rounds {params.t[max_rounds]:q} --threads {threads} "
-        "{params.opts:q} > {log:q} 2>&1"
+        "{params.opts:q} {params.bts:q} > {log:q} 2>&1"
 
 
 rule transfer_table:

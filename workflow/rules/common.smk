@@ -117,6 +117,8 @@ def bts_args(cfg=config):
         "--stop-drop": b["stop_drop"],
         "--max-strain": b["max_strain"],
         "--record-strain": b["record_strain"],
+        "--post-peak-min": b["post_peak_min"],
+        "--approach-velocity": b["approach_velocity"],
         "--specimen-cache": FILES.packings,
         "--max-balls": r["max_balls"],
         "--mem-budget-mb": r["ucs_mem_mb"],

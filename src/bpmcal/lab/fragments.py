@@ -21,9 +21,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import curve_fit
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from ..portable import libm_exp, libm_pow
 
@@ -32,6 +29,11 @@ KWH_PER_T = 3600.0  # J/kg in 1 kWh/t
 
 def fragments(n_balls: int, bond_i, bond_j, intact) -> np.ndarray:
     """Fragment label of every ball (connected components of the intact bonds)."""
+    # scipy is imported here, not at module level: every DEM job imports this module (the
+    # morphology of its run) and scipy.optimize alone costs ~0.35 s of start-up per job
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     bi = np.asarray(bond_i)[np.asarray(intact, bool)]
     bj = np.asarray(bond_j)[np.asarray(intact, bool)]
     g = coo_matrix((np.ones(bi.size), (bi, bj)), shape=(n_balls, n_balls))
@@ -63,6 +65,8 @@ def jk_model(ecs, A, b):
 
 def fit_jk(ecs, t10_values) -> dict:
     """Least-squares fit of t10 = A (1 - exp(-b Ecs)); A limited to (0, 100]."""
+    from scipy.optimize import curve_fit
+
     x = np.asarray(ecs, float)
     y = np.asarray(t10_values, float)
     ok = np.isfinite(x) & np.isfinite(y)

@@ -607,7 +607,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
 
 def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
              max_rounds=2, rtol=_LOOP["rtol"], z=2.0, cache=None, threads=None, progress=None,
-             max_balls=None, mem_budget_mb=None, genesis_max_steps=None) -> dict:
+             max_balls=None, mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None,
+             bts_settings=None) -> dict:
     """Full-size transfer of a verified card: run its parameters once (packing ``seed``)
     on the specimen of ``geometry`` (the study's ``transfer.scale``, 1.0 = the lab's
     50 x 100 mm) and, when a response misses its lab target by more than the seed scatter
@@ -621,7 +622,11 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     kept), or ``not-run`` - the responses at transfer and of the best round, the
     tolerances, the parameters; and ``calibrated_at_scale``: the transfer's scale when the
     loop ran), the rounds table and ``run`` (the best round's run file). Readers take the
-    transfer's parameters (:func:`bpmcal.io.card.card_parameters`)."""
+    transfer's parameters (:func:`bpmcal.io.card.card_parameters`). A card with a
+    tensile-strength target runs its Brazilian test as :func:`verify` does: the disc
+    ``bts_geometry`` (default the ISRM disc at the transfer's scale, :func:`disc_geometry`)
+    loaded with ``bts_settings`` (default ``BTSSettings()``; the study passes its `bts`
+    section, as to the verification)."""
     c = read_card(card, "--card", need=("parameters", "targets", "roles", "ranges",
                                         "verification"))
     if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) or max_rounds < 0:
@@ -657,8 +662,8 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         c, model_set, targets, params=params, run=run, seeds=[int(seed)],
         geometry=geometry, settings=settings, rtol=tol, max_rounds=1 + max_rounds,
         cache=cache, threads=threads, progress=progress,
-        genesis_max_steps=genesis_max_steps, disc=disc_geometry(geometry),
-        bts_settings=BTSSettings())  # a σt target: the ISRM disc at the transfer's scale
+        genesis_max_steps=genesis_max_steps, disc=bts_geometry or disc_geometry(geometry),
+        bts_settings=bts_settings or BTSSettings())
     write_table(res.history, rounds, index=False)
     if res.status == "converged":
         status = "within-scatter" if len(by_round) == 1 else "corrected"

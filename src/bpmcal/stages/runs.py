@@ -46,7 +46,6 @@ from ..lab.runner import (
 )
 from ..lab.triaxial import TriaxialSettings
 from ..lab.ucs import UCSSettings
-from ..study.sweep import UNREACHABLE
 
 
 @dataclass
@@ -209,6 +208,8 @@ def params_from_design(path, sample_id) -> tuple[dict, int, str]:
     if not (math.isfinite(seed) and seed == int(seed) and 0 <= seed < 2 ** 32):
         raise BadInput(f"--design {path} sample {sample_id}: seed={raw!r}: expected an "
                        "integer in [0, 2^32)")
+    from ..study.sweep import UNREACHABLE  # (pandas: not at module level, see io.tables)
+
     if "status" in d.columns and str(r["status"]) == UNREACHABLE:
         reason = r["reason"] if "reason" in d.columns and isinstance(r["reason"], str) else ""
         return {k: r[k] for k in P.PARAMS}, int(seed), f"not run: unreachable ratio: {reason}"

@@ -1,0 +1,84 @@
+"""Every key of the config's specimen, ucs and bts sections reaches the DEM jobs that use
+it: the commands of a dry run are parsed by the ``bpmcal`` parser itself and each option's
+value is compared with the config. (A Brazilian option the rule forgot to pass runs the
+study's discs at the command's default, silently: the approach speed and post-peak stop of
+the default study once did.)"""
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from bpmcal.cli import build_parser
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: a value for every key, unlike every default and every shipped config
+OVERLAY = {
+    "specimen": {"diameter_mm": 51.5, "height_mm": 101.5, "sigma0_MPa": 0.137,
+                 "genesis": "pfc", "install_gap_mm": 0.0371, "relax_ratio": 0.0137},
+    "ucs": {"platen_velocity": 0.173, "damping": 0.613, "stop_drop": 0.713,
+            "max_strain": 0.0313, "platen_fric": 0.0137, "record_strain": 2.37e-5},
+    "bts": {"enabled": True, "diameter_mm": 71.3, "thickness_mm": 36.7,
+            "platen_velocity": 0.0237, "approach_velocity": 0.137, "stop_drop": 0.237,
+            "post_peak_min": 0.000437, "platen_fric": 0.337, "damping": 0.637,
+            "max_strain": 0.0437, "record_strain": 1.37e-5},
+    "transfer": {"enabled": True},
+}
+#: config key -> option destination where the names differ
+DEST = {"diameter_mm": "diameter", "height_mm": "height", "thickness_mm": "thickness",
+        "sigma0_MPa": "sigma0", "install_gap_mm": "install_gap"}
+
+
+@pytest.fixture(scope="module")
+def commands(tmp_path_factory):
+    wf = tmp_path_factory.mktemp("wf")
+    shutil.copy(REPO / "Snakefile", wf)
+    shutil.copytree(REPO / "workflow", wf / "workflow")
+    shutil.copytree(REPO / "config", wf / "config")
+    (wf / "config" / "keys.yaml").write_text(yaml.safe_dump(OVERLAY))
+    r = subprocess.run([sys.executable, "-m", "snakemake", "-n", "-p", "--configfile",
+                        "config/smoke.yaml", "config/keys.yaml"], cwd=wf, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    out = {}
+    for ln in (r.stdout + r.stderr).splitlines():
+        if "Shell command: " not in ln or ln.endswith("Shell command: None"):
+            continue
+        argv = shlex.split(ln.split("Shell command: ", 1)[1])
+        argv = argv[:argv.index(">")]
+        cmd = argv[1]
+        out.setdefault(cmd, build_parser(only=cmd).parse_args(argv[1:]))
+    return out
+
+
+def _expect(a, section, keys, prefix=""):
+    for k in keys:
+        dest = prefix + DEST.get(k, k)
+        assert hasattr(a, dest), f"{a.cmd} has no option for {section}.{k}"
+        want = OVERLAY[section][k]
+        got = getattr(a, dest)
+        assert got == want, f"{section}.{k} = {want!r} reaches `bpmcal {a.cmd}` as {got!r}"
+
+
+def test_the_ucs_job_gets_every_specimen_and_ucs_key(commands):
+    a = commands["ucs"]
+    _expect(a, "specimen", OVERLAY["specimen"])
+    _expect(a, "ucs", OVERLAY["ucs"])
+
+
+def test_the_brazilian_job_gets_every_bts_key_and_the_genesis_options(commands):
+    a = commands["bts"]
+    _expect(a, "bts", [k for k in OVERLAY["bts"] if k != "enabled"])
+    _expect(a, "specimen", ["sigma0_MPa", "genesis", "install_gap_mm", "relax_ratio"])
+
+
+@pytest.mark.parametrize("cmd", ["verify", "transfer"])
+def test_the_closed_loops_measure_sigma_t_with_the_studys_brazilian_settings(commands, cmd):
+    a = commands[cmd]
+    _expect(a, "bts", [k for k in OVERLAY["bts"] if k != "enabled"], prefix="bts_")
+    _expect(a, "specimen", OVERLAY["specimen"])
+    _expect(a, "ucs", OVERLAY["ucs"])
