@@ -66,13 +66,14 @@ def _param_help() -> str:
 
 
 # ------------------------------------------------------------------------ DEM runs
-def _run_done(a, cmd: str, out) -> int:
-    """Exit code of a DEM run command; the FAILED line is printed even with --quiet."""
+def _run_done(a, cmd: str, out, path=None) -> int:
+    """Exit code of a DEM run command (its output ``path``, default --out); the FAILED line
+    is printed even with --quiet."""
     if out.status == "ok":
         return EXIT_OK
     where = (f"failure record written to {out.path}; the good run in {out.kept} was kept"
              if out.kept else "failure record written")
-    print(f"bpmcal {cmd}: FAILED: {a.out}: {out.error} ({where})", file=sys.stderr)
+    print(f"bpmcal {cmd}: FAILED: {path or a.out}: {out.error} ({where})", file=sys.stderr)
     sys.stderr.flush()
     return EXIT_OK if a.failed_ok and not out.kept else EXIT_RUN_FAILED
 
@@ -102,35 +103,53 @@ def run_settings(a, cls=None, **extra):
 def _lab_test(a, test: str, geometry, settings, done_line) -> int:
     """``ucs``, ``bts`` and ``triaxial``: the run file (``stages.runs.lab_test_file``), its
     one-line result and the exit code."""
-    from .stages.runs import lab_test_file
+    return _lab_tests(a, [(test, a.out, geometry, settings, done_line)])
 
-    prog = Progress(f"{test} {Path(a.out).name}", enabled=not a.quiet)
-    out = lab_test_file(test, a.out, geometry=geometry, settings=settings,
-                        params_file=a.params, sets=a.set, design=a.design, sample=a.sample,
-                        seed=a.seed, cache=a.specimen_cache, threads=a.threads,
-                        progress=prog, **_budget(a))
-    prog.done(f"{a.out}: {done_line(out.summary)}" if out.status == "ok" and out.summary
-              else "")
-    return _run_done(a, test, out)
+
+def _lab_tests(a, tests, flags=None) -> int:
+    """Lab tests of one parameter set in one process (``stages.runs.lab_test_files``;
+    ``tests``: (test, out, geometry, settings, done_line)): their run files, a one-line
+    result each, and the exit code (that of the first test that did not succeed)."""
+    from .stages.runs import lab_test_files
+
+    progs = [Progress(f"{t} {Path(o).name}", enabled=not a.quiet) for t, o, *_ in tests]
+    outs = lab_test_files([(t, o, g, st) for t, o, g, st, _ in tests], params_file=a.params,
+                          sets=a.set, design=a.design, sample=a.sample, seed=a.seed,
+                          cache=a.specimen_cache, threads=a.threads, progress=progs,
+                          flags=flags, **_budget(a))
+    rc = EXIT_OK
+    for (test, path, _, _, done_line), prog, out in zip(tests, progs, outs):
+        prog.done(f"{path}: {done_line(out.summary)}" if out.status == "ok" and out.summary
+                  else "")
+        r = _run_done(a, test, out, path)
+        rc = r if rc == EXIT_OK else rc
+    return rc
+
+
+def _ucs_line(s):
+    return (f"sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
+            f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
+            f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
+            f"({s['stop_reason']})")
+
+
+def _bts_line(s):
+    return (f"sigma_t = {s['bts_MPa']:.3f} MPa (peak load {s['peak_load_N']:.1f} N, "
+            f"platen forces differ by {100 * s['platen_mismatch']:.2f} %), cracks "
+            f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
+            f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
 
 
 def cmd_ucs(a) -> int:
-    return _lab_test(
-        a, "ucs", run_geometry(a), run_settings(a),
-        lambda s: (f"sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
-                   f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
-                   f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
-                   f"({s['stop_reason']})"))
+    tests = [("ucs", a.out, run_geometry(a), run_settings(a), _ucs_line)]
+    if a.bts_out is not None:  # the study's sample job: the Brazilian test in this process
+        tests.append(("bts", a.bts_out, bts_disc_of(a, "bts_"), bts_settings_of(a, "bts_"),
+                      _bts_line))
+    return _lab_tests(a, tests, flags=["--out", "--bts-out"][:len(tests)])
 
 
 def cmd_bts(a) -> int:
-    geo, st = bts_disc_of(a), bts_settings_of(a)
-    return _lab_test(
-        a, "bts", geo, st,
-        lambda s: (f"sigma_t = {s['bts_MPa']:.3f} MPa (peak load {s['peak_load_N']:.1f} N, "
-                   f"platen forces differ by {100 * s['platen_mismatch']:.2f} %), cracks "
-                   f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
-                   f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})"))
+    return _lab_test(a, "bts", bts_disc_of(a), bts_settings_of(a), _bts_line)
 
 
 def cmd_triaxial(a) -> int:
@@ -520,6 +539,13 @@ def _file(p, flag, help_, nargs=None):
 def _add_ucs(p):
     add_source_args(p)
     add_run_args(p)
+    p.add_argument("--bts-out", default=None,
+                   help="also run the Brazilian test of the same parameters and packing seed "
+                        "(the --bts-* options below; the disc at --scale with the cylinder's "
+                        "genesis options) into this HDF5 file, in the same process after the "
+                        "UCS test: the study's sample job (one start-up instead of two); each "
+                        "test writes its run file or failure record")
+    add_bts_args(p, "bts_")
     add_outcome_args(p)
     p.set_defaults(func=cmd_ucs)
 

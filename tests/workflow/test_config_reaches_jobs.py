@@ -1,6 +1,7 @@
 """Every key of the config's specimen, ucs and bts sections reaches the DEM jobs that use
-it: the commands of a dry run are parsed by the ``bpmcal`` parser itself and each option's
-value is compared with the config. (A Brazilian option the rule forgot to pass runs the
+it (the sample job ``bpmcal ucs`` with its Brazilian test, verify, transfer): the commands
+of a dry run are parsed by the ``bpmcal`` parser itself and each option's value is
+compared with the config. (A Brazilian option the rule forgot to pass runs the
 study's discs at the command's default, silently: the approach speed and post-peak stop of
 the default study once did.)"""
 import shlex
@@ -70,15 +71,13 @@ def test_the_ucs_job_gets_every_specimen_and_ucs_key(commands):
     _expect(a, "ucs", OVERLAY["ucs"])
 
 
-def test_the_brazilian_job_gets_every_bts_key_and_the_genesis_options(commands):
-    a = commands["bts"]
-    _expect(a, "bts", [k for k in OVERLAY["bts"] if k != "enabled"])
-    _expect(a, "specimen", ["sigma0_MPa", "genesis", "install_gap_mm", "relax_ratio"])
-
-
-@pytest.mark.parametrize("cmd", ["verify", "transfer"])
-def test_the_closed_loops_measure_sigma_t_with_the_studys_brazilian_settings(commands, cmd):
+@pytest.mark.parametrize("cmd", ["ucs", "verify", "transfer"])
+def test_every_brazilian_test_runs_with_the_studys_bts_section(commands, cmd):
+    """The sample job's Brazilian test (``bpmcal ucs --bts-out``, its disc with the
+    cylinder's genesis options) and the closed loops' (a card with a σt target)."""
     a = commands[cmd]
+    if cmd == "ucs":
+        assert a.bts_out is not None and a.bts_out.endswith(".h5")
     _expect(a, "bts", [k for k in OVERLAY["bts"] if k != "enabled"], prefix="bts_")
     _expect(a, "specimen", OVERLAY["specimen"])
     _expect(a, "ucs", OVERLAY["ucs"])

@@ -36,9 +36,8 @@ def test_profile_keys_are_valid_snakemake_options():
     assert not set(profile) - known, f"unknown profile keys: {set(profile) - known}"
     assert profile["executor"] == "slurm"
     assert profile["slurm-status-command"] == "squeue"
-    assert profile["groups"] == {"ucs": "ucs_batch", "bts": "bts_batch"}
+    assert profile["groups"] == {"ucs": "ucs_batch"}  # a sample job: UCS and Brazilian test
     assert profile["group-components"]["ucs_batch"] > 1
-    assert profile["group-components"]["bts_batch"] > 1
     assert "slurm_partition" not in profile["default-resources"]  # left to the user
     assert "slurm_account" not in profile["default-resources"]
 
@@ -77,7 +76,7 @@ def test_smoke_study_runs_through_sbatch(local_slurm, tmp_path):
     (wf / "config" / "slurm_test.yaml").write_text(yaml.safe_dump(
         {"outdir": "results", "study": {"name": "slurm", "n_samples": N_SAMPLES, "lhs_seed": 5},
          "resources": {"ucs_runtime_min": 5},
-         "bts": {"enabled": False}}))  # the ucs batches alone (the bts batches alike)
+         "bts": {"enabled": False}}))  # UCS only: shorter sample jobs, same batches
 
     run = sc.run_snakemake_on_slurm(
         wf,

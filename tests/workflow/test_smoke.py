@@ -101,8 +101,8 @@ def test_smoke_study_gathers_every_sample(smoke):
     for c in ("rmin_mm", "porosity", "pb_emod_GPa", "seed"):
         assert (ds[c].to_numpy() == design[c].to_numpy()).all()
     for sid in ds["sample_id"]:
-        assert (out / "logs" / "ucs" / f"{sid}.log").stat().st_size > 0
-        assert (out / "logs" / "bts" / f"{sid}.log").stat().st_size > 0
+        log = (out / "logs" / "ucs" / f"{sid}.log").read_text()  # the sample job: both tests
+        assert f"ucs/{sid}.h5" in log and f"bts/{sid}.h5" in log, log[-2000:]
 
 
 def test_every_sample_has_a_brazilian_test_in_the_dataset_and_the_analyses(smoke):

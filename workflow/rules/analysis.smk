@@ -160,7 +160,7 @@ rule verify:
     params:
         v=config["verification"],
         opts=specimen_args(),
-        bts=verify_bts_args(),
+        bts=bts_args(),
         unreachable=(
             ["--from-unreachable"]
             if config["verification"]["from_unreachable"]
@@ -198,7 +198,7 @@ rule transfer:
         seed=config["verification"]["seed"] + config["verification"]["seeds_per_round"],
         rtol=config["verification"]["rtol"],
         opts=specimen_args(scale=config["transfer"]["scale"]),
-        bts=verify_bts_args(),
+        bts=bts_args(),
     shell:
         "bpmcal transfer --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "

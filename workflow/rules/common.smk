@@ -81,9 +81,10 @@ def specimen_args(cfg=config, scale=None):
     return [str(x) for k, v in opts.items() for x in (k, v)]
 
 
-def verify_bts_args(cfg=config):
-    """bpmcal verify's Brazilian options from the bts section: a card with a tensile
-    strength target measures sigma_t in its closed loop as the study's samples did."""
+def bts_args(cfg=config):
+    """The --bts-* options of bpmcal ucs/verify/transfer from the bts section: every
+    Brazilian test of the study (the samples' and, for a card with a tensile strength
+    target, the closed loops') runs with the same disc and loading."""
     b = cfg["bts"]
     opts = {"--bts-diameter": b["diameter_mm"], "--bts-thickness": b["thickness_mm"]}
     for f in (
@@ -97,33 +98,4 @@ def verify_bts_args(cfg=config):
         "record_strain",
     ):
         opts[f"--bts-{f.replace('_', '-')}"] = b[f]
-    return [str(x) for k, v in opts.items() for x in (k, v)]
-
-
-def bts_args(cfg=config):
-    """bpmcal bts options of the bts, specimen and resources sections (the disc D x D/2 at
-    the specimen scale, packed by the same genesis), as a list of arguments."""
-    sp, b, r = cfg["specimen"], cfg["bts"], cfg["resources"]
-    opts = {
-        "--scale": sp["scale"],
-        "--diameter": b["diameter_mm"],
-        "--thickness": b["thickness_mm"],
-        "--sigma0": sp["sigma0_MPa"],
-        "--genesis": sp["genesis"],
-        "--relax-ratio": sp["relax_ratio"],
-        "--platen-velocity": b["platen_velocity"],
-        "--damping": b["damping"],
-        "--platen-fric": b["platen_fric"],
-        "--stop-drop": b["stop_drop"],
-        "--max-strain": b["max_strain"],
-        "--record-strain": b["record_strain"],
-        "--post-peak-min": b["post_peak_min"],
-        "--approach-velocity": b["approach_velocity"],
-        "--specimen-cache": FILES.packings,
-        "--max-balls": r["max_balls"],
-        "--mem-budget-mb": r["ucs_mem_mb"],
-        "--genesis-max-steps": r["genesis_max_steps"],
-    }
-    if sp["install_gap_mm"] is not None:
-        opts["--install-gap"] = sp["install_gap_mm"]
     return [str(x) for k, v in opts.items() for x in (k, v)]

@@ -1,5 +1,5 @@
-# The spine of the study: design -> one UCS job (and, with bts.enabled, one Brazilian
-# job) per sample -> gathered dataset.
+# The spine of the study: design -> one job per sample (its UCS test and, with
+# bts.enabled, its Brazilian test) -> gathered dataset.
 # A sample whose DEM run fails writes a failure record (--failed-ok: exit 0), so the DAG
 # goes on and the dataset carries the sample with its status and reason.
 
@@ -25,7 +25,10 @@ rule ucs:
     input:
         FILES.design,
     output:
-        FILES.ucs_run("{sample}"),
+        ucs=FILES.ucs_run("{sample}"),
+        # with bts.enabled, the sample's Brazilian test runs in the same job (one process
+        # start-up for both; `bpmcal ucs --bts-out`): a sample job writes both run files
+        bts=FILES.bts_run("{sample}") if BTS_ON else [],
     log:
         FILES.log("ucs", "{sample}"),
     wildcard_constraints:
@@ -38,31 +41,12 @@ rule ucs:
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
         opts=specimen_args(),
+        bts=lambda wc, output: (
+            ["--bts-out", output.bts, *bts_args()] if BTS_ON else []
+        ),
     shell:
-        "bpmcal ucs --design {input:q} --sample {wildcards.sample:q} --out {output:q} "
-        "--threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
-
-
-rule bts:
-    input:
-        FILES.design,
-    output:
-        FILES.bts_run("{sample}"),
-    log:
-        FILES.log("bts", "{sample}"),
-    wildcard_constraints:
-        sample=r"s\d+",
-    conda:
-        "../envs/bpmcal.yaml"
-    threads: config["resources"]["ucs_threads"]
-    resources:
-        runtime=config["resources"]["ucs_runtime_min"],
-        mem_mb=config["resources"]["ucs_mem_mb"],
-    params:
-        opts=bts_args(),
-    shell:
-        "bpmcal bts --design {input:q} --sample {wildcards.sample:q} --out {output:q} "
-        "--threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
+        "bpmcal ucs --design {input:q} --sample {wildcards.sample:q} --out {output.ucs:q} "
+        "--threads {threads} --failed-ok {params.opts:q} {params.bts:q} > {log:q} 2>&1"
 
 
 rule gather:

@@ -109,17 +109,24 @@ class LabRun:
     groups: dict | None = None
 
 
+def specimen_spec(params: dict, seed: int, geometry: Geometry) -> SpecimenSpec:
+    """The specimen of validated ``params`` (paper units) and ``geometry``; an InputError
+    when it cannot be built (e.g. fewer than 3 ball diameters across): a check that
+    needs no work."""
+    return SpecimenSpec.from_paper_units(params["rmin_mm"], params["porosity"], seed,
+                                         scale=geometry.scale,
+                                         diameter_mm=geometry.diameter_mm,
+                                         height_mm=geometry.height_mm,
+                                         relax_ratio=geometry.relax_ratio)
+
+
 def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, cache=None,
                   threads=None, progress=None, genesis_max_steps=None,
                   boundary: str = "platens"):
     """Validated parameters (paper units) -> a bonded Specimen (packing from the cache);
     ``boundary``: which vessel walls stay (``build_specimen``)."""
     p = P.validate_params(params)
-    spec = SpecimenSpec.from_paper_units(p["rmin_mm"], p["porosity"], seed,
-                                         scale=geometry.scale,
-                                         diameter_mm=geometry.diameter_mm,
-                                         height_mm=geometry.height_mm,
-                                         relax_ratio=geometry.relax_ratio)
+    spec = specimen_spec(p, seed, geometry)
     pk = get_packing(spec, cache=cache, progress=progress)
     mat = paper_material(p["pb_emod_GPa"], p["pb_kratio"], p["pb_ten_MPa"], p["pb_coh_MPa"],
                          p["pb_fa_deg"], p["fric"])
