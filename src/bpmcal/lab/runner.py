@@ -31,6 +31,7 @@ from .impact import ImpactSettings, run_impact
 from .impact import settings_dict as impact_dict
 from .servo import ServoError
 from .specimen import (
+    DEFAULT_GENESIS,
     GENESES,
     GenesisError,
     SpecimenSpec,
@@ -55,7 +56,7 @@ class Geometry:
     sigma0_MPa: float = 0.1  # locked-in isotropic stress after genesis ("bpmcal" only)
     install_gap_mm: float | None = None  # bonds on pairs with gap <= this (None: genesis's)
     relax_ratio: float = 1e-2
-    genesis: str = "bpmcal"  # steps 4-5 of the genesis: "bpmcal" | "pfc" (lab.specimen)
+    genesis: str = DEFAULT_GENESIS  # steps 4-5 of the genesis: "pfc" | "bpmcal" (lab.specimen)
 
     def __post_init__(self):
         if self.genesis not in GENESES:
