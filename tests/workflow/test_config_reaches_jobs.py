@@ -20,7 +20,7 @@ REPO = Path(__file__).resolve().parents[2]
 #: a value for every key, unlike every default and every shipped config
 OVERLAY = {
     "specimen": {"diameter_mm": 51.5, "height_mm": 101.5, "sigma0_MPa": 0.137,
-                 "genesis": "pfc", "install_gap_mm": 0.0371, "relax_ratio": 0.0137},
+                 "genesis": "bpmcal", "install_gap_mm": 0.0371, "relax_ratio": 0.0137},
     "ucs": {"platen_velocity": 0.173, "damping": 0.613, "stop_drop": 0.713,
             "max_strain": 0.0313, "platen_fric": 0.0137, "record_strain": 2.37e-5},
     "bts": {"enabled": True, "diameter_mm": 71.3, "thickness_mm": 36.7,
