@@ -11,6 +11,7 @@ from bpmcal.dem.errors import InputError
 from bpmcal.io import h5
 from bpmcal.lab.runner import Geometry, make_specimen
 from bpmcal.lab.specimen import (
+    DEFAULT_GENESIS,
     PFC_GAP_RATIO,
     SpecimenSpec,
     build_specimen,
@@ -121,7 +122,10 @@ def test_genesis_choice_is_validated(packing):
         default_install_gap("other", 1e-3)
     assert Geometry(genesis="pfc").install_gap(0.8) == pytest.approx(0.05)
     assert Geometry(genesis="pfc", install_gap_mm=0.0).install_gap(0.8) == 0.0
-    assert Geometry().install_gap(0.8) == 0.0
+    assert Geometry(genesis="bpmcal").install_gap(0.8) == 0.0
+    # the default genesis is pfc (the one closer to PFC3D on the paper's A1 set)
+    assert Geometry().genesis == DEFAULT_GENESIS == "pfc"
+    assert Geometry().install_gap(0.8) == pytest.approx(0.05)
 
 
 def test_run_file_records_genesis_gap_coordination_and_bond_density(tmp_path, cache):
@@ -136,5 +140,7 @@ def test_run_file_records_genesis_gap_coordination_and_bond_density(tmp_path, ca
     assert s["install_gap_mm"] == pytest.approx(0.05)
     for k in ("coordination", "bonds_per_ball", "bonds_per_cm3"):
         assert s[k] > 0
-    sp = make_specimen(A1, 3, SMALL, cache=cache)
+    sp = make_specimen(A1, 3, SMALL, cache=cache)  # the default genesis
+    assert sp.report["genesis"] == "pfc" and sp.report["install_gap_mm"] == pytest.approx(0.05)
+    sp = make_specimen(A1, 3, replace(SMALL, genesis="bpmcal"), cache=cache)
     assert sp.report["genesis"] == "bpmcal" and sp.report["install_gap_mm"] == 0.0

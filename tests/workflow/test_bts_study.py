@@ -32,12 +32,14 @@ def _ucs_ok(path, ucs):
 
 
 def test_a_failed_brazilian_test_is_recorded_and_the_sample_keeps_its_ucs(tmp_path, capsys):
-    # s001 cannot be built (pb_kratio 1e-9 never settles): `bpmcal bts --failed-ok`, as the
-    # study's bts rule runs it, writes a failure record and exits 0
+    # s001 cannot be built (pb_kratio 1e-9 never settles under the bpmcal genesis):
+    # `bpmcal bts --failed-ok`, as the study's sample job runs it, writes a failure record
+    # and exits 0
     design = _design(tmp_path, [A1, {**A1, "pb_kratio": 1e-9}, A1])
     bts = tmp_path / "bts"
     rc = main(["bts", "--design", design, "--sample", "s001", "--out", str(bts / "s001.h5"),
                "--scale", "0.4", "--threads", "1", "--genesis-max-steps", "1000",
+               "--genesis", "bpmcal",
                "--specimen-cache", str(tmp_path / "cache"), "--failed-ok", "--quiet"])
     assert rc == 0
     assert "bpmcal bts: FAILED: " in capsys.readouterr().err

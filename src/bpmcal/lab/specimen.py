@@ -42,9 +42,10 @@ packing, so they can be compared on one packing):
 
 - ``"bpmcal"``: as above; the pairs are bonded at ``install_gap`` (default 0:
   touching/overlapping pairs only) and the locked-in stress is relieved to ``sigma0``.
-- ``"pfc"`` (the default, ``DEFAULT_GENESIS``): the relief and bonding of Itasca's tutorial scripts (``contact method bond
-  gap``, then the linear part in incremental mode, ``lin_mode 1``, with its forces reset,
-  ``lin_force 0``): every pair within a *positive* installation gap (default
+- ``"pfc"`` (the default, ``DEFAULT_GENESIS``): the relief and bonding of Itasca's
+  tutorial scripts (``contact method bond gap``, then the linear part in incremental
+  mode, ``lin_mode 1``, with its forces reset, ``lin_force 0``): every pair within a
+  *positive* installation gap (default
   ``PFC_GAP_RATIO`` x Rmin = 0.0625 Rmin, the tutorials' 0.5e-4 m at Rmin = 0.8 mm) is
   bonded, and every existing overlap - ball-ball and ball-wall - carries no force from
   then on: the linear reference gap of an overlapping pair is set to its current gap
