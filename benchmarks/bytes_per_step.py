@@ -35,9 +35,9 @@ def accounting(m) -> list[tuple]:
     v = nverlet / n  # unbonded neighbour-list pairs per ball
     s = nslots / n  # wall slots per ball
     line = 64.0
-    rd_rows = 13  # bond-state rows read per step (bondblock: FN..BZ, LX..LZ, RG, FLAGS)
+    rd_rows = 14  # bond-state rows read per step (bondblock: FN..BZ, LX..LZ, RG, FLAGS, SF)
     wr_rows = 13  # rows written (all: RG too, for re-contact at first touch)
-    assert bb.NSF == 16
+    assert bb.NSF == 17
     out = [
         ("integrate", "force buffers (rows of the partitions touching the ball)",
          rows_touched * line, rows_touched * line),

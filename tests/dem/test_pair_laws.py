@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from dem_util import R, bond_constants, material, rel, two_balls
 
-from bpmcal.dem import BOND_INTACT, BOND_SHEAR, BOND_TENSION, Model
+from bpmcal.dem import BOND_INTACT, BOND_SHEAR, BOND_TENSION, InputError, Model
 
 TOL = 1e-9
 
@@ -157,10 +157,38 @@ def test_tensile_failure_with_bending_adds_moment_stress(mat):
     assert rel(ev["sigma_n"][0], mat.pb_ten - sig_m) < 1e-8
 
 
-@pytest.mark.parametrize("sigma_n_frac", [-0.5, 0.3])  # compression, tension (x pb_ten)
-def test_shear_failure_at_mohr_coulomb_strength(sigma_n_frac):
+@pytest.mark.parametrize("factor", [0.5, 3.0])
+def test_strength_factor_scales_the_tensile_strength(mat, factor):
+    """A bond with strength factor f fails in tension at f x pb_ten (the per-bond
+    pb_ten of PFC), not at pb_ten."""
+    m = two_balls(mat)
+    assert m.bond_strength_factors.tolist() == [1.0]  # the default
+    m.set_bond_strength_factors([factor])
+    assert m.bond_strength_factors.tolist() == [factor]
+    c = bond_constants(mat)
+    _approach(m, lambda v: m.set_velocity([1], vel=[v, 0, 0]),
+              lambda m: factor * mat.pb_ten * c["area"] - m.bond_state()["fn"][0], c["knA"])
+    ev = m.breaks()
+    assert ev["mode"].tolist() == [BOND_TENSION]
+    assert rel(ev["sigma"][0], factor * mat.pb_ten) < TOL
+
+
+def test_strength_factors_are_checked_and_scalars_broadcast(mat):
+    m = two_balls(mat)
+    m.set_bond_strength_factors(2.5)
+    assert m.bond_strength_factors.tolist() == [2.5]
+    for bad in ([1.0, 1.0], [-1.0], [math.nan]):
+        with pytest.raises(InputError):
+            m.set_bond_strength_factors(bad)
+    assert m.bond_strength_factors.tolist() == [2.5]
+
+
+@pytest.mark.parametrize("sigma_n_frac, factor", [(-0.5, 1.0), (0.3, 1.0), (-0.5, 2.0)])
+def test_shear_failure_at_mohr_coulomb_strength(sigma_n_frac, factor):
+    """tau = f c - sigma tan(phi): the strength factor f scales the cohesion only."""
     mat = material(pb_ten=20e6, pb_coh=15e6, pb_fa=30.0, fric=10.0)
     m = two_balls(mat)
+    m.set_bond_strength_factors([factor])
     c = bond_constants(mat)
     # normal load first
     sig_n = sigma_n_frac * mat.pb_ten  # tension positive
@@ -174,16 +202,17 @@ def test_shear_failure_at_mohr_coulomb_strength(sigma_n_frac):
     assert sigma == pytest.approx(sig_n, rel=1e-3)
     tan = math.tan(math.radians(mat.pb_fa))
 
-    def remaining(m):  # (c - sigma tan phi) A - |Fs|, sigma from the current normal force
+    def remaining(m):  # (f c - sigma tan phi) A - |Fs|, sigma from the current normal force
         bs = m.bond_state()
-        return (mat.pb_coh * c["area"] - bs["fn"][0] * tan) - np.linalg.norm(bs["fs"][0])
+        return (factor * mat.pb_coh * c["area"] - bs["fn"][0] * tan) \
+            - np.linalg.norm(bs["fs"][0])
 
     _approach(m, lambda v: m.set_velocity([1], vel=[0, v, 0]), remaining, c["ksA"])
     ev = m.breaks()
     assert ev["mode"].tolist() == [BOND_SHEAR]
     # shearing opens the pair a little (second order in the shear displacement)
     assert rel(ev["sigma_n"][0], sigma) < 0.05
-    expected = mat.pb_coh - ev["sigma_n"][0] * math.tan(math.radians(mat.pb_fa))
+    expected = factor * mat.pb_coh - ev["sigma_n"][0] * math.tan(math.radians(mat.pb_fa))
     assert ev["tau"][0] >= expected
     assert rel(ev["tau"][0], expected) < TOL
 

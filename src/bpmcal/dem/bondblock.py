@@ -48,6 +48,9 @@ S_LX, S_LY, S_LZ = next(_S), next(_S), next(_S)  # shear force of the linear com
 S_RG = next(_S)  # reference gap of the linear component [m]; max(rg, 0) once a broken
 #                  pair's surfaces are apart (re-contact starts at first touch)
 S_FLAGS = next(_S)  # 3.0 intact; broken: 1.0 if the linear part carried force last step, else 0
+S_SF = next(_S)  # strength factor of the bond: its tensile strength and cohesion are the
+#                  material's pb_ten and pb_coh x this (1 unless set, Model.set_bond_strength_factors;
+#                  PFC's per-contact pb_ten / pb_coh)
 S_DFX, S_DFY, S_DFZ = next(_S), next(_S), next(_S)  # dashpot force of the last step (last:
 #                     untouched without dashpots, so the rows read every step are contiguous)
 #: S_FLAGS values (one field for two flags: one load and one store less per bond and step)
@@ -79,9 +82,10 @@ def n_blocks(nb: int) -> int:
 
 
 def new_state(nb: int) -> np.ndarray:
-    """Zeroed state for ``nb`` bonds, all intact."""
+    """Zeroed state for ``nb`` bonds, all intact, strength factor 1."""
     blk = np.zeros(n_blocks(nb) * BLOCK_SIZE)
     set_field(blk, S_FLAGS, nb, FLAG_INTACT)
+    set_field(blk, S_SF, nb, 1.0)
     return blk
 
 
@@ -192,7 +196,8 @@ def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, ta
         mbz = bz - kni * (thz - tht * nz)
         sb2 = sbx * sbx + sby * sby + sbz * sbz
         mb2 = mbx * mbx + mby * mby + mbz * mbz
-        fm = bond_failure(fnb, sb2, mt, mb2, rb, area, pb_ten, pb_coh, tanfa, mcf)
+        sf = sb[S_SF * STR + ll]  # per-bond strength factor (x 1.0 is exact: no change)
+        fm = bond_failure(fnb, sb2, mt, mb2, rb, area, pb_ten * sf, pb_coh * sf, tanfa, mcf)
         keep = intact and fm == 0
         # state: the new (or, for a failing bond, the trial) state; zero once broken
         sb[S_FN * STR + ll] = fnb if intact else 0.0

@@ -697,6 +697,27 @@ class Model:
         bb.set_field(self.Bd.blk, bb.S_RG, self.n_bonds, rg)
         self._touch()
 
+    def set_bond_strength_factors(self, factors):
+        """Per-bond strength factors: bond k (in the order of :meth:`bond_pairs`) fails at
+        the material's tensile strength ``pb_ten`` and cohesion ``pb_coh`` times
+        ``factors[k]`` (its friction angle and stiffnesses are unchanged). PFC gives every
+        contact its own ``pb_ten`` / ``pb_coh``; here the material holds the common value
+        and this factor the per-bond deviation. New bonds get factor 1. A scalar applies to
+        every bond."""
+        nb = self.n_bonds
+        f = np.broadcast_to(np.asarray(factors, float), (nb,)) if np.ndim(factors) == 0 \
+            else np.asarray(factors, float).reshape(-1)
+        if f.shape != (nb,) or not np.all(np.isfinite(f)) or np.any(f < 0):
+            raise InputError(f"strength factors: expected {nb} finite values >= 0, got "
+                             f"shape {f.shape}")
+        bb.set_field(self.Bd.blk, bb.S_SF, nb, f)
+        self._touch()
+
+    @property
+    def bond_strength_factors(self) -> np.ndarray:
+        """Strength factor of every bond pair (a copy; :meth:`set_bond_strength_factors`)."""
+        return bb.get_field(self.Bd.blk, bb.S_SF, self.n_bonds)
+
     def scale_wall_overlaps(self, w: int, factor: float) -> int:
         """Give every current contact of wall ``w`` a reference gap (PFC ``rgap``) so that
         its overlap force is multiplied by ``factor`` (in [0, 1]); the geometry does not
