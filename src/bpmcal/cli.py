@@ -97,7 +97,8 @@ def run_settings(a, cls=None, **extra):
         from .lab.ucs import UCSSettings as cls
     return cls(platen_velocity=a.platen_velocity, strain_rate=a.strain_rate,
                damping=a.damping, stop_drop=a.stop_drop, max_strain=a.max_strain,
-               platen_fric=a.platen_fric, record_strain=a.record_strain, **extra)
+               platen_fric=a.platen_fric, record_strain=a.record_strain,
+               end_cap=a.end_cap, end_cap_factor=a.end_cap_factor, **extra)
 
 
 def _lab_test(a, test: str, geometry, settings, done_line) -> int:
@@ -527,6 +528,17 @@ def add_run_args(p, loading=None):
     p.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0),
                    default=ld.platen_fric,
                    help=f"platen friction coefficient in [0, 10] (default {ld.platen_fric:g})")
+    p.add_argument("--end-cap", type=number("end-cap", 0.0, 10.0), default=ld.end_cap,
+                   metavar="D",
+                   help="end caps: the bonds within D mean ball diameters of a platen get "
+                        "--end-cap-factor x their strength (not their stiffness), so that the "
+                        "wall-packed end layers do not decide the strength; 0 = none, 1 = the "
+                        f"first layer of balls (default {ld.end_cap:g}; README \"Where the "
+                        "specimens fail\")")
+    p.add_argument("--end-cap-factor", type=number("end-cap-factor", 1.0, 1e6),
+                   default=ld.end_cap_factor,
+                   help="strength factor of the end caps' bonds in [1, 1e6] "
+                        f"(default {ld.end_cap_factor:g})")
     add_specimen_args(p, geo)
 
 

@@ -53,6 +53,8 @@ DEFAULTS = {
     "ucs.max_strain": (UCS.max_strain, ("ucs", "max_strain", None)),
     "ucs.platen_fric": (UCS.platen_fric, ("ucs", "platen_fric", None)),
     "ucs.record_strain": (UCS.record_strain, ("ucs", "record_strain", None)),
+    "ucs.end_cap": (UCS.end_cap, ("ucs", "end_cap", None)),
+    "ucs.end_cap_factor": (UCS.end_cap_factor, ("ucs", "end_cap_factor", None)),
     "bts.diameter_mm": (BTS_DIAMETER_MM, ("bts", "diameter", None)),
     "bts.thickness_mm": (BTS_THICKNESS_MM, ("bts", "thickness", None)),
     **{f"bts.{k}": (getattr(BTS, k), ("bts", k, None))

@@ -71,6 +71,8 @@ def specimen_args(cfg=config, scale=None):
         "--max-strain": u["max_strain"],
         "--platen-fric": u["platen_fric"],
         "--record-strain": u["record_strain"],
+        "--end-cap": u["end_cap"],
+        "--end-cap-factor": u["end_cap_factor"],
         "--specimen-cache": FILES.packings,
         "--max-balls": r["max_balls"],
         "--mem-budget-mb": r["ucs_mem_mb"],

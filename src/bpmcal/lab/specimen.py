@@ -552,6 +552,36 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
                     platens=platens, lateral_wall=lateral, boundary=boundary)
 
 
+def end_cap_bonds(sp: Specimen, height_d: float) -> np.ndarray:
+    """Indices (in the order of ``Model.bond_pairs``) of the bonds whose contact point
+    (the middle of the overlap or gap of the pair, now) lies within ``height_d`` mean ball
+    diameters of an end face (``z_bottom``, ``z_top``): the end caps of ``apply_end_caps``."""
+    if not (height_d >= 0 and math.isfinite(height_d)):
+        raise InputError(f"end cap height {height_d!r}: expected >= 0 mean ball diameters")
+    m = sp.model
+    bi, bj = m.bond_pairs()
+    pos, r = m.positions, m.radii
+    d = pos[bj] - pos[bi]
+    ln = np.sqrt((d * d).sum(axis=1))
+    z = pos[bi, 2] + d[:, 2] / ln * (r[bi] + 0.5 * (ln - r[bi] - r[bj]))
+    h = height_d * 2.0 * float(r.mean())
+    return np.flatnonzero((z - sp.z_bottom <= h) | (sp.z_top - z <= h))
+
+
+def apply_end_caps(sp: Specimen, height_d: float, factor: float) -> dict:
+    """End caps (an end treatment of axial tests): the bonds within ``height_d`` mean ball
+    diameters of an end face (``end_cap_bonds``) get ``factor`` x their tensile strength
+    and cohesion (``Model.set_bond_strength_factors``); their stiffnesses are unchanged.
+    Returns ``{"end_cap_bonds": their number, "end_cap_index": their indices}``."""
+    if not (factor >= 1 and math.isfinite(factor)):
+        raise InputError(f"end cap factor {factor!r}: expected a finite strength factor >= 1")
+    idx = end_cap_bonds(sp, height_d)
+    f = sp.model.bond_strength_factors
+    f[idx] *= factor
+    sp.model.set_bond_strength_factors(f)
+    return {"end_cap_bonds": int(idx.size), "end_cap_index": idx}
+
+
 def paper_material(pb_emod_GPa, pb_kratio, pb_ten_MPa, pb_coh_MPa, pb_fa_deg, fric,
                    dp_nratio=0.0, dp_sratio=0.0) -> Material:
     """The paper's parameter set as a Material (Ec = Ecp, k* = kp*, mu = mu_p, lambda = 1)."""

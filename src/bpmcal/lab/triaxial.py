@@ -49,6 +49,9 @@ at the peak; ``sigma3_maxdev_rel`` = max |sigma3
 measured - sigma3| / sigma3 over the records up to the peak (the servo's accuracy; NaN
 for sigma3 = 0, where ``sigma3_maxdev_MPa`` gives it in MPa). The test stops as the UCS
 test: q below ``stop_drop`` of q_p after the peak, ``max_strain`` or ``max_steps``.
+
+End caps (``end_cap``, ``end_cap_factor``): as in the UCS test (``lab.ucs``), installed
+before the consolidation.
 """
 from __future__ import annotations
 
@@ -62,7 +65,7 @@ from ..dem.errors import InputError
 from ..dem.layout import BOND_SHEAR, BOND_TENSION
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
-from .ucs import fit_slope
+from .ucs import END_CAP_FACTOR, END_CAP_HEIGHT, check_end_cap, fit_slope, install_end_caps
 
 #: columns of the recorded time series
 TRIAXIAL_SERIES = ("step", "time", "axial_strain", "lateral_strain", "lateral_strain_wall",
@@ -98,8 +101,11 @@ class TriaxialSettings:
     lateral_band: tuple = (0.1, 0.9)
     post_peak_min: float = 0.002  # also require this much strain past the peak to stop
     ci_fraction: float = 0.01
+    end_cap: float = END_CAP_HEIGHT  # end caps as in the UCS test (lab.ucs) [mean ball diameters]
+    end_cap_factor: float = END_CAP_FACTOR
 
     def __post_init__(self):
+        check_end_cap(self.end_cap, self.end_cap_factor)
         s3 = self.sigma3
         if not (isinstance(s3, (int, float)) and math.isfinite(s3) and s3 >= 0):
             raise InputError(f"sigma3={s3!r}: expected a confining stress >= 0 Pa")
@@ -264,6 +270,7 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
     wb, wt, wl = cell.wb, cell.wt, cell.wl
     m.set_wall_friction([wb, wt], st.platen_fric)
     m.set_wall_friction(wl, st.wall_fric)
+    caps = install_end_caps(sp, st.end_cap, st.end_cap_factor)  # before consolidation
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
@@ -364,6 +371,8 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
         "stop_reason": reason, "dt": dt, "platen_velocity": v, "strain_rate": 2 * v / H0,
         "records": int(series["step"].size), "servo_interval": int(st.servo_interval),
         "servo_alpha": float(st.servo_alpha), **con,
+        "end_cap_bonds": int(caps.size),
+        "end_cap_broken": int(np.count_nonzero(m.bond_states[caps] != 0)),
     })
     ev = m.breaks()
     ev["step"] = ev["step"] - step0  # relative to the start of axial loading
