@@ -13,22 +13,27 @@ cache, as in a study) with a fresh, empty specimen cache, so each genesis packs 
 relaxes its balls as it does in a study.
 
 In the child process the phases are timed by wrapping the functions that run them
-(``time.process_time``, CPU seconds of the process, and wall seconds):
+(``time.process_time``, CPU seconds of the process). Each timed call is a node of a path,
+``ucs/genesis/packing/relax/steps``; the table lists the seconds of each path without its
+timed children:
 
 - per test (``ucs``, ``bts``): ``genesis`` (``runner.make_specimen``) and inside it
-  ``packing`` (``get_packing``: distribute, the speed-capped steps, ``relax`` = the
-  ``_solve`` to the relax ratio, ``floaters``) and ``build`` (``build_specimen``: the
-  material, ``settle_vessel``, bonding, ``settle_free``); ``test`` (``run_ucs`` /
-  ``run_bts``); ``rest`` of the test's share of the job (morphology, HDF5 file);
+  ``packing`` (``get_packing``: ``distribute``, ``steps`` = the speed-capped steps,
+  ``relax`` = the ``_solve`` to the relax ratio, ``floaters``) and ``build``
+  (``build_specimen``: the material, ``settle_vessel``, bonding, ``count_touching``,
+  ``settle_free``); ``test`` (``run_ucs`` / ``run_bts``); ``write`` (the run file);
+- ``numba_load`` / ``numba_init``: numba's start-up, the loading of each kernel from the
+  on-disk cache at its first call and, inside the first one, the one-time set-up of
+  numba's compiler context; whatever calls a kernel first pays it (the UCS genesis);
 - ``other``: the job's CPU seconds (the child's rusage, measured by the parent) minus
-  the two tests (interpreter start-up, imports, input checks, writing the run files;
-  ``ucs.write``, ``bts.write``: the run files).
+  the two tests: interpreter start-up, imports, input checks, the run files.
 
 The genesis share is (genesis of both tests) / (the whole job's CPU seconds, start-up
-included). Medians over samples (and repeats) are printed per source tree. With several
-``--src`` trees each sample runs with each tree in turn (the order alternates), and the
-run files of the trees are compared: ``identical`` says whether every dataset and every
-result attribute (not the timings) of both run files is bitwise the same.
+included); it is also given without numba's start-up (in the genesis and in the job).
+Medians over samples (and repeats) are printed per source tree. With several ``--src``
+trees each sample runs with each tree in turn (the order alternates), and the run files of
+the trees are compared: every dataset and every attribute except the timings (``*_s``)
+must be bitwise the same for a job to count as identical.
 """
 from __future__ import annotations
 
@@ -146,11 +151,14 @@ def child(a) -> int:
     tm.wrap(specimen, "_fix_floaters", "floaters")
     tm.wrap(specimen, "_count_touching", "count_touching")
     tm.wrap(specimen, "cycle", "steps")  # the genesis's steps (its calls of stepping.cycle)
-    # numba's one-time start-up of its compiler context (the registries of its numpy
-    # implementations, scipy.linalg for BLAS): the first kernel call of the process pays
-    # it, whichever it is (here: the UCS genesis)
+    # numba's start-up: the one-time set-up of its compiler context (the registries of
+    # its numpy implementations, scipy.linalg for BLAS), paid by the first kernel call
+    # of the process, and loading each kernel from the on-disk cache at its first call;
+    # whatever runs first pays them (here: the UCS genesis)
     from numba.core.cpu import CPUContext
+    from numba.core.dispatcher import Dispatcher
     tm.wrap(CPUContext, "load_additional_registries", "numba_init")
+    tm.wrap(Dispatcher, "_compile_for_args", "numba_load")
     out = Path(a.out)
     argv = ["ucs", "--design", a.design, "--sample", a.sample, "--out", str(out / "ucs.h5"),
             "--bts-out", str(out / "bts.h5"), "--specimen-cache", str(out / "cache"),
@@ -191,20 +199,23 @@ def run_job(src, design, sample) -> dict:
 def breakdown(res) -> dict:
     """CPU seconds of one job: ``total`` (the process), ``other`` (outside both tests:
     interpreter, imports, input checks), every timed path (exclusive seconds), and the
-    summary lines ``genesis`` (both tests' genesis, inclusive), ``numba_init``, the
-    genesis share with and without numba's start-up."""
+    summary lines ``genesis`` (both tests' genesis, inclusive), ``numba_startup`` (all
+    of the job, and the part of it in the genesis), the genesis share with and without
+    numba's start-up."""
     ex, inc = res["excl"], res["incl"]
     d = {"total": res["total_cpu"],
          "other": res["total_cpu"] - inc.get("ucs", 0.0) - inc.get("bts", 0.0)}
     d.update({f"  {p}": v for p, v in sorted(ex.items())})
     d["genesis"] = inc.get("ucs/genesis", 0.0) + inc.get("bts/genesis", 0.0)
-    d["numba_init"] = sum(v for p, v in inc.items() if p.endswith("numba_init"))
-    d["genesis_numba_init"] = sum(v for p, v in inc.items()
-                                  if "/genesis/" in p and p.endswith("numba_init"))
+    # numba's start-up (the outermost numba_load of each path; numba_init is inside one)
+    top = {p: v for p, v in inc.items() if p.endswith("numba_load")
+           and p.count("numba_load") == 1}
+    d["numba_startup"] = sum(top.values())
+    d["genesis_numba_startup"] = sum(v for p, v in top.items() if "/genesis/" in p)
     d["tests"] = inc.get("ucs/test", 0.0) + inc.get("bts/test", 0.0)
     d["share"] = d["genesis"] / d["total"]
-    d["share_without_numba_init"] = ((d["genesis"] - d["genesis_numba_init"])
-                                     / (d["total"] - d["numba_init"]))
+    d["share_without_numba_startup"] = ((d["genesis"] - d["genesis_numba_startup"])
+                                        / (d["total"] - d["numba_startup"]))
     return d
 
 
@@ -244,7 +255,7 @@ def main(argv=None):
                 inc = res["incl"]
                 print(f"{sample} {name:>8s}: job {b['total']:6.2f} s cpu, genesis "
                       f"{b['genesis']:5.2f} s ({100 * b['share']:4.1f} %, without numba's "
-                      f"start-up {100 * b['share_without_numba_init']:4.1f} %; ucs "
+                      f"start-up {100 * b['share_without_numba_startup']:4.1f} %; ucs "
                       f"{inc.get('ucs/genesis', 0):.2f}, bts {inc.get('bts/genesis', 0):.2f}"
                       f"), tests {inc.get('ucs/test', 0):.2f} + {inc.get('bts/test', 0):.2f}, "
                       f"other {b['other']:.2f}; sigma_c {f['ucs'].get('ucs_MPa', float('nan')):.4f} "

@@ -28,6 +28,7 @@ from .layout import (
     P_GY,
     P_GZ,
     P_KRATIO,
+    P_NOSPIN,
     P_PB_EMOD,
     P_PB_KRATIO,
     P_PB_RMUL,
@@ -49,6 +50,7 @@ def measure_balls(vel, angvel, force, moment, mass, inertia, fix, fbuf, pmask, s
     gx = prm[P_GX]
     gy = prm[P_GY]
     gz = prm[P_GZ]
+    spin = prm[P_NOSPIN] == 0.0
     kin = 0.0
     dmp = 0.0
     grv = 0.0
@@ -75,7 +77,7 @@ def measure_balls(vel, angvel, force, moment, mass, inertia, fix, fbuf, pmask, s
         w1 = angvel[i, 1]
         w2 = angvel[i, 2]
         n0, n1, n2, r0, r1, r2, d0, d1, d2, e0, e1, e2 = ball_update(
-            u0, u1, u2, w0, w1, w2, f0, f1, f2, m0, m1, m2, im, ii, alpha, dt, fl)
+            u0, u1, u2, w0, w1, w2, f0, f1, f2, m0, m1, m2, im, ii, alpha, dt, fl, spin)
         kin += 0.5 * mi * (u0 * n0 + u1 * n1 + u2 * n2) + 0.5 * inertia[i] * (
             w0 * r0 + w1 * r1 + w2 * r2)
         h = 0.5 * dt
