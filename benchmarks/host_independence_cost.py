@@ -67,6 +67,9 @@ def main(argv=None) -> int:
     mat = paper_material(p.pb_emod_GPa, p.pb_kratio, p.pb_ten_MPa, p.pb_coh_MPa, p.pb_fa_deg,
                          p.fric)
     settings = ucs_settings(cfg)
+    # install_gap_mm null: the genesis's own gap; the config's genesis when it names one
+    gap = None if geo.install_gap_mm is None else geo.install_gap_mm * 1e-3
+    genesis = {"genesis": sp_cfg["genesis"]} if "genesis" in sp_cfg else {}
     set_threads(a.threads)
     load0 = os.getloadavg()
     # warm-up: numba cache load / compile, not timed
@@ -79,8 +82,8 @@ def main(argv=None) -> int:
         pk = relax_packing(spec)
         t_relax.append(time.perf_counter() - t)
         t = time.perf_counter()
-        sp = build_specimen(pk, mat, sigma0=geo.sigma0_MPa * 1e6,
-                            install_gap=geo.install_gap_mm * 1e-3, threads=a.threads)
+        sp = build_specimen(pk, mat, sigma0=geo.sigma0_MPa * 1e6, install_gap=gap,
+                            threads=a.threads, **genesis)
         t_build.append(time.perf_counter() - t)
         cpu_gen.append(time.process_time() - c)
         t, c = time.perf_counter(), time.process_time()
