@@ -73,6 +73,17 @@ def dof(v, f, im, alpha, dt, fixed):
 
 
 @_inl
+def ball_state(i, mi, inertia, fix, vel, angvel):
+    """Ball i (mass ``mi``) as ``ball_update`` takes it: fixity bits, 1/mass, 1/inertia,
+    half-step velocity ``u`` (3) and spin ``w`` (3). Read the same way, in the same order,
+    by the integrator and by the energy measurement that predicts its step."""
+    fl = fix[i]
+    im = 1.0 / mi
+    ii = 1.0 / inertia[i]
+    return fl, im, ii, vel[i, 0], vel[i, 1], vel[i, 2], angvel[i, 0], angvel[i, 1], angvel[i, 2]
+
+
+@_inl
 def ball_update(u0, u1, u2, w0, w1, w2, f0, f1, f2, m0, m1, m2, im, ii, alpha, dt, fl,
                 spin=True):
     """The six degrees of freedom of one ball: velocity ``u``, spin ``w``, resultant force
