@@ -31,18 +31,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import yaml
-
-REPO = Path(__file__).resolve().parents[1]
-
-
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return "unknown"
+from _study import CONFIG, REPO, cpu_model, study_design, ucs_settings
 
 
 def _timed(f):
@@ -53,7 +42,7 @@ def _timed(f):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--config", default=str(REPO / "config" / "config.yaml"))
+    ap.add_argument("--config", default=str(CONFIG))
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                     help="override bts settings of the config (e.g. platen_velocity=0.0125)")
     ap.add_argument("--samples", default="s000,s001,s002,s003,s004,s005")
@@ -65,14 +54,12 @@ def main(argv=None) -> int:
 
     from bpmcal.lab.brazilian import BTSSettings
     from bpmcal.lab.runner import Geometry, bts_geometry, bts_test, set_threads, ucs_test
-    from bpmcal.lab.ucs import UCSSettings
     from bpmcal.stages.runs import params_from_design
     from bpmcal.study.config import validate_config
-    from bpmcal.study.design import lhs_design
 
     cfg = yaml.safe_load(Path(a.config).read_text())
     validate_config(cfg, REPO / "workflow" / "schemas" / "config.schema.yaml", base_dir=REPO)
-    sp, u, b = cfg["specimen"], cfg["ucs"], cfg["bts"]
+    sp, b = cfg["specimen"], cfg["bts"]
     for kv in a.set:
         k, v = kv.split("=", 1)
         b[k] = float(v)
@@ -82,9 +69,7 @@ def main(argv=None) -> int:
                    height_mm=sp["height_mm"], **common)
     disc = bts_geometry(scale=sp["scale"], diameter_mm=b["diameter_mm"],
                         thickness_mm=b["thickness_mm"], **common)
-    ucs_st = UCSSettings(platen_velocity=u["platen_velocity"], damping=u["damping"],
-                         stop_drop=u["stop_drop"], max_strain=u["max_strain"],
-                         platen_fric=u["platen_fric"], record_strain=u["record_strain"])
+    ucs_st = ucs_settings(cfg)
     study = BTSSettings(**{k: b[k] for k in ("platen_velocity", "damping", "platen_fric",
                                             "stop_drop", "max_strain", "record_strain",
                                             "post_peak_min", "approach_velocity")})
@@ -94,8 +79,7 @@ def main(argv=None) -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         design = Path(tmp) / "design.csv"
-        lhs_design(cfg["ranges"], cfg["study"]["n_samples"], cfg["study"]["lhs_seed"],
-                   optimization=cfg["study"]["lhs_optimization"]).to_csv(design, index=False)
+        study_design(cfg).to_csv(design, index=False)
         # warm-up: numba's cached kernels loaded once, not charged to the first sample
         p0, s0, _ = params_from_design(design, "s000")
         bts_test({**p0, "rmin_mm": 0.6}, s0, bts_geometry(scale=0.3), BTSSettings(max_steps=2000),
@@ -134,7 +118,7 @@ def main(argv=None) -> int:
         return statistics.median(v) if v else None
 
     out = {
-        "cpu_model": _cpu_model(), "load_average": os.getloadavg(), "threads": a.threads,
+        "cpu_model": cpu_model(), "load_average": os.getloadavg(), "threads": a.threads,
         "scale": sp["scale"], "study_bts_settings": {k: getattr(study, k) for k in (
             "platen_velocity", "approach_velocity", "post_peak_min")},
         "samples": rows,

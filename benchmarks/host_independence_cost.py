@@ -26,18 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-
-REPO = Path(__file__).resolve().parents[1]
-
-
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return "unknown"
+from _study import CONFIG, cpu_model, study_design, ucs_settings
 
 
 def _best(f, n):
@@ -52,7 +41,7 @@ def _best(f, n):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--config", default=str(REPO / "config" / "config.yaml"))
+    ap.add_argument("--config", default=str(CONFIG))
     ap.add_argument("--sample", default="s000")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--threads", type=int, default=1,
@@ -64,16 +53,11 @@ def main(argv=None) -> int:
     from bpmcal.dem._jit import set_threads
     from bpmcal.lab.runner import Geometry
     from bpmcal.lab.specimen import SpecimenSpec, build_specimen, paper_material, relax_packing
-    from bpmcal.lab.ucs import UCSSettings, run_ucs
-    from bpmcal.study.design import lhs_design
+    from bpmcal.lab.ucs import run_ucs
 
     cfg = yaml.safe_load(Path(a.config).read_text())
-    st = cfg["study"]
-    design = lhs_design(cfg["ranges"], st["n_samples"], st["lhs_seed"],
-                        optimization=None if st["lhs_optimization"] == "none"
-                        else st["lhs_optimization"]).set_index("sample_id")
-    p = design.loc[a.sample]
-    sp_cfg, u = cfg["specimen"], cfg["ucs"]
+    p = study_design(cfg).set_index("sample_id").loc[a.sample]
+    sp_cfg = cfg["specimen"]
     geo = Geometry(scale=sp_cfg["scale"], diameter_mm=sp_cfg["diameter_mm"],
                    height_mm=sp_cfg["height_mm"], sigma0_MPa=sp_cfg["sigma0_MPa"],
                    install_gap_mm=sp_cfg["install_gap_mm"], relax_ratio=sp_cfg["relax_ratio"])
@@ -82,9 +66,10 @@ def main(argv=None) -> int:
                                          relax_ratio=geo.relax_ratio)
     mat = paper_material(p.pb_emod_GPa, p.pb_kratio, p.pb_ten_MPa, p.pb_coh_MPa, p.pb_fa_deg,
                          p.fric)
-    settings = UCSSettings(platen_velocity=u["platen_velocity"], damping=u["damping"],
-                           stop_drop=u["stop_drop"], max_strain=u["max_strain"],
-                           platen_fric=u["platen_fric"], record_strain=u["record_strain"])
+    settings = ucs_settings(cfg)
+    # install_gap_mm null: the genesis's own gap; the config's genesis when it names one
+    gap = None if geo.install_gap_mm is None else geo.install_gap_mm * 1e-3
+    genesis = {"genesis": sp_cfg["genesis"]} if "genesis" in sp_cfg else {}
     set_threads(a.threads)
     load0 = os.getloadavg()
     # warm-up: numba cache load / compile, not timed
@@ -97,8 +82,8 @@ def main(argv=None) -> int:
         pk = relax_packing(spec)
         t_relax.append(time.perf_counter() - t)
         t = time.perf_counter()
-        sp = build_specimen(pk, mat, sigma0=geo.sigma0_MPa * 1e6,
-                            install_gap=geo.install_gap_mm * 1e-3, threads=a.threads)
+        sp = build_specimen(pk, mat, sigma0=geo.sigma0_MPa * 1e6, install_gap=gap,
+                            threads=a.threads, **genesis)
         t_build.append(time.perf_counter() - t)
         cpu_gen.append(time.process_time() - c)
         t, c = time.perf_counter(), time.process_time()
@@ -118,7 +103,7 @@ def main(argv=None) -> int:
         "ucs_cpu_s_median": statistics.median(cpu_ucs),
         "relax_steps": int(pk.report["relax_steps"]), "threads": a.threads,
         "openblas_coretype": os.environ.get("OPENBLAS_CORETYPE", ""),
-        "cpu": _cpu_model(), "loadavg_before": load0, "loadavg_after": os.getloadavg(),
+        "cpu": cpu_model(), "loadavg_before": load0, "loadavg_after": os.getloadavg(),
     }
     try:
         from bpmcal.portable import libm_pow, lsq_slope

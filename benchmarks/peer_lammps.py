@@ -63,8 +63,6 @@ What is not the same
 """
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import os
 import re
@@ -75,6 +73,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import _peer
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
@@ -83,10 +82,7 @@ RELAX = 1000  # untimed settling of the pack under LAMMPS's law, before the warm
 FRIC = 0.5
 KRATIO = 2.0
 DAMP_RATIO = 0.5  # normal viscous damping of the LAMMPS pairs (critical-damping ratio)
-INSTALL_MSG = ("LAMMPS is not installed (no `lmp` on PATH), so the peer comparison was not "
-               "run.\nInstall it with:  apt-get install -y lammps   (Debian/Ubuntu package, "
-               "as root)\nthen rerun:       python benchmarks/peer_lammps.py --n 10000 "
-               "--threads 1 --steps 1000")
+INSTALL_MSG = _peer.install_msg("LAMMPS", "lmp", "lammps", "peer_lammps.py")
 
 
 def lammps_inputs(n: int, seed: int = 1) -> dict:
@@ -216,62 +212,10 @@ def run_lammps(n: int, threads: int, steps: int, seed: int = 1, exe: str = "lmp"
             "gamman": inp["gamman"], "process_s": total, "lammps_version": _lmp_version(exe)}
 
 
-def run_bpmcal(n: int, threads: int, steps: int, seed: int = 1,
-               timeout: float = 3600.0) -> dict:
-    env = dict(os.environ, NUMBA_THREADING_LAYER="omp")
-    cmd = [sys.executable, str(HERE / "dem_throughput.py"), "--n", str(n), "--threads",
-           str(threads), "--steps", str(steps), "--seed", str(seed), "--json"]
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
-    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
-    if proc.returncode != 0 or not lines:
-        tail = "\n".join((proc.stdout + proc.stderr).splitlines()[-30:])
-        raise RuntimeError(f"dem_throughput.py failed (exit {proc.returncode}):\n{tail}")
-    return json.loads(lines[-1])
-
-
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--n", type=int, default=10000)
-    ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--steps", type=int, default=1000, help="timed steps (both codes)")
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--lmp", default="lmp", help="LAMMPS executable (default: lmp on PATH)")
-    ap.add_argument("--json", action="store_true", help="print only the JSON object")
-    a = ap.parse_args(argv)
-
-    exe = shutil.which(a.lmp)
-    if exe is None:
-        if a.json:
-            print(json.dumps({"n": a.n, "threads": a.threads, "steps": a.steps, "lammps": None,
-                              "skipped": "lammps not installed: apt-get install -y lammps"}))
-            print(INSTALL_MSG, file=sys.stderr)
-        else:
-            print(INSTALL_MSG)
-        return 0
-    log = (lambda *x: print(*x, file=sys.stderr, flush=True)) if a.json else \
-        (lambda *x: print(*x, flush=True))
-    log(f"# {time.strftime('%Y-%m-%d %H:%M:%S')}  n={a.n} threads={a.threads} "
-        f"steps={a.steps}; LAMMPS {_lmp_version(exe)}")
-    load0 = os.getloadavg()
-    log("# running LAMMPS ...")
-    lm = run_lammps(a.n, a.threads, a.steps, a.seed, exe)
-    log(f"#   lammps {lm['particle_steps_per_s'] / 1e6:8.3f} M particle-steps/s "
-        f"({lm['wall_s']:.2f} s for {lm['steps']} steps)")
-    log("# running bpmcal (benchmarks/dem_throughput.py) ...")
-    bp = run_bpmcal(a.n, a.threads, a.steps, a.seed)
-    log(f"#   bpmcal {bp['particle_steps_per_s'] / 1e6:8.3f} M particle-steps/s "
-        f"({bp['wall_s']:.2f} s for {bp['steps']} steps)")
-    res = {"n": a.n, "threads": a.threads, "steps": a.steps, "bpmcal": bp, "lammps": lm,
-           "ratio_particle_steps": bp["particle_steps_per_s"] / lm["particle_steps_per_s"],
-           "date": time.strftime("%Y-%m-%dT%H:%M:%S"),
-           "loadavg_1_5_15_before": [round(x, 2) for x in load0],
-           "loadavg_1_5_15_after": [round(x, 2) for x in os.getloadavg()]}
-    if a.json:
-        print(json.dumps(res))
-    else:
-        print(json.dumps(res, indent=1))
-        print(f"bpmcal / lammps particle-steps/s: {res['ratio_particle_steps']:.2f}")
-    return 0
+    a = _peer.parser(__doc__, "--lmp", "LAMMPS executable (default: lmp on PATH)").parse_args(argv)
+    return _peer.side_by_side(a, "lammps", "LAMMPS", shutil.which(a.lmp),
+                              lambda e: f"LAMMPS {_lmp_version(e)}", run_lammps, INSTALL_MSG)
 
 
 if __name__ == "__main__":

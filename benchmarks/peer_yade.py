@@ -87,7 +87,6 @@ What is not the same
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -98,6 +97,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import _peer
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
@@ -109,10 +109,7 @@ WALL_SPEED = 0.02
 STRENGTH = 1e12
 SKIN_FACTOR = 0.125  # bpmcal's default Verlet skin / r_min
 WARMUP = 200  # as dem_throughput.py
-INSTALL_MSG = ("YADE is not installed (no `yade` on PATH), so the peer comparison was not run.\n"
-               "Install it with:  apt-get install -y yade   (Debian/Ubuntu package, as root)\n"
-               "then rerun:       python benchmarks/peer_yade.py --n 10000 --threads 1 "
-               "--steps 1000")
+INSTALL_MSG = _peer.install_msg("YADE", "yade", "yade", "peer_yade.py")
 
 # --------------------------------------------------------------------------------------
 # The script YADE runs (its own python). It reads the parameters from the JSON file named
@@ -322,67 +319,11 @@ def run_yade(n: int, threads: int, steps: int, seed: int = 1, exe: str = "yade",
     return res
 
 
-def run_bpmcal(n: int, threads: int, steps: int, seed: int = 1,
-               timeout: float = 3600.0) -> dict:
-    env = dict(os.environ, NUMBA_THREADING_LAYER="omp")
-    cmd = [sys.executable, str(HERE / "dem_throughput.py"), "--n", str(n), "--threads",
-           str(threads), "--steps", str(steps), "--seed", str(seed), "--json"]
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
-    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
-    if proc.returncode != 0 or not lines:
-        tail = "\n".join((proc.stdout + proc.stderr).splitlines()[-30:])
-        raise RuntimeError(f"dem_throughput.py failed (exit {proc.returncode}):\n{tail}")
-    return json.loads(lines[-1])
-
-
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--n", type=int, default=10000)
-    ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--steps", type=int, default=1000, help="timed steps (both codes)")
-    ap.add_argument("--bpmcal-steps", type=int, default=None,
-                    help="timed steps for bpmcal only (default: --steps)")
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--yade", default="yade", help="yade executable (default: yade on PATH)")
-    ap.add_argument("--json", action="store_true", help="print only the JSON object")
-    a = ap.parse_args(argv)
-
-    exe = shutil.which(a.yade)
-    if exe is None:
-        if a.json:
-            print(json.dumps({"n": a.n, "threads": a.threads, "steps": a.steps, "yade": None,
-                              "skipped": "yade not installed: apt-get install -y yade"}))
-            print(INSTALL_MSG, file=sys.stderr)
-        else:
-            print(INSTALL_MSG)
-        return 0
-
-    log = (lambda *x: print(*x, file=sys.stderr, flush=True)) if a.json else \
-        (lambda *x: print(*x, flush=True))
-    log(f"# {time.strftime('%Y-%m-%d %H:%M:%S')}  n={a.n} threads={a.threads} "
-        f"steps={a.steps}; {_yade_version(exe)}")
-    load0 = os.getloadavg()
-    log("# running YADE ...")
-    yd = run_yade(a.n, a.threads, a.steps, a.seed, exe)
-    log(f"#   yade   {yd['particle_steps_per_s'] / 1e6:8.3f} M particle-steps/s "
-        f"({yd['wall_s']:.2f} s for {yd['steps']} steps)")
-    log("# running bpmcal (benchmarks/dem_throughput.py) ...")
-    bp = run_bpmcal(a.n, a.threads, a.bpmcal_steps or a.steps, a.seed)
-    log(f"#   bpmcal {bp['particle_steps_per_s'] / 1e6:8.3f} M particle-steps/s "
-        f"({bp['wall_s']:.2f} s for {bp['steps']} steps)")
-    res = {"n": a.n, "threads": a.threads, "steps": a.steps, "bpmcal": bp, "yade": yd,
-           "ratio_particle_steps": bp["particle_steps_per_s"] / yd["particle_steps_per_s"],
-           "date": time.strftime("%Y-%m-%dT%H:%M:%S"),
-           # the machine is shared: a 1-min load average well above `threads` at the end
-           # means other processes competed for the cores during the runs
-           "loadavg_1_5_15_before": [round(x, 2) for x in load0],
-           "loadavg_1_5_15_after": [round(x, 2) for x in os.getloadavg()]}
-    if a.json:
-        print(json.dumps(res))
-    else:
-        print(json.dumps(res, indent=1))
-        print(f"bpmcal / yade particle-steps/s: {res['ratio_particle_steps']:.2f}")
-    return 0
+    a = _peer.parser(__doc__, "--yade", "yade executable (default: yade on PATH)",
+                     bpmcal_steps=True).parse_args(argv)
+    return _peer.side_by_side(a, "yade", "YADE", shutil.which(a.yade),
+                              _yade_version, run_yade, INSTALL_MSG)
 
 
 if __name__ == "__main__":

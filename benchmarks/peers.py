@@ -101,9 +101,10 @@ def _median(xs):
 
 
 def run_case(n, threads, steps, repeat, peers, seed, log):
+    import _peer
     import peer_lammps
     import peer_yade
-    runners = {"bpmcal": lambda: peer_lammps.run_bpmcal(n, threads, steps, seed)}
+    runners = {"bpmcal": lambda: _peer.run_bpmcal(n, threads, steps, seed)}
     if "lammps" in peers:
         runners["lammps"] = lambda: peer_lammps.run_lammps(n, threads, steps, seed,
                                                            shutil.which("lmp"))

@@ -310,6 +310,27 @@ def cmd_scatter(a) -> int:
     return 0
 
 
+def cmd_holdout(a) -> int:
+    from .stages.holdout import holdout
+
+    prog = Progress(f"holdout {Path(a.card).stem}", enabled=not a.quiet)
+    df = holdout(a.card, seeds=_seeds(a.seeds), runs=a.runs, seed_runs=a.seed_runs,
+                 bts_runs=a.bts_runs, geometry=run_geometry(a), settings=run_settings(a),
+                 bts_geometry=bts_disc_of(a, "bts_"), bts_settings=bts_settings_of(a, "bts_"),
+                 cache=a.specimen_cache, threads=a.threads, progress=prog, **_budget(a))
+    prog.done(f"{int((df['status'] == 'ok').sum())} of {len(df)} seed(s) ok")
+    print(df.to_string(index=False))
+    return 0
+
+
+def cmd_holdout_table(a) -> int:
+    from .stages.holdout import holdout_table
+
+    print(holdout_table(a.cards, a.seed_runs, table=a.table, rtol=a.rtol, z=a.z)
+          .to_string(index=False))
+    return 0
+
+
 def cmd_vtables(a) -> int:
     from .stages.analysis import verification_tables
 
@@ -890,6 +911,38 @@ def _add_scatter(p):
     p.set_defaults(func=cmd_scatter)
 
 
+def _add_holdout(p):
+    p.add_argument("--card", required=True, help="a verified card (bpmcal verify)")
+    p.add_argument("--seeds", required=True,
+                   help="comma-separated fresh packing seeds (none of the card's closed loop "
+                        "or transfer)")
+    _file(p, "--runs", "output UCS run files, one per seed in the order of --seeds", nargs="+")
+    p.add_argument("--bts-runs", nargs="+", default=None,
+                   help="output Brazilian run files, one per seed (needed when the card has a "
+                        "tensile-strength target; failure records 'not run' without one)")
+    _file(p, "--seed-runs", "output table: the responses of every seed")
+    p.add_argument("--quiet", action="store_true")
+    add_run_args(p)
+    add_bts_args(p, "bts_")
+    p.set_defaults(func=cmd_holdout)
+
+
+def _add_holdout_table(p):
+    from .stages.holdout import holdout_table
+
+    d = defaults_of(holdout_table)
+    _file(p, "--cards", "verified cards", nargs="+")
+    _file(p, "--seed-runs", "their holdout seed tables, in the same order", nargs="+")
+    _file(p, "--table", "output table: fresh-seed mean, standard error and verdict per "
+                        "card and target")
+    p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True, hi_open=True),
+                   default=d["rtol"],
+                   help=f"the closed loop's relative tolerance (default {d['rtol']:g})")
+    p.add_argument("--z", type=number("z", 0.0, 10.0, lo_open=True), default=d["z"],
+                   help=f"standard errors a target may lie from the mean (default {d['z']:g})")
+    p.set_defaults(func=cmd_holdout_table)
+
+
 def _add_vtables(p):
     _file(p, "--cards", "verified cards", nargs="+")
     _file(p, "--runs", "their best rounds' run files, in the same order", nargs="+")
@@ -1004,6 +1057,10 @@ COMMANDS = {
                  _add_transfer, False),
     "transfer-table": ("the full-size transfer of every card, one table", _add_transfer_table,
                        False),
+    "holdout": ("a verified card on fresh packing seeds (UCS and, with a sigma_t target, "
+                "Brazilian tests)", _add_holdout, False),
+    "holdout-table": ("the fresh-seed check of every card against its lab targets",
+                      _add_holdout_table, False),
     "verification-tables": ("Tables 5 and 6 and Fig. 6", _add_vtables, False),
     "envelopes": ("triaxial strength envelopes (Mohr-Coulomb, Hoek-Brown) per card",
                   _add_envelopes, False),

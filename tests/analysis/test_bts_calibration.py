@@ -3,30 +3,12 @@ ratio; a σc/σt the parallel-bond models cannot reach is a no-exact-fit with ev
 target named. Synthetic regression models with known answers (no DEM)."""
 import numpy as np
 import pytest
+from _synthetic import FIXED, TRUTH, dem_response, models, predict
 
 from bpmcal.analysis.calibration import BTS, ClosedLoop, bts_strengths, invert
-from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.params import table2_ranges
 
 T2 = table2_ranges()  # pb_ten_MPa, pb_coh_MPa in [10, 50]
-FIXED = {"porosity": 0.34, "rmin_mm": 0.8, "pb_fa_deg": 30.0, "fric": 0.4}
-TRUTH = {"pb_emod_GPa": 20.0, "pb_kratio": 2.5, "pb_coh_MPa": 25.0}
-
-
-def models():
-    """σc depends on both strengths (with an interaction), σt mostly on pb_ten: the
-    parallel-bond picture; σc/σt spans about 5-10 over the Table 2 ranges."""
-    ucs = RegressionModel("ucs_MPa", [("pb_coh_MPa",), ("pb_ten_MPa",), ("porosity",), ("pb_kratio",),
-                                      ("pb_coh_MPa", "pb_ten_MPa")],
-                          [1.2, 0.8, -300.0, -6.0, 0.02], 120.0)
-    E = RegressionModel("E_GPa", [("pb_emod_GPa",), ("pb_kratio",)], [1.29, -0.3], 0.2)
-    nu = RegressionModel("nu", [("pb_kratio",)], [0.04], 0.1)
-    bts = RegressionModel(BTS, [("pb_ten_MPa",), ("pb_coh_MPa",)], [0.3, 0.1], 0.0)
-    return {"ucs_MPa": ucs, "E_GPa": E, "nu": nu, BTS: bts}
-
-
-def at(ms, params):
-    return {r: m.predict(params) for r, m in ms.items()}
 
 
 def test_bts_strengths_frees_the_ratio_only_with_a_tensile_target():
@@ -42,7 +24,7 @@ def test_bts_strengths_frees_the_ratio_only_with_a_tensile_target():
 def test_inversion_recovers_a_planted_ratio_from_a_planted_sigma_t(planted):
     ms = models()
     truth = {**FIXED, **TRUTH, "pb_ten_MPa": planted * TRUTH["pb_coh_MPa"]}
-    targets = at(ms, truth)
+    targets = predict(ms, truth)
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)  # configured 1.4 is overridden
     res = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3)
     assert res.status == "ok" and res.missed == [] and res.reach == {}
@@ -75,7 +57,7 @@ def _sigma_t_span(ms, targets):
 def test_unreachable_ucs_over_bts_is_a_no_exact_fit_with_the_missed_targets():
     ms = models()
     truth = {**FIXED, **TRUTH, "pb_ten_MPa": 35.0}
-    targets = at(ms, truth)
+    targets = predict(ms, truth)
     targets[BTS] = targets["ucs_MPa"] / 15.0  # σc/σt = 15: beyond what these models give
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)
     res = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3)
@@ -105,7 +87,7 @@ def test_a_sigma_c_out_of_range_stays_unreachable_with_sigma_t():
     ranges is still 'unreachable' (widen the ranges), σt or not."""
     ms = models()
     truth = {**FIXED, **TRUTH, "pb_ten_MPa": 35.0}
-    targets = at(ms, truth)
+    targets = predict(ms, truth)
     top = {**FIXED, **TRUTH, "pb_coh_MPa": 50.0, "pb_ten_MPa": 50.0, "pb_kratio": 1.0}
     targets["ucs_MPa"] = 1.3 * ms["ucs_MPa"].predict(top)
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)
@@ -117,9 +99,7 @@ def test_a_sigma_c_out_of_range_stays_unreachable_with_sigma_t():
 def _dem(ms, offset=0.03):
     """A 'DEM' that differs from the regression: every response off by a few %, σt more."""
     def simulate(p):
-        y = at(ms, p)
-        return {"ucs_MPa": y["ucs_MPa"] * (1 + offset), "E_GPa": y["E_GPa"] * (1 - offset),
-                "nu": y["nu"], BTS: y[BTS] * (1 + 2 * offset)}
+        return dem_response(predict(ms, p), offset)
     return simulate
 
 

@@ -12,9 +12,10 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from _synthetic import FIXED, TRUTH, dem_response, models, predict
 
 from bpmcal.analysis.calibration import BTS, invert
-from bpmcal.analysis.stepwise import FORMAT, RegressionModel
+from bpmcal.analysis.stepwise import FORMAT
 from bpmcal.cli import main
 from bpmcal.io.h5 import check_run_file, write_run
 from bpmcal.lab.runner import Geometry
@@ -25,23 +26,11 @@ from bpmcal.stages.runs import RunOutcome
 
 R = {"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "pb_emod_GPa": [10, 50], "pb_kratio": [1, 5],
      "pb_ten_MPa": [10, 50], "pb_coh_MPa": [10, 50], "pb_fa_deg": [15, 55], "fric": [0.15, 0.55]}
-FIXED = {"porosity": 0.34, "rmin_mm": 0.8, "pb_fa_deg": 30.0, "fric": 0.4}
-TRUTH = {"pb_emod_GPa": 20.0, "pb_kratio": 2.5, "pb_coh_MPa": 25.0}
 HEAD = "specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3"
 
 
-def models():
-    ucs = RegressionModel("ucs_MPa", [("pb_coh_MPa",), ("pb_ten_MPa",), ("porosity",), ("pb_kratio",),
-                                      ("pb_coh_MPa", "pb_ten_MPa")],
-                          [1.2, 0.8, -300.0, -6.0, 0.02], 120.0)
-    E = RegressionModel("E_GPa", [("pb_emod_GPa",), ("pb_kratio",)], [1.29, -0.3], 0.2)
-    nu = RegressionModel("nu", [("pb_kratio",)], [0.04], 0.1)
-    bts = RegressionModel(BTS, [("pb_ten_MPa",), ("pb_coh_MPa",)], [0.3, 0.1], 0.0)
-    return {"ucs_MPa": ucs, "E_GPa": E, "nu": nu, BTS: bts}
-
-
 def at(params):
-    return {r: m.predict(params) for r, m in models().items()}
+    return predict(models(), params)
 
 
 def models_json(path, with_bts=True):
@@ -189,9 +178,7 @@ class FakeDEM:
         self.calls = []
 
     def _resp(self, params):
-        y = at(params)
-        return {"ucs_MPa": y["ucs_MPa"] * 1.03, "E_GPa": y["E_GPa"] * 0.97, "nu": y["nu"],
-                BTS: y[BTS] * 1.06}
+        return dem_response(at(params))
 
     def ucs(self, out, params, seed, geometry, settings, **kw):
         self.calls.append(("ucs", seed, geometry))

@@ -45,3 +45,23 @@ def test_too_small_specimen_is_refused():
     from bpmcal.dem.errors import InputError
     with pytest.raises(InputError, match="too small"):
         SpecimenSpec.from_paper_units(1.0, 0.3, seed=1, scale=0.05)
+
+
+def test_close_pairs_and_touching_count_match_brute_force():
+    """The genesis's own neighbour search (numpy sweep, no tree): every pair within reach,
+    and the count of pairs within an installation gap, as an O(n^2) search finds them."""
+    from bpmcal.lab.specimen import _close_pairs, _count_touching
+
+    g = np.random.default_rng(3)
+    for n, box, gap in ((300, (0.02, 0.02, 0.04), 0.0), (500, (0.02, 0.02, 0.01), 5e-5),
+                        (2, (0.01, 0.01, 0.01), 0.0), (1, (0.01, 0.01, 0.01), 0.0)):
+        pos = g.uniform(0.0, box, (n, 3))
+        r = g.uniform(0.8e-3, 1.33e-3, n)
+        reach = 2.0 * r.max() + gap
+        d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=2)
+        bi, bj = np.nonzero(np.triu(d <= reach, 1))
+        i, j = _close_pairs(pos, reach)
+        assert np.all(i < j)
+        assert set(zip(i.tolist(), j.tolist())) == set(zip(bi.tolist(), bj.tolist()))
+        touching = np.triu(d - r[:, None] - r[None, :] <= gap, 1)
+        assert _count_touching(pos, r, gap) == int(touching.sum())

@@ -113,6 +113,7 @@ STUDY_ONLY = {
     "resources.ucs_threads", "resources.ucs_runtime_min", "resources.ucs_mem_mb",  # Slurm
     "calibration.bounds",  # {} = no narrowing; the stage's bounds=None means the same
     "verification.scatter_seeds",  # the seeds of the scatter job
+    "verification.holdout_seeds",  # the fresh seeds of the holdout jobs ([]: no such jobs)
     "ratio_sweep.enabled",  # whether the DAG has the sweep
     "transfer.enabled",  # whether the DAG has the full-size transfer
     "bts", "bts.enabled",  # whether the DAG has the Brazilian jobs ({}: the defaults)
@@ -166,11 +167,12 @@ def test_schema_cli_and_settings_defaults_agree(key):
 
 def test_the_two_known_disagreements_are_settled_as_the_study_runs():
     """ImpactSettings said 5 ms / 10 us where the CLI and the schema said 10 ms / 5 us, and
-    ClosedLoop 6 rounds where the study runs 5: the study's values are the defaults."""
-    assert IMP.duration == pytest.approx(10e-3) and IMP.record_dt == pytest.approx(5e-6)
+    ClosedLoop 6 rounds where the study runs 5: the study's values are the defaults (the
+    impact's limit is now 40 ms, longer than the rebound of every measured size)."""
+    assert IMP.duration == pytest.approx(40e-3) and IMP.record_dt == pytest.approx(5e-6)
     assert LOOP["max_rounds"] == 5
     cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
-    assert cfg["impact"]["duration_ms"] == 10.0 and cfg["impact"]["record_us"] == 5.0
+    assert cfg["impact"]["duration_ms"] == 40.0 and cfg["impact"]["record_us"] == 5.0
     assert cfg["verification"]["max_rounds"] == LOOP["max_rounds"]
 
 

@@ -461,3 +461,34 @@ def test_verify_averages_seeds_and_the_transfer_runs_at_its_scale(smoke):
     card = yaml.safe_load(Path(lay.transferred_card("B1")).read_text())
     if card["transfer"]["parameters"]:  # the impact runs the transferred card
         assert imp["pb_emod_GPa"] == pytest.approx(card["transfer"]["parameters"]["pb_emod_GPa"])
+
+
+def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
+    """verification.holdout_seeds (11, 12 in the smoke config): every verified card is re-run
+    on those packing seeds, none of its closed loop's, with its closed-loop parameters, and
+    the holdout table's statistics are those of the seed tables."""
+    from bpmcal.io.h5 import read_inputs
+    from bpmcal.io.layout import HOLDOUT, Layout
+
+    cfg = yaml.safe_load((smoke / "config" / "smoke.yaml").read_text())
+    seeds = cfg["verification"]["holdout_seeds"]
+    lay = Layout(str(smoke / OUTDIR))
+    table = pd.read_csv(lay.table(HOLDOUT))
+    assert len(table) == 3 * 3 and set(table["seeds"]) == {",".join(map(str, seeds))}
+    for spec in ("B1", "B2", "B3"):
+        card = yaml.safe_load(Path(lay.verified_card(spec)).read_text())
+        assert not set(seeds) & set(card["verification"]["seeds"])
+        runs = pd.read_csv(lay.holdout_seeds(spec))
+        assert list(runs["seed"]) == seeds
+        for s in seeds:
+            inputs = read_inputs(lay.holdout_run(spec, s))
+            assert inputs["seed"] == s
+            assert inputs["pb_emod_GPa"] == pytest.approx(
+                card["verification"]["parameters"]["pb_emod_GPa"])
+        ok = runs[runs["status"] == "ok"]
+        for _, r in table[table["specimen"] == spec].iterrows():
+            assert r["n"] == len(ok) and r["n_failed"] == len(runs) - len(ok)
+            if len(ok):
+                assert r["mean"] == pytest.approx(ok[r["response"]].mean(), rel=1e-12)
+    index = (smoke / OUTDIR / "report" / "index.md").read_text()
+    assert "The verified cards on fresh packing seeds" in index

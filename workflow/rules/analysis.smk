@@ -158,7 +158,12 @@ rule verify:
         * config["verification"]["seeds_per_round"],
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
-        v=config["verification"],
+        # only the keys verify reads: changing another verification key (the holdout
+        # or scatter seeds) must not rerun the closed loops
+        v={
+            k: config["verification"][k]
+            for k in ("seed", "seeds_per_round", "rtol", "max_rounds")
+        },
         opts=specimen_args(),
         bts=bts_args(),
         unreachable=(
@@ -246,6 +251,57 @@ rule seed_scatter:
         "bpmcal scatter --card {input.card:q} --seeds {params.seeds:q} --runs {output.runs:q} "
         "--seed-runs {output.seed_runs:q} --table {output.table:q} --rtol {params.rtol:q} "
         "--threads {threads} {params.opts:q} > {log:q} 2>&1"
+
+
+rule holdout:
+    input:
+        card=FILES.verified_card("{spec}"),
+    output:
+        beside(FILES.holdout_seeds("{spec}")),
+        runs=[FILES.holdout_run("{spec}", s) for s in HOLDOUT_SEEDS],
+        bts_runs=(
+            [FILES.holdout_bts_run("{spec}", s) for s in HOLDOUT_SEEDS]
+            if LAB_BTS
+            else []
+        ),
+        seed_runs=FILES.holdout_seeds("{spec}"),
+    log:
+        FILES.log("holdout", "{spec}"),
+    conda:
+        "../envs/bpmcal.yaml"
+    threads: config["resources"]["ucs_threads"]
+    resources:
+        runtime=config["resources"]["ucs_runtime_min"] * max(1, len(HOLDOUT_SEEDS)),
+        mem_mb=config["resources"]["ucs_mem_mb"],
+    params:
+        seeds=",".join(str(s) for s in HOLDOUT_SEEDS),
+        bts_runs=lambda wc, output: (
+            ["--bts-runs", *output.bts_runs] if output.bts_runs else []
+        ),
+        opts=specimen_args(),
+        bts=bts_args(),
+    shell:
+        "bpmcal holdout --card {input.card:q} --seeds {params.seeds:q} --runs {output.runs:q} "
+        "{params.bts_runs:q} --seed-runs {output.seed_runs:q} --threads {threads} "
+        "{params.opts:q} {params.bts:q} > {log:q} 2>&1"
+
+
+rule holdout_table:
+    input:
+        cards=[FILES.verified_card(s) for s in SPECIMENS],
+        seed_runs=[FILES.holdout_seeds(s) for s in SPECIMENS],
+    output:
+        beside(FILES.table(L.HOLDOUT)),
+        table=FILES.table(L.HOLDOUT),
+    log:
+        FILES.log("holdout_table"),
+    conda:
+        "../envs/bpmcal.yaml"
+    params:
+        rtol=config["verification"]["rtol"],
+    shell:
+        "bpmcal holdout-table --cards {input.cards:q} --seed-runs {input.seed_runs:q} "
+        "--table {output.table:q} --rtol {params.rtol:q} > {log:q} 2>&1"
 
 
 rule verification_tables:

@@ -1,12 +1,16 @@
 # The report: every table and figure next to the paper's published values. It reads the
 # study's files through bpmcal.io.layout (the files declared here) and writes its own.
 
-_REPORT_OUT = FILES.report_outputs(SWEEP_ON, REFERENCE, TRIAX_ON, bool(TRIAX_LAB))
+_REPORT_OUT = FILES.report_outputs(
+    SWEEP_ON, REFERENCE, TRIAX_ON, bool(TRIAX_LAB), HOLDOUT_ON
+)
 
 
 rule report:
     input:
-        **FILES.report_inputs(SPECIMENS, IMPACT_V0, SWEEP_ON, TRIAX_ON, bool(TRIAX_LAB)),
+        **FILES.report_inputs(
+            SPECIMENS, IMPACT_V0, SWEEP_ON, TRIAX_ON, bool(TRIAX_LAB), HOLDOUT_ON
+        ),
     output:
         [f for f in _REPORT_OUT if f not in (FILES.report_index, FILES.report_config)],
         index=FILES.report_index,

@@ -28,11 +28,12 @@ from .layout import (
     P_GY,
     P_GZ,
     P_KRATIO,
+    P_NOSPIN,
     P_PB_EMOD,
     P_PB_KRATIO,
     P_PB_RMUL,
 )
-from .motion import ball_update, constraint_power, gather, wall_power
+from .motion import ball_state, ball_update, constraint_power, gather, wall_power
 
 
 @jit
@@ -49,6 +50,7 @@ def measure_balls(vel, angvel, force, moment, mass, inertia, fix, fbuf, pmask, s
     gx = prm[P_GX]
     gy = prm[P_GY]
     gz = prm[P_GZ]
+    spin = prm[P_NOSPIN] == 0.0
     kin = 0.0
     dmp = 0.0
     grv = 0.0
@@ -65,17 +67,9 @@ def measure_balls(vel, angvel, force, moment, mass, inertia, fix, fbuf, pmask, s
         moment[i, 0] = m0
         moment[i, 1] = m1
         moment[i, 2] = m2
-        fl = fix[i]
-        im = 1.0 / mi
-        ii = 1.0 / inertia[i]
-        u0 = vel[i, 0]
-        u1 = vel[i, 1]
-        u2 = vel[i, 2]
-        w0 = angvel[i, 0]
-        w1 = angvel[i, 1]
-        w2 = angvel[i, 2]
+        fl, im, ii, u0, u1, u2, w0, w1, w2 = ball_state(i, mi, inertia, fix, vel, angvel)
         n0, n1, n2, r0, r1, r2, d0, d1, d2, e0, e1, e2 = ball_update(
-            u0, u1, u2, w0, w1, w2, f0, f1, f2, m0, m1, m2, im, ii, alpha, dt, fl)
+            u0, u1, u2, w0, w1, w2, f0, f1, f2, m0, m1, m2, im, ii, alpha, dt, fl, spin)
         kin += 0.5 * mi * (u0 * n0 + u1 * n1 + u2 * n2) + 0.5 * inertia[i] * (
             w0 * r0 + w1 * r1 + w2 * r2)
         h = 0.5 * dt

@@ -62,6 +62,7 @@ from .layout import (
     P_GZ,
     P_KRATIO,
     P_MAXSPEED,
+    P_NOSPIN,
     P_PB_COH,
     P_PB_EMOD,
     P_PB_KRATIO,
@@ -73,7 +74,7 @@ from .layout import (
     P_TIME,
     P_VCAP,
 )
-from .motion import ball_update, constraint_power, gather, wall_power
+from .motion import ball_state, ball_update, constraint_power, gather, wall_power
 from .neighbors import max_displacement, rebuild_lists
 
 
@@ -118,7 +119,8 @@ def pair_partition(p, pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, ps
                               pb_coh, tanfa, rmul, mcf, betan, betas, step, record)
     if fric == 0.0 and betan == 0.0 and betas == 0.0:
         _pair_range_frictionless(pos, vel, angvel, radius, pi, pj, pfs, pact, pestr, fbuf[p],
-                                 max(k0, nb), k1, dt, emod, ikr, record)
+                                 max(k0, nb), k1, dt, emod, ikr, record,
+                                 prm[P_NOSPIN] == 0.0)
     else:
         _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash,
                     pestr, fbuf[p], max(k0, nb), k1, dt, emod, ikr, fric, betan, betas,
@@ -236,12 +238,16 @@ def _pair_range(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, p
 
 @jit
 def _pair_range_frictionless(pos, vel, angvel, radius, pi, pj, pfs, pact, pestr, fb, k0, k1,
-                             dt, emod, ikr, record):
+                             dt, emod, ikr, record, spin):
     """``_pair_range`` for friction 0 and no dashpots (the genesis relaxation), with the
     same results bit for bit: with a zero slip limit the stored shear force is always a
     signed zero, so the shear spring, the slip energy and the stored force reduce to
     zeros. The additions of those zeros are kept (``+ 0.0``; not optimised away without
-    fast-math), so the force expressions round exactly as in the general kernel."""
+    fast-math), so the force expressions round exactly as in the general kernel.
+
+    Without ``spin`` (translation only, ``Model.set_spin``) no moments are scattered: the
+    force is central, so its moment n x F is round-off, and nothing in a frictionless
+    pack without bonds turns spins back into forces."""
     for k in range(k0, k1):
         i = pi[k]
         j = pj[k]
@@ -278,21 +284,22 @@ def _pair_range_frictionless(pos, vel, angvel, radius, pi, pj, pfs, pact, pestr,
             if record:
                 pestr[k] = 0.0
             continue
-        cx = ny * fz - nz * fy
-        cy = nz * fx - nx * fz
-        cz = nx * fy - ny * fx
         fb[i, 0] -= fx
         fb[i, 1] -= fy
         fb[i, 2] -= fz
-        fb[i, 3] -= ai * cx
-        fb[i, 4] -= ai * cy
-        fb[i, 5] -= ai * cz
         fb[j, 0] += fx
         fb[j, 1] += fy
         fb[j, 2] += fz
-        fb[j, 3] += aj * cx
-        fb[j, 4] += aj * cy
-        fb[j, 5] += aj * cz
+        if spin:
+            cx = ny * fz - nz * fy
+            cy = nz * fx - nx * fz
+            cz = nx * fy - ny * fx
+            fb[i, 3] -= ai * cx
+            fb[i, 4] -= ai * cy
+            fb[i, 5] -= ai * cz
+            fb[j, 3] += aj * cx
+            fb[j, 4] += aj * cy
+            fb[j, 5] += aj * cz
 
 
 # ---------------------------------------------------------------------------------------
@@ -491,6 +498,7 @@ def integrate_range(i0, i1, pos, vel, angvel, mass, inertia, fix, fbuf, pmask, s
     gz = prm[P_GZ]
     grav = gx != 0.0 or gy != 0.0 or gz != 0.0
     vcap = prm[P_VCAP]
+    spin = prm[P_NOSPIN] == 0.0
     maxv2 = 0.0
     bad = 0
     for i in range(i0, i1):
@@ -499,17 +507,9 @@ def integrate_range(i0, i1, pos, vel, angvel, mass, inertia, fix, fbuf, pmask, s
         f0 += mi * gx
         f1 += mi * gy
         f2 += mi * gz
-        fl = fix[i]
-        im = 1.0 / mi
-        ii = 1.0 / inertia[i]
-        u0 = vel[i, 0]
-        u1 = vel[i, 1]
-        u2 = vel[i, 2]
-        w0 = angvel[i, 0]
-        w1 = angvel[i, 1]
-        w2 = angvel[i, 2]
+        fl, im, ii, u0, u1, u2, w0, w1, w2 = ball_state(i, mi, inertia, fix, vel, angvel)
         n0, n1, n2, r0, r1, r2, d0, d1, d2, e0, e1, e2 = ball_update(
-            u0, u1, u2, w0, w1, w2, f0, f1, f2, m0, m1, m2, im, ii, alpha, dt, fl)
+            u0, u1, u2, w0, w1, w2, f0, f1, f2, m0, m1, m2, im, ii, alpha, dt, fl, spin)
         s0 = 0.5 * (u0 + n0) * dt
         s1 = 0.5 * (u1 + n1) * dt
         s2 = 0.5 * (u2 + n2) * dt

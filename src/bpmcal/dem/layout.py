@@ -27,7 +27,8 @@ P_MAXSPEED = 18  # blow-up guard: any speed above this stops the run [m/s]
 P_TIME = 19  # model time [s]
 P_VCAP = 20  # >0: speeds are clipped to this value (genesis overlap removal only) [m/s]
 P_DBOUND = 21  # upper bound of the largest ball displacement since the last rebuild [m]
-N_PRM = 22
+P_NOSPIN = 22  # >0: translation only, no torques and no spins (Model.set_spin; genesis relax)
+N_PRM = 23
 
 # --- integer counters: iprm[...] ------------------------------------------------------
 I_STEP = 0  # steps taken since the model was created

@@ -56,6 +56,7 @@ from .layout import (
     P_GX,
     P_KRATIO,
     P_MAXSPEED,
+    P_NOSPIN,
     P_PB_COH,
     P_PB_EMOD,
     P_PB_KRATIO,
@@ -299,6 +300,43 @@ class Model:
         if not (v >= 0 and math.isfinite(v)):
             raise InputError(f"speed cap {vmax!r}: expected a speed >= 0 m/s")
         self.prm[P_VCAP] = v
+
+    def set_spin(self, enabled: bool):
+        """Rotational dynamics on (the default) or off. Off ("translation only"): no
+        torques are summed and the spins stay as they are. Only for a pack whose forces
+        are all central and blind to spins - frictionless balls and walls, no dashpots,
+        no bonds (a genesis relaxation): there the moments are round-off and no spin
+        ever acts back on a force, so the positions are bitwise those of a run with
+        rotation, for less work. Refused (InputError) for anything else, also when the
+        material, walls or bonds change later (checked by :meth:`cycle`)."""
+        if enabled:
+            self.prm[P_NOSPIN] = 0.0
+            return
+        self.prm[P_NOSPIN] = 1.0
+        try:
+            self._check_spin()
+        except InputError:
+            self.prm[P_NOSPIN] = 0.0
+            raise
+
+    def _check_spin(self):
+        """With rotation off: every force is still central and blind to spins."""
+        if self.prm[P_NOSPIN] == 0.0:
+            return
+        m = self.material
+        why = []
+        if m.fric != 0.0:
+            why.append(f"ball friction {m.fric:g}")
+        if m.dp_nratio != 0.0 or m.dp_sratio != 0.0:
+            why.append("dashpots")
+        if self.n_bonds > 0:
+            why.append(f"{self.n_bonds} bonds")
+        if np.any(self.W.fric != 0.0):
+            why.append("wall friction")
+        if why:
+            raise InputError("rotation is off (set_spin(False)), which needs central, "
+                             f"spin-blind forces, but the model has {', '.join(why)}: "
+                             "call set_spin(True) first")
 
     def set_gravity(self, g):
         self.prm[P_GX:P_GX + 3] = _vec3("gravity", g)
@@ -792,6 +830,7 @@ class Model:
             raise InputError(f"nsteps={nsteps}: expected >= 0")
         if self.prm[P_DT] <= 0:
             raise InputError("timestep not set: call set_timestep() first")
+        self._check_spin()
         pass  # forces are kept current by run_steps
         done = 0
         while True:

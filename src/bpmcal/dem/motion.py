@@ -73,17 +73,33 @@ def dof(v, f, im, alpha, dt, fixed):
 
 
 @_inl
-def ball_update(u0, u1, u2, w0, w1, w2, f0, f1, f2, m0, m1, m2, im, ii, alpha, dt, fl):
+def ball_state(i, mi, inertia, fix, vel, angvel):
+    """Ball i (mass ``mi``) as ``ball_update`` takes it: fixity bits, 1/mass, 1/inertia,
+    half-step velocity ``u`` (3) and spin ``w`` (3). Read the same way, in the same order,
+    by the integrator and by the energy measurement that predicts its step."""
+    fl = fix[i]
+    im = 1.0 / mi
+    ii = 1.0 / inertia[i]
+    return fl, im, ii, vel[i, 0], vel[i, 1], vel[i, 2], angvel[i, 0], angvel[i, 1], angvel[i, 2]
+
+
+@_inl
+def ball_update(u0, u1, u2, w0, w1, w2, f0, f1, f2, m0, m1, m2, im, ii, alpha, dt, fl,
+                spin=True):
     """The six degrees of freedom of one ball: velocity ``u``, spin ``w``, resultant force
     ``f`` and moment ``m`` (gravity included), 1/mass ``im``, 1/inertia ``ii``, fixity
     bits ``fl``. Returns the new half-step velocity (3), spin (3), and the damping forces
-    (3) and moments (3) that were applied."""
+    (3) and moments (3) that were applied. Without ``spin`` (translation only,
+    ``Model.set_spin``) the spins are kept and no damping moment is applied."""
     n0, d0 = dof(u0, f0, im, alpha, dt, fl & FIX_VX)
     n1, d1 = dof(u1, f1, im, alpha, dt, fl & FIX_VY)
     n2, d2 = dof(u2, f2, im, alpha, dt, fl & FIX_VZ)
-    r0, e0 = dof(w0, m0, ii, alpha, dt, fl & FIX_WX)
-    r1, e1 = dof(w1, m1, ii, alpha, dt, fl & FIX_WY)
-    r2, e2 = dof(w2, m2, ii, alpha, dt, fl & FIX_WZ)
+    if spin:
+        r0, e0 = dof(w0, m0, ii, alpha, dt, fl & FIX_WX)
+        r1, e1 = dof(w1, m1, ii, alpha, dt, fl & FIX_WY)
+        r2, e2 = dof(w2, m2, ii, alpha, dt, fl & FIX_WZ)
+    else:
+        r0, r1, r2, e0, e1, e2 = w0, w1, w2, 0.0, 0.0, 0.0
     return n0, n1, n2, r0, r1, r2, d0, d1, d2, e0, e1, e2
 
 

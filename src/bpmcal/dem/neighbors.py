@@ -185,30 +185,40 @@ def rebuild(pos, radius, pos_ref, pmask, pi, pj, pfs, pdf, pact, pslip, pdash, v
     cr_ = cp[3]
     one = np.uint64(1)
     for c in range(d0 * d1 * d2):
+        s0 = start[c]
+        s1 = start[c + 1]
+        if s0 == s1:
+            continue
         cz = c % d2
         cy = (c // d2) % d1
         cx = c // (d1 * d2)
-        for e in range(start[c], start[c + 1]):
-            a = order[e]
-            xa = cx_[e]
-            ya = cy_[e]
-            za = cz_[e]
-            ra = cr_[e]
-            for h in range(14):  # 0: own cell; 1..13: forward cells
-                if h == 0:
-                    e0 = e + one
-                    e1 = start[c + 1]
-                else:
-                    k = h + 13  # offsets 14..26 of the 3x3x3 stencil (x fastest)
-                    qx = cx + k // 9 - 1
-                    qy = cy + (k // 3) % 3 - 1
-                    qz = cz + k % 3 - 1
-                    if qx >= d0 or qy < 0 or qy >= d1 or qz < 0 or qz >= d2:
-                        continue
-                    q = (qx * d1 + qy) * d2 + qz
-                    e0 = start[q]
-                    e1 = start[q + 1]
-                for e2 in range(e0, e1):
+        # cell pairs (c, q), then ball pairs: the stencil arithmetic and the bounds of q
+        # are worked out once per cell, not once per ball (the order in which pairs are
+        # found does not matter: step 2 sorts them)
+        for h in range(14):  # 0: own cell; 1..13: forward cells
+            if h == 0:
+                q0 = s0
+                q1 = s1
+            else:
+                k = h + 13  # offsets 14..26 of the 3x3x3 stencil (x fastest)
+                qx = cx + k // 9 - 1
+                qy = cy + (k // 3) % 3 - 1
+                qz = cz + k % 3 - 1
+                if qx >= d0 or qy < 0 or qy >= d1 or qz < 0 or qz >= d2:
+                    continue
+                q = (qx * d1 + qy) * d2 + qz
+                q0 = start[q]
+                q1 = start[q + 1]
+                if q0 == q1:
+                    continue
+            for e in range(s0, s1):
+                a = order[e]
+                xa = cx_[e]
+                ya = cy_[e]
+                za = cz_[e]
+                ra = cr_[e]
+                e0 = e + one if h == 0 else q0
+                for e2 in range(e0, q1):
                     b = order[e2]
                     # the same test, bit for bit, as from the row ball lo = min(a, b):
                     # IEEE subtraction is antisymmetric (squares equal) and addition

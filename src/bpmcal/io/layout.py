@@ -104,6 +104,7 @@ CALIBRATION = "calibration"  # calibrated parameters of every specimen (calibrat
 TABLE5 = "table5_verification"  # DEM vs lab, single pass and closed loop (verification_tables)
 TRANSFER = "transfer_full_size"  # verified vs full-size responses per card (transfer_table)
 TABLE6 = "table6_prepeak_energy"  # pre-peak energy density (verification_tables)
+HOLDOUT = "holdout_fresh_seeds"  # verified cards on fresh packing seeds vs lab (holdout_table)
 RATIO_SWEEP = "ratio_sweep"  # cracks per strength ratio (sweep_analyse)
 IMPACT_ENERGY = "impact_energy"  # energy budget of the reference impact (impact_analyse)
 T10_ECS = "t10_ecs"  # t10 vs specific energy (impact_analyse)
@@ -258,6 +259,18 @@ class Layout:
         """The run file of the transfer's best round."""
         return self.path("transfer", specimen, "best_round.h5")
 
+    def holdout_run(self, specimen: str, seed) -> str:
+        """The fresh-seed check's UCS run of a verified card with packing seed ``seed``."""
+        return self.path("verification", specimen, "holdout", f"seed{seed}.h5")
+
+    def holdout_bts_run(self, specimen: str, seed) -> str:
+        """... and its Brazilian run (a failure record "not run" without a σt target)."""
+        return self.path("verification", specimen, "holdout", f"seed{seed}.bts.h5")
+
+    def holdout_seeds(self, specimen: str) -> str:
+        """The fresh-seed check's responses of every seed (table)."""
+        return self.path("verification", specimen, "holdout", "seeds.csv")
+
     def scatter_run(self, seed) -> str:
         """The UCS run of the first specimen's card with packing seed ``seed``."""
         return self.path("verification", "seed_scatter", f"seed{seed}.h5")
@@ -348,10 +361,11 @@ class Layout:
                                         *([TRIAXIAL_LAB] if lab else []))]
 
     def report_tables(self, sweep: bool = True, triaxial: bool = False,
-                      triaxial_lab: bool = False) -> list[str]:
+                      triaxial_lab: bool = False, holdout: bool = False) -> list[str]:
         """The tables the report shows (CSV paths), in its order."""
         stems = [TABLE3, TABLE4, REGRESSION_FIT, CALIBRATION, TABLE5, TABLE6,
-                 *([RATIO_SWEEP] if sweep else []), IMPACT_ENERGY, T10_ECS]
+                 *([HOLDOUT] if holdout else []), *([RATIO_SWEEP] if sweep else []),
+                 IMPACT_ENERGY, T10_ECS]
         tx = self.triaxial_tables(triaxial_lab) if triaxial else []
         return [self.table(s) for s in stems] + tx
 
@@ -362,9 +376,10 @@ class Layout:
         return [self.figure(s) for s in stems]
 
     def report_inputs(self, specimens, impact_tag: str, sweep: bool = True,
-                      triaxial: bool = False, triaxial_lab: bool = False) -> dict:
+                      triaxial: bool = False, triaxial_lab: bool = False,
+                      holdout: bool = False) -> dict:
         """Every file the report reads, by role (the report rule's ``input:``)."""
-        tabs = [f for t in self.report_tables(sweep, triaxial, triaxial_lab)
+        tabs = [f for t in self.report_tables(sweep, triaxial, triaxial_lab, holdout)
                 for f in companions(t)]
         figs = [f for g in self.report_figures(sweep, triaxial) for f in companions(g)]
         return {
@@ -376,10 +391,11 @@ class Layout:
         }
 
     def report_outputs(self, sweep: bool = True, reference: bool = True,
-                       triaxial: bool = False, triaxial_lab: bool = False) -> list[str]:
+                       triaxial: bool = False, triaxial_lab: bool = False,
+                       holdout: bool = False) -> list[str]:
         """Every file the report writes (the report rule's ``output:``)."""
         copies = [self.report_copy(f) for f in [
-            *(f for t in self.report_tables(sweep, triaxial, triaxial_lab)
+            *(f for t in self.report_tables(sweep, triaxial, triaxial_lab, holdout)
               for f in companions(t)),
             *(f for g in self.report_figures(sweep, triaxial) for f in companions(g)),
             self.equations]]

@@ -36,6 +36,7 @@ TABLES = {
     L.CALIBRATION: "Calibrated meso-parameters of the lab specimens",
     L.TABLE5: "Table 5: verification - DEM vs lab (single pass and closed loop)",
     L.TABLE6: "Table 6: pre-peak energy density, DEM vs lab",
+    L.HOLDOUT: "The verified cards on fresh packing seeds against the lab targets",
     L.RATIO_SWEEP: "Bond-strength-ratio sweep: cracks and proportions",
     L.IMPACT_ENERGY: "Drop-hammer impact: energy budget over time",
     L.T10_ECS: "t10 against specific energy (impact-velocity sweep)",
@@ -80,11 +81,11 @@ def _copy(lay: L.Layout, src: str) -> bool:
 
 
 def copy_outputs(lay: L.Layout, sweep: bool = True, triaxial: bool = False,
-                 triaxial_lab: bool = False) -> dict:
+                 triaxial_lab: bool = False, holdout: bool = False) -> dict:
     """Copy the tables, figures and equations into the report folder; returns the stems
     of the tables and figures found."""
     found = {"tables": [], "figures": []}
-    for kind, files in (("tables", lay.report_tables(sweep, triaxial, triaxial_lab)),
+    for kind, files in (("tables", lay.report_tables(sweep, triaxial, triaxial_lab, holdout)),
                         ("figures", lay.report_figures(sweep, triaxial))):
         for f in files:
             copied = [_copy(lay, c) for c in L.companions(f)]
@@ -132,8 +133,9 @@ def build(outdir, config: dict) -> Path:
     sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
     tx = cfg.get("triaxial") or {}
     triax, tlab = bool(tx.get("enabled", False)), bool(tx.get("lab_csv"))
+    hold = bool((cfg.get("verification") or {}).get("holdout_seeds"))
     Path(lay.report_dir).mkdir(parents=True, exist_ok=True)
-    found = copy_outputs(lay, sweep, triax, tlab)
+    found = copy_outputs(lay, sweep, triax, tlab, hold)
     S = []  # sections of index.md
     ref = is_paper_study(cfg)
     if ref:
@@ -438,7 +440,45 @@ def _verification(lay, comp, ref=False) -> str:
         s += ("\n### Packing-seed scatter of one calibrated set\n\n"
               + markdown_table(rows, ["response", "CV of one run (%)", "noise floor 2 se (%)",
                            "1 % tolerance below the noise?"]) + "\n")
-    return s
+    return s + _holdout(lay)
+
+
+def _holdout(lay) -> str:
+    """The verified cards on fresh packing seeds (``holdout_table``), if it ran."""
+    f = Path(lay.table(L.HOLDOUT))
+    if not f.exists():
+        return ""
+    t = pd.read_csv(f)
+    rows = []
+    for _, r in t.iterrows():
+        rows.append([r["specimen"], P.RESPONSES[r["response"]].symbol, _f(r["lab"]),
+                     f"{_f(r['mean'])} ± {_f(r['se'])}", _f(r["err_pct"], "+.2f"),
+                     _f(r["z_score"], "+.2f"), "yes" if r["within_z_se"] else "**no**",
+                     "yes" if r["met"] else "**no**",
+                     f"{int(r['n'])}" + (f" ({int(r['n_failed'])} failed)" if r["n_failed"]
+                                         else "")])
+    z = float(t["z"].iloc[0]) if len(t) else 2.0
+    notes = t["note"].fillna("").astype(str) if "note" in t.columns else pd.Series("", t.index)
+    skipped = sorted(set(t.loc[notes != "", "specimen"]))
+    miss = t[~t["within_z_se"].astype(bool) & (notes == "")]
+    verdict = ("Every target lies within "
+               f"{z:g} standard errors of the fresh seeds' mean." if miss.empty else
+               "Outside " f"{z:g} standard errors: " + ", ".join(
+                   f"{r.specimen} {P.RESPONSES[r.response].symbol} ({r.err_pct:+.2f} %, "
+                   f"z = {r.z_score:+.2f})" for r in miss.itertuples()) + ".")
+    if skipped:
+        verdict += " Not run: " + "; ".join(
+            f"{sp} ({notes[t['specimen'] == sp].iloc[0]})" for sp in skipped) + "."
+    seeds = t["seeds"].iloc[0] if len(t) else ""
+    return ("\n### The verified cards on fresh packing seeds\n\n"
+            f"Each verified card re-run on packing seeds its closed loop never saw ({seeds}): "
+            "the mean ± its standard error, the error of the mean, its z-score (error / "
+            "standard error), whether the lab value lies within "
+            f"{z:g} standard errors and whether it meets the loop's own tolerance "
+            f"max(rtol, {z:g} standard errors). " + verdict + "\n\n"
+            + markdown_table(rows, ["specimen", "response", "lab", "fresh seeds: mean ± se",
+                                    "error %", "z", f"within {z:g} se", "met", "seeds"])
+            + "\n")
 
 
 def _ratio(lay, comp, ref=False) -> str:

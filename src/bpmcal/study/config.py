@@ -122,6 +122,7 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
                         "enlarge bts.diameter_mm and bts.thickness_mm or set bts.enabled: false")
     msgs.extend(_budget_checks(cfg))
     msgs.extend(_sweep_checks(cfg))
+    msgs.extend(_holdout_checks(cfg))
     msgs.extend(_check_bts_disc(cfg, base))
     if not path_problem(cfg["lab"]["csv"]):
         lab = base / cfg["lab"]["csv"]
@@ -176,6 +177,26 @@ def _budget_checks(cfg: dict) -> list[str]:
         if m:
             out.append(f"resources: {m}")
     return out
+
+
+def _holdout_checks(cfg: dict) -> list[str]:
+    """``verification.holdout_seeds``: none or at least two, all fresh (no seed of the
+    closed loop or of the transfer)."""
+    v = cfg["verification"]
+    seeds = list(v.get("holdout_seeds") or [])
+    if not seeds:
+        return []
+    if len(seeds) < 2:
+        return [f"verification.holdout_seeds: {seeds} has one seed; expected [] (no check) or "
+                "at least 2 (a standard error needs two)"]
+    used = set(range(v["seed"], v["seed"] + v["seeds_per_round"]))
+    if (cfg.get("transfer") or {}).get("enabled"):
+        used.add(v["seed"] + v["seeds_per_round"])
+    seen = sorted(used & set(seeds))
+    if seen:
+        return [f"verification.holdout_seeds: {seen} also seed(s) the closed loop or the "
+                f"transfer (seeds {sorted(used)}); expected fresh packing seeds"]
+    return []
 
 
 def _sweep_checks(cfg: dict) -> list[str]:

@@ -1,0 +1,195 @@
+"""The fresh-seed check of the verified cards (rules ``holdout`` and ``holdout_table``).
+
+The closed loop steers the mean of its rounds' packing seeds onto the lab targets. Whether
+the card then describes the rock rather than those packings shows on packings the loop
+never saw: :func:`holdout` runs a verified card's parameters on fresh packing seeds (the
+UCS test of every seed and, for a card with a tensile-strength target, its Brazilian test
+on the same seed), and :func:`holdout_table` judges every card and target: is the lab
+value within ``z`` standard errors of the fresh seeds' mean (``within_z_se``, z = 2 by
+default), and within the tolerance the loop itself used, max(rtol, z standard errors)
+(``met``)? A failed run is a row with its reason, counted in ``n_failed``, never dropped.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from .. import params as P
+from ..analysis import ClosedLoop
+from ..analysis.calibration import BTS
+from ..io.card import card_parameters, read_card
+from ..io.checks import BadInput
+from ..io.tables import write_table
+from ..lab.brazilian import BTSSettings
+from ..lab.budget import check_budget
+from ..lab.runner import bts_inputs, ucs_inputs
+from . import defaults_of
+from .analysis import disc_geometry
+from .inputs import CSV, H5, output_dirs, outputs
+from .runs import run_bts_file, run_ucs_file, write_failure
+
+#: per-seed columns of the seed table besides the targets
+_EXTRA = ("u_pre_MJm3", "peak_strain")
+#: the closed loop's relative tolerance (the ``met`` verdict uses the loop's own rule)
+_RTOL = defaults_of(ClosedLoop)["rtol"]
+
+
+def used_seeds(card: dict) -> set[int]:
+    """The packing seeds a verified card was fitted or checked on: every round's seeds of
+    its closed loop and the full-size transfer's seed, if it ran."""
+    v = card.get("verification") or {}
+    seeds = {int(s) for s in v.get("seeds") or []}
+    t = card.get("transfer") or {}
+    if t.get("seed") is not None and t.get("status") not in (None, "not-run"):
+        seeds.add(int(t["seed"]))
+    return seeds
+
+
+def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
+            bts_geometry=None, bts_settings=None, cache=None, threads=None, progress=None,
+            max_balls=None, mem_budget_mb=None, genesis_max_steps=None) -> pd.DataFrame:
+    """Run a verified card on fresh packing ``seeds`` (none of them one its closed loop or
+    transfer used: BadInput naming them otherwise): the UCS test of every seed into
+    ``runs[i]`` and, when the card has a tensile-strength target, the Brazilian test of the
+    same seed (the disc ``bts_geometry``, default the ISRM disc at the cylinder's scale,
+    loaded with ``bts_settings``) into ``bts_runs[i]`` (a failure record "not run" when
+    the card has no σt target). ``seed_runs``: one row per seed with its status, failure
+    reason and responses. The parameters are the card's (:func:`card_parameters`: the
+    closed loop's, or the transfer's when it ran). A card whose closed loop did not run
+    (``not-run``: an unreachable calibration) is not run on any seed: every run file is a
+    failure record with the reason and every seed a row with status ``not-run``."""
+    c = read_card(card, "--card", need=("parameters", "specimen", "targets", "verification"))
+    seeds = [int(s) for s in seeds]
+    if len(runs) != len(seeds):
+        raise BadInput(f"--runs: {len(runs)} run file(s) for {len(seeds)} seed(s); expected "
+                       "one per seed, in the order of --seeds")
+    if bts_runs is not None and len(bts_runs) != len(seeds):
+        raise BadInput(f"--bts-runs: {len(bts_runs)} run file(s) for {len(seeds)} seed(s); "
+                       "expected one per seed, in the order of --seeds")
+    seen = sorted(used_seeds(c) & set(seeds))
+    if seen:
+        raise BadInput(f"--seeds: {', '.join(map(str, seen))} already used by the card's "
+                       f"closed loop or transfer (seeds {sorted(used_seeds(c))}); expected "
+                       "fresh packing seeds")
+    with_bts = BTS in c["targets"]
+    if with_bts and bts_runs is None and c["verification"].get("status") != "not-run":
+        raise BadInput(f"--card {card} has a tensile-strength target (bts_MPa): give "
+                       "--bts-runs, one Brazilian run file per seed")
+    params = card_parameters(c)
+    disc = bts_geometry or disc_geometry(geometry)
+    bts_settings = bts_settings or BTSSettings()
+    v = c["verification"]
+    if v.get("status") == "not-run" or not v.get("parameters"):
+        # no verified parameters: every run is a failure record saying why, every seed a row
+        reason = f"not run: the card's closed loop did not run ({v.get('message', '')})"
+        outputs(*((r, "--runs", H5) for r in runs),
+                *((r, "--bts-runs", H5) for r in bts_runs or ()), (seed_runs, "--seed-runs", CSV))
+        for i, s in enumerate(seeds):
+            write_failure(runs[i], test="ucs", inputs=ucs_inputs(params, s, geometry, settings),
+                          error=reason)
+            if bts_runs is not None:
+                write_failure(bts_runs[i], test="bts",
+                              inputs=bts_inputs(params, s, disc, bts_settings), error=reason)
+        df = pd.DataFrame([{"specimen": c["specimen"], "seed": s, "status": "not-run",
+                            "error": reason, **{k: math.nan for k in (*c["targets"], *_EXTRA)}}
+                           for s in seeds])
+        write_table(df, seed_runs, index=False)
+        return df
+    if max_balls is not None:
+        for g in (geometry, *([disc] if with_bts else [])):
+            check_budget(params, g, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    outputs(*((r, "--runs", H5) for r in runs), *((r, "--bts-runs", H5) for r in bts_runs or ()),
+            (seed_runs, "--seed-runs", CSV))
+    output_dirs((cache, "--specimen-cache"))
+    rows = []
+    for i, s in enumerate(seeds):
+        u = run_ucs_file(runs[i], params, s, geometry, settings, cache=cache, threads=threads,
+                         progress=progress, keep_particles=False,
+                         genesis_max_steps=genesis_max_steps)
+        row = {"specimen": c["specimen"], "seed": s, "status": u.status,
+               "error": u.error}
+        for k in (*P.TARGETS, *_EXTRA):
+            row[k] = float(u.summary.get(k, math.nan)) if u.status == "ok" else math.nan
+        if with_bts:
+            b = run_bts_file(bts_runs[i], params, s, disc, bts_settings, cache=cache,
+                             threads=threads, progress=progress, keep_particles=False,
+                             genesis_max_steps=genesis_max_steps)
+            row[BTS] = float(b.summary[BTS]) if b.status == "ok" else math.nan
+            if b.status != "ok":
+                row["status"] = "failed"
+                row["error"] = "; ".join(x for x in (row["error"], "Brazilian test: "
+                                                     + b.error) if x)
+        elif bts_runs is not None:
+            write_failure(bts_runs[i], test="bts", inputs=bts_inputs(params, s, disc,
+                                                                     bts_settings),
+                          error="not run: the card has no tensile-strength target (bts_MPa)")
+        rows.append(row)
+    df = pd.DataFrame(rows)
+    write_table(df, seed_runs, index=False)
+    return df
+
+
+def holdout_stats(values, lab: float, *, rtol: float, z: float = 2.0) -> dict:
+    """Mean, sample standard deviation, standard error of the mean of ``values`` (the
+    fresh seeds' responses; NaN entries are failed runs and do not count), the error of
+    the mean in % of ``lab``, its z-score (error / standard error) and the verdicts
+    ``within_z_se`` (|mean - lab| <= z standard errors) and ``met`` (|error| <= max(rtol,
+    z standard errors), the closed loop's own acceptance). Fewer than two values: no
+    standard error, so neither verdict holds."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    n = len(v)
+    mean = float(v.mean()) if n else math.nan
+    sd = float(v.std(ddof=1)) if n > 1 else math.nan
+    se = sd / math.sqrt(n) if n > 1 else math.nan
+    err = 100 * (mean / lab - 1) if n and lab else math.nan
+    zs = (mean - lab) / se if n > 1 and se > 0 else (0.0 if n > 1 and mean == lab else math.nan)
+    se_pct = 100 * se / abs(lab) if n > 1 and lab else math.nan
+    within = bool(n > 1 and abs(mean - lab) <= z * se)
+    tol = max(100 * rtol, z * se_pct) if n > 1 else math.nan
+    return {"n": n, "mean": mean, "sd": sd, "se": se, "err_pct": err, "se_pct": se_pct,
+            "z_score": zs, "z": float(z), "within_z_se": within, "tol_pct": tol,
+            "met": bool(n > 1 and abs(err) <= tol)}
+
+
+def holdout_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataFrame:
+    """One row per card (``cards[i]`` with its seed table ``seed_runs[i]`` from
+    :func:`holdout`) and target: the lab value, the fresh seeds' n, mean, standard
+    deviation and standard error, the error of the mean (%), its z-score and the verdicts
+    of :func:`holdout_stats`; ``seeds`` lists the seeds, ``n_failed`` the failed runs and
+    ``note`` why none ran (a card whose closed loop did not run)."""
+    if len(seed_runs) != len(cards):
+        raise BadInput(f"--seed-runs: {len(seed_runs)} table(s) for {len(cards)} card(s); "
+                       "expected one per card, in the same order")
+    if not (isinstance(rtol, (int, float)) and 0 < rtol < 1):
+        raise BadInput(f"--rtol {rtol!r}: expected a number in (0, 1)")
+    if not (isinstance(z, (int, float)) and z > 0):
+        raise BadInput(f"--z {z!r}: expected a number > 0")
+    loaded = [read_card(c, "--cards", need=("specimen", "targets")) for c in cards]
+    frames = []
+    for f in seed_runs:
+        try:
+            frames.append(pd.read_csv(f))
+        except (OSError, ValueError) as e:
+            raise BadInput(f"--seed-runs {f}: cannot read it as CSV ({e})") from None
+    outputs((table, "--table", CSV))
+    rows = []
+    for c, df, f in zip(loaded, frames, seed_runs):
+        missing = [k for k in ("seed", "status", *c["targets"]) if k not in df.columns]
+        if missing:
+            raise BadInput(f"--seed-runs {f}: missing column(s) {missing} for the targets of "
+                           f"card {c['specimen']} (expected a bpmcal holdout seed table)")
+        ok = df["status"] == "ok"
+        not_run = (df["status"] == "not-run").all() and len(df)
+        note = str(df["error"].iloc[0]) if not_run and "error" in df.columns else ""
+        for k, lab in c["targets"].items():
+            rows.append({"specimen": c["specimen"], "response": k, "lab": float(lab),
+                         **holdout_stats(df.loc[ok, k].to_numpy(float), float(lab),
+                                         rtol=rtol, z=z),
+                         "n_failed": int((~ok).sum()),
+                         "seeds": ",".join(str(int(s)) for s in df["seed"]), "note": note})
+    out = pd.DataFrame(rows)
+    write_table(out, table, index=False)
+    return out

@@ -1,0 +1,195 @@
+"""The fresh-seed check of the verified cards (stages/holdout.py): statistics against
+values computed by hand, the verdicts, failed runs kept as rows, and the stage around a
+planted simulator (the DEM replaced by a known function of the parameters and the seed,
+as in test_verify_transfer_stages.py). The real DEM runs it in the smoke study."""
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_verify_transfer_stages import (  # noqa: F401
+    PlantedDEM,
+    run_verify,
+    start_params,
+    study,
+)
+
+import bpmcal.stages.analysis as A
+import bpmcal.stages.holdout as H
+from bpmcal.io.card import read_card, write_card
+from bpmcal.io.checks import BadInput
+from bpmcal.lab.runner import Geometry
+from bpmcal.lab.ucs import UCSSettings
+from bpmcal.stages.runs import RunOutcome
+
+
+def test_statistics_are_those_of_the_fresh_seeds():
+    v = [1.0, 2.0, 3.0, 4.0, 5.0]
+    sd, se = math.sqrt(2.5), math.sqrt(2.5) / math.sqrt(5)
+    s = H.holdout_stats(v, 3.0, rtol=0.01)
+    assert (s["n"], s["mean"]) == (5, 3.0)
+    assert s["sd"] == pytest.approx(sd) and s["se"] == pytest.approx(se)
+    assert s["z_score"] == 0.0 and s["within_z_se"] and s["met"]
+    # a lab value 1.5 away: z = -1.5 / 0.7071 = -2.12, outside 2 standard errors
+    s = H.holdout_stats(v, 4.5, rtol=0.01)
+    assert s["z_score"] == pytest.approx(-1.5 / se)
+    assert s["err_pct"] == pytest.approx(100 * (3.0 / 4.5 - 1))
+    assert not s["within_z_se"] and not s["met"]
+    # ... inside 3 standard errors; and "met" when the loop's rtol is wider than the miss
+    assert H.holdout_stats(v, 4.5, rtol=0.01, z=3.0)["within_z_se"]
+    assert H.holdout_stats(v, 4.5, rtol=0.5)["met"]
+    assert not H.holdout_stats(v, 4.5, rtol=0.5)["within_z_se"]
+
+
+def test_failed_runs_do_not_count_and_one_seed_gives_no_verdict():
+    s = H.holdout_stats([10.0, math.nan, 12.0], 11.0, rtol=0.01)
+    assert s["n"] == 2 and s["mean"] == 11.0 and s["sd"] == pytest.approx(math.sqrt(2))
+    one = H.holdout_stats([11.0, math.nan], 11.0, rtol=0.01)
+    assert one["n"] == 1 and math.isnan(one["se"])
+    assert not one["within_z_se"] and not one["met"]
+
+
+def _card(path, spec, targets):
+    write_card(path, {"specimen": spec, "status": "ok", "parameters": start_params(),
+                      "targets": targets})
+    return path
+
+
+def test_table_per_card_and_target_keeps_failed_seeds(tmp_path):
+    c1 = _card(tmp_path / "B1.yaml", "B1", {"ucs_MPa": 60.0, "E_GPa": 14.0, "nu": 0.25})
+    c2 = _card(tmp_path / "B2.yaml", "B2", {"ucs_MPa": 70.0, "E_GPa": 15.0, "nu": 0.24,
+                                            "bts_MPa": 8.0})
+    s1 = tmp_path / "B1.csv"
+    pd.DataFrame({"seed": [101, 102, 103], "status": ["ok", "ok", "failed"],
+                  "ucs_MPa": [59.0, 61.0, np.nan], "E_GPa": [14.1, 13.9, np.nan],
+                  "nu": [0.25, 0.25, np.nan]}).to_csv(s1, index=False)
+    s2 = tmp_path / "B2.csv"  # sigma_c planted 10 % high on every seed: a clear miss
+    pd.DataFrame({"seed": [101, 102, 103], "status": ["ok"] * 3,
+                  "ucs_MPa": [76.0, 77.0, 78.0], "E_GPa": [15.0, 15.2, 14.8],
+                  "nu": [0.24, 0.23, 0.25], "bts_MPa": [7.5, 8.5, 8.0]}).to_csv(s2, index=False)
+    t = H.holdout_table([c1, c2], [s1, s2], table=tmp_path / "out" / "holdout.csv")
+    assert len(t) == 3 + 4 and (tmp_path / "out" / "holdout.md").is_file()
+    r = t[(t.specimen == "B1") & (t.response == "ucs_MPa")].iloc[0]
+    assert (r["n"], r["n_failed"], r["seeds"]) == (2, 1, "101,102,103")
+    assert r["mean"] == 60.0 and r["within_z_se"]
+    r = t[(t.specimen == "B2") & (t.response == "ucs_MPa")].iloc[0]
+    assert r["mean"] == 77.0 and r["se"] == pytest.approx(1 / math.sqrt(3))
+    assert r["z_score"] == pytest.approx(7.0 * math.sqrt(3)) and not r["within_z_se"]
+    assert not r["met"]
+    assert t[(t.specimen == "B2") & (t.response == "bts_MPa")].iloc[0]["within_z_se"]
+
+
+def test_table_refuses_a_seed_table_without_a_target_column(tmp_path):
+    c = _card(tmp_path / "B2.yaml", "B2", {"ucs_MPa": 70.0, "E_GPa": 15.0, "nu": 0.24,
+                                           "bts_MPa": 8.0})
+    s = tmp_path / "B2.csv"
+    pd.DataFrame({"seed": [1, 2], "status": ["ok", "ok"], "ucs_MPa": [1, 2], "E_GPa": [1, 2],
+                  "nu": [0.2, 0.2]}).to_csv(s, index=False)
+    with pytest.raises(BadInput, match=r"missing column\(s\) \['bts_MPa'\]"):
+        H.holdout_table([c], [s], table=tmp_path / "t.csv")
+    assert not (tmp_path / "t.csv").exists()
+
+
+@pytest.fixture
+def verified(study, monkeypatch):  # noqa: F811
+    tmp_path, card, models = study
+    dem = PlantedDEM()
+    monkeypatch.setattr(A, "run_ucs_file", dem)
+    run_verify(tmp_path, card, models, 3)  # seeds 1, 2, 3
+    return tmp_path, tmp_path / "v" / "card.yaml", dem
+
+
+class FreshDEM(PlantedDEM):
+    """The planted truth on fresh seeds: seed s deviates by DEV[s]; seed 9 fails."""
+
+    DEV = {101: -0.01, 102: 0.01, 103: 0.0, 104: 0.03}
+
+    def __call__(self, out, params, seed, geometry, settings, **kw):
+        self.calls.append((dict(params), seed, geometry.scale))
+        if seed == 9:
+            out.write_text("failed")
+            return RunOutcome("failed", {}, error="NumericalInstability: planted", path=out)
+        y = {r: v * (1 + self.DEV[seed]) for r, v in self.truth(params, geometry.scale).items()}
+        out.write_text(json.dumps({"seed": seed}))
+        return RunOutcome("ok", {**y, "u_pre_MJm3": 0.1, "peak_strain": 0.005}, path=out)
+
+
+def run_holdout(tmp_path, card, seeds, **kw):
+    d = tmp_path / "h"
+    return H.holdout(card, seeds=seeds, runs=[d / f"seed{s}.h5" for s in seeds],
+                     seed_runs=d / "seeds.csv", geometry=Geometry(scale=0.25),
+                     settings=UCSSettings(), **kw)
+
+
+def test_the_stage_runs_the_verified_parameters_on_every_fresh_seed(verified, monkeypatch):
+    tmp_path, card, _ = verified
+    dem = FreshDEM()
+    monkeypatch.setattr(H, "run_ucs_file", dem)
+    df = run_holdout(tmp_path, card, [101, 102, 103, 9])
+    params = read_card(card)["verification"]["parameters"]
+    assert [c[1] for c in dem.calls] == [101, 102, 103, 9]
+    assert all(c[0] == pytest.approx(params) for c in dem.calls)
+    assert list(df["status"]) == ["ok", "ok", "ok", "failed"]
+    assert "planted" in df["error"].iloc[3]  # the failed seed is a row with its reason
+    t = H.holdout_table([card], [tmp_path / "h" / "seeds.csv"], table=tmp_path / "t.csv")
+    truth = dem.truth(params, 0.25)
+    for _, r in t.iterrows():  # deviations of 101-103 cancel: the mean is the truth
+        assert r["mean"] == pytest.approx(truth[r["response"]], rel=1e-12)
+        assert r["n"] == 3 and r["n_failed"] == 1
+        assert r["sd"] == pytest.approx(0.01 * truth[r["response"]], rel=1e-9)
+
+
+def test_seeds_of_the_closed_loop_are_refused(verified, monkeypatch):
+    tmp_path, card, _ = verified
+    monkeypatch.setattr(H, "run_ucs_file", FreshDEM())
+    with pytest.raises(BadInput, match=r"--seeds: 2, 3 already used"):
+        run_holdout(tmp_path, card, [2, 3, 101])
+    assert not (tmp_path / "h").exists()
+
+
+def test_a_card_whose_loop_did_not_run_leaves_records_not_gaps(study, tmp_path,  # noqa: F811
+                                                               monkeypatch):
+    from bpmcal.io.h5 import check_run_file
+
+    _, card, _ = study
+    dem = FreshDEM()
+    monkeypatch.setattr(H, "run_ucs_file", dem)
+    c = read_card(card)
+    c["verification"] = {"status": "not-run", "message": "unreachable: widen E",
+                         "parameters": None, "seeds": [1, 2, 3]}
+    write_card(tmp_path / "nr.yaml", c)
+    df = run_holdout(tmp_path, tmp_path / "nr.yaml", [101, 102])
+    assert not dem.calls and list(df["status"]) == ["not-run"] * 2
+    for s in (101, 102):
+        rec = check_run_file(tmp_path / "h" / f"seed{s}.h5")
+        assert rec["status"] == "failed" and "widen E" in rec["error"]
+    t = H.holdout_table([tmp_path / "nr.yaml"], [tmp_path / "h" / "seeds.csv"],
+                        table=tmp_path / "t.csv")
+    assert (t["n"] == 0).all() and (t["n_failed"] == 2).all()
+    assert not t["within_z_se"].any() and t["note"].str.contains("widen E").all()
+
+
+def test_a_sigma_t_target_needs_brazilian_run_files(verified):
+    tmp_path, card, _ = verified
+    c = read_card(card)
+    c["targets"] = dict(c["targets"], bts_MPa=8.0)
+    write_card(tmp_path / "bts.yaml", c)
+    with pytest.raises(BadInput, match="give --bts-runs"):
+        run_holdout(tmp_path, tmp_path / "bts.yaml", [101, 102])
+
+
+def test_config_refuses_holdout_seeds_of_the_loop_or_the_transfer():
+    from bpmcal.study.config import _holdout_checks
+
+    cfg = {"verification": {"seed": 1, "seeds_per_round": 3, "holdout_seeds": [3, 9]},
+           "transfer": {"enabled": False}}
+    assert "[3]" in _holdout_checks(cfg)[0]
+    cfg["verification"]["holdout_seeds"] = [4, 9]
+    assert _holdout_checks(cfg) == []
+    cfg["transfer"]["enabled"] = True  # the transfer runs seed 1 + 3
+    assert "[4]" in _holdout_checks(cfg)[0]
+    cfg["verification"]["holdout_seeds"] = [9]
+    assert "at least 2" in _holdout_checks(cfg)[0]
+    cfg["verification"]["holdout_seeds"] = []
+    assert _holdout_checks(cfg) == []
