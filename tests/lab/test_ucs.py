@@ -90,36 +90,37 @@ def test_analyse_against_a_closed_form_curve():
 
 
 def test_end_caps_strengthen_only_the_end_bonds_and_hold(base, cache):
-    """The default end caps (one mean ball diameter): the bonds within it of a platen get
+    """End caps of one mean ball diameter: the bonds within it of a platen get
     1000 x their strength, the others keep theirs; none of the capped bonds breaks,
     although bonds among them break without the caps (end_cap=0, so the check can fail);
     E is unchanged (the stiffnesses are untouched) and, on this specimen, sigma_c is
     higher with the caps; the run file records the setting; the run is deterministic."""
-    assert FAST.end_cap == 1.0 and FAST.end_cap_factor == 1000.0  # the defaults
+    assert FAST.end_cap == 0.0 and FAST.end_cap_factor == 1000.0  # the defaults: no caps
+    capped = dataclasses.replace(FAST, end_cap=1.0)
     sp = make_specimen(A1, 3, SMALL, cache=cache)
     idx = end_cap_bonds(sp, 1.0)
     assert 0 < idx.size < sp.model.n_bonds // 3
-    res = run_ucs(sp, FAST)
+    res = run_ucs(sp, capped)
     s = res.summary
-    assert s["ucs_MPa"] == base["ucs_MPa"]  # the module's base run has them too
     f = sp.model.bond_strength_factors
     assert s["end_cap_bonds"] == idx.size
     assert np.all(f[idx] == 1000.0) and np.all(np.delete(f, idx) == 1.0)
     assert s["end_cap_broken"] == 0 and not np.any(sp.model.bond_states[idx])
     assert s["cracks_tension"] + s["cracks_shear"] > 0  # the specimen failed elsewhere
-    off = dataclasses.replace(FAST, end_cap=0.0)
+    off = FAST
     sp0 = make_specimen(A1, 3, SMALL, cache=cache)
     res0 = run_ucs(sp0, off)
+    assert res0.summary["ucs_MPa"] == base["ucs_MPa"]  # the module's base run: no caps
     assert res0.summary["end_cap_bonds"] == 0 and res0.summary["end_cap_broken"] == 0
     assert np.all(sp0.model.bond_strength_factors == 1.0)
     assert np.count_nonzero(sp0.model.bond_states[idx]) > 0
     assert s["E_GPa"] == pytest.approx(res0.summary["E_GPa"], rel=2e-3)
     assert s["ucs_MPa"] > res0.summary["ucs_MPa"]
-    assert ucs_inputs(A1, 3, SMALL, FAST)["ucs_end_cap"] == 1.0
+    assert ucs_inputs(A1, 3, SMALL, capped)["ucs_end_cap"] == 1.0
     assert ucs_inputs(A1, 3, SMALL, off)["ucs_end_cap"] == 0.0
-    assert ucs_inputs(A1, 3, SMALL, FAST)["ucs_end_cap_factor"] == 1000.0
+    assert ucs_inputs(A1, 3, SMALL, capped)["ucs_end_cap_factor"] == 1000.0
     # deterministic: the same inputs give the same run, bit for bit
-    res2 = run_ucs(make_specimen(A1, 3, SMALL, cache=cache), FAST)
+    res2 = run_ucs(make_specimen(A1, 3, SMALL, cache=cache), capped)
     for k, v in res.series.items():
         assert np.array_equal(v, res2.series[k]), k
 

@@ -24,8 +24,8 @@ Measurements, recorded every ``record_strain`` of axial strain (compression posi
   contacts and of the end layers (the balls packed against a platen have fewer bonds
   than the bulk; README "Where the specimens fail").
 
-End caps (``end_cap``, 1 mean ball diameter by default, 0 switches them off; ``bpmcal ucs
---end-cap``, config ``ucs.end_cap``):
+End caps (``end_cap``, off by default; 1 mean ball diameter caps the first layer of balls;
+``bpmcal ucs --end-cap``, config ``ucs.end_cap``):
 the balls packed against a flat platen form a layer with fewer bonds (a ball touching a
 platen has ~27 % fewer than a bulk ball, the balls within half a mean ball diameter d of
 it ~37 % fewer; README "Where the specimens fail"), and with frictionless platens that
@@ -72,9 +72,10 @@ SERIES = ("step", "time", "axial_strain", "lateral_strain", "volumetric_strain",
 #: strength factor of the bonds of the end caps (``UCSSettings.end_cap``): unbreakable in
 #: practice (no capped bond broke in any measured run; README "Where the specimens fail")
 END_CAP_FACTOR = 1000.0
-#: the end caps' height by default [mean ball diameters]: the first layer of balls packed
-#: against a platen (2 diameters gave the same sigma_c within 0.7 %; README)
-END_CAP_HEIGHT = 1.0
+#: the end caps' height by default [mean ball diameters]: none, PFC's standard practice and
+#: how the study's results were measured (1 caps the first layer of balls packed against a
+#: platen; 2 diameters gave the same sigma_c within 0.7 %; README "Where the specimens fail")
+END_CAP_HEIGHT = 0.0
 
 
 def check_end_cap(height, factor):
