@@ -12,6 +12,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config" / "config.yaml"
 
+#: the paper's calibrated specimen A1 (phi_p and mu at the Table 2 midpoints)
+A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467,
+          pb_ten_MPa=27.670, pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
+
 
 def cpu_model() -> str:
     try:
@@ -33,6 +37,24 @@ def study_design(cfg: dict):
     return lhs_design(cfg["ranges"], st["n_samples"], st["lhs_seed"],
                       optimization=None if st["lhs_optimization"] == "none"
                       else st["lhs_optimization"])
+
+
+def design_samples(design, ids, a1_seeds, label="A1 s{seed}"):
+    """(label, parameters, packing seed) of the rows ``ids`` of a design CSV, or, without a
+    design, of the paper's A1 card on the packing seeds ``a1_seeds`` (labels from
+    ``label``)."""
+    import csv
+
+    if design is None:
+        return [(label.format(seed=s), dict(A1), s) for s in a1_seeds]
+    with open(design) as f:
+        rows = {r["sample_id"]: r for r in csv.DictReader(f)}
+    out = []
+    for sid in ids:
+        r = rows[sid]
+        p = {k: float(v) for k, v in r.items() if k not in ("sample_id", "seed")}
+        out.append((sid, p, int(r["seed"])))
+    return out
 
 
 def ucs_settings(cfg: dict):

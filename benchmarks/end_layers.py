@@ -38,35 +38,22 @@ from __future__ import annotations
 
 import argparse
 import copy
-import csv
 import json
 import math
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-#: the paper's calibrated specimen A1 (phi_p and mu at the Table 2 midpoints)
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467,
-          pb_ten_MPa=27.670, pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _study import design_samples  # noqa: E402
 
 #: slices of the boundary-layer profile, in mean ball diameters from the nearer platen
 SLICE = 0.5
 N_SLICES = 8
 #: planes (distance from the nearer platen, mean ball diameters) whose crossing bonds count
 PLANES = (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0)
-
-
-def samples(design, ids, seeds):
-    if design is None:
-        return [(f"A1 s{s}", dict(A1), s) for s in seeds]
-    rows = {r["sample_id"]: r for r in csv.DictReader(open(design))}
-    out = []
-    for sid in ids:
-        r = rows[sid]
-        p = {k: float(v) for k, v in r.items() if k not in ("sample_id", "seed")}
-        out.append((sid, p, int(r["seed"])))
-    return out
 
 
 def contact_points(m, bi, bj):
@@ -301,7 +288,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     rows = []
     c0 = time.process_time()
-    for label, params, seed in samples(a.design, a.samples, a.seeds):
+    for label, params, seed in design_samples(a.design, a.samples, a.seeds, "A1 s{seed}"):
         row = run_specimen(label, params, seed, a.scale, a.cap, a.factor, a.profile_only,
                            a.threads)
         rows.append(row)

@@ -22,7 +22,6 @@ the CPU time of this one). The host line is the one of ``peers.py``.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import statistics
 import sys
@@ -32,22 +31,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-
-#: the paper's calibrated specimen A1 (phi_p and mu at the Table 2 midpoints)
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467,
-          pb_ten_MPa=27.670, pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
-
-
-def samples(design, ids):
-    if design is None:
-        return [(f"A1 seed {s}", dict(A1), s) for s in (1, 2, 3)]
-    rows = {r["sample_id"]: r for r in csv.DictReader(open(design))}
-    out = []
-    for sid in ids:
-        r = rows[sid]
-        p = {k: float(v) for k, v in r.items() if k not in ("sample_id", "seed")}
-        out.append((sid, p, int(r["seed"])))
-    return out
+from _study import design_samples  # noqa: E402
 
 
 def ucs_run(params, seed, scale):
@@ -90,7 +74,7 @@ def main(argv=None):
     host["bandwidth_GBs"] = bandwidth_probe()
     print(f"# {host.get('cpu_model')} (LLVM {host.get('llvm_host_cpu')}), "
           f"in-place multiply GB/s {host.get('bandwidth_GBs')}", flush=True)
-    todo = samples(a.design, a.samples)
+    todo = design_samples(a.design, a.samples, (1, 2, 3), "A1 seed {seed}")
     if a.bench_n > 0:
         bench(2000, 1, 10)  # compile / load every kernel once, outside the timings
     ucs_run(todo[0][1], todo[0][2], a.scale)
