@@ -137,20 +137,17 @@ def child(a) -> int:
     from bpmcal.stages import runs
 
     tm = Timer()
-    tm.wrap(runs, "ucs_test", "ucs")
-    tm.wrap(runs, "bts_test", "bts")
-    tm.wrap(runs, "write_lab_run", "write")
-    tm.wrap(runner, "make_specimen", "genesis")
-    tm.wrap(runner, "get_packing", "packing")
-    tm.wrap(runner, "build_specimen", "build")
-    tm.wrap(runner, "run_ucs", "test")
-    tm.wrap(runner, "run_bts", "test")
-    tm.wrap(specimen, "distribute", "distribute")
-    tm.wrap(specimen, "_solve", "solve")
-    tm.wrap(specimen, "_settle_force_free", "settle_free")
-    tm.wrap(specimen, "_fix_floaters", "floaters")
-    tm.wrap(specimen, "_count_touching", "count_touching")
-    tm.wrap(specimen, "cycle", "steps")  # the genesis's steps (its calls of stepping.cycle)
+    for owner, names in ((runs, {"ucs_test": "ucs", "bts_test": "bts", "write_lab_run": "write"}),
+                         (runner, {"make_specimen": "genesis", "get_packing": "packing",
+                                   "build_specimen": "build", "run_ucs": "test",
+                                   "run_bts": "test"}),
+                         # cycle: the genesis's steps (its calls of stepping.cycle)
+                         (specimen, {"distribute": "distribute", "_solve": "solve",
+                                     "_settle_force_free": "settle_free",
+                                     "_fix_floaters": "floaters",
+                                     "_count_touching": "count_touching", "cycle": "steps"})):
+        for name, label in names.items():
+            tm.wrap(owner, name, label)
     # numba's start-up: the one-time set-up of its compiler context (the registries of
     # its numpy implementations, scipy.linalg for BLAS), paid by the first kernel call
     # of the process, and loading each kernel from the on-disk cache at its first call;
