@@ -73,19 +73,23 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
         raise BadInput(f"--seeds: {', '.join(map(str, seen))} already used by the card's "
                        f"closed loop or transfer (seeds {sorted(used_seeds(c))}); expected "
                        "fresh packing seeds")
+    v = c["verification"]
+    ran = v.get("status") != "not-run" and bool(v.get("parameters"))  # verified parameters
     with_bts = BTS in c["targets"]
-    if with_bts and bts_runs is None and c["verification"].get("status") != "not-run":
+    if with_bts and bts_runs is None and ran:
         raise BadInput(f"--card {card} has a tensile-strength target (bts_MPa): give "
                        "--bts-runs, one Brazilian run file per seed")
     params = card_parameters(c)
     disc = bts_geometry or disc_geometry(geometry)
     bts_settings = bts_settings or BTSSettings()
-    v = c["verification"]
-    if v.get("status") == "not-run" or not v.get("parameters"):
+    if ran and max_balls is not None:
+        for g in (geometry, *([disc] if with_bts else [])):
+            check_budget(params, g, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    outputs(*((r, "--runs", H5) for r in runs), *((r, "--bts-runs", H5) for r in bts_runs or ()),
+            (seed_runs, "--seed-runs", CSV))
+    if not ran:
         # no verified parameters: every run is a failure record saying why, every seed a row
         reason = f"not run: the card's closed loop did not run ({v.get('message', '')})"
-        outputs(*((r, "--runs", H5) for r in runs),
-                *((r, "--bts-runs", H5) for r in bts_runs or ()), (seed_runs, "--seed-runs", CSV))
         for i, s in enumerate(seeds):
             write_failure(runs[i], test="ucs", inputs=ucs_inputs(params, s, geometry, settings),
                           error=reason)
@@ -97,11 +101,6 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
                            for s in seeds])
         write_table(df, seed_runs, index=False)
         return df
-    if max_balls is not None:
-        for g in (geometry, *([disc] if with_bts else [])):
-            check_budget(params, g, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
-    outputs(*((r, "--runs", H5) for r in runs), *((r, "--bts-runs", H5) for r in bts_runs or ()),
-            (seed_runs, "--seed-runs", CSV))
     output_dirs((cache, "--specimen-cache"))
     rows = []
     for i, s in enumerate(seeds):
