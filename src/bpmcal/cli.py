@@ -862,10 +862,16 @@ def _add_verify(p):
     p.add_argument("--from-unreachable", action="store_true",
                    help="run the closed loop even when the card's inversion is unreachable "
                         "(default: do not; the verified card says why)")
+    _add_card_run_args(p, cmd_verify)
+
+
+def _add_card_run_args(p, func):
+    """The options every command that runs a card's UCS (and Brazilian) tests shares
+    (verify, transfer, holdout): --quiet, the cylinder and loading, the --bts-* disc."""
     p.add_argument("--quiet", action="store_true")
     add_run_args(p)
     add_bts_args(p, "bts_")
-    p.set_defaults(func=cmd_verify)
+    p.set_defaults(func=func)
 
 
 def _add_transfer(p):
@@ -885,10 +891,7 @@ def _add_transfer(p):
     p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
                    help="relative tolerance; a response within max(rtol, 2 x its seed CV "
                         f"from the verification) needs no correction (default {d['rtol']:g})")
-    p.add_argument("--quiet", action="store_true")
-    add_run_args(p)
-    add_bts_args(p, "bts_")
-    p.set_defaults(func=cmd_transfer)
+    _add_card_run_args(p, cmd_transfer)
 
 
 def _add_transfer_table(p):
@@ -921,10 +924,7 @@ def _add_holdout(p):
                    help="output Brazilian run files, one per seed (needed when the card has a "
                         "tensile-strength target; failure records 'not run' without one)")
     _file(p, "--seed-runs", "output table: the responses of every seed")
-    p.add_argument("--quiet", action="store_true")
-    add_run_args(p)
-    add_bts_args(p, "bts_")
-    p.set_defaults(func=cmd_holdout)
+    _add_card_run_args(p, cmd_holdout)
 
 
 def _add_holdout_table(p):
