@@ -258,8 +258,8 @@ def cmd_verify(a) -> int:
     prog = Progress(f"verify {Path(a.card).stem}", enabled=not a.quiet)
     v = verify(a.card, a.models, out_card=a.out_card, rounds=a.rounds, run=a.run,
                geometry=run_geometry(a), settings=run_settings(a), seed=a.seed,
-               seeds_per_round=a.seeds_per_round, rtol=a.rtol, max_rounds=a.max_rounds,
-               cache=a.specimen_cache,
+               seeds_per_round=a.seeds_per_round, max_seeds=a.max_seeds, rtol=a.rtol,
+               max_rounds=a.max_rounds, cache=a.specimen_cache,
                threads=a.threads, progress=prog, from_unreachable=a.from_unreachable,
                bts_run=a.bts_run, bts_geometry=bts_disc_of(a, "bts_"),
                bts_settings=bts_settings_of(a, "bts_"),
@@ -854,6 +854,11 @@ def _add_verify(p):
                    default=d["seeds_per_round"],
                    help="packing seeds per round (--seed, --seed + 1, ...); the loop steers "
                         f"their mean (default {d['seeds_per_round']})")
+    p.add_argument("--max-seeds", type=integer("max-seeds", 1, 200), default=d["max_seeds"],
+                   help="the seed set may grow to this many seeds once the means are within "
+                        "tolerance but their standard errors are too large to state them to "
+                        f"--rtol (default {d['max_seeds']}; at most --seeds-per-round: no "
+                        "growth)")
     p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
                    help=f"relative tolerance (default {d['rtol']:g})")
     p.add_argument("--max-rounds", type=integer("max-rounds", 1, 50), default=d["max_rounds"],

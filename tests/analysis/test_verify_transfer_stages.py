@@ -42,8 +42,9 @@ class PlantedDEM:
     """Responses = 1.05 x the regression (a bias the closed loop must remove) x (1 + the
     seed's deviation); at scale 1.0, E is ``e_full`` times higher still."""
 
-    def __init__(self, e_full=1.0):
+    def __init__(self, e_full=1.0, dev=None):
         self.e_full = e_full
+        self.dev = DEV if dev is None else dev
         self.calls = []
 
     def truth(self, params, scale):
@@ -54,7 +55,7 @@ class PlantedDEM:
 
     def __call__(self, out, params, seed, geometry, settings, **kw):
         self.calls.append((dict(params), seed, geometry.scale))
-        y = {r: v * (1 + DEV[seed]) for r, v in self.truth(params, geometry.scale).items()}
+        y = {r: v * (1 + self.dev[seed]) for r, v in self.truth(params, geometry.scale).items()}
         summary = {**y, "u_pre_MJm3": 0.1, "peak_strain": 0.005, "cracks_tension": 10,
                    "cracks_shear": 5}
         out.write_text(json.dumps({"call": len(self.calls), "seed": seed}))
@@ -76,11 +77,11 @@ def study(tmp_path):
     return tmp_path, card, models
 
 
-def run_verify(tmp_path, card, models, k):
+def run_verify(tmp_path, card, models, k, max_seeds=None):
     return A.verify(card, models, out_card=tmp_path / "v" / "card.yaml",
                     rounds=tmp_path / "v" / "rounds.csv", run=tmp_path / "v" / "best.h5",
                     geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
-                    seeds_per_round=k, max_rounds=4)
+                    seeds_per_round=k, max_rounds=4, max_seeds=max_seeds or k)
 
 
 def test_verify_runs_k_seeds_per_round_and_records_mean_cv_and_n(study, monkeypatch):
@@ -199,3 +200,50 @@ def test_transfer_of_a_card_whose_loop_did_not_run(study, tmp_path):
                    geometry=Geometry(scale=1.0), settings=UCSSettings())
     assert t["transfer"]["status"] == "not-run" and "calibrated_at_scale" not in t
     assert (tmp_path / "o" / "b.h5").exists()
+
+
+def test_verify_grows_the_seed_set_and_records_it(study, monkeypatch):
+    """Seeds 1-3 sit 2 % high on average, seeds 1-6 average zero: the loop that may grow
+    to 6 seeds ends on the planted truth, the card records the six seeds it was judged on
+    and the Jacobian the loop learned."""
+    tmp_path, card, models = study
+    dev = {1: 0.0, 2: 0.04, 3: 0.02, 4: -0.03, 5: -0.02, 6: -0.01}
+    dem = PlantedDEM(dev=dev)
+    monkeypatch.setattr(A, "run_ucs_file", dem)
+    v = run_verify(tmp_path, card, models, 3, max_seeds=6)["verification"]
+    assert v["seeds_per_round"] == 3 and v["max_seeds"] == 6
+    assert v["n_seeds"] == 6 and v["seeds"] == [1, 2, 3, 4, 5, 6]
+    h = pd.read_csv(tmp_path / "v" / "rounds.csv")
+    assert h["grown"].sum() == 3 and v["runs"] == len(dem.calls) == int(h["n_seeds"].sum())
+    best = dem.calls[-1][0]  # converged: the last point is the card's
+    assert v["parameters"] == pytest.approx(best)
+    truth = dem.truth(best, 0.25)
+    for r, t in truth.items():  # six seeds average to the truth
+        assert v["closed_loop"][r] == pytest.approx(t, rel=1e-12)
+    # the loop's Jacobian in the card: responses x free parameters, physical units
+    jac = v["jacobian"]
+    assert set(jac) == set(TARGETS) and set(jac["E_GPa"]) == {"pb_emod_GPa", "pb_kratio",
+                                                               "pb_coh_MPa"}
+    assert jac["E_GPa"]["pb_emod_GPa"] > 0
+
+
+def test_transfer_starts_from_the_jacobian_the_verification_learned(study, monkeypatch):
+    """A verified card whose recorded Jacobian says E falls with pb_emod_GPa (planted, the
+    opposite of the models'): the transfer's first correction of a too-high E raises
+    pb_emod_GPa, so it followed the card's Jacobian, not the regression's."""
+    tmp_path, card, models = study
+    dem = PlantedDEM(e_full=1.10)
+    monkeypatch.setattr(A, "run_ucs_file", dem)
+    run_verify(tmp_path, card, models, 3)
+    c = read_card(tmp_path / "v" / "card.yaml")
+    jac = {r: dict(row) for r, row in c["verification"]["jacobian"].items()}
+    jac["E_GPa"]["pb_emod_GPa"] = -abs(jac["E_GPa"]["pb_emod_GPa"])
+    c["verification"]["jacobian"] = jac
+    write_card(tmp_path / "planted.yaml", c)
+    n = len(dem.calls)
+    A.transfer(tmp_path / "planted.yaml", models, out_card=tmp_path / "t" / "card.yaml",
+               rounds=tmp_path / "t" / "rounds.csv", run=tmp_path / "t" / "best.h5",
+               geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4, max_rounds=1)
+    full = [p for p, _, _ in dem.calls[n:]]
+    assert len(full) == 2
+    assert full[1]["pb_emod_GPa"] > full[0]["pb_emod_GPa"]

@@ -84,6 +84,7 @@ DEFAULTS = {
     "verification.max_rounds": (LOOP["max_rounds"], ("verify", "max_rounds", None)),
     "verification.seed": (VER["seed"], ("verify", "seed", None)),
     "verification.seeds_per_round": (VER["seeds_per_round"], ("verify", "seeds_per_round", None)),
+    "verification.max_seeds": (VER["max_seeds"], ("verify", "max_seeds", None)),
     "verification.from_unreachable": (VER["from_unreachable"],
                                       ("verify", "from_unreachable", None)),
     "transfer.scale": (GEO.scale, ("transfer", "scale", None)),

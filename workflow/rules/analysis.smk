@@ -155,14 +155,14 @@ rule verify:
     resources:
         runtime=config["resources"]["ucs_runtime_min"]
         * config["verification"]["max_rounds"]
-        * config["verification"]["seeds_per_round"],
+        * config["verification"]["max_seeds"],
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
         # only the keys verify reads: changing another verification key (the holdout
         # or scatter seeds) must not rerun the closed loops
         v={
             k: config["verification"][k]
-            for k in ("seed", "seeds_per_round", "rtol", "max_rounds")
+            for k in ("seed", "seeds_per_round", "max_seeds", "rtol", "max_rounds")
         },
         opts=specimen_args(),
         bts=bts_args(),
@@ -175,6 +175,7 @@ rule verify:
         "bpmcal verify --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
         "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
+        "--max-seeds {params.v[max_seeds]:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
         "{params.opts:q} {params.bts:q} > {log:q} 2>&1"
 
@@ -199,8 +200,8 @@ rule transfer:
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
         t=config["transfer"],
-        # the first packing seed none of the verification's rounds used
-        seed=config["verification"]["seed"] + config["verification"]["seeds_per_round"],
+        # the first packing seed no closed loop may use (grown seed sets included)
+        seed=transfer_seed(config["verification"]),
         rtol=config["verification"]["rtol"],
         opts=specimen_args(scale=config["transfer"]["scale"]),
         bts=bts_args(),

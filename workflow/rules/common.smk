@@ -12,7 +12,7 @@
 import json
 
 from bpmcal.io import layout as L
-from bpmcal.study.config import ConfigError, load_lab, validate_config
+from bpmcal.study.config import ConfigError, load_lab, transfer_seed, validate_config
 
 try:
     validate_config(config, workflow.source_path("../schemas/config.schema.yaml"))

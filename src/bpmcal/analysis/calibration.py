@@ -105,9 +105,22 @@ Closed loop (:class:`ClosedLoop`)
     Jacobian at the starting point; after each new round it is corrected by Broyden's
     ("good") secant update ``J += (Δe - J s) sᵀ / (sᵀ s)`` with the step ``s`` actually
     taken. The same seeds in every round (common random numbers) keep the packing scatter
-    out of the differences between rounds, which the secant update needs. Every round
-    (parameters, mean responses, seed CV, standard error, tolerance used, k, errors, step)
-    and every single run (``samples``) is recorded. A simulator ``simulate(params)``
+    out of the differences between rounds, which the secant update needs. A parameter at a
+    bound whose step points out of the box is held there and the step is solved again for
+    the others (an active-set Gauss-Newton step), so the other parameters do not chase a
+    move that cannot happen; a step cut at the bounds is recorded (``clipped``).
+
+    The mean of a fixed set of k seeds is itself off the rock's (population) mean by about
+    ``CV / sqrt(k)``: a loop that steers three packings fits those three, and fresh packings
+    of the final card scatter around a point up to ~2 CV/sqrt(3) from the target. So the
+    seed set can grow (``max_seeds``, default k: no growth): when every mean is within
+    tolerance but a standard error is still too large to state the target to ``rtol``
+    (``z · SE_k > rtol_k``), the round's point is also run on new seeds (the next integers
+    after the largest seed) up to ``max_seeds``, and the rule is judged again on the mean
+    of all of them; if it no longer holds, the loop steps on, every later round running the
+    grown set. The grown round keeps its row, with its ``n_seeds`` and ``grown`` (seeds
+    added). Every round (parameters, mean responses, seed CV, standard error, tolerance
+    used, k, errors, step) and every single run (``samples``) is recorded. A simulator ``simulate(params)``
     without a ``seed`` argument is a single-seed simulator: k = 1, SE = 0, and the rule is
     ``|e_k| <= rtol_k`` (the loop before seed averaging). :func:`seed_scatter` judges
     whether a tolerance is meaningful given the packing-seed scatter of the DEM responses.
@@ -917,9 +930,10 @@ class ClosedLoopResult:
 
     ``status``: ``"converged"``, ``"max_rounds"``, ``"stalled"`` (the step was blocked by
     the bounds) or ``"failed"`` (a simulation returned no finite value). ``params`` and
-    ``responses`` (the seed means) are those of the best round (smallest max |error| of
-    the mean), which is the last one when converged; ``seed_cv`` holds that round's seed
-    coefficient of variation per response (NaN with one seed) and ``n_seeds`` its k.
+    ``responses`` (the seed means) are those of the best round ``best_round``: the
+    converged one, else the one with the smallest max |error| of the mean; ``seed_cv``
+    holds that round's seed coefficient of variation per response (NaN with one seed),
+    ``n_seeds`` its k and ``seeds`` its seeds.
     ``history`` has one row per round: the parameters, the mean of every response, its
     seed CV ``cv_<r>`` in that round, the pooled relative standard error ``se_<r>``, the
     tolerance used ``tol_<r>`` = max(rtol, z · se), the relative error ``err_<r>`` of the
@@ -938,6 +952,7 @@ class ClosedLoopResult:
     seed_cv: dict[str, float] = field(default_factory=dict)
     n_seeds: int = 1
     seeds: tuple = ()
+    best_round: int = 0
 
     @property
     def converged(self) -> bool:
@@ -989,6 +1004,11 @@ class ClosedLoop:
         integers), else 1..``seeds_per_round``; default 3 seeds for a simulator with a
         ``seed`` parameter, 1 (and no seed) for ``simulate(params)``, which cannot take
         more.
+    max_seeds:
+        The seed set may grow to this many seeds (the next integers after the largest of
+        ``seeds``) once the means are within tolerance but a standard error is too large
+        to state them to ``rtol`` (module docstring); default (or at most the seeds of a
+        round): no growth.
     z:
         Standard errors of the mean within which a target counts as met (default 2).
     damping, max_step:
@@ -1005,10 +1025,19 @@ class ClosedLoop:
                  models: Mapping[str, RegressionModel] | None = None, jacobian: pd.DataFrame | None = None,
                  rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 5, damping: float = 0.8,
                  max_step: float = 0.25, broyden: bool = True, seeds_per_round: int | None = None,
-                 seeds: Sequence[int] | None = None, z: float = 2.0):
+                 seeds: Sequence[int] | None = None, z: float = 2.0, max_seeds: int | None = None):
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
+        if max_seeds is not None and (isinstance(max_seeds, bool) or not isinstance(max_seeds, (int, np.integer))
+                                      or max_seeds < 1):
+            raise ValueError(f"max_seeds={max_seeds!r}: expected an integer >= 1")
+        n_more = 0 if max_seeds is None else max(0, int(max_seeds) - len(self.seeds))
+        if n_more and self.seeds == (None,):
+            raise ValueError("simulate(params) takes no seed argument, so the seed set cannot grow: "
+                             "give it a 'seed' parameter, or leave max_seeds unset")
+        top = max(self.seeds) if self.seeds != (None,) else 0
+        self.growth_seeds = tuple(range(top + 1, top + 1 + n_more))
         if not (math.isfinite(float(z)) and float(z) >= 0):
             raise ValueError(f"z={z!r}: expected a number of standard errors >= 0")
         self.z = float(z)
@@ -1064,6 +1093,26 @@ class ClosedLoop:
         out = self.simulate(dict(params)) if seed is None else self.simulate(dict(params), seed=seed)
         return np.array([float(out.get(r, np.nan)) if out is not None else np.nan for r in self.responses])
 
+    def _step(self, J: np.ndarray, e: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, list[int]]:
+        """The damped Gauss-Newton step from ``u`` with the parameters at a bound whose step
+        points out of the box held there (solved again without them until none is left),
+        shortened to ``max_step``; returns the step and the held parameters' indices."""
+        held: list[int] = []
+        du = np.zeros_like(u)
+        while True:
+            act = [j for j in range(len(u)) if j not in held]
+            du[:] = 0.0
+            if act:
+                du[act] = -self.damping * np.linalg.lstsq(J[:, act], e, rcond=None)[0]
+            out = [j for j in act if (u[j] <= _EDGE and du[j] < 0) or (u[j] >= 1 - _EDGE and du[j] > 0)]
+            if not out:
+                break
+            held += out
+        biggest = float(np.max(np.abs(du))) if len(du) else 0.0
+        if biggest > self.max_step:
+            du *= self.max_step / biggest
+        return du, sorted(held)
+
     def run(self, initial: Mapping[str, float]) -> ClosedLoopResult:
         """Iterate from ``initial`` (a full parameter set, e.g. ``invert(...).solution``)."""
         space = self._space(initial)
@@ -1077,43 +1126,63 @@ class ClosedLoop:
         u = np.clip(u, 0.0, 1.0)
         J = self._initial_jacobian(space, space.x(u))
         scale = np.abs(self.t)
-        k = self.seeds_per_round
+        seeds = list(self.seeds)
+        spare = list(self.growth_seeds)
         history, samples, prev = [], [], None
         pooled, dof = np.zeros(len(self.responses)), 0  # Σ (k-1) cv², Σ (k-1)
         status, message = "max_rounds", f"tolerance not met within {self.max_rounds} rounds"
-        for rnd in range(self.max_rounds):
-            params = space.full(space.x(u))
-            ys = np.empty((k, len(self.responses)))
-            for i, sd in enumerate(self.seeds):
+
+        def run_seeds(rnd, params, which) -> np.ndarray:
+            ys = np.empty((len(which), len(self.responses)))
+            for i, sd in enumerate(which):
                 ys[i] = self._simulate(params, sd)
                 samples.append({"round": rnd, "seed": sd, **dict(zip(self.responses, ys[i]))})
+            return ys
+
+        def judge(ys):
+            """mean, seed CV, SE (pooled with the earlier rounds), tolerance, error."""
+            k = len(ys)
             y = ys.mean(axis=0)
-            rec = {"round": rnd, **{p: params[p] for p in space.calibrated},
-                   **dict(zip(self.responses, y)), "n_seeds": k}
-            bad = [(sd, dict(zip(self.responses, row))) for sd, row in zip(self.seeds, ys)
+            cv = ys.std(axis=0, ddof=1) / np.abs(y) if k > 1 else np.full(len(y), np.nan)
+            se = (np.sqrt((pooled + (k - 1) * cv ** 2) / (dof + k - 1)) / math.sqrt(k)
+                  if k > 1 else np.zeros(len(y)))
+            return y, cv, se, np.maximum(self.rtol, self.z * se), (y - self.t) / scale
+
+        for rnd in range(self.max_rounds):
+            params = space.full(space.x(u))
+            ys = run_seeds(rnd, params, seeds)
+            rec = {"round": rnd, **{p: params[p] for p in space.calibrated}}
+            which = list(seeds)
+            bad = [(sd, dict(zip(self.responses, row))) for sd, row in zip(which, ys)
                    if not np.all(np.isfinite(row))]
+            grown = 0
+            if not bad:
+                y, cv, se, tol, e = judge(ys)
+                if np.all(np.abs(e) <= tol) and spare and np.any(self.z * se > self.rtol):
+                    grown, seeds, spare = len(spare), seeds + spare, []
+                    ys = np.vstack([ys, run_seeds(rnd, params, seeds[-grown:])])
+                    which = list(seeds)
+                    bad = [(sd, dict(zip(self.responses, row)))
+                           for sd, row in zip(which, ys) if not np.all(np.isfinite(row))]
+            k = len(ys)
+            rec.update({**dict(zip(self.responses, ys.mean(axis=0))), "n_seeds": k, "grown": grown})
             if bad:
                 history.append(rec)
                 status = "failed"
-                which = "; ".join(f"seed {sd}: {v}" if sd is not None else str(v) for sd, v in bad)
-                message = f"round {rnd} returned non-finite responses ({which})"
+                txt = "; ".join(f"seed {sd}: {v}" if sd is not None else str(v) for sd, v in bad)
+                message = f"round {rnd} returned non-finite responses ({txt})"
                 break
-            cv = ys.std(axis=0, ddof=1) / np.abs(y) if k > 1 else np.full(len(y), np.nan)
+            y, cv, se, tol, e = judge(ys)
             if k > 1:
                 pooled += (k - 1) * cv ** 2
                 dof += k - 1
-                se = np.sqrt(pooled / dof) / math.sqrt(k)
-            else:
-                se = np.zeros(len(y))
-            tol = np.maximum(self.rtol, self.z * se)
-            e = (y - self.t) / scale
             rec.update({f"cv_{r}": v for r, v in zip(self.responses, cv)})
             rec.update({f"se_{r}": v for r, v in zip(self.responses, se)})
             rec.update({f"tol_{r}": v for r, v in zip(self.responses, tol)})
             rec.update({f"err_{r}": v for r, v in zip(self.responses, e)})
             rec["max_abs_err"] = float(np.max(np.abs(e)))
             updated = False
-            if prev is not None and self.broyden:
+            if prev is not None and self.broyden and prev[2] == k:  # the same seeds: a secant
                 s, de = u - prev[0], e - prev[1]
                 if s @ s > 1e-16:
                     J = J + np.outer(de - J @ s, s) / (s @ s)
@@ -1131,13 +1200,11 @@ class ClosedLoop:
             if rnd == self.max_rounds - 1:
                 history.append(rec)
                 break
-            du = -self.damping * np.linalg.lstsq(J, e, rcond=None)[0]
-            biggest = float(np.max(np.abs(du)))
-            if biggest > self.max_step:
-                du *= self.max_step / biggest
+            du, held = self._step(J, e, u)
             u_new = np.clip(u + du, 0.0, 1.0)
             rec.update({f"step_{p}": v for p, v in zip(space.free, (u_new - u) * space.width)})
-            rec["clipped"] = ",".join(p for p, want, got in zip(space.free, u + du, u_new) if want != got)
+            cut = [j for j in range(len(u)) if j in held or u_new[j] != u[j] + du[j]]
+            rec["clipped"] = ",".join(space.free[j] for j in cut)
             history.append(rec)
             if np.max(np.abs(u_new - u)) < 1e-9:
                 edges = ", ".join(space.edge_text(p, side, v) for p, side, v in space.at_bound(u))
@@ -1145,13 +1212,16 @@ class ClosedLoop:
                 message = (f"the Newton step points out of the bounds ({edges}); the targets appear "
                            "unreachable within the parameter ranges")
                 break
-            prev, u = (u, e), u_new
+            prev, u = (u, e, k), u_new
         hist = pd.DataFrame.from_records(history)
         if status == "max_rounds" and len(hist) > 1 and hist["clipped"].iloc[-2]:
             message += (f"; the last step was cut at the bounds of {hist['clipped'].iloc[-2]}: the targets "
                         "may lie outside what the parameter ranges can reach")
         finite = hist.dropna(subset=["max_abs_err"]) if "max_abs_err" in hist else hist.iloc[:0]
-        best = hist.loc[finite["max_abs_err"].idxmin()] if len(finite) else hist.iloc[-1]
+        if status == "converged":
+            best = hist.iloc[-1]
+        else:
+            best = hist.loc[finite["max_abs_err"].idxmin()] if len(finite) else hist.iloc[-1]
         x_best = np.array([best[p] for p in space.free])
         J_phys = J * scale[:, None] / space.width
         return ClosedLoopResult(
@@ -1160,7 +1230,8 @@ class ClosedLoop:
             jacobian=pd.DataFrame(J_phys, index=list(self.responses), columns=list(space.free)),
             samples=pd.DataFrame.from_records(samples),
             seed_cv={r: float(best.get(f"cv_{r}", np.nan)) for r in self.responses},
-            n_seeds=k, seeds=self.seeds)
+            n_seeds=int(best["n_seeds"]), seeds=tuple(seeds[:int(best["n_seeds"])]),
+            best_round=int(best["round"]))
 
 
 def _takes_seed(simulate: Callable) -> bool:

@@ -37,13 +37,17 @@ Format 1 (keys in this order; paper units)::
                         geometry, widen; per round shown the seed mean of every
                         response, seed_sd, seed_cv and n_seeds; missed (every target the
                         best round misses by more than rtol: target, value, dem,
-                        error_pct); bts_geometry (with σt)
+                        error_pct); bts_geometry (with σt); seeds (the best round's),
+                        seeds_per_round, max_seeds (the seed set's growth limit);
+                        jacobian (the loop's final Broyden estimate, response ->
+                        parameter -> ∂response/∂parameter, paper units)
     calibrated_at_scale (verified cards) the specimen scale the parameters were last fitted at
     transfer            (transferred cards, ``bpmcal transfer``) status, rounds, scale,
                         tolerance_pct, at_transfer and final responses, parameters
 
 Keys added within format 1 (``strength_ratio``, ``missed``, ``reach``,
-``verification.missed``, ``verification.bts_geometry``) are optional for readers: cards
+``verification.missed``, ``verification.bts_geometry``, ``verification.jacobian``,
+``verification.max_seeds``, ``verification.seeds_per_round``) are optional for readers: cards
 written before them stay readable.
 
 A card without ``card_format`` (bpmcal before this format was versioned) or of a newer

@@ -420,10 +420,13 @@ def disc_geometry(geometry):
 
 def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, geometry,
               settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
-              free=None, disc=None, bts_settings=None, bts_run=None):
-    """The closed loop on ``seeds`` (every round runs each seed into a temporary file: the
-    UCS test and, when σt is a target, the Brazilian test on ``disc`` with the same seed;
-    the first seed's run files of the best round become ``run`` and ``bts_run``).
+              free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
+              jacobian=None):
+    """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
+    into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
+    ``disc`` with the same seed; the first seed's run files of the best round become
+    ``run`` and ``bts_run``). The first step follows the regression models' Jacobian, or
+    ``jacobian`` (responses x free parameters, physical units) when given.
     Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
     ratio = c.get("ratio_ten_coh")
     with_bts = BTS in targets
@@ -433,8 +436,11 @@ def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
     folder = Path(run).parent
     tmpdir = tempfile.mkdtemp(prefix=f".{Path(run).stem}.rounds.", dir=folder)
     try:
+        last: list[dict] = []
+
         def simulate(params: dict, seed: int) -> dict:
-            if not by_round or len(by_round[-1]) == len(seeds):
+            if not last or params != last[0]:  # a new point: a new round (grown seeds join theirs)
+                last[:] = [dict(params)]
                 by_round.append([])
                 paths.append([])
                 bts_paths.append([])
@@ -459,14 +465,14 @@ def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
             return out
 
         free = free or [k for k, v in c["roles"].items() if v == "free"]
-        loop = ClosedLoop(simulate, targets, free=free, ratio=ratio, models=model_set,
+        jac = None if jacobian is None else pd.DataFrame.from_dict(jacobian, orient="index")
+        loop = ClosedLoop(simulate, targets, free=free, ratio=ratio,
+                          models=model_set if jac is None else None, jacobian=jac,
                           rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
-                          bounds=c.get("calibration_bounds") or None, seeds=list(seeds))
+                          bounds=c.get("calibration_bounds") or None, seeds=list(seeds),
+                          max_seeds=max_seeds)
         res = loop.run(params)
-        # the loop's best round (smallest max |error| of the seed mean; res.params are its)
-        err = pd.to_numeric(res.history.get("max_abs_err", pd.Series(dtype=float)),
-                            errors="coerce").to_numpy(float)
-        best = int(np.nanargmin(err)) if np.isfinite(err).any() else len(by_round) - 1
+        best = res.best_round  # converged, else the smallest max |error| of the seed mean
         os.replace(paths[best][0], run)  # the best round's first seed is the run file
         if bts_run is not None and with_bts:
             os.replace(bts_paths[best][0], bts_run)
@@ -481,7 +487,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            seeds_per_round=3, rtol=_LOOP["rtol"], max_rounds=_LOOP["max_rounds"], cache=None,
            threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
            mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
-           bts_run=None) -> dict:
+           bts_run=None, max_seeds=10) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -489,7 +495,12 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     ``seeds_per_round`` packing seeds (``seed``, ``seed + 1``, ...) and steers their mean;
     a target is met when the mean lies within max(``rtol``, 2 standard errors of the
     mean) of it (:class:`~bpmcal.analysis.ClosedLoop`), so the loop fits the rock, not
-    one packing. A round costs ``seeds_per_round`` DEM runs.
+    one packing. A round costs ``seeds_per_round`` DEM runs. The seed set grows to
+    ``max_seeds`` seeds (``seed + seeds_per_round``, ...; at most ``seeds_per_round``:
+    no growth) once the means are within tolerance but their standard errors are too
+    large to state them to ``rtol``, so the card is judged, and steered, on the mean of
+    more packings (a fixed few packings' mean is itself off the rock's by ~CV/sqrt(k));
+    later rounds run the grown set.
 
     Writes the verified card (``out_card``; per round shown, the seed mean of every
     response, its seed standard deviation ``seed_sd`` and coefficient of variation
@@ -550,6 +561,9 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5),
             (bts_run, "--bts-run", H5))
     output_dirs((cache, "--specimen-cache"))
+    if isinstance(max_seeds, bool) or not isinstance(max_seeds, int) or max_seeds < 1:
+        raise BadInput(f"--max-seeds {max_seeds!r}: expected an integer >= 1")
+    max_seeds = max(max_seeds, seeds_per_round)
     seeds = [int(seed) + i for i in range(seeds_per_round)]
     if c.get("status") == "unreachable" and not from_unreachable:
         reason = ("the calibration is unreachable, so the closed loop did not start from it "
@@ -565,7 +579,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         verified = dict(c)
         verified["verification"] = {
             "status": "not-run", "message": reason, "rounds": 0, "rtol": rtol, "seed": seed,
-            "seeds": seeds, "n_seeds": seeds_per_round,
+            "seeds": seeds, "n_seeds": seeds_per_round, "max_seeds": max_seeds,
             "best_round": None, "single_pass": None, "closed_loop": None, "parameters": None,
             "widen": c.get("widen", []), "geometry": geometry.to_dict()}
         write_card(out_card, verified)
@@ -574,7 +588,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         c, model_set, targets, params=c["parameters"], run=run, seeds=seeds,
         geometry=geometry, settings=settings, rtol=rtol, max_rounds=max_rounds, cache=cache,
         threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
-        disc=disc, bts_settings=bts_settings, bts_run=bts_run)
+        disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds)
     write_table(res.history, rounds, index=False)
     message = res.message
     if c.get("status") == "unreachable":
@@ -586,8 +600,11 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         "verification": {
             "status": res.status, "message": message, "rounds": len(by_round),
             "runs": sum(len(r) for r in by_round), "rtol": rtol, "seed": seed,
-            "seeds": seeds, "n_seeds": seeds_per_round, "best_round": best + 1,
-            "run_seed": seeds[0],
+            "seeds": [int(x) for x in res.seeds], "n_seeds": int(res.n_seeds),
+            "seeds_per_round": seeds_per_round, "max_seeds": max_seeds,
+            "best_round": best + 1, "run_seed": seeds[0],
+            "jacobian": {r: {p: float(x) for p, x in row.items()}
+                         for r, row in res.jacobian.iterrows()},
             "single_pass": _responses(by_round[0], targets),
             "closed_loop": _responses(by_round[best], targets),
             "parameters": {k: float(v) for k, v in res.params.items() if k in P.PARAMS},
@@ -614,7 +631,11 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     50 x 100 mm) and, when a response misses its lab target by more than the seed scatter
     (max(``rtol``, ``z`` x the seed CV of one run that the verification measured)),
     continue the closed loop at that size for at most ``max_rounds`` more rounds of one
-    run each (Newton-Broyden from the regression's Jacobian, as :func:`verify`).
+    run each: Newton-Broyden as in :func:`verify`, starting from the Jacobian the
+    verification's loop had learned from the DEM (``verification.jacobian``; the
+    regression's at the card's point for a card without one). The regression's Jacobian
+    can be wrong where the loop ended - at a model's vertex its sign flips - while the
+    DEM's relative sensitivities change little with the specimen size.
 
     Writes the transferred card (``out_card``: the verified card with a ``transfer``
     section - status ``within-scatter`` (no correction needed), ``corrected`` (met after
@@ -663,7 +684,7 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         geometry=geometry, settings=settings, rtol=tol, max_rounds=1 + max_rounds,
         cache=cache, threads=threads, progress=progress,
         genesis_max_steps=genesis_max_steps, disc=bts_geometry or disc_geometry(geometry),
-        bts_settings=bts_settings or BTSSettings())
+        bts_settings=bts_settings or BTSSettings(), jacobian=v.get("jacobian"))
     write_table(res.history, rounds, index=False)
     if res.status == "converged":
         status = "within-scatter" if len(by_round) == 1 else "corrected"

@@ -179,6 +179,19 @@ def _budget_checks(cfg: dict) -> list[str]:
     return out
 
 
+def loop_seeds(verification: dict) -> list[int]:
+    """Every packing seed a closed loop of ``verification`` (the config section) may use:
+    ``seed`` ... ``seed + max_seeds - 1`` (the first ``seeds_per_round`` of them, grown)."""
+    v = verification
+    n = max(v["seeds_per_round"], v.get("max_seeds") or v["seeds_per_round"])
+    return list(range(v["seed"], v["seed"] + n))
+
+
+def transfer_seed(verification: dict) -> int:
+    """The packing seed of the full-size transfer: the first no closed loop used."""
+    return loop_seeds(verification)[-1] + 1
+
+
 def _holdout_checks(cfg: dict) -> list[str]:
     """``verification.holdout_seeds``: none or at least two, all fresh (no seed of the
     closed loop or of the transfer)."""
@@ -189,9 +202,9 @@ def _holdout_checks(cfg: dict) -> list[str]:
     if len(seeds) < 2:
         return [f"verification.holdout_seeds: {seeds} has one seed; expected [] (no check) or "
                 "at least 2 (a standard error needs two)"]
-    used = set(range(v["seed"], v["seed"] + v["seeds_per_round"]))
+    used = set(loop_seeds(v))
     if (cfg.get("transfer") or {}).get("enabled"):
-        used.add(v["seed"] + v["seeds_per_round"])
+        used.add(transfer_seed(v))
     seen = sorted(used & set(seeds))
     if seen:
         return [f"verification.holdout_seeds: {seen} also seed(s) the closed loop or the "
