@@ -1029,8 +1029,8 @@ class ClosedLoop:
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
-        if max_seeds is not None and (isinstance(max_seeds, bool) or not isinstance(max_seeds, (int, np.integer))
-                                      or max_seeds < 1):
+        if max_seeds is not None and (isinstance(max_seeds, bool) or max_seeds < 1
+                                      or not isinstance(max_seeds, (int, np.integer))):
             raise ValueError(f"max_seeds={max_seeds!r}: expected an integer >= 1")
         n_more = 0 if max_seeds is None else max(0, int(max_seeds) - len(self.seeds))
         if n_more and self.seeds == (None,):
