@@ -1029,8 +1029,8 @@ class ClosedLoop:
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
-        if max_seeds is not None and (isinstance(max_seeds, bool) or max_seeds < 1
-                                      or not isinstance(max_seeds, (int, np.integer))):
+        whole = isinstance(max_seeds, (int, np.integer)) and not isinstance(max_seeds, bool)
+        if max_seeds is not None and not (whole and max_seeds >= 1):
             raise ValueError(f"max_seeds={max_seeds!r}: expected an integer >= 1")
         n_more = 0 if max_seeds is None else max(0, int(max_seeds) - len(self.seeds))
         if n_more and self.seeds == (None,):
