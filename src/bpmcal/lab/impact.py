@@ -16,7 +16,10 @@ Energies (J), recorded over time, all relative to the moment of release:
 - rock: kinetic, linear-contact and bond strain energy, friction slip, dashpot dissipation;
   ``work_gravity`` on the rock.
 The budget closes: W_in + work_gravity = d(kinetic + strain) + slip + dashpot + G_f;
-``closure_rel`` = |difference| / W_in at every record.
+``closure_rel`` = |difference| / max(the largest W_in so far, 1 % of the hammer's kinetic
+energy at release) at every record: the energy the test has put in, floored so that the
+first records after touch-down (W_in of micro-joules) do not divide a round-off by nearly
+nothing.
 
 Stages from the crack history: initiation = first record with >= 1 % of the final crack
 count, through-failure = first record with >= 90 %; propagation in between; the time of
@@ -112,6 +115,18 @@ def crack_stages(t, n_cracks) -> dict:
             "t_through": float(t[i9]), "late_cracks": int(total - ref)}
 
 
+#: the floor of closure_rel's denominator, as a fraction of the hammer's kinetic energy at release
+CLOSURE_FLOOR = 0.01
+
+
+def closure_rel(residual: float, w_in_max: float, ek0: float) -> float:
+    """|``residual``| of the energy budget relative to the energy put in so far
+    (``w_in_max``, the largest W_in up to now), floored at ``CLOSURE_FLOOR`` x the
+    hammer's kinetic energy at release ``ek0``."""
+    den = max(w_in_max, CLOSURE_FLOOR * ek0)
+    return abs(residual) / den if den > 0 else 0.0
+
+
 def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=None) -> ImpactResult:
     m = sp.model
     wb, wt = sp.platens
@@ -132,6 +147,8 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     step0, t0 = m.step, m.time
     ser = {k: [] for k in IMPACT_SERIES}
     wall0 = time.perf_counter()
+    ek0 = 0.5 * st.hammer_mass * st.velocity ** 2
+    w_max = [0.0]  # the largest W_in so far
 
     def rec():
         e = m.energies()
@@ -157,7 +174,8 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
                 ser[k].append(val)
         ser["work_gravity"].append(grav_rock)
         ser["eta_f"].append(d["released"] / w_in if w_in > 0 else 0.0)
-        ser["closure_rel"].append(abs(lhs - stored) / w_in if w_in > 0 else 0.0)
+        w_max[0] = max(w_max[0], w_in)
+        ser["closure_rel"].append(closure_rel(lhs - stored, w_max[0], ek0))
         return v
 
     rec()
