@@ -222,7 +222,8 @@ def test_seed_arguments_are_checked():
     assert ClosedLoop(dem, TARGETS, models=MODELS, ranges=T2, seeds_per_round=5).seeds_per_round == 5
     for bad in ({"seeds_per_round": 0}, {"seeds_per_round": 2.0}, {"seeds": [1, 1]},
                 {"seeds": []}, {"seeds": [1, -2]}, {"seeds": [1, 2], "seeds_per_round": 3},
-                {"z": -1.0}):
+                {"z": -1.0}, {"max_seeds": 0}, {"max_seeds": 4.0}, {"max_seeds": True},
+                {"max_seeds": "10"}):
         with pytest.raises(ValueError):
             ClosedLoop(dem, TARGETS, models=MODELS, ranges=T2, **bad)
 

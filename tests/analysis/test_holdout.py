@@ -189,6 +189,13 @@ def test_config_refuses_holdout_seeds_of_the_loop_or_the_transfer():
     assert _holdout_checks(cfg) == []
     cfg["transfer"]["enabled"] = True  # the transfer runs seed 1 + 3
     assert "[4]" in _holdout_checks(cfg)[0]
+    # a seed set that may grow to 8 seeds uses 1-8, the transfer then 9
+    cfg["verification"].update(max_seeds=8, holdout_seeds=[8, 20])
+    assert "[8]" in _holdout_checks(cfg)[0]
+    cfg["verification"]["holdout_seeds"] = [9, 20]
+    assert "[9]" in _holdout_checks(cfg)[0]
+    cfg["transfer"]["enabled"] = False
+    assert _holdout_checks(cfg) == []
     cfg["verification"]["holdout_seeds"] = [9]
     assert "at least 2" in _holdout_checks(cfg)[0]
     cfg["verification"]["holdout_seeds"] = []
