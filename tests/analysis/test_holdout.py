@@ -200,3 +200,21 @@ def test_config_refuses_holdout_seeds_of_the_loop_or_the_transfer():
     assert "at least 2" in _holdout_checks(cfg)[0]
     cfg["verification"]["holdout_seeds"] = []
     assert _holdout_checks(cfg) == []
+
+
+def test_false_alarm_rate_of_a_card_exactly_on_target():
+    """Fresh seeds drawn around the lab value itself: the share of checks that fail is the
+    Student-t tail false_alarm(n) (4000 draws; binomial standard error ~0.5 %), well above
+    the normal tail of 4.6 %, and it shrinks towards that with more seeds."""
+    from bpmcal.stages.holdout import false_alarm, holdout_stats
+
+    rng = np.random.default_rng(7)
+    for n in (3, 5, 12):
+        fails = [not holdout_stats(60.0 * (1 + 0.02 * rng.standard_normal(n)), 60.0,
+                                   rtol=1e-9)["within_z_se"] for _ in range(4000)]
+        p = false_alarm(n)
+        assert abs(np.mean(fails) - p) < 4 * np.sqrt(p * (1 - p) / 4000)
+    assert false_alarm(5) == pytest.approx(0.1161, abs=1e-4)
+    assert false_alarm(3) > false_alarm(5) > false_alarm(12) > 0.0455
+    assert false_alarm(5, targets=9) == pytest.approx(1 - (1 - false_alarm(5)) ** 9)
+    assert np.isnan(false_alarm(1))

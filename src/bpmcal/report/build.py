@@ -26,6 +26,7 @@ from ..io.checks import BadInput, out_file, parse_json, read_json, read_yaml
 from ..io.h5 import read_summary
 from ..io.provenance import git_commit
 from ..io.tables import markdown_table, write_table
+from ..stages.holdout import false_alarm
 from ..study import paper
 
 #: tables and figures of the report (stem -> caption)
@@ -470,6 +471,15 @@ def _holdout(lay) -> str:
         verdict += " Not run: " + "; ".join(
             f"{sp} ({notes[t['specimen'] == sp].iloc[0]})" for sp in skipped) + "."
     seeds = t["seeds"].iloc[0] if len(t) else ""
+    judged = t[notes == ""]
+    if len(judged):
+        n = int(judged["n"].median())
+        verdict += (f" A card exactly on its targets still fails this check with probability "
+                    f"{100 * false_alarm(n, z):.1f} % per target on {n} seeds (the standard "
+                    "error comes from the same seeds: Student's t with "
+                    f"{n - 1} degrees of freedom), so one miss or more among these "
+                    f"{len(judged)} targets has probability "
+                    f"{100 * false_alarm(n, z, len(judged)):.0f} % even then.")
     return ("\n### The verified cards on fresh packing seeds\n\n"
             f"Each verified card re-run on packing seeds its closed loop never saw ({seeds}): "
             "the mean ± its standard error, the error of the mean, its z-score (error / "

@@ -153,6 +153,20 @@ def holdout_stats(values, lab: float, *, rtol: float, z: float = 2.0) -> dict:
             "met": bool(n > 1 and abs(err) <= tol)}
 
 
+def false_alarm(n: int, z: float = 2.0, targets: int = 1) -> float:
+    """The probability that a card exactly on its targets still fails the ``within_z_se``
+    check of :func:`holdout_stats` on ``n`` fresh seeds for at least one of ``targets``
+    independent targets: the standard error comes from the same ``n`` seeds, so the
+    z-score is Student-t with n - 1 degrees of freedom (5 seeds, z = 2: 11.6 % per
+    target, 67 % for one miss or more among 9)."""
+    from scipy import stats
+
+    if n < 2:
+        return math.nan
+    p_one = float(2 * stats.t.sf(z, n - 1))
+    return 1 - (1 - p_one) ** int(targets)
+
+
 def holdout_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataFrame:
     """One row per card (``cards[i]`` with its seed table ``seed_runs[i]`` from
     :func:`holdout`) and target: the lab value, the fresh seeds' n, mean, standard
