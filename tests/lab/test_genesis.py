@@ -41,6 +41,24 @@ def test_genesis_is_deterministic_and_cached(tmp_path):
     assert not np.array_equal(a.pos[: len(d.pos)], d.pos[: len(a.pos)])
 
 
+def test_packing_relaxes_with_the_threads_asked_for_and_the_same_result(tmp_path):
+    """get_packing(threads=k) relaxes with k numba threads (a job given one core must not
+    start two), and the packing is bit for bit the one of any other thread count."""
+    from bpmcal.dem._jit import numba, set_threads
+
+    spec = SpecimenSpec.from_paper_units(0.8, 0.3, seed=13, scale=0.2)
+    before = numba.get_num_threads()
+    try:
+        for k in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+            set_threads(numba.config.NUMBA_NUM_THREADS)
+            pk = get_packing(spec, cache=tmp_path / f"t{k}", threads=k)
+            assert numba.get_num_threads() == k
+            ref = pk if k == 1 else ref
+            assert np.array_equal(pk.pos, ref.pos) and np.array_equal(pk.radius, ref.radius)
+    finally:
+        set_threads(before)
+
+
 def test_too_small_specimen_is_refused():
     from bpmcal.dem.errors import InputError
     with pytest.raises(InputError, match="too small"):

@@ -128,7 +128,7 @@ def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, c
     ``boundary``: which vessel walls stay (``build_specimen``)."""
     p = P.validate_params(params)
     spec = specimen_spec(p, seed, geometry)
-    pk = get_packing(spec, cache=cache, progress=progress)
+    pk = get_packing(spec, cache=cache, progress=progress, threads=threads)
     mat = paper_material(p["pb_emod_GPa"], p["pb_kratio"], p["pb_ten_MPa"], p["pb_coh_MPa"],
                          p["pb_fa_deg"], p["fric"])
     return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6,

@@ -356,11 +356,12 @@ def _count_touching(pos, radius, gap):
     return int(np.count_nonzero(d - radius[i] - radius[j] <= gap))
 
 
-def relax_packing(spec: SpecimenSpec, progress=None) -> Packing:
-    """Steps 1-3 at the reference modulus (frictionless balls and vessel)."""
+def relax_packing(spec: SpecimenSpec, progress=None, threads=None) -> Packing:
+    """Steps 1-3 at the reference modulus (frictionless balls and vessel); ``threads``:
+    numba threads (None: leave numba's setting; the packing is the same for any number)."""
     pos, r = distribute(spec)
     m = Model(pos, r, spec.density, _genesis_material(), damping=RELAX_DAMPING,
-              skin=0.25 * spec.rmin, threads=None)
+              skin=0.25 * spec.rmin, threads=threads)
     _vessel(m, spec)
     # frictionless balls in a frictionless vessel: central forces only, so the spins
     # never act back on the positions; translation only is the same packing, bit for
@@ -404,16 +405,17 @@ def cache_dir() -> Path:
 
 
 def get_packing(spec: SpecimenSpec, cache: str | os.PathLike | None = None,
-                progress=None) -> Packing:
+                progress=None, threads=None) -> Packing:
     """The relaxed packing for ``spec``, from the cache directory when it is there
-    (written atomically: temporary name, then rename)."""
+    (written atomically: temporary name, then rename); relaxed with ``threads`` numba
+    threads when it is not."""
     d = Path(cache) if cache is not None else cache_dir()
     f = d / f"packing_{spec.key()}.npz"
     if f.exists():
         z = np.load(f, allow_pickle=False)
         return Packing(spec=spec, pos=z["pos"], radius=z["radius"],
                        report=json.loads(str(z["report"])))
-    pk = relax_packing(spec, progress=progress)
+    pk = relax_packing(spec, progress=progress, threads=threads)
     with atomic_path(f) as tmp, open(tmp, "wb") as fh:  # a file object: no ".npz" appended
         np.savez(fh, pos=pk.pos, radius=pk.radius, report=json.dumps(pk.report),
                  spec=json.dumps(asdict(spec)))
