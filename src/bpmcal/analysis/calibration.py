@@ -1139,6 +1139,11 @@ class ClosedLoop:
                 samples.append({"round": rnd, "seed": sd, **dict(zip(self.responses, ys[i]))})
             return ys
 
+        def failed(ys) -> list:
+            """(seed, responses) of every run of the round with a non-finite response."""
+            return [(sd, dict(zip(self.responses, row))) for sd, row in zip(seeds, ys)
+                    if not np.all(np.isfinite(row))]
+
         def judge(ys):
             """mean, seed CV, SE (pooled with the earlier rounds), tolerance, error."""
             k = len(ys)
@@ -1152,18 +1157,13 @@ class ClosedLoop:
             params = space.full(space.x(u))
             ys = run_seeds(rnd, params, seeds)
             rec = {"round": rnd, **{p: params[p] for p in space.calibrated}}
-            which = list(seeds)
-            bad = [(sd, dict(zip(self.responses, row))) for sd, row in zip(which, ys)
-                   if not np.all(np.isfinite(row))]
             grown = 0
-            if not bad:
+            if not failed(ys):
                 y, cv, se, tol, e = judge(ys)
                 if np.all(np.abs(e) <= tol) and spare and np.any(self.z * se > self.rtol):
                     grown, seeds, spare = len(spare), seeds + spare, []
                     ys = np.vstack([ys, run_seeds(rnd, params, seeds[-grown:])])
-                    which = list(seeds)
-                    bad = [(sd, dict(zip(self.responses, row)))
-                           for sd, row in zip(which, ys) if not np.all(np.isfinite(row))]
+            bad = failed(ys)
             k = len(ys)
             rec.update({**dict(zip(self.responses, ys.mean(axis=0))), "n_seeds": k, "grown": grown})
             if bad:
