@@ -247,3 +247,22 @@ def test_transfer_starts_from_the_jacobian_the_verification_learned(study, monke
     full = [p for p, _, _ in dem.calls[n:]]
     assert len(full) == 2
     assert full[1]["pb_emod_GPa"] > full[0]["pb_emod_GPa"]
+
+
+def test_scatter_of_a_verified_card_runs_its_verified_parameters(study, monkeypatch):
+    """bpmcal scatter on a verified card scatters the closed loop's parameters (the ones
+    the card stands for), not the regression's starting point it also records."""
+    tmp_path, card, models = study
+    dem = PlantedDEM()
+    monkeypatch.setattr(A, "run_ucs_file", dem)
+    v = run_verify(tmp_path, card, models, 3)["verification"]
+    assert v["parameters"]["pb_emod_GPa"] != pytest.approx(start_params()["pb_emod_GPa"])
+    n = len(dem.calls)
+    monkeypatch.setattr(A, "run_ucs_file", lambda out, params, seed, *a, **k: (
+        dem(out, params, seed, Geometry(scale=0.25), None)))
+    A.seed_scatter(tmp_path / "v" / "card.yaml", runs=[tmp_path / "s1.h5", tmp_path / "s2.h5"],
+                   seeds=[1, 2], seed_runs=tmp_path / "sr.csv", table=tmp_path / "sc.csv",
+                   geometry=Geometry(scale=0.25), settings=UCSSettings())
+    ran = [p for p, _, _ in dem.calls[n:]]
+    assert len(ran) == 2
+    assert all(p == pytest.approx(v["parameters"]) for p in ran)

@@ -740,23 +740,24 @@ def transfer_table(cards, *, table) -> pd.DataFrame:
 def seed_scatter(card, *, runs, seeds, seed_runs, table, geometry, settings, rtol=_LOOP["rtol"],
                  cache=None, threads=None, max_balls=None, mem_budget_mb=None,
                  genesis_max_steps=None) -> pd.DataFrame:
-    """One parameter set (a card's), several packing seeds (``runs[i]`` is the run file of
-    ``seeds[i]``): the scatter of the DEM responses (``seed_runs``: one row per seed;
-    ``table``: coefficient of variation and noise floor per response), and whether the
-    closed-loop tolerance is below it."""
+    """One parameter set (a card's: :func:`card_parameters`, i.e. the closed loop's of a
+    verified card, the transfer's of a transferred one), several packing seeds
+    (``runs[i]`` is the run file of ``seeds[i]``): the scatter of the DEM responses
+    (``seed_runs``: one row per seed; ``table``: coefficient of variation and noise floor
+    per response), and whether the closed-loop tolerance is below it."""
     c = read_card(card, "--card", need=("parameters", "specimen"))
+    params = card_parameters(c)
     if len(runs) != len(seeds):
         raise BadInput(f"--runs: {len(runs)} run file(s) for {len(seeds)} seed(s); expected "
                        "one per seed, in the order of --seeds")
     if max_balls is not None:
-        check_budget(c["parameters"], geometry, max_balls=max_balls,
-                     mem_budget_mb=mem_budget_mb)
+        check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
     outputs(*((r, "--runs", H5) for r in runs), (seed_runs, "--seed-runs", CSV),
             (table, "--table", CSV))
     output_dirs((cache, "--specimen-cache"))
     rows = []
     for s, f in zip(seeds, runs):
-        out = run_ucs_file(f, c["parameters"], int(s), geometry, settings, cache=cache,
+        out = run_ucs_file(f, params, int(s), geometry, settings, cache=cache,
                            threads=threads, keep_particles=False,
                            genesis_max_steps=genesis_max_steps)
         r = dict(out.summary, status=out.status)
