@@ -149,9 +149,10 @@ def test_table5_carries_the_seed_spread(study, monkeypatch):
         0.02 * t5.loc["B1", "closed_loop_E_GPa"])
 
 
-@pytest.mark.parametrize("e_full, corrected", [(1.0, False), (1.10, True)])
+@pytest.mark.parametrize("e_full, rtol, corrected", [(1.0, 0.05, False), (1.10, 0.05, True),
+                                                     (1.10, 0.001, True)])
 def test_transfer_corrects_only_a_miss_beyond_the_seed_scatter(study, monkeypatch, e_full,
-                                                               corrected):
+                                                               rtol, corrected):
     tmp_path, card, models = study
     dem = PlantedDEM(e_full=e_full)
     monkeypatch.setattr(A, "run_ucs_file", dem)
@@ -161,13 +162,15 @@ def test_transfer_corrects_only_a_miss_beyond_the_seed_scatter(study, monkeypatc
     t = A.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t" / "card.yaml",
                    rounds=tmp_path / "t" / "rounds.csv", run=tmp_path / "t" / "best.h5",
                    geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4,
-                   max_rounds=2)
+                   max_rounds=2, rtol=rtol)
     full = dem.calls[n_verify:]
     assert all(c[1] == 4 and c[2] == 1.0 for c in full)  # one seed, full size
     assert full[0][0] == pytest.approx(card_parameters(verified))  # starts from the card
     tr = t["transfer"]
-    # tolerance: max(rtol, 2 x the seed CV of one run measured by the verification)
-    assert tr["tolerance_pct"]["E_GPa"] == pytest.approx(100 * 2 * 0.02)
+    # tolerance: max(rtol, 2 x the seed CV of one run measured by the verification, shrunk
+    # to one full-size run: sqrt(0.25^3) for 64 x the balls)
+    assert tr["scatter_factor"] == pytest.approx(0.125)
+    assert tr["tolerance_pct"]["E_GPa"] == pytest.approx(100 * max(rtol, 2 * 0.02 * 0.125))
     e0 = tr["at_transfer"]["errors_pct"]["E_GPa"]
     card_out = read_card(tmp_path / "t" / "card.yaml")
     assert card_out["calibrated_at_scale"] == 1.0
@@ -188,6 +191,16 @@ def test_transfer_corrects_only_a_miss_beyond_the_seed_scatter(study, monkeypatc
     assert row["scale"] == 1.0 and row["verified_scale"] == 0.25
     assert row["at_transfer_err_pct"] == pytest.approx(e0)
     assert np.isfinite(row["final_err_pct"])
+
+
+def test_scatter_factor_follows_the_ball_count():
+    g = Geometry(scale=0.4).to_dict()
+    assert A.scatter_factor(g, Geometry(scale=1.0)) == pytest.approx(0.4 ** 1.5)
+    assert A.scatter_factor(g, Geometry(scale=0.4)) == pytest.approx(1.0)
+    # a shorter specimen at the same scale holds half the balls: it scatters more
+    assert A.scatter_factor(g, Geometry(scale=0.4, height_mm=50.0)) == pytest.approx(2 ** 0.5)
+    assert A.scatter_factor(None, Geometry(scale=1.0)) == 1.0  # a card without its geometry
+    assert A.scatter_factor({"scale": 0.4, "diameter_mm": 20.0}, Geometry(scale=1.0)) == 1.0
 
 
 def test_transfer_of_a_card_whose_loop_did_not_run(study, tmp_path):
