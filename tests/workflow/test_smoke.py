@@ -424,36 +424,42 @@ def test_the_contract_check_can_fail(tmp_path):
 
 
 def test_verify_averages_seeds_and_the_transfer_runs_at_its_scale(smoke):
-    """The smoke config runs verification.seeds_per_round = 2 seeds per round and the
-    full-size transfer at transfer.scale 0.35 (specimens at 0.3): every verified card
-    records the seed mean, CV and n_seeds; every transferred card carries
-    calibrated_at_scale; the impact runs the transferred card."""
+    """The smoke config runs verification.seeds_per_round = 2 seeds per round (a seed set
+    that may grow to max_seeds = 3) and the full-size transfer at transfer.scale 0.35
+    (specimens at 0.3) on the first seed no loop may use: every verified card records the
+    seed mean, CV and n_seeds; every transferred card carries calibrated_at_scale; the
+    impact runs the transferred card."""
     from bpmcal.io.h5 import read_inputs
     from bpmcal.io.layout import TABLE5, TRANSFER, Layout, velocity_tag
 
     cfg = yaml.safe_load((smoke / "config" / "smoke.yaml").read_text())
     k, scale = cfg["verification"]["seeds_per_round"], cfg["transfer"]["scale"]
+    kmax = cfg["verification"]["max_seeds"]
+    assert kmax > k
     lay = Layout(str(smoke / OUTDIR))
     t5 = pd.read_csv(lay.table(TABLE5), index_col=0)
     for spec in ("B1", "B2", "B3"):
         v = yaml.safe_load(Path(lay.verified_card(spec)).read_text())["verification"]
         assert v["status"] != "not-run"
-        assert v["n_seeds"] == k and v["seeds"] == list(range(1, k + 1))
+        assert v["n_seeds"] in (k, kmax) and v["seeds"] == list(range(1, v["n_seeds"] + 1))
+        assert v["seeds_per_round"] == k and v["max_seeds"] == kmax
         rounds = pd.read_csv(lay.verification_rounds(spec))
-        assert (rounds["n_seeds"] == k).all() and len(rounds) == v["rounds"]
+        assert set(rounds["n_seeds"]) <= {k, kmax} and len(rounds) == v["rounds"]
+        assert rounds["n_seeds"].is_monotonic_increasing  # a seed set only grows
+        assert (rounds["grown"] > 0).sum() <= 1 and v["runs"] == rounds["n_seeds"].sum()
         for r in ("ucs_MPa", "E_GPa", "nu"):
             cv = v["closed_loop"]["seed_cv"][r]
             assert 0 < cv < 0.5, (spec, r, cv)  # two packings never agree to the last bit
             assert t5.loc[spec, f"closed_loop_{r}_cv_pct"] == pytest.approx(100 * cv)
-        assert t5.loc[spec, "n_seeds"] == k
+        assert t5.loc[spec, "n_seeds"] == v["n_seeds"]
         assert read_inputs(lay.verification_run(spec))["seed"] == 1
         t = yaml.safe_load(Path(lay.transferred_card(spec)).read_text())
-        assert t["transfer"]["scale"] == scale and t["transfer"]["seed"] == 1 + k
+        assert t["transfer"]["scale"] == scale and t["transfer"]["seed"] == 1 + kmax
         assert 1 <= t["transfer"]["rounds"] <= 1 + cfg["transfer"]["max_rounds"]
         if t["transfer"]["status"] != "failed":
             assert t["calibrated_at_scale"] == scale
         inputs = read_inputs(lay.transfer_run(spec))
-        assert inputs["scale"] == pytest.approx(scale) and inputs["seed"] == 1 + k
+        assert inputs["scale"] == pytest.approx(scale) and inputs["seed"] == 1 + kmax
     table = pd.read_csv(lay.table(TRANSFER))
     assert len(table) == 9 and set(table["scale"]) == {scale}
     v0 = yaml.safe_load((smoke / "config" / "config.yaml").read_text())["impact"]["velocity"]
