@@ -279,3 +279,28 @@ def test_scatter_of_a_verified_card_runs_its_verified_parameters(study, monkeypa
     ran = [p for p, _, _ in dem.calls[n:]]
     assert len(ran) == 2
     assert all(p == pytest.approx(v["parameters"]) for p in ran)
+
+
+def test_transfer_of_a_card_whose_jacobian_does_not_fit_starts_from_the_models(study,
+                                                                                monkeypatch):
+    """A recorded Jacobian without a free parameter's column (learned for other free
+    parameters) is not used: the transfer starts from the regression's, as for an older
+    card without one."""
+    tmp_path, card, models = study
+    dem = PlantedDEM(e_full=1.10)
+    monkeypatch.setattr(A, "run_ucs_file", dem)
+    run_verify(tmp_path, card, models, 3)
+    c = read_card(tmp_path / "v" / "card.yaml")
+    jac = {r: {p: x for p, x in row.items() if p != "pb_coh_MPa"}
+           for r, row in c["verification"]["jacobian"].items()}
+    for name, v in (("partial", jac), ("none", None)):
+        c["verification"]["jacobian"] = v
+        write_card(tmp_path / f"{name}.yaml", c)
+        n = len(dem.calls)
+        A.transfer(tmp_path / f"{name}.yaml", models, out_card=tmp_path / name / "card.yaml",
+                   rounds=tmp_path / name / "rounds.csv", run=tmp_path / name / "best.h5",
+                   geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4, max_rounds=1)
+        if name == "partial":
+            partial = [p for p, _, _ in dem.calls[n:]]
+    full = [p for p, _, _ in dem.calls[n:]]
+    assert len(partial) == len(full) == 2 and partial[1] == pytest.approx(full[1])

@@ -466,6 +466,10 @@ def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
 
         free = free or [k for k, v in c["roles"].items() if v == "free"]
         jac = None if jacobian is None else pd.DataFrame.from_dict(jacobian, orient="index")
+        if jac is not None and not (set(targets) <= set(jac.index) and set(free) <= set(jac.columns)
+                                    and np.isfinite(jac.loc[list(targets), list(free)]
+                                                    .to_numpy(float)).all()):
+            jac = None  # learned for other targets or parameters: start from the models
         loop = ClosedLoop(simulate, targets, free=free, ratio=ratio,
                           models=model_set if jac is None else None, jacobian=jac,
                           rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
