@@ -42,7 +42,10 @@ def trial(d: Path, case: str, scale: float, delay: float, threads: int
            "--specimen-cache", str(d / "cache")]
     cmd += (["--genesis-max-steps", "10000000"] if case == "genesis"
             else ["--platen-velocity", "1e-4"])
-    p = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    # SIGINT at its default in the child, as for a user at a terminal (a background job of
+    # a non-interactive shell inherits it ignored)
+    p = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     time.sleep(delay)
     if p.poll() is not None:
         raise RuntimeError(f"finished before the signal: {p.stderr.read()}")

@@ -78,8 +78,12 @@ def test_ctrl_c_stops_a_run_quickly_and_leaves_no_file(tmp_path):
            _params(tmp_path, pb_kratio=1e-9), "--out", str(out), "--scale", "0.4",
            "--threads", "1", "--genesis-max-steps", "10000000", "--genesis", "bpmcal",
            "--specimen-cache", str(tmp_path / "cache")]
+    # a user's Ctrl-C reaches a process whose SIGINT is at its default; a test suite run
+    # as a background job of a non-interactive shell inherits SIGINT *ignored*, and then
+    # Python installs no handler at all: restore the default in the child
     p = subprocess.Popen(cmd, stderr=subprocess.PIPE,
-                         env=dict(os.environ, NUMBA_THREADING_LAYER="omp"))
+                         env=dict(os.environ, NUMBA_THREADING_LAYER="omp"),
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     sel = selectors.DefaultSelector()
     sel.register(p.stderr, selectors.EVENT_READ)
     seen, deadline = b"", time.monotonic() + 300
