@@ -1158,12 +1158,15 @@ class ClosedLoop:
             ys = run_seeds(rnd, params, seeds)
             rec = {"round": rnd, **{p: params[p] for p in space.calibrated}}
             grown = 0
-            if not failed(ys):
+            bad = failed(ys)
+            if not bad:
                 y, cv, se, tol, e = judge(ys)
                 if np.all(np.abs(e) <= tol) and spare and np.any(self.z * se > self.rtol):
                     grown, seeds, spare = len(spare), seeds + spare, []
                     ys = np.vstack([ys, run_seeds(rnd, params, seeds[-grown:])])
-            bad = failed(ys)
+                    bad = failed(ys)
+                    if not bad:
+                        y, cv, se, tol, e = judge(ys)
             k = len(ys)
             rec.update({**dict(zip(self.responses, ys.mean(axis=0))), "n_seeds": k, "grown": grown})
             if bad:
@@ -1172,7 +1175,6 @@ class ClosedLoop:
                 txt = "; ".join(f"seed {sd}: {v}" if sd is not None else str(v) for sd, v in bad)
                 message = f"round {rnd} returned non-finite responses ({txt})"
                 break
-            y, cv, se, tol, e = judge(ys)
             if k > 1:
                 pooled += (k - 1) * cv ** 2
                 dof += k - 1
