@@ -720,12 +720,14 @@ def scatter_factor(verified_geometry: dict | None, geometry) -> float:
     as 1/sqrt(N). Measured on B2's set, 10 seeds at scale 0.4 against 4 at full size (16 x
     the balls, 0.25 by this rule): CV ratios 0.34 (σc), 0.39 (E), 0.08 (ν). 1.0 when the
     card does not record its geometry."""
-    g = verified_geometry or {}  # Geometry.to_dict: the specimen's actual (scaled) size
+    def volume(g):  # Geometry.to_dict: the specimen's actual (scaled) size
+        return float(g["diameter_mm"]) ** 2 * float(g["height_mm"])
+
     try:
-        v0 = float(g["diameter_mm"]) ** 2 * float(g["height_mm"])
+        v0 = volume(verified_geometry or {})
     except (KeyError, TypeError, ValueError):
         return 1.0
-    v1 = float(geometry.scale) ** 3 * float(geometry.diameter_mm) ** 2 * float(geometry.height_mm)
+    v1 = volume(geometry.to_dict())
     return math.sqrt(v0 / v1) if v0 > 0 and v1 > 0 else 1.0
 
 
