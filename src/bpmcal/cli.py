@@ -262,7 +262,7 @@ def cmd_verify(a) -> int:
                max_rounds=a.max_rounds, cache=a.specimen_cache,
                threads=a.threads, progress=prog, from_unreachable=a.from_unreachable,
                bts_run=a.bts_run, bts_geometry=bts_disc_of(a, "bts_"),
-               bts_settings=bts_settings_of(a, "bts_"),
+               bts_settings=bts_settings_of(a, "bts_"), range_margin=a.range_margin,
                **_budget(a))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
@@ -276,7 +276,8 @@ def cmd_transfer(a) -> int:
                  geometry=run_geometry(a), settings=run_settings(a), seed=a.seed,
                  max_rounds=a.max_rounds, rtol=a.rtol, cache=a.specimen_cache,
                  threads=a.threads, progress=prog, bts_geometry=bts_disc_of(a, "bts_"),
-                 bts_settings=bts_settings_of(a, "bts_"), **_budget(a))["transfer"]
+                 bts_settings=bts_settings_of(a, "bts_"), range_margin=a.range_margin,
+                 **_budget(a))["transfer"]
     prog.done(f"{t['status']} after {t['rounds']} round(s) at scale {t['scale']:g}: "
               f"{t['message']}")
     return 0
@@ -867,7 +868,17 @@ def _add_verify(p):
     p.add_argument("--from-unreachable", action="store_true",
                    help="run the closed loop even when the card's inversion is unreachable "
                         "(default: do not; the verified card says why)")
+    _add_range_margin(p, d)
     _add_card_run_args(p, cmd_verify)
+
+
+def _add_range_margin(p, d):
+    p.add_argument("--range-margin", type=number("range-margin", 0.0, 1.0),
+                   default=d["range_margin"],
+                   help="the closed loop may leave each design range (the card's ranges) by "
+                        "this fraction of its width, inside the parameter's physical domain "
+                        "and never past the card's calibration bounds; the card lists what "
+                        f"ends outside (default {d['range_margin']:g}; 0: stay inside)")
 
 
 def _add_card_run_args(p, func):
@@ -896,6 +907,7 @@ def _add_transfer(p):
     p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
                    help="relative tolerance; a response within max(rtol, 2 x its seed CV "
                         f"from the verification) needs no correction (default {d['rtol']:g})")
+    _add_range_margin(p, d)
     _add_card_run_args(p, cmd_transfer)
 
 

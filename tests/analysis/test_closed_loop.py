@@ -255,6 +255,64 @@ def test_a_parameter_held_at_its_bound_lets_the_others_meet_their_targets(start)
     assert last["err_nu"] < -0.05  # the unreachable target is still reported as missed
 
 
+def test_a_margin_lets_the_loop_follow_a_target_just_outside_the_design_space(start):
+    """The same ν = 0.34 needs pb_kratio = (0.34 / 1.06 - 0.1) / 0.04 = 5.52: with the loop
+    allowed a quarter of each range past the design space (pb_kratio up to 6) it converges
+    there, and the result says which parameter left the sampled space; without the margin
+    it is held at 5 (the test above)."""
+    targets = {**TARGETS, "nu": 0.34}
+    dem = BiasedDEM(noise=0.0)
+    res = ClosedLoop(dem, targets, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2,
+                     margin=0.25).run(start)
+    assert res.converged
+    assert res.params["pb_kratio"] == pytest.approx((0.34 / 1.06 - 0.1) / 0.04, rel=0.01)
+    assert set(res.outside) == {"pb_kratio"}
+    assert res.outside["pb_kratio"]["range"] == [1.0, 5.0]
+    assert res.outside["pb_kratio"]["value"] == pytest.approx(res.params["pb_kratio"])
+    lo, hi = res.loop_bounds["pb_kratio"]
+    assert hi == pytest.approx(6.0) and 0 < lo < 1e-2  # 1 - 0.25 x 4 = 0 is not a ratio: kept > 0
+    assert max(c["pb_kratio"] for c in dem.calls) <= 6.0 + 1e-12
+    assert res.loop_bounds["pb_emod_GPa"] == pytest.approx((0.0 + 1e-3 * 40, 60.0))
+
+
+def test_a_target_beyond_the_margin_is_held_at_the_widened_bound_and_named(start):
+    targets = {**TARGETS, "nu": 0.37}  # pb_kratio 6.23 > 5 + 0.25 x 4
+    res = ClosedLoop(BiasedDEM(noise=0.0), targets, models=MODELS, rtol=0.01, max_rounds=8,
+                     ranges=T2, margin=0.25).run(start)
+    assert not res.converged
+    assert res.params["pb_kratio"] == pytest.approx(6.0)
+    last = res.history.iloc[-1]
+    assert abs(last["err_ucs_MPa"]) <= 0.01 and abs(last["err_E_GPa"]) <= 0.01
+    if res.status == "stalled":
+        assert "widened by the margin 0.25" in res.message
+
+
+def test_the_margin_never_widens_a_configured_narrowing(start):
+    """``bounds`` are the user's limits, not the sampled space: the margin leaves them."""
+    targets = {**TARGETS, "nu": 0.34}
+    res = ClosedLoop(BiasedDEM(noise=0.0), targets, models=MODELS, rtol=0.01, max_rounds=8,
+                     ranges=T2, bounds={"pb_kratio": [1.0, 4.5]}, margin=0.25).run(start)
+    assert not res.converged
+    assert res.params["pb_kratio"] == pytest.approx(4.5)
+    assert res.loop_bounds["pb_kratio"][1] == pytest.approx(4.5)
+    assert res.loop_bounds["pb_kratio"][0] < 1.0  # the lower side is still a design range
+
+
+def test_a_start_outside_the_design_space_needs_the_margin(start):
+    """A transfer starts from a verified card that may lie past a range (inside the margin)."""
+    outside = {**start, "pb_kratio": 5.4}
+    with pytest.raises(ValueError, match="pb_kratio=5.4 outside"):
+        ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2).run(outside)
+    res = ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2, margin=0.25,
+                     max_rounds=1).run(outside)
+    assert res.history.loc[0, "pb_kratio"] == 5.4
+    with pytest.raises(ValueError, match=r"outside \[0.8, 5.2\].*widened by the margin 0.05"):
+        ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2, margin=0.05).run(outside)
+    for bad in (-0.1, 1.5, float("nan"), True, "0.2"):
+        with pytest.raises(ValueError, match="margin"):
+            ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2, margin=bad)
+
+
 class OffsetDEM(SeedDEM):
     """SeedDEM with the packing offsets planted seed by seed: seeds 1-3 sit 2 % high in
     every response on average, seeds 1-10 average exactly zero."""

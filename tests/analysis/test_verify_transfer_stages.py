@@ -304,3 +304,54 @@ def test_transfer_of_a_card_whose_jacobian_does_not_fit_starts_from_the_models(s
             partial = [p for p, _, _ in dem.calls[n:]]
     full = [p for p, _, _ in dem.calls[n:]]
     assert len(partial) == len(full) == 2 and partial[1] == pytest.approx(full[1])
+
+
+def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypatch):
+    """ν = 0.336 needs pb_kratio = (0.336 / 1.05 - 0.1) / 0.04 = 5.5, past Table 2's 5:
+    with the default margin (a quarter of the width, up to 6) the loop converges there and
+    the card lists pb_kratio as outside the design space; with margin 0 it stays at 5 and
+    misses ν. The transfer of the card starts outside the ranges, so it gets the margin too."""
+    tmp_path, card, models = study
+    c = read_card(card)
+    c["targets"] = {**TARGETS, "nu": 0.336}
+    write_card(tmp_path / "far.yaml", c)
+    monkeypatch.setattr(A, "run_ucs_file", PlantedDEM(dev={s: 0.0 for s in range(1, 12)}))
+    kw = dict(rounds=tmp_path / "v" / "rounds.csv", run=tmp_path / "v" / "best.h5",
+              geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
+              seeds_per_round=1, max_rounds=6, max_seeds=1)
+    v = A.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v" / "card.yaml",
+                 **kw)["verification"]
+    assert v["status"] == "converged" and v["range_margin"] == 0.25
+    assert v["parameters"]["pb_kratio"] == pytest.approx(5.5, rel=0.01)
+    assert v["loop_bounds"]["pb_kratio"][1] == pytest.approx(6.0)
+    assert v["outside_design"]["pb_kratio"]["range"] == [1.0, 5.0]
+    assert "outside the design space" in v["message"] and "pb_kratio" in v["message"]
+    inside = A.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v0" / "card.yaml",
+                      range_margin=0.0, **kw)["verification"]
+    assert inside["status"] != "converged" and inside["outside_design"] == {}
+    assert inside["parameters"]["pb_kratio"] == pytest.approx(5.0)
+    assert [m["target"] for m in inside["missed"]] == ["nu"]
+    t = dict(geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4, max_rounds=1)
+    out = A.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t" / "c.yaml",
+                     rounds=tmp_path / "t" / "r.csv", run=tmp_path / "t" / "b.h5", **t)
+    assert out["transfer"]["status"] == "within-scatter"
+    assert set(out["transfer"]["outside_design"]) == {"pb_kratio"}
+    with pytest.raises(ValueError, match=r"pb_kratio=5.4\d* outside \[1, 5\].*margin.*now 0\)"):
+        A.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t0" / "c.yaml",
+                   rounds=tmp_path / "t0" / "r.csv", run=tmp_path / "t0" / "b.h5",
+                   range_margin=0.0, **t)
+    monkeypatch.setattr(A, "read_series", lambda run: pd.DataFrame(
+        {"strain": [0.0, 0.01], "stress_MPa": [0.0, 60.0]}))
+    monkeypatch.setattr(A, "save_figure", lambda fig, path: None)
+    lab = tmp_path / "lab.csv"
+    lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60.0,14.0,0.336,0.1\n")
+    t5 = A.verification_tables([tmp_path / "v" / "card.yaml", tmp_path / "v0" / "card.yaml"],
+                               [tmp_path / "v" / "best.h5"] * 2, lab,
+                               table5=tmp_path / "t5.csv", table6=tmp_path / "t6.csv",
+                               figure=tmp_path / "f6.png")["table5"]
+    notes = list(t5["note"])
+    assert "pb_kratio 5.4" in notes[0] and "outside its range 1-5" in notes[0]
+    assert notes[1] == ""
+    with pytest.raises(A.BadInput, match="range-margin"):
+        A.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v1" / "card.yaml",
+                 range_margin=1.5, **kw)

@@ -162,7 +162,14 @@ rule verify:
         # or scatter seeds) must not rerun the closed loops
         v={
             k: config["verification"][k]
-            for k in ("seed", "seeds_per_round", "max_seeds", "rtol", "max_rounds")
+            for k in (
+                "seed",
+                "seeds_per_round",
+                "max_seeds",
+                "rtol",
+                "max_rounds",
+                "range_margin",
+            )
         },
         opts=specimen_args(),
         bts=bts_args(),
@@ -175,7 +182,7 @@ rule verify:
         "bpmcal verify --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
         "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
-        "--max-seeds {params.v[max_seeds]:q} "
+        "--max-seeds {params.v[max_seeds]:q} --range-margin {params.v[range_margin]:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
         "{params.opts:q} {params.bts:q} > {log:q} 2>&1"
 
@@ -203,12 +210,13 @@ rule transfer:
         # the first packing seed no closed loop may use (grown seed sets included)
         seed=transfer_seed(config["verification"]),
         rtol=config["verification"]["rtol"],
+        margin=config["verification"]["range_margin"],
         opts=specimen_args(scale=config["transfer"]["scale"]),
         bts=bts_args(),
     shell:
         "bpmcal transfer --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
-        "--seed {params.seed:q} --rtol {params.rtol:q} "
+        "--seed {params.seed:q} --rtol {params.rtol:q} --range-margin {params.margin:q} "
         "--max-rounds {params.t[max_rounds]:q} --threads {threads} "
         "{params.opts:q} {params.bts:q} > {log:q} 2>&1"
 

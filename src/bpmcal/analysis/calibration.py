@@ -300,9 +300,15 @@ class _Space:
                          for s, (key, via) in self.origin[_COH].items()}
         return out
 
-    def edge_text(self, p: str, side: str, value: float) -> str:
-        """``pb_coh_MPa at the upper bound 35.7 (= upper bound 50 of ranges.pb_ten_MPa / ratio 1.4)``."""
+    def edge_text(self, p: str, side: str, value: float, margin: float = 0.0) -> str:
+        """``pb_coh_MPa at the upper bound 35.7 (= upper bound 50 of ranges.pb_ten_MPa / ratio 1.4)``;
+        with the closed loop's ``margin`` (:meth:`loop_box`) past a design range, which says so."""
         key, via = self.origin[p][side]
+        j = self.free.index(p)
+        edge = self.lo[j] if side == "lower" else self.hi[j]
+        if margin > 0 and key.startswith("ranges.") and not math.isclose(value, edge):
+            return (f"{p} at the {side} bound {value:g} of the closed loop ({key} widened by "
+                    f"the margin {margin:g} of its width, inside {p}'s physical domain)")
         if via is None:
             return f"{p} at the {side} bound {value:g} of {key}"
         return (f"{p} at the {side} bound {value:g} (= {side} bound {via:g} of {key} / ratio {self.ratio:g}; "
@@ -346,14 +352,33 @@ class _Space:
                     J[k, j] += self.ratio * grad.get(_TEN, 0.0)
         return J
 
-    def at_bound(self, u: np.ndarray) -> list[tuple[str, str, float]]:
+    def at_bound(self, u: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> list[tuple[str, str, float]]:
+        """(parameter, side, value) of every free parameter on an edge of the box (in unit
+        coordinates ``box = (ulo, uhi)``, default the bounds [0, 1])."""
+        ulo, uhi = box if box is not None else (np.zeros(len(self.free)), np.ones(len(self.free)))
         out = []
         for j, p in enumerate(self.free):
-            if u[j] <= _EDGE:
-                out.append((p, "lower", float(self.lo[j])))
-            elif u[j] >= 1 - _EDGE:
-                out.append((p, "upper", float(self.hi[j])))
+            if u[j] <= ulo[j] + _EDGE:
+                out.append((p, "lower", float(self.lo[j] + ulo[j] * self.width[j])))
+            elif u[j] >= uhi[j] - _EDGE:
+                out.append((p, "upper", float(self.lo[j] + uhi[j] * self.width[j])))
         return out
+
+    def loop_box(self, margin: float) -> tuple[np.ndarray, np.ndarray]:
+        """The closed loop's box in unit coordinates: [0, 1], widened by ``margin`` range
+        widths on every side whose bound is a design range (``ranges``; never past a
+        ``bounds`` narrowing), kept inside the parameter's physical domain."""
+        ulo, uhi = np.zeros(len(self.free)), np.ones(len(self.free))
+        if margin <= 0:
+            return ulo, uhi
+        elo, ehi = self.extended(margin)
+        for j, p in enumerate(self.free):
+            if self.origin[p]["lower"][0].startswith("ranges."):
+                ulo[j] = min(0.0, (elo[j] - self.lo[j]) / self.width[j])
+            if self.origin[p]["upper"][0].startswith("ranges."):
+                uhi[j] = max(1.0, (ehi[j] - self.lo[j]) / self.width[j])
+        return ulo, uhi
 
     def extended(self, factor: float) -> tuple[np.ndarray, np.ndarray]:
         """The free-parameter box widened by ``factor`` range widths on each side, kept inside
@@ -933,7 +958,10 @@ class ClosedLoopResult:
     ``responses`` (the seed means) are those of the best round ``best_round``: the
     converged one, else the one with the smallest max |error| of the mean; ``seed_cv``
     holds that round's seed coefficient of variation per response (NaN with one seed),
-    ``n_seeds`` its k and ``seeds`` its seeds.
+    ``n_seeds`` its k and ``seeds`` its seeds. ``loop_bounds`` are the bounds the loop
+    searched (the design ranges, widened by ``margin``), ``outside`` the calibrated
+    parameters of ``params`` that lie outside their design range (value and range): the
+    regression never saw them, the simulator did.
     ``history`` has one row per round: the parameters, the mean of every response, its
     seed CV ``cv_<r>`` in that round, the pooled relative standard error ``se_<r>``, the
     tolerance used ``tol_<r>`` = max(rtol, z · se), the relative error ``err_<r>`` of the
@@ -953,6 +981,8 @@ class ClosedLoopResult:
     n_seeds: int = 1
     seeds: tuple = ()
     best_round: int = 0
+    outside: dict = field(default_factory=dict)
+    loop_bounds: dict = field(default_factory=dict)
 
     @property
     def converged(self) -> bool:
@@ -1016,6 +1046,14 @@ class ClosedLoop:
         as a fraction of its range (default 0.25).
     broyden:
         Update the Jacobian by Broyden's secant rule (default True).
+    margin:
+        How far the loop may leave the design space: every bound that is a design range
+        (``ranges``) moves out by ``margin`` times the range's width, never past the
+        parameter's physical domain nor a ``bounds`` narrowing (default 0: the loop stays
+        inside the ranges). The regression only starts the loop (its Jacobian); every
+        round measures the simulator itself, so the loop can follow a target just outside
+        the sampled space, e.g. a stiffness ratio that a smaller verification specimen
+        needs for the rock's ν. :attr:`ClosedLoopResult.outside` lists what ended outside.
     """
 
     def __init__(self, simulate: Callable[[dict], Mapping[str, float]], targets: Mapping[str, float], *,
@@ -1025,7 +1063,8 @@ class ClosedLoop:
                  models: Mapping[str, RegressionModel] | None = None, jacobian: pd.DataFrame | None = None,
                  rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 5, damping: float = 0.8,
                  max_step: float = 0.25, broyden: bool = True, seeds_per_round: int | None = None,
-                 seeds: Sequence[int] | None = None, z: float = 2.0, max_seeds: int | None = None):
+                 seeds: Sequence[int] | None = None, z: float = 2.0, max_seeds: int | None = None,
+                 margin: float = 0.0):
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
@@ -1059,6 +1098,10 @@ class ClosedLoop:
         self.rtol = np.array([rt[r] for r in self.responses])
         self.max_rounds, self.damping, self.max_step = int(max_rounds), float(damping), float(max_step)
         self.broyden = bool(broyden)
+        if isinstance(margin, bool) or not isinstance(margin, (int, float, np.integer, np.floating)) \
+                or not (math.isfinite(float(margin)) and 0 <= float(margin) <= 1):
+            raise ValueError(f"margin={margin!r}: expected a fraction of the range width in [0, 1]")
+        self.margin = float(margin)
 
     def _space(self, initial: Mapping[str, float]) -> _Space:
         free = _default_free(self.free, self.ratio)
@@ -1093,7 +1136,8 @@ class ClosedLoop:
         out = self.simulate(dict(params)) if seed is None else self.simulate(dict(params), seed=seed)
         return np.array([float(out.get(r, np.nan)) if out is not None else np.nan for r in self.responses])
 
-    def _step(self, J: np.ndarray, e: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, list[int]]:
+    def _step(self, J: np.ndarray, e: np.ndarray, u: np.ndarray,
+              box: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, list[int]]:
         """The damped Gauss-Newton step from ``u`` with the parameters at a bound whose step
         points out of the box held there (solved again without them until none is left),
         shortened to ``max_step``; returns the step and the held parameters' indices."""
@@ -1104,7 +1148,8 @@ class ClosedLoop:
             du[:] = 0.0
             if act:
                 du[act] = -self.damping * np.linalg.lstsq(J[:, act], e, rcond=None)[0]
-            out = [j for j in act if (u[j] <= _EDGE and du[j] < 0) or (u[j] >= 1 - _EDGE and du[j] > 0)]
+            out = [j for j in act if (u[j] <= box[0][j] + _EDGE and du[j] < 0)
+                   or (u[j] >= box[1][j] - _EDGE and du[j] > 0)]
             if not out:
                 break
             held += out
@@ -1116,14 +1161,19 @@ class ClosedLoop:
     def run(self, initial: Mapping[str, float]) -> ClosedLoopResult:
         """Iterate from ``initial`` (a full parameter set, e.g. ``invert(...).solution``)."""
         space = self._space(initial)
+        box = space.loop_box(self.margin)
         u = space.u(space.free_values(initial))
-        if np.any(u < -1e-12) or np.any(u > 1 + 1e-12):
-            bad = [f"{p}={x:g} outside [{lo:g}, {hi:g}] ({space.bound_origins()[p]['lower']} .. "
-                   f"{space.bound_origins()[p]['upper']})"
-                   for p, v, x, lo, hi in zip(space.free, u, space.x(u), space.lo, space.hi)
-                   if not -1e-12 <= v <= 1 + 1e-12]
-            raise ParameterError(f"initial value(s) outside the bounds: {'; '.join(bad)}")
-        u = np.clip(u, 0.0, 1.0)
+        inside = (u >= box[0] - 1e-12) & (u <= box[1] + 1e-12)
+        if not np.all(inside):
+            bad = [f"{p}={space.x(u)[j]:g} outside [{space.lo[j] + box[0][j] * space.width[j]:g}, "
+                   f"{space.lo[j] + box[1][j] * space.width[j]:g}] ({space.bound_origins()[p]['lower']} .. "
+                   f"{space.bound_origins()[p]['upper']}"
+                   + (f", widened by the margin {self.margin:g}" if self.margin else "") + ")"
+                   for j, p in enumerate(space.free) if not inside[j]]
+            raise ParameterError(f"initial value(s) outside the bounds: {'; '.join(bad)} - the loop "
+                                 "starts inside the ranges widened by its margin (the "
+                                 f"verification's range margin; now {self.margin:g})")
+        u = np.clip(u, *box)
         J = self._initial_jacobian(space, space.x(u))
         scale = np.abs(self.t)
         seeds = list(self.seeds)
@@ -1202,14 +1252,15 @@ class ClosedLoop:
             if rnd == self.max_rounds - 1:
                 history.append(rec)
                 break
-            du, held = self._step(J, e, u)
-            u_new = np.clip(u + du, 0.0, 1.0)
+            du, held = self._step(J, e, u, box)
+            u_new = np.clip(u + du, *box)
             rec.update({f"step_{p}": v for p, v in zip(space.free, (u_new - u) * space.width)})
             cut = [j for j in range(len(u)) if j in held or u_new[j] != u[j] + du[j]]
             rec["clipped"] = ",".join(space.free[j] for j in cut)
             history.append(rec)
             if np.max(np.abs(u_new - u)) < 1e-9:
-                edges = ", ".join(space.edge_text(p, side, v) for p, side, v in space.at_bound(u))
+                edges = ", ".join(space.edge_text(p, side, v, self.margin)
+                                  for p, side, v in space.at_bound(u, box))
                 status = "stalled"
                 message = (f"the Newton step points out of the bounds ({edges}); the targets appear "
                            "unreachable within the parameter ranges")
@@ -1233,7 +1284,21 @@ class ClosedLoop:
             samples=pd.DataFrame.from_records(samples),
             seed_cv={r: float(best.get(f"cv_{r}", np.nan)) for r in self.responses},
             n_seeds=int(best["n_seeds"]), seeds=tuple(seeds[:int(best["n_seeds"])]),
-            best_round=int(best["round"]))
+            best_round=int(best["round"]), outside=_outside(space, space.full(x_best)),
+            loop_bounds={p: (float(space.lo[j] + box[0][j] * space.width[j]),
+                             float(space.lo[j] + box[1][j] * space.width[j]))
+                         for j, p in enumerate(space.free)})
+
+
+def _outside(space: _Space, params: Mapping[str, float]) -> dict[str, dict]:
+    """The calibrated parameters of ``params`` outside their design range: value and range."""
+    out = {}
+    for p in space.calibrated:
+        lo, hi = space.ranges[p]
+        v = float(params[p])
+        if not _inside(v, lo, hi):
+            out[p] = {"value": v, "range": [float(lo), float(hi)]}
+    return out
 
 
 def _takes_seed(simulate: Callable) -> bool:

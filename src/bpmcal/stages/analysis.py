@@ -421,7 +421,7 @@ def disc_geometry(geometry):
 def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, geometry,
               settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
               free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
-              jacobian=None):
+              jacobian=None, range_margin=0.0):
     """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
     into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
     ``disc`` with the same seed; the first seed's run files of the best round become
@@ -474,7 +474,7 @@ def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                           models=model_set if jac is None else None, jacobian=jac,
                           rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
                           bounds=c.get("calibration_bounds") or None, seeds=list(seeds),
-                          max_seeds=max_seeds)
+                          max_seeds=max_seeds, margin=range_margin)
         res = loop.run(params)
         best = res.best_round  # converged, else the smallest max |error| of the seed mean
         os.replace(paths[best][0], run)  # the best round's first seed is the run file
@@ -491,7 +491,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            seeds_per_round=3, rtol=_LOOP["rtol"], max_rounds=_LOOP["max_rounds"], cache=None,
            threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
            mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
-           bts_run=None, max_seeds=10) -> dict:
+           bts_run=None, max_seeds=10, range_margin=0.25) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -513,8 +513,14 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     the run file of the best round's first seed (each run goes to a temporary file; any
     run can be redone with ``bpmcal ucs --params ... --seed``, the runs being
     deterministic). The loop stays inside the card's bounds (its design ``ranges``,
-    narrowed by its ``calibration_bounds``). The card records ``calibrated_at_scale``, the
-    specimen scale the loop ran at.
+    narrowed by its ``calibration_bounds``), each design range widened by
+    ``range_margin`` of its width (config ``verification.range_margin``; never past a
+    ``calibration_bounds`` narrowing or the parameter's physical domain): the regression
+    only starts the loop, every round measures the DEM, so the loop may follow a target
+    just outside the sampled space. The card records the bounds searched
+    (``verification.loop_bounds``) and every parameter that ended outside its design range
+    (``verification.outside_design``: value and range; the message says so too). The card
+    records ``calibrated_at_scale``, the specimen scale the loop ran at.
 
     A card whose inversion is ``unreachable`` is not a calibration: unless
     ``from_unreachable`` (config ``verification.from_unreachable``) the DEM is not run, the
@@ -568,6 +574,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     if isinstance(max_seeds, bool) or not isinstance(max_seeds, int) or max_seeds < 1:
         raise BadInput(f"--max-seeds {max_seeds!r}: expected an integer >= 1")
     max_seeds = max(max_seeds, seeds_per_round)
+    range_margin = _check_margin(range_margin)
     seeds = [int(seed) + i for i in range(seeds_per_round)]
     if c.get("status") == "unreachable" and not from_unreachable:
         reason = ("the calibration is unreachable, so the closed loop did not start from it "
@@ -592,9 +599,10 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         c, model_set, targets, params=c["parameters"], run=run, seeds=seeds,
         geometry=geometry, settings=settings, rtol=rtol, max_rounds=max_rounds, cache=cache,
         threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
-        disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds)
+        disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
+        range_margin=range_margin)
     write_table(res.history, rounds, index=False)
-    message = res.message
+    message = res.message + _outside_text(res.outside, range_margin)
     if c.get("status") == "unreachable":
         message = ("started from an unreachable calibration at the user's request "
                    f"(verification.from_unreachable: true): {message}")
@@ -612,7 +620,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             "single_pass": _responses(by_round[0], targets),
             "closed_loop": _responses(by_round[best], targets),
             "parameters": {k: float(v) for k, v in res.params.items() if k in P.PARAMS},
-            "geometry": geometry.to_dict(),
+            "geometry": geometry.to_dict(), **_loop_box(res, range_margin),
         }})
     v = verified["verification"]
     v["missed"] = _missed(v["closed_loop"], targets, rtol)
@@ -626,10 +634,34 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     return verified
 
 
+def _check_margin(margin) -> float:
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) \
+            or not (math.isfinite(margin) and 0 <= margin <= 1):
+        raise BadInput(f"--range-margin {margin!r}: expected a fraction of a range's width "
+                       "in [0, 1]")
+    return float(margin)
+
+
+def _loop_box(res, margin: float) -> dict:
+    """The card's record of the closed loop's bounds and what ended outside the design."""
+    return {"range_margin": margin,
+            "loop_bounds": {p: [float(a), float(b)] for p, (a, b) in res.loop_bounds.items()},
+            "outside_design": {p: dict(v) for p, v in res.outside.items()}}
+
+
+def _outside_text(outside: dict, margin: float) -> str:
+    if not outside:
+        return ""
+    items = ", ".join(f"{p} = {v['value']:.4g} (range {v['range'][0]:g}-{v['range'][1]:g})"
+                      for p, v in outside.items())
+    return (f"; outside the design space (range margin {margin:g}): {items} - the DEM was run "
+            "there, the regression never sampled it")
+
+
 def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
              max_rounds=2, rtol=_LOOP["rtol"], z=2.0, cache=None, threads=None, progress=None,
              max_balls=None, mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None,
-             bts_settings=None) -> dict:
+             bts_settings=None, range_margin=0.25) -> dict:
     """Full-size transfer of a verified card: run its parameters once (packing ``seed``)
     on the specimen of ``geometry`` (the study's ``transfer.scale``, 1.0 = the lab's
     50 x 100 mm) and, when a response misses its lab target by more than the seed scatter
@@ -652,11 +684,13 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     tensile-strength target runs its Brazilian test as :func:`verify` does: the disc
     ``bts_geometry`` (default the ISRM disc at the transfer's scale, :func:`disc_geometry`)
     loaded with ``bts_settings`` (default ``BTSSettings()``; the study passes its `bts`
-    section, as to the verification)."""
+    section, as to the verification). The loop's bounds are the verification's: the design
+    ranges widened by ``range_margin`` of their width (``verification.range_margin``)."""
     c = read_card(card, "--card", need=("parameters", "targets", "roles", "ranges",
                                         "verification"))
     if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) or max_rounds < 0:
         raise BadInput(f"--max-rounds {max_rounds!r}: expected an integer >= 0")
+    range_margin = _check_margin(range_margin)
     model_set = read_models(models)
     params = card_parameters(c)
     if max_balls is not None:
@@ -690,7 +724,8 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         geometry=geometry, settings=settings, rtol=tol, max_rounds=1 + max_rounds,
         cache=cache, threads=threads, progress=progress,
         genesis_max_steps=genesis_max_steps, disc=bts_geometry or disc_geometry(geometry),
-        bts_settings=bts_settings or BTSSettings(), jacobian=v.get("jacobian"))
+        bts_settings=bts_settings or BTSSettings(), jacobian=v.get("jacobian"),
+        range_margin=range_margin)
     write_table(res.history, rounds, index=False)
     if res.status == "converged":
         status = "within-scatter" if len(by_round) == 1 else "corrected"
@@ -701,7 +736,8 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     if ran:
         out["calibrated_at_scale"] = float(geometry.scale)
     out["transfer"] = {
-        "status": status, "message": res.message, "rounds": len(by_round),
+        "status": status, "message": res.message + _outside_text(res.outside, range_margin),
+        "rounds": len(by_round), **_loop_box(res, range_margin),
         "corrections": len(by_round) - 1, **base, "best_round": best + 1,
         "tolerance_pct": {k: 100 * t for k, t in tol.items()}, "scatter_factor": shrink,
         "at_transfer": _responses(by_round[0], targets),
@@ -835,7 +871,10 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
         row["rounds"] = v["rounds"]
         row["status"] = v["status"]
         row["calibration_status"] = c.get("status")
-        row["note"] = "" if ran else v["message"]
+        out = v.get("outside_design") or {}
+        row["note"] = (v["message"] if not ran else "; ".join(
+            f"{k} {d['value']:.3g} outside its range {d['range'][0]:g}-{d['range'][1]:g}"
+            for k, d in out.items()))
         if any_bts:
             has = BTS in c["targets"]
             for which in ("single_pass", "closed_loop"):
