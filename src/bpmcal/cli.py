@@ -263,7 +263,7 @@ def cmd_verify(a) -> int:
                threads=a.threads, progress=prog, from_unreachable=a.from_unreachable,
                bts_run=a.bts_run, bts_geometry=bts_disc_of(a, "bts_"),
                bts_settings=bts_settings_of(a, "bts_"), range_margin=a.range_margin,
-               **_budget(a))["verification"]
+               polish=a.polish, **_budget(a))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
 
@@ -868,6 +868,11 @@ def _add_verify(p):
     p.add_argument("--from-unreachable", action="store_true",
                    help="run the closed loop even when the card's inversion is unreachable "
                         "(default: do not; the verified card says why)")
+    p.add_argument("--polish", action=argparse.BooleanOptionalAction, default=d["polish"],
+                   help="when the loop converges with a mean more than one standard error "
+                        "from its target and a round is left, take one more full Newton step "
+                        "towards the targets on the same seeds; kept if within tolerance "
+                        f"(default {'on' if d['polish'] else 'off'})")
     _add_range_margin(p, d)
     _add_card_run_args(p, cmd_verify)
 

@@ -365,3 +365,81 @@ def test_growing_the_seed_set_brings_fresh_packings_closer_to_the_targets(start)
     rms10, runs10 = errors(seeds_per_round=3, max_seeds=10)
     assert np.all(rms10 < 0.8 * rms3)
     assert runs10 > runs3  # growth is paid for in runs
+
+
+# -- polishing ------------------------------------------------------------------------------
+class TinyScatterDEM(SeedDEM):
+    """Three packings 0.1 % apart: the standard error (~0.06 %) is far below rtol, so the
+    loop converges anywhere inside the 1 % band - here 0.39 % low in E."""
+    DEV = {1: -0.001, 2: 0.001, 3: 0.0}
+
+    def offset(self, seed):
+        return {r: self.DEV[seed] for r in SEED_CV}
+
+
+def test_a_converged_loop_polishes_towards_the_targets(start):
+    plain = ClosedLoop(TinyScatterDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
+                       ranges=T2, polish=False).run(start)
+    assert plain.converged and "polish" not in plain.message
+    assert np.max(np.abs(_truth_errors(plain))) > 0.003  # inside 1 %, but well off
+    res = ClosedLoop(TinyScatterDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
+                     ranges=T2).run(start)
+    h = res.history
+    assert res.converged and "polishing step" in res.message
+    assert res.n_rounds == plain.n_rounds + 1 and res.best_round == res.n_rounds - 1
+    assert list(h["polish"].iloc[:-1]) == [False] * (len(h) - 2) + [True]
+    # the polishing step starts where the plain loop stopped, with a full Newton step
+    conv = h.iloc[-2]
+    assert all(conv[p] == pytest.approx(plain.params[p]) for p in ("pb_emod_GPa", "pb_kratio"))
+    assert np.max(np.abs(_truth_errors(res))) < 0.1 * np.max(np.abs(_truth_errors(plain)))
+
+
+def test_a_polishing_step_that_leaves_the_tolerance_keeps_the_converged_round(start):
+    """E jumps by 3 % past pb_emod_GPa = 12.1 (between the converged point, 12.08, and
+    the polished one, 12.12): the polished round misses E, so the card is the round before."""
+    class Step(TinyScatterDEM):
+        def __call__(self, params, seed):
+            out = super().__call__(params, seed)
+            if params["pb_emod_GPa"] > 12.1:
+                out["E_GPa"] *= 1.03
+            return out
+
+    res = ClosedLoop(Step(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
+                     ranges=T2).run(start)
+    h = res.history
+    assert res.converged and res.best_round == len(h) - 2
+    assert h["err_E_GPa"].iloc[-1] > 0.02 and bool(h["polish"].iloc[-2])
+    assert res.params["pb_emod_GPa"] == pytest.approx(h["pb_emod_GPa"].iloc[-2])
+    assert res.responses["E_GPa"] == pytest.approx(h["E_GPa"].iloc[-2])
+    assert "left the tolerance in E_GPa" in res.message
+
+
+def test_no_polishing_without_a_round_left_or_a_standard_error(start):
+    last = ClosedLoop(TinyScatterDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=3,
+                      ranges=T2).run(start)  # converges in round 3 of 3
+    assert last.converged and last.n_rounds == 3 and "polish" not in last.message
+    one = ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
+                     ranges=T2).run(start)  # one seed: no standard error to judge a miss by
+    assert one.converged and not one.history["polish"].fillna(False).any()
+    with pytest.raises(ValueError, match="polish"):
+        ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2, polish="yes")
+
+
+def test_polishing_brings_the_rock_closer_to_the_targets(start):
+    """Over 100 sets of packings (CV 3 / 1.5 / 3 %, seed set grown 3 -> 10), RMS error of
+    the planted truth at the returned parameters 1.24 / 0.67 / 1.20 % without polishing,
+    0.98 / 0.51 / 1.09 % with it (measured), for ~25 % more runs; the share of cards whose
+    5 fresh packings put every target within 2 standard errors rises from 42 to 46 %."""
+    def errors(polish):
+        out, runs = [], []
+        for rs in range(100):
+            res = ClosedLoop(SeedDEM(rs), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
+                             ranges=T2, seeds_per_round=3, max_seeds=10,
+                             polish=polish).run(start)
+            out.append(_truth_errors(res))
+            runs.append(res.n_simulations)
+        return np.sqrt((np.array(out) ** 2).mean(axis=0)), np.mean(runs)
+    rms0, runs0 = errors(False)
+    rms1, runs1 = errors(True)
+    assert np.all(rms1 < 0.95 * rms0)
+    assert runs0 < runs1 < 1.5 * runs0

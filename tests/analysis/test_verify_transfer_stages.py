@@ -355,3 +355,28 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     with pytest.raises(A.BadInput, match="range-margin"):
         A.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v1" / "card.yaml",
                  range_margin=1.5, **kw)
+
+
+def test_verify_polishes_a_converged_card_and_records_it(study, monkeypatch):
+    """Packings 0.1 % apart: the loop converges inside 1 % but more than one standard error
+    off; the polishing round (one more, full Newton step) is the card's."""
+    tmp_path, card, models = study
+    dev = {1: -0.001, 2: 0.001, 3: 0.0}
+    out = {}
+    for polish in (False, True):
+        dem = PlantedDEM(dev=dev)
+        monkeypatch.setattr(A, "run_ucs_file", dem)
+        v = A.verify(card, models, out_card=tmp_path / f"p{polish}" / "card.yaml",
+                     rounds=tmp_path / f"p{polish}" / "rounds.csv",
+                     run=tmp_path / f"p{polish}" / "best.h5", geometry=Geometry(scale=0.25),
+                     settings=UCSSettings(), seed=1, seeds_per_round=3, max_rounds=6,
+                     max_seeds=3, polish=polish)["verification"]
+        truth = dem.truth(v["parameters"], 0.25)
+        out[polish] = (v, max(abs(truth[r] / t - 1) for r, t in TARGETS.items()))
+    (plain, e0), (pol, e1) = out[False], out[True]
+    assert plain["polish"] is False and pol["polish"] is True
+    assert plain["status"] == pol["status"] == "converged"
+    assert pol["rounds"] == plain["rounds"] + 1 and pol["best_round"] == pol["rounds"]
+    assert e1 < 0.2 * e0 and e0 < 0.01
+    h = pd.read_csv(tmp_path / "pTrue" / "rounds.csv")
+    assert bool(h["polish"].iloc[-2]) and "polishing step" in pol["message"]

@@ -29,7 +29,7 @@ OVERLAY = {
             "post_peak_min": 0.000437, "platen_fric": 0.337, "damping": 0.637,
             "max_strain": 0.0437, "record_strain": 1.37e-5},
     "transfer": {"enabled": True},
-    "verification": {"range_margin": 0.137},
+    "verification": {"range_margin": 0.137, "polish": False},
 }
 #: config key -> option destination where the names differ
 DEST = {"diameter_mm": "diameter", "height_mm": "height", "thickness_mm": "thickness",
@@ -90,3 +90,7 @@ def test_both_closed_loops_search_the_same_widened_box(commands, cmd):
     """The transfer starts from a verified card that may lie past a design range: it must
     be allowed the same margin, or its first round would be refused."""
     _expect(commands[cmd], "verification", ["range_margin"])
+
+
+def test_the_verification_gets_its_polish_switch(commands):
+    _expect(commands["verify"], "verification", ["polish"])

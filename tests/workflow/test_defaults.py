@@ -86,6 +86,7 @@ DEFAULTS = {
     "verification.seeds_per_round": (VER["seeds_per_round"], ("verify", "seeds_per_round", None)),
     "verification.max_seeds": (VER["max_seeds"], ("verify", "max_seeds", None)),
     "verification.range_margin": (VER["range_margin"], ("verify", "range_margin", None)),
+    "verification.polish": (VER["polish"], ("verify", "polish", None)),
     "verification.from_unreachable": (VER["from_unreachable"],
                                       ("verify", "from_unreachable", None)),
     "transfer.scale": (GEO.scale, ("transfer", "scale", None)),

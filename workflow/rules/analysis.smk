@@ -169,10 +169,12 @@ rule verify:
                 "rtol",
                 "max_rounds",
                 "range_margin",
+                "polish",
             )
         },
         opts=specimen_args(),
         bts=bts_args(),
+        polish="--polish" if config["verification"]["polish"] else "--no-polish",
         unreachable=(
             ["--from-unreachable"]
             if config["verification"]["from_unreachable"]
@@ -183,6 +185,7 @@ rule verify:
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
         "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
         "--max-seeds {params.v[max_seeds]:q} --range-margin {params.v[range_margin]:q} "
+        "{params.polish:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
         "{params.opts:q} {params.bts:q} > {log:q} 2>&1"
 

@@ -421,7 +421,7 @@ def disc_geometry(geometry):
 def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, geometry,
               settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
               free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
-              jacobian=None, range_margin=0.0):
+              jacobian=None, range_margin=0.0, polish=True):
     """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
     into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
     ``disc`` with the same seed; the first seed's run files of the best round become
@@ -474,7 +474,7 @@ def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                           models=model_set if jac is None else None, jacobian=jac,
                           rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
                           bounds=c.get("calibration_bounds") or None, seeds=list(seeds),
-                          max_seeds=max_seeds, margin=range_margin)
+                          max_seeds=max_seeds, margin=range_margin, polish=polish)
         res = loop.run(params)
         best = res.best_round  # converged, else the smallest max |error| of the seed mean
         os.replace(paths[best][0], run)  # the best round's first seed is the run file
@@ -491,7 +491,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            seeds_per_round=3, rtol=_LOOP["rtol"], max_rounds=_LOOP["max_rounds"], cache=None,
            threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
            mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
-           bts_run=None, max_seeds=10, range_margin=0.25) -> dict:
+           bts_run=None, max_seeds=10, range_margin=0.25, polish=True) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -520,7 +520,11 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     just outside the sampled space. The card records the bounds searched
     (``verification.loop_bounds``) and every parameter that ended outside its design range
     (``verification.outside_design``: value and range; the message says so too). The card
-    records ``calibrated_at_scale``, the specimen scale the loop ran at.
+    records ``calibrated_at_scale``, the specimen scale the loop ran at. With ``polish``
+    (config ``verification.polish``) a loop that converges with some mean more than one
+    standard error from its target takes one more full Newton step towards the targets on
+    the same seeds, if a round is left; that round is the card's when it is within
+    tolerance too (:class:`~bpmcal.analysis.ClosedLoop`).
 
     A card whose inversion is ``unreachable`` is not a calibration: unless
     ``from_unreachable`` (config ``verification.from_unreachable``) the DEM is not run, the
@@ -600,7 +604,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         geometry=geometry, settings=settings, rtol=rtol, max_rounds=max_rounds, cache=cache,
         threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
         disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
-        range_margin=range_margin)
+        range_margin=range_margin, polish=bool(polish))
     write_table(res.history, rounds, index=False)
     message = res.message + _outside_text(res.outside, range_margin)
     if c.get("status") == "unreachable":
@@ -613,7 +617,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             "status": res.status, "message": message, "rounds": len(by_round),
             "runs": sum(len(r) for r in by_round), "rtol": rtol, "seed": seed,
             "seeds": [int(x) for x in res.seeds], "n_seeds": int(res.n_seeds),
-            "seeds_per_round": seeds_per_round, "max_seeds": max_seeds,
+            "seeds_per_round": seeds_per_round, "max_seeds": max_seeds, "polish": bool(polish),
             "best_round": best + 1, "run_seed": seeds[0],
             "jacobian": {r: {p: float(x) for p, x in row.items()}
                          for r, row in res.jacobian.iterrows()},
