@@ -1028,7 +1028,8 @@ class ClosedLoop:
         Relative tolerance, one number or response -> number (default 0.01); the loop
         stops when every mean is within max(rtol, z · SE) of its target (module docstring).
     max_rounds:
-        Maximum number of rounds (default 5), each of ``seeds_per_round`` simulations.
+        Maximum number of rounds (default 6, room for a polishing round), each of
+        ``seeds_per_round`` simulations.
     seeds_per_round, seeds:
         The packing seeds every round runs (the same in every round): ``seeds`` (distinct
         integers), else 1..``seeds_per_round``; default 3 seeds for a simulator with a
@@ -1070,7 +1071,7 @@ class ClosedLoop:
                  ranges: Mapping[str, Sequence[float]],
                  bounds: Mapping[str, Sequence[float]] | None = None,
                  models: Mapping[str, RegressionModel] | None = None, jacobian: pd.DataFrame | None = None,
-                 rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 5, damping: float = 0.8,
+                 rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 6, damping: float = 0.8,
                  max_step: float = 0.25, broyden: bool = True, seeds_per_round: int | None = None,
                  seeds: Sequence[int] | None = None, z: float = 2.0, max_seeds: int | None = None,
                  margin: float = 0.0, polish: bool = True):
