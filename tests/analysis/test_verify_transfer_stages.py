@@ -345,13 +345,19 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     monkeypatch.setattr(A, "save_figure", lambda fig, path: None)
     lab = tmp_path / "lab.csv"
     lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60.0,14.0,0.336,0.1\n")
+    from bpmcal.io import layout as L
+    from bpmcal.report.build import _verification
+
+    lay = L.Layout(tmp_path / "study")
     t5 = A.verification_tables([tmp_path / "v" / "card.yaml", tmp_path / "v0" / "card.yaml"],
                                [tmp_path / "v" / "best.h5"] * 2, lab,
-                               table5=tmp_path / "t5.csv", table6=tmp_path / "t6.csv",
+                               table5=lay.table(L.TABLE5), table6=lay.table(L.TABLE6),
                                figure=tmp_path / "f6.png")["table5"]
     notes = list(t5["note"])
     assert "pb_kratio 5.4" in notes[0] and "outside its range 1-5" in notes[0]
     assert notes[1] == ""
+    text = _verification(lay, [])  # the report says it under Table 5, once
+    assert text.count("outside the design space") == 1 and "B1: outside the design space" in text
     with pytest.raises(A.BadInput, match="range-margin"):
         A.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v1" / "card.yaml",
                  range_margin=1.5, **kw)

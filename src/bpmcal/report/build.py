@@ -383,6 +383,10 @@ def _verification(lay, comp, ref=False) -> str:
         if not ran:
             notes.append(f"- **{spec}: closed loop not run** — {r.get('note', '')}")
         bts = "lab_bts_MPa" in t5.columns and pd.notna(r.get("lab_bts_MPa"))  # σt a target
+        if ran and isinstance(r.get("note"), str) and r["note"]:
+            notes.append(f"- **{spec}: outside the design space** — {r['note']} (the closed "
+                         "loop ran the DEM there, within verification.range_margin; the "
+                         "regression never sampled it)")
         if ran and isinstance(r.get("missed"), str) and r["missed"]:
             notes.append(f"- **{spec}: target(s) missed by the closed loop** — {r['missed']} "
                          "(error of the DEM in % of the lab value; no target is left out)")
