@@ -414,6 +414,22 @@ def test_a_polishing_step_that_leaves_the_tolerance_keeps_the_converged_round(st
     assert "left the tolerance in E_GPa" in res.message
 
 
+def test_a_failed_polishing_round_leaves_the_converged_card(start):
+    class Fails(TinyScatterDEM):
+        def __call__(self, params, seed):
+            out = super().__call__(params, seed)
+            if params["pb_emod_GPa"] > 12.1 and seed == 2:  # the polished point only
+                out["ucs_MPa"] = float("nan")
+            return out
+
+    res = ClosedLoop(Fails(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
+                     ranges=T2).run(start)
+    h = res.history
+    assert res.converged and res.best_round == len(h) - 2 and bool(h["polish"].iloc[-2])
+    assert "polishing round" in res.message and "seed 2" in res.message
+    assert res.params["pb_emod_GPa"] == pytest.approx(h["pb_emod_GPa"].iloc[-2])
+
+
 def test_no_polishing_without_a_round_left_or_a_standard_error(start):
     last = ClosedLoop(TinyScatterDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=3,
                       ranges=T2).run(start)  # converges in round 3 of 3

@@ -1240,6 +1240,11 @@ class ClosedLoop:
                 status = "failed"
                 txt = "; ".join(f"seed {sd}: {v}" if sd is not None else str(v) for sd, v in bad)
                 message = f"round {rnd} returned non-finite responses ({txt})"
+                if polished_from is not None:  # the converged round before it stands
+                    status, best_idx = "converged", polished_from
+                    message = (f"converged after {polished_from + 1} round(s); the polishing "
+                               f"round {rnd + 1} failed ({txt}), so round {polished_from + 1} "
+                               "stays the card's")
                 break
             if k > 1:
                 pooled += (k - 1) * cv ** 2
