@@ -65,6 +65,8 @@ def test_out_of_range_target_is_reported_unreachable():
     lo, hi = res.bounds["pb_coh_MPa"]
     assert lo <= res.solution["pb_coh_MPa"] <= hi
     assert res.bound_origins["pb_coh_MPa"]["upper"] == "ranges.pb_ten_MPa / ratio 1.4"
+    # the recorded edge is the bound itself, to the bit (the card stores it)
+    assert ("pb_coh_MPa", "upper", hi) in res.at_bound and hi == 50 / 1.4
 
 
 def test_two_solutions_are_flagged():

@@ -359,10 +359,12 @@ class _Space:
         ulo, uhi = box if box is not None else (np.zeros(len(self.free)), np.ones(len(self.free)))
         out = []
         for j, p in enumerate(self.free):
-            if u[j] <= ulo[j] + _EDGE:
-                out.append((p, "lower", float(self.lo[j] + ulo[j] * self.width[j])))
+            if u[j] <= ulo[j] + _EDGE:  # the bound itself (exact) unless the loop widened it
+                out.append((p, "lower", float(self.lo[j] if ulo[j] == 0.0
+                                              else self.lo[j] + ulo[j] * self.width[j])))
             elif u[j] >= uhi[j] - _EDGE:
-                out.append((p, "upper", float(self.lo[j] + uhi[j] * self.width[j])))
+                out.append((p, "upper", float(self.hi[j] if uhi[j] == 1.0
+                                              else self.lo[j] + uhi[j] * self.width[j])))
         return out
 
     def loop_box(self, margin: float) -> tuple[np.ndarray, np.ndarray]:
