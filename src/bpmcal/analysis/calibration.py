@@ -357,15 +357,21 @@ class _Space:
         """(parameter, side, value) of every free parameter on an edge of the box (in unit
         coordinates ``box = (ulo, uhi)``, default the bounds [0, 1])."""
         ulo, uhi = box if box is not None else (np.zeros(len(self.free)), np.ones(len(self.free)))
+        xlo, xhi = self.limits((ulo, uhi))
         out = []
         for j, p in enumerate(self.free):
-            if u[j] <= ulo[j] + _EDGE:  # the bound itself (exact) unless the loop widened it
-                out.append((p, "lower", float(self.lo[j] if ulo[j] == 0.0
-                                              else self.lo[j] + ulo[j] * self.width[j])))
+            if u[j] <= ulo[j] + _EDGE:
+                out.append((p, "lower", float(xlo[j])))
             elif u[j] >= uhi[j] - _EDGE:
-                out.append((p, "upper", float(self.hi[j] if uhi[j] == 1.0
-                                              else self.lo[j] + uhi[j] * self.width[j])))
+                out.append((p, "upper", float(xhi[j])))
         return out
+
+    def limits(self, box: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """The box ``(ulo, uhi)`` (unit coordinates) in physical units; an edge the loop did
+        not widen is the bound itself, to the bit (not lo + 1 x width)."""
+        ulo, uhi = box
+        return (np.where(ulo == 0.0, self.lo, self.lo + ulo * self.width),
+                np.where(uhi == 1.0, self.hi, self.lo + uhi * self.width))
 
     def loop_box(self, margin: float) -> tuple[np.ndarray, np.ndarray]:
         """The closed loop's box in unit coordinates: [0, 1], widened by ``margin`` range
@@ -1180,10 +1186,11 @@ class ClosedLoop:
         space = self._space(initial)
         box = space.loop_box(self.margin)
         u = space.u(space.free_values(initial))
+        xlo, xhi = space.limits(box)
         inside = (u >= box[0] - 1e-12) & (u <= box[1] + 1e-12)
         if not np.all(inside):
-            bad = [f"{p}={space.x(u)[j]:g} outside [{space.lo[j] + box[0][j] * space.width[j]:g}, "
-                   f"{space.lo[j] + box[1][j] * space.width[j]:g}] ({space.bound_origins()[p]['lower']} .. "
+            bad = [f"{p}={space.x(u)[j]:g} outside [{xlo[j]:g}, {xhi[j]:g}] "
+                   f"({space.bound_origins()[p]['lower']} .. "
                    f"{space.bound_origins()[p]['upper']}"
                    + (f", widened by the margin {self.margin:g}" if self.margin else "") + ")"
                    for j, p in enumerate(space.free) if not inside[j]]
@@ -1330,9 +1337,7 @@ class ClosedLoop:
             seed_cv={r: float(best.get(f"cv_{r}", np.nan)) for r in self.responses},
             n_seeds=int(best["n_seeds"]), seeds=tuple(seeds[:int(best["n_seeds"])]),
             best_round=int(best["round"]), outside=_outside(space, space.full(x_best)),
-            loop_bounds={p: (float(space.lo[j] + box[0][j] * space.width[j]),
-                             float(space.lo[j] + box[1][j] * space.width[j]))
-                         for j, p in enumerate(space.free)})
+            loop_bounds={p: (float(a), float(b)) for p, a, b in zip(space.free, xlo, xhi)})
 
 
 def _outside(space: _Space, params: Mapping[str, float]) -> dict[str, dict]:

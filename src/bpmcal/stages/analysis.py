@@ -653,13 +653,17 @@ def _loop_box(res, margin: float) -> dict:
             "outside_design": {p: dict(v) for p, v in res.outside.items()}}
 
 
+def _outside_items(outside: dict) -> str:
+    """``pb_kratio 5.58 outside its range 1-5; ...`` for a card's ``outside_design``."""
+    return "; ".join(f"{p} {v['value']:.3g} outside its range {v['range'][0]:g}-{v['range'][1]:g}"
+                     for p, v in outside.items())
+
+
 def _outside_text(outside: dict, margin: float) -> str:
     if not outside:
         return ""
-    items = ", ".join(f"{p} = {v['value']:.4g} (range {v['range'][0]:g}-{v['range'][1]:g})"
-                      for p, v in outside.items())
-    return (f"; outside the design space (range margin {margin:g}): {items} - the DEM was run "
-            "there, the regression never sampled it")
+    return (f"; outside the design space (range margin {margin:g}): {_outside_items(outside)}"
+            " - the DEM was run there, the regression never sampled it")
 
 
 def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
@@ -875,10 +879,7 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
         row["rounds"] = v["rounds"]
         row["status"] = v["status"]
         row["calibration_status"] = c.get("status")
-        out = v.get("outside_design") or {}
-        row["note"] = (v["message"] if not ran else "; ".join(
-            f"{k} {d['value']:.3g} outside its range {d['range'][0]:g}-{d['range'][1]:g}"
-            for k, d in out.items()))
+        row["note"] = v["message"] if not ran else _outside_items(v.get("outside_design") or {})
         if any_bts:
             has = BTS in c["targets"]
             for which in ("single_pass", "closed_loop"):
