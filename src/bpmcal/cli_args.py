@@ -96,5 +96,17 @@ def integer(name: str, lo: int | None = None, hi: int | None = None):
     return conv
 
 
+def choice(name: str, options):
+    """An argparse type: one of ``options`` (the message names them)."""
+    opts = tuple(options)
+
+    def conv(s):
+        if s not in opts:
+            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected one of {', '.join(opts)}")
+        return s
+    conv.__name__ = name
+    return conv
+
+
 SEED = integer("seed", 0, 2 ** 32 - 1)
 THREADS = integer("threads", 1, 4096)

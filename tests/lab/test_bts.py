@@ -1,5 +1,6 @@
 """Brazilian test: scaling law, loading rate, platen balance, sigma_t against sigma_c, the
-split along the loaded diameter, the run file and the command line."""
+split along the loaded diameter, validity (a planted weak zone under a platen), contact caps,
+curved jaws, the run file and the command line."""
 import json
 import math
 import time
@@ -18,8 +19,8 @@ from bpmcal.lab.brazilian import BTSSettings, analyse, run_bts, tensile_strength
 from bpmcal.lab.runner import bts_geometry, make_specimen
 from bpmcal.lab.ucs import run_ucs
 
-#: the smallest ISRM disc the genesis accepts with Rmin 0.8 mm: 16 x 8 mm (~200 balls)
-DISC = bts_geometry(scale=0.32)
+#: a small ISRM disc: 20 x 10 mm (~390 balls, 9.4 balls across with Rmin 0.8 mm)
+DISC = bts_geometry(scale=0.4)
 SEED = 2
 DEFAULT = BTSSettings()
 
@@ -50,12 +51,17 @@ def base(cache, tmp_path_factory):
 
 def test_disc_geometry_is_the_isrm_disc_scaled_like_the_cylinder(base):
     inp = h5.read_inputs(base.path)
-    assert inp["diameter_mm"] == pytest.approx(50 * 0.32)
-    assert inp["thickness_mm"] == pytest.approx(25 * 0.32) == inp["height_mm"]
+    assert inp["diameter_mm"] == pytest.approx(50 * 0.4)
+    assert inp["thickness_mm"] == pytest.approx(25 * 0.4) == inp["height_mm"]
     s = base.summary
     assert s["test"] == "bts" and s["status"] == "ok"
-    assert s["diameter_mm"] == pytest.approx(16.0) and s["thickness_mm"] == pytest.approx(8.0)
+    assert s["diameter_mm"] == pytest.approx(20.0) and s["thickness_mm"] == pytest.approx(10.0)
     assert s["platen_velocity"] == DEFAULT.platen_velocity
+    # the resolution of the measurement: the diameter in mean ball diameters
+    ini = h5.read_particles(base.path, "initial")
+    dbar = 2 * ini["radius"].mean()
+    assert s["balls_across"] == pytest.approx(20e-3 / dbar, rel=1e-9)
+    assert 9 < s["balls_across"] < 10
 
 
 def test_sigma_t_is_2P_over_pi_D_t_of_the_peak_mean_platen_load(base):
@@ -63,7 +69,11 @@ def test_sigma_t_is_2P_over_pi_D_t_of_the_peak_mean_platen_load(base):
     P = 0.5 * (ser["load_bottom"] + ser["load_top"])
     assert np.allclose(ser["load"], P)
     ip = int(np.argmax(P))
-    D, t = 16e-3, 8e-3
+    assert s["contact_events"] == 0  # no seating event: the peak is the largest load
+    assert int(ser["step"][ip]) == s["peak_step"]
+    D, t = 20e-3, 10e-3
+    assert s["bts_valid"] and s["bts_invalid_reason"] == ""
+    assert s["bts_MPa"] == s["bts_peak_MPa"]
     assert s["bts_MPa"] == pytest.approx(2 * P[ip] / (math.pi * D * t) / 1e6, rel=1e-12)
     assert s["stop_reason"] == "post_peak_drop"
     # the split: the load collapses after the peak
@@ -91,7 +101,7 @@ def test_the_disc_splits_along_the_loaded_diameter(base):
     ini = h5.read_particles(base.path, "initial")
     xc = ini["position"][:, 0].mean()
     assert len(cr) >= 20
-    assert np.mean(np.abs(cr["x"] - xc) < 16e-3 / 6) > 0.6
+    assert np.mean(np.abs(cr["x"] - xc) < 20e-3 / 6) > 0.6
 
 
 def test_sigma_t_is_positive_and_below_sigma_c_for_the_a1_set(base, cache):
@@ -115,7 +125,8 @@ def test_scaling_moduli_and_strengths_by_1_5_scales_sigma_t_by_1_5(base, cache):
         else:
             r0, _ = bts(A1, cache, seed=seed)
         r, _ = bts(scaled(A1, 1.5), cache, seed=seed)
-        sig.append(r.summary["bts_MPa"] / r0.summary["bts_MPa"])
+        # the mechanics scale whether or not the run is a valid test: the peak stress
+        sig.append(r.summary["bts_peak_MPa"] / r0.summary["bts_peak_MPa"])
         eps.append(r.summary["peak_strain"] / r0.summary["peak_strain"])
     assert float(np.median(sig)) == pytest.approx(1.5, rel=0.03), sig
     # strains do not change: the same diametral strain at the peak
@@ -138,9 +149,11 @@ def test_the_study_settings_give_the_sigma_t_of_the_default_settings(base, cache
 
     repo = __import__("pathlib").Path(__file__).resolve().parents[2]
     b = yaml.safe_load((repo / "config" / "config.yaml").read_text())["bts"]
-    keys = ("platen_velocity", "approach_velocity", "post_peak_min", "stop_drop")
+    keys = ("platen_velocity", "approach_velocity", "post_peak_min", "stop_drop", "loading",
+            "contact_cap")
     r, _ = bts(A1, cache, **{k: b[k] for k in keys})
     s = r.summary
+    assert s["bts_valid"] and base.summary["bts_valid"]
     assert s["bts_MPa"] == pytest.approx(base.summary["bts_MPa"], rel=0.02)
     assert s["steps"] < 0.7 * base.summary["steps"]
     ser = r.series
@@ -164,7 +177,7 @@ def test_analyse_against_a_closed_form_load_curve():
            "diametral_strain": d / D, "cracks_tension": np.arange(d.size),
            "cracks_shear": np.zeros(d.size, int)}
     r = analyse(ser, D, t)
-    assert r["bts_MPa"] == pytest.approx(2 * Pp / (math.pi * D * t) / 1e6, rel=1e-12)
+    assert r["bts_peak_MPa"] == pytest.approx(2 * Pp / (math.pi * D * t) / 1e6, rel=1e-12)
     assert r["peak_displacement_mm"] == pytest.approx(dp * 1e3, rel=1e-9)
     assert r["platen_mismatch"] == pytest.approx(0.01, rel=1e-9)
     assert float(tensile_strength(1.0, 2.0, 1.0 / math.pi)) == pytest.approx(1.0)
@@ -185,7 +198,11 @@ def test_settings_refuse_bad_values():
                        (dict(platen_fric=float("nan")), "platen_fric=nan"),
                        (dict(stop_drop=1.5), "stop_drop=1.5"),
                        (dict(seat_stress=0.0), "seat_stress=0.0"),
-                       (dict(approach_velocity=-1.0), "approach_velocity=-1.0")]:
+                       (dict(approach_velocity=-1.0), "approach_velocity=-1.0"),
+                       (dict(loading="curved"), "loading='curved'"),
+                       (dict(jaw_ratio=0.8), "jaw_ratio=0.8: expected a jaw radius larger"),
+                       (dict(contact_cap=-1.0), "contact_cap=-1.0"),
+                       (dict(central_zone=0.0), "central_zone=0.0")]:
         with pytest.raises(InputError, match=needle):
             BTSSettings(**kw)
 
@@ -195,6 +212,9 @@ def test_settings_refuse_bad_values():
     (["--platen-fric", "-1"], "platen-fric='-1'"),
     (["--set", "pb_ten_MPa=abc"], "pb_ten_MPa"),
     (["--set", "porosity=0.95"], "porosity=0.95"),
+    (["--diameter", "-5"], "diameter='-5'"),
+    (["--jaw-ratio", "0.8"], "jaw-ratio='0.8'"),
+    (["--loading", "curved"], "loading='curved': expected one of flat, jaws"),
 ])
 def test_cli_rejects_bad_input_and_writes_no_file(tmp_path, capsys, args, needle):
     pf = tmp_path / "p.yaml"
@@ -219,7 +239,8 @@ def test_cli_defaults_are_the_settings_defaults():
     sub = ap._subparsers._group_actions[0].choices
     b = {a.dest: a.default for a in sub["bts"]._actions}
     for k in ("platen_velocity", "platen_fric", "damping", "stop_drop", "max_strain",
-              "record_strain"):
+              "record_strain", "loading", "jaw_ratio", "contact_cap", "contact_cap_factor",
+              "central_zone"):
         assert b[k] == getattr(DEFAULT, k), k
     t = {a.dest: a.default for a in sub["triaxial"]._actions}
     tx = TriaxialSettings()
@@ -227,3 +248,72 @@ def test_cli_defaults_are_the_settings_defaults():
     for k in ("platen_velocity", "damping", "stop_drop", "max_strain", "platen_fric",
               "record_strain"):
         assert t[k] == getattr(tx, k), k
+
+
+def test_a_weak_zone_under_a_platen_makes_the_run_invalid(base, cache):
+    """Bonds at 0.45-0.7 R above the centre along the loaded diameter (below the top
+    platen's contact cap) at a fifth of their strength: the fracture starts there, and the
+    run is recorded as invalid with that reason - no sigma_t. (The same disc without the
+    weak zone is valid: ``base``.)"""
+    sp = make_specimen(A1, SEED, DISC, cache=cache, boundary="free")
+    m = sp.model
+    bi, bj = m.bond_pairs()
+    mid = 0.5 * (m.positions[bi] + m.positions[bj])
+    c = m.positions[:, :2].mean(axis=0)
+    R = 0.5 * sp.spec.diameter
+    weak = (np.abs(mid[:, 0] - c[0]) < 0.3 * R) & (mid[:, 1] - c[1] > 0.45 * R) & (
+        mid[:, 1] - c[1] < 0.7 * R)
+    assert weak.sum() >= 10
+    f = m.bond_strength_factors
+    f[weak] *= 0.2
+    m.set_bond_strength_factors(f)
+    s = run_bts(sp, DEFAULT).summary
+    assert s["stop_reason"] == "post_peak_drop"
+    assert not s["bts_valid"] and math.isnan(s["bts_MPa"])
+    # the crack grew down the diameter from the weak zone before the peak (its burst, the
+    # unstable rest of the split, starts nearer the centre)
+    assert s["bts_invalid_reason"].startswith("a fracture grew from the top platen before "
+                                              "the peak"), s["bts_invalid_reason"]
+    assert s["pre_contact_fraction"] > 0.15
+    assert s["bts_peak_MPa"] < base.summary["bts_MPa"]  # the weak zone failed first
+
+
+def test_contact_caps_change_strength_not_stiffness(cache):
+    """The caps' bonds cannot break (strength x 1000), but until the first crack the
+    capped and the uncapped disc are the same elastic body: the same loads, step by step."""
+    runs = {}
+    for cap in (0.0, 1.5):
+        sp = make_specimen(A1, SEED, DISC, cache=cache, boundary="free")
+        runs[cap] = run_bts(sp, BTSSettings(contact_cap=cap, platen_velocity=0.025,
+                                            approach_velocity=0.05, stop_drop=0.5,
+                                            post_peak_min=3e-4))
+    a, b = runs[0.0], runs[1.5]
+    assert a.summary["contact_cap_bonds"] == 0 < b.summary["contact_cap_bonds"]
+    assert b.summary["contact_cap_broken"] == 0
+    ca = a.series["cracks_tension"] + a.series["cracks_shear"]
+    cb = b.series["cracks_tension"] + b.series["cracks_shear"]
+    k = min(int(np.argmax(ca > 0)), int(np.argmax(cb > 0)))
+    assert k > 10
+    np.testing.assert_array_equal(a.series["load"][:k], b.series["load"][:k])
+
+
+def test_curved_jaws_touch_the_disc_without_overlap_and_split_it(cache):
+    from bpmcal.lab.brazilian import add_jaws
+
+    sp = make_specimen(A1, SEED, DISC, cache=cache, boundary="free")
+    m = sp.model
+    wb, wt = add_jaws(sp, ratio=1.5)
+    rj = 1.5 * 0.5 * sp.spec.diameter
+    for w, sign in ((wb, -1), (wt, 1)):
+        assert m.wall_radius(w) == pytest.approx(rj)
+        c = m.wall_position(w)
+        dist = np.hypot(m.positions[:, 0] - c[0], m.positions[:, 1] - c[1]) + m.radii
+        assert dist.max() <= rj and dist.max() == pytest.approx(rj, abs=1e-9)
+        assert sign * (c[1] - m.positions[:, 1].mean()) < 0  # the axis on the far side
+    sp = make_specimen(A1, SEED, DISC, cache=cache, boundary="free")
+    s = run_bts(sp, BTSSettings(loading="jaws", platen_velocity=0.025,
+                                approach_velocity=0.05, stop_drop=0.5,
+                                post_peak_min=3e-4)).summary
+    assert s["loading"] == "jaws"
+    assert s["stop_reason"] == "post_peak_drop" and s["bts_peak_MPa"] > 0
+    assert 0 < s["arc_deg_peak"] < 30  # the jaw bears on an arc around the loaded diameter

@@ -58,7 +58,7 @@ SERIES_UNITS = {
     "work_walls": "J", "unbalanced": "",
     # Brazilian runs
     "displacement": "m", "diametral_strain": "", "load": "N", "load_bottom": "N",
-    "load_top": "N", "tensile_stress": "Pa",
+    "load_top": "N", "tensile_stress": "Pa", "arc_deg": "deg",
     # triaxial runs
     "lateral_strain_wall": "", "confining_stress": "Pa", "deviator": "Pa", "wall_radius": "m",
     # impact runs

@@ -1,65 +1,75 @@
-"""Brazilian (diametral compression) test of a bonded disc: the indirect tensile strength.
+"""Brazilian (diametral compression) test of a bonded disc: the indirect tensile strength,
+judged as the ISRM suggested method judges a laboratory test.
 
-Specimen (ISRM suggested method): a disc of diameter D and thickness t = D/2, D = 50 mm at
-full size, shrunk by the specimen scale like the UCS cylinder (``SpecimenSpec`` with
-``diameter = D``, ``height = t``; 20 x 10 mm and ~390 balls at the default scale 0.4 with
-Rmin 0.8 mm). It is packed and bonded by the same genesis as the cylinder (the same cached
-packing procedure in a vessel D x t with its axis along z), then the whole vessel is
-removed and the disc settles free (``build_specimen(boundary="free")``): the flat faces of
-a Brazilian disc are free, and its curved face must not stay held by the vessel.
+Specimen (ISRM): a disc of diameter D and thickness t = D/2, D = 50 mm at full size,
+shrunk by its scale (``bts_geometry``; the study sizes it for the measurement, config
+``bts.scale``, not for the UCS cylinder). It is packed and bonded by the same genesis as
+the cylinder (the cached packing procedure in a vessel D x t with its axis along z), then
+the whole vessel is removed and the disc settles free (``build_specimen(boundary="free")``).
+Every run records ``balls_across`` = D / mean ball diameter, the resolution of the
+measurement (docs/measurements: sigma_t, its seed scatter, valid fraction and cost
+against it for the paper's A1 set).
 
-Platens, as the diametral-compression test of PFC's material-modeling package: two rigid
-planar walls with normals along y (the load axis is y, the disc axis z), each placed to
-just touch the outermost ball (no initial overlap). A flat platen bears on the curved face
-along a line (the few balls of the generatrix the vessel packed flat); the ISRM curved
-jaws are not modelled. The platens have friction (``platen_fric`` 0.3, steel on rock):
-a free disc between frictionless platens has an unconstrained rolling/spinning mode and,
-touched first by one ball per side, spins at tens of rad/s (measured) before it comes to
-rest; friction removes that mode (seating in 1-2 thousand steps instead of 20-70
-thousand). The friction confines the contact zones: sigma_t is ~15 % higher than with
-frictionless platens (A1 set, scale 0.4, seeds 1 and 3: 6.94 vs 6.05 and 9.42 vs 8.11
-MPa); ``platen_fric=0`` gives PFC's frictionless walls.
+Loading (``loading``):
+
+- ``"flat"`` (the default): two rigid planar platens with normals along y (the load axis
+  is y, the disc axis z), as the diametral-compression test of PFC's material-modeling
+  package, each placed to just touch the outermost ball;
+- ``"jaws"``: the ISRM curved jaws, rigid cylinders of radius ``jaw_ratio`` (1.5) x the
+  disc's, axes along z, holding the disc and touching its outermost ball on their side
+  (``add_jaws``); a jaw bears on an arc of the rim around the loaded diameter
+  (``arc_deg`` records the half-angle of that arc).
+
+Both have friction (``platen_fric`` 0.3, steel on rock: a free disc between frictionless
+platens spins before it seats).
+
+Contact caps (``contact_cap``, 1.5 mean ball diameters by default; 0 = none): the bonds
+within that distance of a loading contact (the rim points of the loaded diameter) get
+``contact_cap_factor`` (1000) x their tensile strength and cohesion, their stiffnesses
+unchanged - until the first crack the capped disc is the same elastic body, load for
+load (tested). A contact of a few balls concentrates the load far more than the
+continuum line load the formula assumes, and without the caps most discs of more than ~10
+balls across split from a contact (ISRM: invalid); the caps do for the disc what the
+jaws and cushions of the laboratory do, and the UCS end caps do for the cylinder. Which
+loading and cap were chosen, and why (valid fraction and sigma_t scatter under each):
+docs/measurements.
 
 Stages:
 
-1. **Seating** (``seat``): both platens are servo-controlled (``servo.Servo``, speed
+1. **Seating** (``seat``): both loaders are servo-controlled (``servo.Servo``, speed
    capped at ``seat_velocity``) to the seating load 2 P / (pi D t) = ``seat_stress``
    (0.1 MPa) until both carry it within 5 %, the disc is in equilibrium (mean
-   unbalanced-force ratio <= 1e-2) and no ball moves faster than ``seat_velocity``, as a
-   laboratory seating load. The seated state does not depend on the loading speed.
-2. **Loading**: the platens approach each other at ``platen_velocity`` each; local
+   unbalanced-force ratio <= 1e-2) and no ball moves faster than ``seat_velocity``.
+2. **Loading**: the loaders approach each other at ``platen_velocity`` each; local
    damping 0.7. With ``approach_velocity`` > ``platen_velocity`` (default 0: off) they
-   close at that speed until the first bond breaks, then at ``platen_velocity``: the disc
-   is elastic up to the first crack (with flat platens at 26-40 % of the peak strain on
-   the default study's samples), so only the time to get there is saved; the study uses
-   it (``bts.approach_velocity``, README "Brazilian tests in the study").
+   close at that speed until the first bond breaks, then at ``platen_velocity`` (the disc
+   is elastic up to the first crack).
 
 Measurements, recorded every ``record_strain`` of diametral strain (approach / D), the
-approach counted from the seated platen positions:
+approach counted from the seated positions: load P = mean of the two loader forces (the
+y-component the balls exert on each), the two forces, the approach, ``tensile_stress`` =
+2 P / (pi D t) (Hondros/ISRM, nominal D and t), cracks by mode, the energy terms of the
+engine, ``arc_deg``.
 
-- load P = mean of the two platen forces (the y-component the balls exert on each), the
-  two forces (``load_bottom``, ``load_top``), the approach delta;
-- ``tensile_stress`` = 2 P / (pi D t), the tensile stress at the disc centre for a line
-  load (Hondros/ISRM), with the nominal D and t of the specimen;
-- cracks (broken bonds) by mode; their positions and normals are in the crack events;
-- the energy terms of the engine, as in the UCS test.
+The peak (``PeakTracker``) is the load at which the disc splits: when the load falls
+below ``stop_drop`` of the peak (at least ``post_peak_min`` diametral strain past it), the
+cracks formed since the peak must reach the central zone (``_split_started``); a drop
+without them is a contact event (a seating or crushing event at a loader, recorded in
+``contact_events``), and the test loads on with the peak restarted. The test stops at the
+split, at ``max_strain``, or after ``max_steps``.
 
-Result: sigma_t = 2 P_peak / (pi D t) with P_peak the largest mean load; the approach and
-diametral strain at the peak; the mismatch of the two platen forces at the peak; crack
-counts at the peak and at the end; ``cracks_central_frac_peak``, the share of the cracks
-formed up to the peak within D/4 of the disc centre (with flat platens most pre-peak
-cracks start under the platens and run along the loaded diameter; the split through the
-centre comes at the peak). The test stops when the load falls below ``stop_drop`` (70 %)
-of the peak at least ``post_peak_min`` diametral strain after it, at ``max_strain``, or
-after ``max_steps``.
+Result: ``bts_peak_MPa`` = 2 P_peak / (pi D t); validity (``validity.bts_validity``, ISRM:
+the fracture must start in the central zone, ``central_zone`` x R of the centre along
+the loaded diameter, and split the disc along it): ``bts_valid``, ``bts_invalid_reason``,
+``init_offset`` (where the failure's first cracks lie, in R), ``split_band_fraction``.
+``bts_MPa`` = ``bts_peak_MPa`` for a valid test, NaN for an invalid one: an invalid test
+measured no sigma_t. Also the strain and approach at the peak, the mismatch of the two
+loader forces, crack counts, ``cracks_central_frac_peak`` (cracks up to the peak within
+``central_band`` x D of the centre), the caps' bond count and breaks.
 
-Loading rate: the default 0.00625 m/s per platen is 8x slower than the UCS default,
-because the Brazilian peak is set by a few bond breaks under the platens rather than by
-the damage of the whole specimen. Halving it changed sigma_t by 0.007-0.15 % on packing
-seeds 1-3 and by 0.1-2.8 % on seeds 1-6 at scale 0.4 (A1 set; README); at 0.0125 m/s
-halving changed it by up to 9.9 %. A single disc of ~400 balls can still take either of
-two failure paths (a few % apart) when the loading changes slightly, so compare seeds'
-medians, not single runs.
+Loading rate: with the caps, sigma_t changed by < 1 % when 0.0125 m/s was halved or
+doubled (A1, 27.5 mm discs, 5 seeds; docs/measurements), so the study loads at
+0.025 m/s after a 0.05 m/s approach.
 """
 from __future__ import annotations
 
@@ -74,12 +84,16 @@ from ..dem.layout import BOND_SHEAR, BOND_TENSION
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
 from .stepping import cycle
+from .validity import INIT_MIN, bts_validity
+
+#: how the disc is loaded: ISRM curved jaws or two planar platens
+LOADINGS = ("flat", "jaws")
 
 #: columns of the recorded time series
 BTS_SERIES = ("step", "time", "displacement", "diametral_strain", "load", "load_bottom",
               "load_top", "tensile_stress", "cracks_tension", "cracks_shear", "kinetic",
               "strain_linear", "strain_bond", "slip", "damping", "dashpot", "released",
-              "work_walls", "unbalanced")
+              "work_walls", "unbalanced", "arc_deg")
 
 
 @dataclass(frozen=True)
@@ -93,6 +107,9 @@ class BTSSettings:
     record_strain: float = 1e-5  # diametral strain (approach / D) between records
     post_peak_min: float = 0.002  # also require this much diametral strain past the peak
     central_band: float = 0.25  # cracks within central_band * D of the centre are central
+    central_zone: float = 0.5  # a valid fracture starts within this * R of the centre (y)
+    contact_cap: float = 1.5  # bonds within this many mean ball diameters of a loading contact
+    contact_cap_factor: float = 1000.0  # ... get this factor on their strengths (not stiffness)
     seat_stress: float = 0.1e6  # Pa, seating load as 2 P / (pi D t) before loading
     seat_velocity: float = 0.0125  # m/s, platen speed cap and at-rest threshold of seating
     seat_tol: float = 0.05  # seated: both platen loads within this fraction of the target
@@ -100,6 +117,8 @@ class BTSSettings:
     max_seat_steps: int = 200_000
     servo_alpha: float = 0.8  # servo relaxation factor during seating (PFC default)
     approach_velocity: float = 0.0  # m/s, each platen until the first crack (0: off)
+    loading: str = "flat"  # "flat": two planar platens | "jaws": ISRM curved jaws
+    jaw_ratio: float = 1.5  # jaw radius / disc radius (ISRM: 1.5)
 
     def __post_init__(self):
         if not (self.platen_velocity > 0 and math.isfinite(self.platen_velocity)):
@@ -134,6 +153,24 @@ class BTSSettings:
                              "expected 0 < seat_tol < 1 and seat_ratio > 0")
         if not (int(self.max_steps) > 0):
             raise InputError(f"max_steps={self.max_steps!r}: expected a positive integer")
+        if self.loading not in LOADINGS:
+            raise InputError(f"loading={self.loading!r}: expected one of {', '.join(LOADINGS)}")
+        if isinstance(self.jaw_ratio, bool) or not (
+                isinstance(self.jaw_ratio, (int, float)) and 1.0 < self.jaw_ratio <= 100.0):
+            raise InputError(f"jaw_ratio={self.jaw_ratio!r}: expected a jaw radius larger "
+                             "than the disc's, as a ratio in (1, 100] (ISRM: 1.5)")
+        if isinstance(self.contact_cap, bool) or not (
+                isinstance(self.contact_cap, (int, float)) and 0.0 <= self.contact_cap <= 10.0):
+            raise InputError(f"contact_cap={self.contact_cap!r}: expected a radius in [0, 10] "
+                             "mean ball diameters (0: no contact caps)")
+        if isinstance(self.contact_cap_factor, bool) or not (
+                isinstance(self.contact_cap_factor, (int, float))
+                and 1.0 <= self.contact_cap_factor <= 1e6):
+            raise InputError(f"contact_cap_factor={self.contact_cap_factor!r}: expected a "
+                             "strength factor in [1, 1e6]")
+        if not (0.0 < self.central_zone <= 1.0):
+            raise InputError(f"central_zone={self.central_zone!r}: expected a fraction of "
+                             "the disc radius in (0, 1]")
 
 
 @dataclass
@@ -149,21 +186,24 @@ def tensile_strength(load, diameter, thickness):
     return 2.0 * np.asarray(load, float) / (math.pi * diameter * thickness)
 
 
-def analyse(series: dict, diameter: float, thickness: float) -> dict:
-    """sigma_t, the peak load and where it is, from a recorded series."""
+def analyse(series: dict, diameter: float, thickness: float, peak_record: int | None = None
+            ) -> dict:
+    """The peak load (at ``peak_record``, default the largest load), its tensile stress
+    2 P / (pi D t), and where it is, from a recorded series."""
     P = np.asarray(series["load"], float)
-    ip = int(np.argmax(P))
+    ip = int(np.argmax(P)) if peak_record is None else int(peak_record)
     pa = float(series["load_bottom"][ip])
     pb = float(series["load_top"][ip])
     peak = float(P[ip])
-    return {"bts_MPa": float(tensile_strength(peak, diameter, thickness)) / 1e6,
+    arc = series.get("arc_deg")
+    return {"bts_peak_MPa": float(tensile_strength(peak, diameter, thickness)) / 1e6,
             "peak_load_N": peak,
             "peak_displacement_mm": float(series["displacement"][ip]) * 1e3,
             "peak_strain": float(series["diametral_strain"][ip]),
             "platen_mismatch": abs(pa - pb) / peak if peak > 0 else math.nan,
             "cracks_tension_peak": int(series["cracks_tension"][ip]),
             "cracks_shear_peak": int(series["cracks_shear"][ip]),
-            "peak_record": ip}
+            "arc_deg_peak": float(arc[ip]) if arc is not None else math.nan}
 
 
 def add_platens(sp: Specimen, fric: float = 0.0) -> tuple[int, int]:
@@ -182,6 +222,96 @@ def add_platens(sp: Specimen, fric: float = 0.0) -> tuple[int, int]:
     return wb, wt
 
 
+def _touching_jaw_centre(pos, r, xc, rj, sign) -> float:
+    """y of the axis of a jaw cylinder of radius ``rj`` (axis along z through x = ``xc``)
+    that holds the balls ``pos, r`` inside it and touches the outermost one on the side
+    ``sign`` (-1: the bottom jaw, below the disc; +1: the top jaw)."""
+    dx2 = (pos[:, 0] - xc) ** 2
+    yc = float(pos[:, 1].mean())
+    ylo = float((pos[:, 1] - r).min())
+    yhi = float((pos[:, 1] + r).max())
+
+    def excess(yj):  # > 0: some ball overlaps the jaw
+        return float((np.sqrt(dx2 + (pos[:, 1] - yj) ** 2) + r).max()) - rj
+
+    # the bottom jaw's axis moves up from the disc centre (every ball well inside the
+    # larger jaw: excess < 0) to ylo + rj (the lowest ball touches or overlaps: >= 0);
+    # bisection to the first contact (the top jaw mirrored)
+    a, b = (yc, ylo + rj) if sign < 0 else (yc, yhi - rj)
+    for _ in range(60):
+        mid = 0.5 * (a + b)
+        if excess(mid) > 0:
+            b = mid
+        else:
+            a = mid
+    return a  # the last position without overlap
+
+
+def add_jaws(sp: Specimen, ratio: float = 1.5, fric: float = 0.0) -> tuple[int, int]:
+    """Two curved loading jaws (ISRM): rigid cylinders of radius ``ratio`` x the disc
+    radius, axes along the disc axis z, holding the disc inside and each touching the
+    outermost ball of its side (no initial overlap). A jaw of radius > the disc's bears on
+    an arc of the disc's rim around the loaded diameter (the jaw cylinder holds the whole
+    disc, so its far side is never reached). Returns their wall ids (bottom, top)."""
+    m = sp.model
+    if m.n_walls:
+        raise InputError(f"the Brazilian disc must be free (built with boundary='free'); "
+                         f"it has {m.n_walls} wall(s)")
+    if not (ratio > 1.0 and math.isfinite(ratio)):
+        raise InputError(f"jaw_ratio={ratio!r}: expected a jaw radius larger than the "
+                         "disc's (ratio > 1; ISRM 1.5)")
+    pos = m.positions
+    r = m.radii
+    rj = ratio * 0.5 * sp.spec.diameter
+    xc = float(pos[:, 0].mean())
+    zc = float(pos[:, 2].mean())
+    yb = _touching_jaw_centre(pos, r, xc, rj, -1)
+    yt = _touching_jaw_centre(pos, r, xc, rj, +1)
+    wb = m.add_cylinder_wall((xc, yb, zc), (0.0, 0.0, 1.0), rj, fric=fric)
+    wt = m.add_cylinder_wall((xc, yt, zc), (0.0, 0.0, 1.0), rj, fric=fric)
+    return wb, wt
+
+
+def add_loaders(sp: Specimen, st: BTSSettings) -> tuple[int, int]:
+    """The loading walls of ``st.loading`` (bottom at -y, top at +y)."""
+    if st.loading == "jaws":
+        return add_jaws(sp, st.jaw_ratio, st.platen_fric)
+    return add_platens(sp, st.platen_fric)
+
+
+def contact_cap_bonds(sp: Specimen, height_d: float) -> np.ndarray:
+    """Indices (``Model.bond_pairs`` order) of the bonds whose contact point lies within
+    ``height_d`` mean ball diameters (in the disc's plane) of a loading contact, the rim
+    points (x_c, y_c -+ R) of the loaded diameter."""
+    m = sp.model
+    bi, bj = m.bond_pairs()
+    pos, r = m.positions, m.radii
+    d = pos[bj] - pos[bi]
+    ln = np.sqrt((d * d).sum(axis=1))
+    cp = pos[bi] + d / ln[:, None] * (r[bi] + 0.5 * (ln - r[bi] - r[bj]))[:, None]
+    c = pos[:, :2].mean(axis=0)
+    R = 0.5 * sp.spec.diameter
+    h = height_d * 2.0 * float(r.mean())
+    near = np.zeros(bi.size, bool)
+    for sign in (-1.0, 1.0):
+        near |= np.hypot(cp[:, 0] - c[0], cp[:, 1] - (c[1] + sign * R)) <= h
+    return np.flatnonzero(near)
+
+
+def install_contact_caps(sp: Specimen, height_d: float, factor: float) -> np.ndarray:
+    """Contact caps: the bonds of ``contact_cap_bonds`` get ``factor`` x their tensile
+    strength and cohesion (``Model.set_bond_strength_factors``; stiffnesses unchanged, so
+    the elastic stress field of the test is that of the uncapped disc). Returns their
+    indices (none when ``height_d`` is 0)."""
+    if height_d <= 0:
+        return np.zeros(0, np.int64)
+    idx = contact_cap_bonds(sp, height_d)
+    f = sp.model.bond_strength_factors
+    f[idx] *= factor
+    sp.model.set_bond_strength_factors(f)
+    return idx
+
+
 def seat(sp: Specimen, platens, st: BTSSettings) -> dict:
     """Bring both platens onto the disc under servo control until each carries the
     seating load 2 P / (pi D t) = ``seat_stress`` and the disc is in equilibrium. A free
@@ -192,8 +322,9 @@ def seat(sp: Specimen, platens, st: BTSSettings) -> dict:
     m = sp.model
     D, t = sp.spec.diameter, sp.spec.height
     F = st.seat_stress * math.pi * D * t / 2.0
-    servos = [Servo(m, w, lambda: F, alpha=st.servo_alpha, vmax=st.seat_velocity)
-              for w in platens]
+    servos = [Servo(m, w, lambda: F, alpha=st.servo_alpha, vmax=st.seat_velocity,
+                    direction=(0.0, sign, 0.0))
+              for w, sign in zip(platens, (1.0, -1.0))]
     loop = ServoLoop(m, servos)
     s0 = m.step
     ratio = math.inf
@@ -221,6 +352,73 @@ def seat(sp: Specimen, platens, st: BTSSettings) -> dict:
     return {"seat_steps": int(m.step - s0), "seat_load_N": F, "seat_ratio": float(ratio)}
 
 
+class PeakTracker:
+    """The peak of a Brazilian test: the load at which the disc splits, not the top of a
+    seating or contact-crushing event.
+
+    ``add(P, strain)`` takes every record (P the load) and returns True when the load has
+    dropped below ``stop_drop`` x the peak at least ``post_peak_min`` strain after it; the
+    caller then says whether the disc split (``judge``: cracks formed since the peak reach
+    the central zone). A split ends the test at this peak. A drop without a split is a
+    contact event: it is recorded in ``events`` (its peak load and strain, the load it
+    dropped to), and the peak starts again from the current record, so the test loads on
+    and the split that follows sets the peak. ``peak_record`` is the index of the record
+    of the peak."""
+
+    def __init__(self, stop_drop: float, post_peak_min: float):
+        self.stop_drop, self.post_peak_min = float(stop_drop), float(post_peak_min)
+        self.peak, self.peak_strain, self.peak_record = 0.0, 0.0, 0
+        self.events: list[dict] = []
+        self._n = 0  # records seen (the first, at zero load, is record 0)
+        self._last = (0.0, 0.0)
+
+    def add(self, load: float, strain: float) -> bool:
+        self._n += 1
+        k = self._n
+        self._last = (float(load), float(strain))
+        if load > self.peak:
+            self.peak, self.peak_strain, self.peak_record = float(load), float(strain), k
+        return (self.peak > 0 and load < self.stop_drop * self.peak
+                and strain - self.peak_strain >= self.post_peak_min)
+
+    def judge(self, split: bool) -> bool:
+        """After a drop: True (stop) if the disc split, else record a contact event and
+        restart the peak from the current record."""
+        if split:
+            return True
+        load, strain = self._last
+        self.events.append({"record": self.peak_record, "load_N": self.peak,
+                            "strain": self.peak_strain, "drop_to_N": load})
+        self.peak, self.peak_strain, self.peak_record = load, strain, self._n
+        return False
+
+
+def _split_started(m, step0, since_step, centre, radius, half_band, zone) -> bool:
+    """Whether the cracks formed after ``since_step`` (loading steps) reach the central
+    zone of the loaded diameter: at least ``validity.INIT_MIN`` of them within ``zone`` R
+    of the centre along y and ``half_band`` of it along x. A load drop without them is a
+    contact event (a seating or crushing event at a jaw), not the split."""
+    ev = m.breaks()
+    cs = ev["step"] - step0
+    sel = cs > since_step
+    p = ev["pos"][sel]
+    central = ((np.abs(p[:, 1] - centre[1]) <= zone * radius)
+               & (np.abs(p[:, 0] - centre[0]) <= half_band))
+    return int(central.sum()) >= INIT_MIN
+
+
+def _arc_half_angle(m, w, centre) -> float:
+    """Half-angle [rad] of the arc over which wall ``w`` loads the disc now: sqrt(3) x
+    the force-weighted RMS angle of its contacts from the loaded diameter (a uniform
+    pressure on [-a, a] has an RMS angle a / sqrt(3)); 0 without contacts."""
+    b = m.wall_contact_balls(w)
+    if b.size == 0:
+        return 0.0
+    p = m.positions[b]
+    ang = np.arctan2(np.abs(p[:, 0] - centre[0]), np.abs(p[:, 1] - centre[1]))
+    return float(math.sqrt(3.0) * math.sqrt(float(np.mean(ang ** 2))))
+
+
 def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) -> BTSResult:
     """Run the test on the free disc ``sp`` (its model is modified: platens are added).
     ``progress(dict)`` is called after every record with the latest values."""
@@ -228,8 +426,12 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
     m = sp.model
     D = sp.spec.diameter
     t = sp.spec.height
+    R = 0.5 * D
     v = st.platen_velocity
-    wb, wt = add_platens(sp, st.platen_fric)
+    dbar = 2.0 * float(m.radii.mean())
+    half_band = max(0.25 * R, 1.5 * dbar)
+    wb, wt = add_loaders(sp, st)
+    caps = install_contact_caps(sp, st.contact_cap, st.contact_cap_factor)
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
@@ -251,8 +453,6 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
     step0 = m.step
     t_start = m.time
     t0 = time.perf_counter()
-    peak = 0.0
-    peak_strain = 0.0
     reason = "max_steps"
 
     def record():
@@ -279,9 +479,12 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
         ser["work_walls"].append(e["work_walls_each"][wb] + e["work_walls_each"][wt]
                                  - e0_walls)
         ser["unbalanced"].append(m.unbalanced_ratio())
+        ser["arc_deg"].append(math.degrees(0.5 * (_arc_half_angle(m, wb, c0)
+                                                  + _arc_half_angle(m, wt, c0))))
         return P, delta / D
 
     record()
+    track = PeakTracker(st.stop_drop, st.post_peak_min)
     while True:
         if m.step - step0 >= st.max_steps:
             reason = "max_steps"
@@ -291,36 +494,50 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
         if approach and ser["cracks_tension"][-1] + ser["cracks_shear"][-1] > 0:
             approach, approach_strain = False, eps  # the first crack: load at v from here
             n_rec = platens(v)
-        if P > peak:
-            peak, peak_strain = P, eps
+        dropped = track.add(P, eps)
         if progress is not None:
             progress({"strain": eps, "stress_MPa": ser["tensile_stress"][-1] / 1e6,
-                      "peak_MPa": float(tensile_strength(peak, D, t)) / 1e6,
+                      "peak_MPa": float(tensile_strength(track.peak, D, t)) / 1e6,
                       "cracks": ser["cracks_tension"][-1] + ser["cracks_shear"][-1],
                       "steps": m.step - step0, "wall_s": time.perf_counter() - t0})
-        if peak > 0 and P < st.stop_drop * peak and eps - peak_strain >= st.post_peak_min:
-            reason = "post_peak_drop"
-            break
+        if dropped:
+            ip = track.peak_record
+            since = ser["step"][ip - 1] if ip > 0 else -1
+            if track.judge(_split_started(m, step0, since, c0, R, half_band,
+                                          st.central_zone)):
+                reason = "post_peak_drop"
+                break
         if eps >= st.max_strain:
             reason = "max_strain"
             break
+    ip, events = track.peak_record, track.events
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}
-    summ = analyse(series, D, t)
+    summ = analyse(series, D, t, ip)
     ev = m.breaks()
     ev["step"] = ev["step"] - step0  # relative to the start of loading (< 0: before)
     ev["time"] = ev["step"] * dt
-    ip = summ.pop("peak_record")
     upto = ev["step"] <= series["step"][ip]
     central = np.hypot(*(ev["pos"][upto, :2] - c0).T) <= st.central_band * D
+    val = bts_validity(ev, series["step"], ip, centre=c0, radius=R, mean_ball_diameter=dbar,
+                       central_zone=st.central_zone, ended=reason == "post_peak_drop",
+                       contact="jaw" if st.loading == "jaws" else "platen")
+    summ.update(val)
+    summ["bts_MPa"] = summ["bts_peak_MPa"] if val["bts_valid"] else math.nan
     summ.update({
         "cracks_central_frac_peak": float(central.mean()) if central.size else math.nan,
         "cracks_tension": int(series["cracks_tension"][-1]),
         "cracks_shear": int(series["cracks_shear"][-1]),
         "steps": int(m.step - step0), "wall_s": wall, "stop_reason": reason,
         "dt": dt, "platen_velocity": v, "approach_velocity": st.approach_velocity,
-        "approach_strain": approach_strain,
+        "approach_strain": approach_strain, "loading": st.loading,
         "diameter_mm": D * 1e3, "thickness_mm": t * 1e3,
+        "mean_ball_diameter_mm": dbar * 1e3, "balls_across": D / dbar,
+        "contact_events": len(events), "contact_cap_bonds": int(caps.size),
+        "contact_cap_broken": int(np.count_nonzero(m.bond_states[caps] != 0)),
+        "contact_event_max_MPa": (max(float(tensile_strength(e["load_N"], D, t))
+                                      for e in events) / 1e6 if events else 0.0),
+        "peak_step": int(series["step"][ip]),
         "records": int(series["step"].size), **seated,
     })
     return BTSResult(summary=summ, series=series, cracks=ev, settings=st)

@@ -27,6 +27,8 @@ from ..dem._jit import set_threads
 from ..dem.errors import InputError, InstabilityError
 from .brazilian import BTSSettings, run_bts
 from .brazilian import settings_dict as bts_dict
+from .direct_tension import DTTSettings, run_dtt
+from .direct_tension import settings_dict as dtt_dict
 from .impact import ImpactSettings, run_impact
 from .impact import settings_dict as impact_dict
 from .servo import ServoError
@@ -169,6 +171,12 @@ def bts_inputs(params: dict, seed: int, geometry: Geometry, settings: BTSSetting
     return d
 
 
+def dtt_inputs(params: dict, seed: int, geometry: Geometry, settings: DTTSettings) -> dict:
+    d = _base_inputs(params, seed, geometry)
+    d.update({f"dtt_{k}": v for k, v in dtt_dict(settings).items()})
+    return d
+
+
 def triaxial_inputs(params: dict, seed: int, geometry: Geometry,
                     settings: TriaxialSettings) -> dict:
     d = _base_inputs(params, seed, geometry)
@@ -193,7 +201,8 @@ def _crack_arrays(ev: dict) -> dict:
 
 
 #: the series whose maximum is the peak of each test (for the morphology)
-_PEAK_SERIES = {"ucs": "axial_stress", "triaxial": "deviator", "bts": "load"}
+_PEAK_SERIES = {"ucs": "axial_stress", "triaxial": "deviator", "bts": "load",
+                "dtt": "axial_stress"}
 
 
 def _morphology(test: str, sp, res, ini: dict) -> dict:
@@ -204,8 +213,10 @@ def _morphology(test: str, sp, res, ini: dict) -> dict:
     from .morphology import run_summary
 
     m = sp.model
-    ip = int(np.argmax(res.series[_PEAK_SERIES[test]]))
-    peak_step = int(res.series["step"][ip])
+    if "peak_step" in res.summary:  # the test knows its peak (a Brazilian split)
+        peak_step = int(res.summary["peak_step"])
+    else:
+        peak_step = int(res.series["step"][int(np.argmax(res.series[_PEAK_SERIES[test]]))])
     r0 = ini["radius"]
     if test == "bts":
         xc, yc = (float(v) for v in ini["position"][:, :2].mean(axis=0))
@@ -286,6 +297,19 @@ def bts_test(params: dict, seed: int, geometry: Geometry | None = None,
                      lambda sp: run_bts(sp, st, progress=progress), cache=cache,
                      threads=threads, keep_particles=keep_particles, progress=progress,
                      genesis_max_steps=genesis_max_steps, finite=("bts_MPa",))
+
+
+def dtt_test(params: dict, seed: int, geometry: Geometry = Geometry(),
+             settings: DTTSettings | None = None, *, cache=None, threads=None, progress=None,
+             keep_particles: bool = True, genesis_max_steps: int | None = None) -> LabRun:
+    """One direct-tension test (``lab.direct_tension``) on the free cylinder of
+    ``geometry`` (the UCS cylinder by default)."""
+    st = settings or DTTSettings()
+    p = P.validate_params(params)
+    return _lab_test("dtt", p, seed, geometry, dtt_inputs(p, seed, geometry, st), "free",
+                     lambda sp: run_dtt(sp, st, progress=progress), cache=cache,
+                     threads=threads, keep_particles=keep_particles, progress=progress,
+                     genesis_max_steps=genesis_max_steps, finite=())
 
 
 def triaxial_test(params: dict, seed: int, geometry: Geometry = Geometry(),

@@ -56,12 +56,15 @@ def wall_stiffness(m, w) -> float:
     return math.pi * float(m.material.emod) * float(m.radii[wall_contacts(m, w)].sum())
 
 
-def wall_normal_force(m, w) -> float:
+def wall_normal_force(m, w, direction=None) -> float:
     """Compressive force the balls exert on wall ``w`` along its normal [N] (for a
-    cylinder: the sum of the radial components, outward = compressive)."""
-    if m.wall_type(w) == WALL_CYLINDER:
+    cylinder: the sum of the radial components, outward = compressive); with
+    ``direction`` (a unit vector pointing from the wall toward the specimen, for a wall
+    that translates, such as a Brazilian loading jaw) the force component against it."""
+    if direction is None and m.wall_type(w) == WALL_CYLINDER:
         return m.wall_radial_force(w)
-    f, n = m.wall_force(w), m.wall_normal(w)
+    f = m.wall_force(w)
+    n = m.wall_normal(w) if direction is None else direction
     return -float(f[0] * n[0] + f[1] * n[1] + f[2] * n[2])
 
 
@@ -70,10 +73,13 @@ class Servo:
 
     ``target`` is a callable returning the target force [N] now (so a stress target can
     follow the loaded area). Planes move along their normal (positive = toward the balls);
-    cylinders change their radius (positive = expanding)."""
+    cylinders change their radius (positive = expanding), or, given a ``direction`` (unit
+    vector from the wall toward the specimen), translate along it like a plane (a curved
+    loading jaw)."""
 
     def __init__(self, m, w, target, alpha: float = 0.8, vmax: float = 1.0,
-                 approach: float | None = None, feedforward: bool = False):
+                 approach: float | None = None, feedforward: bool = False,
+                 direction=None):
         if not (0.0 < alpha <= 1.0):
             raise InputError(f"servo gain factor alpha={alpha!r}: expected 0 < alpha <= 1")
         if not (vmax > 0 and math.isfinite(vmax)):
@@ -84,7 +90,14 @@ class Servo:
         self.alpha = float(alpha)
         self.vmax = float(vmax)
         self.approach = self.vmax if approach is None else min(float(approach), self.vmax)
-        self.cyl = m.wall_type(w) == WALL_CYLINDER
+        self.dir = None
+        if direction is not None:
+            d = np.asarray(direction, float).reshape(3)
+            ln = float(np.linalg.norm(d))
+            if not (ln > 0 and math.isfinite(ln)):
+                raise InputError(f"servo direction={direction!r}: expected a non-zero vector")
+            self.dir = d / ln
+        self.cyl = m.wall_type(w) == WALL_CYLINDER and self.dir is None
         self.feedforward = bool(feedforward)
         self.K = 0.0
         self.v = 0.0
@@ -116,11 +129,15 @@ class Servo:
             rho = np.sqrt((q * q).sum(axis=1))
             vr = (v * q).sum(axis=1) / np.where(rho > 0, rho, 1.0)
         else:
-            vr = -(v @ m.wall_normal(self.w))
+            vr = -(v @ self._direction())
         return float(self._wgt @ vr)
 
+    def _direction(self) -> np.ndarray:
+        """Unit vector along which a translating wall moves toward the specimen."""
+        return self.m.wall_normal(self.w) if self.dir is None else self.dir
+
     def force(self) -> float:
-        return wall_normal_force(self.m, self.w)
+        return wall_normal_force(self.m, self.w, self.dir)
 
     def error(self) -> float:
         """Measured minus target force [N]."""
@@ -141,7 +158,7 @@ class Servo:
         if self.cyl:
             m.set_wall_velocity(self.w, radial_velocity=v)  # expand when pushed harder
         else:  # retreat when pushed harder than the target
-            m.set_wall_velocity(self.w, velocity=-v * m.wall_normal(self.w))
+            m.set_wall_velocity(self.w, velocity=-v * self._direction())
         return v
 
     def stop(self):

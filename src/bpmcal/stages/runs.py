@@ -2,8 +2,8 @@
 (``bpmcal.io.h5``), or its failure record.
 
 ``run_ucs_file`` is what ``bpmcal ucs`` and the workflow's ``ucs`` and ``sweep_ucs`` rules
-call; ``run_bts_file``, ``run_triaxial_file`` and ``run_impact_file`` the same for the
-other tests. A run that failed (one of ``lab.runner.RUN_FAILURES``: numerical
+call; ``run_bts_file``, ``run_dtt_file``, ``run_triaxial_file`` and ``run_impact_file`` the
+same for the other tests. A run that failed (one of ``lab.runner.RUN_FAILURES``: numerical
 instability, a specimen that cannot be built or does not settle, a servo that does not
 converge) produces a *failure record* (status "failed" and the message) instead of an
 exception, so a study is not stopped by one bad sample; any other exception is a bug and
@@ -11,7 +11,7 @@ propagates. A failure record never replaces a good run file: if ``out`` already 
 run with status "ok", the record goes beside it as ``NAME.failed.h5`` and the outcome
 says so (``kept``).
 
-``lab_test_file`` and ``impact_file`` are the whole jobs of ``bpmcal ucs|bts|triaxial``
+``lab_test_file`` and ``impact_file`` are the whole jobs of ``bpmcal ucs|bts|dtt|triaxial``
 and ``bpmcal impact``: where the parameters come from (a parameter file or material card,
 ``--set`` overrides, or a design row), the resource budget and the output, all checked
 before any work.
@@ -30,6 +30,7 @@ from ..io.checks import BadInput, out_dir, out_file, read_csv, read_yaml
 from ..io.h5 import RunFileError, check_run_file, write_run
 from ..lab.brazilian import BTSSettings
 from ..lab.budget import MAX_BALLS, check_budget
+from ..lab.direct_tension import DTTSettings
 from ..lab.impact import ImpactSettings
 from ..lab.runner import (
     RUN_FAILURES,
@@ -38,6 +39,8 @@ from ..lab.runner import (
     bts_geometry,
     bts_inputs,
     bts_test,
+    dtt_inputs,
+    dtt_test,
     impact_inputs,
     impact_test,
     specimen_spec,
@@ -126,6 +129,20 @@ def run_bts_file(out, params: dict, seed: int, geometry: Geometry | None = None,
     p = P.validate_params(params)
     return _run_file(out, "bts", bts_inputs(p, seed, geo, st),
                      lambda: bts_test(p, seed, geo, st, cache=cache, threads=threads,
+                                      progress=progress, keep_particles=keep_particles,
+                                      genesis_max_steps=genesis_max_steps))
+
+
+def run_dtt_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
+                 settings: DTTSettings | None = None, *, cache=None, threads=None,
+                 progress=None, keep_particles: bool = True,
+                 genesis_max_steps: int | None = None) -> RunOutcome:
+    """Run one direct-tension test and write ``out`` (HDF5, test "dtt"); the specimen is
+    the UCS cylinder of ``geometry``, free of its vessel."""
+    st = settings or DTTSettings()
+    p = P.validate_params(params)
+    return _run_file(out, "dtt", dtt_inputs(p, seed, geometry, st),
+                     lambda: dtt_test(p, seed, geometry, st, cache=cache, threads=threads,
                                       progress=progress, keep_particles=keep_particles,
                                       genesis_max_steps=genesis_max_steps))
 
@@ -250,11 +267,12 @@ def _float_or_nan(v) -> float:
 
 
 #: what each test's specimen is, for messages
-_WHAT = {"ucs": "UCS cylinder", "bts": "Brazilian disc", "triaxial": "triaxial cylinder"}
+_WHAT = {"ucs": "UCS cylinder", "bts": "Brazilian disc", "triaxial": "triaxial cylinder",
+         "dtt": "direct-tension cylinder"}
 
 #: the run file of each test: (inputs of the record, function writing the file)
 _TESTS = {"ucs": (ucs_inputs, run_ucs_file), "bts": (bts_inputs, run_bts_file),
-          "triaxial": (triaxial_inputs, run_triaxial_file)}
+          "triaxial": (triaxial_inputs, run_triaxial_file), "dtt": (dtt_inputs, run_dtt_file)}
 
 
 def lab_test_file(test: str, out, *, geometry, settings, params_file=None, sets=(),
