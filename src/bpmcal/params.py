@@ -96,6 +96,8 @@ RESPONSES: dict[str, Response] = {r.name: r for r in [
     Response("cracks_shear", "Ns", r"$N_s$", "", 1.0, "shear cracks", "Ns"),
     Response("bts_MPa", "sigma_t", r"$\sigma_t$", "MPa", 1e6,
              "Brazilian tensile strength 2 P_peak / (pi D t)", "σt"),
+    Response("dtt_MPa", "sigma_t,d", r"$\sigma_{t,d}$", "MPa", 1e6,
+             "direct-tension strength: peak grip force / cross-section", "σt,d"),
 ]}
 
 #: Responses the paper calibrates against.
@@ -105,9 +107,15 @@ TARGETS: tuple[str, ...] = ("ucs_MPa", "E_GPa", "nu")
 #: column of the dataset when the study runs the Brazilian test.
 TENSILE = "bts_MPa"
 
+#: The tensile tests a study can run on every design sample: response -> test (the
+#: Brazilian test, ``bts``, and the direct-tension test, ``dtt``). Each is a column of
+#: the dataset with its own ``<test>_status`` when the study runs it, is screened and
+#: regressed on its own rows, and is a calibration target where the lab gives it.
+TENSILE_TESTS: dict[str, str] = {"bts_MPa": "bts", "dtt_MPa": "dtt"}
+
 #: Responses the study screens (Table 3) and regresses (Table 4, models.json): the
-#: calibration targets, and sigma_t when the dataset has it.
-ANALYSED: tuple[str, ...] = (*TARGETS, TENSILE)
+#: calibration targets, and the tensile strengths the dataset has.
+ANALYSED: tuple[str, ...] = (*TARGETS, *TENSILE_TESTS)
 
 #: Fixed by the paper (section 2.2).
 RADIUS_RATIO = 1.66  # Rmax / Rmin

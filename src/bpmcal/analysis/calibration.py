@@ -105,10 +105,24 @@ Closed loop (:class:`ClosedLoop`)
     Jacobian at the starting point; after each new round it is corrected by Broyden's
     ("good") secant update ``J += (Δe - J s) sᵀ / (sᵀ s)`` with the step ``s`` actually
     taken. The same seeds in every round (common random numbers) keep the packing scatter
-    out of the differences between rounds, which the secant update needs. A parameter at a
+    out of the differences between rounds, which the secant update needs. The responses
+    are known to different precision (σt of a Brazilian disc scatters ~8 % between
+    packings, E ~1 %): the step weighs each relative error by 1/tolerance, and a step that
+    would leave the cap is a Levenberg-Marquardt step (the weighted residuals set its
+    direction) rather than a shortened Gauss-Newton step, so a poorly conditioned pair of
+    parameters (the two bond strengths, against σc and σt) is not swung across its range to
+    chase a response known only to its scatter. A trust region keeps the steps honest: the
+    merit of a round is ``Σ (e_k / tol_k)²``; a round worse than the best so far is not
+    stepped from - the next step starts again from the best round, capped at half the
+    rejected step (``accepted`` false, ``step_cap``) - so a Jacobian that points the wrong
+    way shrinks its steps instead of swinging the parameters between the bounds. A parameter at a
     bound whose step points out of the box is held there and the step is solved again for
     the others (an active-set Gauss-Newton step), so the other parameters do not chase a
-    move that cannot happen; a step cut at the bounds is recorded (``clipped``).
+    move that cannot happen; a step cut at the bounds is recorded (``clipped``). A
+    parameter held at a bound for two rounds while the loop misses is probed: the next step
+    moves it half the cap into the box (``probed``), because Broyden learns the Jacobian
+    only along the steps taken, and a column never stepped along keeps the regression's
+    sign (which is what held it there).
 
     The mean of a fixed set of k seeds is itself off the rock's (population) mean by about
     ``CV / sqrt(k)``: a loop that steers three packings fits those three, and fresh packings
@@ -136,7 +150,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 from scipy.stats import qmc
 
-from bpmcal.params import PARAMS, TARGETS, ParameterError, validate_params
+from bpmcal.params import PARAMS, TARGETS, TENSILE_TESTS, ParameterError, validate_params
 
 from ._common import check_params, check_responses, seed_from, usable_rows
 from .stepwise import RegressionModel, StepwiseRegression
@@ -146,6 +160,13 @@ PAPER_FIXED: dict[str, float] = {"porosity": 0.34, "rmin_mm": 0.8}
 DEFAULT_FREE: tuple[str, ...] = ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa")
 _TEN, _COH = "pb_ten_MPa", "pb_coh_MPa"
 BTS = "bts_MPa"  # the Brazilian tensile strength response
+#: the tensile strengths a card can be calibrated against (Brazilian, direct tension)
+TENSILE = tuple(TENSILE_TESTS)
+
+
+def tensile_target(targets) -> str | None:
+    """The tensile strength among ``targets`` (the first of :data:`TENSILE`), or None."""
+    return next((r for r in TENSILE if r in targets), None)
 _EDGE = 1e-6  # |u| or |1 - u| below this counts as "on the bound"
 _EXTEND = (2.0, 5.0, 20.0)  # range widths added on each side, in turn, for the "what to widen" search
 
@@ -160,17 +181,19 @@ def _default_free(free: Sequence[str] | None, ratio: float | None) -> tuple[str,
 def bts_strengths(targets: Mapping[str, float], free: Sequence[str] | None, fixed: Mapping[str, float],
                   ratio: float | None) -> tuple[tuple[str, ...] | None, float | None, str]:
     """The free parameters and ratio of a calibration against ``targets``: with a tensile
-    strength target (``bts_MPa``) σt sets the bond-strength ratio, so ``pb_ten_MPa`` is
-    freed beside ``pb_coh_MPa`` and the ratio is None; without it ``free`` and ``ratio``
-    are returned unchanged. The third value says where the ratio comes from: ``"bts_MPa"``
-    or ``"ratio"`` (the given one: configured, or the ratio sweep's choice).
-    ``pb_ten_MPa`` fixed by the user keeps σt a plain target (``"ratio"``)."""
-    if BTS not in targets or _TEN in fixed:
+    strength target (``bts_MPa`` or ``dtt_MPa``) σt sets the bond-strength ratio, so
+    ``pb_ten_MPa`` is freed beside ``pb_coh_MPa`` and the ratio is None; without it
+    ``free`` and ``ratio`` are returned unchanged. The third value says where the ratio
+    comes from: the tensile response, or ``"ratio"`` (the given one: configured, or the
+    ratio sweep's choice). ``pb_ten_MPa`` fixed by the user keeps σt a plain target
+    (``"ratio"``)."""
+    tr = tensile_target(targets)
+    if tr is None or _TEN in fixed:
         return (tuple(free) if free is not None else None), ratio, "ratio"
     base = tuple(free) if free is not None else DEFAULT_FREE
     if _TEN not in base:
         base = base + (_TEN,)
-    return base, None, BTS
+    return base, None, tr
 
 
 class _Space:
@@ -742,17 +765,19 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
                                        seed + 1)
     reach: dict = {}
     joint = ""  # the σt target set is out of reach although the other targets are not
-    if not reachable and BTS in responses and len(responses) > 1:
-        others = [r for r in responses if r != BTS]
+    tr = tensile_target(responses)
+    if not reachable and tr is not None and len(responses) > 1:
+        others = [r for r in responses if r != tr]
         t_other = np.array([t[responses.index(r)] for r in others])
         sub = _fit(space, models, others, t_other, space.lo, space.hi, [space.x(best_u)], n_starts,
                    seed + 2)
         if sub[0][1] <= tol:
             reach = _bts_reach(space, models, others, t_other, tol,
-                               [f[2] for f in sub if f[1] <= tol], seed + 3) if diagnose else {}
-            t_bts = float(t[responses.index(BTS)])
+                               [f[2] for f in sub if f[1] <= tol], seed + 3,
+                               response=tr) if diagnose else {}
+            t_bts = float(t[responses.index(tr)])
             span = (f"while meeting {', '.join(others)} the models give σt in "
-                    f"[{reach['bts_MPa'][0]:.4g}, {reach['bts_MPa'][1]:.4g}] MPa"
+                    f"[{reach[tr][0]:.4g}, {reach[tr][1]:.4g}] MPa"
                     + (f" (σc/σt in [{reach['ucs_over_bts'][0]:.3g}, {reach['ucs_over_bts'][1]:.3g}])"
                        if "ucs_over_bts" in reach else "")
                     if reach else f"{', '.join(others)} are met together inside the bounds")
@@ -799,16 +824,18 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
 
 
 def _bts_reach(space: _Space, models, others: Sequence[str], t_other: np.ndarray, tol: float,
-               x_starts: Sequence[np.ndarray], seed: int, n_starts: int = 8) -> dict:
-    """The smallest and largest σt (and σc/σt) the models give over the parameter sets
-    inside the bounds that meet the ``others`` targets (relative residuals <= ``tol``):
-    SLSQP in the unit cube with those residuals as equality constraints, from the given
-    solutions and ``n_starts`` Latin-hypercube points. ``{}`` if no start converges."""
+               x_starts: Sequence[np.ndarray], seed: int, n_starts: int = 8,
+               response: str = BTS) -> dict:
+    """The smallest and largest σt (``response``: the tensile strength; and σc/σt) the
+    models give over the parameter sets inside the bounds that meet the ``others``
+    targets (relative residuals <= ``tol``): SLSQP in the unit cube with those residuals
+    as equality constraints, from the given solutions and ``n_starts`` Latin-hypercube
+    points. ``{}`` if no start converges."""
     from scipy.optimize import minimize
 
     lo, width = space.lo, space.width
     scale = np.abs(t_other)
-    m_bts = models[BTS]
+    m_bts = models[response]
 
     def point(u):
         return space.full(lo + np.clip(u, 0.0, 1.0) * width)
@@ -824,7 +851,7 @@ def _bts_reach(space: _Space, models, others: Sequence[str], t_other: np.ndarray
         return float(m_bts.predict(point(u)))
 
     def bts_grad(u):
-        return space.jacobian(models, [BTS], lo + np.clip(u, 0.0, 1.0) * width)[0] * width
+        return space.jacobian(models, [response], lo + np.clip(u, 0.0, 1.0) * width)[0] * width
 
     starts = [space.u(x) for x in x_starts] + list(_lhs(n_starts, len(space.free), seed))
     found = []
@@ -842,7 +869,7 @@ def _bts_reach(space: _Space, models, others: Sequence[str], t_other: np.ndarray
     if not found:
         return {}
     v = np.array(found)
-    out = {"bts_MPa": [float(v[:, 0].min()), float(v[:, 0].max())],
+    out = {response: [float(v[:, 0].min()), float(v[:, 0].max())],
            "met": list(others)}
     if np.all(np.isfinite(v[:, 1])) and np.all(v[:, 0] > 0):
         q = v[:, 1] / v[:, 0]
@@ -1052,7 +1079,9 @@ class ClosedLoop:
         Standard errors of the mean within which a target counts as met (default 2).
     damping, max_step:
         Newton step factor (default 0.8) and cap on the move of any parameter per round
-        as a fraction of its range (default 0.25).
+        as a fraction of its range (default 0.25); after a round that is worse than the
+        best so far the cap becomes half that round's step (the trust region, module
+        docstring).
     broyden:
         Update the Jacobian by Broyden's secant rule (default True).
     margin:
@@ -1158,27 +1187,41 @@ class ClosedLoop:
         return np.array([float(out.get(r, np.nan)) if out is not None else np.nan for r in self.responses])
 
     def _step(self, J: np.ndarray, e: np.ndarray, u: np.ndarray,
-              box: tuple[np.ndarray, np.ndarray], damping: float | None = None
-              ) -> tuple[np.ndarray, list[int]]:
+              box: tuple[np.ndarray, np.ndarray], damping: float | None = None,
+              cap: float | None = None, weights: np.ndarray | None = None,
+              probe: Sequence[int] = ()) -> tuple[np.ndarray, list[int]]:
         """The damped Gauss-Newton step from ``u`` with the parameters at a bound whose step
         points out of the box held there (solved again without them until none is left),
-        shortened to ``max_step``; returns the step and the held parameters' indices."""
+        kept within ``cap`` (default ``max_step``); returns the step and the held
+        parameters' indices. With ``weights`` (one per response, 1/tolerance) a step that
+        would leave the cap is a Levenberg-Marquardt step instead of a shortened
+        Gauss-Newton one: the weighted residuals decide its direction, so a poorly
+        conditioned pair of parameters is not swung across its range to chase a response
+        known only to its scatter."""
         held: list[int] = []
         du = np.zeros_like(u)
+        damp = self.damping if damping is None else damping
+        cap = self.max_step if cap is None else cap
+        w = np.ones(len(e)) if weights is None else np.asarray(weights, float)
+        # a probed parameter moves half the cap into the box; the others answer that move
+        fixed_du = {j: 0.5 * cap * (1.0 if u[j] <= 0.5 * (box[0][j] + box[1][j]) else -1.0)
+                    for j in probe}
         while True:
-            act = [j for j in range(len(u)) if j not in held]
+            act = [j for j in range(len(u)) if j not in held and j not in fixed_du]
             du[:] = 0.0
+            for j, v in fixed_du.items():
+                du[j] = v
+            r = e + J @ du
             if act:
-                du[act] = -(self.damping if damping is None else damping) * np.linalg.lstsq(
-                    J[:, act], e, rcond=None)[0]
+                du[act] = _lm_step(w[:, None] * J[:, act], w * r, cap / damp) * damp
             out = [j for j in act if (u[j] <= box[0][j] + _EDGE and du[j] < 0)
                    or (u[j] >= box[1][j] - _EDGE and du[j] > 0)]
             if not out:
                 break
             held += out
         biggest = float(np.max(np.abs(du))) if len(du) else 0.0
-        if biggest > self.max_step:
-            du *= self.max_step / biggest
+        if biggest > cap:
+            du *= cap / biggest
         return du, sorted(held)
 
     def run(self, initial: Mapping[str, float]) -> ClosedLoopResult:
@@ -1204,6 +1247,9 @@ class ClosedLoop:
         spare = list(self.growth_seeds)
         history, samples, prev = [], [], None
         polished_from, best_idx = None, None  # the converged round a polishing step left; the card's round
+        cap = self.max_step  # the trust region: the step cap, halved after a worse round
+        held_rounds = [0] * len(space.free)  # rounds each parameter has been held at a bound
+        base = None  # (u, e, merit) of the best round so far: the point the next step starts from
         pooled, dof = np.zeros(len(self.responses)), 0  # Σ (k-1) cv², Σ (k-1)
         status, message = "max_rounds", f"tolerance not met within {self.max_rounds} rounds"
 
@@ -1298,19 +1344,38 @@ class ClosedLoop:
             if rnd == self.max_rounds - 1:
                 history.append(rec)
                 break
-            du, held = self._step(J, e, u, box, 1.0 if polishing else None)
-            u_new = np.clip(u + du, *box)
+            # the trust region: step from the best round so far; a worse round halves the cap
+            merit = float(np.sum((e / tol) ** 2))
+            # a grown seed set measures on other packings with a smaller SE (a tighter
+            # tolerance): its rounds are not compared with the earlier ones
+            accepted = base is None or polishing or base[3] != k or merit <= base[2]
+            if accepted:
+                base = (u.copy(), e.copy(), merit, k)
+            else:  # half the step that led here (the cap may not have bound it)
+                cap = 0.5 * float(np.max(np.abs(u - base[0])))
+            rec["accepted"], rec["step_cap"] = accepted, cap
+            u_from, e_from = base[0], base[1]
+            # a parameter held at a bound two rounds running while the loop misses: its
+            # column of J was never measured (Broyden learns along the steps taken), so the
+            # step probes it - half the cap into the box - instead of trusting the sign
+            probe = [j for j in range(len(u)) if held_rounds[j] >= 2] if not polishing else []
+            du, held = self._step(J, e_from, u_from, box, 1.0 if polishing else None,
+                                  None if polishing else cap, weights=1.0 / tol, probe=probe)
+            for j in range(len(u)):
+                held_rounds[j] = 0 if j in probe else (held_rounds[j] + 1 if j in held else 0)
+            rec["probed"] = ",".join(space.free[j] for j in probe)
+            u_new = np.clip(u_from + du, *box)
             rec.update({f"step_{p}": v for p, v in zip(space.free, (u_new - u) * space.width)})
-            cut = [j for j in range(len(u)) if j in held or u_new[j] != u[j] + du[j]]
+            cut = [j for j in range(len(u)) if j in held or u_new[j] != u_from[j] + du[j]]
             rec["clipped"] = ",".join(space.free[j] for j in cut)
             rec["polish"] = polishing
             history.append(rec)
-            if np.max(np.abs(u_new - u)) < 1e-9:
+            if np.max(np.abs(u_new - u_from)) < 1e-9:
                 if polishing:  # nothing left to move: this round is the card's
                     status, message = "converged", f"{met} after {rnd + 1} round(s)"
                     break
                 edges = ", ".join(space.edge_text(p, side, v, self.margin)
-                                  for p, side, v in space.at_bound(u, box))
+                                  for p, side, v in space.at_bound(u_from, box))
                 status = "stalled"
                 message = (f"the Newton step points out of the bounds ({edges}); the targets appear "
                            "unreachable within the parameter ranges")
@@ -1338,6 +1403,33 @@ class ClosedLoop:
             n_seeds=int(best["n_seeds"]), seeds=tuple(seeds[:int(best["n_seeds"])]),
             best_round=int(best["round"]), outside=_outside(space, space.full(x_best)),
             loop_bounds={p: (float(a), float(b)) for p, a, b in zip(space.free, xlo, xhi)})
+
+
+def _lm_step(A: np.ndarray, b: np.ndarray, cap: float) -> np.ndarray:
+    """The step ``x`` minimising ``|A x + b|²`` (Gauss-Newton) when it lies within ``cap``
+    in the max norm, else the Levenberg-Marquardt step ``-(AᵀA + λI)⁻¹ Aᵀ b`` with the
+    λ that brings it onto the cap (bisection on log λ; the step shrinks monotonically
+    with λ and turns from the Gauss-Newton towards the steepest-descent direction)."""
+    x = -np.linalg.lstsq(A, b, rcond=None)[0]
+    if not np.all(np.isfinite(x)) or float(np.max(np.abs(x))) <= cap:
+        return x
+    AtA, Atb = A.T @ A, A.T @ b
+    n = AtA.shape[0]
+    scale = float(np.trace(AtA)) / n or 1.0
+
+    def step(lam):
+        return -np.linalg.solve(AtA + lam * scale * np.eye(n), Atb)
+
+    lo, hi = -12.0, 12.0  # log10 of λ / mean diagonal
+    if float(np.max(np.abs(step(10.0 ** hi)))) > cap:  # not even the gradient step fits
+        return step(10.0 ** hi)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if float(np.max(np.abs(step(10.0 ** mid)))) > cap:
+            lo = mid
+        else:
+            hi = mid
+    return step(10.0 ** hi)
 
 
 def _outside(space: _Space, params: Mapping[str, float]) -> dict[str, dict]:
