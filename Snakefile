@@ -58,6 +58,27 @@ rule all:
         rules.verification_tables.output,
         rules.seed_scatter.output,
         rules.holdout_table.output if HOLDOUT_ON else [],
+        # every fresh seed's run files: a seed added to verification.holdout_seeds makes
+        # its runs missing, which reruns the holdout jobs (the seed tables alone would not)
+        [FILES.holdout_run(s, seed) for s in SPECIMENS for seed in HOLDOUT_SEEDS],
+        (
+            [
+                FILES.holdout_bts_run(s, seed)
+                for s in SPECIMENS
+                for seed in HOLDOUT_SEEDS
+            ]
+            if LAB_BTS
+            else []
+        ),
+        (
+            [
+                FILES.holdout_dtt_run(s, seed)
+                for s in SPECIMENS
+                for seed in HOLDOUT_SEEDS
+            ]
+            if LAB_DTT
+            else []
+        ),
         rules.transfer_table.output if TRANSFER_ON else [],
         rules.sweep_analyse.output if SWEEP_ON else [],
         rules.impact_analyse.output,

@@ -2,6 +2,7 @@
 
     bpmcal ucs --params FILE.yaml --out RUN.h5 [--set NAME=VALUE ...] [--scale S] [--seed N]
     bpmcal bts --params FILE.yaml --out RUN.h5 [--scale S] [--seed N] [--platen-velocity V]
+    bpmcal dtt --params FILE.yaml --out RUN.h5 [--scale S] [--seed N] [--grip-velocity V]
     bpmcal triaxial --params FILE.yaml --sigma3 MPA --out RUN.h5 [--scale S] [--seed N]
     bpmcal summary RUN.h5 [--json]
     bpmcal vtk RUN.h5 --out DIR
@@ -42,6 +43,7 @@ from .cli_args import (
     SEED,
     THREADS,
     Parser,
+    choice,
     fraction,
     integer,
     number,
@@ -135,6 +137,10 @@ def _ucs_line(s):
 
 
 def _bts_line(s):
+    if not s.get("bts_valid", True):
+        return (f"INVALID ({s.get('bts_invalid_reason', '')}); peak stress "
+                f"{s['bts_peak_MPa']:.3f} MPa is no sigma_t, {s['n_balls']} balls, "
+                f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
     return (f"sigma_t = {s['bts_MPa']:.3f} MPa (peak load {s['peak_load_N']:.1f} N, "
             f"platen forces differ by {100 * s['platen_mismatch']:.2f} %), cracks "
             f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
@@ -143,14 +149,33 @@ def _bts_line(s):
 
 def cmd_ucs(a) -> int:
     tests = [("ucs", a.out, run_geometry(a), run_settings(a), _ucs_line)]
+    flags = ["--out"]
     if a.bts_out is not None:  # the study's sample job: the Brazilian test in this process
         tests.append(("bts", a.bts_out, bts_disc_of(a, "bts_"), bts_settings_of(a, "bts_"),
                       _bts_line))
-    return _lab_tests(a, tests, flags=["--out", "--bts-out"][:len(tests)])
+        flags.append("--bts-out")
+    if a.dtt_out is not None:  # ... and the direct-tension test
+        tests.append(("dtt", a.dtt_out, dtt_cylinder_of(a, "dtt_"),
+                      dtt_settings_of(a, "dtt_"), _dtt_line))
+        flags.append("--dtt-out")
+    return _lab_tests(a, tests, flags=flags)
 
 
 def cmd_bts(a) -> int:
     return _lab_test(a, "bts", bts_disc_of(a), bts_settings_of(a), _bts_line)
+
+
+def _dtt_line(s):
+    st = (f"sigma_t = {s['dtt_MPa']:.3f} MPa" if s.get("dtt_valid")
+          else f"INVALID ({s.get('dtt_invalid_reason', '')}); peak stress "
+               f"{s['dtt_peak_MPa']:.3f} MPa is no sigma_t")
+    return (f"{st}, fracture at {s['fracture_height']:.2f} of the gauge length, cracks "
+            f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
+            f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+
+
+def cmd_dtt(a) -> int:
+    return _lab_test(a, "dtt", dtt_cylinder_of(a), dtt_settings_of(a), _dtt_line)
 
 
 def cmd_triaxial(a) -> int:
@@ -204,7 +229,7 @@ def cmd_design(a) -> int:
 def cmd_gather(a) -> int:
     from .stages.study import gather
 
-    _, report = gather(a.design, a.runs, a.out, bts_runs=a.bts_runs)
+    _, report = gather(a.design, a.runs, a.out, bts_runs=a.bts_runs, dtt_runs=a.dtt_runs)
     print(report)
     return 0
 
@@ -263,7 +288,8 @@ def cmd_verify(a) -> int:
                threads=a.threads, progress=prog, from_unreachable=a.from_unreachable,
                bts_run=a.bts_run, bts_geometry=bts_disc_of(a, "bts_"),
                bts_settings=bts_settings_of(a, "bts_"), range_margin=a.range_margin,
-               polish=a.polish, **_budget(a))["verification"]
+               polish=a.polish, dtt_geometry=dtt_cylinder_of(a, "dtt_"),
+               dtt_settings=dtt_settings_of(a, "dtt_"), **_budget(a))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
 
@@ -277,7 +303,7 @@ def cmd_transfer(a) -> int:
                  max_rounds=a.max_rounds, rtol=a.rtol, cache=a.specimen_cache,
                  threads=a.threads, progress=prog, bts_geometry=bts_disc_of(a, "bts_"),
                  bts_settings=bts_settings_of(a, "bts_"), range_margin=a.range_margin,
-                 **_budget(a))["transfer"]
+                 dtt_settings=dtt_settings_of(a, "dtt_"), **_budget(a))["transfer"]
     prog.done(f"{t['status']} after {t['rounds']} round(s) at scale {t['scale']:g}: "
               f"{t['message']}")
     return 0
@@ -318,7 +344,9 @@ def cmd_holdout(a) -> int:
     df = holdout(a.card, seeds=_seeds(a.seeds), runs=a.runs, seed_runs=a.seed_runs,
                  bts_runs=a.bts_runs, geometry=run_geometry(a), settings=run_settings(a),
                  bts_geometry=bts_disc_of(a, "bts_"), bts_settings=bts_settings_of(a, "bts_"),
-                 cache=a.specimen_cache, threads=a.threads, progress=prog, **_budget(a))
+                 dtt_runs=a.dtt_runs, dtt_geometry=dtt_cylinder_of(a, "dtt_"),
+                 dtt_settings=dtt_settings_of(a, "dtt_"), cache=a.specimen_cache,
+                 threads=a.threads, progress=prog, **_budget(a))
     prog.done(f"{int((df['status'] == 'ok').sum())} of {len(df)} seed(s) ok")
     print(df.to_string(index=False))
     return 0
@@ -580,6 +608,11 @@ def _add_ucs(p):
                         "UCS test: the study's sample job (one start-up instead of two); each "
                         "test writes its run file or failure record")
     add_bts_args(p, "bts_")
+    p.add_argument("--dtt-out", default=None,
+                   help="also run the direct-tension test of the same parameters and packing "
+                        "seed (the --dtt-* options below; the cylinder of --diameter x "
+                        "--height at --dtt-scale) into this HDF5 file, after the other tests")
+    add_dtt_args(p, "dtt_")
     add_outcome_args(p)
     p.set_defaults(func=cmd_ucs)
 
@@ -597,7 +630,8 @@ def _add_bts(p):
 #: BTSSettings fields that are command options: ``bpmcal bts --FIELD`` and, for the closed
 #: loop of a card with a σt target, ``bpmcal verify/transfer --bts-FIELD`` (the study
 #: passes its `bts` section to all three, so σt is measured as for the regression's model)
-BTS_OPTIONS = ("platen_velocity", "approach_velocity", "platen_fric", "damping", "stop_drop",
+BTS_OPTIONS = ("loading", "jaw_ratio", "contact_cap", "contact_cap_factor", "central_zone",
+               "platen_velocity", "approach_velocity", "platen_fric", "damping", "stop_drop",
                "post_peak_min", "max_strain", "record_strain")
 
 
@@ -621,11 +655,33 @@ def add_bts_args(p, prefix: str = ""):
     g.add_argument(opt("diameter"), type=positive(lab("diameter"), "mm"),
                    default=BTS_DIAMETER_MM,
                    help=f"disc diameter before scaling [mm] (default {BTS_DIAMETER_MM:g})")
+    if prefix:  # `bpmcal bts` scales its disc with its own --scale
+        g.add_argument(opt("scale"), type=number(lab("scale"), 0.0, 10.0, lo_open=True),
+                       default=None,
+                       help="size factor of the disc (default: the cylinder's --scale); the "
+                            "disc is sized for the sigma_t measurement (README: resolution)")
     g.add_argument(opt("thickness"), type=positive(lab("thickness"), "mm"),
                    default=BTS_THICKNESS_MM,
                    help=f"disc thickness before scaling [mm] (default {BTS_THICKNESS_MM:g}, "
                         "ISRM t = D/2)")
+    from .lab.brazilian import LOADINGS
+
     spec = {
+        "loading": (choice(lab("loading"), LOADINGS),
+                    "how the disc is loaded: flat (two planar platens) or jaws (ISRM curved "
+                    "jaws, radius --jaw-ratio x the disc's) (default {d})"),
+        "jaw_ratio": (number(lab("jaw_ratio"), 1.0, 100.0, lo_open=True),
+                      "jaw radius / disc radius, > 1 (default {d:g}, ISRM)"),
+        "contact_cap": (number(lab("contact_cap"), 0.0, 10.0),
+                        "contact caps: the bonds within this many mean ball diameters of a "
+                        "loading contact get --contact-cap-factor x their strength (not "
+                        "their stiffness), so that the test fails in the disc, not at its "
+                        "contacts; 0 = none (default {d:g})"),
+        "contact_cap_factor": (number(lab("contact_cap_factor"), 1.0, 1e6),
+                               "strength factor of the contact caps' bonds (default {d:g})"),
+        "central_zone": (number(lab("central_zone"), 0.0, 1.0, lo_open=True),
+                         "a valid fracture starts within this fraction of the radius of the "
+                         "disc centre along the loaded diameter (default {d:g}, ISRM)"),
         "platen_velocity": (number(lab("platen_velocity"), 0.0, 100.0, lo_open=True,
                                    unit="m/s"),
                             "speed of each platen [m/s] (default {d:g}: halving it changes "
@@ -667,10 +723,96 @@ def bts_disc_of(a, prefix: str = ""):
     genesis options."""
     from .lab.runner import bts_geometry
 
-    return bts_geometry(scale=a.scale, diameter_mm=getattr(a, prefix + "diameter"),
+    scale = getattr(a, prefix + "scale", None) if prefix else None
+    return bts_geometry(scale=a.scale if scale is None else scale,
+                        diameter_mm=getattr(a, prefix + "diameter"),
                         thickness_mm=getattr(a, prefix + "thickness"), sigma0_MPa=a.sigma0,
                         install_gap_mm=a.install_gap, relax_ratio=a.relax_ratio,
                         genesis=a.genesis)
+
+
+def _add_dtt(p):
+    from .lab.runner import Geometry
+
+    add_source_args(p)
+    add_dtt_args(p)
+    add_specimen_args(p, Geometry(), "the 50 x 100 mm cylinder")
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_dtt)
+
+
+#: DTTSettings fields that are command options (``bpmcal dtt --FIELD``)
+DTT_OPTIONS = ("grip_velocity", "grip_length", "grip_clearance", "damping", "stop_drop",
+               "post_peak_min", "max_strain", "record_strain")
+
+
+def add_dtt_args(p, prefix: str = ""):
+    """The direct-tension cylinder and loading options (defaults: ``DTTSettings`` and the
+    UCS cylinder) on ``p``: ``--OPTION``, or ``--dtt-OPTION`` with ``prefix="dtt_"``; read
+    back by :func:`dtt_settings_of` and :func:`dtt_cylinder_of` with the same prefix."""
+    from .lab.direct_tension import DTTSettings
+    from .lab.runner import Geometry
+
+    dd, geo = DTTSettings(), Geometry()
+    g = p.add_argument_group("direct-tension test")
+
+    def lab(name):
+        return (prefix + name).replace("_", "-")
+
+    if prefix:  # the UCS cylinder (--diameter, --height) at its own scale
+        g.add_argument("--" + lab("scale"), type=number(lab("scale"), 0.0, 10.0, lo_open=True),
+                       default=None,
+                       help="size factor of the direct-tension cylinder (default: the UCS "
+                            "cylinder's --scale)")
+    else:
+        g.add_argument("--diameter", type=positive("diameter", "mm"), default=geo.diameter_mm,
+                       help=f"cylinder diameter before scaling [mm] (default "
+                            f"{geo.diameter_mm:g})")
+        g.add_argument("--height", type=positive("height", "mm"), default=geo.height_mm,
+                       help=f"cylinder height before scaling [mm] (default {geo.height_mm:g})")
+    spec = {
+        "grip_velocity": (number(lab("grip_velocity"), 0.0, 100.0, lo_open=True, unit="m/s"),
+                          "speed of each grip [m/s] (default {d:g})"),
+        "grip_length": (number(lab("grip_length"), 0.0, 0.45, lo_open=True, hi_open=True),
+                        "fraction of the height held by each grip, in (0, 0.45) "
+                        "(default {d:g})"),
+        "grip_clearance": (number(lab("grip_clearance"), 0.0, 100.0),
+                           "a fracture closer than this many mean ball diameters to a grip's "
+                           "face is next to the grip: the run is invalid (default {d:g})"),
+        "damping": (number(lab("damping"), 0.0, 1.0, hi_open=True),
+                    "local damping in [0, 1) (default {d:g})"),
+        "stop_drop": (fraction(lab("stop_drop")),
+                      "stop when the load < this fraction of the peak after it "
+                      "(default {d:g})"),
+        "post_peak_min": (number(lab("post_peak_min"), 0.0, 0.5),
+                          "... at least this axial strain past the peak (default {d:g})"),
+        "max_strain": (number(lab("max_strain"), 0.0, 0.5, lo_open=True),
+                       "stop at this axial strain (default {d:g})"),
+        "record_strain": (number(lab("record_strain"), 0.0, 0.01, lo_open=True),
+                          "axial strain between records (default {d:g})"),
+    }
+    assert tuple(spec) == DTT_OPTIONS
+    for f, (kind, text) in spec.items():
+        d = getattr(dd, f)
+        g.add_argument("--" + lab(f), type=kind, default=d, help=text.format(d=d))
+
+
+def dtt_settings_of(a, prefix: str = ""):
+    """``DTTSettings`` from the options of :func:`add_dtt_args`."""
+    from .lab.direct_tension import DTTSettings
+
+    return DTTSettings(**{f: getattr(a, prefix + f) for f in DTT_OPTIONS})
+
+
+def dtt_cylinder_of(a, prefix: str = ""):
+    """The cylinder of the options of :func:`add_dtt_args` at --scale, with the genesis
+    options."""
+    from .lab.runner import Geometry
+
+    scale = getattr(a, prefix + "scale", None) if prefix else None
+    return Geometry(scale=a.scale if scale is None else scale, diameter_mm=a.diameter,
+                    height_mm=a.height, sigma0_MPa=a.sigma0, install_gap_mm=a.install_gap,
+                    relax_ratio=a.relax_ratio, genesis=a.genesis)
 
 
 def _add_triaxial(p):
@@ -748,6 +890,9 @@ def _add_gather(p):
     p.add_argument("--bts-runs", nargs="+", default=None,
                    help="the Brazilian run files, one per sample: <sample_id>.h5 (adds "
                         "bts_MPa, bts_status, bts_error; a sample without one is 'missing')")
+    p.add_argument("--dtt-runs", nargs="+", default=None,
+                   help="the direct-tension run files, one per sample: <sample_id>.h5 (adds "
+                        "dtt_MPa, dtt_status, dtt_error)")
     p.add_argument("--out", required=True, help="output CSV")
     p.set_defaults(func=cmd_gather)
 
@@ -888,10 +1033,12 @@ def _add_range_margin(p, d):
 
 def _add_card_run_args(p, func):
     """The options every command that runs a card's UCS (and Brazilian) tests shares
-    (verify, transfer, holdout): --quiet, the cylinder and loading, the --bts-* disc."""
+    (verify, transfer, holdout): --quiet, the cylinder and loading, the --bts-* disc, the
+    --dtt-* direct-tension test."""
     p.add_argument("--quiet", action="store_true")
     add_run_args(p)
     add_bts_args(p, "bts_")
+    add_dtt_args(p, "dtt_")
     p.set_defaults(func=func)
 
 
@@ -945,6 +1092,9 @@ def _add_holdout(p):
     p.add_argument("--bts-runs", nargs="+", default=None,
                    help="output Brazilian run files, one per seed (needed when the card has a "
                         "tensile-strength target; failure records 'not run' without one)")
+    p.add_argument("--dtt-runs", nargs="+", default=None,
+                   help="output direct-tension run files, one per seed (needed when the card "
+                        "has a direct-tension target, dtt_MPa)")
     _file(p, "--seed-runs", "output table: the responses of every seed")
     _add_card_run_args(p, cmd_holdout)
 
@@ -1066,6 +1216,7 @@ def _add_vtk(p):
 COMMANDS = {
     "ucs": ("one virtual uniaxial compression test -> HDF5", _add_ucs, True),
     "bts": ("one virtual Brazilian (diametral compression) test -> HDF5", _add_bts, True),
+    "dtt": ("one virtual direct-tension test -> HDF5", _add_dtt, True),
     "triaxial": ("one virtual triaxial compression test -> HDF5", _add_triaxial, True),
     "impact": ("drop-hammer impact of a calibrated specimen", _add_impact, False),
     "design": ("Latin-hypercube design over parameter ranges -> CSV", _add_design, False),

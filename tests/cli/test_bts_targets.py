@@ -302,15 +302,17 @@ def test_a_disc_too_small_for_the_balls_is_refused_before_any_run(cards, d, tmp_
 @pytest.mark.parametrize("scale, ok", [(0.25, False), (0.4, True)])
 def test_the_study_config_refuses_a_disc_too_small_for_a_lab_sigma_t(tmp_path, scale, ok):
     """Rmax = 1.66 x 0.8 mm (the default calibration.fixed.rmin_mm, the cards' Rmin): the
-    25 mm-thick disc needs scale >= 0.319; checked with the config, before any job; a lab
-    CSV without σt is not concerned."""
+    25 mm-thick disc needs bts.scale >= 0.319; checked with the config, before any job; a
+    lab CSV without σt is not concerned."""
     from bpmcal.study.config import ConfigError, validate_config
 
     repo = Path(__file__).resolve().parents[2]
     schema = repo / "workflow" / "schemas" / "config.schema.yaml"
     cfg = yaml.safe_load((repo / "config" / "config.yaml").read_text())
     cfg["study"]["reference"] = "none"
-    cfg["specimen"]["scale"] = scale
+    cfg["bts"]["scale"] = scale
+    cfg["bts"]["enabled"] = True
+    cfg["ranges"]["rmin_mm"] = [0.6, 0.8]  # the samples' discs fit at 0.4 too
     lab = tmp_path / "lab.csv"
     lab.write_text(HEAD + ",bts_MPa\n" + lab_row("B1", T, "8.0"))
     cfg["lab"]["csv"] = str(lab)
@@ -320,7 +322,8 @@ def test_the_study_config_refuses_a_disc_too_small_for_a_lab_sigma_t(tmp_path, s
     with pytest.raises(ConfigError) as e:
         validate_config(cfg, schema, base_dir=repo)
     assert "specimen(s) ['B1'] give bts_MPa" in str(e.value)
-    assert "12.5 x 6.25 mm" in str(e.value) and "at least 31.9" in str(e.value)
+    assert "bts.scale 0.25: 12.5 x 6.25 mm" in str(e.value)
+    assert "raise bts.scale to at least 0.319" in str(e.value)
     assert "calibration.fixed.rmin_mm 0.8 mm" in str(e.value)
     lab.write_text(HEAD + ",bts_MPa\n" + lab_row("B1", T, ""))  # no σt: no disc, no problem
     try:

@@ -77,6 +77,32 @@ def test_a_failure_records_value_is_never_taken_as_sigma_t(tmp_path):
     assert r["bts_error"] == "ServoError: the disc did not seat"
 
 
+def test_an_invalid_brazilian_test_gives_no_sigma_t_and_says_why(tmp_path):
+    """A run file that finished but failed the ISRM check: the dataset carries it as
+    'invalid' with the reason, no sigma_t, the peak stress for inspection."""
+    design = _design(tmp_path, [A1, A1])
+    for i in (0, 1):
+        _ucs_ok(tmp_path / "u" / f"s00{i}.h5", 40.0)
+    h5.write_run(tmp_path / "b" / "s000.h5", test="bts", inputs={"seed": 7},
+                 summary={"bts_MPa": 6.5, "bts_peak_MPa": 6.5, "bts_valid": True,
+                          "balls_across": 13.0, "wall_s": 2.5})
+    reason = "fracture initiated next to the top platen: the first 5 cracks ..."
+    h5.write_run(tmp_path / "b" / "s001.h5", test="bts", inputs={"seed": 8},
+                 summary={"bts_MPa": float("nan"), "bts_peak_MPa": 0.78, "bts_valid": False,
+                          "bts_invalid_reason": reason, "balls_across": 13.0,
+                          "wall_s": 2.5})
+    df, report = gather(design, [tmp_path / "u" / f"s00{i}.h5" for i in (0, 1)],
+                        tmp_path / "d.csv",
+                        bts_runs=[tmp_path / "b" / f"s00{i}.h5" for i in (0, 1)])
+    ds = pd.read_csv(tmp_path / "d.csv").set_index("sample_id")
+    assert list(ds["bts_status"]) == ["ok", "invalid"]
+    assert ds.loc["s001", "bts_error"] == reason and np.isnan(ds.loc["s001", "bts_MPa"])
+    assert ds.loc["s001", "bts_peak_MPa"] == 0.78 and not ds.loc["s001", "bts_valid"]
+    assert ds.loc["s000", "bts_valid"] and ds.loc["s000", "bts_balls_across"] == 13.0
+    assert "Brazilian tests: 1 invalid, 1 ok (invalid: the fracture did not start" in report
+    assert f"s001: bts invalid: {reason}" in report
+
+
 def test_gather_without_brazilian_runs_has_no_brazilian_columns(tmp_path):
     design = _design(tmp_path, [A1])
     _ucs_ok(tmp_path / "u" / "s000.h5", 40.0)
@@ -106,6 +132,11 @@ def _dataset(n=48, seed=3) -> pd.DataFrame:
     for i in (7, 8, 9):  # ... and failed Brazilian tests of samples whose UCS run is ok
         df.loc[i, ["bts_MPa", "bts_wall_s"]] = np.nan
         df.loc[i, ["bts_status", "bts_error"]] = ["failed", "ServoError: planted"]
+    for i in (10, 11):  # invalid tests (a seating event read as the peak): no sigma_t - and
+        # a value the analyses must not take even though it is there
+        df.loc[i, "bts_MPa"] = 0.78
+        df.loc[i, ["bts_status", "bts_error"]] = [
+            "invalid", "fracture initiated next to the bottom platen: planted"]
     return df
 
 
@@ -148,13 +179,14 @@ def test_table3_and_the_selection_have_sigma_t(analysed):
     assert set(t3["bts_MPa"].nlargest(2).index) == {"pb_ten_MPa", "rmin_mm"}
     assert set(s["selected"]["bts_MPa"]) >= {"pb_ten_MPa", "rmin_mm"}
     assert "σt (%)" in (o["table3"].with_suffix(".md")).read_text()
-    # sigma_t was screened on the 45 samples with a Brazilian result (s005's UCS failed,
-    # its Brazilian test did not), the UCS responses on the 47 with a UCS result
+    # sigma_t was screened on the 43 samples with a valid Brazilian result (s005's UCS failed,
+    # its Brazilian test did not; s007-s009 failed, s010-s011 are invalid), the UCS
+    # responses on the 47 with a UCS result
     summary = o["sum"].read_text()
     assert "47 rows used" in summary
-    assert "bts_MPa: screened on its own rows: 45 used, 3 dropped (3 failed" in summary
-    assert "sigma_t: 45 of 48 Brazilian tests used (3 failed/missing dropped: s007, s008, s009)" \
-        in s["note"]
+    assert "bts_MPa: screened on its own rows: 43 used, 5 dropped (5 not ok" in summary
+    assert ("sigma_t: 43 of 48 Brazilian tests used (5 left out: 3 failed: s007, s008, s009; "
+            "2 invalid: s010, s011)") in s["note"]
 
 
 @pytest.mark.slow
@@ -163,8 +195,8 @@ def test_the_regression_has_a_sigma_t_model_fitted_on_the_brazilian_rows(analyse
     m = json.loads(o["models"].read_text())
     assert set(m["models"]) == {*P.TARGETS, "bts_MPa"}
     final = list(m["models"]["bts_MPa"].values())[-1]
-    assert final["n_obs"] == 45
-    assert m["response_rows"]["bts_MPa"]["n_used"] == 45 and m["rows"]["n_used"] == 47
+    assert final["n_obs"] == 43  # the invalid tests' 0.78 MPa never enters the fit
+    assert m["response_rows"]["bts_MPa"]["n_used"] == 43 and m["rows"]["n_used"] == 47
     assert final["adj_r2"] > 0.99
     first = list(m["models"]["bts_MPa"].values())[0]  # the main effects: the planted slopes
     coef = {t["name"]: t["coef"] for t in first["terms"]}

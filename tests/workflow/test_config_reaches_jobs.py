@@ -24,16 +24,22 @@ OVERLAY = {
     "ucs": {"platen_velocity": 0.173, "damping": 0.613, "stop_drop": 0.713,
             "max_strain": 0.0313, "platen_fric": 0.0137, "record_strain": 2.37e-5,
             "end_cap": 1.37, "end_cap_factor": 137.0},
-    "bts": {"enabled": True, "diameter_mm": 71.3, "thickness_mm": 36.7,
+    "bts": {"enabled": True, "diameter_mm": 71.3, "thickness_mm": 36.7, "scale": 0.437,
+            "loading": "jaws", "jaw_ratio": 1.37, "contact_cap": 1.37,
+            "contact_cap_factor": 137.0, "central_zone": 0.437,
             "platen_velocity": 0.0237, "approach_velocity": 0.137, "stop_drop": 0.237,
             "post_peak_min": 0.000437, "platen_fric": 0.337, "damping": 0.637,
             "max_strain": 0.0437, "record_strain": 1.37e-5},
     "transfer": {"enabled": True},
     "verification": {"range_margin": 0.137, "polish": False},
+    # a lab with a sigma_t target: the closed loops run Brazilian tests too (without one
+    # they get no --bts-* options, so that a bts key does not rerun them)
+    "lab": {"csv": "config/lab/lac_du_bonnet.csv"},
+    "study": {"reference": "none"},
 }
 #: config key -> option destination where the names differ
 DEST = {"diameter_mm": "diameter", "height_mm": "height", "thickness_mm": "thickness",
-        "sigma0_MPa": "sigma0", "install_gap_mm": "install_gap"}
+        "sigma0_MPa": "sigma0", "install_gap_mm": "install_gap", "scale": "scale"}
 
 
 @pytest.fixture(scope="module")

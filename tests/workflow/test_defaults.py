@@ -14,6 +14,7 @@ from bpmcal.analysis import DEFAULT_FREE, PAPER_RATIO, ClosedLoop, StepwiseRegre
 from bpmcal.cli import build_parser
 from bpmcal.lab.brazilian import BTSSettings
 from bpmcal.lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
+from bpmcal.lab.direct_tension import DTTSettings
 from bpmcal.lab.impact import ImpactSettings
 from bpmcal.lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM, Geometry
 from bpmcal.lab.triaxial import TriaxialSettings
@@ -30,6 +31,7 @@ REPO = Path(__file__).resolve().parents[2]
 SCHEMA = yaml.safe_load((REPO / "workflow" / "schemas" / "config.schema.yaml").read_text())
 
 GEO, UCS, IMP, BTS = Geometry(), UCSSettings(), ImpactSettings(), BTSSettings()
+DTT = DTTSettings()
 SCR, REG, LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
 CAL, VER = defaults_of(calibrate), defaults_of(verify)
 
@@ -59,7 +61,11 @@ DEFAULTS = {
     "bts.thickness_mm": (BTS_THICKNESS_MM, ("bts", "thickness", None)),
     **{f"bts.{k}": (getattr(BTS, k), ("bts", k, None))
        for k in ("platen_velocity", "damping", "platen_fric", "stop_drop", "max_strain",
-                 "record_strain", "post_peak_min", "approach_velocity")},
+                 "record_strain", "post_peak_min", "approach_velocity", "loading", "jaw_ratio",
+                 "contact_cap", "contact_cap_factor", "central_zone")},
+    **{f"dtt.{k}": (getattr(DTT, k), ("dtt", k, None))
+       for k in ("grip_velocity", "grip_length", "grip_clearance", "damping", "stop_drop",
+                 "post_peak_min", "max_strain", "record_strain")},
     "resources.max_balls": (MAX_BALLS, ("ucs", "max_balls", None)),
     "resources.genesis_max_steps": (GENESIS_MAX_STEPS, ("ucs", "genesis_max_steps", None)),
     "study.lhs_optimization": (defaults_of(lhs_design)["optimization"],
@@ -120,6 +126,9 @@ STUDY_ONLY = {
     "ratio_sweep.enabled",  # whether the DAG has the sweep
     "transfer.enabled",  # whether the DAG has the full-size transfer
     "bts", "bts.enabled",  # whether the DAG has the Brazilian jobs ({}: the defaults)
+    "bts.scale",  # null: the disc at the cylinder's scale (bpmcal ucs --bts-scale: the same)
+    "dtt", "dtt.enabled",  # whether the DAG has the direct-tension jobs
+    "dtt.scale",  # null: the UCS cylinder's scale (bpmcal ucs --dtt-scale: the same)
     "impact.sweep_velocities",  # the velocity sweep's extra runs
     "triaxial",  # the section itself ({}: a config without it gets the defaults below)
     "triaxial.enabled", "triaxial.cards",  # whether and which cards the DAG tests

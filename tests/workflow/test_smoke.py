@@ -16,6 +16,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
@@ -54,6 +55,10 @@ TITLE = "O'Brien sandstone; $(touch PWNED) `touch PWNED` \" '; touch PWNED; echo
 SMOKE = ["--configfile", "config/smoke.yaml", "config/hostile_names.yaml"]
 #: the sample whose run file is corrupted before the gather
 PLANTED = "s003"
+#: the sample whose Brazilian run is made invalid before the gather (as a run whose
+#: fracture started at a platen is recorded)
+PLANTED_INVALID = "s004"
+INVALID_REASON = "fracture initiated next to the top platen: planted by the smoke test"
 
 
 @pytest.fixture(scope="module")
@@ -70,6 +75,12 @@ def smoke(tmp_path_factory):
     f = wf / OUTDIR / "ucs" / f"{PLANTED}.h5"  # ... one of them damaged (a half copy) ...
     raw = f.read_bytes()
     f.write_bytes(raw[: len(raw) // 2])
+    import h5py
+
+    with h5py.File(wf / OUTDIR / "bts" / f"{PLANTED_INVALID}.h5", "r+") as h:  # ... another's
+        a = h["summary"].attrs  # Brazilian test made an invalid one ...
+        a["bts_valid"], a["bts_invalid_reason"] = False, INVALID_REASON
+        a["bts_MPa"] = float("nan")
     r = snakemake(wf, "--cores", "2", *SMOKE, audit=audit)  # ... and the rest of the study
     assert r.returncode == 0, r.stderr[-3000:]
     return wf
@@ -111,9 +122,14 @@ def test_every_sample_has_a_brazilian_test_in_the_dataset_and_the_analyses(smoke
     have sigma_t."""
     out = smoke / OUTDIR
     ds = pd.read_csv(out / "dataset.csv").set_index("sample_id")
-    assert set(ds["bts_status"]) <= {"ok", "failed"}
+    assert set(ds["bts_status"]) <= {"ok", "failed", "invalid"}
     okb = ds[ds["bts_status"] == "ok"]
-    assert len(okb) >= len(ds) - 2
+    assert len(okb) >= len(ds) - 4
+    # the planted invalid test: no sigma_t, its reason, its peak kept; left out of the fit
+    r = ds.loc[PLANTED_INVALID]
+    assert r["bts_status"] == "invalid" and r["bts_error"] == INVALID_REASON
+    assert np.isnan(r["bts_MPa"]) and r["bts_peak_MPa"] > 0 and r["status"] == "ok"
+    assert (ds["bts_status"] == "invalid").eq(ds["bts_valid"] == False).all()  # noqa: E712
     assert (okb["bts_MPa"] > 0).all() and (okb["bts_MPa"] < 100).all()
     assert ds[ds["bts_status"] != "ok"]["bts_MPa"].isna().all()
     assert ds.loc[PLANTED, "status"] == "unreadable"
@@ -125,9 +141,11 @@ def test_every_sample_has_a_brazilian_test_in_the_dataset_and_the_analyses(smoke
     assert "bts_MPa" in t3.columns and t3["bts_MPa"].sum() == pytest.approx(100.0)
     models = json.loads((out / "regression" / "models.json").read_text())
     assert "bts_MPa" in models["models"]
+    assert models["response_rows"]["bts_MPa"]["n_used"] == len(okb)  # valid tests only
     assert "bts_MPa" in (out / "regression" / "equations.md").read_text()
     index = (out / "report" / "index.md").read_text()
-    assert f"- Brazilian tests: {len(okb)} of {len(ds)} ok" in index
+    assert f"- Brazilian tests: {len(okb)} of {len(ds)} valid and ok" in index
+    assert f"  - {PLANTED_INVALID}: Brazilian invalid: {INVALID_REASON}" in index
     assert "σt" in index
 
 
@@ -498,3 +516,222 @@ def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
                 assert r["mean"] == pytest.approx(ok[r["response"]].mean(), rel=1e-12)
     index = (smoke / OUTDIR / "report" / "index.md").read_text()
     assert "The verified cards on fresh packing seeds" in index
+
+
+# -- a changed config key reruns exactly the jobs that read it -------------------------------
+#: DEM rules and the config sections they read (their params: specimen_args, --bts-*)
+_DEM = {"ucs", "sweep_ucs", "verify", "transfer", "seed_scatter", "holdout", "impact",
+        "triaxial"}
+_AXIAL = _DEM - {"impact"}  # the ucs section: the rules that load a cylinder axially
+_CAL = {"calibrate_initial", "calibrate"}
+_VERIFY = {"verify"}
+#: config key -> (a changed value, the rules whose jobs read it). A dry run after the change
+#: must schedule exactly their jobs and those downstream of them (the rule graph), the
+#: report (it renders the whole config) and `all`; a value written as {rule: n} lists the
+#: jobs a structural change adds instead (new velocities, seeds, cards). The smoke study's
+#: lab has no sigma_t target, so the closed loops read no bts key (they run no disc).
+RERUN = {
+    "study.name": ("another title", set()),
+    "study.n_samples": (17, {"design"}),
+    "study.lhs_seed": (8, {"design"}),
+    "study.lhs_optimization": ("lloyd", {"design"}),
+    "study.reference": ("none", set()),
+    "ranges.rmin_mm": ([0.61, 1.0], {"design"}),
+    "ranges.porosity": ([0.21, 0.36], {"design"}),
+    "ranges.pb_emod_GPa": ([11.0, 50.0], {"design"}),
+    "ranges.pb_kratio": ([1.1, 5.0], {"design"}),
+    "ranges.pb_ten_MPa": ([11.0, 50.0], {"design"}),
+    "ranges.pb_coh_MPa": ([11.0, 50.0], {"design"}),
+    "ranges.pb_fa_deg": ([16.0, 55.0], {"design"}),
+    "ranges.fric": ([0.16, 0.55], {"design"}),
+    "specimen.scale": (0.31, _AXIAL - {"transfer"}),
+    "specimen.diameter_mm": (51.0, _DEM),
+    "specimen.height_mm": (101.0, _DEM),
+    "specimen.sigma0_MPa": (0.11, _DEM),
+    "specimen.install_gap_mm": (0.05, _DEM),
+    "specimen.relax_ratio": (0.011, _DEM),
+    "specimen.genesis": ("bpmcal", _DEM),
+    **{f"ucs.{k}": (v, _AXIAL) for k, v in {
+        "platen_velocity": 0.21, "damping": 0.71, "stop_drop": 0.71, "max_strain": 0.031,
+        "platen_fric": 0.01, "record_strain": 2.1e-5, "end_cap": 0.5,
+        "end_cap_factor": 999.0}.items()},
+    **{f"bts.{k}": (v, {"ucs"}) for k, v in {
+        "enabled": False, "scale": 0.43, "diameter_mm": 51.0, "thickness_mm": 26.0,
+        "loading": "jaws", "jaw_ratio": 1.4, "contact_cap": 1.4,
+        "contact_cap_factor": 999.0, "central_zone": 0.45, "platen_velocity": 0.051,
+        "approach_velocity": 0.11, "platen_fric": 0.31, "damping": 0.71, "stop_drop": 0.21,
+        "max_strain": 0.051, "record_strain": 1.1e-5, "post_peak_min": 0.00031}.items()},
+    "dtt.enabled": (True, {"ucs"}),  # the sample jobs gain the test
+    **{f"dtt.{k}": (v, set()) for k, v in {  # off in the smoke study: nothing reads them
+        "scale": 0.31, "grip_velocity": 0.011, "grip_length": 0.21, "grip_clearance": 1.1,
+        "damping": 0.71, "stop_drop": 0.21, "post_peak_min": 0.00011, "max_strain": 0.021,
+        "record_strain": 2.1e-6}.items()},
+    "lab.csv": ("config/lab/green_sandstone_copy.csv",
+                {"calibrate_initial", "calibrate", "verification_tables",
+                 "triaxial_envelopes"}),
+    "resources.ucs_threads": (2, set()),  # a job's threads and Slurm time: no rerun
+    "resources.ucs_runtime_min": (31, set()),
+    "resources.ucs_mem_mb": (2100, _DEM),  # the jobs' memory budget (--mem-budget-mb)
+    "resources.max_balls": (1_999_999, _DEM),
+    "resources.genesis_max_steps": (49_999, _DEM),
+    "screening.threshold_pct": (9.0, {"screen"}),
+    "screening.importance": ("total_gain", {"screen"}),
+    "screening.n_splits": (4, {"screen"}),
+    "screening.n_repeats": (3, {"screen"}),
+    "screening.seed": (12, {"screen"}),
+    "regression.alpha_in": (0.04, {"regress"}),
+    "regression.alpha_out": (0.06, {"regress"}),
+    "regression.vif_max": (11.0, {"regress"}),
+    "regression.hierarchy": ("weak", {"regress"}),
+    "regression.cv_folds": (4, {"regress"}),
+    "regression.cv_repeats": (3, {"regress"}),
+    "regression.seed": (13, {"regress"}),
+    "calibration.fixed.porosity": (0.33, _CAL),
+    "calibration.fixed.rmin_mm": (0.81, _CAL),
+    "calibration.fixed.pb_fa_deg": (36.0, _CAL),
+    "calibration.fixed.fric": (0.36, _CAL),
+    "calibration.free": (["pb_kratio", "pb_emod_GPa", "pb_coh_MPa"], _CAL),
+    "calibration.ratio": (1.5, _CAL),
+    "calibration.bounds.pb_emod_GPa": ([11.0, 49.0], _CAL),
+    "calibration.n_boot": (21, {"calibrate"}),  # the initial calibration bootstraps nothing
+    "calibration.seed": (14, _CAL),
+    "verification.rtol": (0.011, {"verify", "transfer", "seed_scatter", "holdout_table"}),
+    "verification.max_rounds": (3, _VERIFY),
+    "verification.seed": (2, _VERIFY | {"transfer"}),
+    "verification.seeds_per_round": (3, _VERIFY | {"transfer"}),
+    "verification.max_seeds": (4, _VERIFY | {"transfer"}),
+    "verification.polish": (False, _VERIFY),
+    "verification.range_margin": (0.2, _VERIFY | {"transfer"}),
+    "verification.from_unreachable": (False, _VERIFY),
+    "verification.scatter_seeds": ([1, 2, 3], {"seed_scatter"}),
+    "verification.holdout_seeds": ([11, 12, 13], {"holdout": 3}),
+    "transfer.enabled": (False, {"impact": 2}),  # the impact takes the verified card instead
+    "transfer.scale": (0.36, {"transfer"}),
+    "transfer.max_rounds": (2, {"transfer"}),
+    "ratio_sweep.enabled": (False, {"calibrate"}),
+    "ratio_sweep.ratios": ([1.0, 1.6, 0.2], {"sweep_plan"}),
+    "ratio_sweep.criterion": ("crack_count", {"sweep_analyse"}),
+    "ratio_sweep.target": (0.55, {"sweep_analyse"}),
+    "ratio_sweep.seed": (2, {"sweep_plan"}),
+    **{f"impact.{k}": (v, {"impact"}) for k, v in {
+        "scale": 0.26, "hammer_mass_kg": 4.4, "dp_ratio": 0.11, "anvil_fric": 0.31,
+        "duration_ms": 2.1, "record_us": 21.0, "seed": 2}.items()},
+    "impact.velocity": (7.0, {"impact": 1}),  # a new reference run; 10 m/s stays
+    "impact.sweep_velocities": ([10.0, 12.0], {"impact": 1}),
+    "triaxial.enabled": (False, set()),
+    "triaxial.cards": (["verified", "calibrated"], {"triaxial": 6}),
+    "triaxial.sigma3_MPa": ([0.0, 10.0, 20.0], {"triaxial": 3}),
+    "triaxial.servo_gain": (0.7, {"triaxial"}),
+    "triaxial.seed": (2, {"triaxial"}),
+    "triaxial.lab_csv": ("config/lab/gs_triaxial.csv", {"triaxial_envelopes"}),
+}
+#: keys the map leaves out, and why
+NOT_MAPPED = {"outdir": "moves every file: everything reruns, by construction"}
+
+
+def _scheduled(text: str) -> dict:
+    """rule -> jobs of a dry run's job stats ({} for "Nothing to be done")."""
+    import re
+
+    m = re.search(r"Job stats:\njob\s+count\n[-\s]+\n(.*?)\ntotal", text, re.S)
+    if not m:
+        return {}
+    return {ln.split()[0]: int(ln.split()[1]) for ln in m.group(1).splitlines() if ln.strip()}
+
+
+def _downstream(wf) -> dict:
+    """rule -> the rules that depend on it, directly or not (``snakemake --rulegraph``)."""
+    import re
+
+    r = snakemake(wf, "--rulegraph", *SMOKE)
+    assert r.returncode == 0, r.stderr[-2000:]
+    names = dict(re.findall(r'^\s*(\d+)\[label = "([^"]+)"', r.stdout, re.M))
+    edges = re.findall(r"^\s*(\d+) -> (\d+)", r.stdout, re.M)
+    child = {}
+    for a, b in edges:
+        child.setdefault(names[a], set()).add(names[b])
+    out = {}
+    for n in names.values():
+        seen, todo = set(), [n]
+        while todo:
+            for c in child.get(todo.pop(), ()):
+                if c not in seen:
+                    seen.add(c)
+                    todo.append(c)
+        out[n] = seen
+    return out
+
+
+def _nested(key: str, value) -> dict:
+    d = value
+    for part in reversed(key.split(".")):
+        d = {part: d}
+    return d
+
+
+def test_the_rerun_map_covers_every_config_key():
+    from bpmcal.study.config import load_schema
+
+    schema = load_schema(REPO / "workflow" / "schemas" / "config.schema.yaml")
+    cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+
+    def leaves(node, prefix=""):
+        for k, sub in node.get("properties", {}).items():
+            key = f"{prefix}{k}"
+            if sub.get("type") == "object" and sub.get("properties"):
+                yield from leaves(sub, key + ".")
+            else:
+                yield key
+    keys = set(leaves(schema))
+    # calibration.fixed / bounds: the map changes the keys the study sets (others stay unset)
+    unset = {k for k in keys if k.startswith(("calibration.fixed.", "calibration.bounds."))
+             and k.split(".")[-1] not in cfg["calibration"][k.split(".")[1]]}
+    missing = keys - set(RERUN) - set(NOT_MAPPED) - unset - {"calibration.bounds.pb_emod_GPa"}
+    assert not missing, f"config keys without an entry in the rerun map: {sorted(missing)}"
+
+
+def test_a_changed_config_key_reruns_exactly_the_jobs_that_read_it(smoke):
+    """Each key of the config in turn, changed over the finished smoke study: the dry run
+    schedules the jobs that read it and everything downstream, nothing else. (A rule whose
+    params miss a key it passes - or hold a whole section - fails here: the Brazilian
+    settings once reached the sample jobs through a callable, which Snakemake's params
+    trigger does not compare, so a bts change left the dataset's sigma_t stale.)"""
+    from concurrent.futures import ThreadPoolExecutor
+
+    shutil.copy(smoke / "config" / "lab" / "green_sandstone.csv",
+                smoke / "config" / "lab" / "green_sandstone_copy.csv")
+    (smoke / "config" / "lab" / "gs_triaxial.csv").write_text(
+        "specimen,sigma3_MPa,sigma1_MPa\nB1,0,60\nB1,10,95\n")
+    base = _scheduled((r := snakemake(smoke, "-n", *SMOKE)).stdout + r.stderr)
+    assert base == {}, f"the finished study is not up to date: {base}"
+    down = _downstream(smoke)
+
+    def dry(item):
+        i, (key, (value, _)) = item
+        f = smoke / "config" / f"rerun_{i}.yaml"
+        f.write_text(yaml.safe_dump(_nested(key, value)))
+        r = snakemake(smoke, "-n", "--nolock", *SMOKE, f"config/rerun_{i}.yaml")
+        return key, r
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        results = dict(pool.map(dry, enumerate(RERUN.items())))
+    wrong = []
+    for key, (value, readers) in RERUN.items():
+        r = results[key]
+        if r.returncode != 0:
+            wrong.append(f"{key}={value!r}: the dry run failed: {r.stderr[-400:]}")
+            continue
+        got = _scheduled(r.stdout + r.stderr)
+        if isinstance(readers, dict):  # a structural change: these new jobs
+            want = {**readers}
+            for rule in readers:
+                want.update({d: None for d in down[rule]})
+            ok = set(got) == set(want) and all(got.get(k) == n for k, n in readers.items())
+        else:
+            want = set(readers).union(*(down[rr] for rr in readers)) if readers else set()
+            want |= {"report", "all"}
+            ok = set(got) == want
+        if not ok:
+            wrong.append(f"{key}={value!r}: scheduled {got}, expected "
+                         f"{sorted(want) if not isinstance(want, dict) else want}")
+    assert not wrong, "\n".join(wrong)

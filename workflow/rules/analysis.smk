@@ -94,7 +94,8 @@ rule calibrate_initial:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        c=config["calibration"],
+        # not n_boot: the initial calibration runs no bootstrap
+        c={k: config["calibration"][k] for k in ("ratio", "seed")},
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
         ranges=json.dumps(config["ranges"]),
@@ -121,7 +122,7 @@ rule calibrate:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        c=config["calibration"],
+        c={k: config["calibration"][k] for k in ("ratio", "n_boot", "seed")},
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
         ratio_from=lambda wc, input: (
@@ -173,7 +174,8 @@ rule verify:
             )
         },
         opts=specimen_args(),
-        bts=bts_args(),
+        bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
+        dtt=dtt_args() if LAB_DTT else [],
         polish="--polish" if config["verification"]["polish"] else "--no-polish",
         unreachable=(
             ["--from-unreachable"]
@@ -187,7 +189,7 @@ rule verify:
         "--max-seeds {params.v[max_seeds]:q} --range-margin {params.v[range_margin]:q} "
         "{params.polish:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
-        "{params.opts:q} {params.bts:q} > {log:q} 2>&1"
+        "{params.opts:q} {params.bts:q} {params.dtt:q} > {log:q} 2>&1"
 
 
 rule transfer:
@@ -209,19 +211,20 @@ rule transfer:
         * (1 + config["transfer"]["max_rounds"]),
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
-        t=config["transfer"],
+        t={"max_rounds": config["transfer"]["max_rounds"]},
         # the first packing seed no closed loop may use (grown seed sets included)
         seed=transfer_seed(config["verification"]),
         rtol=config["verification"]["rtol"],
         margin=config["verification"]["range_margin"],
         opts=specimen_args(scale=config["transfer"]["scale"]),
-        bts=bts_args(),
+        bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
+        dtt=dtt_args() if LAB_DTT else [],
     shell:
         "bpmcal transfer --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
         "--seed {params.seed:q} --rtol {params.rtol:q} --range-margin {params.margin:q} "
         "--max-rounds {params.t[max_rounds]:q} --threads {threads} "
-        "{params.opts:q} {params.bts:q} > {log:q} 2>&1"
+        "{params.opts:q} {params.bts:q} {params.dtt:q} > {log:q} 2>&1"
 
 
 rule transfer_table:
@@ -276,6 +279,11 @@ rule holdout:
             if LAB_BTS
             else []
         ),
+        dtt_runs=(
+            [FILES.holdout_dtt_run("{spec}", s) for s in HOLDOUT_SEEDS]
+            if LAB_DTT
+            else []
+        ),
         seed_runs=FILES.holdout_seeds("{spec}"),
     log:
         FILES.log("holdout", "{spec}"),
@@ -290,12 +298,17 @@ rule holdout:
         bts_runs=lambda wc, output: (
             ["--bts-runs", *output.bts_runs] if output.bts_runs else []
         ),
+        dtt_runs=lambda wc, output: (
+            ["--dtt-runs", *output.dtt_runs] if output.dtt_runs else []
+        ),
         opts=specimen_args(),
-        bts=bts_args(),
+        bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
+        dtt=dtt_args() if LAB_DTT else [],
     shell:
         "bpmcal holdout --card {input.card:q} --seeds {params.seeds:q} --runs {output.runs:q} "
-        "{params.bts_runs:q} --seed-runs {output.seed_runs:q} --threads {threads} "
-        "{params.opts:q} {params.bts:q} > {log:q} 2>&1"
+        "{params.bts_runs:q} {params.dtt_runs:q} --seed-runs {output.seed_runs:q} "
+        "--threads {threads} "
+        "{params.opts:q} {params.bts:q} {params.dtt:q} > {log:q} 2>&1"
 
 
 rule holdout_table:

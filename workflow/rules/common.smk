@@ -25,6 +25,7 @@ SAMPLES = L.sample_ids(config["study"]["n_samples"])
 SPECIMENS = list(_lab["specimen"])
 SWEEP_ON = bool(config["ratio_sweep"]["enabled"])
 BTS_ON = bool(config["bts"]["enabled"])  # a Brazilian test of every design sample
+DTT_ON = bool(config["dtt"]["enabled"])  # a direct-tension test of every design sample
 SWEEP_SPEC = SPECIMENS[0]  # the sweep starts from the first specimen's initial card
 IMPACT_SPEC = SPECIMENS[0]  # the impact uses the first specimen's verified card
 TRANSFER_ON = bool(config["transfer"]["enabled"])
@@ -44,6 +45,8 @@ HOLDOUT_SEEDS = list(config["verification"]["holdout_seeds"])
 HOLDOUT_ON = bool(HOLDOUT_SEEDS)  # the verified cards on fresh packing seeds
 # a lab sigma_t target: the fresh-seed check runs each card's Brazilian test too
 LAB_BTS = "bts_MPa" in _lab.columns and bool(_lab["bts_MPa"].notna().any())
+# a lab direct-tension strength: the closed loops and fresh seeds run that test
+LAB_DTT = "dtt_MPa" in _lab.columns and bool(_lab["dtt_MPa"].notna().any())
 REFERENCE = config["study"].get("reference") == "yu2026"
 TRIAX_ON = bool(config["triaxial"]["enabled"])
 TRIAX_KINDS = list(config["triaxial"]["cards"])
@@ -57,9 +60,12 @@ def beside(*files):
     return [c for f in files for c in L.companions(f)[1:]]
 
 
-def specimen_args(cfg=config, scale=None):
-    """bpmcal ucs/impact options of the specimen, loading and resources sections, as a list
-    of arguments (for {params.opts:q}: each one is shell-quoted)."""
+def specimen_args(cfg=config, scale=None, loading=True):
+    """bpmcal ucs/impact options of the specimen, loading (the ucs section; ``loading``
+    False for a job that does not load a cylinder axially: the impact) and resources
+    sections, as a list of arguments (for {params.opts:q}: each one is shell-quoted).
+    A job's params hold only what it reads, so that a changed key reruns exactly those
+    jobs (tests/workflow/test_smoke.py, the rerun map)."""
     sp, u, r = cfg["specimen"], cfg["ucs"], cfg["resources"]
     scale = sp["scale"] if scale is None else scale
     opts = {
@@ -69,19 +75,28 @@ def specimen_args(cfg=config, scale=None):
         "--sigma0": sp["sigma0_MPa"],
         "--genesis": sp["genesis"],
         "--relax-ratio": sp["relax_ratio"],
-        "--platen-velocity": u["platen_velocity"],
-        "--damping": u["damping"],
-        "--stop-drop": u["stop_drop"],
-        "--max-strain": u["max_strain"],
-        "--platen-fric": u["platen_fric"],
-        "--record-strain": u["record_strain"],
-        "--end-cap": u["end_cap"],
-        "--end-cap-factor": u["end_cap_factor"],
-        "--specimen-cache": FILES.packings,
-        "--max-balls": r["max_balls"],
-        "--mem-budget-mb": r["ucs_mem_mb"],
-        "--genesis-max-steps": r["genesis_max_steps"],
     }
+    if loading:
+        opts.update(
+            {
+                "--platen-velocity": u["platen_velocity"],
+                "--damping": u["damping"],
+                "--stop-drop": u["stop_drop"],
+                "--max-strain": u["max_strain"],
+                "--platen-fric": u["platen_fric"],
+                "--record-strain": u["record_strain"],
+                "--end-cap": u["end_cap"],
+                "--end-cap-factor": u["end_cap_factor"],
+            }
+        )
+    opts.update(
+        {
+            "--specimen-cache": FILES.packings,
+            "--max-balls": r["max_balls"],
+            "--mem-budget-mb": r["ucs_mem_mb"],
+            "--genesis-max-steps": r["genesis_max_steps"],
+        }
+    )
     if sp["install_gap_mm"] is not None:  # null: the genesis's own gap
         opts["--install-gap"] = sp["install_gap_mm"]
     return [str(x) for k, v in opts.items() for x in (k, v)]
@@ -93,7 +108,14 @@ def bts_args(cfg=config):
     target, the closed loops') runs with the same disc and loading."""
     b = cfg["bts"]
     opts = {"--bts-diameter": b["diameter_mm"], "--bts-thickness": b["thickness_mm"]}
+    if b["scale"] is not None:  # null: the disc at the cylinder's scale
+        opts["--bts-scale"] = b["scale"]
     for f in (
+        "loading",
+        "jaw_ratio",
+        "contact_cap",
+        "contact_cap_factor",
+        "central_zone",
         "platen_velocity",
         "approach_velocity",
         "platen_fric",
@@ -104,4 +126,26 @@ def bts_args(cfg=config):
         "record_strain",
     ):
         opts[f"--bts-{f.replace('_', '-')}"] = b[f]
+    return [str(x) for k, v in opts.items() for x in (k, v)]
+
+
+def dtt_args(cfg=config):
+    """The --dtt-* options of bpmcal ucs/verify/transfer/holdout from the dtt section: the
+    direct-tension test of every sample and, for a card with a dtt_MPa target, of the
+    closed loops (the UCS cylinder at dtt.scale)."""
+    d = cfg["dtt"]
+    opts = {}
+    if d["scale"] is not None:  # null: the cylinder's scale
+        opts["--dtt-scale"] = d["scale"]
+    for f in (
+        "grip_velocity",
+        "grip_length",
+        "grip_clearance",
+        "damping",
+        "stop_drop",
+        "post_peak_min",
+        "max_strain",
+        "record_strain",
+    ):
+        opts[f"--dtt-{f.replace('_', '-')}"] = d[f]
     return [str(x) for k, v in opts.items() for x in (k, v)]

@@ -69,7 +69,7 @@ rule sweep_analyse:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        s=config["ratio_sweep"],
+        s={k: config["ratio_sweep"][k] for k in ("criterion", "target")},
     shell:
         "bpmcal sweep-analyse --plan {input.plan:q} --runs {input.runs:q} "
         "--criterion {params.s[criterion]:q} --target {params.s[target]:q} "
@@ -93,8 +93,19 @@ rule impact:
         runtime=config["resources"]["ucs_runtime_min"] * 2,
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
-        i=config["impact"],
-        opts=specimen_args(scale=config["impact"]["scale"]),
+        # what an impact run reads (not the velocities: a job's own is its wildcard)
+        i={
+            k: config["impact"][k]
+            for k in (
+                "hammer_mass_kg",
+                "dp_ratio",
+                "anvil_fric",
+                "duration_ms",
+                "record_us",
+                "seed",
+            )
+        },
+        opts=specimen_args(scale=config["impact"]["scale"], loading=False),
     shell:
         "bpmcal impact --card {input.card:q} --out {output:q} --velocity {wildcards.v:q} "
         "--hammer-mass {params.i[hammer_mass_kg]:q} --dp-ratio {params.i[dp_ratio]:q} "

@@ -1,5 +1,5 @@
 # The spine of the study: design -> one job per sample (its UCS test and, with
-# bts.enabled, its Brazilian test) -> gathered dataset.
+# bts.enabled / dtt.enabled, its Brazilian / direct-tension test) -> gathered dataset.
 # A sample whose DEM run fails writes a failure record (--failed-ok: exit 0), so the DAG
 # goes on and the dataset carries the sample with its status and reason.
 
@@ -29,6 +29,7 @@ rule ucs:
         # with bts.enabled, the sample's Brazilian test runs in the same job (one process
         # start-up for both; `bpmcal ucs --bts-out`): a sample job writes both run files
         bts=FILES.bts_run("{sample}") if BTS_ON else [],
+        dtt=FILES.dtt_run("{sample}") if DTT_ON else [],
     log:
         FILES.log("ucs", "{sample}"),
     wildcard_constraints:
@@ -41,12 +42,16 @@ rule ucs:
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
         opts=specimen_args(),
-        bts=lambda wc, output: (
-            ["--bts-out", output.bts, *bts_args()] if BTS_ON else []
-        ),
+        # the Brazilian settings as a plain value (a callable's value is not compared by
+        # Snakemake's params trigger: a changed bts key would not rerun the samples)
+        bts_opts=bts_args() if BTS_ON else [],
+        bts_out=lambda wc, output: ["--bts-out", output.bts] if BTS_ON else [],
+        dtt_opts=dtt_args() if DTT_ON else [],
+        dtt_out=lambda wc, output: ["--dtt-out", output.dtt] if DTT_ON else [],
     shell:
         "bpmcal ucs --design {input:q} --sample {wildcards.sample:q} --out {output.ucs:q} "
-        "--threads {threads} --failed-ok {params.opts:q} {params.bts:q} > {log:q} 2>&1"
+        "--threads {threads} --failed-ok {params.opts:q} {params.bts_out:q} "
+        "{params.bts_opts:q} {params.dtt_out:q} {params.dtt_opts:q} > {log:q} 2>&1"
 
 
 rule gather:
@@ -54,6 +59,7 @@ rule gather:
         design=FILES.design,
         runs=[FILES.ucs_run(s) for s in SAMPLES],
         bts=[FILES.bts_run(s) for s in SAMPLES] if BTS_ON else [],
+        dtt=[FILES.dtt_run(s) for s in SAMPLES] if DTT_ON else [],
     output:
         FILES.dataset,
     log:
@@ -62,6 +68,7 @@ rule gather:
         "../envs/bpmcal.yaml"
     params:
         bts=lambda wc, input: ["--bts-runs", *input.bts] if input.bts else [],
+        dtt=lambda wc, input: ["--dtt-runs", *input.dtt] if input.dtt else [],
     shell:
         "bpmcal gather --design {input.design:q} --runs {input.runs:q} {params.bts:q} "
-        "--out {output:q} > {log:q} 2>&1"
+        "{params.dtt:q} --out {output:q} > {log:q} 2>&1"

@@ -19,7 +19,7 @@ rule triaxial:
         runtime=config["resources"]["ucs_runtime_min"],
         mem_mb=config["resources"]["ucs_mem_mb"],
     params:
-        t=config["triaxial"],
+        t={k: config["triaxial"][k] for k in ("seed", "servo_gain")},
         opts=specimen_args(),
     shell:
         "bpmcal triaxial --params {input.card:q} --sigma3 {wildcards.s3:q} "

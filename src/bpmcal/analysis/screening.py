@@ -313,10 +313,12 @@ class ScreeningResults:
     def summary(self) -> str:
         """Plain-text report: rows used, CV R², shares of every type, shadow maxima, selection."""
         lines = [f"XGBoost screening: {self.rows['n_used']} rows used, {self.rows['n_dropped']} dropped "
-                 f"({self.rows['n_failed']} failed, {self.rows['n_missing']} missing values); "
+                 f"({self.rows['n_failed']} not ok: failed, invalid or missing runs; "
+                 f"{self.rows['n_missing']} missing values); "
                  f"{self.settings.get('n_splits')}-fold shuffled CV, seed {self.settings.get('seed')}"]
         lines += [f"  {r}: screened on its own rows: {n['n_used']} used, {n['n_dropped']} dropped "
-                  f"({n['n_failed']} failed, {n['n_missing']} missing values)"
+                  f"({n['n_failed']} not ok: failed, invalid or missing runs; "
+                  f"{n['n_missing']} missing values)"
                   for r, n in self.response_rows.items()]
         lines += ["", "Validation R² of the XGBoost models:", self.cv_r2.round(3).to_string(), ""]
         for kind in IMPORTANCE_TYPES:

@@ -629,11 +629,13 @@ class StepwiseResults:
         """Plain-text report: rules, rows, fit statistics per stage, equations, coefficients."""
         s = self.settings
         lines = [f"Stepwise regression: {self.rows['n_used']} rows used, {self.rows['n_dropped']} dropped "
-                 f"({self.rows['n_failed']} failed, {self.rows['n_missing']} missing values)",
+                 f"({self.rows['n_failed']} not ok: failed, invalid or missing runs; "
+                 f"{self.rows['n_missing']} missing values)",
                  f"entry p < {s['alpha_in']:g} and adjusted R² gain; removal p > {s['alpha_out']:g}; "
                  f"VIF (centred terms) <= {s['vif_max']:g}; hierarchy: {s['hierarchy']}",
                  *(f"  {r}: fitted on its own rows: {n['n_used']} used, {n['n_dropped']} "
-                   f"dropped ({n['n_failed']} failed, {n['n_missing']} missing values)"
+                   f"dropped ({n['n_failed']} not ok: failed, invalid or missing runs; "
+                   f"{n['n_missing']} missing values)"
                    for r, n in self.response_rows.items()),
                  "", self.fit_table().round(4).to_string(), ""]
         for r, st in self.models.items():

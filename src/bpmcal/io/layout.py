@@ -152,6 +152,10 @@ class Layout:
         """The Brazilian run file of one design sample (or its failure record)."""
         return self.path("bts", f"{sample}.h5")
 
+    def dtt_run(self, sample: str) -> str:
+        """The direct-tension run file of one design sample (or its failure record)."""
+        return self.path("dtt", f"{sample}.h5")
+
     @property
     def dataset(self) -> str:
         """One row per sample: design, responses, status, error (and, when the study runs
@@ -266,6 +270,10 @@ class Layout:
     def holdout_bts_run(self, specimen: str, seed) -> str:
         """... and its Brazilian run (a failure record "not run" without a σt target)."""
         return self.path("verification", specimen, "holdout", f"seed{seed}.bts.h5")
+
+    def holdout_dtt_run(self, specimen: str, seed) -> str:
+        """... and its direct-tension run (with a direct-tension strength target)."""
+        return self.path("verification", specimen, "holdout", f"seed{seed}.dtt.h5")
 
     def holdout_seeds(self, specimen: str) -> str:
         """The fresh-seed check's responses of every seed (table)."""

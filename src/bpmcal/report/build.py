@@ -216,15 +216,23 @@ def _settings(lay, cfg, ref=False) -> str:
         if len(w):
             lines.append(f"- DEM time per sample: median {w.median():.1f} s "
                          f"(range {w.min():.1f}-{w.max():.1f} s)")
-        if "bts_status" in ds.columns:  # the Brazilian test of every sample
-            bb = ds[ds["bts_status"] != "ok"]
-            lines.append(f"- Brazilian tests: {len(ds) - len(bb)} of {len(ds)} ok"
-                         + (" (failed ones left out of the σt analysis):" if len(bb) else ""))
+        for test, name, why in (("bts", "Brazilian", "ISRM: the fracture did not start in "
+                                 "the disc's central zone or did not split it"),
+                                ("dtt", "Direct-tension", "the specimen broke next to a grip")):
+            if f"{test}_status" not in ds.columns:  # the tensile test of every sample
+                continue
+            st = ds[f"{test}_status"]
+            bb = ds[st != "ok"]
+            n_inv = int((st == "invalid").sum())
+            lines.append(f"- {name} tests: {len(ds) - len(bb)} of {len(ds)} valid and ok"
+                         + (f", {n_inv} invalid ({why})" if n_inv else "")
+                         + (" (left out of the σt analysis):" if len(bb) else ""))
             for r in bb.itertuples():
-                lines.append(f"  - {r.sample_id}: Brazilian {r.bts_status}: {r.bts_error}")
-            w = ds.loc[ds["bts_status"] == "ok", "bts_wall_s"]
+                lines.append(f"  - {r.sample_id}: {name} {getattr(r, f'{test}_status')}: "
+                             f"{getattr(r, f'{test}_error')}")
+            w = ds.loc[st == "ok", f"{test}_wall_s"]
             if len(w):
-                lines.append(f"- Brazilian time per sample: median {w.median():.1f} s "
+                lines.append(f"- {name} time per sample: median {w.median():.1f} s "
                              f"(range {w.min():.1f}-{w.max():.1f} s)")
     return "\n".join(lines) + "\n"
 
@@ -259,14 +267,16 @@ def _table3(lay, comp, ref=False) -> str:
                 r.append(f"{_f(ours, '.1f')} ({theirs:.1f})")
             else:
                 r.append(_f(ours, ".1f"))
-        if P.TENSILE in t3.columns:  # the Brazilian test of every sample (the paper has none)
-            r.append(_f(t3.loc[p, P.TENSILE], ".1f") + (" (–)" if ref else ""))
+        for resp in P.TENSILE_TESTS:  # a tensile test of every sample (the paper has none)
+            if resp in t3.columns:
+                r.append(_f(t3.loc[p, resp], ".1f") + (" (–)" if ref else ""))
         rows.append(r)
     head = ("## Table 3: XGBoost screening (ours, paper in brackets, % of gain)\n\n" if ref
             else "## Table 3: XGBoost screening (% of gain)\n\n")
-    cols = ["parameter", "σc", "E", "ν", *(["σt"] if P.TENSILE in t3.columns else [])]
-    note = ("\nσt: the Brazilian test of every sample; the paper publishes no tensile data.\n"
-            if ref and P.TENSILE in t3.columns else "")
+    tens = [resp for resp in P.TENSILE_TESTS if resp in t3.columns]
+    cols = ["parameter", "σc", "E", "ν", *(P.RESPONSES[resp].unicode for resp in tens)]
+    note = ("\nσt: the Brazilian test of every sample (σt,d: the direct-tension test); the "
+            "paper publishes no tensile data.\n" if ref and tens else "")
     return head + markdown_table(rows, cols) + "\n" + note
 
 
@@ -335,10 +345,12 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
         if card["status"] != "ok":
             notes.append(f"- **{spec}: {card['status']}** — {card['message']}")
         sr = card.get("strength_ratio") or {}
-        if sr.get("set_by") == "bts_MPa target":
-            notes.append(f"- {spec}: the lab tensile strength σt = {_f(card['targets']['bts_MPa'])} "
-                         f"MPa sets the bond-strength ratio: {_f(sr['value'])} (not the ratio "
-                         "in the title)")
+        for resp in P.TENSILE_TESTS:
+            if sr.get("set_by") == f"{resp} target":
+                notes.append(f"- {spec}: the lab tensile strength "
+                             f"{P.RESPONSES[resp].unicode} = {_f(card['targets'][resp])} MPa "
+                             f"sets the bond-strength ratio: {_f(sr['value'])} (not the ratio "
+                             "in the title)")
         for m in card.get("missed") or []:
             notes.append(f"- {spec}: target {m['target']} missed by the calibration: lab "
                          f"{_f(m['value'])}, regression {_f(m['predicted'])} "
@@ -382,7 +394,8 @@ def _verification(lay, comp, ref=False) -> str:
         ran = r.get("status") != "not-run"
         if not ran:
             notes.append(f"- **{spec}: closed loop not run** — {r.get('note', '')}")
-        bts = "lab_bts_MPa" in t5.columns and pd.notna(r.get("lab_bts_MPa"))  # σt a target
+        tens = [resp for resp in P.TENSILE_TESTS  # σt a target
+                if f"lab_{resp}" in t5.columns and pd.notna(r.get(f"lab_{resp}"))]
         if ran and isinstance(r.get("note"), str) and r["note"]:
             notes.append(f"- **{spec}: outside the design space** — {r['note']} (the closed "
                          "loop ran the DEM there, within verification.range_margin; the "
@@ -390,7 +403,7 @@ def _verification(lay, comp, ref=False) -> str:
         if ran and isinstance(r.get("missed"), str) and r["missed"]:
             notes.append(f"- **{spec}: target(s) missed by the closed loop** — {r['missed']} "
                          "(error of the DEM in % of the lab value; no target is left out)")
-        for k in (*P.TARGETS, "bts_MPa") if bts else P.TARGETS:
+        for k in (*P.TARGETS, *tens):
             if th and ran and k in P.TARGETS:
                 _cmp(comp, "Table 5", f"{spec} {k}, DEM (closed loop vs paper's PFC3D)",
                      r[f"closed_loop_{k}"], th[k], P.RESPONSES[k].unit)

@@ -39,7 +39,13 @@ from ..analysis import (
 )
 from ..analysis import seed_scatter as scatter_table
 from ..analysis._common import usable_rows
-from ..analysis.calibration import BTS, bts_strengths, check_calibration_space
+from ..analysis.calibration import (
+    BTS,
+    TENSILE,
+    bts_strengths,
+    check_calibration_space,
+    tensile_target,
+)
 from ..analysis.screening import combine as combine_screenings
 from ..analysis.stepwise import combine as combine_regressions
 from ..io.atomic import write_text
@@ -51,10 +57,11 @@ from ..io.provenance import provenance
 from ..io.tables import write_json, write_table
 from ..lab.brazilian import BTSSettings
 from ..lab.budget import check_budget
+from ..lab.direct_tension import DTTSettings
 from ..lab.runner import bts_geometry as _isrm_disc
 from ..lab.runner import bts_inputs, ucs_inputs
 from ..plots.calibration import fig_importance, fig_pred_vs_sim, fig_stress_strain
-from ..study.gather import has_tensile, tensile_view
+from ..study.gather import has_tensile, tensile_responses, tensile_view
 from . import defaults_of
 from .inputs import (
     CSV,
@@ -71,7 +78,7 @@ from .inputs import (
     read_models,
     usable,
 )
-from .runs import run_bts_file, run_ucs_file, write_failure
+from .runs import run_bts_file, run_dtt_file, run_ucs_file, write_failure
 
 #: the defaults of the stages are those of the analyses they run
 _SCREEN, _REGR, _LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
@@ -102,17 +109,19 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
         n_splits = k
     res = XGBScreening(n_splits=n_splits, threshold=threshold, select_by=importance,
                        n_repeats=n_repeats, seed=seed).fit(df)
-    if has_tensile(df):  # sigma_t: screened on the samples whose Brazilian test is ok
-        tv = tensile_view(df)
-        n_t = usable_rows(tv, [*P.PARAMS, P.TENSILE]).n_used
+    for resp in tensile_responses(df):  # sigma_t: on the samples whose test is valid
+        tv = tensile_view(df, resp)
+        test = P.TENSILE_TESTS[resp]
+        n_t = usable_rows(tv, [*P.PARAMS, resp]).n_used
         k = min(n_splits, n_t // 2)
         if k < 2:
-            note += (f"; sigma_t not screened: {n_t} samples have a usable Brazilian test, "
-                     "at least 4 are needed (see the dataset's bts_status and bts_error)")
+            note += (f"; {resp} not screened: {n_t} samples have a valid {_TEST_NAME[test]} "
+                     f"test, at least 4 are needed (see the dataset's {test}_status and "
+                     f"{test}_error)")
         else:
-            note += f"; sigma_t: {tensile_note(tv)}"
+            note += f"; {_RESP_NAME[resp]}: {tensile_note(tv, test)}"
             res = combine_screenings(res, XGBScreening(
-                responses=(P.TENSILE,), n_splits=k, threshold=threshold, select_by=importance,
+                responses=(resp,), n_splits=k, threshold=threshold, select_by=importance,
                 n_repeats=n_repeats, seed=seed).fit(tv))
     write_table(table3(res, importance=importance), table3_csv,
                 markdown=table3_markdown(res, importance=importance))
@@ -128,13 +137,25 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
     return {"selected": sel, "note": note}
 
 
-def tensile_note(tv: pd.DataFrame) -> str:
+#: the tensile tests by name, for notes
+_TEST_NAME = {"bts": "Brazilian", "dtt": "direct-tension"}
+_RESP_NAME = {"bts_MPa": "sigma_t", "dtt_MPa": "sigma_t (direct tension)"}
+
+
+def tensile_note(tv: pd.DataFrame, test: str = "bts") -> str:
     """How many samples the sigma_t analyses use (``tv``: the dataset's
-    ``study.gather.tensile_view``), and which Brazilian tests they leave out."""
+    ``study.gather.tensile_view``), and which tensile tests they leave out, by reason
+    (an invalid test - its fracture did not start in the disc's central zone, or next to
+    a grip - is left out like a failed one: it measured no sigma_t)."""
+    name = _TEST_NAME[test]
     bad = tv[tv["status"] != "ok"]
-    return (f"{len(tv) - len(bad)} of {len(tv)} Brazilian tests used"
-            + (f" ({len(bad)} failed/missing dropped: {', '.join(bad['sample_id'])})"
-               if len(bad) else ""))
+    if not len(bad):
+        return f"{len(tv)} of {len(tv)} {name} tests used"
+    parts = []
+    for status, grp in bad.groupby("status", sort=True):
+        parts.append(f"{len(grp)} {status}: {', '.join(grp['sample_id'])}")
+    return (f"{len(tv) - len(bad)} of {len(tv)} {name} tests used ({len(bad)} left out: "
+            + "; ".join(parts) + ")")
 
 
 # ------------------------------------------------------------------------ regression
@@ -161,20 +182,22 @@ def regress(dataset, selected, *, models, equations, summaries, coefficients, ca
                              hierarchy=hierarchy, cv_folds=cv_folds, cv_repeats=cv_repeats,
                              seed=seed)
     chosen = dict(sel["selected"])
-    tensile = chosen.pop(P.TENSILE, None)  # sigma_t: fitted on its own rows
+    tensile = {r: chosen.pop(r) for r in P.TENSILE_TESTS if r in chosen}  # own rows each
     res = reg.fit(df, chosen)
-    if tensile is not None:
-        if not has_tensile(df):
-            raise BadInput(f"--selected {selected} screens {P.TENSILE}, but --dataset "
-                           f"{dataset} has no Brazilian columns (bts_MPa, bts_status)")
-        tv = tensile_view(df)
-        n_t = usable_rows(tv, [*P.PARAMS, P.TENSILE]).n_used
+    for resp, terms in tensile.items():
+        test = P.TENSILE_TESTS[resp]
+        if not has_tensile(df, resp):
+            raise BadInput(f"--selected {selected} screens {resp}, but --dataset "
+                           f"{dataset} has no {_TEST_NAME[test]} columns ({resp}, "
+                           f"{test}_status)")
+        tv = tensile_view(df, resp)
+        n_t = usable_rows(tv, [*P.PARAMS, resp]).n_used
         if n_t < max(cv_folds, 4):
-            note += (f"; sigma_t not regressed: {n_t} samples have a usable Brazilian test, "
-                     f"at least {max(cv_folds, 4)} are needed")
+            note += (f"; {resp} not regressed: {n_t} samples have a valid "
+                     f"{_TEST_NAME[test]} test, at least {max(cv_folds, 4)} are needed")
         else:
-            note += f"; sigma_t: {tensile_note(tv)}"
-            res = combine_regressions(res, reg.fit(tv, {P.TENSILE: tensile}))
+            note += f"; {_RESP_NAME[resp]}: {tensile_note(tv, test)}"
+            res = combine_regressions(res, reg.fit(tv, {resp: terms}))
     d = res.to_dict()
     d["note"] = note
     d["provenance"] = provenance({"dataset": str(dataset), "seed": seed})
@@ -196,9 +219,15 @@ def regress(dataset, selected, *, models, equations, summaries, coefficients, ca
     write_text(equations, text)
     write_text(summaries, res.summary() + "\n")
     ok = df[df["status"] == "ok"]
-    if P.TENSILE in res.models:  # sigma_t over the samples whose Brazilian test is ok
-        ok = df[(df["status"] == "ok") | (df["bts_status"] == "ok")].copy()
+    fitted = [r for r in P.TENSILE_TESTS if r in res.models]
+    if fitted:  # sigma_t over the samples whose tensile test is valid
+        keep = df["status"] == "ok"
+        for r in fitted:
+            keep |= df[f"{P.TENSILE_TESTS[r]}_status"] == "ok"
+        ok = df[keep].copy()
         ok.loc[ok["status"] != "ok", list(chosen)] = np.nan
+        for r in fitted:  # an invalid or failed test's value is not shown either
+            ok.loc[ok[f"{P.TENSILE_TESTS[r]}_status"] != "ok", r] = np.nan
     save_figure(fig_pred_vs_sim(ok, res.predict(ok), res.fit_table()), figure)
     return {"note": note, "equations": text}
 
@@ -279,25 +308,29 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
                            f"[low, high] (paper units), got {val!r}")
     check_calibration_space(free, fixed, ratio, ranges, bounds)
     jobs = [(rec, lab_targets(rec)) for rec in lab_df.to_dict("records")]
-    with_bts = [str(rec["specimen"]) for rec, t in jobs if BTS in t]
+    with_bts = [str(rec["specimen"]) for rec, t in jobs if tensile_target(t)]
     if with_bts:  # σt sets the ratio of these specimens: their space must be valid too
         f_bts, r_bts, _ = bts_strengths({BTS: 1.0}, free, fixed, ratio)
         check_calibration_space(f_bts, fixed, r_bts, ranges, bounds)
     df = read_dataset(dataset)
     model_set = read_models(models)
-    if with_bts:
-        if BTS not in model_set:
-            raise BadInput(f"--lab {lab}: specimen(s) {with_bts} have a tensile strength "
-                           f"(bts_MPa) but --models {models} has no model of bts_MPa: run the "
-                           "study with a Brazilian test per sample, or leave bts_MPa empty")
-        if n_boot and BTS not in df.columns:
-            raise BadInput(f"--dataset {dataset}: no bts_MPa column, which the bootstrap of "
-                           f"the tensile-strength target of {with_bts} refits")
+    for resp in TENSILE:
+        having = [str(rec["specimen"]) for rec, t in jobs if resp in t]
+        if not having:
+            continue
+        test = "a Brazilian" if resp == BTS else "a direct-tension"
+        if resp not in model_set:
+            raise BadInput(f"--lab {lab}: specimen(s) {having} have a tensile strength "
+                           f"({resp}) but --models {models} has no model of {resp}: run the "
+                           f"study with {test} test per sample, or leave {resp} empty")
+        if n_boot and resp not in df.columns:
+            raise BadInput(f"--dataset {dataset}: no {resp} column, which the bootstrap of "
+                           f"the tensile-strength target of {having} refits")
     outputs(*((c, "--cards", YAML) for c in cards), (table, "--table", CSV))
     dnote = usable(df)
     if with_bts:
         note = "; ".join(x for x in (note, (
-            f"the tensile strength (bts_MPa) sets the bond-strength ratio of {with_bts} "
+            f"the tensile strength sets the bond-strength ratio of {with_bts} "
             "(pb_ten_MPa free; the configured or swept ratio is not used for them)")) if x)
     rows = []
     for rec, targets in jobs:
@@ -322,7 +355,7 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
             "ratio_ten_coh": s_ratio,
             "strength_ratio": {
                 "value": float(inv.solution["pb_ten_MPa"] / inv.solution["pb_coh_MPa"]),
-                "set_by": ("bts_MPa target" if ratio_by == BTS else
+                "set_by": (f"{ratio_by} target" if ratio_by in TENSILE else
                            "ratio sweep" if ratio_from and not note_is_fallback(note)
                            else "config calibration.ratio" if s_ratio is not None
                            else "both strengths free")},
@@ -361,12 +394,15 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
 
 
 def lab_targets(rec: dict) -> dict:
-    """The calibration targets of one lab row: σc, E, ν, and σt (``bts_MPa``) when the
-    row gives it (an empty optional value is not a target)."""
+    """The calibration targets of one lab row: σc, E, ν, and σt when the row gives it:
+    the Brazilian tensile strength (``bts_MPa``) or the direct-tension strength
+    (``dtt_MPa``), an alternative (``study.config.read_lab`` refuses a row with both); an
+    empty optional value is not a target."""
     targets = {k: float(rec[k]) for k in P.TARGETS}
-    v = rec.get(BTS)
-    if v is not None and math.isfinite(float(v)):
-        targets[BTS] = float(v)
+    for r in TENSILE:
+        v = rec.get(r)
+        if v is not None and math.isfinite(float(v)):
+            targets[r] = float(v)
     return targets
 
 
@@ -387,10 +423,11 @@ def _responses(rows: list[dict], targets: dict) -> dict:
     coefficient of variation, NaN with one seed), ``n_seeds`` and the errors of the mean
     in % of the lab value. σt (``bts_MPa``) is among them when it is a target."""
     ok = [r for r in rows if r.get("status") == "ok"]
-    scattered = [*P.TARGETS, *([BTS] if BTS in targets else [])]
+    scattered = [*P.TARGETS, *(r for r in TENSILE if r in targets)]
     d, sd, cv = {}, {}, {}
     for k in [*scattered, *_EXTRA]:
         v = np.array([float(r.get(k, math.nan)) for r in ok], float)
+        v = v[np.isfinite(v)] if k in TENSILE else v  # an invalid test is no measurement
         d[k] = float(v.mean()) if len(v) else math.nan
         if k in scattered:
             sd[k] = float(v.std(ddof=1)) if len(v) > 1 else math.nan
@@ -418,10 +455,45 @@ def disc_geometry(geometry):
                       relax_ratio=geometry.relax_ratio, genesis=geometry.genesis)
 
 
+#: an invalid Brazilian test (its fracture did not start in the central zone) is no
+#: measurement: the closed loop and the fresh-seed check run the disc again on the next
+#: replacement seeds, seed + k x BTS_REPLACEMENT_STRIDE (k = 1, 2, ...), at most
+#: BTS_MAX_REPLACEMENTS times, before σt of that seed counts as a failed measurement
+BTS_REPLACEMENT_STRIDE = 100_000
+BTS_MAX_REPLACEMENTS = 3
+
+
+def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, settings, *,
+                      max_replacements: int = BTS_MAX_REPLACEMENTS, **kw):
+    """A tensile test (``test``: "bts", the Brazilian disc ``geometry``; "dtt", the
+    direct-tension cylinder) of ``params`` on packing ``seed`` that measures σt: an
+    invalid run (``<test>_valid`` false) is replaced by the specimen of the next
+    replacement seed (``seed + k x BTS_REPLACEMENT_STRIDE``), up to ``max_replacements``
+    times; a failed run (instability, genesis) is not replaced (it is a failure, not a
+    measurement of the wrong thing). ``path_of(seed, k)`` names the run file of attempt
+    k. Returns (the outcome used, the packing seed it ran on, the reasons of the invalid
+    attempts); the outcome has ``<test>_MPa`` NaN when every attempt was invalid."""
+    run_file = run_bts_file if test == "bts" else run_dtt_file
+    invalid = []
+    for k in range(max_replacements + 1):
+        s = int(seed) + k * BTS_REPLACEMENT_STRIDE
+        b = run_file(path_of(s, k), params, s, geometry, settings, **kw)
+        if b.status != "ok" or b.summary.get(f"{test}_valid", True):
+            return b, s, invalid
+        invalid.append(f"seed {s}: {b.summary.get(f'{test}_invalid_reason', 'invalid')}")
+    return b, s, invalid
+
+
+def valid_bts_run(path_of, params: dict, seed: int, disc, settings, **kw):
+    """:func:`valid_tensile_run` of the Brazilian test."""
+    return valid_tensile_run("bts", path_of, params, seed, disc, settings, **kw)
+
+
 def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, geometry,
               settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
               free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
-              jacobian=None, range_margin=0.0, polish=True):
+              jacobian=None, range_margin=0.0, polish=True, cylinder=None,
+              dtt_settings=None):
     """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
     into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
     ``disc`` with the same seed; the first seed's run files of the best round become
@@ -450,17 +522,23 @@ def _ucs_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                                progress=progress, genesis_max_steps=genesis_max_steps)
             row = dict(res.summary, status=res.status, seed=seed)
             paths[-1].append(res.path)
-            out = ({r: float(res.summary[r]) for r in targets if r != BTS}
-                   if res.status == "ok" else {r: math.nan for r in targets if r != BTS})
-            if with_bts:
-                b = run_bts_file(Path(tmpdir) / f"round{k}_seed{seed}.bts.h5", params, seed,
-                                 disc, bts_settings, cache=cache, threads=threads,
-                                 progress=progress, genesis_max_steps=genesis_max_steps)
-                bts_paths[-1].append(b.path)
-                row[BTS] = float(b.summary[BTS]) if b.status == "ok" else math.nan
-                if b.status != "ok":
+            out = ({r: float(res.summary[r]) for r in targets if r not in TENSILE}
+                   if res.status == "ok" else
+                   {r: math.nan for r in targets if r not in TENSILE})
+            for resp in (r for r in TENSILE if r in targets):  # σt: a valid test, or NaN
+                test = P.TENSILE_TESTS[resp]
+                geo, st = (disc, bts_settings) if test == "bts" else (cylinder, dtt_settings)
+                b, used, invalid = valid_tensile_run(
+                    test, lambda s, j, t=test: Path(tmpdir) / f"round{k}_seed{seed}.{t}{j}.h5",
+                    params, seed, geo, st, cache=cache, threads=threads, progress=progress,
+                    genesis_max_steps=genesis_max_steps)
+                if test == "bts":
+                    bts_paths[-1].append(b.path)
+                row[resp] = float(b.summary[resp]) if b.status == "ok" else math.nan
+                row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
+                if b.status != "ok" or not math.isfinite(row[resp]):
                     row["status"] = "failed"
-                out[BTS] = row[BTS]
+                out[resp] = row[resp]
             by_round[-1].append(row)
             return out
 
@@ -491,7 +569,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            seeds_per_round=3, rtol=_LOOP["rtol"], max_rounds=_LOOP["max_rounds"], cache=None,
            threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
            mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
-           bts_run=None, max_seeds=10, range_margin=0.25, polish=True) -> dict:
+           bts_run=None, max_seeds=10, range_margin=0.25, polish=True, dtt_geometry=None,
+           dtt_settings=None) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -538,9 +617,14 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     and genesis options, :func:`disc_geometry`; loading ``bts_settings``, default
     ``BTSSettings()``), and the loop steers σt with the other responses; ``bts_run``
     (optional) receives the best round's Brazilian run file (a failure record when the
-    card has no σt target). The verified card lists every target the best round misses by
-    more than ``rtol`` (``verification.missed``: target, lab value, DEM value, error in %);
-    it is empty only when all are met."""
+    card has no σt target). A card with a direct-tension target (``dtt_MPa``) runs the
+    direct-tension test instead, on the cylinder ``dtt_geometry`` (default the UCS
+    cylinder) with ``dtt_settings``. An invalid tensile test (its fracture at a contact
+    or a grip) is no measurement: that seed's test is run again on replacement seeds
+    (:func:`valid_tensile_run`), and the round fails only when none is valid. The verified
+    card lists every target the best round misses by more than ``rtol``
+    (``verification.missed``: target, lab value, DEM value, error in %); it is empty only
+    when all are met."""
     c = read_card(card, "--card", need=("parameters", "targets", "roles"))
     if "ranges" not in c:
         raise P.ParameterError(f"--card {card}: the card has no 'ranges' (the design space); "
@@ -551,8 +635,14 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     model_set = read_models(models)
     targets = {k: float(v) for k, v in c["targets"].items()}
     with_bts = BTS in targets
+    with_dtt = "dtt_MPa" in targets
     disc = bts_geometry or disc_geometry(geometry)
     bts_settings = bts_settings or BTSSettings()
+    cylinder = dtt_geometry or geometry
+    dtt_settings = dtt_settings or DTTSettings()
+    if with_dtt and "dtt_MPa" not in model_set:
+        raise BadInput(f"--card {card}: a direct-tension target (dtt_MPa) but --models "
+                       f"{models} has no model of dtt_MPa")
     if with_bts and BTS not in model_set:
         raise BadInput(f"--card {card}: a tensile-strength target (bts_MPa) but --models "
                        f"{models} has no model of bts_MPa")
@@ -571,6 +661,9 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
                      mem_budget_mb=mem_budget_mb)
         if with_bts:
             check_budget(c["parameters"], disc, max_balls=max_balls,
+                         mem_budget_mb=mem_budget_mb)
+        if with_dtt:
+            check_budget(c["parameters"], cylinder, max_balls=max_balls,
                          mem_budget_mb=mem_budget_mb)
     outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5),
             (bts_run, "--bts-run", H5))
@@ -604,7 +697,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         geometry=geometry, settings=settings, rtol=rtol, max_rounds=max_rounds, cache=cache,
         threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
         disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
-        range_margin=range_margin, polish=bool(polish))
+        range_margin=range_margin, polish=bool(polish), cylinder=cylinder,
+        dtt_settings=dtt_settings)
     write_table(res.history, rounds, index=False)
     message = res.message + _outside_text(res.outside, range_margin)
     if c.get("status") == "unreachable":
@@ -630,6 +724,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     v["missed"] = _missed(v["closed_loop"], targets, rtol)
     if with_bts:
         v["bts_geometry"] = disc.to_dict()
+    if with_dtt:
+        v["dtt_geometry"] = cylinder.to_dict()
     write_card(out_card, verified)
     if bts_run is not None and not with_bts:
         write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
@@ -669,7 +765,7 @@ def _outside_text(outside: dict, margin: float) -> str:
 def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
              max_rounds=2, rtol=_LOOP["rtol"], z=2.0, cache=None, threads=None, progress=None,
              max_balls=None, mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None,
-             bts_settings=None, range_margin=0.25) -> dict:
+             bts_settings=None, range_margin=0.25, dtt_settings=None) -> dict:
     """Full-size transfer of a verified card: run its parameters once (packing ``seed``)
     on the specimen of ``geometry`` (the study's ``transfer.scale``, 1.0 = the lab's
     50 x 100 mm) and, when a response misses its lab target by more than the seed scatter
@@ -692,8 +788,10 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     tensile-strength target runs its Brazilian test as :func:`verify` does: the disc
     ``bts_geometry`` (default the ISRM disc at the transfer's scale, :func:`disc_geometry`)
     loaded with ``bts_settings`` (default ``BTSSettings()``; the study passes its `bts`
-    section, as to the verification). The loop's bounds are the verification's: the design
-    ranges widened by ``range_margin`` of their width (``verification.range_margin``)."""
+    section, as to the verification); a direct-tension target runs its test on the
+    transfer's cylinder with ``dtt_settings``. The loop's bounds are the verification's:
+    the design ranges widened by ``range_margin`` of their width
+    (``verification.range_margin``)."""
     c = read_card(card, "--card", need=("parameters", "targets", "roles", "ranges",
                                         "verification"))
     if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) or max_rounds < 0:
@@ -733,7 +831,8 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         cache=cache, threads=threads, progress=progress,
         genesis_max_steps=genesis_max_steps, disc=bts_geometry or disc_geometry(geometry),
         bts_settings=bts_settings or BTSSettings(), jacobian=v.get("jacobian"),
-        range_margin=range_margin)
+        range_margin=range_margin, cylinder=geometry,
+        dtt_settings=dtt_settings or DTTSettings())
     write_table(res.history, rounds, index=False)
     if res.status == "converged":
         status = "within-scatter" if len(by_round) == 1 else "corrected"
@@ -858,7 +957,7 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
     lab_df = read_lab(lab)
     outputs((table5, "--table5", CSV), (table6, "--table6", CSV), (figure, "--figure", PNG))
     t5, t6, curves = [], [], {}
-    any_bts = any(BTS in c["targets"] for c in loaded)
+    tensile = [r for r in TENSILE if any(r in c["targets"] for c in loaded)]
     for c, run in zip(loaded, runs):
         spec = str(c["specimen"])
         v = c["verification"]
@@ -880,13 +979,16 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
         row["status"] = v["status"]
         row["calibration_status"] = c.get("status")
         row["note"] = v["message"] if not ran else _outside_items(v.get("outside_design") or {})
-        if any_bts:
-            has = BTS in c["targets"]
+        for resp in tensile:
+            has = resp in c["targets"]
             for which in ("single_pass", "closed_loop"):
-                row[f"{which}_{BTS}"] = v[which][BTS] if ran and has else math.nan
-                row[f"{which}_{BTS}_err_pct"] = (v[which]["errors_pct"][BTS] if ran and has
-                                                 else math.nan)
-            row[f"lab_{BTS}"] = c["targets"][BTS] if has else math.nan
+                row[f"{which}_{resp}"] = v[which][resp] if ran and has else math.nan
+                row[f"{which}_{resp}_err_pct"] = (v[which]["errors_pct"][resp] if ran and has
+                                                  else math.nan)
+                cv = (v[which].get("seed_cv") or {}).get(resp) if ran and has else None
+                row[f"{which}_{resp}_cv_pct"] = math.nan if cv is None else 100 * float(cv)
+            row[f"lab_{resp}"] = c["targets"][resp] if has else math.nan
+        if tensile:
             row["missed"] = "; ".join(f"{m['target']} {m['error_pct']:+.2f} %"
                                       for m in v.get("missed") or [])
         t5.append(row)

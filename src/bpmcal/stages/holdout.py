@@ -24,11 +24,12 @@ from ..io.checks import BadInput
 from ..io.tables import write_table
 from ..lab.brazilian import BTSSettings
 from ..lab.budget import check_budget
-from ..lab.runner import bts_inputs, ucs_inputs
+from ..lab.direct_tension import DTTSettings
+from ..lab.runner import bts_inputs, dtt_inputs, ucs_inputs
 from . import defaults_of
-from .analysis import disc_geometry
+from .analysis import disc_geometry, valid_bts_run, valid_tensile_run
 from .inputs import CSV, H5, output_dirs, outputs
-from .runs import run_bts_file, run_ucs_file, write_failure
+from .runs import run_ucs_file, write_failure
 
 #: per-seed columns of the seed table besides the targets
 _EXTRA = ("u_pre_MJm3", "peak_strain")
@@ -49,7 +50,8 @@ def used_seeds(card: dict) -> set[int]:
 
 def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
             bts_geometry=None, bts_settings=None, cache=None, threads=None, progress=None,
-            max_balls=None, mem_budget_mb=None, genesis_max_steps=None) -> pd.DataFrame:
+            max_balls=None, mem_budget_mb=None, genesis_max_steps=None, dtt_runs=None,
+            dtt_geometry=None, dtt_settings=None) -> pd.DataFrame:
     """Run a verified card on fresh packing ``seeds`` (none of them one its closed loop or
     transfer used: BadInput naming them otherwise): the UCS test of every seed into
     ``runs[i]`` and, when the card has a tensile-strength target, the Brazilian test of the
@@ -76,9 +78,18 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
     v = c["verification"]
     ran = v.get("status") != "not-run" and bool(v.get("parameters"))  # verified parameters
     with_bts = BTS in c["targets"]
+    with_dtt = "dtt_MPa" in c["targets"]
     if with_bts and bts_runs is None and ran:
         raise BadInput(f"--card {card} has a tensile-strength target (bts_MPa): give "
                        "--bts-runs, one Brazilian run file per seed")
+    if with_dtt and dtt_runs is None and ran:
+        raise BadInput(f"--card {card} has a direct-tension target (dtt_MPa): give "
+                       "--dtt-runs, one direct-tension run file per seed")
+    if dtt_runs is not None and len(dtt_runs) != len(seeds):
+        raise BadInput(f"--dtt-runs: {len(dtt_runs)} run file(s) for {len(seeds)} seed(s); "
+                       "expected one per seed, in the order of --seeds")
+    cylinder = dtt_geometry or geometry
+    dtt_settings = dtt_settings or DTTSettings()
     params = card_parameters(c)
     disc = bts_geometry or disc_geometry(geometry)
     bts_settings = bts_settings or BTSSettings()
@@ -86,7 +97,7 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
         for g in (geometry, *([disc] if with_bts else [])):
             check_budget(params, g, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
     outputs(*((r, "--runs", H5) for r in runs), *((r, "--bts-runs", H5) for r in bts_runs or ()),
-            (seed_runs, "--seed-runs", CSV))
+            *((r, "--dtt-runs", H5) for r in dtt_runs or ()), (seed_runs, "--seed-runs", CSV))
     if not ran:
         # no verified parameters: every run is a failure record saying why, every seed a row
         reason = f"not run: the card's closed loop did not run ({v.get('message', '')})"
@@ -96,6 +107,10 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
             if bts_runs is not None:
                 write_failure(bts_runs[i], test="bts",
                               inputs=bts_inputs(params, s, disc, bts_settings), error=reason)
+            if dtt_runs is not None:
+                write_failure(dtt_runs[i], test="dtt",
+                              inputs=dtt_inputs(params, s, cylinder, dtt_settings),
+                              error=reason)
         df = pd.DataFrame([{"specimen": c["specimen"], "seed": s, "status": "not-run",
                             "error": reason, **{k: math.nan for k in (*c["targets"], *_EXTRA)}}
                            for s in seeds])
@@ -111,19 +126,45 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
                "error": u.error}
         for k in (*P.TARGETS, *_EXTRA):
             row[k] = float(u.summary.get(k, math.nan)) if u.status == "ok" else math.nan
-        if with_bts:
-            b = run_bts_file(bts_runs[i], params, s, disc, bts_settings, cache=cache,
-                             threads=threads, progress=progress, keep_particles=False,
-                             genesis_max_steps=genesis_max_steps)
+        if with_bts:  # an invalid disc is run again on a replacement seed (valid_bts_run)
+            b, used, invalid = valid_bts_run(lambda _s, _k: bts_runs[i], params, s, disc,
+                                             bts_settings, cache=cache, threads=threads,
+                                             progress=progress, keep_particles=False,
+                                             genesis_max_steps=genesis_max_steps)
             row[BTS] = float(b.summary[BTS]) if b.status == "ok" else math.nan
+            row["bts_seed"], row["bts_invalid"] = used, len(invalid)
             if b.status != "ok":
                 row["status"] = "failed"
                 row["error"] = "; ".join(x for x in (row["error"], "Brazilian test: "
                                                      + b.error) if x)
+            elif not math.isfinite(row[BTS]):  # no valid disc: no σt, the UCS seed counts
+                row["error"] = "; ".join(x for x in (row["error"], "Brazilian test invalid "
+                                                     "on every replacement seed: "
+                                                     + "; ".join(invalid)) if x)
         elif bts_runs is not None:
             write_failure(bts_runs[i], test="bts", inputs=bts_inputs(params, s, disc,
                                                                      bts_settings),
                           error="not run: the card has no tensile-strength target (bts_MPa)")
+        if with_dtt:
+            b, used, invalid = valid_tensile_run("dtt", lambda _s, _k: dtt_runs[i], params, s,
+                                                 cylinder, dtt_settings, cache=cache,
+                                                 threads=threads, progress=progress,
+                                                 keep_particles=False,
+                                                 genesis_max_steps=genesis_max_steps)
+            row["dtt_MPa"] = float(b.summary["dtt_MPa"]) if b.status == "ok" else math.nan
+            row["dtt_seed"], row["dtt_invalid"] = used, len(invalid)
+            if b.status != "ok":
+                row["status"] = "failed"
+                row["error"] = "; ".join(x for x in (row["error"], "direct-tension test: "
+                                                     + b.error) if x)
+            elif not math.isfinite(row["dtt_MPa"]):
+                row["error"] = "; ".join(x for x in (row["error"], "direct-tension test "
+                                                     "invalid on every replacement seed: "
+                                                     + "; ".join(invalid)) if x)
+        elif dtt_runs is not None:
+            write_failure(dtt_runs[i], test="dtt",
+                          inputs=dtt_inputs(params, s, cylinder, dtt_settings),
+                          error="not run: the card has no direct-tension target (dtt_MPa)")
         rows.append(row)
     df = pd.DataFrame(rows)
     write_table(df, seed_runs, index=False)

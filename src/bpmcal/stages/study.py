@@ -26,19 +26,21 @@ def design(ranges: dict, n: int, seed: int, out, *, optimization: str | None = "
     return df
 
 
-def gather(design_csv, runs, out, bts_runs=None) -> tuple[pd.DataFrame, str]:
+def gather(design_csv, runs, out, bts_runs=None, dtt_runs=None) -> tuple[pd.DataFrame, str]:
     """One row per design sample from its run file (``runs``: the files, named
     ``<sample_id>.h5``) -> ``out`` (the dataset CSV); a sample without a run file is
-    "missing", an unreadable one "unreadable". ``bts_runs``: the samples' Brazilian run
-    files (named the same), which add sigma_t and its own status and error
-    (``study.gather``). Returns the table and a status report."""
+    "missing", an unreadable one "unreadable". ``bts_runs`` / ``dtt_runs``: the samples'
+    Brazilian / direct-tension run files (named the same), which add sigma_t and its own
+    status and error (``study.gather``). Returns the table and a status report."""
     d = read_csv(design_csv, "--design", ["sample_id", *P.PARAMS, "seed"],
                  dtype={"sample_id": str})
     check_ids(d["sample_id"], f"--design {design_csv}")
     files = runs_by_id(runs, "--runs", ids=list(d["sample_id"]))
     bts = None if bts_runs is None else runs_by_id(bts_runs, "--bts-runs",
                                                    ids=list(d["sample_id"]))
+    dtt = None if dtt_runs is None else runs_by_id(dtt_runs, "--dtt-runs",
+                                                   ids=list(d["sample_id"]))
     out_file(out, suffixes=(".csv",))
-    df = gather_rows(d, files, bts)
+    df = gather_rows(d, files, bts, dtt)
     write_csv(df, out)
     return df, status_report(df)

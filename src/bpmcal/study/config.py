@@ -114,16 +114,19 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
                     f"(ranges.rmin_mm up to {max(cfg['ranges']['rmin_mm']):g} mm)")
     b = cfg.get("bts", {})
     if b.get("enabled"):  # the Brazilian disc of every sample must fit its balls too
-        bd, bt = sp["scale"] * b["diameter_mm"], sp["scale"] * b["thickness_mm"]
+        sc, which = disc_scale(cfg)
+        bd, bt = sc * b["diameter_mm"], sc * b["thickness_mm"]
         if bd < 6 * rmax or bt < 6 * rmax:
-            msgs.append(f"bts: specimen.scale {sp['scale']:g} gives a {bd:g} x {bt:g} mm disc, "
+            msgs.append(f"bts: {which} {sc:g} gives a {bd:g} x {bt:g} mm disc, "
                         f"less than 3 ball diameters across for Rmax = {rmax:g} mm "
                         f"(ranges.rmin_mm up to {max(cfg['ranges']['rmin_mm']):g} mm); "
-                        "enlarge bts.diameter_mm and bts.thickness_mm or set bts.enabled: false")
+                        "raise bts.scale (or bts.diameter_mm and bts.thickness_mm) or set "
+                        "bts.enabled: false")
     msgs.extend(_budget_checks(cfg))
     msgs.extend(_sweep_checks(cfg))
     msgs.extend(_holdout_checks(cfg))
     msgs.extend(_check_bts_disc(cfg, base))
+    msgs.extend(_check_tensile_tests(cfg, base))
     if not path_problem(cfg["lab"]["csv"]):
         lab = base / cfg["lab"]["csv"]
         if not lab.is_file():
@@ -161,7 +164,7 @@ def _check_lab_triaxial(cfg: dict, lab: Path, base: Path) -> list[str]:
 
 def _budget_checks(cfg: dict) -> list[str]:
     """The largest specimen the study can build (smallest Rmin and porosity of the ranges
-    and of the fixed calibration values, at the UCS and the impact scale) must fit
+    and of the fixed calibration values, at the UCS, the impact and the disc's scale) must fit
     ``resources.max_balls`` and ``resources.ucs_mem_mb``."""
     res = cfg["resources"]
     rg, fx = cfg["ranges"], cfg["calibration"]["fixed"]
@@ -169,9 +172,14 @@ def _budget_checks(cfg: dict) -> list[str]:
     por = min([min(rg["porosity"])] + ([fx["porosity"]] if "porosity" in fx else []))
     sp = cfg["specimen"]
     out = []
-    for what, scale in (("specimen.scale", sp["scale"]), ("impact.scale", cfg["impact"]["scale"])):
-        m = budget_problem(rmin, por, scale=scale, diameter_mm=sp["diameter_mm"],
-                           height_mm=sp["height_mm"], max_balls=res["max_balls"],
+    shapes = [("specimen.scale", sp["scale"], sp["diameter_mm"], sp["height_mm"]),
+              ("impact.scale", cfg["impact"]["scale"], sp["diameter_mm"], sp["height_mm"])]
+    b = cfg.get("bts") or {}
+    if b.get("enabled") and b.get("scale") is not None:  # a disc sized on its own
+        shapes.append(("bts.scale", b["scale"], b["diameter_mm"], b["thickness_mm"]))
+    for what, scale, dia, height in shapes:
+        m = budget_problem(rmin, por, scale=scale, diameter_mm=dia,
+                           height_mm=height, max_balls=res["max_balls"],
                            mem_budget_mb=res["ucs_mem_mb"],
                            what=f"{what}={scale:g} with the smallest ")
         if m:
@@ -289,8 +297,9 @@ def _check_reference(cfg: dict, lab: Path) -> list[str]:
 
 LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
 #: optional columns: empty = not given for that specimen; ``bts_MPa`` (Brazilian tensile
-#: strength) makes σt a calibration target of that specimen (``stages.analysis.calibrate``)
-LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa")
+#: strength) or ``dtt_MPa`` (direct-tension strength, the alternative σt target; not both
+#: on one row) makes σt a calibration target of that specimen (``stages.analysis.calibrate``)
+LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa")
 
 
 def lab_problems(df, key: str) -> list[str]:
@@ -327,7 +336,20 @@ def lab_problems(df, key: str) -> list[str]:
                             f"positive number{' (or empty)' if optional else ''}")
             elif c == "nu" and v >= 0.5:
                 msgs.append(f"lab.csv: {key!r} specimen {spec} nu={raw!r}: expected below 0.5")
+    if "bts_MPa" in df.columns and "dtt_MPa" in df.columns:
+        both = [str(sp) for sp, a, b in zip(df["specimen"], df["bts_MPa"], df["dtt_MPa"])
+                if _given(a) and _given(b)]
+        if both:
+            msgs.append(f"lab.csv: {key!r} specimen(s) {both} give both bts_MPa and dtt_MPa: "
+                        "expected one tensile strength per specimen (the Brazilian or the "
+                        "direct-tension one; they are different measurements)")
     return msgs
+
+
+def _given(raw) -> bool:
+    """An optional lab value that is not empty."""
+    return not (raw is None or (isinstance(raw, float) and math.isnan(raw))
+                or (isinstance(raw, str) and not raw.strip()))
 
 
 def read_lab(path):
@@ -351,10 +373,19 @@ def read_lab(path):
                           f"{' '.join(str(e).split())[:200]}") from None
 
 
+def disc_scale(cfg: dict) -> tuple[float, str]:
+    """The Brazilian disc's scale factor and the key it comes from: ``bts.scale``, or
+    ``specimen.scale`` when that is null (the disc at the cylinder's scale)."""
+    b = cfg.get("bts") or {}
+    if b.get("scale") is not None:
+        return float(b["scale"]), "bts.scale"
+    return float(cfg["specimen"]["scale"]), "specimen.scale"
+
+
 def _check_bts_disc(cfg: dict, base: Path) -> list[str]:
     """A lab tensile strength (``bts_MPa``) is verified with the study's Brazilian disc
-    (``bts.diameter_mm`` x ``bts.thickness_mm``, default ISRM 50 x 25 mm) at
-    ``specimen.scale`` (``stages.analysis.verify``): it must hold 3 of the largest balls
+    (``bts.diameter_mm`` x ``bts.thickness_mm``, default ISRM 50 x 25 mm) at its scale
+    (:func:`disc_scale`; ``stages.analysis.verify``): it must hold 3 of the largest balls
     across its thickness, or the closed loop would stop after its first UCS run."""
     import pandas as pd
 
@@ -376,7 +407,7 @@ def _check_bts_disc(cfg: dict, base: Path) -> list[str]:
     disc = cfg.get("bts") or {}
     dia = float(disc.get("diameter_mm", BTS_DIAMETER_MM))
     thick = float(disc.get("thickness_mm", BTS_THICKNESS_MM))
-    scale = cfg["specimen"]["scale"]
+    scale, which = disc_scale(cfg)
     fixed = (cfg.get("calibration") or {}).get("fixed") or {}
     if "rmin_mm" in fixed:  # the cards' Rmin (verify's check uses the card's)
         rmin, where = float(fixed["rmin_mm"]), f"calibration.fixed.rmin_mm {fixed['rmin_mm']:g} mm"
@@ -389,10 +420,37 @@ def _check_bts_disc(cfg: dict, base: Path) -> list[str]:
         return []
     return [f"lab.csv: specimen(s) {given} give bts_MPa, which the closed loop verifies with a "
             f"Brazilian disc (bts.diameter_mm {dia:g} x bts.thickness_mm {thick:g}) at "
-            f"specimen.scale {scale:g}: {scale * dia:g} x {t:g} mm, less than 3 ball diameters "
-            f"across for Rmax = {rmax:g} mm ({where}): raise bts.thickness_mm to at least "
-            f"{6 * rmax / scale:.3g} (and bts.diameter_mm to twice that), or leave bts_MPa "
-            "empty"]
+            f"{which} {scale:g}: {scale * dia:g} x {t:g} mm, less than 3 ball diameters "
+            f"across for Rmax = {rmax:g} mm ({where}): raise bts.scale to at least "
+            f"{6 * rmax / thick:.3g}, or leave bts_MPa empty"]
+
+
+def _check_tensile_tests(cfg: dict, base: Path) -> list[str]:
+    """A lab tensile strength is calibrated against the regression's model of it: the
+    study must run that test on every sample (``bts.enabled`` for ``bts_MPa``,
+    ``dtt.enabled`` for ``dtt_MPa``)."""
+    import pandas as pd
+
+    lab = base / cfg["lab"]["csv"]
+    if path_problem(cfg["lab"]["csv"]) or not lab.is_file():
+        return []
+    try:
+        df = read_lab(lab)
+    except ConfigError:
+        return []
+    out = []
+    for col, sec, what in (("bts_MPa", "bts", "a Brazilian"),
+                           ("dtt_MPa", "dtt", "a direct-tension")):
+        if col not in df.columns or (cfg.get(sec) or {}).get("enabled"):
+            continue
+        given = [str(sp) for sp, v in zip(df["specimen"],
+                                          pd.to_numeric(df[col], errors="coerce"))
+                 if math.isfinite(v)]
+        if given:
+            out.append(f"lab.csv: specimen(s) {given} give {col}, a calibration target that "
+                       f"needs {what} test of every sample: set {sec}.enabled: true, or "
+                       f"leave {col} empty")
+    return out
 
 
 def _check_lab(path: Path, key: str) -> list[str]:

@@ -14,11 +14,20 @@ No sample is ever dropped; the analysis steps use the "ok" rows and say how many
 out.
 
 With the Brazilian run files of the samples (the study's ``bts`` job), each row also has
-:data:`BTS_COLUMNS`: ``bts_MPa`` (sigma_t), ``bts_wall_s`` and ``bts_status`` /
-``bts_error`` with the same four values and meanings for the Brazilian run. The two tests
-are independent: a sample whose Brazilian test failed keeps its UCS responses and its
-``status`` (and the other way round); ``bts_MPa`` is NaN unless ``bts_status`` is "ok".
-The sigma_t analyses use the rows whose ``bts_status`` is "ok" (:func:`tensile_view`).
+:data:`BTS_COLUMNS`: ``bts_MPa`` (sigma_t), ``bts_wall_s``, ``bts_status`` /
+``bts_error`` with the same four values and meanings for the Brazilian run plus a fifth,
+
+- "invalid": the run finished but is no valid Brazilian test (ISRM: its fracture did not
+  start in the central zone, or did not split the disc along the loaded diameter;
+  ``lab.validity``); ``bts_error`` is the reason,
+
+and ``bts_valid`` (the run's verdict; empty for a run file without one), ``bts_peak_MPa``
+(2 P / (pi D t) at the peak load: the number an invalid run measured, kept for inspection,
+never a sigma_t) and ``bts_balls_across`` (the disc's diameter in mean ball diameters).
+The two tests are independent: a sample whose Brazilian test failed keeps its UCS
+responses and its ``status`` (and the other way round); ``bts_MPa`` is NaN unless
+``bts_status`` is "ok". The sigma_t analyses use the rows whose ``bts_status`` is "ok"
+(:func:`tensile_view`) and say how many they left out, and why.
 """
 from __future__ import annotations
 
@@ -39,8 +48,22 @@ RESPONSE_COLUMNS = ("ucs_MPa", "E_GPa", "nu", "peak_strain", "u_pre_MJm3", "crac
 
 #: Brazilian columns of the dataset (when the study runs the Brazilian test): summary key
 #: of the run file -> column
-BTS_RESPONSES = {"bts_MPa": "bts_MPa", "wall_s": "bts_wall_s"}
-BTS_COLUMNS = (*BTS_RESPONSES.values(), "bts_status", "bts_error")
+BTS_RESPONSES = {"bts_MPa": "bts_MPa", "wall_s": "bts_wall_s", "bts_valid": "bts_valid",
+                 "bts_peak_MPa": "bts_peak_MPa", "balls_across": "bts_balls_across"}
+BTS_COLUMNS = ("bts_MPa", "bts_wall_s", "bts_status", "bts_error", "bts_valid",
+               "bts_peak_MPa", "bts_balls_across")
+#: the same for the direct-tension test (``dtt``), when the study runs it
+DTT_RESPONSES = {"dtt_MPa": "dtt_MPa", "wall_s": "dtt_wall_s", "dtt_valid": "dtt_valid",
+                 "dtt_peak_MPa": "dtt_peak_MPa", "balls_across": "dtt_balls_across"}
+DTT_COLUMNS = ("dtt_MPa", "dtt_wall_s", "dtt_status", "dtt_error", "dtt_valid",
+               "dtt_peak_MPa", "dtt_balls_across")
+#: test -> (summary key -> column, the columns in order)
+TENSILE_COLUMNS = {"bts": (BTS_RESPONSES, BTS_COLUMNS), "dtt": (DTT_RESPONSES, DTT_COLUMNS)}
+#: ``<test>_status`` of a finished run that is no valid test
+INVALID = "invalid"
+#: what an invalid run of each test is
+_INVALID_WHAT = {"bts": "the fracture did not start in the disc's central zone or did not "
+                        "split it", "dtt": "the specimen broke next to a grip"}
 
 
 def _outcome(sid: str, path, keys) -> tuple[dict, str, str]:
@@ -56,40 +79,66 @@ def _outcome(sid: str, path, keys) -> tuple[dict, str, str]:
     return vals, status, s.get("error", "")
 
 
-def gather(design: pd.DataFrame, run_files: dict, bts_files: dict | None = None
-           ) -> pd.DataFrame:
-    """``run_files``: sample_id -> path of its HDF5 UCS run file; ``bts_files`` (optional):
-    sample_id -> path of its Brazilian run file."""
+def _tensile_outcome(sid: str, path, test: str) -> dict:
+    """The dataset columns of one sample's tensile run file (``test``: "bts", "dtt"):
+    its responses, and its status, with "invalid" for a finished run that failed the
+    test's validity check (no strength value; the reason in ``<test>_error``)."""
+    keys, _ = TENSILE_COLUMNS[test]
+    vals, status, error = _outcome(sid, path, [*keys, f"{test}_invalid_reason"])
+    reason = vals.pop(f"{test}_invalid_reason")
+    valid = vals.get(f"{test}_valid")
+    if status == "ok" and isinstance(valid, (bool, np.bool_)) and not valid:
+        status = INVALID  # finished, but not a valid test: no strength
+        error = str(reason) if isinstance(reason, str) and reason else \
+            f"not a valid {'Brazilian' if test == 'bts' else 'direct-tension'} test"
+    if status != "ok":  # a failure record's or an invalid run's value is no measurement
+        vals[f"{test}_MPa"] = np.nan
+    if not isinstance(valid, (bool, np.bool_)):
+        vals[f"{test}_valid"] = np.nan
+    row = {c: vals[k] for k, c in keys.items()}
+    row.update({f"{test}_status": status, f"{test}_error": error})
+    return row
+
+
+def gather(design: pd.DataFrame, run_files: dict, bts_files: dict | None = None,
+           dtt_files: dict | None = None) -> pd.DataFrame:
+    """``run_files``: sample_id -> path of its HDF5 UCS run file; ``bts_files`` and
+    ``dtt_files`` (optional): sample_id -> path of its Brazilian / direct-tension run
+    file."""
+    tensile = {t: f for t, f in (("bts", bts_files), ("dtt", dtt_files)) if f is not None}
     rows = []
     for rec in design.to_dict("records"):
         sid = rec["sample_id"]
         row = dict(rec)
         vals, row["status"], row["error"] = _outcome(sid, run_files.get(sid), RESPONSE_COLUMNS)
         row.update(vals)
-        if bts_files is not None:
-            vals, status, error = _outcome(sid, bts_files.get(sid), BTS_RESPONSES)
-            if status != "ok":  # a failure record's sigma_t is no measurement
-                vals["bts_MPa"] = np.nan
-            row.update({c: vals[k] for k, c in BTS_RESPONSES.items()})
-            row.update(bts_status=status, bts_error=error)
+        for test, files in tensile.items():
+            row.update(_tensile_outcome(sid, files.get(sid), test))
         rows.append(row)
     cols = ["sample_id", *P.PARAMS, "seed", *RESPONSE_COLUMNS, "status", "error",
-            *(BTS_COLUMNS if bts_files is not None else ())]
+            *(c for t in tensile for c in TENSILE_COLUMNS[t][1])]
     df = pd.DataFrame(rows)
     return df[[c for c in cols if c in df.columns]]
 
 
-def has_tensile(df: pd.DataFrame) -> bool:
-    """Whether a dataset has the Brazilian columns (older datasets and studies with
-    ``bts.enabled: false`` do not)."""
-    return P.TENSILE in df.columns and "bts_status" in df.columns
+def has_tensile(df: pd.DataFrame, response: str = P.TENSILE) -> bool:
+    """Whether a dataset has the columns of a tensile response (``bts_MPa`` by default;
+    older datasets and studies without that test do not)."""
+    test = P.TENSILE_TESTS[response]
+    return response in df.columns and f"{test}_status" in df.columns
 
 
-def tensile_view(df: pd.DataFrame) -> pd.DataFrame:
-    """The dataset as the sigma_t analyses see it: ``status``/``error`` are the Brazilian
-    run's (a sample whose UCS run failed but whose Brazilian run is ok has a usable
-    sigma_t)."""
-    return df.assign(status=df["bts_status"], error=df["bts_error"].fillna(""))
+def tensile_responses(df: pd.DataFrame) -> list[str]:
+    """The tensile responses a dataset has (``P.TENSILE_TESTS`` order)."""
+    return [r for r in P.TENSILE_TESTS if has_tensile(df, r)]
+
+
+def tensile_view(df: pd.DataFrame, response: str = P.TENSILE) -> pd.DataFrame:
+    """The dataset as the analyses of a tensile response see it: ``status``/``error`` are
+    its test's (a sample whose UCS run failed but whose tensile run is ok has a usable
+    strength; an invalid or failed tensile run leaves the row out)."""
+    test = P.TENSILE_TESTS[response]
+    return df.assign(status=df[f"{test}_status"], error=df[f"{test}_error"].fillna(""))
 
 
 def status_report(df: pd.DataFrame) -> str:
@@ -108,15 +157,20 @@ def status_report(df: pd.DataFrame) -> str:
         w = ok["wall_s"].astype(float)
         lines.append(f"  run time per sample: median {w.median():.1f} s, range "
                      f"{w.min():.1f}-{w.max():.1f} s, total {w.sum() / 60:.1f} core-min")
-    if has_tensile(df):
-        counts = df["bts_status"].value_counts().to_dict()
-        lines.append("Brazilian tests: " + ", ".join(f"{v} {k}"
-                                                      for k, v in sorted(counts.items())))
-        for r in df[df["bts_status"] != "ok"].itertuples():
-            lines.append(f"  {r.sample_id}: bts {r.bts_status}: {r.bts_error}")
-        okb = df[df["bts_status"] == "ok"]
+    for resp in tensile_responses(df):
+        test = P.TENSILE_TESTS[resp]
+        name = "Brazilian" if test == "bts" else "Direct-tension"
+        counts = df[f"{test}_status"].value_counts().to_dict()
+        lines.append(f"{name} tests: " + ", ".join(f"{v} {k}"
+                                                   for k, v in sorted(counts.items()))
+                     + (f" (invalid: {_INVALID_WHAT[test]}; no strength)"
+                        if counts.get(INVALID) else ""))
+        for r in df[df[f"{test}_status"] != "ok"].itertuples():
+            lines.append(f"  {r.sample_id}: {test} {getattr(r, f'{test}_status')}: "
+                         f"{getattr(r, f'{test}_error')}")
+        okb = df[df[f"{test}_status"] == "ok"]
         if len(okb):
-            w = okb["bts_wall_s"].astype(float)
-            lines.append(f"  Brazilian run time per sample: median {w.median():.1f} s, range "
+            w = okb[f"{test}_wall_s"].astype(float)
+            lines.append(f"  {name} run time per sample: median {w.median():.1f} s, range "
                          f"{w.min():.1f}-{w.max():.1f} s, total {w.sum() / 60:.1f} core-min")
     return "\n".join(lines)
