@@ -1,11 +1,13 @@
 """What the study's Brazilian test of every sample costs, and whether its settings are sound.
 
-For design samples of a config (default ``config/config.yaml``: scale 0.4), one process,
+For design samples of a config (default ``config/config.yaml``: the cylinder at scale
+0.4, the disc at ``bts.scale``), one process,
 one numba thread, a fresh packing cache per sample (as in the study, where every sample is
 packed once for its cylinder and once for its disc):
 
 - ``ucs``: the UCS run of the sample with the config's ``specimen``/``ucs`` settings;
-- ``bts``: the Brazilian run with the config's ``bts`` settings (what the study runs);
+- ``bts``: the Brazilian run with the config's ``bts`` settings (what the study runs; the
+  peak stress is reported, and whether the run is a valid test);
 - ``ref``: the Brazilian run with the defaults of ``BTSSettings`` (the careful single
   run: the whole test at ``platen_velocity``, 0.002 of diametral strain past the peak);
 - ``half``: the study's settings with half the platen speed (the rate test; first
@@ -62,17 +64,18 @@ def main(argv=None) -> int:
     sp, b = cfg["specimen"], cfg["bts"]
     for kv in a.set:
         k, v = kv.split("=", 1)
-        b[k] = float(v)
+        b[k] = v if k == "loading" else float(v)
     common = dict(sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
                   relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
     geo = Geometry(scale=sp["scale"], diameter_mm=sp["diameter_mm"],
                    height_mm=sp["height_mm"], **common)
-    disc = bts_geometry(scale=sp["scale"], diameter_mm=b["diameter_mm"],
-                        thickness_mm=b["thickness_mm"], **common)
+    disc = bts_geometry(scale=b["scale"] if b.get("scale") is not None else sp["scale"],
+                        diameter_mm=b["diameter_mm"], thickness_mm=b["thickness_mm"],
+                        **common)
     ucs_st = ucs_settings(cfg)
-    study = BTSSettings(**{k: b[k] for k in ("platen_velocity", "damping", "platen_fric",
-                                            "stop_drop", "max_strain", "record_strain",
-                                            "post_peak_min", "approach_velocity")})
+    from dataclasses import fields
+
+    study = BTSSettings(**{k: b[k] for k in {f.name for f in fields(BTSSettings)} if k in b})
     ref = BTSSettings()
     half = replace(study, platen_velocity=study.platen_velocity / 2)
     set_threads(a.threads)
@@ -99,7 +102,9 @@ def main(argv=None) -> int:
                 r, cpu, wall = _timed(f)
                 s = r.summary
                 row[f"{name}_cpu_s"], row[f"{name}_wall_s"] = cpu, wall
-                row[f"{name}_MPa"] = s.get("bts_MPa", s.get("ucs_MPa"))
+                row[f"{name}_MPa"] = s.get("bts_peak_MPa", s.get("ucs_MPa"))
+                if "bts_valid" in s:
+                    row[f"{name}_valid"] = bool(s["bts_valid"])
                 row[f"{name}_steps"] = s.get("steps")
                 if name == "bts":
                     row["n_balls_disc"] = s["n_balls"]
@@ -119,8 +124,10 @@ def main(argv=None) -> int:
 
     out = {
         "cpu_model": cpu_model(), "load_average": os.getloadavg(), "threads": a.threads,
-        "scale": sp["scale"], "study_bts_settings": {k: getattr(study, k) for k in (
-            "platen_velocity", "approach_velocity", "post_peak_min")},
+        "scale": sp["scale"], "disc_scale": disc.scale,
+        "study_bts_settings": {k: getattr(study, k) for k in (
+            "loading", "contact_cap", "platen_velocity", "approach_velocity", "stop_drop",
+            "post_peak_min")},
         "samples": rows,
         "median_cpu_s": {k: med(f"{k}_cpu_s") for k in ("ucs", "bts", "ref", "half")},
         "median_wall_s": {k: med(f"{k}_wall_s") for k in ("ucs", "bts", "ref", "half")},

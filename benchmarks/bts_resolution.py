@@ -1,0 +1,253 @@
+"""sigma_t of a Brazilian disc against its resolution, and the loading that makes a valid
+test the rule: the measurement record behind the study's ``bts`` settings.
+
+Two parts, each a JSON record (date, commit, CPU model, load average, the command):
+
+- ``curve``: the paper's A1 card on discs of ``--scales`` (the ISRM 50 x 25 mm disc x
+  scale) and packing ``--seeds``, with the config's ``bts`` settings: per size the balls
+  across the diameter (D / mean ball diameter), sigma_t (mean of the valid runs), its seed
+  CV, the valid fraction and the CPU time of a run (the disc's packing included, as in the
+  study, where every sample packs its own disc).
+- ``loadings``: the config's disc size under every loading variant (flat platens or
+  ISRM jaws, with and without contact caps): A1 on ``--a1-seeds`` (valid fraction and
+  sigma_t seed CV) and ``--design-samples`` design samples of the config (valid fraction,
+  how far the caps move sigma_t).
+
+    python benchmarks/bts_resolution.py curve --scales 0.4,0.55,0.7,0.85,1.0 \\
+        --seeds 1,2,3,4,5 --out benchmarks/results_bts_resolution_DATE.json
+    python benchmarks/bts_resolution.py loadings --a1-seeds 1,...,10 \\
+        --design-samples 12 --out benchmarks/results_bts_loadings_DATE.json
+    python benchmarks/bts_resolution.py markdown RECORD.json [RECORD.json ...] \\
+        --out docs/measurements/DATE-bts-resolution.md
+
+Runs go two at a time (``--jobs``, one numba thread each).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import shlex
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import yaml
+from _study import A1, CONFIG, REPO, cpu_model, study_design
+
+#: loading variants of the ``loadings`` part: name -> BTSSettings overrides
+VARIANTS = {
+    "flat, caps": {"loading": "flat"},
+    "flat, no caps": {"loading": "flat", "contact_cap": 0.0},
+    "jaws, caps": {"loading": "jaws"},
+    "jaws, no caps": {"loading": "jaws", "contact_cap": 0.0},
+}
+
+
+def _bts_settings(cfg: dict, **over):
+    """BTSSettings of a config's ``bts`` section (every key that is a settings field)."""
+    from dataclasses import fields
+
+    from bpmcal.lab.brazilian import BTSSettings
+
+    names = {f.name for f in fields(BTSSettings)}
+    kw = {k: v for k, v in cfg["bts"].items() if k in names}
+    kw.update(over)
+    return BTSSettings(**kw)
+
+
+def _disc(cfg: dict, scale: float):
+    from bpmcal.lab.runner import bts_geometry
+
+    sp, b = cfg["specimen"], cfg["bts"]
+    return bts_geometry(scale=scale, diameter_mm=b["diameter_mm"],
+                        thickness_mm=b["thickness_mm"], sigma0_MPa=sp["sigma0_MPa"],
+                        install_gap_mm=sp["install_gap_mm"], relax_ratio=sp["relax_ratio"],
+                        genesis=sp["genesis"])
+
+
+def _run(job):
+    """One disc: (label, params, seed, scale, overrides, cache) -> its summary numbers."""
+    label, params, seed, scale, over, cache, cfg = job
+    from bpmcal.lab.runner import bts_test
+
+    st = _bts_settings(cfg, **over)
+    c0 = time.process_time()
+    r = bts_test(params, seed, _disc(cfg, scale), st, cache=cache, threads=1,
+                 keep_particles=False)
+    s = r.summary
+    return {"label": label, "seed": seed, "scale": scale, "variant": over,
+            "cpu_s": time.process_time() - c0, "genesis_s": s["genesis_s"],
+            "test_s": s["test_s"], "n_balls": s["n_balls"],
+            "balls_across": s["balls_across"], "bts_valid": bool(s["bts_valid"]),
+            "bts_peak_MPa": s["bts_peak_MPa"], "bts_MPa": s["bts_MPa"],
+            "init_offset": s["init_offset"], "reason": s["bts_invalid_reason"],
+            "steps": s["steps"], "contact_events": s["contact_events"]}
+
+
+def _pool(jobs, n):
+    with ProcessPoolExecutor(max_workers=n) as ex:
+        out = []
+        for r in ex.map(_run, jobs):
+            print(f"{r['label']} scale {r['scale']:g} seed {r['seed']} {r['variant']}: "
+                  f"{r['bts_peak_MPa']:.3f} MPa, valid {r['bts_valid']}, "
+                  f"{r['balls_across']:.1f} across, CPU {r['cpu_s']:.1f} s", flush=True)
+            out.append(r)
+        return out
+
+
+def _stats(rows):
+    v = [r["bts_MPa"] for r in rows if r["bts_valid"]]
+    mean = statistics.fmean(v) if v else float("nan")
+    cv = statistics.stdev(v) / mean if len(v) > 1 else float("nan")
+    return {"n": len(rows), "n_valid": len(v), "valid_fraction": len(v) / len(rows),
+            "sigma_t_mean_MPa": mean, "seed_cv": cv,
+            "peak_mean_all_MPa": statistics.fmean(r["bts_peak_MPa"] for r in rows),
+            "balls_across": statistics.fmean(r["balls_across"] for r in rows),
+            "n_balls": statistics.fmean(r["n_balls"] for r in rows),
+            "cpu_s_median": statistics.median(r["cpu_s"] for r in rows)}
+
+
+def _meta(argv):
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
+                                capture_output=True, text=True).stdout.strip()
+        dirty = bool(subprocess.run(["git", "status", "--porcelain", "src"], cwd=REPO,
+                                    capture_output=True, text=True).stdout.strip())
+    except OSError:
+        commit, dirty = "unknown", False
+    return {"date": dt.date.today().isoformat(), "commit": commit + ("+dirty" if dirty else ""),
+            "cpu_model": cpu_model(), "cpus": os.cpu_count(),
+            "load_average_start": os.getloadavg(),
+            "command": "python benchmarks/bts_resolution.py " + shlex.join(argv)}
+
+
+def _config(path) -> dict:
+    """The config, validated (the schema's defaults filled in), as the workflow reads it."""
+    from bpmcal.study.config import validate_config
+
+    cfg = yaml.safe_load(Path(path).read_text())
+    validate_config(cfg, REPO / "workflow" / "schemas" / "config.schema.yaml", base_dir=REPO)
+    return cfg
+
+
+def curve(a, argv) -> dict:
+    cfg = _config(a.config)
+    meta = _meta(argv)
+    scales = [float(x) for x in a.scales.split(",")]
+    seeds = [int(x) for x in a.seeds.split(",")]
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs = [("A1", dict(A1), s, sc, {}, str(Path(tmp) / f"c{sc}"), cfg)
+                for sc in scales for s in seeds]
+        rows = _pool(jobs, a.jobs)
+    per = {}
+    for sc in scales:
+        per[f"{sc:g}"] = {"scale": sc, "diameter_mm": cfg["bts"]["diameter_mm"] * sc,
+                          **_stats([r for r in rows if r["scale"] == sc])}
+    return {**meta, "part": "curve", "config": str(a.config), "bts": cfg["bts"],
+            "load_average_end": os.getloadavg(), "sizes": per, "runs": rows}
+
+
+def loadings(a, argv) -> dict:
+    cfg = _config(a.config)
+    meta = _meta(argv)
+    scale = cfg["bts"]["scale"] or cfg["specimen"]["scale"]
+    seeds = [int(x) for x in a.a1_seeds.split(",")]
+    design = study_design(cfg)
+    step = max(1, len(design) // max(1, a.design_samples))
+    picks = design.iloc[::step].head(a.design_samples)
+    from bpmcal import params as P
+
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs = []
+        for name, over in VARIANTS.items():
+            jobs += [("A1", dict(A1), s, scale, over, str(Path(tmp) / "a1"), cfg)
+                     for s in seeds]
+            jobs += [(row.sample_id, {k: float(getattr(row, k)) for k in P.PARAMS},
+                      int(row.seed), scale, over, str(Path(tmp) / row.sample_id), cfg)
+                     for row in picks.itertuples()]
+        rows = _pool(jobs, a.jobs)
+    out = {}
+    for name, over in VARIANTS.items():
+        mine = [r for r in rows if r["variant"] == over]
+        out[name] = {"a1": _stats([r for r in mine if r["label"] == "A1"]),
+                     "design": _stats([r for r in mine if r["label"] != "A1"])}
+    return {**meta, "part": "loadings", "config": str(a.config), "bts": cfg["bts"],
+            "scale": scale, "design_samples": list(picks["sample_id"]),
+            "load_average_end": os.getloadavg(), "variants": out, "runs": rows}
+
+
+def markdown(records: list[dict]) -> str:
+    """The measurement record as Markdown (docs/measurements), from the JSON records."""
+    lines = []
+    for rec in records:
+        lines += [f"## {rec['part']}: {rec['date']}, commit {rec['commit']}", "",
+                  f"Host: {rec['cpu_model']} ({rec['cpus']} CPUs); load average at the start "
+                  f"{', '.join(f'{x:.2f}' for x in rec['load_average_start'])}, at the end "
+                  f"{', '.join(f'{x:.2f}' for x in rec['load_average_end'])}.", "",
+                  f"Command: `{rec['command']}`", ""]
+        if rec["part"] == "curve":
+            lines += ["| scale | D (mm) | balls across | balls | runs | valid | σt mean of the "
+                      "valid (MPa) | seed CV | CPU s per run (median) |",
+                      "|---|---|---|---|---|---|---|---|---|"]
+            for s in rec["sizes"].values():
+                lines.append(
+                    f"| {s['scale']:g} | {s['diameter_mm']:.1f} | {s['balls_across']:.1f} | "
+                    f"{s['n_balls']:.0f} | {s['n']} | {s['n_valid']} | "
+                    f"{s['sigma_t_mean_MPa']:.2f} | {100 * s['seed_cv']:.1f} % | "
+                    f"{s['cpu_s_median']:.1f} |")
+        else:
+            lines += [f"Disc scale {rec['scale']:g}; design samples "
+                      f"{', '.join(rec['design_samples'])}.", "",
+                      "| loading | A1: valid | A1: σt mean (MPa) | A1: seed CV | design: valid "
+                      "| CPU s per run (median) |", "|---|---|---|---|---|---|"]
+            for name, v in rec["variants"].items():
+                a1, d = v["a1"], v["design"]
+                lines.append(f"| {name} | {a1['n_valid']}/{a1['n']} | "
+                             f"{a1['sigma_t_mean_MPa']:.2f} | {100 * a1['seed_cv']:.1f} % | "
+                             f"{d['n_valid']}/{d['n']} | "
+                             f"{statistics.median([a1['cpu_s_median'], d['cpu_s_median']]):.1f} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="part", required=True)
+    c = sub.add_parser("curve")
+    c.add_argument("--scales", default="0.4,0.55,0.7,0.85,1.0")
+    c.add_argument("--seeds", default="1,2,3,4,5")
+    lo = sub.add_parser("loadings")
+    lo.add_argument("--a1-seeds", default="1,2,3,4,5,6,7,8,9,10")
+    lo.add_argument("--design-samples", type=int, default=12)
+    for p in (c, lo):
+        p.add_argument("--config", default=str(CONFIG))
+        p.add_argument("--jobs", type=int, default=2)
+        p.add_argument("--out", default=None, help="write the JSON record here")
+    m = sub.add_parser("markdown")
+    m.add_argument("records", nargs="+")
+    m.add_argument("--out", default=None)
+    a = ap.parse_args(argv)
+    if a.part == "markdown":
+        text = markdown([json.loads(Path(f).read_text()) for f in a.records])
+        if a.out:
+            Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+            Path(a.out).write_text(text)
+        print(text)
+        return 0
+    rec = curve(a, argv) if a.part == "curve" else loadings(a, argv)
+    text = json.dumps(rec, indent=1, default=float)
+    if a.out:
+        Path(a.out).write_text(text + "\n")
+    print(markdown([rec]))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
