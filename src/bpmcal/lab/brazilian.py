@@ -80,7 +80,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.layout import BOND_SHEAR, BOND_TENSION
+from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
 from .stepping import cycle
@@ -470,12 +470,8 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
         ser["load_bottom"].append(fb)
         ser["load_top"].append(ft)
         ser["tensile_stress"].append(float(tensile_strength(P, D, t)))
-        ser["cracks_tension"].append(int(np.count_nonzero(states == BOND_TENSION)))
-        ser["cracks_shear"].append(int(np.count_nonzero(states == BOND_SHEAR)))
-        for k in ("kinetic", "strain_linear", "strain_bond", "slip", "damping", "dashpot",
-                  "released"):
-            ser[k].append(e[k] - e0[k] if k in ("slip", "damping", "dashpot", "released")
-                          else e[k])
+        append_cracks(ser, states)
+        append_energies(ser, e, e0)
         ser["work_walls"].append(e["work_walls_each"][wb] + e["work_walls_each"][wt]
                                  - e0_walls)
         ser["unbalanced"].append(m.unbalanced_ratio())
@@ -514,9 +510,7 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}
     summ = analyse(series, D, t, ip)
-    ev = m.breaks()
-    ev["step"] = ev["step"] - step0  # relative to the start of loading (< 0: before)
-    ev["time"] = ev["step"] * dt
+    ev = loading_cracks(m, step0, dt)  # relative to the start of loading (< 0: before)
     upto = ev["step"] <= series["step"][ip]
     central = np.hypot(*(ev["pos"][upto, :2] - c0).T) <= st.central_band * D
     val = bts_validity(ev, series["step"], ip, centre=c0, radius=R, mean_ball_diameter=dbar,

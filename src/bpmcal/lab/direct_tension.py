@@ -44,8 +44,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.layout import BOND_SHEAR, BOND_TENSION, FIX_VZ
+from ..dem.layout import FIX_VZ
 from ..portable import lsq_slope
+from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen
 from .stepping import cycle
 from .validity import dtt_validity
@@ -186,12 +187,8 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
         ser["axial_stress"].append(0.5 * (ft + fb) / area)
         ser["stress_top"].append(ft / area)
         ser["stress_bottom"].append(fb / area)
-        ser["cracks_tension"].append(int(np.count_nonzero(states == BOND_TENSION)))
-        ser["cracks_shear"].append(int(np.count_nonzero(states == BOND_SHEAR)))
-        for k in ("kinetic", "strain_linear", "strain_bond", "slip", "damping", "dashpot",
-                  "released"):
-            ser[k].append(e[k] - e0[k] if k in ("slip", "damping", "dashpot", "released")
-                          else e[k])
+        append_cracks(ser, states)
+        append_energies(ser, e, e0)
         ser["unbalanced"].append(m.unbalanced_ratio())
         return ser["axial_stress"][-1], eps
 
@@ -218,9 +215,7 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
     series = {k: np.asarray(vv) for k, vv in ser.items()}
     summ = analyse(series, st)
     ip = summ.pop("peak_record")
-    ev = m.breaks()
-    ev["step"] = ev["step"] - step0
-    ev["time"] = ev["step"] * dt
+    ev = loading_cracks(m, step0, dt)
     dbar = 2.0 * float(m.radii.mean())
     val = dtt_validity(ev, series["step"], ip, grip_faces=(zb, zt),
                        clearance=st.grip_clearance * dbar, ended=reason == "post_peak_drop")

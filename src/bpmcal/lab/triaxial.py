@@ -62,7 +62,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.layout import BOND_SHEAR, BOND_TENSION
+from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
 from .ucs import END_CAP_FACTOR, END_CAP_HEIGHT, check_end_cap, fit_slope, install_end_caps
@@ -330,12 +330,8 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
         ser["stress_top"].append(stp)
         ser["stress_bottom"].append(sb)
         ser["wall_radius"].append(cell.radius())
-        ser["cracks_tension"].append(int(np.count_nonzero(states == BOND_TENSION)))
-        ser["cracks_shear"].append(int(np.count_nonzero(states == BOND_SHEAR)))
-        for k in ("kinetic", "strain_linear", "strain_bond", "slip", "damping", "dashpot",
-                  "released"):
-            ser[k].append(e[k] - e0[k] if k in ("slip", "damping", "dashpot", "released")
-                          else e[k])
+        append_cracks(ser, states)
+        append_energies(ser, e, e0)
         ser["work_walls"].append(sum(e["work_walls_each"][w] for w in walls) - e0_walls)
         ser["unbalanced"].append(m.unbalanced_ratio())
         return s1 - s3, ea
@@ -374,9 +370,7 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
         "end_cap_bonds": int(caps.size),
         "end_cap_broken": int(np.count_nonzero(m.bond_states[caps] != 0)),
     })
-    ev = m.breaks()
-    ev["step"] = ev["step"] - step0  # relative to the start of axial loading
-    ev["time"] = ev["step"] * dt
+    ev = loading_cracks(m, step0, dt)  # relative to the start of axial loading
     return TriaxialResult(summary=summ, series=series, cracks=ev, settings=st)
 
 

@@ -59,8 +59,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.layout import BOND_SHEAR, BOND_TENSION
 from ..portable import lsq_slope
+from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen, apply_end_caps
 from .stepping import cycle
 
@@ -252,12 +252,8 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
         ser["axial_stress"].append(0.5 * (ft + fb) / area)
         ser["stress_top"].append(ft / area)
         ser["stress_bottom"].append(fb / area)
-        ser["cracks_tension"].append(int(np.count_nonzero(states == BOND_TENSION)))
-        ser["cracks_shear"].append(int(np.count_nonzero(states == BOND_SHEAR)))
-        for k in ("kinetic", "strain_linear", "strain_bond", "slip", "damping", "dashpot",
-                  "released"):
-            ser[k].append(e[k] - e0[k] if k in ("slip", "damping", "dashpot", "released")
-                          else e[k])
+        append_cracks(ser, states)
+        append_energies(ser, e, e0)
         ser["work_walls"].append(e["work_walls_each"][wb] + e["work_walls_each"][wt]
                                  - e0_walls)
         ser["unbalanced"].append(m.unbalanced_ratio())
@@ -297,9 +293,7 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
         "end_cap_bonds": int(caps.size),
         "end_cap_broken": int(np.count_nonzero(m.bond_states[caps] != 0)),
     })
-    ev = m.breaks()
-    ev["step"] = ev["step"] - step0  # relative to the start of loading (< 0: during genesis)
-    ev["time"] = ev["step"] * dt
+    ev = loading_cracks(m, step0, dt)  # relative to the start of loading (< 0: during genesis)
     return UCSResult(summary=summ, series=series, cracks=ev, settings=st)
 
 
