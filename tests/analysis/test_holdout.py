@@ -80,6 +80,23 @@ def test_table_per_card_and_target_keeps_failed_seeds(tmp_path):
     assert t[(t.specimen == "B2") & (t.response == "bts_MPa")].iloc[0]["within_z_se"]
 
 
+def test_sigma_t_without_a_target_is_the_cards_prediction_with_its_scatter(tmp_path):
+    """A card without a σt target whose fresh seeds ran the Brazilian test: σt is a row of
+    its own, role "prediction", with its mean, standard error and seed CV over the valid
+    discs (an invalid disc, NaN, does not count) and no verdict."""
+    c = _card(tmp_path / "B1.yaml", "B1", {"ucs_MPa": 60.0, "E_GPa": 14.0, "nu": 0.25})
+    s = tmp_path / "B1.csv"
+    pd.DataFrame({"seed": [101, 102, 103, 104], "status": ["ok"] * 4,
+                  "ucs_MPa": [59.0, 61.0, 60.0, 60.0], "E_GPa": [14.0] * 4,
+                  "nu": [0.25] * 4, "bts_MPa": [9.0, 10.0, np.nan, 11.0]}).to_csv(s, index=False)
+    t = H.holdout_table([c], [s], table=tmp_path / "t.csv")
+    assert list(t["role"]) == ["target"] * 3 + ["prediction"]
+    r = t.iloc[-1]
+    assert r["response"] == "bts_MPa" and math.isnan(r["lab"]) and r["n"] == 3
+    assert r["mean"] == 10.0 and r["cv_pct"] == pytest.approx(10.0)
+    assert not r["within_z_se"] and not r["met"]
+
+
 def test_table_refuses_a_seed_table_without_a_target_column(tmp_path):
     c = _card(tmp_path / "B2.yaml", "B2", {"ucs_MPa": 70.0, "E_GPa": 15.0, "nu": 0.24,
                                            "bts_MPa": 8.0})

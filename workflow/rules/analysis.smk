@@ -274,9 +274,10 @@ rule holdout:
     output:
         beside(FILES.holdout_seeds("{spec}")),
         runs=[FILES.holdout_run("{spec}", s) for s in HOLDOUT_SEEDS],
+        # every card's σt on the fresh seeds (a target, or the card's prediction)
         bts_runs=(
             [FILES.holdout_bts_run("{spec}", s) for s in HOLDOUT_SEEDS]
-            if LAB_BTS
+            if BTS_ON
             else []
         ),
         dtt_runs=(
@@ -302,7 +303,7 @@ rule holdout:
             ["--dtt-runs", *output.dtt_runs] if output.dtt_runs else []
         ),
         opts=specimen_args(),
-        bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
+        bts=bts_args() if BTS_ON else [],  # every card's σt on the fresh seeds
         dtt=dtt_args() if LAB_DTT else [],
     shell:
         "bpmcal holdout --card {input.card:q} --seeds {params.seeds:q} --runs {output.runs:q} "

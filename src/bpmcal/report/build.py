@@ -234,7 +234,22 @@ def _settings(lay, cfg, ref=False) -> str:
             if len(w):
                 lines.append(f"- {name} time per sample: median {w.median():.1f} s "
                              f"(range {w.min():.1f}-{w.max():.1f} s)")
+            if test == "bts":
+                lines.append(_disc_note(cfg, ds))
     return "\n".join(lines) + "\n"
+
+
+def _disc_note(cfg: dict, ds: pd.DataFrame) -> str:
+    """Which disc σt is measured on, and that it is compared with the lab as measured."""
+    b, sp = cfg.get("bts") or {}, cfg.get("specimen") or {}
+    scale = b.get("scale") if b.get("scale") is not None else sp.get("scale", 1.0)
+    d, t = b.get("diameter_mm", 50.0) * scale, b.get("thickness_mm", 25.0) * scale
+    across = (f", {ds['bts_balls_across'].median():.1f} mean ball diameters across "
+              "(median)" if "bts_balls_across" in ds.columns else "")
+    return (f"- σt is measured on a {d:g} × {t:g} mm disc{across}, and a lab σt is compared "
+            "with it as measured, with no size correction: σt falls with the disc's size "
+            "(docs/measurements: the resolution curve), so a lab value from a larger disc "
+            "asks for a stronger card than this comparison shows")
 
 
 def _cmp(comp, section, item, ours, theirs, unit=""):
@@ -467,6 +482,8 @@ def _holdout(lay) -> str:
     if not f.exists():
         return ""
     t = pd.read_csv(f)
+    pred = t[t["role"] == "prediction"] if "role" in t.columns else t.iloc[:0]
+    t = t[t["role"] != "prediction"] if "role" in t.columns else t
     rows = []
     for _, r in t.iterrows():
         rows.append([r["specimen"], P.RESPONSES[r["response"]].symbol, _f(r["lab"]),
@@ -505,7 +522,22 @@ def _holdout(lay) -> str:
             f"max(rtol, {z:g} standard errors). " + verdict + "\n\n"
             + markdown_table(rows, ["specimen", "response", "lab", "fresh seeds: mean ± se",
                                     "error %", "z", f"within {z:g} se", "met", "seeds"])
-            + "\n")
+            + "\n" + _predicted_tension(pred))
+
+
+def _predicted_tension(pred: pd.DataFrame) -> str:
+    """σt of the cards that have no tensile target, on the fresh seeds: the prediction
+    and its seed scatter (the precision one disc of the study's size gives)."""
+    if not len(pred):
+        return ""
+    rows = [[r["specimen"], P.RESPONSES[r["response"]].unicode, f"{_f(r['mean'])} ± {_f(r['se'])}",
+             _f(r["cv_pct"], ".1f"), f"{int(r['n'])}"] for _, r in pred.iterrows()]
+    return ("\nσt of each card on the same fresh seeds (the lab gives none for it: a "
+            "prediction; valid tests only, an invalid disc rerun on a replacement seed). "
+            "The CV is the scatter of one disc between packings: a single disc of the study's "
+            "size measures σt to about that, the mean of n discs to CV/√n.\n\n"
+            + markdown_table(rows, ["specimen", "response", "fresh seeds: mean ± se",
+                                    "seed CV %", "valid seeds"]) + "\n")
 
 
 def _ratio(lay, comp, ref=False) -> str:

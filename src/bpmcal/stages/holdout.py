@@ -54,14 +54,20 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
             dtt_geometry=None, dtt_settings=None) -> pd.DataFrame:
     """Run a verified card on fresh packing ``seeds`` (none of them one its closed loop or
     transfer used: BadInput naming them otherwise): the UCS test of every seed into
-    ``runs[i]`` and, when the card has a tensile-strength target, the Brazilian test of the
-    same seed (the disc ``bts_geometry``, default the ISRM disc at the cylinder's scale,
-    loaded with ``bts_settings``) into ``bts_runs[i]`` (a failure record "not run" when
-    the card has no σt target). ``seed_runs``: one row per seed with its status, failure
-    reason and responses. The parameters are the card's (:func:`card_parameters`: the
-    closed loop's, or the transfer's when it ran). A card whose closed loop did not run
-    (``not-run``: an unreachable calibration) is not run on any seed: every run file is a
-    failure record with the reason and every seed a row with status ``not-run``."""
+    ``runs[i]`` and, with ``bts_runs``, the Brazilian test of the same seed (the disc
+    ``bts_geometry``, default the ISRM disc at the cylinder's scale, loaded with
+    ``bts_settings``) into ``bts_runs[i]``: σt judged against the lab's when it is a
+    target (``bts_runs`` is then required), else the card's prediction and its seed
+    scatter. A card with a direct-tension target (``dtt_MPa``) runs the direct-tension
+    test of every seed into ``dtt_runs[i]`` (the cylinder ``dtt_geometry``, default the
+    UCS cylinder, with ``dtt_settings``). An invalid tensile test is run again on
+    replacement seeds (``valid_tensile_run``); when none is valid the seed has no σt (NaN,
+    the reasons in ``error``) and keeps its UCS responses. ``seed_runs``: one row per seed
+    with its status, failure reason and responses. The parameters are the card's
+    (:func:`card_parameters`: the closed loop's, or the transfer's when it ran). A card
+    whose closed loop did not run (``not-run``: an unreachable calibration) is not run on
+    any seed: every run file is a failure record with the reason and every seed a row with
+    status ``not-run``."""
     c = read_card(card, "--card", need=("parameters", "specimen", "targets", "verification"))
     seeds = [int(s) for s in seeds]
     if len(runs) != len(seeds):
@@ -94,7 +100,8 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
     disc = bts_geometry or disc_geometry(geometry)
     bts_settings = bts_settings or BTSSettings()
     if ran and max_balls is not None:
-        for g in (geometry, *([disc] if with_bts else [])):
+        for g in (geometry, *([disc] if bts_runs is not None else []),
+                  *([cylinder] if with_dtt else [])):
             check_budget(params, g, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
     outputs(*((r, "--runs", H5) for r in runs), *((r, "--bts-runs", H5) for r in bts_runs or ()),
             *((r, "--dtt-runs", H5) for r in dtt_runs or ()), (seed_runs, "--seed-runs", CSV))
@@ -126,7 +133,8 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
                "error": u.error}
         for k in (*P.TARGETS, *_EXTRA):
             row[k] = float(u.summary.get(k, math.nan)) if u.status == "ok" else math.nan
-        if with_bts:  # an invalid disc is run again on a replacement seed (valid_bts_run)
+        if bts_runs is not None:  # σt: a target, or the card's prediction on fresh seeds
+            # an invalid disc is run again on a replacement seed (valid_bts_run)
             b, used, invalid = valid_bts_run(lambda _s, _k: bts_runs[i], params, s, disc,
                                              bts_settings, cache=cache, threads=threads,
                                              progress=progress, keep_particles=False,
@@ -141,10 +149,6 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
                 row["error"] = "; ".join(x for x in (row["error"], "Brazilian test invalid "
                                                      "on every replacement seed: "
                                                      + "; ".join(invalid)) if x)
-        elif bts_runs is not None:
-            write_failure(bts_runs[i], test="bts", inputs=bts_inputs(params, s, disc,
-                                                                     bts_settings),
-                          error="not run: the card has no tensile-strength target (bts_MPa)")
         if with_dtt:
             b, used, invalid = valid_tensile_run("dtt", lambda _s, _k: dtt_runs[i], params, s,
                                                  cylinder, dtt_settings, cache=cache,
@@ -211,9 +215,12 @@ def false_alarm(n: int, z: float = 2.0, targets: int = 1) -> float:
 def holdout_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataFrame:
     """One row per card (``cards[i]`` with its seed table ``seed_runs[i]`` from
     :func:`holdout`) and target: the lab value, the fresh seeds' n, mean, standard
-    deviation and standard error, the error of the mean (%), its z-score and the verdicts
-    of :func:`holdout_stats`; ``seeds`` lists the seeds, ``n_failed`` the failed runs and
-    ``note`` why none ran (a card whose closed loop did not run)."""
+    deviation, standard error and CV, the error of the mean (%), its z-score and the
+    verdicts of :func:`holdout_stats`; ``seeds`` lists the seeds, ``n_failed`` the failed
+    runs and ``note`` why none ran (a card whose closed loop did not run). A tensile
+    strength measured on the fresh seeds but not a target of the card is a row too, its
+    ``role`` "prediction" (no lab value, no verdict: σt of the card and its seed
+    scatter); the targets' rows have ``role`` "target"."""
     if len(seed_runs) != len(cards):
         raise BadInput(f"--seed-runs: {len(seed_runs)} table(s) for {len(cards)} card(s); "
                        "expected one per card, in the same order")
@@ -238,10 +245,18 @@ def holdout_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataFrame
         ok = df["status"] == "ok"
         not_run = (df["status"] == "not-run").all() and len(df)
         note = str(df["error"].iloc[0]) if not_run and "error" in df.columns else ""
-        for k, lab in c["targets"].items():
-            rows.append({"specimen": c["specimen"], "response": k, "lab": float(lab),
-                         **holdout_stats(df.loc[ok, k].to_numpy(float), float(lab),
-                                         rtol=rtol, z=z),
+        predicted = [k for k in P.TENSILE_TESTS if k in df.columns
+                     and k not in c["targets"]]  # measured on the fresh seeds, no lab value
+        for k in (*c["targets"], *predicted):
+            lab = float(c["targets"][k]) if k in c["targets"] else math.nan
+            vals = df.loc[ok, k].to_numpy(float)
+            st = holdout_stats(vals, lab, rtol=rtol, z=z)
+            fin = vals[np.isfinite(vals)]
+            rows.append({"specimen": c["specimen"], "response": k,
+                         "role": "target" if k in c["targets"] else "prediction",
+                         "lab": lab, **st,
+                         "cv_pct": (100 * st["sd"] / abs(st["mean"])
+                                    if len(fin) > 1 and st["mean"] else math.nan),
                          "n_failed": int((~ok).sum()),
                          "seeds": ",".join(str(int(s)) for s in df["seed"]), "note": note})
     out = pd.DataFrame(rows)

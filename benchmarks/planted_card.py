@@ -1,0 +1,196 @@
+"""A planted card calibrated back from its own DEM responses: the closed loop and the
+fresh-seed check on four targets (sigma_c, E, nu and sigma_t), with the regression of a
+finished study.
+
+The planted card (a parameter set inside Table 2; its strength ratio is not the study's)
+is run on ``--lab-seeds`` packing seeds, none of which the loop or the fresh-seed check
+uses; the means of its UCS and Brazilian tests become a lab row. Then, as the study does:
+``bpmcal calibrate`` (sigma_t sets the strength ratio), ``bpmcal verify`` (the closed
+loop, the study's verification settings) and ``bpmcal holdout`` (fresh seeds), all with
+the study's specimen, UCS and bts settings. The record: the planted and the returned
+parameters, every target's lab value, closed-loop mean, error and tolerance, the
+fresh-seed verdicts, the runs and the CPU time.
+
+    python benchmarks/planted_card.py --study CLONE/results --set pb_coh_MPa=37.5 \\
+        --set pb_ten_MPa=30 --out benchmarks/results_planted_card_DATE.json \\
+        --markdown docs/measurements/DATE-planted-card.md
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import shlex
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pandas as pd
+import yaml
+from _study import CONFIG, REPO, cpu_model
+
+#: the planted card by default: Table 2 interior, strength ratio 0.8 (the study's 1.4-1.5)
+PLANTED = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=25.0, pb_kratio=2.5, pb_ten_MPa=30.0,
+               pb_coh_MPa=37.5, pb_fa_deg=35.0, fric=0.35)
+
+
+def _run(cmd, log):
+    t = time.time()
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    log.append({"cmd": shlex.join(cmd), "rc": r.returncode, "s": time.time() - t})
+    if r.returncode != 0:
+        raise SystemExit(f"{shlex.join(cmd)} failed:\n{r.stderr[-3000:]}")
+    return r
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--study", required=True, help="the finished study's results folder")
+    ap.add_argument("--config", default=str(CONFIG))
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
+    ap.add_argument("--lab-seeds", default="1001,1002,1003,1004,1005,1006,1007,1008,1009,1010")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--markdown", default=None)
+    a = ap.parse_args(argv)
+    from bpmcal.study.config import validate_config
+
+    cfg = yaml.safe_load(Path(a.config).read_text())
+    validate_config(cfg, REPO / "workflow" / "schemas" / "config.schema.yaml", base_dir=REPO)
+    planted = dict(PLANTED)
+    for kv in a.set:
+        k, v = kv.split("=", 1)
+        planted[k] = float(v)
+    study = Path(a.study)
+    sp, u, b, v = cfg["specimen"], cfg["ucs"], cfg["bts"], cfg["verification"]
+    common = ["--scale", str(sp["scale"]), "--platen-velocity", str(u["platen_velocity"]),
+              "--record-strain", str(u["record_strain"]), "--threads", "1", "--quiet"]
+    bts_opts = ["--bts-scale", str(b["scale"]), "--bts-loading", b["loading"],
+                "--bts-contact-cap", str(b["contact_cap"]),
+                "--bts-platen-velocity", str(b["platen_velocity"]),
+                "--bts-approach-velocity", str(b["approach_velocity"]),
+                "--bts-stop-drop", str(b["stop_drop"]),
+                "--bts-post-peak-min", str(b["post_peak_min"])]
+    log: list[dict] = []
+    cpu0 = time.process_time()
+    c0 = os.times()
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        cache = ["--specimen-cache", str(tmp / "packings")]
+        pf = tmp / "planted.yaml"
+        pf.write_text(yaml.safe_dump(planted))
+        rows = []
+        for s in [int(x) for x in a.lab_seeds.split(",")]:
+            _run(["bpmcal", "ucs", "--params", str(pf), "--seed", str(s), "--out",
+                  str(tmp / f"lab{s}.h5"), "--bts-out", str(tmp / f"lab{s}.bts.h5"),
+                  *common, *bts_opts, *cache], log)
+            from bpmcal.io.h5 import read_summary
+
+            us, bs = read_summary(tmp / f"lab{s}.h5"), read_summary(tmp / f"lab{s}.bts.h5")
+            rows.append({"seed": s, "ucs_MPa": us["ucs_MPa"], "E_GPa": us["E_GPa"],
+                         "nu": us["nu"], "bts_MPa": bs["bts_MPa"],
+                         "bts_valid": bool(bs["bts_valid"])})
+        labs = pd.DataFrame(rows)
+        valid = labs[labs["bts_valid"]]
+        lab = {k: float(labs[k].mean()) for k in ("ucs_MPa", "E_GPa", "nu")}
+        lab["bts_MPa"] = float(valid["bts_MPa"].mean())
+        lab_csv = tmp / "lab.csv"
+        lab_csv.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3,bts_MPa\nP1,"
+                           + ",".join(repr(lab[k]) for k in ("ucs_MPa", "E_GPa", "nu"))
+                           + f",,{lab['bts_MPa']!r}\n")
+        card = tmp / "P1.yaml"
+        c = cfg["calibration"]
+        _run(["bpmcal", "calibrate", "--dataset", str(study / "dataset.csv"), "--models",
+              str(study / "regression" / "models.json"), "--lab", str(lab_csv), "--cards",
+              str(card), "--fixed", json.dumps({k: planted[k] for k in c["fixed"]}),
+              "--free", ",".join(c["free"]), "--ranges", json.dumps(cfg["ranges"]),
+              "--ratio", str(c["ratio"]), "--n-boot", "0", "--seed", str(c["seed"])], log)
+        verified = tmp / "P1.verified.yaml"
+        _run(["bpmcal", "verify", "--card", str(card), "--models",
+              str(study / "regression" / "models.json"), "--out-card", str(verified),
+              "--rounds", str(tmp / "rounds.csv"), "--run", str(tmp / "best.h5"),
+              "--seed", str(v["seed"]), "--seeds-per-round", str(v["seeds_per_round"]),
+              "--max-seeds", str(v["max_seeds"]), "--range-margin", str(v["range_margin"]),
+              "--rtol", str(v["rtol"]), "--max-rounds", str(v["max_rounds"]), *common,
+              *bts_opts, *cache], log)
+        seeds = [int(s) for s in v["holdout_seeds"]]
+        _run(["bpmcal", "holdout", "--card", str(verified), "--seeds",
+              ",".join(map(str, seeds)), "--runs", *[str(tmp / f"h{s}.h5") for s in seeds],
+              "--bts-runs", *[str(tmp / f"h{s}.bts.h5") for s in seeds], "--seed-runs",
+              str(tmp / "holdout.csv"), *common, *bts_opts, *cache], log)
+        _run(["bpmcal", "holdout-table", "--cards", str(verified), "--seed-runs",
+              str(tmp / "holdout.csv"), "--table", str(tmp / "holdout_table.csv"),
+              "--rtol", str(v["rtol"])], log)
+        cal = yaml.safe_load(card.read_text())
+        ver = yaml.safe_load(verified.read_text())["verification"]
+        hold = pd.read_csv(tmp / "holdout_table.csv")
+        rounds = pd.read_csv(tmp / "rounds.csv")
+    c1 = os.times()
+    rec = {
+        "date": dt.date.today().isoformat(), "cpu_model": cpu_model(), "cpus": os.cpu_count(),
+        "load_average": os.getloadavg(),
+        "command": "python benchmarks/planted_card.py " + shlex.join(argv),
+        "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
+                                 capture_output=True, text=True).stdout.strip(),
+        "planted": planted, "lab_seeds": rows, "lab": lab,
+        "calibration": {"status": cal["status"], "parameters": cal["parameters"],
+                        "strength_ratio": cal["strength_ratio"]},
+        "verification": {k: ver[k] for k in ("status", "message", "rounds", "runs",
+                                             "n_seeds", "parameters", "missed")},
+        "closed_loop": {k: {"mean": ver["closed_loop"][k],
+                            "err_pct": ver["closed_loop"]["errors_pct"][k],
+                            "seed_cv": ver["closed_loop"]["seed_cv"].get(k)}
+                        for k in lab},
+        "tolerance_pct": {k: 100 * float(rounds.iloc[ver["best_round"] - 1][f"tol_{k}"])
+                          for k in lab},
+        "holdout": hold.to_dict("records"),
+        "cpu_s_children": (c1.children_user + c1.children_system)
+                          - (c0.children_user + c0.children_system),
+        "cpu_s_self": time.process_time() - cpu0, "commands": log,
+    }
+    Path(a.out).write_text(json.dumps(rec, indent=1, default=float) + "\n")
+    text = markdown(rec)
+    if a.markdown:
+        Path(a.markdown).write_text(text)
+    print(text)
+    return 0
+
+
+def markdown(rec: dict) -> str:
+    p, got = rec["planted"], rec["verification"]["parameters"] or {}
+    lines = [f"# A planted card calibrated back from its DEM responses: {rec['date']}", "",
+             f"Host: {rec['cpu_model']} ({rec['cpus']} CPUs), commit {rec['commit']}, load "
+             f"average when recorded {', '.join(f'{x:.2f}' for x in rec['load_average'])}; "
+             f"CPU time of the runs {rec['cpu_s_children'] / 60:.1f} min.", "",
+             f"Command: `{rec['command']}`", "",
+             f"Lab values: the means of the planted card over {len(rec['lab_seeds'])} packing "
+             f"seeds (σt over the valid discs: "
+             f"{sum(r['bts_valid'] for r in rec['lab_seeds'])} of {len(rec['lab_seeds'])}).",
+             "", "| parameter | planted | calibrated (regression) | verified (closed loop) |",
+             "|---|---|---|---|"]
+    for k in ("pb_emod_GPa", "pb_kratio", "pb_ten_MPa", "pb_coh_MPa"):
+        lines.append(f"| {k} | {p[k]:g} | {rec['calibration']['parameters'][k]:.4g} | "
+                     f"{got.get(k, float('nan')):.4g} |")
+    v = rec["verification"]
+    lines += ["", f"Closed loop: {v['status']} after {v['rounds']} round(s), {v['runs']} runs "
+                  f"({v['n_seeds']} seeds in the card's round): {v['message']}", "",
+              "| target | lab | closed-loop mean | error | tolerance max(1 %, 2 SE) | seed CV |",
+              "|---|---|---|---|---|---|"]
+    for k, c in rec["closed_loop"].items():
+        cv = c["seed_cv"]
+        lines.append(f"| {k} | {rec['lab'][k]:.4g} | {c['mean']:.4g} | {c['err_pct']:+.2f} % | "
+                     f"{rec['tolerance_pct'][k]:.2f} % | "
+                     f"{'–' if cv is None else f'{100 * cv:.1f} %'} |")
+    lines += ["", "Fresh seeds (`bpmcal holdout`, the study's holdout seeds):", "",
+              "| target | n | mean | error | z-score | within 2 SE |", "|---|---|---|---|---|---|"]
+    for h in rec["holdout"]:
+        lines.append(f"| {h['response']} | {h['n']} | {h['mean']:.4g} | {h['err_pct']:+.2f} % | "
+                     f"{h['z_score']:+.2f} | {h['within_z_se']} |")
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

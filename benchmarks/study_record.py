@@ -1,0 +1,196 @@
+"""A measurement record of whole default-study runs: their time (from ``/usr/bin/time -v``)
+and what they measured of sigma_t (the dataset's Brazilian tests and the regression).
+
+Run each study in a fresh clone with empty caches, e.g.
+
+    /usr/bin/time -v snakemake --cores 2 > study.log 2> time.log
+
+then
+
+    python benchmarks/study_record.py --run before=CLONE1,TIME1,COMMIT1 \\
+        --run after=CLONE2,TIME2,COMMIT2 --out benchmarks/results_default_study_DATE.json \\
+        --markdown docs/measurements/DATE-default-study.md
+
+A run is ``label=clone directory,time log,commit``; its results are read from the clone's
+``results/`` (``dataset.csv``, ``tables/regression_fit.csv``).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import re
+import shlex
+import sys
+from pathlib import Path
+
+import pandas as pd
+from _study import cpu_model
+
+
+def _time(log: Path) -> dict:
+    text = log.read_text()
+
+    def grab(label):
+        m = re.search(rf"{re.escape(label)}: (.+)", text)
+        return m.group(1).strip() if m else None
+
+    wall = grab("Elapsed (wall clock) time (h:mm:ss or m:ss)")
+    parts = [float(x) for x in wall.split(":")] if wall else []
+    wall_s = sum(v * 60 ** i for i, v in enumerate(reversed(parts))) if parts else None
+    user, sys_ = float(grab("User time (seconds)")), float(grab("System time (seconds)"))
+    return {"wall_s": wall_s, "user_s": user, "system_s": sys_,
+            "cpu_min": (user + sys_) / 60, "max_rss_mb": float(grab(
+                "Maximum resident set size (kbytes)")) / 1024,
+            "exit_status": int(grab("Exit status") or -1)}
+
+
+def _results(clone: Path) -> dict:
+    out = {}
+    ds = pd.read_csv(clone / "results" / "dataset.csv")
+    out["samples"] = len(ds)
+    out["ucs_ok"] = int((ds["status"] == "ok").sum())
+    if "bts_status" in ds.columns:
+        st = ds["bts_status"].value_counts().to_dict()
+        out["bts_status"] = {str(k): int(v) for k, v in st.items()}
+        out["bts_valid_fraction"] = st.get("ok", 0) / len(ds)
+        ok = ds[ds["bts_status"] == "ok"]
+        out["bts_MPa_range"] = [float(ok["bts_MPa"].min()), float(ok["bts_MPa"].max())]
+        both = ds[(ds["status"] == "ok") & (ds["bts_status"] == "ok")]
+        q = both["ucs_MPa"] / both["bts_MPa"]
+        out["ucs_over_bts_range"] = [float(q.min()), float(q.max())]
+        out["bts_wall_s_median"] = float(ok["bts_wall_s"].median())
+        if "bts_balls_across" in ds.columns:
+            out["bts_balls_across_range"] = [float(ds["bts_balls_across"].min()),
+                                             float(ds["bts_balls_across"].max())]
+        if "bts_error" in ds.columns:
+            inv = ds[ds["bts_status"] == "invalid"]
+            err = inv["bts_error"].fillna("").astype(str)
+            out["bts_invalid_reasons"] = {
+                "next to a platen": int(err.str.startswith("fracture initiated next").sum()),
+                "grown from a platen": int(err.str.startswith("a fracture grew").sum()),
+                "off the diameter": int(err.str.startswith(
+                    "the fracture did not follow").sum()),
+                "no split": int(err.str.contains("did not split").sum())}
+    out["ucs_wall_s_median"] = float(ds.loc[ds["status"] == "ok", "wall_s"].median())
+    fit = pd.read_csv(clone / "results" / "tables" / "regression_fit.csv")
+    out["adj_r2"] = {f"{r.response}/{r.stage}": float(r.adj_r2) for r in fit.itertuples()}
+    return out
+
+
+def rejudge(clone: Path) -> dict:
+    """The validity check of today (``lab.validity.bts_validity``) applied to the Brazilian
+    run files of a study whose runs predate it (their cracks, series and initial
+    particles): how many would have been valid, and why the others not."""
+    import numpy as np
+
+    from bpmcal.io import h5
+    from bpmcal.lab.validity import bts_validity
+
+    counts = {"valid": 0, "invalid": 0, "not judged": 0}
+    reasons = {}
+    for f in sorted((clone / "results" / "bts").glob("s*.h5")):
+        try:
+            s = h5.read_summary(f)
+            if s.get("status") != "ok":
+                counts["not judged"] += 1
+                continue
+            cr = h5.read_cracks(f)
+            ser = h5.read_series(f)
+            ini = h5.read_particles(f, "initial")
+        except Exception:  # noqa: BLE001 - a damaged file is not judged
+            counts["not judged"] += 1
+            continue
+        step = cr["step"].to_numpy() if "step" in cr else np.zeros(len(cr))
+        pos = cr[["x", "y", "z"]].to_numpy()
+        ip = int(np.argmax(ser["load"].to_numpy()))
+        c = ini["position"][:, :2].mean(axis=0)
+        v = bts_validity({"step": step, "pos": pos}, ser["step"].to_numpy(), ip, centre=c,
+                         radius=0.5e-3 * float(s["diameter_mm"]),
+                         mean_ball_diameter=2.0 * float(np.mean(ini["radius"])),
+                         ended=s.get("stop_reason") == "post_peak_drop")
+        if v["bts_valid"]:
+            counts["valid"] += 1
+        else:
+            counts["invalid"] += 1
+            key = v["bts_invalid_reason"].split(":")[0]
+            key = ("started next to a platen" if key.startswith("fracture initiated") else
+                   "grew from a platen before the peak" if key.startswith("a fracture grew")
+                   else key)
+            reasons[key] = reasons.get(key, 0) + 1
+    return {"counts": counts, "reasons": reasons}
+
+
+def markdown(rec: dict) -> str:
+    lines = [f"# The default study before and after: {rec['date']}", "",
+             f"Host: {rec['cpu_model']} ({rec['cpus']} CPUs); load average when recorded "
+             f"{', '.join(f'{x:.2f}' for x in rec['load_average'])}.", "",
+             f"Recorded with: `{rec['command']}`", "",
+             "| run | commit | wall | CPU (user + system) | peak RSS | samples: Brazilian "
+             "valid / invalid / failed | σt adj. R² (main → quadratic → interaction) | "
+             "σc/σt of the samples |", "|---|---|---|---|---|---|---|---|"]
+    for label, r in rec["runs"].items():
+        t, res = r["time"], r["results"]
+        st = res.get("bts_status", {})
+        r2 = [res["adj_r2"].get(f"bts_MPa/{s}") for s in ("main", "quadratic", "interaction")]
+        q = res.get("ucs_over_bts_range")
+        lines.append(
+            f"| {label} | {r['commit']} | {t['wall_s'] / 60:.1f} min | {t['cpu_min']:.1f} min | "
+            f"{t['max_rss_mb']:.0f} MB | {st.get('ok', 0)} / {st.get('invalid', 0)} / "
+            f"{st.get('failed', 0)} | "
+            + " → ".join(f"{x:.3f}" for x in r2 if x is not None)
+            + (f" | {q[0]:.1f}–{q[1]:.1f} |" if q else " | – |"))
+    runs = list(rec["runs"].values())
+    if len(runs) == 2:
+        a, b = runs[0]["time"], runs[1]["time"]
+        lines += ["", f"CPU time after / before: {b['cpu_min'] / a['cpu_min']:.2f}; wall "
+                      f"time after / before: {b['wall_s'] / a['wall_s']:.2f}."]
+    for label, r in rec["runs"].items():
+        rj = r.get("rejudged")
+        if rj:
+            c = rj["counts"]
+            lines += ["", f"{label}: its Brazilian runs judged afterwards by today's validity "
+                          f"check (`lab.validity`): {c['valid']} valid, {c['invalid']} invalid"
+                          + (f" ({', '.join(f'{k}: {v}' for k, v in rj['reasons'].items())})"
+                             if rj["reasons"] else "")
+                          + (f", {c['not judged']} not judged" if c["not judged"] else "")]
+        inv = r["results"].get("bts_invalid_reasons")
+        if inv and sum(inv.values()):
+            lines += ["", f"{label}: invalid Brazilian tests by reason: "
+                      + ", ".join(f"{k} {v}" for k, v in inv.items())]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--run", action="append", required=True,
+                    help="label=clone directory,time log,commit")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--markdown", default=None)
+    ap.add_argument("--rejudge", action="append", default=[],
+                    help="a run label whose Brazilian runs predate the validity check: "
+                         "judge them now")
+    a = ap.parse_args(argv)
+    runs = {}
+    for item in a.run:
+        label, rest = item.split("=", 1)
+        clone, tlog, commit = rest.split(",")
+        runs[label] = {"commit": commit, "clone": clone, "time": _time(Path(tlog)),
+                       "results": _results(Path(clone))}
+        if label in a.rejudge:
+            runs[label]["rejudged"] = rejudge(Path(clone))
+    rec = {"date": dt.date.today().isoformat(), "cpu_model": cpu_model(),
+           "cpus": os.cpu_count(), "load_average": os.getloadavg(),
+           "command": "python benchmarks/study_record.py " + shlex.join(argv), "runs": runs}
+    Path(a.out).write_text(json.dumps(rec, indent=1) + "\n")
+    text = markdown(rec)
+    if a.markdown:
+        Path(a.markdown).write_text(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

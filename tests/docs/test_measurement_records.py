@@ -1,0 +1,32 @@
+"""The measurement records in docs/measurements are generated from the benchmarks' JSON
+records and must be up to date: a hand edit, or a JSON re-measured without regenerating
+the page, fails here (regenerate with the command docs/measurements/README.md names)."""
+import json
+import re
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "benchmarks"))
+
+import bts_resolution  # noqa: E402
+
+
+def test_the_tensile_strength_record_is_its_json_rendered():
+    page = REPO / "docs" / "measurements" / "2026-11-26-tensile-strength.md"
+    recs = [json.loads((REPO / "benchmarks" / f).read_text()) for f in (
+        "results_bts_loadings_2026-11-26.json", "results_bts_resolution_2026-11-26.json")]
+    title = page.read_text().splitlines()[0][2:]
+    assert page.read_text() == bts_resolution.markdown(recs, title)
+
+
+def test_every_record_page_is_listed_in_the_index():
+    index = (REPO / "docs" / "measurements" / "README.md").read_text()
+    for page in (REPO / "docs" / "measurements").glob("2*.md"):
+        assert f"({page.name})" in index, page.name
+
+
+def test_the_readme_links_to_records_that_exist():
+    text = (REPO / "README.md").read_text()
+    for link in re.findall(r"\((docs/measurements/[^)#]+)\)", text):
+        assert (REPO / link).is_file(), link
