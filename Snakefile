@@ -67,7 +67,7 @@ rule all:
                 for s in SPECIMENS
                 for seed in HOLDOUT_SEEDS
             ]
-            if LAB_BTS
+            if BTS_ON
             else []
         ),
         (
