@@ -30,3 +30,21 @@ def test_the_readme_links_to_records_that_exist():
     text = (REPO / "README.md").read_text()
     for link in re.findall(r"\((docs/measurements/[^)#]+)\)", text):
         assert (REPO / link).is_file(), link
+
+
+def test_every_record_has_its_header():
+    """A record says when, on which commit and host it was measured (a generated record in
+    its own words, a moved one in the fixed header table; "not recorded" where unknown)."""
+    for page in (REPO / "docs" / "measurements").glob("2*.md"):
+        text = page.read_text().lower()
+        date = page.name[:10]
+        assert date in text, page.name
+        for field in ("commit", "host"):
+            assert field in text, (page.name, field)
+
+
+def test_the_docs_link_to_records_that_exist():
+    docs = REPO / "docs"
+    for page in docs.rglob("*.md"):
+        for link in re.findall(r"\]\(((?:\.\./)*measurements/[^)#]+)\)", page.read_text()):
+            assert (page.parent / link).resolve().is_file(), (page.name, link)

@@ -1,0 +1,183 @@
+"""The one source of every measured figure the README and the docs quote:
+``docs/measurements/figures.json``, generated from the benchmarks' JSON records
+(``benchmarks/results_*.json``), never written by hand.
+
+A page quotes a figure with an inline marker that renders on GitHub and in the docs site
+as the bare value::
+
+    the default study takes <!--fig:study.wall_min-->26.4<!--/fig--> min
+
+``tests/docs/test_figures.py`` checks that every marked value equals the generated one,
+that ``figures.json`` is this script's output for the records in the repository, and that
+the README and the docs (outside ``docs/measurements/``) hold no unmarked measured figure.
+
+    python benchmarks/figures.py            # write figures.json and refresh every marker
+    python benchmarks/figures.py --check    # exit 1 if figures.json or a marker is stale
+
+Each figure names the newest record of its kind (the file name's date decides), so a new
+measurement written beside the old one (``results_default_study_<DATE>.json``) becomes
+the quoted figure when this script is run again; the old record stays as it was. In a
+default-study time record (``study_record.py``) the figure is the record's last run (the
+newest code of a before/after pair).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+BENCH = REPO / "benchmarks"
+OUT = REPO / "docs" / "measurements" / "figures.json"
+#: a marked figure: <!--fig:KEY-->VALUE<!--/fig-->
+MARK = re.compile(r"<!--fig:([a-z][a-z0-9_]*(?:\.[A-Za-z0-9_]+)+)-->(.*?)<!--/fig-->")
+
+#: kind -> (file pattern of its JSON records, the Markdown record rendered from them)
+SOURCES = {
+    "default_study": ("results_default_study_*.json", "{date}-default-study.md"),
+    "study_outputs": ("results_study_outputs_*.json", "{date}-default-study-results.md"),
+    "bts_loadings": ("results_bts_loadings_*.json", "{date}-tensile-strength.md"),
+}
+
+#: Table 3 columns: response -> (label, how many of the largest shares the pages quote)
+TABLE3 = {"ucs_MPa": ("ucs", 4), "E_GPa": ("E", 3), "nu": ("nu", 1), "bts_MPa": ("bts", 5)}
+SYMBOL = {"rmin_mm": "Rmin", "porosity": "n", "pb_emod_GPa": "Ecp", "pb_kratio": "kp*",
+          "pb_ten_MPa": "σcp", "pb_coh_MPa": "τcp", "pb_fa_deg": "φp", "fric": "μ"}
+
+
+def newest(kind: str) -> tuple[Path, dict]:
+    pattern = SOURCES[kind][0]
+    files = sorted(BENCH.glob(pattern))
+    if not files:
+        raise FileNotFoundError(f"no benchmarks/{pattern}")
+    return files[-1], json.loads(files[-1].read_text())
+
+
+def _slash(values, fmt="{:.2f}") -> str:
+    return " / ".join(fmt.format(v) for v in values)
+
+
+def _default_study(rec: dict) -> dict:
+    label, run = list(rec["runs"].items())[-1]
+    t = run["time"]
+    return {
+        "study.wall_min": (f"{t['wall_s'] / 60:.1f}", t["wall_s"] / 60, "min"),
+        "study.cpu_min": (f"{t['cpu_min']:.1f}", t["cpu_min"], "CPU-min"),
+        "study.max_rss_mb": (f"{t['max_rss_mb']:.0f}", t["max_rss_mb"], "MB"),
+        "study.commit": (run["commit"], run["commit"], ""),
+        "study.date": (rec["date"], rec["date"], ""),
+        "study.host": (f"{rec['cpu_model']}, {rec['cpus']} cores", rec["cpu_model"], ""),
+    }
+
+
+def _study_outputs(rec: dict) -> dict:
+    o = rec["outputs"]
+    spec = ("B1", "B2", "B3")
+    f = {"results.commit": (rec["commit"], rec["commit"], ""),
+         "results.date": (rec["date"], rec["date"], "")}
+    for resp, (label, n) in TABLE3.items():
+        shares = sorted(o["table3"][resp].items(), key=lambda kv: -kv[1])[:n]
+        f[f"results.table3.{label}"] = (
+            ", ".join(f"{SYMBOL[k]} {v:.1f} %" for k, v in shares), dict(shares), "%")
+    for resp, label, stages in (("ucs_MPa", "ucs", ("main", "quadratic", "interaction")),
+                                ("E_GPa", "E", ("main", "quadratic", "interaction")),
+                                ("nu", "nu", ("main", "quadratic")),
+                                ("bts_MPa", "bts", ("main", "quadratic", "interaction"))):
+        v = [o["adj_r2"][f"{resp}/{s}"] for s in stages]
+        f[f"results.adj_r2.{label}"] = (" → ".join(f"{x:.3f}" for x in v), v, "")
+    for p, nd in (("pb_emod_GPa", 2), ("pb_kratio", 2), ("pb_ten_MPa", 1), ("pb_coh_MPa", 1)):
+        v = [o["calibration"][s][p] for s in spec]
+        f[f"results.card.{p}"] = (_slash(v, f"{{:.{nd}f}}"), v, p.rsplit("_", 1)[-1])
+    r = o["ratio"]
+    f["results.ratio"] = (f"{r['chosen']:g}", r["chosen"], "")
+    f["results.ratio_tensile_share"] = (f"{100 * r['value']:.1f} %", 100 * r["value"], "%")
+    for stage, nd in (("single_pass", 1), ("closed_loop", 2)):
+        v = [o["table5"][s][stage]["largest_abs_err_pct"] for s in spec]
+        f[f"results.table5.{stage}"] = (_slash(v, f"{{:.{nd}f}}") + " %", v, "%")
+    v = [o["table6_up_err_pct"][s] for s in spec]
+    f["results.table6.up_err"] = (_slash(v, "{:.1f}") + " %", v, "%")
+    i = o["impact_6ms"]
+    f["results.impact.w_in"] = (f"{i['W_in_full_size_J']:.1f} J", i["W_in_full_size_J"], "J")
+    f["results.impact.eta_f"] = (f"{100 * i['eta_f']:.1f} %", 100 * i["eta_f"], "%")
+    f["results.impact.closure"] = (f"{100 * i['closure_max_rel']:.2f} %",
+                                   100 * i["closure_max_rel"], "%")
+    sc = o["seed_scatter"]
+    f["results.seed_scatter"] = (
+        f"σc {sc['ucs_MPa']['cv_pct']:.1f} %, E {sc['E_GPa']['cv_pct']:.1f} %, "
+        f"ν {sc['nu']['cv_pct']:.1f} %", {k: v["cv_pct"] for k, v in sc.items()}, "%")
+    h = o["holdout"]
+    f["results.holdout"] = (f"{h['within_2se']} of {h['targets']}", h["within_2se"], "")
+    return f
+
+
+def _bts_loadings(rec: dict) -> dict:
+    a1 = rec["variants"]["flat, caps"]["a1"]
+    return {"bts.one_disc_cv": (f"{100 * a1['seed_cv']:.1f} %", 100 * a1["seed_cv"], "%"),
+            "bts.cpu_s_per_test": (f"{a1['cpu_s_median']:.1f}", a1["cpu_s_median"], "CPU-s")}
+
+
+EXTRACT = {"default_study": _default_study, "study_outputs": _study_outputs,
+           "bts_loadings": _bts_loadings}
+
+
+def figures() -> dict:
+    """Every figure: key -> {text, value, unit, source (the JSON), record (the page)}."""
+    out = {}
+    for kind, fn in EXTRACT.items():
+        path, rec = newest(kind)
+        page = SOURCES[kind][1].format(date=rec["date"])
+        for key, (text, value, unit) in fn(rec).items():
+            out[key] = {"text": text, "value": value, "unit": unit,
+                        "source": f"benchmarks/{path.name}",
+                        "record": f"docs/measurements/{page}"}
+    return dict(sorted(out.items()))
+
+
+def render() -> str:
+    return json.dumps(figures(), indent=1, ensure_ascii=False) + "\n"
+
+
+def pages() -> list[Path]:
+    """The pages that quote figures: the README and every docs page outside the records."""
+    docs = [p for p in sorted((REPO / "docs").rglob("*.md"))
+            if "measurements" not in p.relative_to(REPO / "docs").parts]
+    return [REPO / "README.md", REPO / "config" / "README.md", *docs]
+
+
+def refresh(text: str, figs: dict) -> str:
+    def sub(m):
+        key = m.group(1)
+        if key not in figs:
+            raise KeyError(f"unknown figure {key!r}")
+        return f"<!--fig:{key}-->{figs[key]['text']}<!--/fig-->"
+    return MARK.sub(sub, text)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--check", action="store_true",
+                    help="write nothing; exit 1 if figures.json or a marked figure is stale")
+    a = ap.parse_args(argv)
+    text = render()
+    figs = json.loads(text)
+    stale = []
+    if not OUT.is_file() or OUT.read_text() != text:
+        stale.append(OUT)
+        if not a.check:
+            OUT.write_text(text)
+    for page in pages():
+        old = page.read_text()
+        new = refresh(old, figs)
+        if new != old:
+            stale.append(page)
+            if not a.check:
+                page.write_text(new)
+    for p in stale:
+        print(f"{'stale' if a.check else 'updated'}: {p.relative_to(REPO)}")
+    return 1 if a.check and stale else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
