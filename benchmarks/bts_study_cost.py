@@ -16,7 +16,7 @@ packed once for its cylinder and once for its disc):
 CPU time (``time.process_time``, the better measure on a shared machine) and wall time of
 each run, sigma_t of each, and the medians. The study grows by about
 ``sum(bts CPU) / sum(ucs CPU)`` times its sample time (the samples are ~3/4 of the
-default study's time; README "What the default study computes").
+default study's time; docs/measurements/2026-11-24-default-study-timings.md).
 
     python benchmarks/bts_study_cost.py --samples s000,s001,s002,s003,s004,s005 \
         --rate-samples 4 [--json]

@@ -4,7 +4,7 @@ bad input always ends the same way:
 one line on stderr, ``bpmcal <cmd>: error: <the bad value>: <what was expected>``, exit
 code 2, no output file, and that before any work starts.
 
-Exit codes (the README's "When something goes wrong" lists them):
+Exit codes (docs/troubleshooting.md lists them):
 
 ==  =======================================================================================
 0   done

@@ -1,7 +1,7 @@
 """Host-independent numerics for the result-determining paths.
 
 The same inputs must give bit-identical results on every x86-64 host with AVX2 and FMA
-(README, "Reproducibility"). Two things in the numeric stack choose their code by the CPU
+(docs/reproducibility.md). Two things in the numeric stack choose their code by the CPU
 they run on, and both changed the default study's numbers between an AVX-512 host and an
 AVX2 host:
 

@@ -17,7 +17,7 @@ def material(**kw):
 
 
 def bond_constants(mat, r1=R, r2=R):
-    """Closed-form stiffnesses of PBM.md, evaluated in the same operation order as the
+    """Closed-form stiffnesses of docs/contact_laws.md, evaluated in the same operation order as the
     kernel (so that step-by-step increments can be replayed exactly in Python)."""
     sr = r1 + r2
     inv_l = 1.0 / sr

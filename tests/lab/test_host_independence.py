@@ -1,4 +1,4 @@
-"""Host independence of the numbers (README, "Reproducibility").
+"""Host independence of the numbers (docs/reproducibility.md).
 
 The default study gave different datasets on an AVX-512 host and an AVX2 host because
 numpy's AVX-512 power kernel rounded some ball masses differently from the C library and

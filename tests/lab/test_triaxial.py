@@ -52,7 +52,7 @@ def runs(cache, tmp_path_factory):
 def test_unconfined_triaxial_reproduces_the_ucs_test(runs, cache):
     """sigma3 = 0 (servo-controlled cylinder, consolidation to zero stress) against the UCS
     test (no cylinder) on the same packing: well inside the packing scatter (3.3 % CV of
-    sigma_c, 0.9 % of E, 1.2 % of nu, README)."""
+    sigma_c, 0.9 % of E, 1.2 % of nu: docs/measurements/2026-11-23-brazilian-and-triaxial-a1.md)."""
     u = run_ucs(make_specimen(A1, SEED, SMALL, cache=cache), FAST).summary
     t = runs[0.0].summary
     assert t["sigma1_MPa"] == pytest.approx(u["ucs_MPa"], rel=0.03)

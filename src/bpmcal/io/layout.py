@@ -4,14 +4,15 @@ in their names, defined once.
 ``workflow/rules/common.smk`` declares every rule's inputs and outputs with
 :class:`Layout` and passes each file to the ``bpmcal`` command; the stages open only the
 files they are given (the report, the files of this layout); a file a stage reads is
-always one that a rule declares (``tests/workflow/test_contract.py`` checks that on a
-real run). Nothing walks the output tree to find names again.
+always one that a rule declares (``tests/workflow/test_smoke.py``,
+``test_every_file_a_stage_reads_is_declared_by_the_rule_graph``, checks that on a real
+run). Nothing walks the output tree to find names again.
 
 Conventions that hold for every file here:
 
 - **A table** is a CSV with its Markdown rendering beside it (same stem, ``.md``); a
   **figure** is a PNG with a PDF beside it. :func:`companions` lists both, and the writers
-  (``bpmcal.io.tables.write_table``, ``bpmcal.io.tables.save_figure``) write both.
+  (``bpmcal.io.tables.write_table``, ``bpmcal.io.figures.save_figure``) write both.
 - **Ids** in file names come from the functions here: sample ids ``s000`` ...
   (:func:`sample_ids`), strength-ratio sweep ids ``a050`` for a = 0.50 (:func:`ratio_id`,
   over :func:`ratio_grid`), impact velocity tags ``6`` for 6.0 m/s (:func:`velocity_tag`).

@@ -57,7 +57,8 @@ class ImpactSettings:
     platen_fric: float = 0.3
     gravity: float = 9.81
     duration: float = 40e-3  # s, at most (the study: impact.duration_ms); the rebound
-    # ends it first: 8 / 15 / 20 ms at scale 0.25 / 0.5 / 0.75 for the A1 card (README)
+    # ends it first: 8 / 15 / 20 ms at scale 0.25 / 0.5 / 0.75 for the A1 card
+    # (docs/measurements/2026-11-26-impact-size.md)
     after_rebound: float = 2e-4  # s, kept running after the hammer moves up
     record_dt: float = 5e-6  # s between records (the study: impact.record_us)
     gap: float = 1e-5  # m, initial hammer gap above the top face

@@ -100,8 +100,8 @@ SETTLE_RATIO = 1e-3
 GENESIS_VERSION = 5
 #: genesis procedures of steps 4-5 (``build_specimen(genesis=...)``)
 GENESES = ("bpmcal", "pfc")
-#: the genesis when none is given: the one closer to PFC3D on the paper's A1 set (README
-#: "The paper's A1 card under both geneses": 8-13 % more sigma_c and 5-8 % more E than
+#: the genesis when none is given: the one closer to PFC3D on the paper's A1 set
+#: (docs/measurements/2026-11-26-a1-geneses.md: 8-13 % more sigma_c and 5-8 % more E than
 #: "bpmcal" on the same packings, both still below PFC3D)
 DEFAULT_GENESIS = "pfc"
 #: installation gap of the PFC-style genesis / Rmin: Itasca's tutorial scripts bond pairs

@@ -5,9 +5,9 @@ each other, each at ``platen_velocity`` (default 0.05 m/s), or at ``strain_rate 
 when a strain rate is given; local damping 0.7. How quasi-static a test is depends on
 the platen speed, not on the strain rate: the dynamic overstress is ~ rho c v and the
 number of wave transits before the peak is ~ eps_p c / (2 v), both independent of the
-specimen size. Halving 0.05 m/s changes sigma_c by 1.3 % (median of 3 packings, at most
-2.0 %) and E by < 0.1 % (measured at scale 0.4; see the README), so a small specimen can
-be loaded at a higher strain rate than a large one.
+specimen size. Halving 0.05 m/s changes sigma_c by about a per cent and E far less (measured at scale
+0.4: docs/measurements/2026-11-22-loading-rate-and-size.md), so a small specimen can be
+loaded at a higher strain rate than a large one.
 
 Measurements, recorded every ``record_strain`` of axial strain (compression positive):
 
@@ -22,13 +22,13 @@ Measurements, recorded every ``record_strain`` of axial strain (compression posi
   mean heights of two slabs of balls (centres within 0.05 H of 0.25 H and 0.75 H) over
   their initial distance. It sees the bulk only, without the compliance of the platen
   contacts and of the end layers (the balls packed against a platen have fewer bonds
-  than the bulk; README "Where the specimens fail").
+  than the bulk; docs/measurements/2026-11-26-end-layers.md).
 
 End caps (``end_cap``, off by default; 1 mean ball diameter caps the first layer of balls;
 ``bpmcal ucs --end-cap``, config ``ucs.end_cap``):
 the balls packed against a flat platen form a layer with fewer bonds (a ball touching a
 platen has ~27 % fewer than a bulk ball, the balls within half a mean ball diameter d of
-it ~37 % fewer; README "Where the specimens fail"), and with frictionless platens that
+it ~37 % fewer; docs/measurements/2026-11-26-end-layers.md), and with frictionless platens that
 layer, not the bulk, decides sigma_c: 13-41 % of the cracks before the peak lie within
 one d of a platen (6-11 % of the bonds), and strengthening only the bonds there raised
 sigma_c by 9-15 % (paper's A1 card, 6 packings, scale 0.4; 5.7 % at full size, one
@@ -70,11 +70,11 @@ SERIES = ("step", "time", "axial_strain", "lateral_strain", "volumetric_strain",
           "kinetic", "strain_linear", "strain_bond", "slip", "damping", "dashpot",
           "released", "work_walls", "unbalanced", "axial_strain_central")
 #: strength factor of the bonds of the end caps (``UCSSettings.end_cap``): unbreakable in
-#: practice (no capped bond broke in any measured run; README "Where the specimens fail")
+#: practice (no capped bond broke in any measured run; docs/measurements/2026-11-26-end-layers.md)
 END_CAP_FACTOR = 1000.0
 #: the end caps' height by default [mean ball diameters]: none, PFC's standard practice and
 #: how the study's results were measured (1 caps the first layer of balls packed against a
-#: platen; 2 diameters gave the same sigma_c within 0.7 %; README "Where the specimens fail")
+#: platen; 2 diameters gave the same sigma_c within 0.7 %; docs/measurements/2026-11-26-end-layers.md)
 END_CAP_HEIGHT = 0.0
 
 
