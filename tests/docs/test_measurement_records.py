@@ -48,3 +48,16 @@ def test_the_docs_link_to_records_that_exist():
     for page in docs.rglob("*.md"):
         for link in re.findall(r"\]\(((?:\.\./)*measurements/[^)#]+)\)", page.read_text()):
             assert (page.parent / link).resolve().is_file(), (page.name, link)
+
+
+def test_the_default_study_records_are_their_json_rendered():
+    import study_outputs
+    import study_record
+
+    for page, pattern, render in (
+            ("default-study.md", "results_default_study_*.json", study_record.markdown),
+            ("default-study-results.md", "results_study_outputs_*.json", study_outputs.markdown)):
+        for raw in (REPO / "benchmarks").glob(pattern):
+            rec = json.loads(raw.read_text())
+            md = REPO / "docs" / "measurements" / f"{rec['date']}-{page}"
+            assert md.read_text() == render(rec), (md.name, "regenerate it from", raw.name)
