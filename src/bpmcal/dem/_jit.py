@@ -4,7 +4,8 @@
   (kernels live in importable modules, never in workflow scripts).
 - The threading layer is pinned to OpenMP before the first parallel call: with TBB
   (pulled in by some Debian packages) numba's per-call overhead was measured to grow
-  without bound (see benchmarks/README.md). Set ``NUMBA_THREADING_LAYER`` yourself
+  without bound (measured during the engine's early development; that measurement is
+  not kept as a record in docs/measurements). Set ``NUMBA_THREADING_LAYER`` yourself
   to override.
 - ``NUMBA_DISABLE_JIT=1`` keeps working: ``prange`` becomes ``range`` and every kernel
   runs as plain Python (slow, for debugging).
