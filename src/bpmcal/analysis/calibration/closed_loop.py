@@ -279,6 +279,48 @@ class ClosedLoop:
         """Iterate from ``initial`` (a full parameter set, e.g. ``invert(...).solution``)."""
         space = self._space(initial)
         box = space.loop_box(self.margin)
+        u = self._start(space, box, initial)
+        J = self._initial_jacobian(space, space.x(u))
+        seeds, spare = list(self.seeds), list(self.growth_seeds)
+        history, samples, prev = [], [], None
+        polished_from = None  # the converged round a polishing step left
+        trust = _TrustRegion(self.max_step, len(space.free))
+        stats = _SeedStats(len(self.responses))
+        out = _Outcome("max_rounds", f"tolerance not met within {self.max_rounds} rounds")
+        for rnd in range(self.max_rounds):
+            params = space.full(space.x(u))
+            rd = self._run_round(rnd, params, seeds, spare, stats, samples)
+            seeds, spare = rd.seeds, rd.spare
+            rec = {"round": rnd, **{p: params[p] for p in space.calibrated}}
+            rec.update({**dict(zip(self.responses, rd.ys.mean(axis=0))), "n_seeds": rd.k, "grown": rd.grown})
+            if rd.bad:
+                history.append(rec)
+                out = self._failed(rnd, rd.bad, polished_from)
+                break
+            stats.add(rd.k, rd.cv)
+            e, tol = rd.e, rd.tol
+            self._record(rec, rd)
+            J, rec["broyden_update"] = self._broyden(J, prev, u, e, rd.k)
+            within = bool(np.all(np.abs(e) <= tol))
+            polishing = (polished_from is None and within and self.polish and rd.k > 1
+                         and rnd < self.max_rounds - 1 and bool(np.any(np.abs(e) > rd.se)))
+            decided = self._decide(rnd, rd, within, polishing, polished_from)
+            if decided is not None or rnd == self.max_rounds - 1:
+                history.append(rec)
+                out = decided or out
+                break
+            u_from, u_new = self._next_point(space, box, J, u, rd, polishing, trust, rec)
+            history.append(rec)
+            if np.max(np.abs(u_new - u_from)) < 1e-9:
+                out = self._stalled(space, box, rnd, rd, polishing, u_from)
+                break
+            if polishing:
+                polished_from = rnd
+            prev, u = (u, e, rd.k), u_new
+        return self._result(space, box, history, samples, J, seeds, out)
+
+    def _start(self, space: CalibrationSpace, box, initial: Mapping[str, float]) -> np.ndarray:
+        """The starting point in unit coordinates; an error if it lies outside the loop's box."""
         u = space.u(space.free_values(initial))
         xlo, xhi = space.limits(box)
         inside = (u >= box[0] - 1e-12) & (u <= box[1] + 1e-12)
@@ -291,20 +333,14 @@ class ClosedLoop:
             raise ParameterError(f"initial value(s) outside the bounds: {'; '.join(bad)} - the loop "
                                  "starts inside the ranges widened by its margin (the "
                                  f"verification's range margin; now {self.margin:g})")
-        u = np.clip(u, *box)
-        J = self._initial_jacobian(space, space.x(u))
-        scale = np.abs(self.t)
-        seeds = list(self.seeds)
-        spare = list(self.growth_seeds)
-        history, samples, prev = [], [], None
-        polished_from, best_idx = None, None  # the converged round a polishing step left; the card's round
-        cap = self.max_step  # the trust region: the step cap, halved after a worse round
-        held_rounds = [0] * len(space.free)  # rounds each parameter has been held at a bound
-        base = None  # (u, e, merit) of the best round so far: the point the next step starts from
-        pooled, dof = np.zeros(len(self.responses)), 0  # Σ (k-1) cv², Σ (k-1)
-        status, message = "max_rounds", f"tolerance not met within {self.max_rounds} rounds"
+        return np.clip(u, *box)
 
-        def run_seeds(rnd, params, which) -> np.ndarray:
+    def _run_round(self, rnd: int, params: dict, seeds: list, spare: list, stats: _SeedStats,
+                   samples: list) -> _Round:
+        """Run ``params`` on every seed of the round and judge the mean; when it is within
+        tolerance but a standard error is too large to state it to ``rtol``, grow the seed
+        set by the ``spare`` seeds and judge again (module docs, "Closed loop")."""
+        def run_seeds(which) -> np.ndarray:
             ys = np.empty((len(which), len(self.responses)))
             for i, sd in enumerate(which):
                 ys[i] = self._simulate(params, sd)
@@ -316,137 +352,130 @@ class ClosedLoop:
             return [(sd, dict(zip(self.responses, row))) for sd, row in zip(seeds, ys)
                     if not np.all(np.isfinite(row))]
 
-        def judge(ys):
-            """mean, seed CV, SE (pooled with the earlier rounds), tolerance, error."""
-            k = len(ys)
-            y = ys.mean(axis=0)
-            cv = ys.std(axis=0, ddof=1) / np.abs(y) if k > 1 else np.full(len(y), np.nan)
-            se = (np.sqrt((pooled + (k - 1) * cv ** 2) / (dof + k - 1)) / math.sqrt(k)
-                  if k > 1 else np.zeros(len(y)))
-            return y, cv, se, np.maximum(self.rtol, self.z * se), (y - self.t) / scale
+        ys = run_seeds(seeds)
+        grown = 0
+        judged = None
+        bad = failed(ys)
+        if not bad:
+            judged = stats.judge(ys, self.rtol, self.z, self.t)
+            se, tol, e = judged[2], judged[3], judged[4]
+            if np.all(np.abs(e) <= tol) and spare and np.any(self.z * se > self.rtol):
+                grown, seeds, spare = len(spare), seeds + spare, []
+                ys = np.vstack([ys, run_seeds(seeds[-grown:])])
+                bad = failed(ys)
+                if not bad:
+                    judged = stats.judge(ys, self.rtol, self.z, self.t)
+        return _Round(ys, seeds, spare, grown, bad, *(judged if judged is not None else (None,) * 5))
 
-        for rnd in range(self.max_rounds):
-            params = space.full(space.x(u))
-            ys = run_seeds(rnd, params, seeds)
-            rec = {"round": rnd, **{p: params[p] for p in space.calibrated}}
-            grown = 0
-            bad = failed(ys)
-            if not bad:
-                y, cv, se, tol, e = judge(ys)
-                if np.all(np.abs(e) <= tol) and spare and np.any(self.z * se > self.rtol):
-                    grown, seeds, spare = len(spare), seeds + spare, []
-                    ys = np.vstack([ys, run_seeds(rnd, params, seeds[-grown:])])
-                    bad = failed(ys)
-                    if not bad:
-                        y, cv, se, tol, e = judge(ys)
-            k = len(ys)
-            rec.update({**dict(zip(self.responses, ys.mean(axis=0))), "n_seeds": k, "grown": grown})
-            if bad:
-                history.append(rec)
-                status = "failed"
-                txt = "; ".join(f"seed {sd}: {v}" if sd is not None else str(v) for sd, v in bad)
-                message = f"round {rnd} returned non-finite responses ({txt})"
-                if polished_from is not None:  # the converged round before it stands
-                    status, best_idx = "converged", polished_from
-                    message = (f"converged after {polished_from + 1} round(s); the polishing "
-                               f"round {rnd + 1} failed ({txt}), so round {polished_from + 1} "
-                               "stays the card's")
-                break
-            if k > 1:
-                pooled += (k - 1) * cv ** 2
-                dof += k - 1
-            rec.update({f"cv_{r}": v for r, v in zip(self.responses, cv)})
-            rec.update({f"se_{r}": v for r, v in zip(self.responses, se)})
-            rec.update({f"tol_{r}": v for r, v in zip(self.responses, tol)})
-            rec.update({f"err_{r}": v for r, v in zip(self.responses, e)})
-            rec["max_abs_err"] = float(np.max(np.abs(e)))
-            updated = False
-            if prev is not None and self.broyden and prev[2] == k:  # the same seeds: a secant
-                s, de = u - prev[0], e - prev[1]
-                if s @ s > 1e-16:
-                    J = J + np.outer(de - J @ s, s) / (s @ s)
-                    updated = True
-            rec["broyden_update"] = updated
-            within = bool(np.all(np.abs(e) <= tol))
-            met = (f"every mean of {k} seeds within max(rtol, {self.z:g} standard errors) of its "
-                   "target" if k > 1 else "all relative errors within tolerance")
-            if polished_from is not None:  # the polishing round: it, or the round before, is the card's
-                history.append(rec)
-                status = "converged"
-                if within:
-                    best_idx = rnd
-                    message = (f"{met} after {rnd + 1} round(s), the last a polishing step towards "
-                               "the targets")
-                else:
-                    best_idx = polished_from
-                    miss = ", ".join(r for r, x, t in zip(self.responses, e, tol) if not abs(x) <= t)
-                    message = (f"{met} after {polished_from + 1} round(s); the polishing step "
-                               f"(round {rnd + 1}) left the tolerance in {miss}, so round "
-                               f"{polished_from + 1} stays the card's")
-                break
-            polishing = (within and self.polish and k > 1 and rnd < self.max_rounds - 1
-                         and bool(np.any(np.abs(e) > se)))
-            if within and not polishing:
-                history.append(rec)
-                status = "converged"
-                message = (f"{met} after {rnd + 1} round(s)" if k > 1
-                           else f"{met} after {rnd + 1} simulation(s)")
-                break
-            if rnd == self.max_rounds - 1:
-                history.append(rec)
-                break
-            # the trust region: step from the best round so far; a worse round halves the cap
-            merit = float(np.sum((e / tol) ** 2))
-            # a grown seed set measures on other packings with a smaller SE (a tighter
-            # tolerance): its rounds are not compared with the earlier ones
-            accepted = base is None or polishing or base[3] != k or merit <= base[2]
-            if accepted:
-                base = (u.copy(), e.copy(), merit, k)
-            else:  # half the step that led here (the cap may not have bound it)
-                cap = 0.5 * float(np.max(np.abs(u - base[0])))
-            rec["accepted"], rec["step_cap"] = accepted, cap
-            u_from, e_from = base[0], base[1]
-            # a parameter held at a bound two rounds running while the loop misses: its
-            # column of J was never measured (Broyden learns along the steps taken), so the
-            # step probes it - half the cap into the box - instead of trusting the sign
-            probe = [j for j in range(len(u)) if held_rounds[j] >= 2] if not polishing else []
-            du, held = self._step(J, e_from, u_from, box, 1.0 if polishing else None,
-                                  None if polishing else cap, weights=1.0 / tol, probe=probe)
-            for j in range(len(u)):
-                held_rounds[j] = 0 if j in probe else (held_rounds[j] + 1 if j in held else 0)
-            rec["probed"] = ",".join(space.free[j] for j in probe)
-            u_new = np.clip(u_from + du, *box)
-            rec.update({f"step_{p}": v for p, v in zip(space.free, (u_new - u) * space.width)})
-            cut = [j for j in range(len(u)) if j in held or u_new[j] != u_from[j] + du[j]]
-            rec["clipped"] = ",".join(space.free[j] for j in cut)
-            rec["polish"] = polishing
-            history.append(rec)
-            if np.max(np.abs(u_new - u_from)) < 1e-9:
-                if polishing:  # nothing left to move: this round is the card's
-                    status, message = "converged", f"{met} after {rnd + 1} round(s)"
-                    break
-                edges = ", ".join(space.edge_text(p, side, v, self.margin)
-                                  for p, side, v in space.at_bound(u_from, box))
-                status = "stalled"
-                message = (f"the Newton step points out of the bounds ({edges}); the targets appear "
-                           "unreachable within the parameter ranges")
-                break
-            if polishing:
-                polished_from = rnd
-            prev, u = (u, e, k), u_new
+    def _record(self, rec: dict, rd: _Round) -> None:
+        """The round's seed CV, standard error, tolerance and error of every response."""
+        rec.update({f"cv_{r}": v for r, v in zip(self.responses, rd.cv)})
+        rec.update({f"se_{r}": v for r, v in zip(self.responses, rd.se)})
+        rec.update({f"tol_{r}": v for r, v in zip(self.responses, rd.tol)})
+        rec.update({f"err_{r}": v for r, v in zip(self.responses, rd.e)})
+        rec["max_abs_err"] = float(np.max(np.abs(rd.e)))
+
+    def _broyden(self, J: np.ndarray, prev, u: np.ndarray, e: np.ndarray, k: int) -> tuple[np.ndarray, bool]:
+        """Broyden's ("good") secant update of ``J`` from the previous round ``prev`` =
+        (u, e, k), when it ran the same seeds; and whether it was updated."""
+        if prev is not None and self.broyden and prev[2] == k:  # the same seeds: a secant
+            s, de = u - prev[0], e - prev[1]
+            if s @ s > 1e-16:
+                return J + np.outer(de - J @ s, s) / (s @ s), True
+        return J, False
+
+    def _met(self, k: int) -> str:
+        return (f"every mean of {k} seeds within max(rtol, {self.z:g} standard errors) of its "
+                "target" if k > 1 else "all relative errors within tolerance")
+
+    def _failed(self, rnd: int, bad: list, polished_from: int | None) -> _Outcome:
+        """A round with a non-finite response ends the loop: failed, unless it was the
+        polishing round (then the converged round before it stands)."""
+        txt = "; ".join(f"seed {sd}: {v}" if sd is not None else str(v) for sd, v in bad)
+        if polished_from is not None:  # the converged round before it stands
+            return _Outcome("converged",
+                            f"converged after {polished_from + 1} round(s); the polishing "
+                            f"round {rnd + 1} failed ({txt}), so round {polished_from + 1} "
+                            "stays the card's", polished_from)
+        return _Outcome("failed", f"round {rnd} returned non-finite responses ({txt})")
+
+    def _decide(self, rnd: int, rd: _Round, within: bool, polishing: bool,
+                polished_from: int | None) -> _Outcome | None:
+        """The outcome of a judged round that ends the loop (the polishing round, or a
+        converged round that is not polished), else None."""
+        met = self._met(rd.k)
+        if polished_from is not None:  # the polishing round: it, or the round before, is the card's
+            if within:
+                return _Outcome("converged", f"{met} after {rnd + 1} round(s), the last a polishing step "
+                                "towards the targets", rnd)
+            miss = ", ".join(r for r, x, t in zip(self.responses, rd.e, rd.tol) if not abs(x) <= t)
+            return _Outcome("converged", f"{met} after {polished_from + 1} round(s); the polishing step "
+                            f"(round {rnd + 1}) left the tolerance in {miss}, so round "
+                            f"{polished_from + 1} stays the card's", polished_from)
+        if within and not polishing:
+            return _Outcome("converged", f"{met} after {rnd + 1} round(s)" if rd.k > 1
+                            else f"{met} after {rnd + 1} simulation(s)")
+        return None
+
+    def _next_point(self, space: CalibrationSpace, box, J: np.ndarray, u: np.ndarray, rd: _Round,
+                    polishing: bool, trust: _TrustRegion, rec: dict) -> tuple[np.ndarray, np.ndarray]:
+        """The step of a round that goes on: from the best round so far (the trust region),
+        probing parameters held at a bound, clipped to the box; records it in ``rec``.
+        Returns the point stepped from and the new point."""
+        e, tol, k = rd.e, rd.tol, rd.k
+        # the trust region: step from the best round so far; a worse round halves the cap
+        merit = float(np.sum((e / tol) ** 2))
+        # a grown seed set measures on other packings with a smaller SE (a tighter
+        # tolerance): its rounds are not compared with the earlier ones
+        base = trust.base
+        accepted = base is None or polishing or base[3] != k or merit <= base[2]
+        if accepted:
+            trust.base = (u.copy(), e.copy(), merit, k)
+        else:  # half the step that led here (the cap may not have bound it)
+            trust.cap = 0.5 * float(np.max(np.abs(u - base[0])))
+        rec["accepted"], rec["step_cap"] = accepted, trust.cap
+        u_from, e_from = trust.base[0], trust.base[1]
+        held_rounds = trust.held_rounds
+        # a parameter held at a bound two rounds running while the loop misses: its
+        # column of J was never measured (Broyden learns along the steps taken), so the
+        # step probes it - half the cap into the box - instead of trusting the sign
+        probe = [j for j in range(len(u)) if held_rounds[j] >= 2] if not polishing else []
+        du, held = self._step(J, e_from, u_from, box, 1.0 if polishing else None,
+                              None if polishing else trust.cap, weights=1.0 / tol, probe=probe)
+        for j in range(len(u)):
+            held_rounds[j] = 0 if j in probe else (held_rounds[j] + 1 if j in held else 0)
+        rec["probed"] = ",".join(space.free[j] for j in probe)
+        u_new = np.clip(u_from + du, *box)
+        rec.update({f"step_{p}": v for p, v in zip(space.free, (u_new - u) * space.width)})
+        cut = [j for j in range(len(u)) if j in held or u_new[j] != u_from[j] + du[j]]
+        rec["clipped"] = ",".join(space.free[j] for j in cut)
+        rec["polish"] = polishing
+        return u_from, u_new
+
+    def _stalled(self, space: CalibrationSpace, box, rnd: int, rd: _Round, polishing: bool,
+                 u_from: np.ndarray) -> _Outcome:
+        """The step does not move: a polishing round is the card's, else the loop stalled."""
+        if polishing:  # nothing left to move: this round is the card's
+            return _Outcome("converged", f"{self._met(rd.k)} after {rnd + 1} round(s)")
+        edges = ", ".join(space.edge_text(p, side, v, self.margin)
+                          for p, side, v in space.at_bound(u_from, box))
+        return _Outcome("stalled", f"the Newton step points out of the bounds ({edges}); the targets appear "
+                        "unreachable within the parameter ranges")
+
+    def _result(self, space: CalibrationSpace, box, history: list, samples: list, J: np.ndarray,
+                seeds: list, out: _Outcome) -> ClosedLoopResult:
+        """The result: the history, and the parameters and responses of the best round."""
         hist = pd.DataFrame.from_records(history)
-        if status == "max_rounds" and len(hist) > 1 and hist["clipped"].iloc[-2]:
+        message = out.message
+        if out.status == "max_rounds" and len(hist) > 1 and hist["clipped"].iloc[-2]:
             message += (f"; the last step was cut at the bounds of {hist['clipped'].iloc[-2]}: the targets "
                         "may lie outside what the parameter ranges can reach")
-        finite = hist.dropna(subset=["max_abs_err"]) if "max_abs_err" in hist else hist.iloc[:0]
-        if status == "converged":
-            best = hist.iloc[-1 if best_idx is None else best_idx]
-        else:
-            best = hist.loc[finite["max_abs_err"].idxmin()] if len(finite) else hist.iloc[-1]
+        best = _best_round(hist, out)
         x_best = np.array([best[p] for p in space.free])
-        J_phys = J * scale[:, None] / space.width
+        J_phys = J * np.abs(self.t)[:, None] / space.width
+        xlo, xhi = space.limits(box)
         return ClosedLoopResult(
-            status=status, message=message, history=hist, params=space.full(x_best),
+            status=out.status, message=message, history=hist, params=space.full(x_best),
             responses={r: float(best[r]) for r in self.responses},
             jacobian=pd.DataFrame(J_phys, index=list(self.responses), columns=list(space.free)),
             samples=pd.DataFrame.from_records(samples),
@@ -454,6 +483,79 @@ class ClosedLoop:
             n_seeds=int(best["n_seeds"]), seeds=tuple(seeds[:int(best["n_seeds"])]),
             best_round=int(best["round"]), outside=_outside(space, space.full(x_best)),
             loop_bounds={p: (float(a), float(b)) for p, a, b in zip(space.free, xlo, xhi)})
+
+
+@dataclass
+class _Outcome:
+    """How a closed loop ended: status, message and the card's round (None: the last
+    round when converged, else the one with the smallest max |error|)."""
+
+    status: str
+    message: str
+    best_idx: int | None = None
+
+
+def _best_round(hist: pd.DataFrame, out: _Outcome) -> pd.Series:
+    """The card's round: the converged one (``out.best_idx``, default the last), else the
+    one with the smallest max |error| of the mean (the last when none is finite)."""
+    finite = hist.dropna(subset=["max_abs_err"]) if "max_abs_err" in hist else hist.iloc[:0]
+    if out.status == "converged":
+        return hist.iloc[-1 if out.best_idx is None else out.best_idx]
+    return hist.loc[finite["max_abs_err"].idxmin()] if len(finite) else hist.iloc[-1]
+
+
+class _SeedStats:
+    """The seed CV pooled over the rounds so far: Σ (k-1) cv² and Σ (k-1)."""
+
+    def __init__(self, n: int):
+        self.pooled, self.dof = np.zeros(n), 0
+
+    def judge(self, ys: np.ndarray, rtol: np.ndarray, z: float, t: np.ndarray):
+        """mean, seed CV, SE (pooled with the earlier rounds), tolerance, error."""
+        k = len(ys)
+        y = ys.mean(axis=0)
+        cv = ys.std(axis=0, ddof=1) / np.abs(y) if k > 1 else np.full(len(y), np.nan)
+        se = (np.sqrt((self.pooled + (k - 1) * cv ** 2) / (self.dof + k - 1)) / math.sqrt(k)
+              if k > 1 else np.zeros(len(y)))
+        return y, cv, se, np.maximum(rtol, z * se), (y - t) / np.abs(t)
+
+    def add(self, k: int, cv: np.ndarray) -> None:
+        """Pool a judged round of ``k`` seeds."""
+        if k > 1:
+            self.pooled += (k - 1) * cv ** 2
+            self.dof += k - 1
+
+
+@dataclass
+class _Round:
+    """One round's runs (``ys``: seeds x responses), its seed set afterwards, the spare
+    seeds left, how many it grew by, the failed runs and (when none failed) its judgement."""
+
+    ys: np.ndarray
+    seeds: list
+    spare: list
+    grown: int
+    bad: list
+    y: np.ndarray | None
+    cv: np.ndarray | None
+    se: np.ndarray | None
+    tol: np.ndarray | None
+    e: np.ndarray | None
+
+    @property
+    def k(self) -> int:
+        return len(self.ys)
+
+
+class _TrustRegion:
+    """The step cap (halved after a worse round), the best round so far ``base`` =
+    (u, e, merit, k) the next step starts from, and the rounds each parameter has been
+    held at a bound."""
+
+    def __init__(self, cap: float, n: int):
+        self.cap = cap
+        self.base = None
+        self.held_rounds = [0] * n
 
 
 def _lm_step(A: np.ndarray, b: np.ndarray, cap: float) -> np.ndarray:

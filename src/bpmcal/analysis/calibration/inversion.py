@@ -156,12 +156,47 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
     fits = [(c, m, space.u(x), r) for c, m, x, r in fits]
     best_cost, best_max, best_u, best_r = fits[0]
     reachable = best_max <= tol
+    kept = _distinct(fits, reachable, tol, distinct)
+    alternatives = _fits_frame(space, models, responses, kept)
+    start_frame = _fits_frame(space, models, responses, fits)
+    solution = space.full(space.x(best_u))
+    edges = space.at_bound(best_u)
+    widen, advice = [], ""
+    if not reachable and diagnose:
+        widen, advice = _what_to_widen(space, models, responses, t, space.x(best_u), tol, n_starts,
+                                       seed + 1)
+    reach, joint = {}, ""
+    if not reachable:
+        reach, joint = _joint_bts_diagnosis(space, models, targets, responses, t, space.x(best_u), tol,
+                                            n_starts, seed, diagnose)
+    status, message = _classify(space, responses, best_r, len(kept), reachable, joint, edges, advice, tol)
+    return InversionResult(
+        status=status, message=message, solution=solution, free=space.free, derived=space.derived,
+        targets=dict(zip(responses, t.tolist())),
+        predicted={r: float(models[r].predict(solution)) for r in responses},
+        residuals=dict(zip(responses, best_r.tolist())),
+        bounds=space.bounds(),
+        at_bound=edges, alternatives=alternatives, starts=start_frame, tol=tol,
+        bound_origins=space.bound_origins(), ranges=dict(space.ranges), widen=widen, advice=advice,
+        reach=reach)
+
+
+def _distinct(fits: list[tuple], reachable: bool, tol: float, distinct: float) -> list[tuple]:
+    """The distinct solutions among the fits (unit coordinates, best first): those that
+    meet the targets (or, when none does, that fit as well as the best), each more than
+    ``distinct`` of a range away from every one kept before it."""
+    best_cost = fits[0][0]
     good = [f for f in fits if (f[1] <= tol if reachable else f[0] <= best_cost * (1 + 1e-6) + 1e-14)]
     kept: list[tuple] = []
     for f in good:
         if all(np.max(np.abs(f[2] - k[2])) > distinct for k in kept):
             kept.append(f)
+    return kept
 
+
+def _fits_frame(space: CalibrationSpace, models, responses, fits: list[tuple]) -> pd.DataFrame:
+    """One row per fit: the calibrated parameters, the predicted responses, the largest
+    relative residual and the sum of squares."""
     def row(f):
         point = space.full(space.x(f[2]))
         rec = {p: point[p] for p in space.calibrated}
@@ -169,22 +204,22 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
         rec.update(max_abs_residual=f[1], sum_sq=f[0])
         return rec
 
-    alternatives = pd.DataFrame.from_records([row(f) for f in kept])
-    start_frame = pd.DataFrame.from_records([row(f) for f in fits])
-    solution = space.full(space.x(best_u))
-    edges = space.at_bound(best_u)
-    widen, advice = [], ""
-    if not reachable and diagnose:
-        widen, advice = _what_to_widen(space, models, responses, t, space.x(best_u), tol, n_starts,
-                                       seed + 1)
+    return pd.DataFrame.from_records([row(f) for f in fits])
+
+
+def _joint_bts_diagnosis(space: CalibrationSpace, models, targets: Mapping[str, float], responses, t,
+                         x_best, tol: float, n_starts: int, seed: int, diagnose: bool) -> tuple[dict, str]:
+    """A missed fit with a tensile-strength target among others: when the other targets are
+    met together inside the bounds, the σt (and σc/σt) spans the models reach while meeting
+    them (``reach``; only with ``diagnose``) and the sentence that the target set cannot be
+    met at once (``joint``); else ``({}, "")``."""
     reach: dict = {}
     joint = ""  # the σt target set is out of reach although the other targets are not
     tr = tensile_target(responses)
-    if not reachable and tr is not None and len(responses) > 1:
+    if tr is not None and len(responses) > 1:
         others = [r for r in responses if r != tr]
         t_other = np.array([t[responses.index(r)] for r in others])
-        sub = _fit(space, models, others, t_other, space.lo, space.hi, [space.x(best_u)], n_starts,
-                   seed + 2)
+        sub = _fit(space, models, others, t_other, space.lo, space.hi, [x_best], n_starts, seed + 2)
         if sub[0][1] <= tol:
             reach = _bts_reach(space, models, others, t_other, tol,
                                [f[2] for f in sub if f[1] <= tol], seed + 3,
@@ -199,42 +234,37 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
                             else "")
             joint = (f"the target set cannot be met at once: σt = {t_bts:g} MPa{target_ratio} is "
                      f"outside what the parallel-bond models reach ({span})")
+    return reach, joint
+
+
+def _classify(space: CalibrationSpace, responses, best_r: np.ndarray, n_kept: int, reachable: bool,
+              joint: str, edges: list, advice: str, tol: float) -> tuple[str, str]:
+    """The status and message of an inversion (module docs, "Inversion"): ``ok``,
+    ``non-unique`` (``n_kept`` distinct solutions), ``no-exact-fit`` (the σt target set
+    ``joint`` out of reach, or an interior optimum) or ``unreachable`` (a bound active)."""
     missed = "; ".join(f"{r} {100 * v:+.2f} %" for r, v in zip(responses, best_r) if abs(v) > tol)
-    if reachable and len(kept) == 1:
-        status, message = "ok", f"targets met within {tol:g} (relative): {_fmt_pct(responses, best_r)}"
-    elif reachable:
+    if reachable and n_kept == 1:
+        return "ok", f"targets met within {tol:g} (relative): {_fmt_pct(responses, best_r)}"
+    if reachable:
         extra = (f"; {len(space.free)} free parameters for {len(responses)} targets: a continuum of solutions"
                  if len(space.free) > len(responses) else "")
-        status = "non-unique"
-        message = (f"{len(kept)} distinct parameter sets meet the targets within {tol:g}{extra}; "
-                   "see alternatives (the best-fitting one is returned)")
-    elif joint:
+        return "non-unique", (f"{n_kept} distinct parameter sets meet the targets within {tol:g}{extra}; "
+                              "see alternatives (the best-fitting one is returned)")
+    tail = f" {advice}" if advice else ""
+    if joint:
         where = ", ".join(space.edge_text(p, side, v) for p, side, v in edges)
-        status = "no-exact-fit"
-        message = (f"{joint}. The card keeps the best compromise (least squares of the relative "
-                   f"residuals, equal weights){' with ' + where if where else ''}; targets missed: "
-                   f"{missed} (relative residuals {_fmt_pct(responses, best_r)}, tol {tol:g})."
-                   + (f" {advice}" if advice else ""))
-    elif edges:
+        return "no-exact-fit", (f"{joint}. The card keeps the best compromise (least squares of the "
+                                f"relative residuals, equal weights){' with ' + where if where else ''}; "
+                                f"targets missed: {missed} (relative residuals "
+                                f"{_fmt_pct(responses, best_r)}, tol {tol:g})." + tail)
+    if edges:
         where = ", ".join(space.edge_text(p, side, v) for p, side, v in edges)
-        status = "unreachable"
-        message = (f"targets lie outside what the sampled ranges can reach: the closest point inside the "
-                   f"bounds has {where}, relative residuals {_fmt_pct(responses, best_r)}; "
-                   "this point is not a calibration." + (f" {advice}" if advice else ""))
-    else:
-        status = "no-exact-fit"
-        message = (f"the models cannot meet all targets at once: the best compromise is an interior optimum "
-                   f"(no bound of the configured ranges is active), relative residuals "
-                   f"{_fmt_pct(responses, best_r)} exceed {tol:g}." + (f" {advice}" if advice else ""))
-    return InversionResult(
-        status=status, message=message, solution=solution, free=space.free, derived=space.derived,
-        targets=dict(zip(responses, t.tolist())),
-        predicted={r: float(models[r].predict(solution)) for r in responses},
-        residuals=dict(zip(responses, best_r.tolist())),
-        bounds=space.bounds(),
-        at_bound=edges, alternatives=alternatives, starts=start_frame, tol=tol,
-        bound_origins=space.bound_origins(), ranges=dict(space.ranges), widen=widen, advice=advice,
-        reach=reach)
+        return "unreachable", (f"targets lie outside what the sampled ranges can reach: the closest point "
+                               f"inside the bounds has {where}, relative residuals "
+                               f"{_fmt_pct(responses, best_r)}; this point is not a calibration." + tail)
+    return "no-exact-fit", (f"the models cannot meet all targets at once: the best compromise is an "
+                            f"interior optimum (no bound of the configured ranges is active), relative "
+                            f"residuals {_fmt_pct(responses, best_r)} exceed {tol:g}." + tail)
 
 
 def _bts_reach(space: CalibrationSpace, models, others: Sequence[str], t_other: np.ndarray, tol: float,

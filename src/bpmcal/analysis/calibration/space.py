@@ -94,6 +94,20 @@ class CalibrationSpace:
                 raise ParameterError(f"the strength ratio needs {_COH} to be free or fixed")
         self.ranges = _check_ranges(ranges)
         needed = list(self.free) + ([_TEN] if ratio is not None else [])
+        self._check_design(needed)
+        box, origin = self._apply_bounds(bounds, needed)
+        self.box = box
+        lo = np.array([box[p][0] for p in self.free])
+        hi = np.array([box[p][1] for p in self.free])
+        self.origin = {p: dict(origin[p]) for p in self.free}
+        self._apply_strength_ratio(box, origin, lo, hi)
+        self.lo, self.hi = lo, hi
+        self.width = hi - lo
+
+    def _check_design(self, needed: list[str]) -> None:
+        """Every calibrated parameter (``needed``) has a sampled range of some width, and
+        every fixed value with a range lies inside it."""
+        ratio = self.ratio
         missing = [p for p in needed if p not in self.ranges]
         if missing:
             raise ParameterError(f"ranges lacks {missing}: the sampled range (design space) of every free "
@@ -110,7 +124,12 @@ class CalibrationSpace:
                 raise ParameterError(f"fixed {p}={v:g} is outside ranges.{p}=[{lo:g}, {hi:g}], the sampled "
                                      "space (the regression is not valid there): fix a value inside it, or "
                                      f"widen ranges.{p} and rerun the design")
-        # box: the configured limits of every calibrated parameter; origin: where each side comes from
+
+    def _apply_bounds(self, bounds: Mapping[str, Sequence[float]] | None, needed: list[str]
+                      ) -> tuple[dict, dict]:
+        """The box of every calibrated parameter (its range, narrowed by ``bounds``) and
+        where each side comes from: ``origin[p][side] = (configured key, None)``."""
+        ratio = self.ratio
         box = {p: self.ranges[p] for p in needed}
         origin = {p: {s: (f"ranges.{p}", None) for s in ("lower", "upper")} for p in needed}
         for name, b in (bounds or {}).items():
@@ -138,10 +157,14 @@ class CalibrationSpace:
                 origin[name]["lower"] = (f"calibration.bounds.{name}", None)
             if hi < rhi:
                 origin[name]["upper"] = (f"calibration.bounds.{name}", None)
-        self.box = box
-        lo = np.array([box[p][0] for p in self.free])
-        hi = np.array([box[p][1] for p in self.free])
-        self.origin = {p: dict(origin[p]) for p in self.free}
+        return box, origin
+
+    def _apply_strength_ratio(self, box: dict, origin: dict, lo: np.ndarray, hi: np.ndarray) -> None:
+        """With a ratio: intersect a free ``pb_coh_MPa``'s bounds (``lo``, ``hi``, in place)
+        with ``pb_ten_MPa``'s divided by the ratio (recording ``(key, pb_ten bound)`` as the
+        origin of a side it sets), or check that a fixed one's derived ``pb_ten_MPa`` lies in
+        its box. The parallel-bond specific part of the space (its strength pair)."""
+        ratio = self.ratio
         if ratio is not None and _COH in self.free:
             j = self.free.index(_COH)
             if box[_TEN][0] / ratio > lo[j]:
@@ -159,8 +182,6 @@ class CalibrationSpace:
             if not _inside(ten, *box[_TEN]):
                 raise ParameterError(f"{_TEN} = {ratio:g} × {self.fixed[_COH]:g} = {ten:g} is outside "
                                      f"{origin[_TEN]['lower'][0]}={list(box[_TEN])}")
-        self.lo, self.hi = lo, hi
-        self.width = hi - lo
 
     @property
     def derived(self) -> tuple[str, ...]:
@@ -203,6 +224,36 @@ class CalibrationSpace:
             return f"{p} at the {side} bound {value:g} of {key}"
         return (f"{p} at the {side} bound {value:g} (= {side} bound {via:g} of {key} / ratio {self.ratio:g}; "
                 f"{_TEN} = {via:g})")
+
+    def beyond_limits(self, x: np.ndarray) -> list[dict]:
+        """Every calibrated parameter (free or derived) of the free values ``x`` outside its
+        configured limits (:attr:`box`): parameter, side, the configured key to widen
+        (``calibration.bounds.<p>`` when the bound narrows the range on that side, else
+        ``ranges.<p>``), the bound, the value needed and whether it is beyond the range."""
+        point = self.full(x)
+        out = []
+        for p in self.calibrated:
+            lo, hi = self.box[p]
+            w = hi - lo
+            v = point[p]
+            for side, beyond in (("lower", v < lo - 1e-9 * w), ("upper", v > hi + 1e-9 * w)):
+                if not beyond:
+                    continue
+                key = (f"calibration.bounds.{p}" if (side == "lower" and lo > self.ranges[p][0])
+                       or (side == "upper" and hi < self.ranges[p][1]) else f"ranges.{p}")
+                rlo, rhi = self.ranges[p]
+                out.append({"parameter": p, "side": side, "key": key,
+                            "bound": lo if side == "lower" else hi, "needed": float(v),
+                            "beyond_ranges": bool(v < rlo or v > rhi)})
+        return out
+
+    def distance_outside(self, x: np.ndarray) -> float:
+        """How far the free values ``x`` lie outside the configured limits: the sum over the
+        calibrated parameters of the distance past their box, in box widths."""
+        point = self.full(x)
+        box = self.box
+        return sum(max(0.0, box[p][0] - point[p], point[p] - box[p][1]) / (box[p][1] - box[p][0])
+                   for p in self.calibrated)
 
     def x(self, u: np.ndarray) -> np.ndarray:
         return self.lo + np.asarray(u, float) * self.width

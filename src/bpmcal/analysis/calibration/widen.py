@@ -36,69 +36,57 @@ def _what_to_widen(space: CalibrationSpace, models, responses, t, x_best, tol: f
         reach = [f for f in fits if f[1] <= tol]
         if reach:
             break
-    box = space.box
-
-    def needs(x):
-        point = space.full(x)
-        out = []
-        for p in space.calibrated:
-            lo, hi = box[p]
-            w = hi - lo
-            v = point[p]
-            for side, beyond in (("lower", v < lo - 1e-9 * w), ("upper", v > hi + 1e-9 * w)):
-                if not beyond:
-                    continue
-                key = (f"calibration.bounds.{p}" if (side == "lower" and lo > space.ranges[p][0])
-                       or (side == "upper" and hi < space.ranges[p][1]) else f"ranges.{p}")
-                rlo, rhi = space.ranges[p]
-                out.append({"parameter": p, "side": side, "key": key,
-                            "bound": lo if side == "lower" else hi, "needed": float(v),
-                            "beyond_ranges": bool(v < rlo or v > rhi)})
-        return out
-
-    def distance(x):
-        point = space.full(x)
-        return sum(max(0.0, box[p][0] - point[p], point[p] - box[p][1]) / (box[p][1] - box[p][0])
-                   for p in space.calibrated)
-
     if not reach:
-        best = fits[0]
-        point = space.full(best[2])
-        missed = ", ".join(f"{r} {100 * v:+.2f} %" for r, v in zip(responses, best[3]) if abs(v) > tol)
-        models_say = (f"The fitted models, extrapolated up to {_EXTEND[-1]:g} range widths beyond the "
-                      f"sampled space, cannot meet all targets either (best relative residuals "
-                      f"{_fmt_pct(responses, best[3])})")
-        items = needs(best[2])
-        if items:
-            for it in items:
-                it["reaches_targets"] = False
-            where = ", ".join(f"{p} = {point[p]:.4g}" for p in space.calibrated)
-            parts = [f"{it['key']} {'below' if it['side'] == 'lower' else 'above'} {it['needed']:.4g} "
-                     f"(its {it['side']} bound is now {it['bound']:.4g})" for it in items]
-            return items, (f"{models_say}. Their best compromise lies at {where}: widen {'; '.join(parts)} "
-                           "and rerun the design so that a new regression covers it. What it still misses "
-                           f"({missed}) may need another free parameter (calibration.free) or other fixed "
-                           "values (calibration.fixed). Indicative only: the regression is not validated "
-                           "outside the sampled space.")
-        u_best = space.u(x_best)
-        for p, side, v in space.at_bound(u_best):
-            key, via = space.origin[p][side]
-            name = key.split(".", 1)[1] if key.startswith("ranges.") else key.rsplit(".", 1)[1]
-            items.append({"parameter": name, "side": side, "key": key,
-                          "bound": float(via) if via is not None else float(v), "needed": None,
-                          "beyond_ranges": key.startswith("ranges."), "reaches_targets": False})
-        if items:
-            keys = ", ".join(f"{it['key']} ({it['side']} bound {it['bound']:.4g})" for it in items)
-            return items, (f"{models_say}, and their best compromise lies inside the configured limits, "
-                           f"so they cannot tell how far to widen. The limits that stop the fit are {keys}: "
-                           "widen them and rerun the design so that a new regression covers the targets, "
-                           "or free another parameter (calibration.free) or change a fixed value "
-                           "(calibration.fixed).")
-        return [], (f"{models_say}, and no configured bound is active: with these models widening the "
-                    "ranges does not help; free another parameter (calibration.free) or change a fixed "
-                    "value (calibration.fixed), then rerun.")
-    x = min(reach, key=lambda f: (distance(f[2]), f[0]))[2]
-    items = needs(x)
+        return _compromise_advice(space, responses, fits[0], x_best, tol)
+    x = min(reach, key=lambda f: (space.distance_outside(f[2]), f[0]))[2]
+    return _reach_advice(space, x)
+
+
+def _compromise_advice(space: CalibrationSpace, responses, best: tuple, x_best, tol: float
+                       ) -> tuple[list[dict], str]:
+    """Not even the extrapolated models meet every target: the limits to widen to reach
+    their best compromise ``best`` (a :func:`_fit` row), or the limits that stop the fit at
+    ``x_best``, or that widening does not help."""
+    point = space.full(best[2])
+    missed = ", ".join(f"{r} {100 * v:+.2f} %" for r, v in zip(responses, best[3]) if abs(v) > tol)
+    models_say = (f"The fitted models, extrapolated up to {_EXTEND[-1]:g} range widths beyond the "
+                  f"sampled space, cannot meet all targets either (best relative residuals "
+                  f"{_fmt_pct(responses, best[3])})")
+    items = space.beyond_limits(best[2])
+    if items:
+        for it in items:
+            it["reaches_targets"] = False
+        where = ", ".join(f"{p} = {point[p]:.4g}" for p in space.calibrated)
+        parts = [f"{it['key']} {'below' if it['side'] == 'lower' else 'above'} {it['needed']:.4g} "
+                 f"(its {it['side']} bound is now {it['bound']:.4g})" for it in items]
+        return items, (f"{models_say}. Their best compromise lies at {where}: widen {'; '.join(parts)} "
+                       "and rerun the design so that a new regression covers it. What it still misses "
+                       f"({missed}) may need another free parameter (calibration.free) or other fixed "
+                       "values (calibration.fixed). Indicative only: the regression is not validated "
+                       "outside the sampled space.")
+    u_best = space.u(x_best)
+    for p, side, v in space.at_bound(u_best):
+        key, via = space.origin[p][side]
+        name = key.split(".", 1)[1] if key.startswith("ranges.") else key.rsplit(".", 1)[1]
+        items.append({"parameter": name, "side": side, "key": key,
+                      "bound": float(via) if via is not None else float(v), "needed": None,
+                      "beyond_ranges": key.startswith("ranges."), "reaches_targets": False})
+    if items:
+        keys = ", ".join(f"{it['key']} ({it['side']} bound {it['bound']:.4g})" for it in items)
+        return items, (f"{models_say}, and their best compromise lies inside the configured limits, "
+                       f"so they cannot tell how far to widen. The limits that stop the fit are {keys}: "
+                       "widen them and rerun the design so that a new regression covers the targets, "
+                       "or free another parameter (calibration.free) or change a fixed value "
+                       "(calibration.fixed).")
+    return [], (f"{models_say}, and no configured bound is active: with these models widening the "
+                "ranges does not help; free another parameter (calibration.free) or change a fixed "
+                "value (calibration.fixed), then rerun.")
+
+
+def _reach_advice(space: CalibrationSpace, x) -> tuple[list[dict], str]:
+    """The extrapolated models meet the targets at ``x``: every configured limit to move
+    there, and how far."""
+    items = space.beyond_limits(x)
     for it in items:
         it["reaches_targets"] = True
     if not items:  # a point inside the limits meets the targets: the multi-start missed it
@@ -119,4 +107,3 @@ def _what_to_widen(space: CalibrationSpace, models, responses, t, x_best, tol: f
               + f". The regression extrapolated beyond the sampled space meets the targets at {where}: "
               "indicative only (the regression is not validated there), so leave a margin.")
     return items, advice
-
