@@ -91,6 +91,64 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
     Every card records ``strength_ratio``: the ratio pb_ten/pb_coh of its parameters and
     what set it. A lab row without σt is calibrated exactly as before."""
     lab_df = read_lab(lab)
+    fixed, ratio, bounds, note = _check_calibrate_inputs(lab_df, cards, fixed, ranges, bounds, ratio,
+                                                         ratio_from, free, n_boot)
+    by_spec = {Path(c).stem: c for c in cards}
+    jobs = [(rec, lab_targets(rec)) for rec in lab_df.to_dict("records")]
+    with_bts = [str(rec["specimen"]) for rec, t in jobs if tensile_target(t)]
+    if with_bts:  # σt sets the ratio of these specimens: their space must be valid too
+        f_bts, r_bts, _ = bts_strengths({BTS: 1.0}, free, fixed, ratio)
+        check_calibration_space(f_bts, fixed, r_bts, ranges, bounds)
+    df = read_dataset(dataset)
+    model_set = read_models(models)
+    _check_tensile_models(jobs, model_set, df, dataset, models, lab, n_boot)
+    outputs(*((c, "--cards", YAML) for c in cards), (table, "--table", CSV))
+    dnote = usable(df)
+    if with_bts:
+        note = "; ".join(x for x in (note, (
+            f"the tensile strength sets the bond-strength ratio of {with_bts} "
+            "(pb_ten_MPa free; the configured or swept ratio is not used for them)")) if x)
+    rows = []
+    for rec, targets in jobs:
+        spec = str(rec["specimen"])
+        s_free, s_ratio, ratio_by = bts_strengths(targets, free, fixed, ratio)
+        inv = invert(model_set, targets, fixed, free=s_free, bounds=bounds, ratio=s_ratio,
+                     ranges=ranges, seed=seed)
+        if n_boot:
+            boot = bootstrap_intervals(df, model_set, targets, fixed, free=s_free,
+                                       bounds=bounds, ratio=s_ratio, ranges=ranges,
+                                       n_boot=n_boot, seed=seed)
+            bootstrap = {"n_boot": n_boot, "scheme": boot.scheme,
+                         "unreachable_resamples": boot.n_unreachable,
+                         "intervals": boot.intervals.reset_index().to_dict("records")}
+        else:
+            bootstrap = {"n_boot": 0, "scheme": None, "unreachable_resamples": None,
+                         "intervals": []}
+        set_by = (f"{ratio_by} target" if ratio_by in TENSILE else
+                  "ratio sweep" if ratio_from and not note_is_fallback(note)
+                  else "config calibration.ratio" if s_ratio is not None
+                  else "both strengths free")
+        card = calibration_card(
+            spec, inv, rec, targets, ratio=s_ratio, set_by=set_by, bounds=bounds,
+            bootstrap=bootstrap, dataset_note=dnote,
+            provenance_record=provenance({"dataset": str(dataset), "models": str(models),
+                                   "lab": str(lab), "fixed": fixed, "ratio": ratio,
+                                   "seed": seed, "ranges": ranges, "bounds": bounds}))
+        write_card(by_spec[spec], card)
+        rows.append({"specimen": spec, "status": inv.status, **card["parameters"],
+                     **{f"pred_{k}": v for k, v in inv.predicted.items()}})
+    out = pd.DataFrame(rows).set_index("specimen")
+    if table is not None:
+        write_table(out, table)
+    return {"table": out, "note": note}
+
+
+def _check_calibrate_inputs(lab_df: pd.DataFrame, cards, fixed, ranges, bounds, ratio, ratio_from,
+                            free, n_boot) -> tuple[dict, float | None, dict, str]:
+    """The checks :func:`calibrate` makes before it reads the dataset: one card per lab
+    specimen, valid ``fixed``, ``n_boot``, ``free``, ``ranges`` and ``bounds``, and a valid
+    calibration space. Returns the checked ``fixed``, the ratio used (:func:`chosen_ratio`),
+    ``bounds`` as a dict and the note on the ratio."""
     specs = [str(s) for s in lab_df["specimen"]]
     by_spec = {Path(c).stem: c for c in cards}
     if sorted(by_spec) != sorted(specs) or len(by_spec) != len(cards):
@@ -117,13 +175,12 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
             raise BadInput(f"{name}: expected a JSON mapping of parameter name to "
                            f"[low, high] (paper units), got {val!r}")
     check_calibration_space(free, fixed, ratio, ranges, bounds)
-    jobs = [(rec, lab_targets(rec)) for rec in lab_df.to_dict("records")]
-    with_bts = [str(rec["specimen"]) for rec, t in jobs if tensile_target(t)]
-    if with_bts:  # σt sets the ratio of these specimens: their space must be valid too
-        f_bts, r_bts, _ = bts_strengths({BTS: 1.0}, free, fixed, ratio)
-        check_calibration_space(f_bts, fixed, r_bts, ranges, bounds)
-    df = read_dataset(dataset)
-    model_set = read_models(models)
+    return fixed, ratio, bounds, note
+
+
+def _check_tensile_models(jobs: list, model_set, df: pd.DataFrame, dataset, models, lab, n_boot) -> None:
+    """A specimen with a tensile-strength target needs its model (and, for the bootstrap,
+    its dataset column)."""
     for resp in TENSILE:
         having = [str(rec["specimen"]) for rec, t in jobs if resp in t]
         if not having:
@@ -136,71 +193,45 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
         if n_boot and resp not in df.columns:
             raise BadInput(f"--dataset {dataset}: no {resp} column, which the bootstrap of "
                            f"the tensile-strength target of {having} refits")
-    outputs(*((c, "--cards", YAML) for c in cards), (table, "--table", CSV))
-    dnote = usable(df)
-    if with_bts:
-        note = "; ".join(x for x in (note, (
-            f"the tensile strength sets the bond-strength ratio of {with_bts} "
-            "(pb_ten_MPa free; the configured or swept ratio is not used for them)")) if x)
-    rows = []
-    for rec, targets in jobs:
-        spec = str(rec["specimen"])
-        s_free, s_ratio, ratio_by = bts_strengths(targets, free, fixed, ratio)
-        inv = invert(model_set, targets, fixed, free=s_free, bounds=bounds, ratio=s_ratio,
-                     ranges=ranges, seed=seed)
-        if n_boot:
-            boot = bootstrap_intervals(df, model_set, targets, fixed, free=s_free,
-                                       bounds=bounds, ratio=s_ratio, ranges=ranges,
-                                       n_boot=n_boot, seed=seed)
-            bootstrap = {"n_boot": n_boot, "scheme": boot.scheme,
-                         "unreachable_resamples": boot.n_unreachable,
-                         "intervals": boot.intervals.reset_index().to_dict("records")}
-        else:
-            bootstrap = {"n_boot": 0, "scheme": None, "unreachable_resamples": None,
-                         "intervals": []}
-        card = {
-            "specimen": spec,
-            "status": inv.status,
-            "message": inv.message,
-            "ratio_ten_coh": s_ratio,
-            "strength_ratio": {
-                "value": float(inv.solution["pb_ten_MPa"] / inv.solution["pb_coh_MPa"]),
-                "set_by": (f"{ratio_by} target" if ratio_by in TENSILE else
-                           "ratio sweep" if ratio_from and not note_is_fallback(note)
-                           else "config calibration.ratio" if s_ratio is not None
-                           else "both strengths free")},
-            "parameters": {k: float(inv.solution[k]) for k in P.PARAMS},
-            "roles": {k: ("free" if k in inv.free else "derived" if k in inv.derived
-                          else "fixed") for k in P.PARAMS},
-            "ranges": {k: [float(a), float(b)] for k, (a, b) in inv.ranges.items()},
-            "calibration_bounds": {k: [float(a), float(b)] for k, (a, b) in bounds.items()},
-            "bounds": {k: {"lower": lo, "upper": hi, "lower_from": inv.bound_origins[k]["lower"],
-                           "upper_from": inv.bound_origins[k]["upper"]}
-                       for k, (lo, hi) in inv.bounds.items()},
-            "at_bound": [{"parameter": p, "side": side, "value": v} for p, side, v in inv.at_bound],
-            "widen": inv.widen,
-            "advice": inv.advice,
-            "targets": targets,
-            "lab": {k: (None if (isinstance(v, float) and not math.isfinite(v)) else v)
-                    for k, v in rec.items() if k != "specimen"},
-            "predicted": inv.predicted,
-            "residuals_pct": {k: 100 * v for k, v in inv.residuals.items()},
-            "missed": inv.missed,
-            "reach": inv.reach,
-            "alternatives": inv.alternatives.to_dict("records"),
-            "bootstrap": bootstrap,
-            "dataset_note": dnote,
-            "provenance": provenance({"dataset": str(dataset), "models": str(models),
-                                      "lab": str(lab), "fixed": fixed, "ratio": ratio,
-                                      "seed": seed, "ranges": ranges, "bounds": bounds}),
-        }
-        write_card(by_spec[spec], card)
-        rows.append({"specimen": spec, "status": inv.status, **card["parameters"],
-                     **{f"pred_{k}": v for k, v in inv.predicted.items()}})
-    out = pd.DataFrame(rows).set_index("specimen")
-    if table is not None:
-        write_table(out, table)
-    return {"table": out, "note": note}
+
+
+def calibration_card(spec: str, inv, rec: dict, targets: dict, *, ratio: float | None, set_by: str,
+                     bounds: dict, bootstrap: dict, dataset_note: str, provenance_record: dict) -> dict:
+    """The material card of one lab specimen (``bpmcal.io.card``) from its inversion ``inv``
+    (:class:`~bpmcal.analysis.InversionResult`), its lab row ``rec`` and ``targets``:
+    ``ratio`` is the configured ratio of its inversion (None: both strengths free),
+    ``set_by`` what set the strength ratio, ``bounds`` the configured narrowings."""
+    return {
+        "specimen": spec,
+        "status": inv.status,
+        "message": inv.message,
+        "ratio_ten_coh": ratio,
+        "strength_ratio": {
+            "value": float(inv.solution["pb_ten_MPa"] / inv.solution["pb_coh_MPa"]),
+            "set_by": set_by},
+        "parameters": {k: float(inv.solution[k]) for k in P.PARAMS},
+        "roles": {k: ("free" if k in inv.free else "derived" if k in inv.derived
+                      else "fixed") for k in P.PARAMS},
+        "ranges": {k: [float(a), float(b)] for k, (a, b) in inv.ranges.items()},
+        "calibration_bounds": {k: [float(a), float(b)] for k, (a, b) in bounds.items()},
+        "bounds": {k: {"lower": lo, "upper": hi, "lower_from": inv.bound_origins[k]["lower"],
+                       "upper_from": inv.bound_origins[k]["upper"]}
+                   for k, (lo, hi) in inv.bounds.items()},
+        "at_bound": [{"parameter": p, "side": side, "value": v} for p, side, v in inv.at_bound],
+        "widen": inv.widen,
+        "advice": inv.advice,
+        "targets": targets,
+        "lab": {k: (None if (isinstance(v, float) and not math.isfinite(v)) else v)
+                for k, v in rec.items() if k != "specimen"},
+        "predicted": inv.predicted,
+        "residuals_pct": {k: 100 * v for k, v in inv.residuals.items()},
+        "missed": inv.missed,
+        "reach": inv.reach,
+        "alternatives": inv.alternatives.to_dict("records"),
+        "bootstrap": bootstrap,
+        "dataset_note": dataset_note,
+        "provenance": provenance_record,
+    }
 
 
 def lab_targets(rec: dict) -> dict:

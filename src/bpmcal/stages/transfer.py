@@ -19,7 +19,6 @@ from ..io.tables import write_table
 from ..lab.brazilian import BTSSettings
 from ..lab.budget import check_budget
 from ..lab.direct_tension import DTTSettings
-from ..lab.runner import ucs_inputs
 from .inputs import (
     CSV,
     H5,
@@ -28,12 +27,12 @@ from .inputs import (
     outputs,
     read_models,
 )
-from .runs import write_failure
 from .verification import (
     _LOOP,
     _check_margin,
     _dem_loop,
     _loop_box,
+    _not_run,
     _outside_text,
     _responses,
     disc_geometry,
@@ -88,21 +87,12 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             "geometry": geometry.to_dict()}
     if v.get("status") == "not-run" or not v.get("closed_loop"):
         reason = f"not run: the card's closed loop did not run ({v.get('message', '')})"
-        write_table(pd.DataFrame(columns=["round"]), rounds, index=False)
-        write_failure(run, test="ucs", inputs=ucs_inputs(params, seed, geometry, settings),
-                      error=reason)
-        out = dict(c)
-        out["transfer"] = {"status": "not-run", "message": reason, "rounds": 0, **base,
-                           "tolerance_pct": None, "at_transfer": None, "final": None,
-                           "parameters": None}
-        write_card(out_card, out)
-        return out
-    cv = (v["closed_loop"].get("seed_cv") or {})
+        return _not_run(c, out_card, "transfer", {
+            "status": "not-run", "message": reason, "rounds": 0, **base, "tolerance_pct": None,
+            "at_transfer": None, "final": None, "parameters": None}, rounds=rounds, run=run,
+            error=reason, params=params, seed=seed, geometry=geometry, settings=settings)
     shrink = scatter_factor(v.get("geometry"), geometry)
-    tol = {}
-    for k in targets:
-        x = float(cv.get(k, math.nan)) if cv.get(k) is not None else math.nan
-        tol[k] = max(float(rtol), z * x * shrink) if math.isfinite(x) else float(rtol)
+    tol = _tolerances(v, targets, rtol, z, shrink)
     res, by_round, best = _dem_loop(
         c, model_set, targets, params=params, run=run, seeds=[int(seed)],
         geometry=geometry, settings=settings, rtol=tol, max_rounds=1 + max_rounds,
@@ -112,15 +102,37 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         range_margin=range_margin, cylinder=geometry,
         dtt_settings=dtt_settings or DTTSettings())
     write_table(res.history, rounds, index=False)
+    out = dict(c)
+    section = _transfer_section(res, by_round, best, targets, base=base, tol=tol, shrink=shrink,
+                                range_margin=range_margin)
+    if section["status"] != "failed":
+        out["calibrated_at_scale"] = float(geometry.scale)
+    out["transfer"] = section
+    write_card(out_card, out)
+    return out
+
+
+def _tolerances(v: dict, targets: dict, rtol, z: float, shrink: float) -> dict:
+    """The transfer's tolerance of every target: max(``rtol``, ``z`` x the seed CV the
+    verification measured (its ``closed_loop.seed_cv``) x ``shrink``), ``rtol`` without a CV."""
+    cv = (v["closed_loop"].get("seed_cv") or {})
+    tol = {}
+    for k in targets:
+        x = float(cv.get(k, math.nan)) if cv.get(k) is not None else math.nan
+        tol[k] = max(float(rtol), z * x * shrink) if math.isfinite(x) else float(rtol)
+    return tol
+
+
+def _transfer_section(res, by_round: list, best: int, targets: dict, *, base: dict, tol: dict,
+                      shrink: float, range_margin: float) -> dict:
+    """The transferred card's ``transfer`` section from the closed loop's result ``res``:
+    ``within-scatter`` (converged in the first round), ``corrected`` or the loop's status."""
     if res.status == "converged":
         status = "within-scatter" if len(by_round) == 1 else "corrected"
     else:
         status = res.status
-    out = dict(c)
     ran = status != "failed"
-    if ran:
-        out["calibrated_at_scale"] = float(geometry.scale)
-    out["transfer"] = {
+    return {
         "status": status, "message": res.message + _outside_text(res.outside, range_margin),
         "rounds": len(by_round), **_loop_box(res, range_margin),
         "corrections": len(by_round) - 1, **base, "best_round": best + 1,
@@ -129,8 +141,6 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         "final": _responses(by_round[best], targets),
         "parameters": ({k: float(x) for k, x in res.params.items() if k in P.PARAMS}
                        if ran else None)}
-    write_card(out_card, out)
-    return out
 
 
 def scatter_factor(verified_geometry: dict | None, geometry) -> float:

@@ -210,6 +210,7 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
     return res, by_round, best
 
 
+# long: the stage's reference docstring (54 lines, the card's verification section); the code is ~60 lines
 def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            seeds_per_round=3, rtol=_LOOP["rtol"], max_rounds=_LOOP["max_rounds"], cache=None,
            threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
@@ -279,12 +280,61 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         raise BadInput(f"--seeds-per-round {seeds_per_round!r}: expected an integer >= 1")
     model_set = read_models(models)
     targets = {k: float(v) for k, v in c["targets"].items()}
-    with_bts = BTS in targets
-    with_dtt = "dtt_MPa" in targets
     disc = bts_geometry or disc_geometry(geometry)
     bts_settings = bts_settings or BTSSettings()
     cylinder = dtt_geometry or geometry
     dtt_settings = dtt_settings or DTTSettings()
+    _check_verify_inputs(card, models, c, model_set, targets, geometry, disc, cylinder,
+                         max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5),
+            (bts_run, "--bts-run", H5))
+    output_dirs((cache, "--specimen-cache"))
+    if isinstance(max_seeds, bool) or not isinstance(max_seeds, int) or max_seeds < 1:
+        raise BadInput(f"--max-seeds {max_seeds!r}: expected an integer >= 1")
+    max_seeds = max(max_seeds, seeds_per_round)
+    range_margin = _check_margin(range_margin)
+    seeds = [int(seed) + i for i in range(seeds_per_round)]
+    if c.get("status") == "unreachable" and not from_unreachable:
+        reason = ("the calibration is unreachable, so the closed loop did not start from it "
+                  "(verification.from_unreachable: false); " + str(c.get("message", "")))
+        section = {
+            "status": "not-run", "message": reason, "rounds": 0, "rtol": rtol, "seed": seed,
+            "seeds": seeds, "n_seeds": seeds_per_round, "max_seeds": max_seeds,
+            "best_round": None, "single_pass": None, "closed_loop": None, "parameters": None,
+            "widen": c.get("widen", []), "geometry": geometry.to_dict()}
+        return _not_run(c, out_card, "verification", section, rounds=rounds, run=run,
+                        error=f"not run: {reason}", params=c["parameters"], seed=seed,
+                        geometry=geometry, settings=settings, bts_run=bts_run, disc=disc,
+                        bts_settings=bts_settings)
+    res, by_round, best = _dem_loop(
+        c, model_set, targets, params=c["parameters"], run=run, seeds=seeds,
+        geometry=geometry, settings=settings, rtol=rtol, max_rounds=max_rounds, cache=cache,
+        threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
+        disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
+        range_margin=range_margin, polish=bool(polish), cylinder=cylinder,
+        dtt_settings=dtt_settings)
+    write_table(res.history, rounds, index=False)
+    verified = dict(c)
+    verified.update({
+        "calibrated_at_scale": float(geometry.scale),
+        "verification": _verification_section(
+            c, res, by_round, best, targets, rtol=rtol, seed=seed, seeds=seeds,
+            seeds_per_round=seeds_per_round, max_seeds=max_seeds, polish=polish,
+            geometry=geometry, range_margin=range_margin, disc=disc, cylinder=cylinder)})
+    write_card(out_card, verified)
+    if bts_run is not None and BTS not in targets:
+        write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
+                                                             bts_settings),
+                      error="not run: the card has no tensile-strength target (bts_MPa)")
+    return verified
+
+
+def _check_verify_inputs(card, models, c: dict, model_set, targets: dict, geometry, disc, cylinder, *,
+                         max_balls, mem_budget_mb) -> None:
+    """The checks :func:`verify` makes before any output: a model of every tensile target,
+    a Brazilian disc 3 of the largest balls across, and every specimen within the budget."""
+    with_bts = BTS in targets
+    with_dtt = "dtt_MPa" in targets
     if with_dtt and "dtt_MPa" not in model_set:
         raise BadInput(f"--card {card}: a direct-tension target (dtt_MPa) but --models "
                        f"{models} has no model of dtt_MPa")
@@ -310,73 +360,53 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         if with_dtt:
             check_budget(c["parameters"], cylinder, max_balls=max_balls,
                          mem_budget_mb=mem_budget_mb)
-    outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5),
-            (bts_run, "--bts-run", H5))
-    output_dirs((cache, "--specimen-cache"))
-    if isinstance(max_seeds, bool) or not isinstance(max_seeds, int) or max_seeds < 1:
-        raise BadInput(f"--max-seeds {max_seeds!r}: expected an integer >= 1")
-    max_seeds = max(max_seeds, seeds_per_round)
-    range_margin = _check_margin(range_margin)
-    seeds = [int(seed) + i for i in range(seeds_per_round)]
-    if c.get("status") == "unreachable" and not from_unreachable:
-        reason = ("the calibration is unreachable, so the closed loop did not start from it "
-                  "(verification.from_unreachable: false); " + str(c.get("message", "")))
-        write_table(pd.DataFrame(columns=["round"]), rounds, index=False)
-        write_failure(run, test="ucs", inputs=ucs_inputs(c["parameters"], seed, geometry,
-                                                          settings),
-                      error=f"not run: {reason}")
-        if bts_run is not None:
-            write_failure(bts_run, test="bts",
-                          inputs=bts_inputs(c["parameters"], seed, disc, bts_settings),
-                          error=f"not run: {reason}")
-        verified = dict(c)
-        verified["verification"] = {
-            "status": "not-run", "message": reason, "rounds": 0, "rtol": rtol, "seed": seed,
-            "seeds": seeds, "n_seeds": seeds_per_round, "max_seeds": max_seeds,
-            "best_round": None, "single_pass": None, "closed_loop": None, "parameters": None,
-            "widen": c.get("widen", []), "geometry": geometry.to_dict()}
-        write_card(out_card, verified)
-        return verified
-    res, by_round, best = _dem_loop(
-        c, model_set, targets, params=c["parameters"], run=run, seeds=seeds,
-        geometry=geometry, settings=settings, rtol=rtol, max_rounds=max_rounds, cache=cache,
-        threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
-        disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
-        range_margin=range_margin, polish=bool(polish), cylinder=cylinder,
-        dtt_settings=dtt_settings)
-    write_table(res.history, rounds, index=False)
+
+
+def _not_run(c: dict, out_card, key: str, section: dict, *, rounds, run, error: str, params: dict,
+             seed, geometry, settings, bts_run=None, disc=None, bts_settings=None) -> dict:
+    """A stage whose closed loop does not run (:func:`verify` from an unreachable card,
+    :mod:`.transfer` from a card whose loop did not run): the rounds table with its header
+    only, failure records (``error``) for the run files, and the card with its ``key``
+    section; returns the card."""
+    write_table(pd.DataFrame(columns=["round"]), rounds, index=False)
+    write_failure(run, test="ucs", inputs=ucs_inputs(params, seed, geometry, settings), error=error)
+    if bts_run is not None:
+        write_failure(bts_run, test="bts", inputs=bts_inputs(params, seed, disc, bts_settings),
+                      error=error)
+    out = dict(c)
+    out[key] = section
+    write_card(out_card, out)
+    return out
+
+
+def _verification_section(c: dict, res, by_round: list, best: int, targets: dict, *, rtol, seed, seeds,
+                          seeds_per_round, max_seeds, polish, geometry, range_margin, disc,
+                          cylinder) -> dict:
+    """The verified card's ``verification`` section from the closed loop's result ``res``
+    and its rounds' seed summaries ``by_round`` (``best``: the card's round)."""
     message = res.message + _outside_text(res.outside, range_margin)
     if c.get("status") == "unreachable":
         message = ("started from an unreachable calibration at the user's request "
                    f"(verification.from_unreachable: true): {message}")
-    verified = dict(c)
-    verified.update({
-        "calibrated_at_scale": float(geometry.scale),
-        "verification": {
-            "status": res.status, "message": message, "rounds": len(by_round),
-            "runs": sum(len(r) for r in by_round), "rtol": rtol, "seed": seed,
-            "seeds": [int(x) for x in res.seeds], "n_seeds": int(res.n_seeds),
-            "seeds_per_round": seeds_per_round, "max_seeds": max_seeds, "polish": bool(polish),
-            "best_round": best + 1, "run_seed": seeds[0],
-            "jacobian": {r: {p: float(x) for p, x in row.items()}
-                         for r, row in res.jacobian.iterrows()},
-            "single_pass": _responses(by_round[0], targets),
-            "closed_loop": _responses(by_round[best], targets),
-            "parameters": {k: float(v) for k, v in res.params.items() if k in P.PARAMS},
-            "geometry": geometry.to_dict(), **_loop_box(res, range_margin),
-        }})
-    v = verified["verification"]
+    v = {
+        "status": res.status, "message": message, "rounds": len(by_round),
+        "runs": sum(len(r) for r in by_round), "rtol": rtol, "seed": seed,
+        "seeds": [int(x) for x in res.seeds], "n_seeds": int(res.n_seeds),
+        "seeds_per_round": seeds_per_round, "max_seeds": max_seeds, "polish": bool(polish),
+        "best_round": best + 1, "run_seed": seeds[0],
+        "jacobian": {r: {p: float(x) for p, x in row.items()}
+                     for r, row in res.jacobian.iterrows()},
+        "single_pass": _responses(by_round[0], targets),
+        "closed_loop": _responses(by_round[best], targets),
+        "parameters": {k: float(v) for k, v in res.params.items() if k in P.PARAMS},
+        "geometry": geometry.to_dict(), **_loop_box(res, range_margin),
+    }
     v["missed"] = _missed(v["closed_loop"], targets, rtol)
-    if with_bts:
+    if BTS in targets:
         v["bts_geometry"] = disc.to_dict()
-    if with_dtt:
+    if "dtt_MPa" in targets:
         v["dtt_geometry"] = cylinder.to_dict()
-    write_card(out_card, verified)
-    if bts_run is not None and not with_bts:
-        write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
-                                                             bts_settings),
-                      error="not run: the card has no tensile-strength target (bts_MPa)")
-    return verified
+    return v
 
 
 def _check_margin(margin) -> float:
