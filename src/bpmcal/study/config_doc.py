@@ -1,7 +1,7 @@
 """The configuration reference in Markdown, generated from the config schema
 (:func:`schema_reference`): the reference part of config/README.md, so that the two
 cannot disagree (tests/workflow/test_config_doc.py). Regenerate it with
-``python -m bpmcal.study.config workflow/schemas/config.schema.yaml`` (or this module).
+``python -m bpmcal.study.config workflow/schemas/config.schema.yaml``.
 """
 from __future__ import annotations
 
@@ -76,10 +76,3 @@ def schema_reference(schema: dict) -> str:
         out.append("")
     return "\n".join(out).rstrip() + "\n"
 
-
-if __name__ == "__main__":  # python -m bpmcal.study.config_doc SCHEMA: print the reference
-    import sys
-
-    from .config import load_schema
-
-    print(schema_reference(load_schema(sys.argv[1])), end="")
