@@ -306,7 +306,7 @@ def disc_scale(cfg: dict) -> tuple[float, str]:
 def _check_bts_disc(cfg: dict, base: Path) -> list[str]:
     """A lab tensile strength (``bts_MPa``) is verified with the study's Brazilian disc
     (``bts.diameter_mm`` x ``bts.thickness_mm``, default ISRM 50 x 25 mm) at its scale
-    (:func:`disc_scale`; ``stages.analysis.verify``): it must hold 3 of the largest balls
+    (:func:`disc_scale`; ``stages.verification.verify``): it must hold 3 of the largest balls
     across its thickness, or the closed loop would stop after its first UCS run."""
     import pandas as pd
 
