@@ -16,31 +16,13 @@ from pathlib import Path
 import pandas as pd
 
 from .. import params as P
-from ..analysis import (
-    PAPER_RATIO,
-    bootstrap_intervals,
-    invert,
-)
-from ..analysis.calibration import (
-    BTS,
-    TENSILE,
-    bts_strengths,
-    check_calibration_space,
-    tensile_target,
-)
+from ..analysis import PAPER_RATIO, bootstrap_intervals, invert
+from ..analysis.calibration import BTS, TENSILE, bts_strengths, check_calibration_space, tensile_target
 from ..io.card import write_card
 from ..io.checks import BadInput, read_json
 from ..io.provenance import provenance
 from ..io.tables import write_table
-from .inputs import (
-    CSV,
-    YAML,
-    outputs,
-    read_dataset,
-    read_lab,
-    read_models,
-    usable,
-)
+from .inputs import CSV, YAML, outputs, read_dataset, read_lab, read_models, usable
 
 
 def chosen_ratio(ratio_from, ratio: float | None) -> tuple[float | None, str]:

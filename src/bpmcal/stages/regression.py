@@ -11,9 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import params as P
-from ..analysis import (
-    StepwiseRegression,
-)
+from ..analysis import StepwiseRegression
 from ..analysis._common import usable_rows
 from ..analysis.stepwise import combine as combine_regressions
 from ..io.atomic import write_text
@@ -24,16 +22,7 @@ from ..io.tables import write_json, write_table
 from ..plots.calibration import fig_pred_vs_sim
 from ..study.gather import has_tensile, tensile_view
 from . import defaults_of
-from .inputs import (
-    CSV,
-    JSON,
-    MD,
-    PNG,
-    TXT,
-    outputs,
-    read_dataset,
-    usable,
-)
+from .inputs import CSV, JSON, MD, PNG, TXT, outputs, read_dataset, usable
 from .screening import _RESP_NAME, _TEST_NAME, tensile_note
 
 #: the defaults of the stage are those of the analysis it runs

@@ -11,11 +11,7 @@ from __future__ import annotations
 import pandas as pd
 
 from .. import params as P
-from ..analysis import (
-    XGBScreening,
-    table3,
-    table3_markdown,
-)
+from ..analysis import XGBScreening, table3, table3_markdown
 from ..analysis._common import usable_rows
 from ..analysis.screening import combine as combine_screenings
 from ..io.atomic import write_text
@@ -26,15 +22,7 @@ from ..io.tables import write_json, write_table
 from ..plots.calibration import fig_importance
 from ..study.gather import tensile_responses, tensile_view
 from . import defaults_of
-from .inputs import (
-    CSV,
-    JSON,
-    PNG,
-    TXT,
-    outputs,
-    read_dataset,
-    usable,
-)
+from .inputs import CSV, JSON, PNG, TXT, outputs, read_dataset, usable
 
 #: the defaults of the stage are those of the analysis it runs
 _SCREEN = defaults_of(XGBScreening)

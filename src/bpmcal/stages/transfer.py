@@ -19,14 +19,7 @@ from ..io.tables import write_table
 from ..lab.brazilian import BTSSettings
 from ..lab.budget import check_budget
 from ..lab.direct_tension import DTTSettings
-from .inputs import (
-    CSV,
-    H5,
-    YAML,
-    output_dirs,
-    outputs,
-    read_models,
-)
+from .inputs import CSV, H5, YAML, output_dirs, outputs, read_models
 from .verification import (
     _LOOP,
     _check_margin,

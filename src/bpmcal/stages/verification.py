@@ -23,14 +23,8 @@ import numpy as np
 import pandas as pd
 
 from .. import params as P
-from ..analysis import (
-    ClosedLoop,
-    scatter_table,
-)
-from ..analysis.calibration import (
-    BTS,
-    TENSILE,
-)
+from ..analysis import ClosedLoop, scatter_table
+from ..analysis.calibration import BTS, TENSILE
 from ..io.card import card_parameters, read_card, write_card
 from ..io.checks import BadInput
 from ..io.figures import save_figure
@@ -43,16 +37,7 @@ from ..lab.runner import bts_geometry as _isrm_disc
 from ..lab.runner import bts_inputs, ucs_inputs
 from ..plots.calibration import fig_stress_strain
 from . import defaults_of
-from .inputs import (
-    CSV,
-    H5,
-    PNG,
-    YAML,
-    output_dirs,
-    outputs,
-    read_lab,
-    read_models,
-)
+from .inputs import CSV, H5, PNG, YAML, output_dirs, outputs, read_lab, read_models
 from .runs import run_bts_file, run_dtt_file, run_ucs_file, write_failure
 
 #: the defaults of the stages are those of the analysis they run
