@@ -4,7 +4,9 @@ Case resampling of the usable dataset rows (seeded): in each resample every mode
 refitted with the terms selected on the full data (or re-selected, ``reselect``) and
 the targets are inverted again, warm-started from the full-data solution. Percentile
 intervals are reported for every calibrated parameter and for every response the
-models predict at the full-data solution.
+models predict at the full-data solution. Model-selection uncertainty is included only
+with ``reselect``; a ``no-exact-fit`` calibration uses every resample's least-squares
+compromise.
 
 The method: ``docs/methods/calibration.md`` (section "Bootstrap").
 """

@@ -4,7 +4,9 @@ The shared solver of the inversion (:mod:`.inversion`) and of the "what to widen
 search (:mod:`.widen`): minimise Σ_k r_k², ``r_k = (model_k(x) - target_k) / |target_k|``,
 over a box of the free parameters (``scipy.optimize.least_squares``, method ``trf``,
 the models' analytic Jacobian), from the given points and seeded Latin-hypercube
-starts in the unit cube.
+starts in the unit cube. Every start's end point is kept (sum of squares, max |r|, x,
+r), best first, so the caller can tell one solution from several and a bound from an
+interior optimum.
 
 The method: ``docs/methods/calibration.md`` (section "Inversion").
 """
