@@ -15,8 +15,8 @@ from test_verify_transfer_stages import (  # noqa: F401
     study,
 )
 
-import bpmcal.stages.analysis as A
 import bpmcal.stages.holdout as H
+import bpmcal.stages.verification as V
 from bpmcal.io.card import read_card, write_card
 from bpmcal.io.checks import BadInput
 from bpmcal.lab.runner import Geometry
@@ -112,7 +112,7 @@ def test_table_refuses_a_seed_table_without_a_target_column(tmp_path):
 def verified(study, monkeypatch):  # noqa: F811
     tmp_path, card, models = study
     dem = PlantedDEM()
-    monkeypatch.setattr(A, "run_ucs_file", dem)
+    monkeypatch.setattr(V, "run_ucs_file", dem)
     run_verify(tmp_path, card, models, 3)  # seeds 1, 2, 3
     return tmp_path, tmp_path / "v" / "card.yaml", dem
 

@@ -11,6 +11,7 @@ import pandas as pd
 import pytest
 
 import bpmcal.stages.analysis as A
+import bpmcal.stages.verification as V
 from bpmcal.analysis.stepwise import FORMAT, RegressionModel
 from bpmcal.io.card import card_parameters, read_card, write_card
 from bpmcal.lab.runner import Geometry
@@ -87,7 +88,7 @@ def run_verify(tmp_path, card, models, k, max_seeds=None):
 def test_verify_runs_k_seeds_per_round_and_records_mean_cv_and_n(study, monkeypatch):
     tmp_path, card, models = study
     dem = PlantedDEM()
-    monkeypatch.setattr(A, "run_ucs_file", dem)
+    monkeypatch.setattr(V, "run_ucs_file", dem)
     v = run_verify(tmp_path, card, models, 3)["verification"]
     n_rounds = v["rounds"]
     assert len(dem.calls) == 3 * n_rounds == v["runs"]
@@ -122,7 +123,7 @@ def test_verify_runs_k_seeds_per_round_and_records_mean_cv_and_n(study, monkeypa
 def test_one_seed_per_round_has_no_spread(study, monkeypatch):
     tmp_path, card, models = study
     dem = PlantedDEM()
-    monkeypatch.setattr(A, "run_ucs_file", dem)
+    monkeypatch.setattr(V, "run_ucs_file", dem)
     v = run_verify(tmp_path, card, models, 1)["verification"]
     assert {c[1] for c in dem.calls} == {1} and v["n_seeds"] == 1
     assert math.isnan(v["closed_loop"]["seed_cv"]["ucs_MPa"])
@@ -133,11 +134,11 @@ def test_one_seed_per_round_has_no_spread(study, monkeypatch):
 
 def test_table5_carries_the_seed_spread(study, monkeypatch):
     tmp_path, card, models = study
-    monkeypatch.setattr(A, "run_ucs_file", PlantedDEM())
+    monkeypatch.setattr(V, "run_ucs_file", PlantedDEM())
     run_verify(tmp_path, card, models, 3)
-    monkeypatch.setattr(A, "read_series", lambda run: pd.DataFrame(
+    monkeypatch.setattr(V, "read_series", lambda run: pd.DataFrame(
         {"strain": [0.0, 0.01], "stress_MPa": [0.0, 60.0]}))
-    monkeypatch.setattr(A, "save_figure", lambda fig, path: None)
+    monkeypatch.setattr(V, "save_figure", lambda fig, path: None)
     lab = tmp_path / "lab.csv"
     lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60.0,14.0,0.25,0.1\n")
     t5 = A.verification_tables([tmp_path / "v" / "card.yaml"], [tmp_path / "v" / "best.h5"],
@@ -155,7 +156,7 @@ def test_transfer_corrects_only_a_miss_beyond_the_seed_scatter(study, monkeypatc
                                                                rtol, corrected):
     tmp_path, card, models = study
     dem = PlantedDEM(e_full=e_full)
-    monkeypatch.setattr(A, "run_ucs_file", dem)
+    monkeypatch.setattr(V, "run_ucs_file", dem)
     run_verify(tmp_path, card, models, 3)
     verified = read_card(tmp_path / "v" / "card.yaml")
     n_verify = len(dem.calls)
@@ -222,7 +223,7 @@ def test_verify_grows_the_seed_set_and_records_it(study, monkeypatch):
     tmp_path, card, models = study
     dev = {1: 0.0, 2: 0.04, 3: 0.02, 4: -0.03, 5: -0.02, 6: -0.01}
     dem = PlantedDEM(dev=dev)
-    monkeypatch.setattr(A, "run_ucs_file", dem)
+    monkeypatch.setattr(V, "run_ucs_file", dem)
     v = run_verify(tmp_path, card, models, 3, max_seeds=6)["verification"]
     assert v["seeds_per_round"] == 3 and v["max_seeds"] == 6
     assert v["n_seeds"] == 6 and v["seeds"] == [1, 2, 3, 4, 5, 6]
@@ -246,7 +247,7 @@ def test_transfer_starts_from_the_jacobian_the_verification_learned(study, monke
     pb_emod_GPa, so it followed the card's Jacobian, not the regression's."""
     tmp_path, card, models = study
     dem = PlantedDEM(e_full=1.10)
-    monkeypatch.setattr(A, "run_ucs_file", dem)
+    monkeypatch.setattr(V, "run_ucs_file", dem)
     run_verify(tmp_path, card, models, 3)
     c = read_card(tmp_path / "v" / "card.yaml")
     jac = {r: dict(row) for r, row in c["verification"]["jacobian"].items()}
@@ -267,11 +268,11 @@ def test_scatter_of_a_verified_card_runs_its_verified_parameters(study, monkeypa
     the card stands for), not the regression's starting point it also records."""
     tmp_path, card, models = study
     dem = PlantedDEM()
-    monkeypatch.setattr(A, "run_ucs_file", dem)
+    monkeypatch.setattr(V, "run_ucs_file", dem)
     v = run_verify(tmp_path, card, models, 3)["verification"]
     assert v["parameters"]["pb_emod_GPa"] != pytest.approx(start_params()["pb_emod_GPa"])
     n = len(dem.calls)
-    monkeypatch.setattr(A, "run_ucs_file", lambda out, params, seed, *a, **k: (
+    monkeypatch.setattr(V, "run_ucs_file", lambda out, params, seed, *a, **k: (
         dem(out, params, seed, Geometry(scale=0.25), None)))
     A.seed_scatter(tmp_path / "v" / "card.yaml", runs=[tmp_path / "s1.h5", tmp_path / "s2.h5"],
                    seeds=[1, 2], seed_runs=tmp_path / "sr.csv", table=tmp_path / "sc.csv",
@@ -288,7 +289,7 @@ def test_transfer_of_a_card_whose_jacobian_does_not_fit_starts_from_the_models(s
     card without one."""
     tmp_path, card, models = study
     dem = PlantedDEM(e_full=1.10)
-    monkeypatch.setattr(A, "run_ucs_file", dem)
+    monkeypatch.setattr(V, "run_ucs_file", dem)
     run_verify(tmp_path, card, models, 3)
     c = read_card(tmp_path / "v" / "card.yaml")
     jac = {r: {p: x for p, x in row.items() if p != "pb_coh_MPa"}
@@ -315,7 +316,7 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     c = read_card(card)
     c["targets"] = {**TARGETS, "nu": 0.336}
     write_card(tmp_path / "far.yaml", c)
-    monkeypatch.setattr(A, "run_ucs_file", PlantedDEM(dev={s: 0.0 for s in range(1, 12)}))
+    monkeypatch.setattr(V, "run_ucs_file", PlantedDEM(dev={s: 0.0 for s in range(1, 12)}))
     kw = dict(rounds=tmp_path / "v" / "rounds.csv", run=tmp_path / "v" / "best.h5",
               geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
               seeds_per_round=1, max_rounds=6, max_seeds=1)
@@ -340,9 +341,9 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
         A.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t0" / "c.yaml",
                    rounds=tmp_path / "t0" / "r.csv", run=tmp_path / "t0" / "b.h5",
                    range_margin=0.0, **t)
-    monkeypatch.setattr(A, "read_series", lambda run: pd.DataFrame(
+    monkeypatch.setattr(V, "read_series", lambda run: pd.DataFrame(
         {"strain": [0.0, 0.01], "stress_MPa": [0.0, 60.0]}))
-    monkeypatch.setattr(A, "save_figure", lambda fig, path: None)
+    monkeypatch.setattr(V, "save_figure", lambda fig, path: None)
     lab = tmp_path / "lab.csv"
     lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60.0,14.0,0.336,0.1\n")
     from bpmcal.io import layout as L
@@ -371,7 +372,7 @@ def test_verify_polishes_a_converged_card_and_records_it(study, monkeypatch):
     out = {}
     for polish in (False, True):
         dem = PlantedDEM(dev=dev)
-        monkeypatch.setattr(A, "run_ucs_file", dem)
+        monkeypatch.setattr(V, "run_ucs_file", dem)
         v = A.verify(card, models, out_card=tmp_path / f"p{polish}" / "card.yaml",
                      rounds=tmp_path / f"p{polish}" / "rounds.csv",
                      run=tmp_path / f"p{polish}" / "best.h5", geometry=Geometry(scale=0.25),

@@ -22,6 +22,7 @@ from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import PARAMS
 from bpmcal.stages import analysis as A
+from bpmcal.stages import verification as V
 from bpmcal.stages.runs import RunOutcome
 
 R = {"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "pb_emod_GPa": [10, 50], "pb_kratio": [1, 5],
@@ -198,8 +199,8 @@ class FakeDEM:
 @pytest.fixture()
 def dem(monkeypatch):
     f = FakeDEM()
-    monkeypatch.setattr(A, "run_ucs_file", f.ucs)
-    monkeypatch.setattr(A, "run_bts_file", f.bts)
+    monkeypatch.setattr(V, "run_ucs_file", f.ucs)
+    monkeypatch.setattr(V, "run_bts_file", f.bts)
     return f
 
 

@@ -19,6 +19,7 @@ from bpmcal.io.h5 import write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.stages import analysis as A
+from bpmcal.stages import verification as V
 from bpmcal.stages.analysis import BTS_REPLACEMENT_STRIDE
 from bpmcal.stages.runs import RunOutcome
 
@@ -131,8 +132,8 @@ class FakeDEM:
 def test_verify_steers_the_direct_tension_strength_and_replaces_invalid_tests(
         card, d, tmp_path, monkeypatch):
     dem = FakeDEM()
-    monkeypatch.setattr(A, "run_ucs_file", dem.ucs)
-    monkeypatch.setattr(A, "run_dtt_file", dem.dtt)
+    monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
+    monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
     v = A.verify(card, d / "models.json", out_card=tmp_path / "B1.yaml",
                  rounds=tmp_path / "B1.csv", run=tmp_path / "B1.h5",
                  geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,

@@ -7,7 +7,8 @@
   :class:`StepwiseResults` of :class:`RegressionModel` objects.
 - :mod:`.calibration` — inversion of the models for lab targets (:func:`invert`),
   bootstrap intervals (:func:`bootstrap_intervals`), Newton-Broyden closed loop with the
-  simulator (:class:`ClosedLoop`) and the seed-scatter check (:func:`seed_scatter`).
+  simulator (:class:`ClosedLoop`) and the seed-scatter check (:func:`scatter_table`, formerly
+  ``seed_scatter``); a package, its method in ``docs/methods/calibration.md``.
 
 Each analysis uses only dataset rows with ``status == "ok"`` and reports how many it dropped.
 """
@@ -21,6 +22,7 @@ from .calibration import (
     InversionResult,
     bootstrap_intervals,
     invert,
+    scatter_table,
     seed_scatter,
 )
 from .screening import (
@@ -45,5 +47,5 @@ __all__ = [
     "XGBScreening", "ScreeningResults", "table3", "table3_markdown", "IMPORTANCE_TYPES", "DEFAULT_XGB_PARAMS",
     "StepwiseRegression", "StepwiseResults", "RegressionModel", "fit_terms", "models_from_dict", "vif",
     "STAGES", "invert", "InversionResult", "bootstrap_intervals", "BootstrapResults", "ClosedLoop",
-    "ClosedLoopResult", "seed_scatter", "PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE",
+    "ClosedLoopResult", "scatter_table", "seed_scatter", "PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE",
 ]

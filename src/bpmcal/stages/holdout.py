@@ -27,9 +27,9 @@ from ..lab.budget import check_budget
 from ..lab.direct_tension import DTTSettings
 from ..lab.runner import bts_inputs, dtt_inputs, ucs_inputs
 from . import defaults_of
-from .analysis import disc_geometry, valid_bts_run, valid_tensile_run
 from .inputs import CSV, H5, output_dirs, outputs
 from .runs import run_ucs_file, write_failure
+from .verification import disc_geometry, valid_bts_run, valid_tensile_run
 
 #: per-seed columns of the seed table besides the targets
 _EXTRA = ("u_pre_MJm3", "peak_strain")

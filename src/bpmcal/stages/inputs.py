@@ -12,7 +12,7 @@ from .. import params as P
 from ..analysis import models_from_dict
 from ..io.checks import BadInput, in_file, out_dir, out_file, read_csv, read_json
 from ..io.paths import name_problem
-from ..study.config import load_lab
+from ..study.lab_data import load_lab
 
 #: the suffixes of the files the stages write
 CSV, JSON, YAML, MD, TXT, PNG, H5 = ((".csv",), (".json",), (".yaml", ".yml"), (".md",),

@@ -34,7 +34,7 @@ from ..io.figures import save_figure
 from ..io.h5 import RunFileError, read_inputs, read_summary
 from ..io.tables import write_table
 from ..plots.envelopes import fig_envelopes
-from ..study.lab_triaxial import load_lab_triaxial
+from ..study.lab_data import load_lab_triaxial
 from .inputs import CSV, PNG, outputs, read_lab
 
 #: the confining stresses of the study's triaxial runs by default [MPa]

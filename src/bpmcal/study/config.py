@@ -5,7 +5,6 @@ any job runs.
 from __future__ import annotations
 
 import copy
-import json
 import math
 from pathlib import Path
 
@@ -13,13 +12,15 @@ import yaml
 
 from .. import params as P
 from ..io.layout import ratio_grid, ratio_id
-from ..io.paths import name_problem, path_problem
+from ..io.paths import path_problem
 from ..lab.budget import budget_problem
+from .config_doc import schema_reference
+from .errors import ConfigError
+from .lab_data import LAB_COLUMNS as LAB_COLUMNS  # re-exported: the lab table's home is lab_data
+from .lab_data import LAB_OPTIONAL as LAB_OPTIONAL
+from .lab_data import lab_problems, lab_triaxial_problems, read_lab
+from .lab_data import load_lab as load_lab
 from .paper import LAB as PAPER_LAB
-
-
-class ConfigError(ValueError):
-    """The study configuration is invalid; the message lists every problem by key."""
 
 
 def _path(err) -> str:
@@ -144,9 +145,7 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
 
 def _check_lab_triaxial(cfg: dict, lab: Path, base: Path) -> list[str]:
     """``triaxial.lab_csv``: a safe path to a lab triaxial CSV whose specimens are those of
-    ``lab.csv`` (``bpmcal.study.lab_triaxial``)."""
-    from .lab_triaxial import lab_triaxial_problems
-
+    ``lab.csv`` (``bpmcal.study.lab_data``)."""
     key = (cfg.get("triaxial") or {}).get("lab_csv")
     if key is None:
         return []
@@ -295,84 +294,6 @@ def _check_reference(cfg: dict, lab: Path) -> list[str]:
     return []
 
 
-LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
-#: optional columns: empty = not given for that specimen; ``bts_MPa`` (Brazilian tensile
-#: strength) or ``dtt_MPa`` (direct-tension strength, the alternative σt target; not both
-#: on one row) makes σt a calibration target of that specimen (``stages.analysis.calibrate``)
-LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa")
-
-
-def lab_problems(df, key: str) -> list[str]:
-    """Problems of a lab table (a DataFrame read with ``read_lab``), named by column and
-    specimen."""
-    import pandas as pd
-
-    missing = [c for c in LAB_COLUMNS if c not in df.columns]
-    if missing:
-        return [f"lab.csv: {key!r} lacks column(s) {missing}; expected {list(LAB_COLUMNS)} "
-                f"(+ optional {', '.join(LAB_OPTIONAL)})"]
-    if len(df) == 0:
-        return [f"lab.csv: {key!r} has no specimen rows"]
-    msgs = []
-    for s in df["specimen"]:
-        m = name_problem(s)
-        if m:
-            msgs.append(f"lab.csv: {key!r} specimen {m} (it becomes a file name)")
-    if df["specimen"].duplicated().any():
-        dup = sorted(set(df.loc[df["specimen"].duplicated(), "specimen"]))
-        msgs.append(f"lab.csv: {key!r} has duplicate specimen names {dup}")
-    for c in ("ucs_MPa", "E_GPa", "nu", *[o for o in LAB_OPTIONAL if o in df.columns]):
-        optional = c in LAB_OPTIONAL
-        for spec, raw in zip(df["specimen"], df[c]):
-            if optional and (raw is None or (isinstance(raw, float) and math.isnan(raw))
-                             or (isinstance(raw, str) and not raw.strip())):
-                continue  # an empty optional value
-            try:
-                v = float(pd.to_numeric(pd.Series([raw]), errors="coerce").iloc[0])
-            except (TypeError, ValueError):
-                v = math.nan
-            if not (math.isfinite(v) and v > 0):
-                msgs.append(f"lab.csv: {key!r} specimen {spec} {c}={raw!r}: expected a "
-                            f"positive number{' (or empty)' if optional else ''}")
-            elif c == "nu" and v >= 0.5:
-                msgs.append(f"lab.csv: {key!r} specimen {spec} nu={raw!r}: expected below 0.5")
-    if "bts_MPa" in df.columns and "dtt_MPa" in df.columns:
-        both = [str(sp) for sp, a, b in zip(df["specimen"], df["bts_MPa"], df["dtt_MPa"])
-                if _given(a) and _given(b)]
-        if both:
-            msgs.append(f"lab.csv: {key!r} specimen(s) {both} give both bts_MPa and dtt_MPa: "
-                        "expected one tensile strength per specimen (the Brazilian or the "
-                        "direct-tension one; they are different measurements)")
-    return msgs
-
-
-def _given(raw) -> bool:
-    """An optional lab value that is not empty."""
-    return not (raw is None or (isinstance(raw, float) and math.isnan(raw))
-                or (isinstance(raw, str) and not raw.strip()))
-
-
-def read_lab(path):
-    """The lab specimens table as read everywhere: lines whose first non-blank character is
-    ``#`` are comments (the data's source, units, notes) and are skipped; specimen names
-    are kept as text ("007" stays "007") and the values as text until checked. Raises
-    ConfigError for a file that is not a CSV table."""
-    import io
-
-    import pandas as pd
-
-    try:
-        text = Path(path).read_text()
-        body = "".join(ln for ln in text.splitlines(keepends=True)
-                       if not ln.lstrip().startswith("#"))
-        return pd.read_csv(io.StringIO(body), dtype=str, keep_default_na=False,
-                           na_values=[""])
-    except (OSError, pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError,
-            ValueError) as e:
-        raise ConfigError(f"lab.csv: cannot read {str(path)!r}: "
-                          f"{' '.join(str(e).split())[:200]}") from None
-
-
 def disc_scale(cfg: dict) -> tuple[float, str]:
     """The Brazilian disc's scale factor and the key it comes from: ``bts.scale``, or
     ``specimen.scale`` when that is null (the disc at the cylinder's scale)."""
@@ -385,7 +306,7 @@ def disc_scale(cfg: dict) -> tuple[float, str]:
 def _check_bts_disc(cfg: dict, base: Path) -> list[str]:
     """A lab tensile strength (``bts_MPa``) is verified with the study's Brazilian disc
     (``bts.diameter_mm`` x ``bts.thickness_mm``, default ISRM 50 x 25 mm) at its scale
-    (:func:`disc_scale`; ``stages.analysis.verify``): it must hold 3 of the largest balls
+    (:func:`disc_scale`; ``stages.verification.verify``): it must hold 3 of the largest balls
     across its thickness, or the closed loop would stop after its first UCS run."""
     import pandas as pd
 
@@ -459,89 +380,6 @@ def _check_lab(path: Path, key: str) -> list[str]:
     except ConfigError as e:
         return [str(e)]
     return lab_problems(df, key)
-
-
-def load_lab(path):
-    """The validated lab table (ConfigError listing every problem): specimen as text,
-    the values as floats (NaN for an empty optional value)."""
-    import pandas as pd
-
-    df = read_lab(path)
-    msgs = lab_problems(df, str(path))
-    if msgs:
-        raise ConfigError("invalid lab table:\n  " + "\n  ".join(msgs))
-    for c in (*LAB_COLUMNS[1:], *LAB_OPTIONAL):
-        if c in df.columns:
-            df[c] = pd.to_numeric(df[c], errors="coerce")
-    return df
-
-
-# ------------------------------------------------------------------------ documentation
-def _allowed(node: dict) -> str:
-    """The values a schema node accepts, in words."""
-    if "enum" in node:
-        return " \\| ".join("null" if v is None else str(v) for v in node["enum"])
-    t = node.get("type")
-    if t == "array":
-        n = ""
-        if node.get("minItems") == node.get("maxItems") and "minItems" in node:
-            n = f"{node['minItems']} "
-        elif "minItems" in node:
-            n = f"≥ {node['minItems']} "
-        inner = _allowed(node.get("items", {}))
-        return f"list of {n}{inner or 'items'}".strip()
-    a = node.get("exclusiveMinimum", node.get("minimum"))
-    b = node.get("exclusiveMaximum", node.get("maximum"))
-    lo = "(" if "exclusiveMinimum" in node or a is None else "["
-    hi = ")" if "exclusiveMaximum" in node or b is None else "]"
-    if a is None and b is None:
-        return ""
-    return f"{lo}{'-∞' if a is None else f'{a:g}'}, {'∞' if b is None else f'{b:g}'}{hi}"
-
-
-def _type(node: dict) -> str:
-    t = node.get("type", "")
-    if isinstance(t, list):
-        t = " or ".join(t)
-    if t == "array":
-        t = f"list of {node.get('items', {}).get('type', 'items')}"
-    return t
-
-
-def _default(node: dict, required: bool) -> str:
-    if "default" in node:
-        return f"`{json.dumps(node['default'], ensure_ascii=False)}`"
-    return "required" if required else "–"
-
-
-def schema_reference(schema: dict) -> str:
-    """Every section and key of the config schema as Markdown tables (type, default,
-    allowed values, meaning): the reference part of config/README.md, generated from the
-    schema so that the two cannot disagree (tests/workflow/test_config_doc.py)."""
-    out = []
-    top = schema["properties"]
-    for sec, node in top.items():
-        out.append(f"### `{sec}`\n")
-        desc = " ".join(str(node.get("description", "")).split())
-        if node.get("type") != "object":
-            out.append(f"{desc}\n")
-            out.append("| type | default | allowed |\n|---|---|---|")
-            out.append(f"| {_type(node)} | {_default(node, sec in schema.get('required', []))} "
-                       f"| {_allowed(node) or '–'} |\n")
-            continue
-        out.append(f"{desc}\n")
-        out.append("| key | type | default | allowed | meaning |\n|---|---|---|---|---|")
-        req = set(node.get("required", []))
-        for key, sub in node.get("properties", {}).items():
-            meaning = " ".join(str(sub.get("description", "")).split())
-            props = sub.get("properties", {})
-            if sub.get("type") == "object" and set(props) <= set(P.PARAMS) and props:
-                items = ", ".join(f"`{k}` {_allowed(v) or _type(v)}" for k, v in props.items())
-                meaning = f"{meaning} Keys, each optional: {items}.".strip()
-            out.append(f"| `{key}` | {_type(sub)} | {_default(sub, key in req)} | "
-                       f"{_allowed(sub) or '–'} | {meaning or '–'} |")
-        out.append("")
-    return "\n".join(out).rstrip() + "\n"
 
 
 if __name__ == "__main__":  # python -m bpmcal.study.config SCHEMA: print the reference

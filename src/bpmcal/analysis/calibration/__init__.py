@@ -1,0 +1,59 @@
+"""Calibration of the meso-parameters from laboratory targets (paper section 4.2):
+inversion of the regression models, bootstrap uncertainty and a closed-loop corrector.
+
+The method, with every rule and default, is described in ``docs/methods/calibration.md``.
+The package holds one concept per module:
+
+- :mod:`.space` — the calibration space (:class:`CalibrationSpace`: free, fixed and
+  derived parameters, bounds and where they come from, the unit cube),
+  :func:`bts_strengths`, :func:`check_calibration_space`;
+- :mod:`.fit` — the multi-start bounded least squares shared by the next two;
+- :mod:`.inversion` — :func:`invert` → :class:`InversionResult`;
+- :mod:`.widen` — which configured limit to widen when the targets are out of reach;
+- :mod:`.bootstrap` — :func:`bootstrap_intervals` → :class:`BootstrapResults`;
+- :mod:`.closed_loop` — :class:`ClosedLoop` → :class:`ClosedLoopResult`;
+- :mod:`.scatter` — :func:`scatter_table` (formerly ``seed_scatter``), the packing-seed
+  noise floor of a tolerance.
+
+Every name importers used from the former single module ``calibration.py`` is
+re-exported here (``_Space`` is the former name of :class:`CalibrationSpace`).
+"""
+from .bootstrap import BootstrapResults, bootstrap_intervals
+from .closed_loop import ClosedLoop, ClosedLoopResult
+from .closed_loop import _lm_step as _lm_step
+from .closed_loop import _outside as _outside
+from .closed_loop import _round_seeds as _round_seeds
+from .closed_loop import _takes_seed as _takes_seed
+from .fit import _fit as _fit
+from .fit import _fmt_pct as _fmt_pct
+from .fit import _lhs as _lhs
+from .inversion import InversionResult, invert
+from .inversion import _bts_reach as _bts_reach
+from .scatter import scatter_table, seed_scatter
+from .space import _COH as _COH
+from .space import _EDGE as _EDGE
+from .space import _TEN as _TEN
+from .space import (
+    BTS,
+    DEFAULT_FREE,
+    PAPER_FIXED,
+    PAPER_RATIO,
+    TENSILE,
+    CalibrationSpace,
+    bts_strengths,
+    check_calibration_space,
+    tensile_target,
+)
+from .space import _check_ranges as _check_ranges
+from .space import _check_targets as _check_targets
+from .space import _default_free as _default_free
+from .space import _inside as _inside
+from .widen import _EXTEND as _EXTEND
+from .widen import _what_to_widen as _what_to_widen
+
+#: the former name of :class:`CalibrationSpace`
+_Space = CalibrationSpace
+
+__all__ = ["PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "BTS", "TENSILE", "tensile_target", "bts_strengths",
+           "CalibrationSpace", "check_calibration_space", "InversionResult", "invert", "BootstrapResults",
+           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "scatter_table", "seed_scatter"]

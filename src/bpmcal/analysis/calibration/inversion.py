@@ -1,0 +1,322 @@
+"""Inversion of the regression models for laboratory targets (:func:`invert`).
+
+Multi-start bounded least squares of the relative residuals over the free parameters
+of a :class:`~.space.CalibrationSpace`; the outcome is ``ok``, ``non-unique``,
+``unreachable`` or ``no-exact-fit`` (:class:`InversionResult`), with the configured
+limits to widen (:mod:`.widen`) when the targets are out of reach, and, with a tensile
+strength among the targets, the σt and σc/σt spans the models reach while meeting the
+other targets (:func:`_bts_reach`).
+
+The method: ``docs/methods/calibration.md`` (sections "Inversion" and "Tensile strength").
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ..stepwise import RegressionModel
+from .fit import _fit, _fmt_pct, _lhs
+from .space import BTS, PAPER_RATIO, CalibrationSpace, _check_targets, tensile_target
+from .widen import _what_to_widen
+
+
+@dataclass
+class InversionResult:
+    """Outcome of :func:`invert` (see the module docstring for ``status``).
+
+    ``solution`` holds every parameter (fixed, free, derived) of the best fit;
+    ``alternatives`` one row per distinct solution that fits equally well (best first);
+    ``starts`` the end point of every start. ``bounds`` are the effective bounds of the
+    calibrated parameters and ``bound_origins`` the configured key each side comes from
+    (``ranges.<p>``, ``calibration.bounds.<p>``, or ``ranges.pb_ten_MPa / ratio a``);
+    ``ranges`` the design space. When the targets are not met, ``widen`` lists each
+    configured limit to move (parameter, side, key, bound, needed value, and whether the
+    extrapolated models meet every target there, ``reaches_targets``; ``needed`` is None when
+    they cannot tell how far) and ``advice`` says it in words (empty when the diagnosis was
+    not run).
+    """
+
+    status: str
+    message: str
+    solution: dict[str, float]
+    free: tuple[str, ...]
+    derived: tuple[str, ...]
+    targets: dict[str, float]
+    predicted: dict[str, float]
+    residuals: dict[str, float]  # relative
+    bounds: dict[str, tuple[float, float]]
+    at_bound: list[tuple[str, str, float]]
+    alternatives: pd.DataFrame
+    starts: pd.DataFrame
+    tol: float
+    bound_origins: dict[str, dict[str, str]] = field(default_factory=dict)
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+    widen: list[dict] = field(default_factory=list)
+    advice: str = ""
+    reach: dict = field(default_factory=dict)  # σt / σc/σt spans when σt misses (see the module doc)
+
+    @property
+    def missed(self) -> list[dict]:
+        """Every target the solution misses by more than ``tol``: target, value, predicted,
+        error_pct (100 × relative residual), in the order of the targets."""
+        return [{"target": r, "value": self.targets[r], "predicted": self.predicted[r],
+                 "error_pct": 100 * v} for r, v in self.residuals.items() if abs(v) > self.tol]
+
+    @property
+    def ok(self) -> bool:
+        """True when the targets are met within ``tol`` by a single parameter set."""
+        return self.status == "ok"
+
+    @property
+    def reachable(self) -> bool:
+        return self.status in ("ok", "non-unique")
+
+    @property
+    def unique(self) -> bool:
+        return len(self.alternatives) <= 1
+
+    @property
+    def max_abs_residual(self) -> float:
+        return max(abs(v) for v in self.residuals.values())
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per parameter: value, role (fixed/free/derived), lower and upper bound."""
+        recs = []
+        for p, v in self.solution.items():
+            role = "free" if p in self.free else ("derived" if p in self.derived else "fixed")
+            lo, hi = self.bounds.get(p, (np.nan, np.nan))
+            recs.append({"parameter": p, "value": v, "role": role, "lower": lo, "upper": hi})
+        return pd.DataFrame.from_records(recs).set_index("parameter")
+
+    def responses_frame(self) -> pd.DataFrame:
+        """One row per target: target, predicted, relative residual."""
+        return pd.DataFrame({"target": self.targets, "predicted": self.predicted,
+                             "rel_residual": self.residuals})
+
+    def summary(self) -> str:
+        return "\n".join([f"Inversion: {self.status} - {self.message}", "", self.to_frame().to_string(), "",
+                          self.responses_frame().to_string(), "",
+                          f"{len(self.alternatives)} distinct solution(s):", self.alternatives.to_string()])
+
+
+
+def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], fixed: Mapping[str, float],
+           free: Sequence[str] | None = None, bounds: Mapping[str, Sequence[float]] | None = None,
+           ratio: float | None = PAPER_RATIO, *, ranges: Mapping[str, Sequence[float]], n_starts: int = 24,
+           seed: int = 0, tol: float = 1e-3, distinct: float = 0.02, x0: Sequence[Mapping[str, float]] = (),
+           diagnose: bool = True) -> InversionResult:
+    """Solve the regression models for the free parameters that reproduce ``targets``.
+
+    Parameters
+    ----------
+    models:
+        response -> :class:`RegressionModel` (e.g. ``StepwiseResults.final_models``).
+    targets:
+        response -> laboratory value, e.g. ``{"ucs_MPa": 62.1, "E_GPa": 14.07, "nu": 0.267}``.
+    fixed:
+        parameter -> value for the parameters held fixed (paper: :data:`PAPER_FIXED` plus
+        ``pb_fa_deg`` and ``fric``). A fixed value outside its range in ``ranges`` is an error.
+    free:
+        parameters to solve for (default :data:`DEFAULT_FREE`, plus ``pb_ten_MPa`` when
+        ``ratio`` is None).
+    bounds:
+        parameter -> (lo, hi) narrowing ``ranges`` for a free (or the derived) parameter;
+        bounds reaching beyond ``ranges`` are an error (the regression is not valid there).
+    ratio:
+        ``pb_ten_MPa / pb_coh_MPa`` (default 1.4), or None for independent strengths.
+    ranges:
+        The design space: parameter -> (lo, hi) the dataset was sampled over (the study
+        config's ``ranges``, paper units); required for every free parameter and for
+        ``pb_ten_MPa`` with a ratio. The free parameters are confined to it.
+    n_starts, seed:
+        Latin-hypercube starting points in the free-parameter box (seeded).
+    tol:
+        Largest relative residual that counts as meeting the targets.
+    distinct:
+        Solutions further apart than this fraction of a range (in some free parameter)
+        are distinct.
+    x0:
+        Extra starting points (mappings holding the free parameters), tried first.
+    diagnose:
+        For ``unreachable`` and ``no-exact-fit``, search the extrapolated regression for
+        which configured limit to widen and how far (``widen``, ``advice``; costs one more
+        multi-start), and with a σt target the spans the models reach (``reach``).
+    """
+    space = CalibrationSpace(free, fixed, ratio, ranges, bounds)
+    responses, t = _check_targets(targets, models)
+    space.check_models(models, responses)
+    if not tol > 0 or not distinct > 0:
+        raise ValueError(f"tol={tol!r}, distinct={distinct!r}: expected positive numbers")
+    fits = _fit(space, models, responses, t, space.lo, space.hi, [space.free_values(p) for p in x0],
+                n_starts, seed)
+    fits = [(c, m, space.u(x), r) for c, m, x, r in fits]
+    best_cost, best_max, best_u, best_r = fits[0]
+    reachable = best_max <= tol
+    kept = _distinct(fits, reachable, tol, distinct)
+    alternatives = _fits_frame(space, models, responses, kept)
+    start_frame = _fits_frame(space, models, responses, fits)
+    solution = space.full(space.x(best_u))
+    edges = space.at_bound(best_u)
+    widen, advice = [], ""
+    if not reachable and diagnose:
+        widen, advice = _what_to_widen(space, models, responses, t, space.x(best_u), tol, n_starts,
+                                       seed + 1)
+    reach, joint = {}, ""
+    if not reachable:
+        reach, joint = _joint_bts_diagnosis(space, models, targets, responses, t, space.x(best_u), tol,
+                                            n_starts, seed, diagnose)
+    status, message = _classify(space, responses, best_r, len(kept), reachable, joint, edges, advice, tol)
+    return InversionResult(
+        status=status, message=message, solution=solution, free=space.free, derived=space.derived,
+        targets=dict(zip(responses, t.tolist())),
+        predicted={r: float(models[r].predict(solution)) for r in responses},
+        residuals=dict(zip(responses, best_r.tolist())),
+        bounds=space.bounds(),
+        at_bound=edges, alternatives=alternatives, starts=start_frame, tol=tol,
+        bound_origins=space.bound_origins(), ranges=dict(space.ranges), widen=widen, advice=advice,
+        reach=reach)
+
+
+def _distinct(fits: list[tuple], reachable: bool, tol: float, distinct: float) -> list[tuple]:
+    """The distinct solutions among the fits (unit coordinates, best first): those that
+    meet the targets (or, when none does, that fit as well as the best), each more than
+    ``distinct`` of a range away from every one kept before it."""
+    best_cost = fits[0][0]
+    good = [f for f in fits if (f[1] <= tol if reachable else f[0] <= best_cost * (1 + 1e-6) + 1e-14)]
+    kept: list[tuple] = []
+    for f in good:
+        if all(np.max(np.abs(f[2] - k[2])) > distinct for k in kept):
+            kept.append(f)
+    return kept
+
+
+def _fits_frame(space: CalibrationSpace, models, responses, fits: list[tuple]) -> pd.DataFrame:
+    """One row per fit: the calibrated parameters, the predicted responses, the largest
+    relative residual and the sum of squares."""
+    def row(f):
+        point = space.full(space.x(f[2]))
+        rec = {p: point[p] for p in space.calibrated}
+        rec.update({r: float(models[r].predict(point)) for r in responses})
+        rec.update(max_abs_residual=f[1], sum_sq=f[0])
+        return rec
+
+    return pd.DataFrame.from_records([row(f) for f in fits])
+
+
+def _joint_bts_diagnosis(space: CalibrationSpace, models, targets: Mapping[str, float], responses, t,
+                         x_best, tol: float, n_starts: int, seed: int, diagnose: bool) -> tuple[dict, str]:
+    """A missed fit with a tensile-strength target among others: when the other targets are
+    met together inside the bounds, the σt (and σc/σt) spans the models reach while meeting
+    them (``reach``; only with ``diagnose``) and the sentence that the target set cannot be
+    met at once (``joint``); else ``({}, "")``."""
+    reach: dict = {}
+    joint = ""  # the σt target set is out of reach although the other targets are not
+    tr = tensile_target(responses)
+    if tr is not None and len(responses) > 1:
+        others = [r for r in responses if r != tr]
+        t_other = np.array([t[responses.index(r)] for r in others])
+        sub = _fit(space, models, others, t_other, space.lo, space.hi, [x_best], n_starts, seed + 2)
+        if sub[0][1] <= tol:
+            reach = _bts_reach(space, models, others, t_other, tol,
+                               [f[2] for f in sub if f[1] <= tol], seed + 3,
+                               response=tr) if diagnose else {}
+            t_bts = float(t[responses.index(tr)])
+            span = (f"while meeting {', '.join(others)} the models give σt in "
+                    f"[{reach[tr][0]:.4g}, {reach[tr][1]:.4g}] MPa"
+                    + (f" (σc/σt in [{reach['ucs_over_bts'][0]:.3g}, {reach['ucs_over_bts'][1]:.3g}])"
+                       if "ucs_over_bts" in reach else "")
+                    if reach else f"{', '.join(others)} are met together inside the bounds")
+            target_ratio = (f", σc/σt = {targets['ucs_MPa'] / t_bts:.3g}" if "ucs_MPa" in responses
+                            else "")
+            joint = (f"the target set cannot be met at once: σt = {t_bts:g} MPa{target_ratio} is "
+                     f"outside what the parallel-bond models reach ({span})")
+    return reach, joint
+
+
+def _classify(space: CalibrationSpace, responses, best_r: np.ndarray, n_kept: int, reachable: bool,
+              joint: str, edges: list, advice: str, tol: float) -> tuple[str, str]:
+    """The status and message of an inversion (module docs, "Inversion"): ``ok``,
+    ``non-unique`` (``n_kept`` distinct solutions), ``no-exact-fit`` (the σt target set
+    ``joint`` out of reach, or an interior optimum) or ``unreachable`` (a bound active)."""
+    missed = "; ".join(f"{r} {100 * v:+.2f} %" for r, v in zip(responses, best_r) if abs(v) > tol)
+    if reachable and n_kept == 1:
+        return "ok", f"targets met within {tol:g} (relative): {_fmt_pct(responses, best_r)}"
+    if reachable:
+        extra = (f"; {len(space.free)} free parameters for {len(responses)} targets: a continuum of solutions"
+                 if len(space.free) > len(responses) else "")
+        return "non-unique", (f"{n_kept} distinct parameter sets meet the targets within {tol:g}{extra}; "
+                              "see alternatives (the best-fitting one is returned)")
+    tail = f" {advice}" if advice else ""
+    if joint:
+        where = ", ".join(space.edge_text(p, side, v) for p, side, v in edges)
+        return "no-exact-fit", (f"{joint}. The card keeps the best compromise (least squares of the "
+                                f"relative residuals, equal weights){' with ' + where if where else ''}; "
+                                f"targets missed: {missed} (relative residuals "
+                                f"{_fmt_pct(responses, best_r)}, tol {tol:g})." + tail)
+    if edges:
+        where = ", ".join(space.edge_text(p, side, v) for p, side, v in edges)
+        return "unreachable", (f"targets lie outside what the sampled ranges can reach: the closest point "
+                               f"inside the bounds has {where}, relative residuals "
+                               f"{_fmt_pct(responses, best_r)}; this point is not a calibration." + tail)
+    return "no-exact-fit", (f"the models cannot meet all targets at once: the best compromise is an "
+                            f"interior optimum (no bound of the configured ranges is active), relative "
+                            f"residuals {_fmt_pct(responses, best_r)} exceed {tol:g}." + tail)
+
+
+def _bts_reach(space: CalibrationSpace, models, others: Sequence[str], t_other: np.ndarray, tol: float,
+               x_starts: Sequence[np.ndarray], seed: int, n_starts: int = 8,
+               response: str = BTS) -> dict:
+    """The smallest and largest σt (``response``: the tensile strength; and σc/σt) the
+    models give over the parameter sets inside the bounds that meet the ``others``
+    targets (relative residuals <= ``tol``): SLSQP in the unit cube with those residuals
+    as equality constraints, from the given solutions and ``n_starts`` Latin-hypercube
+    points. ``{}`` if no start converges."""
+    from scipy.optimize import minimize
+
+    lo, width = space.lo, space.width
+    scale = np.abs(t_other)
+    m_bts = models[response]
+
+    def point(u):
+        return space.full(lo + np.clip(u, 0.0, 1.0) * width)
+
+    def cons(u):
+        p = point(u)
+        return np.array([models[r].predict(p) for r in others]) - t_other
+
+    def cons_jac(u):
+        return space.jacobian(models, others, lo + np.clip(u, 0.0, 1.0) * width) * width
+
+    def bts(u):
+        return float(m_bts.predict(point(u)))
+
+    def bts_grad(u):
+        return space.jacobian(models, [response], lo + np.clip(u, 0.0, 1.0) * width)[0] * width
+
+    starts = [space.u(x) for x in x_starts] + list(_lhs(n_starts, len(space.free), seed))
+    found = []
+    for sign in (1.0, -1.0):
+        for u0 in starts:
+            sol = minimize(lambda u: sign * bts(u), np.clip(u0, 0, 1), jac=lambda u: sign * bts_grad(u),
+                           method="SLSQP", bounds=[(0.0, 1.0)] * len(space.free),
+                           constraints=[{"type": "eq", "fun": cons, "jac": cons_jac}],
+                           options={"maxiter": 300, "ftol": 1e-12})
+            u = np.clip(sol.x, 0.0, 1.0)
+            if np.max(np.abs(cons(u)) / scale) <= tol:
+                p = point(u)
+                found.append((bts(u), float(models["ucs_MPa"].predict(p)) if "ucs_MPa" in models
+                              and "ucs_MPa" in others else math.nan))
+    if not found:
+        return {}
+    v = np.array(found)
+    out = {response: [float(v[:, 0].min()), float(v[:, 0].max())],
+           "met": list(others)}
+    if np.all(np.isfinite(v[:, 1])) and np.all(v[:, 0] > 0):
+        q = v[:, 1] / v[:, 0]
+        out["ucs_over_bts"] = [float(q.min()), float(q.max())]
+    return out
+

@@ -1,0 +1,102 @@
+"""The regression stage (``workflow/rules/analysis.smk``, ``bpmcal regress``): three-stage
+stepwise regression of the screened candidates -> models.json, the equations, summaries,
+coefficient and candidate tables, Table 4, the fit table and the predicted-vs-simulated
+figure; σt is regressed on the samples whose tensile test is valid.
+
+The stage reads the files it is given, checks them and its output paths before any work,
+and writes exactly the files it is given (``bpmcal.io.layout``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import params as P
+from ..analysis import StepwiseRegression
+from ..analysis._common import usable_rows
+from ..analysis.stepwise import combine as combine_regressions
+from ..io.atomic import write_text
+from ..io.checks import BadInput, read_json
+from ..io.figures import save_figure
+from ..io.provenance import provenance
+from ..io.tables import write_json, write_table
+from ..plots.calibration import fig_pred_vs_sim
+from ..study.gather import has_tensile, tensile_view
+from . import defaults_of
+from .inputs import CSV, JSON, MD, PNG, TXT, outputs, read_dataset, usable
+from .screening import _RESP_NAME, _TEST_NAME, tensile_note
+
+#: the defaults of the stage are those of the analysis it runs
+_REGR = defaults_of(StepwiseRegression)
+
+
+def regress(dataset, selected, *, models, equations, summaries, coefficients, candidates,
+            table4, fit_table, figure, alpha_in=_REGR["alpha_in"],
+            alpha_out=_REGR["alpha_out"], vif_max=_REGR["vif_max"],
+            hierarchy=_REGR["hierarchy"], cv_folds=_REGR["cv_folds"],
+            cv_repeats=_REGR["cv_repeats"], seed=_REGR["seed"]) -> dict:
+    """Three-stage stepwise regression of the screened candidates -> ``models`` (JSON),
+    ``equations`` (Markdown), ``summaries`` (text), the coefficient and candidate-term
+    tables, Table 4, the fit table (adjusted and CV R² per stage) and the
+    predicted-vs-simulated figure. Returns the note and the equations text."""
+    df = read_dataset(dataset, min_ok=max(cv_folds, 4))
+    sel = read_json(selected, "--selected")
+    if not isinstance(sel, dict) or not isinstance(sel.get("selected"), dict):
+        raise BadInput(f"--selected {selected}: not a selected.json of 'bpmcal screen' "
+                       "(no 'selected' mapping)")
+    outputs((models, "--models", JSON), (equations, "--equations", MD),
+            (summaries, "--summaries", TXT), (coefficients, "--coefficients", CSV),
+            (candidates, "--candidates", CSV), (table4, "--table4", CSV),
+            (fit_table, "--fit-table", CSV), (figure, "--figure", PNG))
+    note = usable(df)
+    reg = StepwiseRegression(alpha_in=alpha_in, alpha_out=alpha_out, vif_max=vif_max,
+                             hierarchy=hierarchy, cv_folds=cv_folds, cv_repeats=cv_repeats,
+                             seed=seed)
+    chosen = dict(sel["selected"])
+    tensile = {r: chosen.pop(r) for r in P.TENSILE_TESTS if r in chosen}  # own rows each
+    res = reg.fit(df, chosen)
+    for resp, terms in tensile.items():
+        test = P.TENSILE_TESTS[resp]
+        if not has_tensile(df, resp):
+            raise BadInput(f"--selected {selected} screens {resp}, but --dataset "
+                           f"{dataset} has no {_TEST_NAME[test]} columns ({resp}, "
+                           f"{test}_status)")
+        tv = tensile_view(df, resp)
+        n_t = usable_rows(tv, [*P.PARAMS, resp]).n_used
+        if n_t < max(cv_folds, 4):
+            note += (f"; {resp} not regressed: {n_t} samples have a valid "
+                     f"{_TEST_NAME[test]} test, at least {max(cv_folds, 4)} are needed")
+        else:
+            note += f"; {_RESP_NAME[resp]}: {tensile_note(tv, test)}"
+            res = combine_regressions(res, reg.fit(tv, {resp: terms}))
+    d = res.to_dict()
+    d["note"] = note
+    d["provenance"] = provenance({"dataset": str(dataset), "seed": seed})
+    write_json(models, d, indent=1)
+    write_table(res.table4_terms("retained"), table4)
+    write_table(res.table4_terms("candidates"), candidates)
+    write_table(res.fit_table(), fit_table)
+    write_table(res.to_frame(), coefficients)
+    eq = ["# Regression equations (physical units, paper style)", ""]
+    for stage in res.fit_table().index.get_level_values("stage").unique():
+        eq.append(f"## stage: {stage}")
+        for r, e in res.equations(stage=stage).items():
+            row = res.fit_table().loc[(r, stage)]
+            eq.append(f"- `{e}`  (adj. R² = {row['adj_r2']:.3f}, CV R² = "
+                      f"{row['cv_r2_mean']:.3f})")
+        eq.append("")
+    eq.append(note)
+    text = "\n".join(eq) + "\n"
+    write_text(equations, text)
+    write_text(summaries, res.summary() + "\n")
+    ok = df[df["status"] == "ok"]
+    fitted = [r for r in P.TENSILE_TESTS if r in res.models]
+    if fitted:  # sigma_t over the samples whose tensile test is valid
+        keep = df["status"] == "ok"
+        for r in fitted:
+            keep |= df[f"{P.TENSILE_TESTS[r]}_status"] == "ok"
+        ok = df[keep].copy()
+        ok.loc[ok["status"] != "ok", list(chosen)] = np.nan
+        for r in fitted:  # an invalid or failed test's value is not shown either
+            ok.loc[ok[f"{P.TENSILE_TESTS[r]}_status"] != "ok", r] = np.nan
+    save_figure(fig_pred_vs_sim(ok, res.predict(ok), res.fit_table()), figure)
+    return {"note": note, "equations": text}

@@ -1,0 +1,524 @@
+"""The verification stages (``workflow/rules/analysis.smk``): re-run the DEM with a card.
+
+- :func:`verify`: the closed loop (Newton-Broyden, seed-averaged) from a calibrated card
+  until every response is within the tolerance of the lab value or the rounds are used
+  up -> verified card, rounds table, the best round's run files;
+- :func:`seed_scatter`: one card, several packing seeds -> run files and the scatter
+  table (:func:`bpmcal.analysis.calibration.scatter_table`);
+- :func:`verification_tables`: Tables 5 and 6 and Fig. 6 from the verified cards.
+
+:func:`_dem_loop` runs the closed loop on the DEM (the UCS test, and the tensile test of
+a σt target: :func:`valid_tensile_run`); :mod:`.transfer` and :mod:`.holdout` reuse it and
+the helpers here. The DEM runners (``run_ucs_file``, ``run_bts_file``, ``run_dtt_file``)
+are looked up in this module. Method: ``docs/methods/calibration.md`` ("Closed loop").
+"""
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .. import params as P
+from ..analysis import ClosedLoop, scatter_table
+from ..analysis.calibration import BTS, TENSILE
+from ..io.card import card_parameters, read_card, write_card
+from ..io.checks import BadInput
+from ..io.figures import save_figure
+from ..io.h5 import read_series
+from ..io.tables import write_table
+from ..lab.brazilian import BTSSettings
+from ..lab.budget import check_budget
+from ..lab.direct_tension import DTTSettings
+from ..lab.runner import bts_geometry as _isrm_disc
+from ..lab.runner import bts_inputs, ucs_inputs
+from ..plots.calibration import fig_stress_strain
+from . import defaults_of
+from .inputs import CSV, H5, PNG, YAML, output_dirs, outputs, read_lab, read_models
+from .runs import run_bts_file, run_dtt_file, run_ucs_file, write_failure
+
+#: the defaults of the stages are those of the analysis they run
+_LOOP = defaults_of(ClosedLoop)
+
+#: responses a verified card records per round besides the targets
+_EXTRA = ("u_pre_MJm3", "peak_strain", "cracks_tension", "cracks_shear")
+
+
+def _responses(rows: list[dict], targets: dict) -> dict:
+    """The seed mean of every response over the runs of one round (``rows``: one summary
+    per seed), its seed spread (``seed_sd``, ``seed_cv``: sample standard deviation and
+    coefficient of variation, NaN with one seed), ``n_seeds`` and the errors of the mean
+    in % of the lab value. σt (``bts_MPa``) is among them when it is a target."""
+    ok = [r for r in rows if r.get("status") == "ok"]
+    scattered = [*P.TARGETS, *(r for r in TENSILE if r in targets)]
+    d, sd, cv = {}, {}, {}
+    for k in [*scattered, *_EXTRA]:
+        v = np.array([float(r.get(k, math.nan)) for r in ok], float)
+        v = v[np.isfinite(v)] if k in TENSILE else v  # an invalid test is no measurement
+        d[k] = float(v.mean()) if len(v) else math.nan
+        if k in scattered:
+            sd[k] = float(v.std(ddof=1)) if len(v) > 1 else math.nan
+            cv[k] = sd[k] / abs(d[k]) if len(v) > 1 and d[k] != 0 else math.nan
+    d["errors_pct"] = {k: 100 * (d[k] / v - 1) for k, v in targets.items()}
+    d["seed_sd"], d["seed_cv"] = sd, cv
+    d["n_seeds"] = len(ok)
+    d["seeds"] = [int(r["seed"]) for r in rows]
+    d["run_status"] = "ok" if ok and len(ok) == len(rows) else "failed"
+    return d
+
+
+def _missed(resp: dict, targets: dict, rtol: float) -> list[dict]:
+    """Every target the DEM misses by more than ``rtol``: target, value, dem, error_pct."""
+    return [{"target": k, "value": v, "dem": resp[k], "error_pct": resp["errors_pct"][k]}
+            for k, v in targets.items()
+            if not abs(resp["errors_pct"][k]) <= 100 * rtol]  # NaN (a failed run) is missed
+
+
+def disc_geometry(geometry):
+    """The Brazilian disc (ISRM 50 x 25 mm) at the scale and with the genesis options of
+    the UCS cylinder ``geometry``."""
+    return _isrm_disc(scale=geometry.scale, sigma0_MPa=geometry.sigma0_MPa,
+                      install_gap_mm=geometry.install_gap_mm,
+                      relax_ratio=geometry.relax_ratio, genesis=geometry.genesis)
+
+
+#: an invalid Brazilian test (its fracture did not start in the central zone) is no
+#: measurement: the closed loop and the fresh-seed check run the disc again on the next
+#: replacement seeds, seed + k x BTS_REPLACEMENT_STRIDE (k = 1, 2, ...), at most
+#: BTS_MAX_REPLACEMENTS times, before σt of that seed counts as a failed measurement
+BTS_REPLACEMENT_STRIDE = 100_000
+BTS_MAX_REPLACEMENTS = 3
+
+
+def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, settings, *,
+                      max_replacements: int = BTS_MAX_REPLACEMENTS, **kw):
+    """A tensile test (``test``: "bts", the Brazilian disc ``geometry``; "dtt", the
+    direct-tension cylinder) of ``params`` on packing ``seed`` that measures σt: an
+    invalid run (``<test>_valid`` false) is replaced by the specimen of the next
+    replacement seed (``seed + k x BTS_REPLACEMENT_STRIDE``), up to ``max_replacements``
+    times; a failed run (instability, genesis) is not replaced (it is a failure, not a
+    measurement of the wrong thing). ``path_of(seed, k)`` names the run file of attempt
+    k. Returns (the outcome used, the packing seed it ran on, the reasons of the invalid
+    attempts); the outcome has ``<test>_MPa`` NaN when every attempt was invalid."""
+    run_file = run_bts_file if test == "bts" else run_dtt_file
+    invalid = []
+    for k in range(max_replacements + 1):
+        s = int(seed) + k * BTS_REPLACEMENT_STRIDE
+        b = run_file(path_of(s, k), params, s, geometry, settings, **kw)
+        if b.status != "ok" or b.summary.get(f"{test}_valid", True):
+            return b, s, invalid
+        invalid.append(f"seed {s}: {b.summary.get(f'{test}_invalid_reason', 'invalid')}")
+    return b, s, invalid
+
+
+def valid_bts_run(path_of, params: dict, seed: int, disc, settings, **kw):
+    """:func:`valid_tensile_run` of the Brazilian test."""
+    return valid_tensile_run("bts", path_of, params, seed, disc, settings, **kw)
+
+
+def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, geometry,
+              settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
+              free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
+              jacobian=None, range_margin=0.0, polish=True, cylinder=None,
+              dtt_settings=None):
+    """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
+    into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
+    ``disc`` with the same seed; the first seed's run files of the best round become
+    ``run`` and ``bts_run``). The first step follows the regression models' Jacobian, or
+    ``jacobian`` (responses x free parameters, physical units) when given.
+    Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
+    ratio = c.get("ratio_ten_coh")
+    with_bts = BTS in targets
+    by_round: list[list[dict]] = []
+    paths: list[list[Path]] = []
+    bts_paths: list[list[Path]] = []
+    folder = Path(run).parent
+    tmpdir = tempfile.mkdtemp(prefix=f".{Path(run).stem}.rounds.", dir=folder)
+    try:
+        last: list[dict] = []
+
+        def simulate(params: dict, seed: int) -> dict:
+            if not last or params != last[0]:  # a new point: a new round (grown seeds join theirs)
+                last[:] = [dict(params)]
+                by_round.append([])
+                paths.append([])
+                bts_paths.append([])
+            k = len(by_round)
+            res = run_ucs_file(Path(tmpdir) / f"round{k}_seed{seed}.h5", params, seed,
+                               geometry, settings, cache=cache, threads=threads,
+                               progress=progress, genesis_max_steps=genesis_max_steps)
+            row = dict(res.summary, status=res.status, seed=seed)
+            paths[-1].append(res.path)
+            out = ({r: float(res.summary[r]) for r in targets if r not in TENSILE}
+                   if res.status == "ok" else
+                   {r: math.nan for r in targets if r not in TENSILE})
+            for resp in (r for r in TENSILE if r in targets):  # σt: a valid test, or NaN
+                test = P.TENSILE_TESTS[resp]
+                geo, st = (disc, bts_settings) if test == "bts" else (cylinder, dtt_settings)
+                b, used, invalid = valid_tensile_run(
+                    test, lambda s, j, t=test: Path(tmpdir) / f"round{k}_seed{seed}.{t}{j}.h5",
+                    params, seed, geo, st, cache=cache, threads=threads, progress=progress,
+                    genesis_max_steps=genesis_max_steps)
+                if test == "bts":
+                    bts_paths[-1].append(b.path)
+                row[resp] = float(b.summary[resp]) if b.status == "ok" else math.nan
+                row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
+                if b.status != "ok" or not math.isfinite(row[resp]):
+                    row["status"] = "failed"
+                out[resp] = row[resp]
+            by_round[-1].append(row)
+            return out
+
+        free = free or [k for k, v in c["roles"].items() if v == "free"]
+        jac = None if jacobian is None else pd.DataFrame.from_dict(jacobian, orient="index")
+        if jac is not None and not (set(targets) <= set(jac.index) and set(free) <= set(jac.columns)
+                                    and np.isfinite(jac.loc[list(targets), list(free)]
+                                                    .to_numpy(float)).all()):
+            jac = None  # learned for other targets or parameters: start from the models
+        loop = ClosedLoop(simulate, targets, free=free, ratio=ratio,
+                          models=model_set if jac is None else None, jacobian=jac,
+                          rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
+                          bounds=c.get("calibration_bounds") or None, seeds=list(seeds),
+                          max_seeds=max_seeds, margin=range_margin, polish=polish)
+        res = loop.run(params)
+        best = res.best_round  # converged, else the smallest max |error| of the seed mean
+        os.replace(paths[best][0], run)  # the best round's first seed is the run file
+        if bts_run is not None and with_bts:
+            os.replace(bts_paths[best][0], bts_run)
+    finally:
+        for f in Path(tmpdir).glob("*"):
+            f.unlink()
+        os.rmdir(tmpdir)
+    return res, by_round, best
+
+
+# long: the stage's reference docstring (54 lines, the card's verification section); the code is ~60 lines
+def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
+           seeds_per_round=3, rtol=_LOOP["rtol"], max_rounds=_LOOP["max_rounds"], cache=None,
+           threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
+           mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
+           bts_run=None, max_seeds=10, range_margin=0.25, polish=True, dtt_geometry=None,
+           dtt_settings=None) -> dict:
+    """Closed-loop verification of one material card: round 1 is the paper's single pass
+    (the regression's answer), later rounds correct the free parameters with a
+    Newton-Broyden step until every response is within the tolerance of the lab value,
+    or ``max_rounds`` rounds are used up. Every round runs the candidate on
+    ``seeds_per_round`` packing seeds (``seed``, ``seed + 1``, ...) and steers their mean;
+    a target is met when the mean lies within max(``rtol``, 2 standard errors of the
+    mean) of it (:class:`~bpmcal.analysis.ClosedLoop`), so the loop fits the rock, not
+    one packing. A round costs ``seeds_per_round`` DEM runs. The seed set grows to
+    ``max_seeds`` seeds (``seed + seeds_per_round``, ...; at most ``seeds_per_round``:
+    no growth) once the means are within tolerance but their standard errors are too
+    large to state them to ``rtol``, so the card is judged, and steered, on the mean of
+    more packings (a fixed few packings' mean is itself off the rock's by ~CV/sqrt(k));
+    later rounds run the grown set.
+
+    Writes the verified card (``out_card``; per round shown, the seed mean of every
+    response, its seed standard deviation ``seed_sd`` and coefficient of variation
+    ``seed_cv``, and ``n_seeds``), the rounds table (``rounds``: parameters, seed means,
+    seed CVs, standard errors, tolerances, errors and step of every round) and ``run``,
+    the run file of the best round's first seed (each run goes to a temporary file; any
+    run can be redone with ``bpmcal ucs --params ... --seed``, the runs being
+    deterministic). The loop stays inside the card's bounds (its design ``ranges``,
+    narrowed by its ``calibration_bounds``), each design range widened by
+    ``range_margin`` of its width (config ``verification.range_margin``; never past a
+    ``calibration_bounds`` narrowing or the parameter's physical domain): the regression
+    only starts the loop, every round measures the DEM, so the loop may follow a target
+    just outside the sampled space. The card records the bounds searched
+    (``verification.loop_bounds``) and every parameter that ended outside its design range
+    (``verification.outside_design``: value and range; the message says so too). The card
+    records ``calibrated_at_scale``, the specimen scale the loop ran at. With ``polish``
+    (config ``verification.polish``) a loop that converges with some mean more than one
+    standard error from its target takes one more full Newton step towards the targets on
+    the same seeds, if a round is left; that round is the card's when it is within
+    tolerance too (:class:`~bpmcal.analysis.ClosedLoop`).
+
+    A card whose inversion is ``unreachable`` is not a calibration: unless
+    ``from_unreachable`` (config ``verification.from_unreachable``) the DEM is not run, the
+    verified card says so (``verification.status: not-run`` with the reason and what to
+    widen), ``rounds`` has its header only and ``run`` is a failure record ("not run: ...").
+    Returns the verified card.
+
+    Every target of the card is verified: a card with a tensile-strength target
+    (``bts_MPa``) runs, in every round, a Brazilian test beside the UCS test (the same
+    packing seed; the disc ``bts_geometry``, default the ISRM disc at the cylinder's scale
+    and genesis options, :func:`disc_geometry`; loading ``bts_settings``, default
+    ``BTSSettings()``), and the loop steers σt with the other responses; ``bts_run``
+    (optional) receives the best round's Brazilian run file (a failure record when the
+    card has no σt target). A card with a direct-tension target (``dtt_MPa``) runs the
+    direct-tension test instead, on the cylinder ``dtt_geometry`` (default the UCS
+    cylinder) with ``dtt_settings``. An invalid tensile test (its fracture at a contact
+    or a grip) is no measurement: that seed's test is run again on replacement seeds
+    (:func:`valid_tensile_run`), and the round fails only when none is valid. The verified
+    card lists every target the best round misses by more than ``rtol``
+    (``verification.missed``: target, lab value, DEM value, error in %); it is empty only
+    when all are met."""
+    c = read_card(card, "--card", need=("parameters", "targets", "roles"))
+    if "ranges" not in c:
+        raise P.ParameterError(f"--card {card}: the card has no 'ranges' (the design space); "
+                               "rerun the calibrate step")
+    if isinstance(seeds_per_round, bool) or not isinstance(seeds_per_round, int) \
+            or seeds_per_round < 1:
+        raise BadInput(f"--seeds-per-round {seeds_per_round!r}: expected an integer >= 1")
+    model_set = read_models(models)
+    targets = {k: float(v) for k, v in c["targets"].items()}
+    disc = bts_geometry or disc_geometry(geometry)
+    bts_settings = bts_settings or BTSSettings()
+    cylinder = dtt_geometry or geometry
+    dtt_settings = dtt_settings or DTTSettings()
+    _check_verify_inputs(card, models, c, model_set, targets, geometry, disc, cylinder,
+                         max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5),
+            (bts_run, "--bts-run", H5))
+    output_dirs((cache, "--specimen-cache"))
+    if isinstance(max_seeds, bool) or not isinstance(max_seeds, int) or max_seeds < 1:
+        raise BadInput(f"--max-seeds {max_seeds!r}: expected an integer >= 1")
+    max_seeds = max(max_seeds, seeds_per_round)
+    range_margin = _check_margin(range_margin)
+    seeds = [int(seed) + i for i in range(seeds_per_round)]
+    if c.get("status") == "unreachable" and not from_unreachable:
+        reason = ("the calibration is unreachable, so the closed loop did not start from it "
+                  "(verification.from_unreachable: false); " + str(c.get("message", "")))
+        section = {
+            "status": "not-run", "message": reason, "rounds": 0, "rtol": rtol, "seed": seed,
+            "seeds": seeds, "n_seeds": seeds_per_round, "max_seeds": max_seeds,
+            "best_round": None, "single_pass": None, "closed_loop": None, "parameters": None,
+            "widen": c.get("widen", []), "geometry": geometry.to_dict()}
+        return _not_run(c, out_card, "verification", section, rounds=rounds, run=run,
+                        error=f"not run: {reason}", params=c["parameters"], seed=seed,
+                        geometry=geometry, settings=settings, bts_run=bts_run, disc=disc,
+                        bts_settings=bts_settings)
+    res, by_round, best = _dem_loop(
+        c, model_set, targets, params=c["parameters"], run=run, seeds=seeds,
+        geometry=geometry, settings=settings, rtol=rtol, max_rounds=max_rounds, cache=cache,
+        threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
+        disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
+        range_margin=range_margin, polish=bool(polish), cylinder=cylinder,
+        dtt_settings=dtt_settings)
+    write_table(res.history, rounds, index=False)
+    verified = dict(c)
+    verified.update({
+        "calibrated_at_scale": float(geometry.scale),
+        "verification": _verification_section(
+            c, res, by_round, best, targets, rtol=rtol, seed=seed, seeds=seeds,
+            seeds_per_round=seeds_per_round, max_seeds=max_seeds, polish=polish,
+            geometry=geometry, range_margin=range_margin, disc=disc, cylinder=cylinder)})
+    write_card(out_card, verified)
+    if bts_run is not None and BTS not in targets:
+        write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
+                                                             bts_settings),
+                      error="not run: the card has no tensile-strength target (bts_MPa)")
+    return verified
+
+
+def _check_verify_inputs(card, models, c: dict, model_set, targets: dict, geometry, disc, cylinder, *,
+                         max_balls, mem_budget_mb) -> None:
+    """The checks :func:`verify` makes before any output: a model of every tensile target,
+    a Brazilian disc 3 of the largest balls across, and every specimen within the budget."""
+    with_bts = BTS in targets
+    with_dtt = "dtt_MPa" in targets
+    if with_dtt and "dtt_MPa" not in model_set:
+        raise BadInput(f"--card {card}: a direct-tension target (dtt_MPa) but --models "
+                       f"{models} has no model of dtt_MPa")
+    if with_bts and BTS not in model_set:
+        raise BadInput(f"--card {card}: a tensile-strength target (bts_MPa) but --models "
+                       f"{models} has no model of bts_MPa")
+    if with_bts:  # the disc must hold 3 of the largest balls across, for every round
+        rmin = (max(c["ranges"]["rmin_mm"]) if c["roles"].get("rmin_mm") == "free"
+                else float(c["parameters"]["rmin_mm"]))
+        rmax = P.RADIUS_RATIO * rmin
+        dd, tt = disc.diameter_mm * disc.scale, disc.height_mm * disc.scale
+        if min(dd, tt) < 6 * rmax:
+            raise BadInput(f"--card {card}: a tensile-strength target (bts_MPa), but the "
+                           f"Brazilian disc at scale {disc.scale:g} ({dd:g} x {tt:g} mm) is "
+                           f"less than 3 ball diameters across for Rmax = {rmax:g} mm: use "
+                           "a larger --scale")
+    if max_balls is not None:
+        check_budget(c["parameters"], geometry, max_balls=max_balls,
+                     mem_budget_mb=mem_budget_mb)
+        if with_bts:
+            check_budget(c["parameters"], disc, max_balls=max_balls,
+                         mem_budget_mb=mem_budget_mb)
+        if with_dtt:
+            check_budget(c["parameters"], cylinder, max_balls=max_balls,
+                         mem_budget_mb=mem_budget_mb)
+
+
+def _not_run(c: dict, out_card, key: str, section: dict, *, rounds, run, error: str, params: dict,
+             seed, geometry, settings, bts_run=None, disc=None, bts_settings=None) -> dict:
+    """A stage whose closed loop does not run (:func:`verify` from an unreachable card,
+    :mod:`.transfer` from a card whose loop did not run): the rounds table with its header
+    only, failure records (``error``) for the run files, and the card with its ``key``
+    section; returns the card."""
+    write_table(pd.DataFrame(columns=["round"]), rounds, index=False)
+    write_failure(run, test="ucs", inputs=ucs_inputs(params, seed, geometry, settings), error=error)
+    if bts_run is not None:
+        write_failure(bts_run, test="bts", inputs=bts_inputs(params, seed, disc, bts_settings),
+                      error=error)
+    out = dict(c)
+    out[key] = section
+    write_card(out_card, out)
+    return out
+
+
+def _verification_section(c: dict, res, by_round: list, best: int, targets: dict, *, rtol, seed, seeds,
+                          seeds_per_round, max_seeds, polish, geometry, range_margin, disc,
+                          cylinder) -> dict:
+    """The verified card's ``verification`` section from the closed loop's result ``res``
+    and its rounds' seed summaries ``by_round`` (``best``: the card's round)."""
+    message = res.message + _outside_text(res.outside, range_margin)
+    if c.get("status") == "unreachable":
+        message = ("started from an unreachable calibration at the user's request "
+                   f"(verification.from_unreachable: true): {message}")
+    v = {
+        "status": res.status, "message": message, "rounds": len(by_round),
+        "runs": sum(len(r) for r in by_round), "rtol": rtol, "seed": seed,
+        "seeds": [int(x) for x in res.seeds], "n_seeds": int(res.n_seeds),
+        "seeds_per_round": seeds_per_round, "max_seeds": max_seeds, "polish": bool(polish),
+        "best_round": best + 1, "run_seed": seeds[0],
+        "jacobian": {r: {p: float(x) for p, x in row.items()}
+                     for r, row in res.jacobian.iterrows()},
+        "single_pass": _responses(by_round[0], targets),
+        "closed_loop": _responses(by_round[best], targets),
+        "parameters": {k: float(v) for k, v in res.params.items() if k in P.PARAMS},
+        "geometry": geometry.to_dict(), **_loop_box(res, range_margin),
+    }
+    v["missed"] = _missed(v["closed_loop"], targets, rtol)
+    if BTS in targets:
+        v["bts_geometry"] = disc.to_dict()
+    if "dtt_MPa" in targets:
+        v["dtt_geometry"] = cylinder.to_dict()
+    return v
+
+
+def _check_margin(margin) -> float:
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) \
+            or not (math.isfinite(margin) and 0 <= margin <= 1):
+        raise BadInput(f"--range-margin {margin!r}: expected a fraction of a range's width "
+                       "in [0, 1]")
+    return float(margin)
+
+
+def _loop_box(res, margin: float) -> dict:
+    """The card's record of the closed loop's bounds and what ended outside the design."""
+    return {"range_margin": margin,
+            "loop_bounds": {p: [float(a), float(b)] for p, (a, b) in res.loop_bounds.items()},
+            "outside_design": {p: dict(v) for p, v in res.outside.items()}}
+
+
+def _outside_items(outside: dict) -> str:
+    """``pb_kratio 5.58 outside its range 1-5; ...`` for a card's ``outside_design``."""
+    return "; ".join(f"{p} {v['value']:.3g} outside its range {v['range'][0]:g}-{v['range'][1]:g}"
+                     for p, v in outside.items())
+
+
+def _outside_text(outside: dict, margin: float) -> str:
+    if not outside:
+        return ""
+    return (f"; outside the design space (range margin {margin:g}): {_outside_items(outside)}"
+            " - the DEM was run there, the regression never sampled it")
+
+
+def seed_scatter(card, *, runs, seeds, seed_runs, table, geometry, settings, rtol=_LOOP["rtol"],
+                 cache=None, threads=None, max_balls=None, mem_budget_mb=None,
+                 genesis_max_steps=None) -> pd.DataFrame:
+    """One parameter set (a card's: :func:`card_parameters`, i.e. the closed loop's of a
+    verified card, the transfer's of a transferred one), several packing seeds
+    (``runs[i]`` is the run file of ``seeds[i]``): the scatter of the DEM responses
+    (``seed_runs``: one row per seed; ``table``: coefficient of variation and noise floor
+    per response), and whether the closed-loop tolerance is below it."""
+    c = read_card(card, "--card", need=("parameters", "specimen"))
+    params = card_parameters(c)
+    if len(runs) != len(seeds):
+        raise BadInput(f"--runs: {len(runs)} run file(s) for {len(seeds)} seed(s); expected "
+                       "one per seed, in the order of --seeds")
+    if max_balls is not None:
+        check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    outputs(*((r, "--runs", H5) for r in runs), (seed_runs, "--seed-runs", CSV),
+            (table, "--table", CSV))
+    output_dirs((cache, "--specimen-cache"))
+    rows = []
+    for s, f in zip(seeds, runs):
+        out = run_ucs_file(f, params, int(s), geometry, settings, cache=cache,
+                           threads=threads, keep_particles=False,
+                           genesis_max_steps=genesis_max_steps)
+        r = dict(out.summary, status=out.status)
+        rows.append({"seed": s, "status": r["status"],
+                     **{k: r.get(k, math.nan) for k in (*P.TARGETS, "u_pre_MJm3")}})
+    done = pd.DataFrame(rows)
+    write_table(done, seed_runs, index=False)
+    sc = scatter_table(done[done["status"] == "ok"], rtol=rtol)
+    sc.insert(0, "specimen", c["specimen"])
+    write_table(sc, table)
+    return sc
+
+
+def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
+    """Tables 5 and 6 and Fig. 6 from the verified cards and their best rounds' run files
+    (``runs[i]`` belongs to ``cards[i]``). Table 5 holds the seed mean of every response
+    (single pass and closed loop), its seed standard deviation (``_sd``) and CV
+    (``_cv_pct``), the error of the mean and ``n_seeds``. A card whose closed loop did not run
+    (``not-run``) keeps its row, with empty responses, status ``not-run`` and the reason in
+    ``note``; its Fig. 6 panel says why it has no curve. When some card has a tensile
+    strength target, Table 5 also has the σt columns (empty for the specimens without
+    one) and ``missed``: every target the closed loop misses by more than its tolerance,
+    with the error in %."""
+    if len(runs) != len(cards):
+        raise BadInput(f"--runs: {len(runs)} run file(s) for {len(cards)} card(s); expected "
+                       "one per card, in the same order")
+    loaded = [read_card(c, "--cards", need=("specimen", "parameters", "targets",
+                                            "verification", "lab")) for c in cards]
+    lab_df = read_lab(lab)
+    outputs((table5, "--table5", CSV), (table6, "--table6", CSV), (figure, "--figure", PNG))
+    t5, t6, curves = [], [], {}
+    tensile = [r for r in TENSILE if any(r in c["targets"] for c in loaded)]
+    for c, run in zip(loaded, runs):
+        spec = str(c["specimen"])
+        v = c["verification"]
+        row = {"specimen": spec}
+        ran = v["status"] != "not-run"
+        for which in ("single_pass", "closed_loop"):
+            r = v[which] if ran else None
+            for k in P.TARGETS:
+                row[f"{which}_{k}"] = r[k] if ran else math.nan
+                sd = (r.get("seed_sd") or {}).get(k) if ran else None
+                cv = (r.get("seed_cv") or {}).get(k) if ran else None  # None: one seed (NaN)
+                row[f"{which}_{k}_sd"] = math.nan if sd is None else float(sd)
+                row[f"{which}_{k}_cv_pct"] = math.nan if cv is None else 100 * float(cv)
+                row[f"{which}_{k}_err_pct"] = r["errors_pct"][k] if ran else math.nan
+        for k in P.TARGETS:
+            row[f"lab_{k}"] = c["targets"][k]
+        row["n_seeds"] = v.get("n_seeds", 1)
+        row["rounds"] = v["rounds"]
+        row["status"] = v["status"]
+        row["calibration_status"] = c.get("status")
+        row["note"] = v["message"] if not ran else _outside_items(v.get("outside_design") or {})
+        for resp in tensile:
+            has = resp in c["targets"]
+            for which in ("single_pass", "closed_loop"):
+                row[f"{which}_{resp}"] = v[which][resp] if ran and has else math.nan
+                row[f"{which}_{resp}_err_pct"] = (v[which]["errors_pct"][resp] if ran and has
+                                                  else math.nan)
+                cv = (v[which].get("seed_cv") or {}).get(resp) if ran and has else None
+                row[f"{which}_{resp}_cv_pct"] = math.nan if cv is None else 100 * float(cv)
+            row[f"lab_{resp}"] = c["targets"][resp] if has else math.nan
+        if tensile:
+            row["missed"] = "; ".join(f"{m['target']} {m['error_pct']:+.2f} %"
+                                      for m in v.get("missed") or [])
+        t5.append(row)
+        up_lab = c["lab"].get("u_pre_MJm3")
+        up_sim = v["closed_loop"]["u_pre_MJm3"] if ran else math.nan
+        t6.append({"specimen": spec, "sim_Up_MJm3": up_sim, "lab_Up_MJm3": up_lab,
+                   "rel_error_pct": (100 * abs(up_sim - up_lab) / up_lab
+                                     if up_lab and ran else math.nan),
+                   "sim_peak_strain": v["closed_loop"]["peak_strain"] if ran else math.nan})
+        curves[spec] = read_series(run) if ran else f"not run: {c.get('status')} calibration"
+    t5 = pd.DataFrame(t5).set_index("specimen")
+    t6 = pd.DataFrame(t6).set_index("specimen")
+    write_table(t5, table5)
+    write_table(t6, table6)
+    save_figure(fig_stress_strain(curves, lab_df), figure)
+    return {"table5": t5, "table6": t6}
