@@ -46,7 +46,8 @@ ALLOWED = [
     (r"~1 min|about a minute", "the smoke study's order of magnitude, a design goal of CI"),
     (r"2 × the seed CV", "the transfer's tolerance (its formula)"),
     (r"0\.8 × the minimum", "PFC's timestep safety factor"),
-    (r"95 % intervals", "the bootstrap intervals' level (a method choice)"),
+    (r"95 % intervals|default 2\.5-97\.5 %", "the bootstrap intervals' level (a method choice)"),
+    (r"\(default 2 %\) of a range", "the inversion's distinct-solution distance (a default)"),
 ]
 ALLOWED_RE = re.compile("|".join(f"(?:{p})" for p, _ in ALLOWED))
 
