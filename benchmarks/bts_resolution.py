@@ -1,7 +1,7 @@
 """sigma_t of a Brazilian disc against its resolution, and the loading that makes a valid
 test the rule: the measurement record behind the study's ``bts`` settings.
 
-Two parts, each a JSON record (date, commit, CPU model, load average, the command):
+Three parts, each a JSON record (date, commit, CPU model, load average, the command):
 
 - ``curve``: the paper's A1 card on discs of ``--scales`` (the ISRM 50 x 25 mm disc x
   scale) and packing ``--seeds``, with the config's ``bts`` settings: per size the balls
@@ -12,11 +12,15 @@ Two parts, each a JSON record (date, commit, CPU model, load average, the comman
   ISRM jaws, with and without contact caps): A1 on ``--a1-seeds`` (valid fraction and
   sigma_t seed CV) and ``--design-samples`` design samples of the config (valid fraction,
   how far the caps move sigma_t).
+- ``dtt``: the direct-tension test of A1 on the UCS cylinder (the config's ``dtt``
+  settings), its sigma_t, seed CV and cost, for comparison.
 
     python benchmarks/bts_resolution.py curve --scales 0.4,0.55,0.7,0.85,1.0 \\
         --seeds 1,2,3,4,5 --out benchmarks/results_bts_resolution_DATE.json
     python benchmarks/bts_resolution.py loadings --a1-seeds 1,...,10 \\
         --design-samples 12 --out benchmarks/results_bts_loadings_DATE.json
+    python benchmarks/bts_resolution.py dtt --seeds 1,...,8 \\
+        --out benchmarks/results_bts_dtt_DATE.json
     python benchmarks/bts_resolution.py markdown RECORD.json [RECORD.json ...] \\
         --out docs/measurements/DATE-bts-resolution.md
 
@@ -88,6 +92,45 @@ def _run(job):
             "bts_peak_MPa": s["bts_peak_MPa"], "bts_MPa": s["bts_MPa"],
             "init_offset": s["init_offset"], "reason": s["bts_invalid_reason"],
             "steps": s["steps"], "contact_events": s["contact_events"]}
+
+
+def _run_dtt(job):
+    """One direct-tension test: (params, seed, scale, cfg) -> its summary numbers."""
+    params, seed, scale, cfg, cache = job
+    from dataclasses import fields
+
+    from bpmcal.lab.direct_tension import DTTSettings
+    from bpmcal.lab.runner import Geometry, dtt_test
+
+    sp, d = cfg["specimen"], cfg["dtt"]
+    names = {f.name for f in fields(DTTSettings)}
+    st = DTTSettings(**{k: v for k, v in d.items() if k in names})
+    geo = Geometry(scale=scale, diameter_mm=sp["diameter_mm"], height_mm=sp["height_mm"],
+                   sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
+                   relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
+    c0 = time.process_time()
+    s = dtt_test(params, seed, geo, st, cache=cache, threads=1, keep_particles=False).summary
+    r = {"label": "A1", "seed": seed, "scale": scale, "variant": "dtt",
+         "cpu_s": time.process_time() - c0, "n_balls": s["n_balls"],
+         "balls_across": s["balls_across"], "bts_valid": bool(s["dtt_valid"]),
+         "bts_peak_MPa": s["dtt_peak_MPa"], "bts_MPa": s["dtt_MPa"],
+         "fracture_height": s["fracture_height"], "reason": s["dtt_invalid_reason"],
+         "E_t_GPa": s["E_t_GPa"], "steps": s["steps"]}
+    print(f"A1 dtt scale {scale:g} seed {seed}: {r['bts_peak_MPa']:.3f} MPa, valid "
+          f"{r['bts_valid']}, CPU {r['cpu_s']:.1f} s", flush=True)
+    return r
+
+
+def dtt(a, argv) -> dict:
+    cfg = _config(a.config)
+    meta = _meta(argv)
+    scale = cfg["dtt"]["scale"] or cfg["specimen"]["scale"]
+    seeds = [int(x) for x in a.seeds.split(",")]
+    with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(max_workers=a.jobs) as ex:
+        rows = list(ex.map(_run_dtt, [(dict(A1), s, scale, cfg, str(Path(tmp) / "c"))
+                                      for s in seeds]))
+    return {**meta, "part": "dtt", "config": str(a.config), "dtt": cfg["dtt"], "scale": scale,
+            "load_average_end": os.getloadavg(), "stats": _stats(rows), "runs": rows}
 
 
 def _pool(jobs, n):
@@ -183,7 +226,7 @@ def loadings(a, argv) -> dict:
 
 
 #: the JSON record of each part
-_STEM = {"loadings": "loadings", "curve": "resolution"}
+_STEM = {"loadings": "loadings", "curve": "resolution", "dtt": "dtt"}
 
 
 def markdown(records: list[dict], title: str | None = None) -> str:
@@ -208,6 +251,16 @@ def markdown(records: list[dict], title: str | None = None) -> str:
                     f"{s['n_balls']:.0f} | {s['n']} | {s['n_valid']} | "
                     f"{s['sigma_t_mean_MPa']:.2f} | {100 * s['seed_cv']:.1f} % | "
                     f"{s['cpu_s_median']:.1f} |")
+        elif rec["part"] == "dtt":
+            st = rec["stats"]
+            lines += ["The direct-tension test of the A1 card on the UCS cylinder (the study's "
+                      "dtt settings), for comparison with the Brazilian disc.", "",
+                      "| scale | balls across | balls | runs | valid | σt mean of the valid "
+                      "(MPa) | seed CV | CPU s per run (median) |",
+                      "|---|---|---|---|---|---|---|---|",
+                      f"| {rec['scale']:g} | {st['balls_across']:.1f} | {st['n_balls']:.0f} | "
+                      f"{st['n']} | {st['n_valid']} | {st['sigma_t_mean_MPa']:.2f} | "
+                      f"{100 * st['seed_cv']:.1f} % | {st['cpu_s_median']:.1f} |"]
         else:
             lines += [f"Disc scale {rec['scale']:g}; design samples "
                       f"{', '.join(rec['design_samples'])}.", "",
@@ -230,10 +283,12 @@ def main(argv=None) -> int:
     c = sub.add_parser("curve")
     c.add_argument("--scales", default="0.4,0.55,0.7,0.85,1.0")
     c.add_argument("--seeds", default="1,2,3,4,5")
+    dd = sub.add_parser("dtt")
+    dd.add_argument("--seeds", default="1,2,3,4,5,6,7,8")
     lo = sub.add_parser("loadings")
     lo.add_argument("--a1-seeds", default="1,2,3,4,5,6,7,8,9,10")
     lo.add_argument("--design-samples", type=int, default=12)
-    for p in (c, lo):
+    for p in (c, lo, dd):
         p.add_argument("--config", default=str(CONFIG))
         p.add_argument("--jobs", type=int, default=2)
         p.add_argument("--out", default=None, help="write the JSON record here")
@@ -249,7 +304,7 @@ def main(argv=None) -> int:
             Path(a.out).write_text(text)
         print(text)
         return 0
-    rec = curve(a, argv) if a.part == "curve" else loadings(a, argv)
+    rec = {"curve": curve, "loadings": loadings, "dtt": dtt}[a.part](a, argv)
     text = json.dumps(rec, indent=1, default=float)
     if a.out:
         Path(a.out).write_text(text + "\n")

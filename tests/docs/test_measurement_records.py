@@ -15,7 +15,8 @@ import bts_resolution  # noqa: E402
 def test_the_tensile_strength_record_is_its_json_rendered():
     page = REPO / "docs" / "measurements" / "2026-11-26-tensile-strength.md"
     recs = [json.loads((REPO / "benchmarks" / f).read_text()) for f in (
-        "results_bts_loadings_2026-11-26.json", "results_bts_resolution_2026-11-26.json")]
+        "results_bts_loadings_2026-11-26.json", "results_bts_resolution_2026-11-26.json",
+        "results_bts_dtt_2026-11-26.json")]
     title = page.read_text().splitlines()[0][2:]
     assert page.read_text() == bts_resolution.markdown(recs, title)
 
