@@ -79,6 +79,13 @@ def _results(clone: Path) -> dict:
     return out
 
 
+def _load(path: Path) -> list[list[float]]:
+    """The load averages (1, 5, 15 min) of each ``uptime`` line of a file: taken before
+    and after a run, they say whether the machine was quiet while it ran."""
+    return [[float(x) for x in m.group(1).split(", ")] for m in
+            re.finditer(r"load average: ([\d.]+, [\d.]+, [\d.]+)", path.read_text())]
+
+
 def rejudge(clone: Path) -> dict:
     """The validity check of today (``lab.validity.bts_validity``) applied to the Brazilian
     run files of a study whose runs predate it (their cracks, series and initial
@@ -127,26 +134,31 @@ def markdown(rec: dict) -> str:
              f"Host: {rec['cpu_model']} ({rec['cpus']} CPUs); load average when recorded "
              f"{', '.join(f'{x:.2f}' for x in rec['load_average'])}.", "",
              f"Recorded with: `{rec['command']}`", "",
-             "| run | commit | wall | CPU (user + system) | peak RSS | samples: Brazilian "
-             "valid / invalid / failed | σt adj. R² (main → quadratic → interaction) | "
-             "σc/σt of the samples |", "|---|---|---|---|---|---|---|---|"]
+             "| run | commit | load (1 min) at start / end | wall | CPU (user + system) | "
+             "peak RSS | samples: Brazilian valid / invalid / failed | σt adj. R² (main → "
+             "quadratic → interaction) | σc/σt of the samples |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for label, r in rec["runs"].items():
         t, res = r["time"], r["results"]
         st = res.get("bts_status", {})
         r2 = [res["adj_r2"].get(f"bts_MPa/{s}") for s in ("main", "quadratic", "interaction")]
         q = res.get("ucs_over_bts_range")
         lines.append(
-            f"| {label} | {r['commit']} | {t['wall_s'] / 60:.1f} min | {t['cpu_min']:.1f} min | "
+            f"| {label} | {r['commit']} | "
+            + (" / ".join(f"{x[0]:.2f}" for x in r["load"]) if r.get("load") else "not recorded")
+            + f" | {t['wall_s'] / 60:.1f} min | {t['cpu_min']:.1f} min | "
             f"{t['max_rss_mb']:.0f} MB | {st.get('ok', 0)} / {st.get('invalid', 0)} / "
             f"{st.get('failed', 0)} | "
             + " → ".join(f"{x:.3f}" for x in r2 if x is not None)
             + (f" | {q[0]:.1f}–{q[1]:.1f} |" if q else " | – |"))
-    runs = list(rec["runs"].values())
-    if len(runs) == 2:
-        a, b = runs[0]["time"], runs[1]["time"]
-        lines += ["", f"CPU time after / before: {b['cpu_min'] / a['cpu_min']:.2f}; wall "
-                      f"time after / before: {b['wall_s'] / a['wall_s']:.2f}."]
+    (first, a), *rest = rec["runs"].items()
+    for label, r in rest:
+        b = r["time"]
+        lines += ["", f"{label} / {first}: CPU time {b['cpu_min'] / a['time']['cpu_min']:.2f}, "
+                      f"wall time {b['wall_s'] / a['time']['wall_s']:.2f}."]
     for label, r in rec["runs"].items():
+        if r.get("note"):
+            lines += ["", f"{label}: {r['note']}"]
         rj = r.get("rejudged")
         if rj:
             c = rj["counts"]
@@ -166,19 +178,27 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run", action="append", required=True,
-                    help="label=clone directory,time log,commit")
+                    help="label=clone directory,time log,commit[,uptime log]")
     ap.add_argument("--out", required=True)
     ap.add_argument("--markdown", default=None)
     ap.add_argument("--rejudge", action="append", default=[],
                     help="a run label whose Brazilian runs predate the validity check: "
                          "judge them now")
+    ap.add_argument("--note", action="append", default=[], metavar="LABEL=TEXT",
+                    help="what a run's record must say that its numbers do not (e.g. other "
+                         "jobs on the host while it ran)")
     a = ap.parse_args(argv)
+    notes = dict(n.split("=", 1) for n in a.note)
     runs = {}
     for item in a.run:
         label, rest = item.split("=", 1)
-        clone, tlog, commit = rest.split(",")
+        clone, tlog, commit, *load = rest.split(",")
         runs[label] = {"commit": commit, "clone": clone, "time": _time(Path(tlog)),
                        "results": _results(Path(clone))}
+        if load:
+            runs[label]["load"] = _load(Path(load[0]))
+        if label in notes:
+            runs[label]["note"] = notes[label]
         if label in a.rejudge:
             runs[label]["rejudged"] = rejudge(Path(clone))
     rec = {"date": dt.date.today().isoformat(), "cpu_model": cpu_model(),
