@@ -62,3 +62,12 @@ def test_the_default_study_records_are_their_json_rendered():
             rec = json.loads(raw.read_text())
             md = REPO / "docs" / "measurements" / f"{rec['date']}-{page}"
             assert md.read_text() == render(rec), (md.name, "regenerate it from", raw.name)
+
+
+def test_the_planted_card_record_is_its_json_rendered():
+    import planted_card
+
+    for raw in (REPO / "benchmarks").glob("results_planted_card_*.json"):
+        rec = json.loads(raw.read_text())
+        md = REPO / "docs" / "measurements" / f"{rec['date']}-planted-card.md"
+        assert md.read_text() == planted_card.markdown(rec), (md.name, "regenerate from", raw.name)
