@@ -20,7 +20,7 @@ LAYERS = [
     {"bpmcal.plots"},
     {"bpmcal.stages"},
     {"bpmcal.report"},
-    {"bpmcal.cli", "bpmcal.cli_args"},
+    {"bpmcal.cli"},
 ]
 
 

@@ -11,6 +11,7 @@
 # patterns at validation (bpmcal.io.paths).
 import json
 
+from bpmcal.cli import BTS_OPTIONS, DTT_OPTIONS
 from bpmcal.io import layout as L
 from bpmcal.study.config import ConfigError, load_lab, transfer_seed, validate_config
 
@@ -110,21 +111,8 @@ def bts_args(cfg=config):
     opts = {"--bts-diameter": b["diameter_mm"], "--bts-thickness": b["thickness_mm"]}
     if b["scale"] is not None:  # null: the disc at the cylinder's scale
         opts["--bts-scale"] = b["scale"]
-    for f in (
-        "loading",
-        "jaw_ratio",
-        "contact_cap",
-        "contact_cap_factor",
-        "central_zone",
-        "platen_velocity",
-        "approach_velocity",
-        "platen_fric",
-        "damping",
-        "stop_drop",
-        "post_peak_min",
-        "max_strain",
-        "record_strain",
-    ):
+    # the BTSSettings fields that are options (bpmcal.cli.options)
+    for f in BTS_OPTIONS:
         opts[f"--bts-{f.replace('_', '-')}"] = b[f]
     return [str(x) for k, v in opts.items() for x in (k, v)]
 
@@ -137,15 +125,7 @@ def dtt_args(cfg=config):
     opts = {}
     if d["scale"] is not None:  # null: the cylinder's scale
         opts["--dtt-scale"] = d["scale"]
-    for f in (
-        "grip_velocity",
-        "grip_length",
-        "grip_clearance",
-        "damping",
-        "stop_drop",
-        "post_peak_min",
-        "max_strain",
-        "record_strain",
-    ):
+    # the DTTSettings fields that are options (bpmcal.cli.options)
+    for f in DTT_OPTIONS:
         opts[f"--dtt-{f.replace('_', '-')}"] = d[f]
     return [str(x) for k, v in opts.items() for x in (k, v)]

@@ -7,14 +7,21 @@ Typical use::
     m = Model(positions, radii, density=2294.0, material=mat, damping=0.7)
     m.add_plane_wall(point=(0, 0, 0), normal=(0, 0, 1))
     m.bond(gap=0.0)
-    m.set_timestep(m.critical_timestep() * 0.8)
+    m.set_timestep(safety=0.8)  # 0.8 x the critical timestep
     m.cycle(1000)
     print(m.energies())
+
+This module holds the state (allocation and growth of the records of ``model_arrays``),
+the global parameters, the timestep, the ball accessors, the neighbour lists and
+``cycle``. The rest of the public API comes from three mixins, one concept each:
+``model_walls.WallsMixin`` (walls), ``model_bonds.BondsMixin`` (parallel bonds: the
+contact-model-specific part) and ``model_measure.MeasureMixin`` (energies and other
+measurements). They share the model's state; a call is ``m.add_plane_wall(...)`` whichever
+module defines it.
 """
 from __future__ import annotations
 
 import math
-from collections import namedtuple
 
 import numpy as np
 
@@ -26,16 +33,10 @@ from ._jit import numba, set_threads
 from .errors import InputError, InstabilityError
 from .layout import (
     BOND_INTACT,
-    E_DASH,
-    E_REMOVED,
-    E_SLIP,
-    E_WDASH,
-    E_WSLIP,
     FIX_ALL,
     I_BAD,
     I_FORCES,
     I_NB,
-    I_NBROKEN,
     I_NEED_C,
     I_NEED_P,
     I_NEED_W,
@@ -67,55 +68,17 @@ from .layout import (
     P_SKIN,
     P_TIME,
     P_VCAP,
-    WALL_CYLINDER,
-    WALL_PLANE,
 )
 from .material import Material
+from .model_arrays import IDX, Balls, Pairs, Slots, aligned_zeros, readonly, vec3
+from .model_bonds import BondsMixin
+from .model_measure import ENERGY_TERMS, MeasureMixin
+from .model_walls import WallsMixin
 
-Balls = namedtuple("Balls", "pos vel angvel force moment radius mass inertia fix pos_ref "
-                   "edamp egrav efix fbuf pmask")
-Pairs = namedtuple("Pairs", "pi pj fs df act slip dash estr vptr pi2 pj2 fs2 vptr2 cand part")
-Bonds = namedtuple("Bonds", "blk state step pos nrm energy estr sig ptr part")
-Slots = namedtuple("Slots", "b w fs df rg f m rad slip dash estr ptr b2 w2 fs2 ptr2")
-Walls = namedtuple("Walls", "type pos nrm rad disk vel radv fric mass force radsum work "
-                   "grav disp")
-
-#: Energy terms reported by :meth:`Model.energies` (J).
-ENERGY_TERMS = ("kinetic", "kinetic_walls", "strain_linear", "strain_bond", "slip",
-                "dashpot", "damping", "released", "removed", "work_walls", "work_gravity",
-                "work_constraints")
+__all__ = ["Model", "ENERGY_TERMS"]
 
 
-#: type of the ball indices in the pair and wall-slot lists: unsigned, so that numba
-#: emits no negative-index wraparound code where the kernels index ball arrays with them
-#: (the public methods return int32 copies)
-IDX = np.uint32
-
-
-def aligned_zeros(shape, align=64):
-    """Zeroed float64 array whose data start on an ``align``-byte boundary (so that the
-    8-float rows of the force buffers each fill exactly one cache line)."""
-    n = int(np.prod(shape))
-    raw = np.zeros(n + align // 8)
-    off = (-raw.ctypes.data % align) // 8
-    return raw[off:off + n].reshape(shape)
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    """A read-only view of an engine array (no copy; reflects later steps)."""
-    v = a.view()
-    v.flags.writeable = False
-    return v
-
-
-def _vec3(name, v):
-    a = np.asarray(v, dtype=float).reshape(-1)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise InputError(f"{name}={v!r}: expected three finite numbers")
-    return a
-
-
-class Model:
+class Model(WallsMixin, BondsMixin, MeasureMixin):
     """Bonded-sphere DEM model with PFC linear + linear-parallel-bond contacts.
 
     Parameters
@@ -132,6 +95,8 @@ class Model:
     partitions : number of fixed pair partitions (>= threads to use all threads). Forces
         are summed per partition in a fixed order, so results are bitwise identical for
         any number of threads at a given ``partitions``.
+
+    The walls, bonds and measurements are in the mixins (module doc).
     """
 
     def __init__(self, positions, radii, density, material: Material, *, damping=0.7,
@@ -239,21 +204,6 @@ class Model:
             S.ptr[:] = old.ptr
         self.S = S
 
-    def _empty_bonds(self, nb):
-        return Bonds(blk=bb.new_state(nb), state=np.zeros(nb, np.int8),
-                     step=np.full(nb, -1, np.int64), pos=np.zeros((nb, 3)),
-                     nrm=np.zeros((nb, 3)), energy=np.zeros(nb), estr=np.zeros(nb),
-                     sig=np.zeros((nb, 3)), ptr=np.zeros(self.n + 1, np.int64),
-                     part=np.zeros(nb, np.int64))
-
-    @staticmethod
-    def _empty_walls(nw):
-        return Walls(type=np.zeros(nw, np.int64), pos=np.zeros((nw, 3)), nrm=np.zeros((nw, 3)),
-                     rad=np.zeros(nw), disk=np.zeros(nw), vel=np.zeros((nw, 3)),
-                     radv=np.zeros(nw), fric=np.zeros(nw), mass=np.zeros(nw),
-                     force=np.zeros((nw, 3)), radsum=np.zeros(nw), work=np.zeros(nw),
-                     grav=np.zeros(nw), disp=np.zeros(nw))
-
     def _grow(self):
         need_p = int(self.iprm[I_NEED_P])
         need_w = int(self.iprm[I_NEED_W])
@@ -339,7 +289,7 @@ class Model:
                              "call set_spin(True) first")
 
     def set_gravity(self, g):
-        self.prm[P_GX:P_GX + 3] = _vec3("gravity", g)
+        self.prm[P_GX:P_GX + 3] = vec3("gravity", g)
 
     @property
     def dt(self) -> float:
@@ -395,32 +345,32 @@ class Model:
     @property
     def positions(self) -> np.ndarray:
         """Ball centres x_n (N, 3) [m]."""
-        return _readonly(self.B.pos)
+        return readonly(self.B.pos)
 
     @property
     def velocities(self) -> np.ndarray:
         """Ball velocities v_{n-1/2} (N, 3) [m/s] (half-step values of the leapfrog)."""
-        return _readonly(self.B.vel)
+        return readonly(self.B.vel)
 
     @property
     def angular_velocities(self) -> np.ndarray:
         """Ball spins (N, 3) [rad/s] (half-step values)."""
-        return _readonly(self.B.angvel)
+        return readonly(self.B.angvel)
 
     @property
     def radii(self) -> np.ndarray:
         """Ball radii (N,) [m]."""
-        return _readonly(self.B.radius)
+        return readonly(self.B.radius)
 
     @property
     def masses(self) -> np.ndarray:
         """Ball masses (N,) [kg]."""
-        return _readonly(self.B.mass)
+        return readonly(self.B.mass)
 
     @property
     def fix_flags(self) -> np.ndarray:
         """Fixed degrees of freedom of every ball (N,) (bits of layout.FIX_*; 0 = free)."""
-        return _readonly(self.B.fix)
+        return readonly(self.B.fix)
 
     def fix(self, idx, flags=FIX_ALL):
         """Fix degrees of freedom of balls ``idx`` (bits of layout.FIX_*); their current
@@ -436,163 +386,16 @@ class Model:
             self.B.angvel[idx] = np.asarray(angvel, float)
         self._touch()
 
-    # ------------------------------------------------------------------ walls
-    def _add_wall(self, kind, point, normal, radius, disk, velocity, radial_velocity, fric, mass):
-        W = self.W
-        nw = W.type.shape[0]
-        new = self._empty_walls(nw + 1)
-        for name, arr in W._asdict().items():
-            getattr(new, name)[:nw] = arr
-        new.type[nw] = kind
-        new.pos[nw] = _vec3("point", point)
-        nrm = _vec3("normal", normal)
-        ln = np.linalg.norm(nrm)
-        if ln == 0:
-            raise InputError(f"normal={normal!r}: expected a non-zero vector")
-        new.nrm[nw] = nrm / ln
-        new.rad[nw] = radius
-        new.disk[nw] = disk
-        new.vel[nw] = _vec3("velocity", velocity)
-        new.radv[nw] = radial_velocity
-        f = float(fric)
-        if not (f >= 0 and math.isfinite(f)):
-            raise InputError(f"wall fric={fric!r}: expected a friction coefficient >= 0")
-        new.fric[nw] = f
-        mval = float(mass)
-        if not (mval >= 0 and math.isfinite(mval)):
-            raise InputError(f"wall mass={mass!r}: expected >= 0 kg (0 = prescribed motion)")
-        new.mass[nw] = mval
-        self.W = new
+    def set_positions(self, idx, pos):
+        """Move balls (e.g. to build a test configuration); lists are rebuilt."""
+        p = np.asarray(pos, float)
+        if not np.all(np.isfinite(p)):
+            raise InputError("positions: expected finite coordinates")
+        self.B.pos[np.asarray(idx)] = p
         self.iprm[I_REBUILD] = 1
         self._touch()
-        return nw
 
-    def add_plane_wall(self, point, normal, velocity=(0.0, 0.0, 0.0), fric=0.0,
-                       disk_radius=0.0, mass=0.0) -> int:
-        """Planar wall through ``point``; balls live on the side ``normal`` points to.
-
-        ``disk_radius`` > 0 makes it a finite disk centred at ``point``; ``mass`` > 0 makes
-        it a rigid body (drop hammer) whose velocity follows the contact forces and gravity;
-        otherwise ``velocity`` is prescribed. Returns the wall id.
-        """
-        d = float(disk_radius)
-        if not (d >= 0):
-            raise InputError(f"disk_radius={disk_radius!r}: expected >= 0 m (0 = infinite plane)")
-        return self._add_wall(WALL_PLANE, point, normal, 0.0, d, velocity, 0.0, fric, mass)
-
-    def add_cylinder_wall(self, center, axis, radius, radial_velocity=0.0, fric=0.0) -> int:
-        """Inside of an infinite cylinder (vessel); balls live inside."""
-        r = float(radius)
-        if not (r > 0 and math.isfinite(r)):
-            raise InputError(f"cylinder radius={radius!r}: expected a positive length in m")
-        return self._add_wall(WALL_CYLINDER, center, axis, r, 0.0, (0, 0, 0),
-                              float(radial_velocity), fric, 0.0)
-
-    def set_wall_velocity(self, w, velocity=None, radial_velocity=None):
-        """Prescribe the velocity of wall ``w`` [m/s] and/or, for a cylinder, the rate of
-        change of its radius [m/s] (positive = expanding); they take effect at the next
-        step."""
-        if velocity is not None:
-            self.W.vel[w] = _vec3("velocity", velocity)
-        if radial_velocity is not None:
-            self.W.radv[w] = float(radial_velocity)
-
-    def remove_wall(self, w: int):
-        """Delete wall ``w`` (ids of later walls shift down by one). Its boundary work and
-        the slip/dashpot energy of its contacts stay in the energy totals."""
-        W = self.W
-        nw = W.type.shape[0]
-        if not (0 <= w < nw):
-            raise InputError(f"wall id {w}: expected 0..{nw - 1}")
-        self.energies()  # make the slot strain energies current
-        ns = int(self.iprm[I_NSLOTS])
-        S = self.S
-        self.eacc[E_REMOVED] += S.estr[:ns][S.w[:ns] == w].sum()
-        self._touch()
-        self.eacc[E_WSLIP] += S.slip[:ns].sum()
-        self.eacc[E_WDASH] += S.dash[:ns].sum()
-        S.slip[:ns] = 0.0
-        S.dash[:ns] = 0.0
-        wout = np.zeros((nw, 3))
-        D.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
-        if W.mass[w] == 0.0:  # a rigid wall's work is internal to the system
-            self._removed_work += float(W.work[w] + wout[w, 1])
-        self._removed_grav += float(W.grav[w] + wout[w, 2])
-        # the first half of the current step's work was counted: drop the wall's force so
-        # the next step adds nothing for it (the slots are removed below)
-        keep = np.arange(nw) != w
-        self.W = Walls(**{k: np.ascontiguousarray(v[keep]) for k, v in W._asdict().items()})
-        # drop the slots (forces) of that wall; the rest are rebuilt with history
-        sel = S.w[:ns] != w
-        m = int(sel.sum())
-        nb_, nw_ = S.b[:ns][sel].copy(), S.w[:ns][sel].copy()
-        nw_[nw_ > w] -= 1
-        fs = S.fs[:ns][sel].copy()
-        df = S.df[:ns][sel].copy()
-        rgs = S.rg[:ns][sel].copy()
-        S.b[:m], S.w[:m], S.fs[:m], S.df[:m], S.rg[:m] = nb_, nw_, fs, df, rgs
-        S.f[:m] = S.f[:ns][sel]
-        S.m[:m] = S.m[:ns][sel]
-        counts = np.bincount(nb_, minlength=self.n)
-        S.ptr[0] = 0
-        S.ptr[1:] = np.cumsum(counts)
-        self.iprm[I_NSLOTS] = m
-        self.iprm[I_REBUILD] = 1
-
-    @property
-    def n_walls(self) -> int:
-        return int(self.W.type.shape[0])
-
-    def wall_type(self, w) -> int:
-        """Kind of wall ``w``: layout.WALL_PLANE or layout.WALL_CYLINDER."""
-        return int(self.W.type[w])
-
-    def wall_normal(self, w) -> np.ndarray:
-        """Unit normal of plane ``w`` (pointing to the balls), or axis of cylinder ``w``."""
-        return self.W.nrm[w].copy()
-
-    def wall_radius(self, w) -> float:
-        """Current radius of cylinder ``w`` [m] (it changes with its radial velocity);
-        0 for planes."""
-        return float(self.W.rad[w])
-
-    def wall_force(self, w) -> np.ndarray:
-        """Force the balls exert on wall ``w`` at the last step [N]."""
-        return self.W.force[w].copy()
-
-    def wall_radial_force(self, w) -> float:
-        """Sum over the contacts of wall ``w`` of the outward radial component of the force
-        the balls exert on it [N] (cylinders: the lateral pressure times the wall area;
-        0 for planes), at the last step."""
-        return -float(self.W.radsum[w])
-
-    def wall_position(self, w) -> np.ndarray:
-        """Reference point of wall ``w`` [m] (walls move with their velocity)."""
-        return self.W.pos[w].copy()
-
-    def wall_velocity(self, w) -> np.ndarray:
-        """Velocity of wall ``w`` [m/s] (prescribed, or of a rigid wall: v_{n+1/2})."""
-        return self.W.vel[w].copy()
-
-    def set_wall_friction(self, w, fric: float):
-        """Friction coefficient of the contacts of wall(s) ``w`` (takes effect at the next
-        force evaluation, like a velocity change; the current forces stay)."""
-        f = float(fric)
-        if not (f >= 0 and math.isfinite(f)):
-            raise InputError(f"wall fric={fric!r}: expected a friction coefficient >= 0")
-        idx = np.atleast_1d(np.asarray(w))
-        if idx.size and not ((idx >= 0) & (idx < self.n_walls)).all():
-            raise InputError(f"wall id {w!r}: expected 0..{self.n_walls - 1}")
-        self.W.fric[idx] = f
-
-    def wall_contact_balls(self, w) -> np.ndarray:
-        """Balls (sorted, unique) that touch wall ``w`` with a non-zero force now."""
-        ns = int(self.iprm[I_NSLOTS])
-        S = self.S
-        on = (S.w[:ns] == w) & np.any(S.f[:ns] != 0.0, axis=1)
-        return np.unique(S.b[:ns][on]).astype(np.int32)
-
-    # ------------------------------------------------------------------ contacts & bonds
+    # ------------------------------------------------------------------ neighbour lists
     def _ensure_lists(self):
         if self.iprm[I_REBUILD]:
             while True:
@@ -627,193 +430,9 @@ class Model:
         return i[sel], j[sel]
 
     @property
-    def n_bonds(self) -> int:
-        return int(self.iprm[I_NB])
-
-    @property
-    def n_broken(self) -> int:
-        return int(self.iprm[I_NBROKEN])
-
-    @property
-    def bond_states(self) -> np.ndarray:
-        """State of every bond pair (read-only view): 0 intact, 1 broken in tension,
-        2 broken in shear (``BOND_*``), in the order of :meth:`bond_pairs`."""
-        return _readonly(self.Bd.state)
-
-    @property
-    def bond_break_steps(self) -> np.ndarray:
-        """Step at which each bond broke, -1 if intact (read-only view)."""
-        return _readonly(self.Bd.step)
-
-    @property
     def n_rebuilds(self) -> int:
         """Neighbour-list rebuilds so far (diagnostics)."""
         return int(self.iprm[I_NREBUILDS])
-
-    @property
-    def n_wall_slots(self) -> int:
-        """Ball-wall pairs in the wall-contact list now (touching or within the skin)."""
-        return int(self.iprm[I_NSLOTS])
-
-    def bond(self, gap: float = 0.0, rgap=None) -> int:
-        """Install parallel bonds on every unbonded pair with surface gap <= ``gap`` (PFC
-        ``contact method bond gap``). Bonds are created with zero force and moment; the
-        linear shear force of the pair is kept. ``rgap`` optionally gives, per new bond (in
-        the order of :meth:`bond_pairs` after the call), the reference gap of its linear
-        component (default 0). Returns the number of new bonds."""
-        g = float(gap)
-        if not math.isfinite(g):
-            raise InputError(f"gap={gap!r}: expected a finite installation gap in m")
-        self._touch()
-        self._ensure_lists()
-        P, Bd = self.P, self.Bd
-        nb = int(self.iprm[I_NB])
-        m = int(self.iprm[I_NPAIRS])
-        vi, vj = P.pi[nb:m].copy(), P.pj[nb:m].copy()
-        sel = self.pair_gaps(vi, vj) <= g
-        if not sel.any():
-            return 0
-        # fold the energy of Verlet pairs that become bonds (their pair slots move)
-        self.eacc[E_SLIP] += P.slip[nb:m].sum()
-        self.eacc[E_DASH] += P.dash[nb:m].sum()
-        ni, nj, nfs = vi[sel], vj[sel], P.fs[nb:m][sel].copy()
-        ndf = P.df[nb:m][sel].copy()
-        nnew = ni.shape[0]
-        nbt = nb + nnew
-        new = self._empty_bonds(nbt)
-        for name in ("state", "step", "pos", "nrm", "energy", "estr", "sig"):
-            getattr(new, name)[:nb] = getattr(Bd, name)
-        for f in range(bb.NSF):  # blocked state: old bonds keep theirs
-            bb.set_field(new.blk, f, nb, bb.get_field(Bd.blk, f, nb))
-        newk = np.arange(nb, nbt)
-        for c in range(3):
-            new.blk[bb.field_index(bb.S_LX + c, nbt)[newk]] = nfs[:, c]
-            new.blk[bb.field_index(bb.S_DFX + c, nbt)[newk]] = ndf[:, c]
-        if rgap is not None:
-            rg = np.asarray(rgap, float).reshape(-1)
-            if rg.shape != (nnew,) or not np.all(np.isfinite(rg)):
-                raise InputError(f"rgap: expected {nnew} finite reference gaps, "
-                                 f"got shape {rg.shape}")
-            new.blk[bb.field_index(bb.S_RG, nbt)[newk]] = rg
-        oi, oj = P.pi[:nb].copy(), P.pj[:nb].copy()
-        ai = np.concatenate([oi, ni]).astype(IDX)
-        aj = np.concatenate([oj, nj]).astype(IDX)
-        if nbt > P.pi.shape[0]:
-            self._alloc_pairs(int(nbt * 1.5) + 8 * self.n)
-            P = self.P
-        P.pi[:nbt], P.pj[:nbt] = ai, aj
-        P.fs[:nbt] = 0.0  # bond pairs keep their linear shear force in the blocked state
-        P.df[:nbt] = 0.0
-        P.act[:nbt] = 1
-        P.slip[:nbt] = np.concatenate([P.slip[:nb], np.zeros(nnew)])
-        P.dash[:nbt] = np.concatenate([P.dash[:nb], np.zeros(nnew)])
-        # partner CSR (j > i of each bond (i, j), i < j by construction)
-        order = np.lexsort((aj, ai))
-        counts = np.bincount(ai, minlength=self.n)
-        new.ptr[1:] = np.cumsum(counts)
-        new.part[:] = aj[order]
-        self.Bd = new
-        self.iprm[I_NB] = nbt
-        self.iprm[I_NPAIRS] = nbt
-        P.vptr[:] = 0  # no Verlet history left to carry (all contacting pairs are bonds)
-        self.iprm[I_REBUILD] = 1
-        self._ensure_lists()
-        return nnew
-
-    def bond_pairs(self) -> tuple[np.ndarray, np.ndarray]:
-        nb = self.n_bonds
-        return self.P.pi[:nb].astype(np.int32), self.P.pj[:nb].astype(np.int32)
-
-    def set_bond_rgap(self, rgap):
-        """Reference gaps [m] of the linear component of the bond pairs (PFC ``rgap``).
-        Once a bond has broken and its surfaces are apart (gap >= 0), a negative reference
-        gap is set to 0: a broken pair that comes back into contact is repelled from the
-        first touch, as in PFC."""
-        rg = np.asarray(rgap, float).reshape(-1)
-        if rg.shape != (self.n_bonds,) or not np.all(np.isfinite(rg)):
-            raise InputError(f"rgap: expected {self.n_bonds} finite values, got shape {rg.shape}")
-        bb.set_field(self.Bd.blk, bb.S_RG, self.n_bonds, rg)
-        self._touch()
-
-    def set_bond_strength_factors(self, factors):
-        """Per-bond strength factors: bond k (in the order of :meth:`bond_pairs`) fails at
-        the material's tensile strength ``pb_ten`` and cohesion ``pb_coh`` times
-        ``factors[k]`` (its friction angle and stiffnesses are unchanged). PFC gives every
-        contact its own ``pb_ten`` / ``pb_coh``; here the material holds the common value
-        and this factor the per-bond deviation. New bonds get factor 1. A scalar applies to
-        every bond."""
-        nb = self.n_bonds
-        f = np.broadcast_to(np.asarray(factors, float), (nb,)) if np.ndim(factors) == 0 \
-            else np.asarray(factors, float).reshape(-1)
-        if f.shape != (nb,) or not np.all(np.isfinite(f)) or np.any(f < 0):
-            raise InputError(f"strength factors: expected {nb} finite values >= 0, got "
-                             f"shape {f.shape}")
-        bb.set_field(self.Bd.blk, bb.S_SF, nb, f)
-        self._touch()
-
-    @property
-    def bond_strength_factors(self) -> np.ndarray:
-        """Strength factor of every bond pair (a copy; :meth:`set_bond_strength_factors`)."""
-        return bb.get_field(self.Bd.blk, bb.S_SF, self.n_bonds)
-
-    def scale_wall_overlaps(self, w: int, factor: float) -> int:
-        """Give every current contact of wall ``w`` a reference gap (PFC ``rgap``) so that
-        its overlap force is multiplied by ``factor`` (in [0, 1]); the geometry does not
-        change. Contacts formed later have a zero reference gap. Returns how many."""
-        f = float(factor)
-        if not (0.0 <= f <= 1.0):
-            raise InputError(f"factor={factor!r}: expected a force scale in [0, 1]")
-        if not (0 <= w < self.n_walls):
-            raise InputError(f"wall id {w}: expected 0..{self.n_walls - 1}")
-        self._ensure_lists()
-        ns = int(self.iprm[I_NSLOTS])
-        S, B, W = self.S, self.B, self.W
-        sel = np.flatnonzero(S.w[:ns] == w)
-        p = B.pos[S.b[sel]] - W.pos[w]
-        h = p @ W.nrm[w]
-        if W.type[w] == WALL_CYLINDER:
-            q = p - h[:, None] * W.nrm[w]
-            gap = W.rad[w] - np.linalg.norm(q, axis=1) - B.radius[S.b[sel]]
-        else:
-            gap = h - B.radius[S.b[sel]]
-        touching = gap < 0
-        S.rg[sel[touching]] = gap[touching] * (1.0 - f)
-        self._touch()
-        return int(touching.sum())
-
-    def breaks(self) -> dict:
-        """Broken bonds as events sorted by (step, bond index): step, time, bond, i, j,
-        mode (1 tension, 2 shear), position, normal, bond radius, released energy."""
-        st = self.Bd.state
-        k = np.flatnonzero(st != BOND_INTACT)
-        k = k[np.lexsort((k, self.Bd.step[k]))]
-        i, j = self.P.pi[k].astype(np.int32), self.P.pj[k].astype(np.int32)
-        r = self.material.pb_rmul * np.minimum(self.B.radius[i], self.B.radius[j])
-        return {"step": self.Bd.step[k].copy(), "bond": k, "i": i.copy(), "j": j.copy(),
-                "mode": st[k].astype(np.int64), "pos": self.Bd.pos[k].copy(),
-                "normal": self.Bd.nrm[k].copy(), "radius": r,
-                "energy": self.Bd.energy[k].copy(), "sigma": self.Bd.sig[k, 0].copy(),
-                "tau": self.Bd.sig[k, 1].copy(), "sigma_n": self.Bd.sig[k, 2].copy()}
-
-    def bond_state(self) -> dict:
-        """Current parallel-bond state of every bond pair (copies): normal force (tension
-        positive) [N], shear force vector [N], twisting moment [N m], bending moment vector
-        [N m], state (0 intact, 1 tension, 2 shear), reference gap of the linear part [m]."""
-        Bd = self.Bd
-        nb = self.n_bonds
-        g = lambda f: bb.get_field(Bd.blk, f, nb)  # noqa: E731
-        vec = lambda f: np.column_stack([g(f), g(f + 1), g(f + 2)]) if nb else np.zeros((0, 3))  # noqa: E731
-        return {"fn": g(bb.S_FN), "fs": vec(bb.S_SX), "mt": g(bb.S_MT), "mb": vec(bb.S_BX),
-                "state": Bd.state.copy(), "rgap": g(bb.S_RG)}
-
-    def linear_shear_forces(self) -> np.ndarray:
-        """Shear force vector of the linear component of every listed pair [N]."""
-        self._ensure_lists()
-        out = self.P.fs[: int(self.iprm[I_NPAIRS])].copy()
-        nb = self.n_bonds
-        for c in range(3):
-            out[:nb, c] = bb.get_field(self.Bd.blk, bb.S_LX + c, nb)
-        return out
 
     # ------------------------------------------------------------------ running
     def _touch(self):
@@ -831,7 +450,6 @@ class Model:
         if self.prm[P_DT] <= 0:
             raise InputError("timestep not set: call set_timestep() first")
         self._check_spin()
-        pass  # forces are kept current by run_steps
         done = 0
         while True:
             st, k = K.run_steps(self.B, self.P, self.Bd, self.S, self.W, self.prm, self.iprm,
@@ -851,103 +469,3 @@ class Model:
                     f"{self.prm[P_MAXSPEED]:g} m/s guard); dt={self.dt:.3g} s - check the "
                     "timestep, stiffnesses and overlaps", self.step, b)
         self._recorded = bool(record)
-
-    # ------------------------------------------------------------------ measurements
-    def energies(self) -> dict:
-        """Energy terms [J] of the current state (step n), consistent with the integrator.
-
-        Inputs: ``work_walls`` (walls with prescribed motion; every wall's work on the balls
-        is in ``work_walls_each``), ``work_gravity``,
-        ``work_constraints`` (of prescribed velocities). Stored: ``kinetic`` (balls,
-        1/2 m v_{n-1/2}.v_{n+1/2} + rotation), ``kinetic_walls`` (rigid walls),
-        ``strain_linear``, ``strain_bond``. Dissipated or released: ``slip``, ``dashpot``,
-        ``damping``, ``released`` (strain energy of bonds at breakage).
-        """
-        if not self._recorded:
-            if self.iprm[I_FORCES] == 0:
-                self.iprm[I_FORCES] = 1
-            self.cycle(0, record=True)
-        B, P, Bd, S, W = self.B, self.P, self.Bd, self.S, self.W
-        lin, bond, slip, dash, damp, grav, fixw, rel = D.sum_energies(
-            B.edamp, B.egrav, B.efix, P.estr, P.slip, P.dash, int(self.iprm[I_NPAIRS]),
-            Bd.estr, Bd.energy, Bd.state, int(self.iprm[I_NB]), S.estr, S.slip, S.dash,
-            int(self.iprm[I_NSLOTS]), self.eacc)
-        kin, dmp2, grv2, cst2 = D.measure_balls(B.vel, B.angvel, B.force, B.moment, B.mass,
-                                                B.inertia, B.fix, B.fbuf, B.pmask, S.ptr,
-                                                S.f, S.m, self.prm)
-        wout = np.zeros((self.n_walls, 3))
-        D.measure_walls(W.vel, W.radv, W.mass, W.force, W.radsum, self.prm, wout)
-        ww = W.work + wout[:, 1]
-        e = {"kinetic": kin, "kinetic_walls": float(wout[:, 0].sum()), "strain_linear": lin,
-             "strain_bond": bond, "slip": slip, "dashpot": dash, "damping": damp + dmp2,
-             "released": rel, "removed": float(self.eacc[E_REMOVED]),
-             # rigid-body walls are part of the system (their kinetic energy is stored
-             # energy), so only walls with prescribed motion do external work
-             "work_walls": float(ww[W.mass == 0.0].sum()) + self._removed_work,
-             "work_gravity": grav + grv2 + float((W.grav + wout[:, 2]).sum())
-             + self._removed_grav,
-             "work_constraints": fixw + cst2, "work_walls_each": ww.tolist(),
-             "work_gravity_walls": float((W.grav + wout[:, 2]).sum()) + self._removed_grav}
-        return e
-
-    @staticmethod
-    def energy_balance(e: dict, e0: dict | None = None) -> dict:
-        """Inputs, stored, dissipated between two :meth:`energies` snapshots and the
-        relative closure error |input - (d stored + d dissipated)| / max(|input|, stored)."""
-        def parts(x):
-            inp = x["work_walls"] + x["work_gravity"] + x["work_constraints"]
-            sto = x["kinetic"] + x["kinetic_walls"] + x["strain_linear"] + x["strain_bond"]
-            dis = x["slip"] + x["dashpot"] + x["damping"] + x["released"] + x["removed"]
-            return inp, sto, dis
-        i1, s1, d1 = parts(e)
-        i0, s0, d0 = parts(e0) if e0 is not None else (0.0, 0.0, 0.0)
-        inp, sto, dis = i1 - i0, s1 - s0, d1 - d0
-        scale = max(abs(inp), abs(s1), abs(s0), 1e-300)
-        return {"input": inp, "stored": sto, "dissipated": dis,
-                "error": inp - sto - dis, "rel_error": abs(inp - sto - dis) / scale}
-
-    def unbalanced_ratio(self) -> float:
-        """Mean unbalanced force of free balls / mean contact force (PFC ratio-average)."""
-        free = self.B.fix == 0
-        if not free.any():
-            return 0.0
-        self.energies()  # current resultant forces (measure pass)
-        fu = np.linalg.norm(self.B.force[free], axis=1).mean()
-        fc, cnt = D.contact_force_mean(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
-                                       self.P.fs, int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]),
-                                       self.Bd.state, self.Bd.blk, self.prm)
-        if cnt == 0 or fc == 0.0:
-            return math.inf if fu > 0 else 0.0
-        return float(fu / fc)
-
-    def coordination_numbers(self) -> np.ndarray:
-        """Contacts per ball now (bonded or touching)."""
-        self._ensure_lists()
-        return D.coordination(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
-                              int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]), self.Bd.state,
-                              self.Bd.blk)
-
-    def ball_forces(self) -> tuple[np.ndarray, np.ndarray]:
-        """Resultant force (contacts + gravity) [N] and moment [N m] on every ball at the
-        current positions (copies)."""
-        self.energies()
-        return self.B.force.copy(), self.B.moment.copy()
-
-    def set_positions(self, idx, pos):
-        """Move balls (e.g. to build a test configuration); lists are rebuilt."""
-        p = np.asarray(pos, float)
-        if not np.all(np.isfinite(p)):
-            raise InputError("positions: expected finite coordinates")
-        self.B.pos[np.asarray(idx)] = p
-        self.iprm[I_REBUILD] = 1
-        self._touch()
-
-    def momentum(self) -> tuple[np.ndarray, np.ndarray]:
-        """Linear momentum and angular momentum about the origin (Sum m x_n x v_{n+1/2}
-        + I w, the leapfrog-conserved form, using x before the last position update)."""
-        B = self.B
-        p = (B.mass[:, None] * B.vel).sum(axis=0)
-        x_prev = B.pos - B.vel * self.dt
-        L = (B.mass[:, None] * np.cross(x_prev, B.vel)).sum(axis=0) + (
-            B.inertia[:, None] * B.angvel).sum(axis=0)
-        return p, L

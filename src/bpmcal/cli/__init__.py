@@ -1,0 +1,213 @@
+"""The ``bpmcal`` command: one subcommand per job of the study (workflow rules call these).
+
+    bpmcal ucs --params FILE.yaml --out RUN.h5 [--set NAME=VALUE ...] [--scale S] [--seed N]
+    bpmcal bts --params FILE.yaml --out RUN.h5 [--scale S] [--seed N] [--platen-velocity V]
+    bpmcal dtt --params FILE.yaml --out RUN.h5 [--scale S] [--seed N] [--grip-velocity V]
+    bpmcal triaxial --params FILE.yaml --sigma3 MPA --out RUN.h5 [--scale S] [--seed N]
+    bpmcal summary RUN.h5 [--json]
+    bpmcal vtk RUN.h5 --out DIR
+
+Parameters are in the paper's units at this edge (mm, GPa, MPa, degrees); the package
+works in SI inside. Bad input (arguments, parameter values, input files, output paths,
+resource budgets) is reported before any work starts as one line on stderr,
+``bpmcal CMD: error: ...``, with exit code 2, and nothing is written. Exit codes: 0 done,
+1 internal error (a bug: traceback and a hint), 2 bad input, 3 the DEM run failed and its
+failure record was written (0 with ``--failed-ok``, what the workflow rules pass),
+4 system error (disk full, permission), 130 interrupted.
+
+The package only parses arguments and calls one stage (``bpmcal.stages``, the report) or
+one I/O helper. This module holds ``main``, the registry ``COMMANDS`` and
+``build_parser``; the subcommands are grouped by family, each ``_add_<cmd>`` (its options)
+directly above its ``cmd_<cmd>`` (its handler):
+
+- ``cli.runs``: the DEM runs ``ucs``, ``bts``, ``dtt``, ``triaxial``, ``impact``, and
+  ``summary``, ``vtk``;
+- ``cli.study``: ``design``, ``gather``, ``screen``, ``regress``, ``calibrate``,
+  ``sweep-plan``, ``sweep-analyse``, ``report``;
+- ``cli.verification``: ``verify``, ``transfer``, ``transfer-table``, ``scatter``,
+  ``holdout``, ``holdout-table``, ``verification-tables``, ``envelopes``,
+  ``impact-analyse``;
+- ``cli.options``: the option groups several commands share and their readers;
+- ``cli.args``: argument types and exit codes.
+
+Every default comes from the settings it sets (the lab tests' settings dataclasses,
+``Geometry``, the analysis classes and the stage functions: :func:`defaults_of`), never a
+literal here. Each ``_add_<cmd>`` imports what that command needs, and ``main`` builds only
+the parser of the command it runs: a DEM job (``bpmcal ucs``, 150 per study) does not load
+xgboost, statsmodels or matplotlib (tested: ``tests/cli/test_imports.py``).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import traceback
+
+from .. import params as P
+from ..io.checks import BadInput
+from .args import EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED, EXIT_OK, EXIT_SYSTEM, Parser
+from .options import (
+    BTS_OPTIONS,
+    DTT_OPTIONS,
+    GENESES,
+    add_bts_args,
+    add_budget_args,
+    add_dtt_args,
+    add_outcome_args,
+    add_run_args,
+    add_source_args,
+    add_specimen_args,
+    bts_disc_of,
+    bts_settings_of,
+    dtt_cylinder_of,
+    dtt_settings_of,
+    run_geometry,
+    run_settings,
+)
+from .runs import _add_bts, _add_dtt, _add_impact, _add_summary, _add_triaxial, _add_ucs, _add_vtk
+from .study import (
+    _add_calibrate,
+    _add_design,
+    _add_gather,
+    _add_regress,
+    _add_report,
+    _add_screen,
+    _add_sweep_analyse,
+    _add_sweep_plan,
+)
+from .verification import (
+    _add_envelopes,
+    _add_holdout,
+    _add_holdout_table,
+    _add_impact_analyse,
+    _add_scatter,
+    _add_transfer,
+    _add_transfer_table,
+    _add_verification_tables,
+    _add_verify,
+)
+
+#: ``bpmcal.cli``'s own names and the shared options re-exported from ``cli.options`` (the
+#: workflow's ``common.smk`` reads ``BTS_OPTIONS``/``DTT_OPTIONS``; tests read ``GENESES``)
+__all__ = ["COMMANDS", "build_parser", "main", "BTS_OPTIONS", "DTT_OPTIONS", "GENESES",
+           "add_bts_args", "add_budget_args", "add_dtt_args", "add_outcome_args", "add_run_args",
+           "add_source_args", "add_specimen_args", "bts_disc_of", "bts_settings_of",
+           "dtt_cylinder_of", "dtt_settings_of", "run_geometry", "run_settings"]
+
+
+def _param_help() -> str:
+    rows = ["meso-parameters (keys of the --params YAML file and of --set; paper units):"]
+    for p in P.PARAMS.values():
+        unit = p.unit or "-"
+        rows.append(f"  {p.name:12s} {p.symbol:9s} [{unit:3s}] Table 2 range {p.lo:g}-{p.hi:g}:"
+                    f" {p.description}")
+    rows.append("exit codes: 0 done, 2 bad input (nothing written), 3 the run failed and its "
+                "failure record was written (0 with --failed-ok), 1 internal error, "
+                "4 system error, 130 interrupted")
+    return "\n".join(rows)
+
+
+#: subcommand -> (help, adds its options, whether its help lists the parameters)
+COMMANDS = {
+    "ucs": ("one virtual uniaxial compression test -> HDF5", _add_ucs, True),
+    "bts": ("one virtual Brazilian (diametral compression) test -> HDF5", _add_bts, True),
+    "dtt": ("one virtual direct-tension test -> HDF5", _add_dtt, True),
+    "triaxial": ("one virtual triaxial compression test -> HDF5", _add_triaxial, True),
+    "impact": ("drop-hammer impact of a calibrated specimen", _add_impact, False),
+    "design": ("Latin-hypercube design over parameter ranges -> CSV", _add_design, False),
+    "gather": ("collect per-sample run files into one dataset CSV", _add_gather, False),
+    "screen": ("XGBoost screening of the dataset (Table 3)", _add_screen, False),
+    "regress": ("three-stage stepwise regression (Table 4)", _add_regress, False),
+    "calibrate": ("invert the models for the lab specimens", _add_calibrate, False),
+    "verify": ("closed-loop DEM verification of a material card", _add_verify, False),
+    "scatter": ("one card, several packing seeds: DEM scatter", _add_scatter, False),
+    "transfer": ("run a verified card at full size; correct it there if needed",
+                 _add_transfer, False),
+    "transfer-table": ("the full-size transfer of every card, one table", _add_transfer_table,
+                       False),
+    "holdout": ("a verified card on fresh packing seeds (UCS and, with a sigma_t target, "
+                "Brazilian tests)", _add_holdout, False),
+    "holdout-table": ("the fresh-seed check of every card against its lab targets",
+                      _add_holdout_table, False),
+    "verification-tables": ("Tables 5 and 6 and Fig. 6", _add_verification_tables, False),
+    "envelopes": ("triaxial strength envelopes (Mohr-Coulomb, Hoek-Brown) per card",
+                  _add_envelopes, False),
+    "sweep-plan": ("bond-strength-ratio sweep: one row per ratio", _add_sweep_plan, False),
+    "sweep-analyse": ("crack counts per ratio, the chosen ratio", _add_sweep_analyse, False),
+    "impact-analyse": ("impact energy table, Fig. 7, t10-Ecs and JK fit", _add_impact_analyse,
+                       False),
+    "report": ("OUTDIR/report: every table and figure + index.md", _add_report, False),
+    "summary": ("print the summary attributes of a run file", _add_summary, False),
+    "vtk": ("export particles and cracks of a run for ParaView", _add_vtk, False),
+}
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The ``bpmcal`` parser; with ``only``, the options of that subcommand alone (the
+    others are listed by name)."""
+    ap = Parser(prog="bpmcal", description=__doc__.split("\n\n")[0],
+                formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=f"bpmcal {_version()}")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    for name, (help_, add, epilog) in COMMANDS.items():
+        p = sub.add_parser(name, help=help_, formatter_class=argparse.RawDescriptionHelpFormatter,
+                           epilog=_param_help() if epilog else None)
+        if only is None or only == name:
+            add(p)
+    return ap
+
+
+def _version():
+    from .. import __version__
+    return __version__
+
+
+def _bad_input_types() -> tuple:
+    from ..dem.errors import InputError
+    from ..io.h5 import RunFileError
+    from ..study.config import ConfigError
+
+    return (BadInput, P.ParameterError, InputError, ConfigError, RunFileError)
+
+
+def _one_line(e) -> str:
+    return " ".join(str(e).split())
+
+
+def main(argv=None) -> int:
+    """Run one subcommand; returns the exit code (see the module doc)."""
+    os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
+    argv = sys.argv[1:] if argv is None else list(argv)
+    cmd = next((x for x in argv if not x.startswith("-")), None)
+    ap = build_parser(only=cmd if cmd in COMMANDS else None)
+    try:
+        args = ap.parse_args(argv)
+    except SystemExit as e:  # --help, --version, usage errors (one line, exit 2)
+        return e.code if isinstance(e.code, int) else (0 if e.code is None else EXIT_BAD_INPUT)
+    try:
+        bad_input = _bad_input_types()
+    except Exception:  # noqa: BLE001 - a broken install is a bug, reported below
+        bad_input = (BadInput, P.ParameterError)
+    where = f"bpmcal {args.cmd}"
+    try:
+        return args.func(args)
+    except bad_input as e:
+        print(f"{where}: error: {_one_line(e)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"\n{where}: interrupted; the file being written was discarded", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # e.g. `bpmcal summary run.h5 | head`
+        sys.stdout = open(os.devnull, "w")
+        return EXIT_OK
+    except OSError as e:
+        name = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        print(f"{where}: error: {name}{e.strerror or _one_line(e)} (system error)",
+              file=sys.stderr)
+        return EXIT_SYSTEM
+    except Exception:  # noqa: BLE001 - a bug: keep the traceback, add a hint
+        traceback.print_exc()
+        print(f"{where}: internal error (a bug in bpmcal, not in your input): please report it "
+              "with the traceback above and the command line", file=sys.stderr)
+        return EXIT_BUG
+

@@ -1,0 +1,343 @@
+"""Option groups that several ``bpmcal`` subcommands share, and their readers.
+
+An ``add_*_args(p)`` function adds one group of options to a subparser; a reader
+(``run_geometry``, ``run_settings``, ``bts_settings_of``, ``bts_disc_of``,
+``dtt_settings_of``, ``dtt_cylinder_of``, ``budget_of``) turns the parsed namespace back
+into the settings object a stage takes. Every default is the settings' own (the lab tests'
+settings dataclasses, ``Geometry``, the resource budget), never a literal here. The lab
+modules are imported inside the functions, so that importing this module loads no engine.
+
+``BTS_OPTIONS`` and ``DTT_OPTIONS`` name the settings fields that are options; the workflow
+(``workflow/rules/common.smk``) builds its ``--bts-*`` and ``--dtt-*`` options from them.
+"""
+from __future__ import annotations
+
+from ..lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
+from .args import SEED, THREADS, choice, fraction, integer, number, positive
+
+
+def add_source_args(p):
+    """Where a DEM run command takes its parameters and seed from, and its output file."""
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--params", default=None,
+                     help="YAML file with the 8 meso-parameters (or a material card)")
+    src.add_argument("--design", default=None,
+                     help="take the parameters and the seed from this design CSV ...")
+    p.add_argument("--sample", default=None, help="... row with this sample_id")
+    p.add_argument("--out", required=True, help="output HDF5 file (written atomically)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="override one parameter (repeatable)")
+    p.add_argument("--seed", type=SEED, default=None,
+                   help="packing seed (default 1, or the design row's)")
+
+
+FAILED_OK_HELP = ("a failed run (failure record written) exits 0 instead of 3; the workflow "
+                  "passes this so that one failed sample does not stop the study")
+
+
+def add_outcome_args(p):
+    """How a DEM run command reports: progress, and the exit code of a failed run."""
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress output (a FAILED line is still printed)")
+    p.add_argument("--failed-ok", action="store_true", help=FAILED_OK_HELP)
+
+
+def add_budget_args(p):
+    """Resource guards of a DEM command (checked before any work)."""
+    p.add_argument("--max-balls", type=integer("max-balls", 1), default=MAX_BALLS,
+                   help="refuse a specimen estimated to hold more balls than this "
+                        f"(default {MAX_BALLS:,})")
+    p.add_argument("--mem-budget-mb", type=positive("mem-budget-mb", "MB"), default=None,
+                   help="refuse a run estimated to need more memory than this [MB] "
+                        "(default 80 %% of this machine's memory)")
+    p.add_argument("--genesis-max-steps", type=integer("genesis-max-steps", 1000),
+                   default=GENESIS_MAX_STEPS,
+                   help="a specimen that has not settled after this many steps is a failed "
+                        f"run (default {GENESIS_MAX_STEPS:,})")
+
+
+def budget_of(args) -> dict:
+    """The resource guards of :func:`add_budget_args` as a stage's keyword arguments."""
+    return {"max_balls": args.max_balls, "mem_budget_mb": args.mem_budget_mb,
+            "genesis_max_steps": args.genesis_max_steps}
+
+
+GENESES = ("bpmcal", "pfc")  # = lab.specimen.GENESES (tested equal)
+
+
+def add_specimen_args(p, geo=None, what: str = "the 50 x 100 mm cylinder"):
+    """The specimen of a DEM command (``Geometry``'s fields; defaults from ``geo``)."""
+    from ..lab.runner import Geometry
+
+    geo = geo or Geometry()
+    p.add_argument("--scale", type=number("scale", 0.0, 10.0, lo_open=True), default=geo.scale,
+                   help=f"specimen size factor on {what} (default {geo.scale:g})")
+    p.add_argument("--sigma0", type=number("sigma0", 0.0, 100.0, unit="MPa"),
+                   default=geo.sigma0_MPa, help="locked-in isotropic stress after genesis "
+                                                f"[MPa] (default {geo.sigma0_MPa:g})")
+    p.add_argument("--install-gap", type=number("install-gap", 0.0, 1.0, unit="mm"),
+                   default=geo.install_gap_mm,
+                   help="bond pairs with surface gap <= this [mm] (default: the genesis's, 0 "
+                        "for bpmcal, 0.0625 Rmin for pfc)")
+    p.add_argument("--genesis", choices=GENESES, default=geo.genesis,
+                   help="specimen genesis after the packing: bpmcal (locked-in stress relieved "
+                        "to --sigma0, bonds on touching pairs) or pfc (Itasca's tutorial "
+                        "practice: every overlap relieved to zero force, bonds within a "
+                        f"positive gap); default {geo.genesis}")
+    p.add_argument("--relax-ratio", type=number("relax-ratio", 0.0, 0.1, lo_open=True),
+                   default=geo.relax_ratio,
+                   help="genesis equilibrium: mean unbalanced-force ratio "
+                        f"(default {geo.relax_ratio:g})")
+    p.add_argument("--threads", type=THREADS, default=None, help="numba threads (>= 1)")
+    p.add_argument("--specimen-cache", default=None,
+                   help="directory of cached packings (default ~/.cache/bpmcal/packings or "
+                        "$BPMCAL_SPECIMEN_CACHE)")
+    add_budget_args(p)
+
+
+def add_run_args(p, loading=None):
+    """Options of the cylinder and of its axial loading (shared by ucs, triaxial, verify,
+    scatter, impact); the loading defaults are ``loading``'s (default ``UCSSettings()``)."""
+    from ..lab.runner import Geometry
+    from ..lab.ucs import UCSSettings
+
+    geo, ld = Geometry(), loading or UCSSettings()
+    p.add_argument("--diameter", type=positive("diameter", "mm"), default=geo.diameter_mm,
+                   help=f"specimen diameter before scaling [mm] (default {geo.diameter_mm:g})")
+    p.add_argument("--height", type=positive("height", "mm"), default=geo.height_mm,
+                   help=f"specimen height before scaling [mm] (default {geo.height_mm:g})")
+    p.add_argument("--record-strain", type=number("record-strain", 0.0, 0.01, lo_open=True),
+                   default=ld.record_strain,
+                   help=f"axial strain between records (default {ld.record_strain:g})")
+    p.add_argument("--platen-velocity", type=number("platen-velocity", 0.0, 100.0,
+                                                    lo_open=True, unit="m/s"),
+                   default=ld.platen_velocity,
+                   help=f"speed of each platen [m/s] (default {ld.platen_velocity:g})")
+    p.add_argument("--strain-rate", type=positive("strain-rate", "1/s"), default=ld.strain_rate,
+                   help="axial strain rate [1/s]; overrides --platen-velocity "
+                        "(each platen then moves at rate x H / 2)")
+    p.add_argument("--damping", type=number("damping", 0.0, 1.0, hi_open=True),
+                   default=ld.damping, help=f"local damping in [0, 1) (default {ld.damping:g})")
+    p.add_argument("--stop-drop", type=fraction("stop-drop"), default=ld.stop_drop,
+                   help="stop when stress < this fraction of the peak after it "
+                        f"(default {ld.stop_drop:g})")
+    p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
+                   default=ld.max_strain,
+                   help=f"stop at this axial strain (default {ld.max_strain:g})")
+    p.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0),
+                   default=ld.platen_fric,
+                   help=f"platen friction coefficient in [0, 10] (default {ld.platen_fric:g})")
+    p.add_argument("--end-cap", type=number("end-cap", 0.0, 10.0), default=ld.end_cap,
+                   metavar="D",
+                   help="end caps: the bonds within D mean ball diameters of a platen get "
+                        "--end-cap-factor x their strength (not their stiffness), so that the "
+                        "wall-packed end layers do not decide the strength; 0 = none, 1 = the "
+                        f"first layer of balls (default {ld.end_cap:g}; README \"Where the "
+                        "specimens fail\")")
+    p.add_argument("--end-cap-factor", type=number("end-cap-factor", 1.0, 1e6),
+                   default=ld.end_cap_factor,
+                   help="strength factor of the end caps' bonds in [1, 1e6] "
+                        f"(default {ld.end_cap_factor:g})")
+    add_specimen_args(p, geo)
+
+
+def run_geometry(args):
+    from ..lab.runner import Geometry
+
+    return Geometry(scale=args.scale, diameter_mm=args.diameter, height_mm=args.height,
+                    sigma0_MPa=args.sigma0, install_gap_mm=args.install_gap,
+                    relax_ratio=args.relax_ratio, genesis=args.genesis)
+
+
+def run_settings(args, cls=None, **extra):
+    """The loading settings (``cls``: UCSSettings, the default, or TriaxialSettings)."""
+    if cls is None:
+        from ..lab.ucs import UCSSettings as cls
+    return cls(platen_velocity=args.platen_velocity, strain_rate=args.strain_rate,
+               damping=args.damping, stop_drop=args.stop_drop, max_strain=args.max_strain,
+               platen_fric=args.platen_fric, record_strain=args.record_strain,
+               end_cap=args.end_cap, end_cap_factor=args.end_cap_factor, **extra)
+
+
+def file_arg(p, flag, help_, nargs=None):
+    """A required file option (an input or a declared output of the job)."""
+    p.add_argument(flag, required=True, nargs=nargs, help=help_)
+
+
+#: BTSSettings fields that are command options: ``bpmcal bts --FIELD`` and, for the closed
+#: loop of a card with a σt target, ``bpmcal verify/transfer --bts-FIELD`` (the study
+#: passes its `bts` section to all three, so σt is measured as for the regression's model)
+BTS_OPTIONS = ("loading", "jaw_ratio", "contact_cap", "contact_cap_factor", "central_zone",
+               "platen_velocity", "approach_velocity", "platen_fric", "damping", "stop_drop",
+               "post_peak_min", "max_strain", "record_strain")
+
+
+def add_bts_args(p, prefix: str = ""):
+    """The Brazilian disc and loading options (defaults: ``BTSSettings`` and the ISRM disc)
+    on ``p``: ``--OPTION``, or ``--bts-OPTION`` with ``prefix="bts_"`` (verify, transfer);
+    read back by :func:`bts_settings_of` and :func:`bts_disc_of` with the same prefix."""
+    from ..lab.brazilian import BTSSettings
+    from ..lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM
+
+    bd = BTSSettings()  # the defaults of the Brazilian test live in its settings
+    g = p.add_argument_group("Brazilian test" + (" of a card with a tensile-strength target"
+                                                 if prefix else ""))
+
+    def lab(name):  # the option without its dashes: "platen-velocity", "bts-damping"
+        return (prefix + name).replace("_", "-")
+
+    def opt(name):
+        return "--" + lab(name)
+
+    g.add_argument(opt("diameter"), type=positive(lab("diameter"), "mm"),
+                   default=BTS_DIAMETER_MM,
+                   help=f"disc diameter before scaling [mm] (default {BTS_DIAMETER_MM:g})")
+    if prefix:  # `bpmcal bts` scales its disc with its own --scale
+        g.add_argument(opt("scale"), type=number(lab("scale"), 0.0, 10.0, lo_open=True),
+                       default=None,
+                       help="size factor of the disc (default: the cylinder's --scale); the "
+                            "disc is sized for the sigma_t measurement (README: resolution)")
+    g.add_argument(opt("thickness"), type=positive(lab("thickness"), "mm"),
+                   default=BTS_THICKNESS_MM,
+                   help=f"disc thickness before scaling [mm] (default {BTS_THICKNESS_MM:g}, "
+                        "ISRM t = D/2)")
+    from ..lab.brazilian import LOADINGS
+
+    spec = {
+        "loading": (choice(lab("loading"), LOADINGS),
+                    "how the disc is loaded: flat (two planar platens) or jaws (ISRM curved "
+                    "jaws, radius --jaw-ratio x the disc's) (default {d})"),
+        "jaw_ratio": (number(lab("jaw_ratio"), 1.0, 100.0, lo_open=True),
+                      "jaw radius / disc radius, > 1 (default {d:g}, ISRM)"),
+        "contact_cap": (number(lab("contact_cap"), 0.0, 10.0),
+                        "contact caps: the bonds within this many mean ball diameters of a "
+                        "loading contact get --contact-cap-factor x their strength (not "
+                        "their stiffness), so that the test fails in the disc, not at its "
+                        "contacts; 0 = none (default {d:g})"),
+        "contact_cap_factor": (number(lab("contact_cap_factor"), 1.0, 1e6),
+                               "strength factor of the contact caps' bonds (default {d:g})"),
+        "central_zone": (number(lab("central_zone"), 0.0, 1.0, lo_open=True),
+                         "a valid fracture starts within this fraction of the radius of the "
+                         "disc centre along the loaded diameter (default {d:g}, ISRM)"),
+        "platen_velocity": (number(lab("platen_velocity"), 0.0, 100.0, lo_open=True,
+                                   unit="m/s"),
+                            "speed of each platen [m/s] (default {d:g}: halving it changes "
+                            "sigma_t by < 2 %%, see the README)"),
+        "approach_velocity": (number(lab("approach_velocity"), 0.0, 100.0, unit="m/s"),
+                              "speed of each platen until the first crack [m/s] (default "
+                              "{d:g}: off, the whole test at the platen velocity)"),
+        "platen_fric": (number(lab("platen_fric"), 0.0, 10.0),
+                        "platen friction coefficient (default {d:g}; with 0 the free disc "
+                        "spins on the platens before it seats, and sigma_t is ~15 %% lower)"),
+        "damping": (number(lab("damping"), 0.0, 1.0, hi_open=True),
+                    "local damping in [0, 1) (default {d:g})"),
+        "stop_drop": (fraction(lab("stop_drop")),
+                      "stop when the load < this fraction of the peak after it "
+                      "(default {d:g})"),
+        "post_peak_min": (number(lab("post_peak_min"), 0.0, 0.5),
+                          "stop only this much platen approach / D past the peak (default "
+                          "{d:g}; 0 stops at the load drop, enough for sigma_t)"),
+        "max_strain": (number(lab("max_strain"), 0.0, 0.5, lo_open=True),
+                       "stop at this platen approach / D (default {d:g})"),
+        "record_strain": (number(lab("record_strain"), 0.0, 0.01, lo_open=True),
+                          "platen approach / D between records (default {d:g})"),
+    }
+    assert tuple(spec) == BTS_OPTIONS
+    for f, (kind, text) in spec.items():
+        d = getattr(bd, f)
+        g.add_argument(opt(f), type=kind, default=d, help=text.format(d=d))
+
+
+def bts_settings_of(args, prefix: str = ""):
+    """``BTSSettings`` from the options of :func:`add_bts_args`."""
+    from ..lab.brazilian import BTSSettings
+
+    return BTSSettings(**{f: getattr(args, prefix + f) for f in BTS_OPTIONS})
+
+
+def bts_disc_of(args, prefix: str = ""):
+    """The disc of the options of :func:`add_bts_args` at --scale, with the cylinder's
+    genesis options."""
+    from ..lab.runner import bts_geometry
+
+    scale = getattr(args, prefix + "scale", None) if prefix else None
+    return bts_geometry(scale=args.scale if scale is None else scale,
+                        diameter_mm=getattr(args, prefix + "diameter"),
+                        thickness_mm=getattr(args, prefix + "thickness"), sigma0_MPa=args.sigma0,
+                        install_gap_mm=args.install_gap, relax_ratio=args.relax_ratio,
+                        genesis=args.genesis)
+
+
+#: DTTSettings fields that are command options (``bpmcal dtt --FIELD``)
+DTT_OPTIONS = ("grip_velocity", "grip_length", "grip_clearance", "damping", "stop_drop",
+               "post_peak_min", "max_strain", "record_strain")
+
+
+def add_dtt_args(p, prefix: str = ""):
+    """The direct-tension cylinder and loading options (defaults: ``DTTSettings`` and the
+    UCS cylinder) on ``p``: ``--OPTION``, or ``--dtt-OPTION`` with ``prefix="dtt_"``; read
+    back by :func:`dtt_settings_of` and :func:`dtt_cylinder_of` with the same prefix."""
+    from ..lab.direct_tension import DTTSettings
+    from ..lab.runner import Geometry
+
+    dd, geo = DTTSettings(), Geometry()
+    g = p.add_argument_group("direct-tension test")
+
+    def lab(name):
+        return (prefix + name).replace("_", "-")
+
+    if prefix:  # the UCS cylinder (--diameter, --height) at its own scale
+        g.add_argument("--" + lab("scale"), type=number(lab("scale"), 0.0, 10.0, lo_open=True),
+                       default=None,
+                       help="size factor of the direct-tension cylinder (default: the UCS "
+                            "cylinder's --scale)")
+    else:
+        g.add_argument("--diameter", type=positive("diameter", "mm"), default=geo.diameter_mm,
+                       help=f"cylinder diameter before scaling [mm] (default "
+                            f"{geo.diameter_mm:g})")
+        g.add_argument("--height", type=positive("height", "mm"), default=geo.height_mm,
+                       help=f"cylinder height before scaling [mm] (default {geo.height_mm:g})")
+    spec = {
+        "grip_velocity": (number(lab("grip_velocity"), 0.0, 100.0, lo_open=True, unit="m/s"),
+                          "speed of each grip [m/s] (default {d:g})"),
+        "grip_length": (number(lab("grip_length"), 0.0, 0.45, lo_open=True, hi_open=True),
+                        "fraction of the height held by each grip, in (0, 0.45) "
+                        "(default {d:g})"),
+        "grip_clearance": (number(lab("grip_clearance"), 0.0, 100.0),
+                           "a fracture closer than this many mean ball diameters to a grip's "
+                           "face is next to the grip: the run is invalid (default {d:g})"),
+        "damping": (number(lab("damping"), 0.0, 1.0, hi_open=True),
+                    "local damping in [0, 1) (default {d:g})"),
+        "stop_drop": (fraction(lab("stop_drop")),
+                      "stop when the load < this fraction of the peak after it "
+                      "(default {d:g})"),
+        "post_peak_min": (number(lab("post_peak_min"), 0.0, 0.5),
+                          "... at least this axial strain past the peak (default {d:g})"),
+        "max_strain": (number(lab("max_strain"), 0.0, 0.5, lo_open=True),
+                       "stop at this axial strain (default {d:g})"),
+        "record_strain": (number(lab("record_strain"), 0.0, 0.01, lo_open=True),
+                          "axial strain between records (default {d:g})"),
+    }
+    assert tuple(spec) == DTT_OPTIONS
+    for f, (kind, text) in spec.items():
+        d = getattr(dd, f)
+        g.add_argument("--" + lab(f), type=kind, default=d, help=text.format(d=d))
+
+
+def dtt_settings_of(args, prefix: str = ""):
+    """``DTTSettings`` from the options of :func:`add_dtt_args`."""
+    from ..lab.direct_tension import DTTSettings
+
+    return DTTSettings(**{f: getattr(args, prefix + f) for f in DTT_OPTIONS})
+
+
+def dtt_cylinder_of(args, prefix: str = ""):
+    """The cylinder of the options of :func:`add_dtt_args` at --scale, with the genesis
+    options."""
+    from ..lab.runner import Geometry
+
+    scale = getattr(args, prefix + "scale", None) if prefix else None
+    return Geometry(scale=args.scale if scale is None else scale, diameter_mm=args.diameter,
+                    height_mm=args.height, sigma0_MPa=args.sigma0,
+                    install_gap_mm=args.install_gap, relax_ratio=args.relax_ratio,
+                    genesis=args.genesis)

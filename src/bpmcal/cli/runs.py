@@ -1,0 +1,287 @@
+"""Subcommands that run one DEM test and write its run file: ``ucs``, ``bts``, ``dtt``,
+``triaxial``, ``impact``; and the two that read a run file: ``summary``, ``vtk``.
+
+Each ``_add_<cmd>`` (its options) stands directly above its ``cmd_<cmd>`` (the handler).
+A failed run writes its failure record and exits 3 (0 with ``--failed-ok``).
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from ..io.checks import BadInput
+from ..stages import defaults_of
+from ..stages.progress import Progress
+from .args import EXIT_OK, EXIT_RUN_FAILED, SEED, integer, number, positive
+from .options import (
+    add_bts_args,
+    add_dtt_args,
+    add_outcome_args,
+    add_run_args,
+    add_source_args,
+    add_specimen_args,
+    bts_disc_of,
+    bts_settings_of,
+    budget_of,
+    dtt_cylinder_of,
+    dtt_settings_of,
+    run_geometry,
+    run_settings,
+)
+
+
+def _run_done(args, cmd: str, out, path=None) -> int:
+    """Exit code of a DEM run command (its output ``path``, default --out); the FAILED line
+    is printed even with --quiet."""
+    if out.status == "ok":
+        return EXIT_OK
+    where = (f"failure record written to {out.path}; the good run in {out.kept} was kept"
+             if out.kept else "failure record written")
+    print(f"bpmcal {cmd}: FAILED: {path or args.out}: {out.error} ({where})", file=sys.stderr)
+    sys.stderr.flush()
+    return EXIT_OK if args.failed_ok and not out.kept else EXIT_RUN_FAILED
+
+
+def _lab_test(args, test: str, geometry, settings, done_line) -> int:
+    """``ucs``, ``bts`` and ``triaxial``: the run file (``stages.runs.lab_test_file``), its
+    one-line result and the exit code."""
+    return _lab_tests(args, [(test, args.out, geometry, settings, done_line)])
+
+
+def _lab_tests(args, tests, flags=None) -> int:
+    """Lab tests of one parameter set in one process (``stages.runs.lab_test_files``;
+    ``tests``: (test, out, geometry, settings, done_line)): their run files, a one-line
+    result each, and the exit code (that of the first test that did not succeed)."""
+    from ..stages.runs import lab_test_files
+
+    progs = [Progress(f"{t} {Path(o).name}", enabled=not args.quiet) for t, o, *_ in tests]
+    outs = lab_test_files([(t, o, g, st) for t, o, g, st, _ in tests], params_file=args.params,
+                          sets=args.set, design=args.design, sample=args.sample, seed=args.seed,
+                          cache=args.specimen_cache, threads=args.threads, progress=progs,
+                          flags=flags, **budget_of(args))
+    rc = EXIT_OK
+    for (test, path, _, _, done_line), prog, out in zip(tests, progs, outs):
+        prog.done(f"{path}: {done_line(out.summary)}" if out.status == "ok" and out.summary
+                  else "")
+        r = _run_done(args, test, out, path)
+        rc = r if rc == EXIT_OK else rc
+    return rc
+
+
+def _add_ucs(p):
+    add_source_args(p)
+    add_run_args(p)
+    p.add_argument("--bts-out", default=None,
+                   help="also run the Brazilian test of the same parameters and packing seed "
+                        "(the --bts-* options below; the disc at --scale with the cylinder's "
+                        "genesis options) into this HDF5 file, in the same process after the "
+                        "UCS test: the study's sample job (one start-up instead of two); each "
+                        "test writes its run file or failure record")
+    add_bts_args(p, "bts_")
+    p.add_argument("--dtt-out", default=None,
+                   help="also run the direct-tension test of the same parameters and packing "
+                        "seed (the --dtt-* options below; the cylinder of --diameter x "
+                        "--height at --dtt-scale) into this HDF5 file, after the other tests")
+    add_dtt_args(p, "dtt_")
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_ucs)
+
+
+def _ucs_line(s):
+    return (f"sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
+            f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
+            f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
+            f"({s['stop_reason']})")
+
+
+def cmd_ucs(args) -> int:
+    tests = [("ucs", args.out, run_geometry(args), run_settings(args), _ucs_line)]
+    flags = ["--out"]
+    if args.bts_out is not None:  # the study's sample job: the Brazilian test in this process
+        tests.append(("bts", args.bts_out, bts_disc_of(args, "bts_"),
+                      bts_settings_of(args, "bts_"), _bts_line))
+        flags.append("--bts-out")
+    if args.dtt_out is not None:  # ... and the direct-tension test
+        tests.append(("dtt", args.dtt_out, dtt_cylinder_of(args, "dtt_"),
+                      dtt_settings_of(args, "dtt_"), _dtt_line))
+        flags.append("--dtt-out")
+    return _lab_tests(args, tests, flags=flags)
+
+
+def _add_bts(p):
+    from ..lab.runner import bts_geometry
+
+    add_source_args(p)
+    add_bts_args(p)
+    add_specimen_args(p, bts_geometry(), "the ISRM 50 x 25 mm disc")
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_bts)
+
+
+def _bts_line(s):
+    if not s.get("bts_valid", True):
+        return (f"INVALID ({s.get('bts_invalid_reason', '')}); peak stress "
+                f"{s['bts_peak_MPa']:.3f} MPa is no sigma_t, {s['n_balls']} balls, "
+                f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+    return (f"sigma_t = {s['bts_MPa']:.3f} MPa (peak load {s['peak_load_N']:.1f} N, "
+            f"platen forces differ by {100 * s['platen_mismatch']:.2f} %), cracks "
+            f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
+            f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+
+
+def cmd_bts(args) -> int:
+    return _lab_test(args, "bts", bts_disc_of(args), bts_settings_of(args), _bts_line)
+
+
+def _add_dtt(p):
+    from ..lab.runner import Geometry
+
+    add_source_args(p)
+    add_dtt_args(p)
+    add_specimen_args(p, Geometry(), "the 50 x 100 mm cylinder")
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_dtt)
+
+
+def _dtt_line(s):
+    st = (f"sigma_t = {s['dtt_MPa']:.3f} MPa" if s.get("dtt_valid")
+          else f"INVALID ({s.get('dtt_invalid_reason', '')}); peak stress "
+               f"{s['dtt_peak_MPa']:.3f} MPa is no sigma_t")
+    return (f"{st}, fracture at {s['fracture_height']:.2f} of the gauge length, cracks "
+            f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
+            f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+
+
+def cmd_dtt(args) -> int:
+    return _lab_test(args, "dtt", dtt_cylinder_of(args), dtt_settings_of(args), _dtt_line)
+
+
+def _add_triaxial(p):
+    from ..lab.triaxial import TriaxialSettings
+
+    td = TriaxialSettings()
+    add_source_args(p)
+    p.add_argument("--sigma3", required=True, metavar="MPA",
+                   type=number("sigma3", 0.0, 1000.0, unit="MPa"),
+                   help="confining stress [MPa] in [0, 1000], held by a servo-controlled "
+                        "lateral wall")
+    p.add_argument("--servo-gain", type=number("servo-gain", 0.0, 1.0, lo_open=True),
+                   default=td.servo_alpha,
+                   help=f"servo relaxation factor alpha in (0, 1] (default {td.servo_alpha:g}, "
+                        "as PFC)")
+    p.add_argument("--servo-interval", type=integer("servo-interval", 1, 1000),
+                   default=td.servo_interval,
+                   help=f"steps between servo updates (default {td.servo_interval})")
+    add_run_args(p, loading=td)
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_triaxial)
+
+
+def cmd_triaxial(args) -> int:
+    from ..lab.triaxial import TriaxialSettings
+
+    st = run_settings(args, TriaxialSettings, sigma3=args.sigma3 * 1e6,
+                      servo_alpha=args.servo_gain, servo_interval=args.servo_interval)
+
+    def line(s):
+        dev = (f"{100 * s['sigma3_maxdev_rel']:.2f} %" if args.sigma3 > 0
+               else f"{s['sigma3_maxdev_MPa']:.3f} MPa")
+        return (f"sigma3 = {args.sigma3:g} MPa, sigma1 = {s['sigma1_MPa']:.3f} MPa, "
+                f"E = {s['E_GPa']:.3f} GPa, nu = {s['nu']:.3f}, sigma3 held within {dev} "
+                f"up to the peak, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
+                f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+
+    return _lab_test(args, "triaxial", run_geometry(args), st, line)
+
+
+def _add_impact(p):
+    from ..lab.impact import ImpactSettings
+    from ..stages.runs import impact_file
+
+    im, seed = ImpactSettings(), defaults_of(impact_file)["seed"]
+    p.add_argument("--card", required=True,
+                   help="material card (verified or calibrated) or a YAML of the 8 parameters")
+    p.add_argument("--out", required=True)
+    p.add_argument("--velocity", type=number("velocity", 0.0, 100.0, lo_open=True,
+                                             unit="m/s"), default=im.velocity,
+                   help=f"hammer velocity [m/s] (default {im.velocity:g})")
+    p.add_argument("--hammer-mass", type=positive("hammer-mass", "kg"), default=im.hammer_mass,
+                   help="hammer mass at full size [kg]; scaled by scale^3 "
+                        f"(default {im.hammer_mass:g})")
+    p.add_argument("--dp-ratio", type=number("dp-ratio", 0.0, 1.0), default=im.dp_ratio,
+                   help="contact dashpot critical-damping ratio in [0, 1] "
+                        f"(default {im.dp_ratio:g})")
+    p.add_argument("--anvil-fric", dest="anvil_fric", type=number("anvil-fric", 0.0, 10.0),
+                   default=im.platen_fric,
+                   help=f"friction of anvil and hammer (default {im.platen_fric:g})")
+    p.add_argument("--duration-ms", type=positive("duration-ms", "ms"),
+                   default=im.duration * 1e3,
+                   help=f"run at most this long [ms] (default {im.duration * 1e3:g})")
+    p.add_argument("--record-us", type=positive("record-us", "us"),
+                   default=im.record_dt * 1e6,
+                   help=f"time between records [us] (default {im.record_dt * 1e6:g})")
+    p.add_argument("--seed", type=SEED, default=seed, help=f"packing seed (default {seed})")
+    add_outcome_args(p)
+    add_run_args(p)
+    p.set_defaults(func=cmd_impact)
+
+
+def cmd_impact(args) -> int:
+    from ..lab.impact import ImpactSettings
+    from ..stages.runs import impact_file
+
+    st = ImpactSettings(velocity=args.velocity, hammer_mass=args.hammer_mass * args.scale ** 3,
+                        dp_ratio=args.dp_ratio, platen_fric=args.anvil_fric,
+                        duration=args.duration_ms * 1e-3, record_dt=args.record_us * 1e-6)
+    prog = Progress(f"impact {Path(args.out).name}", enabled=not args.quiet)
+    out = impact_file(args.card, args.out, geometry=run_geometry(args), settings=st,
+                      seed=args.seed, cache=args.specimen_cache, threads=args.threads,
+                      progress=prog, **budget_of(args))
+    if out.status == "ok":
+        s = out.summary
+        prog.done(f"{args.out}: W_in = {s['W_in_J']:.3f} J, G_f = {s['G_f_J']:.3f} J, eta_f = "
+                  f"{100 * s['eta_f']:.1f} %, t10 = {s['t10_pct']:.1f} %, closure "
+                  f"{100 * s['closure_rel_max']:.3f} %, {s['steps']} steps, {s['wall_s']:.0f} s")
+    else:
+        prog.done()
+    return _run_done(args, "impact", out)
+
+
+def _add_summary(p):
+    p.add_argument("run")
+    p.add_argument("--json", action="store_true", help="one JSON object")
+    p.set_defaults(func=cmd_summary)
+
+
+def cmd_summary(args) -> int:
+    from ..io.h5 import json_safe, read_summary
+
+    s = read_summary(args.run)
+    if args.json:
+        print(json.dumps(json_safe(s), sort_keys=True))
+    else:
+        for k in sorted(s):
+            print(f"{k:24s} {s[k]}")
+    return 0
+
+
+def _add_vtk(p):
+    p.add_argument("run")
+    p.add_argument("--out", required=True, help="output directory")
+    p.set_defaults(func=cmd_vtk)
+
+
+def cmd_vtk(args) -> int:
+    from ..io.checks import out_dir
+    from ..io.h5 import read_summary
+    from ..io.vtk import export_run
+
+    s = read_summary(args.run)
+    if s.get("status") != "ok":
+        raise BadInput(f"{args.run}: a failure record (status {s.get('status')}: "
+                       f"{s.get('error', '')}), no particles to export")
+    out_dir(args.out, "--out")
+    for f in export_run(args.run, args.out):
+        print(f)
+    return 0
