@@ -132,8 +132,8 @@ def add_run_args(p, loading=None):
                    help="end caps: the bonds within D mean ball diameters of a platen get "
                         "--end-cap-factor x their strength (not their stiffness), so that the "
                         "wall-packed end layers do not decide the strength; 0 = none, 1 = the "
-                        f"first layer of balls (default {ld.end_cap:g}; README \"Where the "
-                        "specimens fail\")")
+                        f"first layer of balls (default {ld.end_cap:g}; the measurement: "
+                        "docs/measurements/2026-11-26-end-layers.md)")
     p.add_argument("--end-cap-factor", type=number("end-cap-factor", 1.0, 1e6),
                    default=ld.end_cap_factor,
                    help="strength factor of the end caps' bonds in [1, 1e6] "
@@ -196,7 +196,8 @@ def add_bts_args(p, prefix: str = ""):
         g.add_argument(opt("scale"), type=number(lab("scale"), 0.0, 10.0, lo_open=True),
                        default=None,
                        help="size factor of the disc (default: the cylinder's --scale); the "
-                            "disc is sized for the sigma_t measurement (README: resolution)")
+                            "disc is sized for the sigma_t measurement (the resolution curve: "
+                            "docs/measurements/2026-11-26-tensile-strength.md)")
     g.add_argument(opt("thickness"), type=positive(lab("thickness"), "mm"),
                    default=BTS_THICKNESS_MM,
                    help=f"disc thickness before scaling [mm] (default {BTS_THICKNESS_MM:g}, "
@@ -221,8 +222,8 @@ def add_bts_args(p, prefix: str = ""):
                          "disc centre along the loaded diameter (default {d:g}, ISRM)"),
         "platen_velocity": (number(lab("platen_velocity"), 0.0, 100.0, lo_open=True,
                                    unit="m/s"),
-                            "speed of each platen [m/s] (default {d:g}: halving it changes "
-                            "sigma_t by < 2 %%, see the README)"),
+                            "speed of each platen [m/s] (default {d:g}; its effect on sigma_t: "
+                            "docs/lab-tests.md)"),
         "approach_velocity": (number(lab("approach_velocity"), 0.0, 100.0, unit="m/s"),
                               "speed of each platen until the first crack [m/s] (default "
                               "{d:g}: off, the whole test at the platen velocity)"),

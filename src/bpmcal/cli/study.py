@@ -90,7 +90,7 @@ def _add_screen(p):
 
 
 def cmd_screen(args) -> int:
-    from ..stages.analysis import screen
+    from ..stages.screening import screen
 
     r = screen(args.dataset, selected=args.selected, table3_csv=args.table3,
                figure=args.figure, importance_table=args.importance_table,
@@ -131,7 +131,7 @@ def _add_regress(p):
 
 
 def cmd_regress(args) -> int:
-    from ..stages.analysis import regress
+    from ..stages.regression import regress
 
     r = regress(args.dataset, args.selected, models=args.models, equations=args.equations,
                 summaries=args.summaries, coefficients=args.coefficients,
@@ -145,7 +145,7 @@ def cmd_regress(args) -> int:
 
 
 def _add_calibrate(p):
-    from ..stages.analysis import calibrate
+    from ..stages.calibration import calibrate
 
     d = defaults_of(calibrate)
     p.add_argument("--dataset", required=True)
@@ -176,7 +176,7 @@ def _add_calibrate(p):
 
 
 def cmd_calibrate(args) -> int:
-    from ..stages.analysis import calibrate
+    from ..stages.calibration import calibrate
 
     fixed = parse_json(args.fixed, "--fixed")
     ranges = parse_json(args.ranges, "--ranges")

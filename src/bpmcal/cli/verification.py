@@ -63,7 +63,7 @@ def _seeds(text) -> list[int]:
 
 
 def _add_verify(p):
-    from ..stages.analysis import verify
+    from ..stages.verification import verify
 
     d = defaults_of(verify)
     p.add_argument("--card", required=True)
@@ -104,7 +104,7 @@ def _add_verify(p):
 
 
 def cmd_verify(args) -> int:
-    from ..stages.analysis import verify
+    from ..stages.verification import verify
 
     prog = Progress(f"verify {Path(args.card).stem}", enabled=not args.quiet)
     v = verify(args.card, args.models, out_card=args.out_card, rounds=args.rounds, run=args.run,
@@ -121,7 +121,7 @@ def cmd_verify(args) -> int:
 
 
 def _add_transfer(p):
-    from ..stages.analysis import transfer
+    from ..stages.transfer import transfer
 
     d = defaults_of(transfer)
     p.add_argument("--card", required=True, help="a verified card (bpmcal verify)")
@@ -142,7 +142,7 @@ def _add_transfer(p):
 
 
 def cmd_transfer(args) -> int:
-    from ..stages.analysis import transfer
+    from ..stages.transfer import transfer
 
     prog = Progress(f"transfer {Path(args.card).stem}", enabled=not args.quiet)
     t = transfer(args.card, args.models, out_card=args.out_card, rounds=args.rounds, run=args.run,
@@ -163,14 +163,14 @@ def _add_transfer_table(p):
 
 
 def cmd_transfer_table(args) -> int:
-    from ..stages.analysis import transfer_table
+    from ..stages.transfer import transfer_table
 
     print(transfer_table(args.cards, table=args.table).to_string(index=False))
     return 0
 
 
 def _add_scatter(p):
-    from ..stages.analysis import seed_scatter
+    from ..stages.verification import seed_scatter
 
     d = defaults_of(seed_scatter)
     p.add_argument("--card", required=True)
@@ -184,7 +184,7 @@ def _add_scatter(p):
 
 
 def cmd_scatter(args) -> int:
-    from ..stages.analysis import seed_scatter
+    from ..stages.verification import seed_scatter
 
     sc = seed_scatter(args.card, runs=args.runs, seeds=_seeds(args.seeds),
                       seed_runs=args.seed_runs, table=args.table, geometry=run_geometry(args),
@@ -261,7 +261,7 @@ def _add_verification_tables(p):
 
 
 def cmd_verification_tables(args) -> int:
-    from ..stages.analysis import verification_tables
+    from ..stages.verification import verification_tables
 
     r = verification_tables(args.cards, args.runs, args.lab, table5=args.table5,
                             table6=args.table6, figure=args.figure)
