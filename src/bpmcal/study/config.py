@@ -517,7 +517,7 @@ def _default(node: dict, required: bool) -> str:
 def schema_reference(schema: dict) -> str:
     """Every section and key of the config schema as Markdown tables (type, default,
     allowed values, meaning): the reference part of config/README.md, generated from the
-    schema so that the two cannot disagree (tests/workflow/test_config_doc.py)."""
+    schema so that the two cannot disagree (tests/study/test_config_doc.py)."""
     out = []
     top = schema["properties"]
     for sec, node in top.items():
