@@ -1,4 +1,4 @@
-"""Two bonded balls, each loading mode, against the closed-form values of PBM.md.
+"""Two bonded balls, each loading mode, against the closed-form values of docs/contact_laws.md.
 
 Displacements are imposed by prescribing velocities (both balls fully fixed), so the
 stiffnesses and failure thresholds are checked through the real stepping path.

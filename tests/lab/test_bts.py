@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from lab_util import A1, FAST, SMALL
+from support.repo import REPO
 
 from bpmcal.cli import main
 from bpmcal.dem.errors import InputError
@@ -147,8 +148,7 @@ def test_the_study_settings_give_the_sigma_t_of_the_default_settings(base, cache
     switch to the loading speed at the first crack."""
     import yaml
 
-    repo = __import__("pathlib").Path(__file__).resolve().parents[2]
-    b = yaml.safe_load((repo / "config" / "config.yaml").read_text())["bts"]
+    b = yaml.safe_load((REPO / "config" / "config.yaml").read_text())["bts"]
     keys = ("platen_velocity", "approach_velocity", "post_peak_min", "stop_drop", "loading",
             "contact_cap")
     r, _ = bts(A1, cache, **{k: b[k] for k in keys})

@@ -5,11 +5,9 @@ the catalog's files are there."""
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import yaml
-
-REPO = Path(__file__).resolve().parents[2]
+from support.repo import REPO
 
 
 def run(*cmd):
