@@ -44,6 +44,7 @@ def runs(tmp_path_factory, packing_cache):
     return d
 
 
+@pytest.mark.slow
 def test_the_sample_job_writes_what_the_single_test_commands_write(runs):
     _same_run(runs / "u.h5", runs / "u1.h5")
     _same_run(runs / "b.h5", runs / "b1.h5")
@@ -72,6 +73,7 @@ def test_bad_input_of_either_test_is_refused_before_any_work(tmp_path, capsys, e
     assert not list(tmp_path.glob("*.h5"))  # nothing written, not even the UCS run
 
 
+@pytest.mark.slow
 def test_a_failed_ucs_test_does_not_stop_the_samples_brazilian_test(tmp_path, capsys):
     """A genesis step budget the cylinder (659 balls, bpmcal genesis) does not settle in
     but the disc (458 balls) does: the UCS test writes its failure record, the Brazilian

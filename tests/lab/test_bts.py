@@ -114,6 +114,7 @@ def test_sigma_t_is_positive_and_below_sigma_c_for_the_a1_set(base, cache):
     assert 2 < u["ucs_MPa"] / st < 15
 
 
+@pytest.mark.slow
 def test_scaling_moduli_and_strengths_by_1_5_scales_sigma_t_by_1_5(base, cache):
     """The scaling law on the median of three packings (seeds 1-3): a ~200-ball disc can
     take one of two failure paths when its loading changes slightly in time units (a
@@ -250,6 +251,7 @@ def test_cli_defaults_are_the_settings_defaults():
         assert t[k] == getattr(tx, k), k
 
 
+@pytest.mark.slow
 def test_a_weak_zone_under_a_platen_makes_the_run_invalid(base, cache):
     """Bonds at 0.45-0.7 R above the centre along the loaded diameter (below the top
     platen's contact cap) at a fifth of their strength: the fracture starts there, and the
@@ -278,6 +280,7 @@ def test_a_weak_zone_under_a_platen_makes_the_run_invalid(base, cache):
     assert s["bts_peak_MPa"] < base.summary["bts_MPa"]  # the weak zone failed first
 
 
+@pytest.mark.slow
 def test_contact_caps_change_strength_not_stiffness(cache):
     """The caps' bonds cannot break (strength x 1000), but until the first crack the
     capped and the uncapped disc are the same elastic body: the same loads, step by step."""
@@ -297,6 +300,7 @@ def test_contact_caps_change_strength_not_stiffness(cache):
     np.testing.assert_array_equal(a.series["load"][:k], b.series["load"][:k])
 
 
+@pytest.mark.slow
 def test_curved_jaws_touch_the_disc_without_overlap_and_split_it(cache):
     from bpmcal.lab.brazilian import add_jaws
 

@@ -2,6 +2,7 @@
 and the analysis picks the ratio whose tensile share is closest to the target."""
 import numpy as np
 import pandas as pd
+import pytest
 from support.paper import A1
 
 from bpmcal.analysis import fit_terms
@@ -9,6 +10,7 @@ from bpmcal.io.layout import ratio_grid
 from bpmcal.study.sweep import analyse_sweep, sweep_plan
 
 
+@pytest.mark.slow
 def test_sweep_plan_holds_the_predicted_ucs_at_the_target():
     rng = np.random.default_rng(0)
     df = pd.DataFrame({k: rng.uniform(10, 50, 80) for k in ("pb_ten_MPa", "pb_coh_MPa")})

@@ -12,6 +12,8 @@ from support.repo import copy_workflow, run_snakemake
 
 from bpmcal.cli import build_parser
 
+pytestmark = pytest.mark.slow  # a Snakemake dry run of the smoke study with every key set
+
 #: a value for every key, unlike every default and every shipped config
 OVERLAY = {
     "specimen": {"diameter_mm": 51.5, "height_mm": 101.5, "sigma0_MPa": 0.137,

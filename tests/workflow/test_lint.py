@@ -6,8 +6,11 @@ import os
 import subprocess
 import sys
 
+import pytest
 import yaml
 from support.repo import REPO
+
+pytestmark = pytest.mark.slow  # snakemake --lint and snakefmt: seconds
 
 
 def run(*cmd):
