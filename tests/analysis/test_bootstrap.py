@@ -31,6 +31,7 @@ def fitted(df):
     return {r: RegressionModel(r, TERMS[r], np.zeros(len(TERMS[r])), 0.0).refit(ok) for r in TERMS}
 
 
+@pytest.mark.slow
 def test_percentile_intervals_cover_truth_at_nominal_rate(design):
     n_sets, covered = 40, {p: 0 for p in TRUTH}
     for i in range(n_sets):

@@ -13,16 +13,13 @@ import h5py
 import numpy as np
 import pytest
 import yaml
+from support.paper import A1
+from support.repo import REPO, SCHEMA
 
 from bpmcal.cli import main
 from bpmcal.io import h5
 from bpmcal.study.config import ConfigError, validate_config
 
-REPO = Path(__file__).resolve().parents[2]
-SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
-
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
-          pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
 DESIGN_HEAD = "sample_id,rmin_mm,porosity,pb_emod_GPa,pb_kratio,pb_ten_MPa,pb_coh_MPa,pb_fa_deg,fric,seed\n"
 ROW = "s000,0.8,0.34,10.4,3.5,27.7,19.7,35,0.35,7\n"
 LAB_HEAD = "specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\n"

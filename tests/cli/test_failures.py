@@ -11,22 +11,21 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from support.paper import A1
 
 from bpmcal.cli import main
 from bpmcal.io import h5
 from bpmcal.io.card import write_card
 from bpmcal.params import PARAM_NAMES, PARAMS
 
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
-          pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
 SMALL = ["--scale", "0.24", "--platen-velocity", "0.1", "--record-strain", "4e-5",
          "--threads", "1"]
 TABLE2 = {k: [p.lo, p.hi] for k, p in PARAMS.items()}
 
 
 @pytest.fixture(scope="module")
-def cache(tmp_path_factory):
-    return str(tmp_path_factory.mktemp("packings"))
+def cache(packing_cache):
+    return str(packing_cache)
 
 
 def _params(tmp_path, **kw):

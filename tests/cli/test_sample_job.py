@@ -6,12 +6,11 @@ import h5py
 import numpy as np
 import pytest
 import yaml
+from support.paper import A1
 
 from bpmcal.cli import main
 
 #: the paper's A1 set at the smoke study's size: 15 x 30 mm cylinder, 21 x 10.5 mm disc
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
-          pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
 UCS = ["--scale", "0.3", "--platen-velocity", "0.2", "--record-strain", "2e-5", "--threads", "1"]
 DISC = {"diameter": "70", "thickness": "35", "platen-velocity": "0.025",
         "approach-velocity": "0.1", "stop-drop": "0.2", "post-peak-min": "0.0003"}
@@ -29,11 +28,11 @@ def _same_run(a, b):
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
+def runs(tmp_path_factory, packing_cache):
     d = tmp_path_factory.mktemp("sample")
     pf = d / "a1.yaml"
     pf.write_text(yaml.safe_dump(A1))
-    cache = ["--specimen-cache", str(d / "cache")]
+    cache = ["--specimen-cache", str(packing_cache)]
     both = [f"--bts-{k}={v}" for k, v in DISC.items()]
     one = [f"--{k}={v}" for k, v in DISC.items()]
     assert main(["ucs", "--params", str(pf), "--out", str(d / "u.h5"), "--bts-out",
@@ -45,6 +44,7 @@ def runs(tmp_path_factory):
     return d
 
 
+@pytest.mark.slow
 def test_the_sample_job_writes_what_the_single_test_commands_write(runs):
     _same_run(runs / "u.h5", runs / "u1.h5")
     _same_run(runs / "b.h5", runs / "b1.h5")
@@ -73,6 +73,7 @@ def test_bad_input_of_either_test_is_refused_before_any_work(tmp_path, capsys, e
     assert not list(tmp_path.glob("*.h5"))  # nothing written, not even the UCS run
 
 
+@pytest.mark.slow
 def test_a_failed_ucs_test_does_not_stop_the_samples_brazilian_test(tmp_path, capsys):
     """A genesis step budget the cylinder (659 balls, bpmcal genesis) does not settle in
     but the disc (458 balls) does: the UCS test writes its failure record, the Brazilian

@@ -1,1 +1,9 @@
-from dem_util import mat  # noqa: F401  (fixture)
+"""Fixtures of the engine tests."""
+import pytest
+from dem_util import material
+
+
+@pytest.fixture
+def mat():
+    """The default test material (``dem_util.material()``)."""
+    return material()

@@ -1,7 +1,7 @@
+"""Helpers of the engine tests: the test material, two bonded balls, a relaxed box pack."""
 import math
 
 import numpy as np
-import pytest
 
 from bpmcal.dem import FIX_ALL, Material, Model
 
@@ -42,11 +42,6 @@ def two_balls(mat, overlap=0.0, damping=0.0, r1=R, r2=R):
     assert m.bond(gap=max(0.0, -overlap) + 1e-12) == 1
     m.set_timestep(None)
     return m
-
-
-@pytest.fixture
-def mat():
-    return material()
 
 
 def rel(a, b):

@@ -65,6 +65,7 @@ def test_two_runs_are_bitwise_identical():
     assert a[4] == b[4]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(os.cpu_count() < 2, reason="needs 2 cores")
 def test_result_does_not_depend_on_thread_count():
     a = _compression_state(1)

@@ -7,6 +7,8 @@ import sys
 import textwrap
 import time
 
+from support.repo import REPO
+
 from bpmcal.io import atomic
 from bpmcal.io.atomic import atomic_path, clean_stale_temps, write_text
 
@@ -96,12 +98,9 @@ def test_a_killed_writer_leaves_a_temp_that_the_next_run_removes(tmp_path):
 
 
 def test_gitignore_matches_the_temporary_files():
-    from pathlib import Path
-
-    repo = Path(__file__).resolve().parents[2]
     r = subprocess.run(["git", "check-ignore", "-q", "--no-index",
-                        "results/ucs/.s001.h5.host.123.0123456789abcdef.tmp"], cwd=repo)
+                        "results/ucs/.s001.h5.host.123.0123456789abcdef.tmp"], cwd=REPO)
     assert r.returncode == 0
     r = subprocess.run(["git", "check-ignore", "-q", "--no-index", "config/.s001.h5.99.tmp"],
-                       cwd=repo)
+                       cwd=REPO)
     assert r.returncode == 0

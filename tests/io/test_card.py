@@ -2,12 +2,10 @@
 reader checks it, and a card of another format is refused with what to do."""
 import pytest
 import yaml
+from support.paper import A1
 
 from bpmcal.cli import main
 from bpmcal.io.card import CARD_FORMAT, CardError, read_card, write_card
-
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
-          pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
 
 
 def test_written_cards_record_the_format_first_and_read_back(tmp_path):

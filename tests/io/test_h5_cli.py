@@ -10,27 +10,21 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from support.paper import A1, FAST, SMALL
 
 from bpmcal.cli import main
 from bpmcal.dem.errors import InstabilityError
 from bpmcal.io import h5
 from bpmcal.io.vtk import export_run
 from bpmcal.lab import runner
-from bpmcal.lab.runner import Geometry
-from bpmcal.lab.ucs import UCSSettings
 from bpmcal.stages.runs import run_ucs_file
-
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
-          pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
-GEO = Geometry(scale=0.24)
-FAST = UCSSettings(platen_velocity=0.1, record_strain=4e-5)
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
+def run(tmp_path_factory, packing_cache):
     d = tmp_path_factory.mktemp("run")
     out = d / "a1.h5"
-    res = run_ucs_file(out, A1, 3, GEO, FAST, cache=d / "cache")
+    res = run_ucs_file(out, A1, 3, SMALL, FAST, cache=packing_cache)
     return out, res
 
 
@@ -107,12 +101,12 @@ def test_a_killed_writer_leaves_no_file(tmp_path):
     assert not out.exists()
 
 
-def test_unstable_run_gives_a_failure_record(tmp_path, monkeypatch):
+def test_unstable_run_gives_a_failure_record(tmp_path, monkeypatch, packing_cache):
     def unstable(*a, **k):
         raise InstabilityError("run blew up at step 12: ball 3 ...", 12, 3)
     monkeypatch.setattr(runner, "run_ucs", unstable)
     out = tmp_path / "f.h5"
-    res = run_ucs_file(out, A1, 3, GEO, FAST, cache=tmp_path / "cache")
+    res = run_ucs_file(out, A1, 3, SMALL, FAST, cache=packing_cache)
     assert res.status == "failed"
     s = h5.read_summary(out)
     assert s["status"] == "failed" and "step 12" in s["error"]

@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from lab_util import A1, FAST, SMALL
+from support.repo import REPO
 
 from bpmcal.cli import main
 from bpmcal.dem.errors import InputError
@@ -113,6 +114,7 @@ def test_sigma_t_is_positive_and_below_sigma_c_for_the_a1_set(base, cache):
     assert 2 < u["ucs_MPa"] / st < 15
 
 
+@pytest.mark.slow
 def test_scaling_moduli_and_strengths_by_1_5_scales_sigma_t_by_1_5(base, cache):
     """The scaling law on the median of three packings (seeds 1-3): a ~200-ball disc can
     take one of two failure paths when its loading changes slightly in time units (a
@@ -147,8 +149,7 @@ def test_the_study_settings_give_the_sigma_t_of_the_default_settings(base, cache
     switch to the loading speed at the first crack."""
     import yaml
 
-    repo = __import__("pathlib").Path(__file__).resolve().parents[2]
-    b = yaml.safe_load((repo / "config" / "config.yaml").read_text())["bts"]
+    b = yaml.safe_load((REPO / "config" / "config.yaml").read_text())["bts"]
     keys = ("platen_velocity", "approach_velocity", "post_peak_min", "stop_drop", "loading",
             "contact_cap")
     r, _ = bts(A1, cache, **{k: b[k] for k in keys})
@@ -250,6 +251,7 @@ def test_cli_defaults_are_the_settings_defaults():
         assert t[k] == getattr(tx, k), k
 
 
+@pytest.mark.slow
 def test_a_weak_zone_under_a_platen_makes_the_run_invalid(base, cache):
     """Bonds at 0.45-0.7 R above the centre along the loaded diameter (below the top
     platen's contact cap) at a fifth of their strength: the fracture starts there, and the
@@ -278,6 +280,7 @@ def test_a_weak_zone_under_a_platen_makes_the_run_invalid(base, cache):
     assert s["bts_peak_MPa"] < base.summary["bts_MPa"]  # the weak zone failed first
 
 
+@pytest.mark.slow
 def test_contact_caps_change_strength_not_stiffness(cache):
     """The caps' bonds cannot break (strength x 1000), but until the first crack the
     capped and the uncapped disc are the same elastic body: the same loads, step by step."""
@@ -297,6 +300,7 @@ def test_contact_caps_change_strength_not_stiffness(cache):
     np.testing.assert_array_equal(a.series["load"][:k], b.series["load"][:k])
 
 
+@pytest.mark.slow
 def test_curved_jaws_touch_the_disc_without_overlap_and_split_it(cache):
     from bpmcal.lab.brazilian import add_jaws
 

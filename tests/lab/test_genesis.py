@@ -41,6 +41,7 @@ def test_genesis_is_deterministic_and_cached(tmp_path):
     assert not np.array_equal(a.pos[: len(d.pos)], d.pos[: len(a.pos)])
 
 
+@pytest.mark.slow
 def test_packing_relaxes_with_the_threads_asked_for_and_the_same_result(tmp_path):
     """get_packing(threads=k) relaxes with k numba threads (a job given one core must not
     start two), and the packing is bit for bit the one of any other thread count."""

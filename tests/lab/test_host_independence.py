@@ -173,6 +173,7 @@ def _other_blas_core():
 
 @pytest.mark.skipif(not X86_LINUX, reason="emulates x86-64 hosts (numpy SIMD targets, OpenBLAS "
                     "kernels)")
+@pytest.mark.slow
 def test_genesis_and_ucs_do_not_depend_on_numpy_simd_or_blas_kernels(native, tmp_path):
     pytest.importorskip("threadpoolctl")
     found, avx512 = _numpy_simd()

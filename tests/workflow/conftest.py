@@ -1,13 +1,7 @@
 """Fixtures for the workflow tests: a real private single-node Slurm cluster."""
 
-import sys
-from pathlib import Path
-
 import pytest
-
-sys.path.insert(0, str(Path(__file__).parent))  # the helper module beside this file
-
-from slurm_cluster import cluster_or_skip  # noqa: E402
+from slurm_cluster import cluster_or_skip  # beside this file (pytest puts the folder on sys.path)
 
 
 @pytest.fixture

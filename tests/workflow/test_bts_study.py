@@ -8,15 +8,13 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from support.paper import A1
 
 from bpmcal import params as P
 from bpmcal.cli import main
 from bpmcal.io import h5
 from bpmcal.stages.analysis import regress, screen
 from bpmcal.stages.study import gather
-
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
-          pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
 
 
 def _design(tmp_path, rows) -> str:
@@ -31,7 +29,8 @@ def _ucs_ok(path, ucs):
                  summary={"ucs_MPa": ucs, "E_GPa": 12.0, "nu": 0.21, "wall_s": 3.0})
 
 
-def test_a_failed_brazilian_test_is_recorded_and_the_sample_keeps_its_ucs(tmp_path, capsys):
+def test_a_failed_brazilian_test_is_recorded_and_the_sample_keeps_its_ucs(tmp_path, capsys,
+                                                                          packing_cache):
     # s001 cannot be built (pb_kratio 1e-9 never settles under the bpmcal genesis):
     # `bpmcal bts --failed-ok`, as the study's sample job runs it, writes a failure record
     # and exits 0
@@ -40,7 +39,7 @@ def test_a_failed_brazilian_test_is_recorded_and_the_sample_keeps_its_ucs(tmp_pa
     rc = main(["bts", "--design", design, "--sample", "s001", "--out", str(bts / "s001.h5"),
                "--scale", "0.4", "--threads", "1", "--genesis-max-steps", "1000",
                "--genesis", "bpmcal",
-               "--specimen-cache", str(tmp_path / "cache"), "--failed-ok", "--quiet"])
+               "--specimen-cache", str(packing_cache), "--failed-ok", "--quiet"])
     assert rc == 0
     assert "bpmcal bts: FAILED: " in capsys.readouterr().err
     rec = h5.read_summary(bts / "s001.h5")

@@ -5,17 +5,14 @@ compared with the config. (A Brazilian option the rule forgot to pass runs the
 study's discs at the command's default, silently: the approach speed and post-peak stop of
 the default study once did.)"""
 import shlex
-import shutil
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 import yaml
+from support.repo import copy_workflow, run_snakemake
 
 from bpmcal.cli import build_parser
 
-REPO = Path(__file__).resolve().parents[2]
+pytestmark = pytest.mark.slow  # a Snakemake dry run of the smoke study with every key set
 
 #: a value for every key, unlike every default and every shipped config
 OVERLAY = {
@@ -44,14 +41,10 @@ DEST = {"diameter_mm": "diameter", "height_mm": "height", "thickness_mm": "thick
 
 @pytest.fixture(scope="module")
 def commands(tmp_path_factory):
-    wf = tmp_path_factory.mktemp("wf")
-    shutil.copy(REPO / "Snakefile", wf)
-    shutil.copytree(REPO / "workflow", wf / "workflow")
-    shutil.copytree(REPO / "config", wf / "config")
+    wf = copy_workflow(tmp_path_factory.mktemp("wf"))
     (wf / "config" / "keys.yaml").write_text(yaml.safe_dump(OVERLAY))
-    r = subprocess.run([sys.executable, "-m", "snakemake", "-n", "-p", "--configfile",
-                        "config/smoke.yaml", "config/keys.yaml"], cwd=wf, capture_output=True,
-                       text=True, timeout=300)
+    r = run_snakemake(wf, "-n", "-p", "--configfile", "config/smoke.yaml", "config/keys.yaml",
+                      timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     out = {}
     for ln in (r.stdout + r.stderr).splitlines():

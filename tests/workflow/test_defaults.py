@@ -4,10 +4,11 @@ command takes its defaults from them, and the config schema's defaults are compa
 them here. The schema's parameter limits are compared with the physical domains of
 ``bpmcal.params`` (one domain checker)."""
 import math
-from pathlib import Path
 
 import pytest
 import yaml
+from support.repo import REPO
+from support.repo import SCHEMA as SCHEMA_FILE
 
 from bpmcal import params as P
 from bpmcal.analysis import DEFAULT_FREE, PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
@@ -27,8 +28,7 @@ from bpmcal.stages.triaxial import DEFAULT_SIGMA3_MPA
 from bpmcal.study.design import lhs_design
 from bpmcal.study.sweep import DEFAULT_RATIOS
 
-REPO = Path(__file__).resolve().parents[2]
-SCHEMA = yaml.safe_load((REPO / "workflow" / "schemas" / "config.schema.yaml").read_text())
+SCHEMA = yaml.safe_load(SCHEMA_FILE.read_text())
 
 GEO, UCS, IMP, BTS = Geometry(), UCSSettings(), ImpactSettings(), BTSSettings()
 DTT = DTTSettings()

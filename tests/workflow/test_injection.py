@@ -4,29 +4,20 @@ whole. The real runs are in test_smoke.py (hostile title, a space in outdir) and
 rejected values in test_smoke.py's config errors."""
 import json
 import shlex
-import shutil
-import subprocess
-import sys
-from pathlib import Path
 
 import yaml
+from support.repo import copy_workflow, run_snakemake
 
-REPO = Path(__file__).resolve().parents[2]
 OUTDIR = "out dir/study, one"
 TITLE = "x'; touch PWNED; echo '\" $(touch PWNED) `touch PWNED` && rm -rf ~"
 
 
 def test_every_command_of_the_dag_quotes_config_text(tmp_path):
-    wf = tmp_path / "wf"
-    wf.mkdir()
-    shutil.copy(REPO / "Snakefile", wf)
-    shutil.copytree(REPO / "workflow", wf / "workflow")
-    shutil.copytree(REPO / "config", wf / "config")
+    wf = copy_workflow(tmp_path / "wf")
     (wf / "config" / "names.yaml").write_text(
         yaml.safe_dump({"outdir": OUTDIR, "study": {"name": TITLE}}))
-    r = subprocess.run([sys.executable, "-m", "snakemake", "-n", "-p", "--configfile",
-                        "config/smoke.yaml", "config/names.yaml"], cwd=wf, capture_output=True,
-                       text=True, timeout=300)
+    r = run_snakemake(wf, "-n", "-p", "--configfile", "config/smoke.yaml", "config/names.yaml",
+                      timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     text = r.stdout + r.stderr
     commands = [ln.split("Shell command: ", 1)[1] for ln in text.splitlines()

@@ -5,11 +5,12 @@ the catalog's files are there."""
 import os
 import subprocess
 import sys
-from pathlib import Path
 
+import pytest
 import yaml
+from support.repo import REPO
 
-REPO = Path(__file__).resolve().parents[2]
+pytestmark = pytest.mark.slow  # snakemake --lint and snakefmt: seconds
 
 
 def run(*cmd):

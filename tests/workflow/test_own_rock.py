@@ -1,7 +1,7 @@
-"""Calibrating a rock other than the paper's: the design space bounds the calibration, the
-config rules for bounds, lab CSVs with source comments, what an unreachable card says and
-does, the report without the paper, and the Lac du Bonnet example end to end at smoke size."""
-import copy
+"""Calibrating a rock other than the paper's: the design space bounds the calibration, what
+an unreachable card says and does, the report without the paper, and the Lac du Bonnet
+example end to end at smoke size. (Its config, lab CSV and bounds rules:
+tests/study/test_config.py.)"""
 import json
 import math
 import subprocess
@@ -12,97 +12,11 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from support.repo import REPO, copy_workflow, merged_config, run_snakemake
 
-from bpmcal.study.config import ConfigError, load_lab, validate_config
-
-REPO = Path(__file__).resolve().parents[2]
-SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
 EXAMPLE = ("config.yaml", "examples/lac_du_bonnet.yaml")
 EXAMPLE_SMOKE = (*EXAMPLE, "examples/lac_du_bonnet_smoke.yaml")
 LDB = {"ucs_MPa": 200.0, "E_GPa": 69.0, "nu": 0.26}  # config/lab/lac_du_bonnet.csv
-
-
-def merged(*names):
-    """Snakemake's --configfile semantics: later files update nested keys of earlier ones."""
-    def update(a, b):
-        for k, v in b.items():
-            if isinstance(v, dict) and isinstance(a.get(k), dict):
-                update(a[k], v)
-            else:
-                a[k] = copy.deepcopy(v)
-    cfg = {}
-    for n in names:
-        update(cfg, yaml.safe_load((REPO / "config" / n).read_text()))
-    return cfg
-
-
-# ------------------------------------------------------------------------ config and lab CSV
-def test_example_configs_validate_and_are_not_the_paper():
-    for names in (EXAMPLE, EXAMPLE_SMOKE):
-        cfg = validate_config(merged(*names), SCHEMA, base_dir=REPO)
-        assert cfg["study"]["reference"] == "none" and cfg["outdir"] != "results"
-        lab = load_lab(REPO / cfg["lab"]["csv"])
-        for k, v in LDB.items():
-            assert lab.loc[0, k] == v
-    # the paper's configs inherit the reference from config/config.yaml
-    for overlay in ((), ("smoke.yaml",), ("paper.yaml",)):
-        assert validate_config(merged("config.yaml", *overlay), SCHEMA,
-                               base_dir=REPO)["study"]["reference"] == "yu2026"
-
-
-def test_lab_csv_comment_lines_are_skipped(tmp_path):
-    f = tmp_path / "rock.csv"
-    f.write_text("# source: somebody (2004), table 1\n"
-                 "   # indented comment\n"
-                 "specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\n"
-                 "# a comment between rows\n"
-                 "R1,150.5,50.0,0.22,\n")
-    lab = load_lab(f)
-    assert list(lab.columns) == ["specimen", "ucs_MPa", "E_GPa", "nu", "u_pre_MJm3"]
-    assert lab["specimen"].tolist() == ["R1"] and lab.loc[0, "ucs_MPa"] == 150.5
-    cfg = merged(*EXAMPLE)
-    cfg["lab"]["csv"] = str(f)
-    cfg["triaxial"]["lab_csv"] = None  # the example's triaxial points are LdB's, not R1's
-    validate_config(cfg, SCHEMA, base_dir=REPO)  # accepted by the config validation
-    assert "# Lac du Bonnet" in (REPO / "config/lab/lac_du_bonnet.csv").read_text()
-
-
-@pytest.mark.parametrize("patch, needle", [
-    ({"calibration": {"bounds": {"pb_emod_GPa": [20.0, 100.0]}}},
-     "calibration.bounds.pb_emod_GPa: [20, 100] reaches beyond ranges.pb_emod_GPa [30, 120], the "
-     "sampled space"),
-    ({"calibration": {"bounds": {"porosity": [0.3, 0.35]}}},
-     "calibration.bounds.porosity: porosity is not calibrated"),
-    ({"calibration": {"bounds": {"pb_coh_MPa": [90.0, 80.0]}}},
-     "calibration.bounds.pb_coh_MPa: low 90 must be below high 80"),
-    ({"calibration": {"fixed": {"porosity": 0.4}}},
-     "calibration.fixed.porosity: 0.4 is outside ranges.porosity [0.2, 0.36]"),
-    ({"ranges": {"pb_ten_MPa": [10.0, 50.0]}},
-     "calibration.ratio: 1.4 x pb_coh_MPa in [50, 300] never falls inside pb_ten_MPa [10, 50]"),
-    ({"study": {"reference": "yu2026"}},
-     "study.reference: yu2026 compares the results with the paper's green sandstone specimens"),
-    ({"study": {"reference": "yu2025"}}, "study.reference: 'yu2025' is not one of"),
-    ({"verification": {"from_unreachable": "no"}}, "verification.from_unreachable: 'no' is not of type"),
-])
-def test_calibration_space_config_errors_name_the_key(patch, needle):
-    cfg = merged(*EXAMPLE)
-
-    def update(a, b):
-        for k, v in b.items():
-            if isinstance(v, dict) and isinstance(a.get(k), dict) and k != "bounds":
-                update(a[k], v)
-            else:
-                a[k] = v
-    update(cfg, patch)
-    with pytest.raises(ConfigError) as e:
-        validate_config(cfg, SCHEMA, base_dir=REPO)
-    assert needle in str(e.value)
-
-
-def test_narrowing_bounds_are_accepted():
-    cfg = merged(*EXAMPLE)
-    cfg["calibration"]["bounds"] = {"pb_emod_GPa": [40.0, 100.0], "pb_ten_MPa": [60.0, 250.0]}
-    validate_config(cfg, SCHEMA, base_dir=REPO)
 
 
 # ------------------------------------------------------------ pipeline: an unreachable card
@@ -114,7 +28,7 @@ def study(tmp_path_factory):
     from bpmcal.study.design import lhs_design
 
     tmp = tmp_path_factory.mktemp("ownrock")
-    cfg = merged(*EXAMPLE)
+    cfg = merged_config(*EXAMPLE)
     df = lhs_design(cfg["ranges"], 60, seed=4)
     rng = np.random.default_rng(4)
     df["ucs_MPa"] = (0.9 * df["pb_coh_MPa"] + 0.8 * df["pb_ten_MPa"] - 8.0 * df["pb_kratio"]
@@ -257,7 +171,7 @@ def test_report_shows_the_paper_only_for_the_paper_study(study, tmp_path, refere
                  ).to_csv(lay.table(L.TABLE3))
     pd.DataFrame({"response": ["ucs_MPa"], "stage": ["main"], "adj_r2": [0.9], "cv_r2_mean": [0.85]}
                  ).to_csv(lay.table(L.REGRESSION_FIT), index=False)
-    cfg = merged("config.yaml", "smoke.yaml") if reference == "yu2026" else merged(*EXAMPLE)
+    cfg = merged_config("config.yaml", "smoke.yaml") if reference == "yu2026" else merged_config(*EXAMPLE)
     cfg["lab"]["csv"] = str(lab)
     index = build(out, cfg).read_text()
     # every specimen's card is in the calibration table, with its status and what to widen
@@ -286,12 +200,10 @@ EXAMPLE_ARGS = ("--configfile", "config/examples/lac_du_bonnet.yaml",
 
 @pytest.fixture(scope="module")
 def example(tmp_path_factory):
-    from test_smoke import copy_workflow, snakemake
-
     wf = copy_workflow(tmp_path_factory.mktemp("ldb"))
-    r = snakemake(wf, "--cores", "2", *EXAMPLE_ARGS)
+    r = run_snakemake(wf, "--cores", "2", *EXAMPLE_ARGS)
     assert r.returncode == 0, r.stderr[-3000:]
-    cfg = merged(*EXAMPLE_SMOKE)
+    cfg = merged_config(*EXAMPLE_SMOKE)
     return wf / cfg["outdir"], cfg
 
 
@@ -345,10 +257,8 @@ def test_example_report_has_no_paper_column(example):
     t5 = pd.read_csv(out / "report" / "tables" / "table5_verification.csv")
     assert not any("paper" in c for c in t5.columns)
     # Snakemake's HTML report describes this rock's study, not the paper's
-    from test_smoke import snakemake
-
     wf = out.parents[1]
-    r = snakemake(wf, *EXAMPLE_ARGS, "--report", str(out / "report.html"))
+    r = run_snakemake(wf, *EXAMPLE_ARGS, "--report", str(out / "report.html"))
     assert r.returncode == 0, r.stderr[-3000:]
     html = (out / "report.html").read_text(errors="replace")
     assert "calibration of the rock in" in html and "the configured ranges" in html

@@ -9,14 +9,12 @@ grouped, that the cheap rules ran locally, and that the cluster is gone afterwar
 import os
 import re
 import time
-from pathlib import Path
 
 import pytest
 import slurm_cluster as sc
 import yaml
+from support.repo import REPO, copy_workflow
 
-HERE = Path(__file__).parent
-REPO = HERE.parents[1]
 PROFILE = REPO / "workflow" / "profiles" / "slurm"
 N_SAMPLES = 4
 
@@ -70,8 +68,6 @@ def test_smoke_study_runs_through_sbatch(local_slurm, tmp_path):
         f"\nSlurm bring-up: {cluster.bringup_seconds:.1f} s (apt-get {cluster.install_seconds:.1f} s;",
         f"{cluster.cpus} CPUs, {cluster.real_memory_mb} MB)",
     )
-    from test_smoke import copy_workflow
-
     wf = copy_workflow(tmp_path / "wf")
     (wf / "config" / "slurm_test.yaml").write_text(yaml.safe_dump(
         {"outdir": "results", "study": {"name": "slurm", "n_samples": N_SAMPLES, "lhs_seed": 5},

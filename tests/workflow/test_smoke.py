@@ -13,16 +13,15 @@ import os
 import shlex
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from support.repo import REPO, copy_workflow, run_snakemake
 
-REPO = Path(__file__).resolve().parents[2]
-
+pytestmark = pytest.mark.slow  # the smoke study and further Snakemake runs: minutes
 
 AUDIT = Path(__file__).resolve().parent / "audit"
 AUDIT_LOGS = ".audit"  # in the smoke study's folder: the files each bpmcal process read
@@ -31,22 +30,10 @@ AUDIT_LOGS = ".audit"  # in the smoke study's folder: the files each bpmcal proc
 def snakemake(cwd, *args, timeout=1200, audit=None):
     """Run Snakemake in ``cwd``; with ``audit`` (a folder), every bpmcal process records the
     files it reads there."""
-    cmd = [sys.executable, "-m", "snakemake", *args]
-    env = dict(os.environ, NUMBA_THREADING_LAYER="omp")
-    if audit is not None:
-        env["BPMCAL_AUDIT_DIR"] = str(audit)
-        env["PYTHONPATH"] = os.pathsep.join([str(AUDIT), *filter(None, [env.get("PYTHONPATH")])])
-    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=timeout,
-                          env=env)
-
-
-def copy_workflow(dst: Path) -> Path:
-    """A private copy of the workflow (its own .snakemake metadata and outputs)."""
-    dst.mkdir(parents=True, exist_ok=True)
-    shutil.copy(REPO / "Snakefile", dst)
-    shutil.copytree(REPO / "workflow", dst / "workflow")
-    shutil.copytree(REPO / "config", dst / "config")
-    return dst
+    if audit is None:
+        return run_snakemake(cwd, *args, timeout=timeout)
+    return run_snakemake(cwd, *args, timeout=timeout, env={"BPMCAL_AUDIT_DIR": str(audit)},
+                         pythonpath=[AUDIT])
 
 
 #: the smoke study's output folder (a space) and title (shell syntax), see the module doc

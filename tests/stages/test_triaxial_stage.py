@@ -10,14 +10,14 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
+from support.paper import A1
+from support.repo import REPO, SCHEMA
 
 from bpmcal.analysis.envelopes import hoek_brown_sigma1, mohr_coulomb_q, mohr_coulomb_sigma_c
 from bpmcal.cli import main
 from bpmcal.io.card import write_card
 from bpmcal.io.h5 import write_run
 
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
-          pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
 S3 = [0.0, 5.0, 10.0, 20.0]
 
 
@@ -150,11 +150,10 @@ def test_bad_lab_triaxial_config_is_refused_before_any_job(tmp_path):
     """The study config: triaxial.lab_csv is checked with the lab CSV's specimens."""
     from bpmcal.study.config import ConfigError, validate_config
 
-    repo = Path(__file__).resolve().parents[2]
-    cfg = yaml.safe_load((repo / "config" / "config.yaml").read_text())
+    cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
     bad = tmp_path / "tx.csv"
     bad.write_text("specimen,sigma3_MPa,sigma1_MPa\nB9,-1,80\n")
     cfg["triaxial"] = {"lab_csv": str(bad)}
     with pytest.raises(ConfigError) as e:
-        validate_config(cfg, repo / "workflow" / "schemas" / "config.schema.yaml", base_dir=repo)
+        validate_config(cfg, SCHEMA, base_dir=REPO)
     assert "specimen 'B9' is not in lab.csv" in str(e.value) and "sigma3_MPa='-1'" in str(e.value)

@@ -2,12 +2,13 @@
 part is the schema rendered by ``bpmcal.study.config.schema_reference``, and must be up to
 date (regenerate it with the command the README names)."""
 import re
-from pathlib import Path
+
+from support.repo import REPO
+from support.repo import SCHEMA as SCHEMA_FILE
 
 from bpmcal.study.config import load_schema, schema_reference
 
-REPO = Path(__file__).resolve().parents[2]
-SCHEMA = load_schema(REPO / "workflow" / "schemas" / "config.schema.yaml")
+SCHEMA = load_schema(SCHEMA_FILE)
 README = (REPO / "config" / "README.md").read_text()
 
 

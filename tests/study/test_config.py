@@ -1,0 +1,93 @@
+"""The study config (bpmcal.study.config): the shipped configs validate and the overlays
+change what they say they change; the example of another rock (Lac du Bonnet) validates and
+is not the paper; lab CSVs with source comments; the rules for the calibration bounds."""
+import pytest
+from support.repo import REPO, SCHEMA, merged_config, update_config
+
+from bpmcal.study.config import ConfigError, load_lab, validate_config
+
+EXAMPLE = ("config.yaml", "examples/lac_du_bonnet.yaml")
+EXAMPLE_SMOKE = (*EXAMPLE, "examples/lac_du_bonnet_smoke.yaml")
+LDB = {"ucs_MPa": 200.0, "E_GPa": 69.0, "nu": 0.26}  # config/lab/lac_du_bonnet.csv
+
+
+@pytest.mark.parametrize("overlay", [None, "smoke.yaml", "paper.yaml"])
+def test_shipped_configs_validate(overlay):
+    cfg = merged_config("config.yaml", *([overlay] if overlay else []))
+    validate_config(cfg, SCHEMA, base_dir=REPO)
+    assert cfg["study"]["n_samples"] >= 4
+
+
+def test_paper_config_is_the_full_size_study():
+    cfg = validate_config(merged_config("config.yaml", "paper.yaml"), SCHEMA, base_dir=REPO)
+    assert cfg["specimen"]["scale"] == 1.0 and cfg["impact"]["scale"] == 1.0
+    assert cfg["study"]["n_samples"] == 150
+    assert cfg["outdir"] != "results"  # never overwrites the default study
+
+
+def test_a_typo_in_an_overlay_is_named():
+    cfg = merged_config("config.yaml")
+    cfg["impact"]["velocty"] = 6.0
+    with pytest.raises(ConfigError, match="velocty"):
+        validate_config(cfg, SCHEMA, base_dir=REPO)
+
+
+# ------------------------------------------------------------ the example of another rock
+def test_example_configs_validate_and_are_not_the_paper():
+    for names in (EXAMPLE, EXAMPLE_SMOKE):
+        cfg = validate_config(merged_config(*names), SCHEMA, base_dir=REPO)
+        assert cfg["study"]["reference"] == "none" and cfg["outdir"] != "results"
+        lab = load_lab(REPO / cfg["lab"]["csv"])
+        for k, v in LDB.items():
+            assert lab.loc[0, k] == v
+    # the paper's configs inherit the reference from config/config.yaml
+    for overlay in ((), ("smoke.yaml",), ("paper.yaml",)):
+        assert validate_config(merged_config("config.yaml", *overlay), SCHEMA,
+                               base_dir=REPO)["study"]["reference"] == "yu2026"
+
+
+def test_lab_csv_comment_lines_are_skipped(tmp_path):
+    f = tmp_path / "rock.csv"
+    f.write_text("# source: somebody (2004), table 1\n"
+                 "   # indented comment\n"
+                 "specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\n"
+                 "# a comment between rows\n"
+                 "R1,150.5,50.0,0.22,\n")
+    lab = load_lab(f)
+    assert list(lab.columns) == ["specimen", "ucs_MPa", "E_GPa", "nu", "u_pre_MJm3"]
+    assert lab["specimen"].tolist() == ["R1"] and lab.loc[0, "ucs_MPa"] == 150.5
+    cfg = merged_config(*EXAMPLE)
+    cfg["lab"]["csv"] = str(f)
+    cfg["triaxial"]["lab_csv"] = None  # the example's triaxial points are LdB's, not R1's
+    validate_config(cfg, SCHEMA, base_dir=REPO)  # accepted by the config validation
+    assert "# Lac du Bonnet" in (REPO / "config/lab/lac_du_bonnet.csv").read_text()
+
+
+@pytest.mark.parametrize("patch, needle", [
+    ({"calibration": {"bounds": {"pb_emod_GPa": [20.0, 100.0]}}},
+     "calibration.bounds.pb_emod_GPa: [20, 100] reaches beyond ranges.pb_emod_GPa [30, 120], the "
+     "sampled space"),
+    ({"calibration": {"bounds": {"porosity": [0.3, 0.35]}}},
+     "calibration.bounds.porosity: porosity is not calibrated"),
+    ({"calibration": {"bounds": {"pb_coh_MPa": [90.0, 80.0]}}},
+     "calibration.bounds.pb_coh_MPa: low 90 must be below high 80"),
+    ({"calibration": {"fixed": {"porosity": 0.4}}},
+     "calibration.fixed.porosity: 0.4 is outside ranges.porosity [0.2, 0.36]"),
+    ({"ranges": {"pb_ten_MPa": [10.0, 50.0]}},
+     "calibration.ratio: 1.4 x pb_coh_MPa in [50, 300] never falls inside pb_ten_MPa [10, 50]"),
+    ({"study": {"reference": "yu2026"}},
+     "study.reference: yu2026 compares the results with the paper's green sandstone specimens"),
+    ({"study": {"reference": "yu2025"}}, "study.reference: 'yu2025' is not one of"),
+    ({"verification": {"from_unreachable": "no"}}, "verification.from_unreachable: 'no' is not of type"),
+])
+def test_calibration_space_config_errors_name_the_key(patch, needle):
+    cfg = update_config(merged_config(*EXAMPLE), patch, keep=("bounds",))
+    with pytest.raises(ConfigError) as e:
+        validate_config(cfg, SCHEMA, base_dir=REPO)
+    assert needle in str(e.value)
+
+
+def test_narrowing_bounds_are_accepted():
+    cfg = merged_config(*EXAMPLE)
+    cfg["calibration"]["bounds"] = {"pb_emod_GPa": [40.0, 100.0], "pb_ten_MPa": [60.0, 250.0]}
+    validate_config(cfg, SCHEMA, base_dir=REPO)
