@@ -39,6 +39,7 @@ SOURCES = {
     "default_study": ("results_default_study_*.json", "{date}-default-study.md"),
     "study_outputs": ("results_study_outputs_*.json", "{date}-default-study-results.md"),
     "bts_loadings": ("results_bts_loadings_*.json", "{date}-tensile-strength.md"),
+    "test_tiers": ("results_test_tiers_*.json", "{date}-test-tiers.md"),
 }
 
 #: Table 3 columns: response -> (label, how many of the largest shares the pages quote)
@@ -118,8 +119,17 @@ def _bts_loadings(rec: dict) -> dict:
             "bts.cpu_s_per_test": (f"{a1['cpu_s_median']:.1f}", a1["cpu_s_median"], "CPU-s")}
 
 
+def _test_tiers(rec: dict) -> dict:
+    f = {"tests.commit": (rec["commit"], rec["commit"], "")}
+    for t in rec["tiers"]:
+        f[f"tests.{t['tier']}_min"] = (f"{t['wall_s'] / 60:.1f}", t["wall_s"] / 60, "min")
+        f[f"tests.{t['tier']}_passed"] = (str(t["counts"].get("passed", 0)),
+                                          t["counts"].get("passed", 0), "")
+    return f
+
+
 EXTRACT = {"default_study": _default_study, "study_outputs": _study_outputs,
-           "bts_loadings": _bts_loadings}
+           "bts_loadings": _bts_loadings, "test_tiers": _test_tiers}
 
 
 def figures() -> dict:

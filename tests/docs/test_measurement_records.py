@@ -71,3 +71,12 @@ def test_the_planted_card_record_is_its_json_rendered():
         rec = json.loads(raw.read_text())
         md = REPO / "docs" / "measurements" / f"{rec['date']}-planted-card.md"
         assert md.read_text() == planted_card.markdown(rec), (md.name, "regenerate from", raw.name)
+
+
+def test_the_test_tiers_record_is_its_json_rendered():
+    import test_tiers
+
+    for raw in (REPO / "benchmarks").glob("results_test_tiers_*.json"):
+        rec = json.loads(raw.read_text())
+        md = REPO / "docs" / "measurements" / f"{rec['date']}-test-tiers.md"
+        assert md.read_text() == test_tiers.markdown(rec), (md.name, "regenerate from", raw.name)
