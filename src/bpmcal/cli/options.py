@@ -172,6 +172,18 @@ BTS_OPTIONS = ("loading", "jaw_ratio", "contact_cap", "contact_cap_factor", "cen
                "post_peak_min", "max_strain", "record_strain")
 
 
+def _stop_spec(lab) -> dict:
+    """The options every quasi-static tensile test shares (damping and the load-drop stop),
+    in the ``spec`` form of :func:`add_bts_args` and :func:`add_dtt_args`."""
+    return {
+        "damping": (number(lab("damping"), 0.0, 1.0, hi_open=True),
+                    "local damping in [0, 1) (default {d:g})"),
+        "stop_drop": (fraction(lab("stop_drop")),
+                      "stop when the load < this fraction of the peak after it "
+                      "(default {d:g})"),
+    }
+
+
 def add_bts_args(p, prefix: str = ""):
     """The Brazilian disc and loading options (defaults: ``BTSSettings`` and the ISRM disc)
     on ``p``: ``--OPTION``, or ``--bts-OPTION`` with ``prefix="bts_"`` (verify, transfer);
@@ -230,11 +242,7 @@ def add_bts_args(p, prefix: str = ""):
         "platen_fric": (number(lab("platen_fric"), 0.0, 10.0),
                         "platen friction coefficient (default {d:g}; with 0 the free disc "
                         "spins on the platens before it seats, and sigma_t is ~15 %% lower)"),
-        "damping": (number(lab("damping"), 0.0, 1.0, hi_open=True),
-                    "local damping in [0, 1) (default {d:g})"),
-        "stop_drop": (fraction(lab("stop_drop")),
-                      "stop when the load < this fraction of the peak after it "
-                      "(default {d:g})"),
+        **_stop_spec(lab),
         "post_peak_min": (number(lab("post_peak_min"), 0.0, 0.5),
                           "stop only this much platen approach / D past the peak (default "
                           "{d:g}; 0 stops at the load drop, enough for sigma_t)"),
@@ -307,11 +315,7 @@ def add_dtt_args(p, prefix: str = ""):
         "grip_clearance": (number(lab("grip_clearance"), 0.0, 100.0),
                            "a fracture closer than this many mean ball diameters to a grip's "
                            "face is next to the grip: the run is invalid (default {d:g})"),
-        "damping": (number(lab("damping"), 0.0, 1.0, hi_open=True),
-                    "local damping in [0, 1) (default {d:g})"),
-        "stop_drop": (fraction(lab("stop_drop")),
-                      "stop when the load < this fraction of the peak after it "
-                      "(default {d:g})"),
+        **_stop_spec(lab),
         "post_peak_min": (number(lab("post_peak_min"), 0.0, 0.5),
                           "... at least this axial strain past the peak (default {d:g})"),
         "max_strain": (number(lab("max_strain"), 0.0, 0.5, lo_open=True),
