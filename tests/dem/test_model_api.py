@@ -121,22 +121,25 @@ def _defined_twice(classes) -> set:
     return twice
 
 
-def test_model_is_its_module_and_three_mixins_without_overlap():
+def test_model_is_its_module_and_four_mixins_without_overlap():
     """``Model`` = model.py (state, parameters, balls, lists, cycle) + ``WallsMixin`` +
-    ``BondsMixin`` + ``MeasureMixin``: every member is defined in exactly one of them (a
-    name in two would be shadowed silently by the MRO), and each part holds its concept."""
+    ``BondsMixin`` + ``FlatJointsMixin`` + ``MeasureMixin``: every member is defined in
+    exactly one of them (a name in two would be shadowed silently by the MRO), and each
+    part holds its concept."""
     from bpmcal.dem.model_bonds import BondsMixin
+    from bpmcal.dem.model_flatjoints import FlatJointsMixin
     from bpmcal.dem.model_measure import MeasureMixin
     from bpmcal.dem.model_walls import WallsMixin
 
-    parts = (Model, WallsMixin, BondsMixin, MeasureMixin)
-    assert Model.__mro__[1:4] == parts[1:]
+    parts = (Model, WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin)
+    assert Model.__mro__[1:5] == parts[1:]
     assert not _defined_twice(parts)
     public = {n for n in dir(Model) if not n.startswith("_")}
     assert public == {n for c in parts for n in vars(c) if not n.startswith("_")}
     assert {"add_plane_wall", "remove_wall", "wall_force"} <= set(vars(WallsMixin))
     assert {"bond", "breaks", "bond_state", "set_bond_strength_factors"} <= set(vars(BondsMixin))
     assert {"energies", "energy_balance", "momentum"} <= set(vars(MeasureMixin))
+    assert {"set_flatjoint_types", "flatjoint_state", "crack_counts"} <= set(vars(FlatJointsMixin))
     assert {"cycle", "set_timestep", "positions"} <= set(vars(Model))
     # the check sees an overlap
     assert _defined_twice((type("A", (), {"f": 1}), type("B", (), {"f": 2, "g": 3}))) == {"f"}

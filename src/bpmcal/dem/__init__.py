@@ -24,9 +24,9 @@ from .layout import (
     FIX_WY,
     FIX_WZ,
 )
-from .material import Material
+from .material import FlatJointMaterial, Material
 from .model import ENERGY_TERMS, Model
 
-__all__ = ["Model", "Material", "InputError", "InstabilityError", "ENERGY_TERMS",
+__all__ = ["Model", "Material", "FlatJointMaterial", "InputError", "InstabilityError", "ENERGY_TERMS",
            "FIX_ALL", "FIX_VX", "FIX_VY", "FIX_VZ", "FIX_WX", "FIX_WY", "FIX_WZ",
            "BOND_INTACT", "BOND_TENSION", "BOND_SHEAR"]

@@ -13,6 +13,7 @@ import numpy as np
 
 from ._jit import jit
 from .bondblock import S_FN, S_LX, S_RG, S_SX, state_index
+from .flatjoint import C_FX
 from .laws import bond_geometry, linear_stiffness
 from .layout import (
     BOND_INTACT,
@@ -108,13 +109,16 @@ def measure_walls(wvel, wradv, wmass, wforce, wradsum, prm, out):
 
 @jit
 def stiffness_timestep(radius, mass, inertia, fix, pi, pj, npairs, nb, bstate, sb, nslots,
-                       prm):
+                       prm, fjprm, fjlive, fjtwist):
     """PFC-style critical timestep: min over balls of sqrt(m/k_tran), sqrt(I/k_rot).
 
     k_tran sums kn + kn_bar A (using max(kn, ks) and max of the bond stiffnesses) over
     every pair in the neighbour list (in contact or within the skin, so contacts about
     to form are counted) and the wall slots; k_rot sums ks a^2 (+ ks_bar A a^2 +
-    max(ks_bar J, kn_bar I)). Returns (dt_crit, index of the limiting ball).
+    max(ks_bar J, kn_bar I)). A live flat joint (``fjlive[k]``; ``fjprm`` its law's
+    parameters, ``fjtwist`` = sum A_e rho_e^2 of a unit interface) counts instead of the
+    linear contact with k_tran = max(kn, ks) A and k_rot = ks A a^2 + max(kn I,
+    ks R^4 fjtwist) (FJM.md §5). Returns (dt_crit, index of the limiting ball).
     """
     n = radius.shape[0]
     kt = np.zeros(n)
@@ -129,7 +133,16 @@ def stiffness_timestep(radius, mass, inertia, fix, pi, pj, npairs, nb, bstate, s
         ktr = max(kn, ks)
         ksh = ks
         krb = 0.0
-        if k < nb and bstate[k] == BOND_INTACT:
+        if k < nb and fjlive.shape[0] > 0:
+            if fjlive[k] != 0:  # flat joint (deleted ones are linear contacts)
+                rad = fjprm[6] * min(radius[i], radius[j])
+                area = math.pi * rad * rad
+                knf = fjprm[0] * inv_l
+                ksf = knf * fjprm[1]
+                ktr = max(knf, ksf) * area
+                ksh = ksf * area
+                krb = max(knf * 0.25 * area * rad * rad, ksf * rad ** 4 * fjtwist)
+        elif k < nb and bstate[k] == BOND_INTACT:
             rb, area, kna, ksa, ksj, kni = bond_geometry(radius[i], radius[j], inv_l,
                                                          prm[P_PB_EMOD],
                                                          1.0 / prm[P_PB_KRATIO],
@@ -167,8 +180,10 @@ def stiffness_timestep(radius, mass, inertia, fix, pi, pj, npairs, nb, bstate, s
 
 @jit
 def sum_energies(edamp, egrav, efix, pestr, pslip, pdash, npairs, bestr, be, bstate, nb,
-                 sestr, sslip, sdash, nslots, eacc):
+                 sestr, sslip, sdash, nslots, eacc, flat):
     """Totals of the per-ball / per-pair / per-slot energy slots (fixed order).
+    ``flat``: the installed pairs are flat joints (strain and released energy of every
+    contact count, whatever its state).
 
     Returns strain_linear (ball-ball + ball-wall), strain_bond, slip, dashpot, damping,
     gravity work on balls, constraint work, released by breakage (accumulated through the
@@ -195,7 +210,10 @@ def sum_energies(edamp, egrav, efix, pestr, pslip, pdash, npairs, bestr, be, bst
     bond = 0.0
     rel = 0.0
     for k in range(nb):
-        if bstate[k] == BOND_INTACT:
+        if flat:
+            bond += bestr[k]
+            rel += be[k]
+        elif bstate[k] == BOND_INTACT:
             bond += bestr[k]
         else:
             rel += be[k]
@@ -203,13 +221,23 @@ def sum_energies(edamp, egrav, efix, pestr, pslip, pdash, npairs, bestr, be, bst
 
 
 @jit
-def contact_force_mean(pos, radius, pi, pj, pfs, npairs, nb, bstate, blk, prm):
+def contact_force_mean(pos, radius, pi, pj, pfs, npairs, nb, bstate, blk, prm, fjc):
     """Mean magnitude of the force of active pairs (linear contact or intact bond),
-    recomputed from the stored state (dashpot forces excluded)."""
+    recomputed from the stored state (dashpot forces excluded). Flat joints (``fjc``
+    holds a row per installed pair): the force of their last evaluation, counted when
+    not zero."""
     emod = prm[P_EMOD]
     tot = 0.0
     cnt = 0
-    for k in range(npairs):
+    k0 = 0
+    if fjc.shape[0] > 0:
+        k0 = nb
+        for k in range(nb):
+            f = math.sqrt(fjc[k, C_FX] ** 2 + fjc[k, C_FX + 1] ** 2 + fjc[k, C_FX + 2] ** 2)
+            if f > 0.0:
+                tot += f
+                cnt += 1
+    for k in range(k0, npairs):
         i = pi[k]
         j = pj[k]
         dx = pos[j, 0] - pos[i, 0]

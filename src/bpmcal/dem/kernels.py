@@ -31,9 +31,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ._jit import jit, jit_parallel, prange
 from .bondblock import bond_range
 from .bondblock import scratch as bond_scratch
+from .flatjoint import fj_range
 from .laws import (
     dashpot,
     kinematics,
@@ -62,6 +65,7 @@ from .layout import (
     P_GZ,
     P_KRATIO,
     P_MAXSPEED,
+    P_MODEL,
     P_NOSPIN,
     P_PB_COH,
     P_PB_EMOD,
@@ -84,7 +88,7 @@ from .neighbors import max_displacement, rebuild_lists
 @jit
 def pair_partition(p, pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash,
                    pestr, blk, bstate, bstep, bpos, bnrm, be, bestr, bsig, part, fbuf, prm, step,
-                   nb, record, idt):
+                   nb, record, idt, Fj):
     """Force-displacement for the pairs of partition ``p``, scattered into ``fbuf[p]``.
 
     Pairs are split into fixed index ranges ``part`` (one per partition); partition p adds
@@ -92,7 +96,9 @@ def pair_partition(p, pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, ps
     increasing pair order. The partitions, not the threads, fix the summation order, so
     the result does not depend on the number of threads. Bond pairs (k < nb) keep their
     state in the blocked array ``blk`` (bondblock.py); the unbonded pairs use ``pfs``,
-    ``pdf`` and ``pact`` (whether the pair carried force last step). Returns bonds broken.
+    ``pdf`` and ``pact`` (whether the pair carried force last step). With flat joints
+    (``prm[P_MODEL]`` = 1) the installed pairs are flat joints (``flatjoint.fj_range``,
+    state in ``Fj``) instead. Returns bonds (flat-joint elements) broken.
     """
     dt = idt
     emod = prm[P_EMOD]
@@ -112,7 +118,11 @@ def pair_partition(p, pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, ps
     k0 = part[p]
     k1 = part[p + 1]
     kb = min(k1, nb)
-    if kb > k0:  # bond pairs: vectorised blocks
+    if kb > k0 and prm[P_MODEL] > 0.0:  # flat-jointed pairs
+        nbroken += fj_range(pos, vel, angvel, radius, pi, pj, pslip, pestr, bstate, bstep, be,
+                            bestr, fbuf[p], k0, kb, dt, Fj, Fj.prm, step, record,
+                            np.empty(8), np.empty(15), np.empty((Fj.geo.shape[0], 8)))
+    elif kb > k0:  # bond pairs: vectorised blocks
         nbroken += bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash,
                               pestr, bstate, bstep, bpos, bnrm, be, bestr, bsig, fbuf[p],
                               k0, kb, T, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten,
@@ -131,13 +141,13 @@ def pair_partition(p, pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, ps
 @jit_parallel
 def pair_forces(pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, pslip, pdash, pestr,
                 blk, bstate, bstep, bpos, bnrm, be, bestr, bsig, part, fbuf, prm, step, nb,
-                record, idt):
+                record, idt, Fj):
     """``pair_partition`` for every partition, in parallel. Returns bonds broken."""
     nbroken = 0
     for p in prange(part.shape[0] - 1):
         nbroken += pair_partition(p, pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact,
                                   pslip, pdash, pestr, blk, bstate, bstep, bpos, bnrm, be,
-                                  bestr, bsig, part, fbuf, prm, step, nb, record, idt)
+                                  bestr, bsig, part, fbuf, prm, step, nb, record, idt, Fj)
     return nbroken
 
 
@@ -572,7 +582,7 @@ def integrate(pos, vel, angvel, mass, inertia, fix, fbuf, pmask, sptr, sf, sm, e
 # 5. the chunk runner: numba runs the steps, Python runs chunks
 # ---------------------------------------------------------------------------------------
 @jit
-def _forces(B, P, Bd, S, W, prm, iprm, record, idt, serial):
+def _forces(B, P, Bd, S, W, Fj, prm, iprm, record, idt, serial):
     """Force-displacement at the current positions; increments use velocity x ``idt``.
     ``serial``: call the kernels directly (one thread: no parallel-region overhead)."""
     if serial:
@@ -581,7 +591,7 @@ def _forces(B, P, Bd, S, W, prm, iprm, record, idt, serial):
             nbk += pair_partition(p, B.pos, B.vel, B.angvel, B.radius, B.mass, P.pi, P.pj,
                                   P.fs, P.df, P.act, P.slip, P.dash, P.estr, Bd.blk, Bd.state,
                                   Bd.step, Bd.pos, Bd.nrm, Bd.energy, Bd.estr, Bd.sig, P.part,
-                                  B.fbuf, prm, iprm[I_STEP], iprm[I_NB], record, idt)
+                                  B.fbuf, prm, iprm[I_STEP], iprm[I_NB], record, idt, Fj)
         wall_range(0, iprm[I_NSLOTS], B.pos, B.vel, B.angvel, B.radius, B.mass, S.b, S.w,
                    S.fs, S.df, S.rg, S.f, S.m, S.rad, S.slip, S.dash, S.estr, W.type, W.pos,
                    W.nrm, W.rad, W.disk, W.vel, W.radv, W.fric, prm, record, idt)
@@ -589,7 +599,7 @@ def _forces(B, P, Bd, S, W, prm, iprm, record, idt, serial):
         nbk = pair_forces(B.pos, B.vel, B.angvel, B.radius, B.mass, P.pi, P.pj, P.fs, P.df,
                           P.act, P.slip, P.dash, P.estr, Bd.blk, Bd.state, Bd.step, Bd.pos,
                           Bd.nrm, Bd.energy, Bd.estr, Bd.sig, P.part, B.fbuf, prm,
-                          iprm[I_STEP], iprm[I_NB], record, idt)
+                          iprm[I_STEP], iprm[I_NB], record, idt, Fj)
         wall_forces(B.pos, B.vel, B.angvel, B.radius, B.mass, S.b, S.w, S.fs, S.df, S.rg, S.f,
                     S.m, S.rad, S.slip, S.dash, S.estr, W.type, W.pos, W.nrm, W.rad, W.disk,
                     W.vel, W.radv, W.fric, prm, iprm[I_NSLOTS], record, idt)
@@ -598,7 +608,7 @@ def _forces(B, P, Bd, S, W, prm, iprm, record, idt, serial):
 
 
 @jit
-def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last, serial):
+def run_steps(B, P, Bd, S, W, Fj, prm, iprm, eacc, nsteps, record_last, serial):
     """Advance ``nsteps`` steps (PFC cycle order: law of motion, then force-displacement).
     Returns (status, steps_done).
 
@@ -606,7 +616,8 @@ def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last, serial):
     2: a ball blew up (index + 1 in iprm[I_BAD]).
     iprm[I_FORCES]: 0 forces are current; 1 recompute them without increments (after a
     change made from Python); 2 the last step's force-displacement is still due.
-    B, P, Bd, S, W: namedtuples of ball, pair, bond, slot and wall arrays (model.py).
+    B, P, Bd, S, W, Fj: namedtuples of ball, pair, bond, slot, wall and flat-joint arrays
+    (model_arrays.py).
     ``serial``: one thread; the kernels are called directly instead of through numba's
     parallel regions (same arithmetic, so the same results).
     """
@@ -618,7 +629,7 @@ def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last, serial):
         if iprm[I_REBUILD]:
             if rebuild_lists(B, P, Bd, S, W, prm, iprm, eacc) != 0:
                 return 1, 0
-        _forces(B, P, Bd, S, W, prm, iprm, record_last and nsteps == 0,
+        _forces(B, P, Bd, S, W, Fj, prm, iprm, record_last and nsteps == 0,
                 dt if iprm[I_FORCES] == 2 else 0.0, serial)
         iprm[I_FORCES] = 0
     for s in range(nsteps):
@@ -649,5 +660,5 @@ def run_steps(B, P, Bd, S, W, prm, iprm, eacc, nsteps, record_last, serial):
             if rebuild_lists(B, P, Bd, S, W, prm, iprm, eacc) != 0:
                 iprm[I_FORCES] = 2
                 return 1, s + 1
-        _forces(B, P, Bd, S, W, prm, iprm, record_last and s == nsteps - 1, dt, serial)
+        _forces(B, P, Bd, S, W, Fj, prm, iprm, record_last and s == nsteps - 1, dt, serial)
     return 0, nsteps

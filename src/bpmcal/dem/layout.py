@@ -28,7 +28,11 @@ P_TIME = 19  # model time [s]
 P_VCAP = 20  # >0: speeds are clipped to this value (genesis overlap removal only) [m/s]
 P_DBOUND = 21  # upper bound of the largest ball displacement since the last rebuild [m]
 P_NOSPIN = 22  # >0: translation only, no torques and no spins (Model.set_spin; genesis relax)
-N_PRM = 23
+P_MODEL = 23  # contact model of the installed pairs: 0 linearpbond, 1 flatjoint
+N_PRM = 24
+
+#: contact models (``P_MODEL``) by PFC name
+CONTACT_MODELS = ("linearpbond", "flatjoint")
 
 # --- integer counters: iprm[...] ------------------------------------------------------
 I_STEP = 0  # steps taken since the model was created
@@ -70,3 +74,4 @@ WALL_CYLINDER = 1  # inside of a cylinder (vessel)
 BOND_INTACT = 0
 BOND_TENSION = 1  # broken in tension
 BOND_SHEAR = 2  # broken in shear
+BOND_NONE = 3  # never bonded (a flat joint installed as a gapped or slit contact)

@@ -1,14 +1,19 @@
-"""Material properties of the linear + linear-parallel-bond model (PFC ``linearpbond``), SI.
+"""Material properties of the two contact models, SI: the linear + linear-parallel-bond
+model (PFC ``linearpbond``, :class:`Material`) and the flat-joint model (PFC
+``flatjoint``, :class:`FlatJointMaterial`).
 
 Names follow PFC's properties: ``emod`` (E*), ``kratio`` (kappa*), ``fric`` (mu),
 ``pb_emod`` (E-bar), ``pb_kratio`` (kappa-bar), ``pb_ten`` (sigma-bar_c), ``pb_coh``
 (c-bar), ``pb_fa`` (phi-bar, degrees), ``pb_rmul`` (lambda-bar), ``pb_mcf`` (beta-bar),
-``dp_nratio``/``dp_sratio`` (dashpot critical-damping ratios).
+``dp_nratio``/``dp_sratio`` (dashpot critical-damping ratios); ``fj_emod``,
+``fj_kratio``, ``fj_ten``, ``fj_coh``, ``fj_fa``, ``fj_fric``, ``fj_rmul``, ``fj_nr``,
+``fj_nal`` for the flat joint.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
+from typing import ClassVar
 
 from .errors import InputError
 
@@ -33,6 +38,7 @@ def _check(name: str, value: float, lo: float, hi: float, lo_open: bool, unit: s
 class Material:
     """Linear-parallel-bond material, SI units (Pa, degrees for pb_fa)."""
 
+    contact_model: ClassVar[str] = "linearpbond"
     emod: float  # E* of the linear component [Pa]
     kratio: float  # kappa* = kn/ks [-]
     fric: float  # friction coefficient of ball-ball contacts [-]
@@ -74,3 +80,95 @@ class Material:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def _count(name: str, value, lo: int, hi: int, what: str) -> int:
+    """An element count: an integer in [lo, hi] (a float with an integer value is
+    accepted, 1.5 or True is not)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+            (isinstance(value, float) and not value.is_integer()):
+        raise InputError(f"{name}={value!r}: expected an integer in [{lo}, {hi}] ({what})")
+    v = int(value)
+    if not lo <= v <= hi:
+        raise InputError(f"{name}={v}: out of its domain [{lo}, {hi}] ({what})")
+    return v
+
+
+@dataclass(frozen=True)
+class FlatJointMaterial:
+    """Flat-joint material (PFC ``flatjoint``), SI units (Pa, degrees for fj_fa).
+
+    The flat joints are installed by :meth:`bpmcal.dem.Model.bond`; the pairs that come
+    into contact later and the ball-wall contacts are linear contacts with ``emod``,
+    ``kratio`` and ``fric`` (by default the flat joint's own ``fj_emod``, ``fj_kratio``
+    and ``fj_fric``). Strengths are those of the bonded elements (``fj_ten``, ``fj_coh``,
+    ``fj_fa``); unbonded elements carry no tension and slip at ``fj_fric``. Element
+    shear force is removed when an element breaks (PFC residual mode 0)."""
+
+    contact_model: ClassVar[str] = "flatjoint"
+
+    fj_emod: float  # E* of the interface [Pa]
+    fj_kratio: float  # kappa* = kn/ks [-]
+    fj_ten: float  # tensile strength of bonded elements [Pa]
+    fj_coh: float  # cohesion of bonded elements [Pa]
+    fj_fa: float  # local friction angle of bonded elements [deg]
+    fj_fric: float  # friction coefficient of unbonded elements [-]
+    fj_rmul: float = 1.0  # radius multiplier lambda [-]
+    fj_nr: int = 1  # elements in the radial direction [-]
+    fj_nal: int = 3  # elements in the circumferential direction [-]
+    emod: float | None = None  # linear contacts: E* (default fj_emod) [Pa]
+    kratio: float | None = None  # linear contacts: kappa* (default fj_kratio) [-]
+    fric: float | None = None  # linear contacts: friction (default fj_fric) [-]
+    dp_nratio: float = 0.0
+    dp_sratio: float = 0.0
+
+    def __post_init__(self):
+        inf = math.inf
+        for lin, fj in (("emod", "fj_emod"), ("kratio", "fj_kratio"), ("fric", "fj_fric")):
+            if getattr(self, lin) is None:
+                object.__setattr__(self, lin, getattr(self, fj))
+        _check("fj_emod", self.fj_emod, 0.0, inf, True, " Pa", "effective modulus > 0")
+        _check("fj_kratio", self.fj_kratio, 0.0, inf, True, "", "stiffness ratio kn/ks > 0")
+        _check("fj_ten", self.fj_ten, 0.0, inf, False, " Pa", "tensile strength >= 0")
+        _check("fj_coh", self.fj_coh, 0.0, inf, False, " Pa", "cohesion >= 0")
+        if isinstance(self.fj_fa, (int, float)) and float(self.fj_fa) >= 90.0:
+            raise InputError(f"fj_fa={self.fj_fa:g} deg: out of its physical domain [0, 90) "
+                             "(friction angle in degrees)")
+        _check("fj_fa", self.fj_fa, 0.0, 90.0, False, " deg", "friction angle in [0, 90)")
+        _check("fj_fric", self.fj_fric, 0.0, inf, False, "", "friction coefficient >= 0")
+        _check("fj_rmul", self.fj_rmul, 0.0, inf, True, "", "radius multiplier > 0")
+        object.__setattr__(self, "fj_nr", _count("fj_nr", self.fj_nr, 1, 16,
+                                                 "elements in the radial direction"))
+        object.__setattr__(self, "fj_nal", _count("fj_nal", self.fj_nal, 1, 32,
+                                                  "elements in the circumferential direction"))
+        _check("emod", self.emod, 0.0, inf, True, " Pa", "linear effective modulus > 0")
+        _check("kratio", self.kratio, 0.0, inf, True, "", "linear stiffness ratio > 0")
+        _check("fric", self.fric, 0.0, inf, False, "", "linear friction coefficient >= 0")
+        _check("dp_nratio", self.dp_nratio, 0.0, 1.0, False, "", "critical-damping ratio in [0, 1]")
+        _check("dp_sratio", self.dp_sratio, 0.0, 1.0, False, "", "critical-damping ratio in [0, 1]")
+
+    @property
+    def n_elements(self) -> int:
+        return self.fj_nr * self.fj_nal
+
+    def replace(self, **kw) -> FlatJointMaterial:
+        d = asdict(self)
+        unknown = set(kw) - {f.name for f in fields(self)}
+        if unknown:
+            raise InputError(f"unknown material properties: {sorted(unknown)}")
+        d.update(kw)
+        return FlatJointMaterial(**d)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+#: either contact model's material
+MATERIALS = (Material, FlatJointMaterial)
+
+
+def stiffest_modulus(material) -> float:
+    """The largest effective modulus of a material's springs [Pa] (wave speed, guards)."""
+    if isinstance(material, FlatJointMaterial):
+        return max(float(material.emod), float(material.fj_emod))
+    return max(float(material.emod), float(material.pb_emod))

@@ -27,6 +27,7 @@ import numpy as np
 
 from . import bondblock as bb
 from . import diagnostics as D
+from . import flatjoint as FJ
 from . import kernels as K
 from . import neighbors as NB
 from ._jit import numba, set_threads
@@ -57,6 +58,7 @@ from .layout import (
     P_GX,
     P_KRATIO,
     P_MAXSPEED,
+    P_MODEL,
     P_NOSPIN,
     P_PB_COH,
     P_PB_EMOD,
@@ -69,24 +71,26 @@ from .layout import (
     P_TIME,
     P_VCAP,
 )
-from .material import Material
+from .material import MATERIALS, FlatJointMaterial, Material
 from .model_arrays import IDX, Balls, Pairs, Slots, aligned_zeros, readonly, vec3
 from .model_bonds import BondsMixin
+from .model_flatjoints import FlatJointsMixin, empty_flatjoints, flatjoint_params
 from .model_measure import ENERGY_TERMS, MeasureMixin
 from .model_walls import WallsMixin
 
 __all__ = ["Model", "ENERGY_TERMS"]
 
 
-class Model(WallsMixin, BondsMixin, MeasureMixin):
-    """Bonded-sphere DEM model with PFC linear + linear-parallel-bond contacts.
+class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
+    """Bonded-sphere DEM model with PFC linear + linear-parallel-bond contacts, or flat
+    joints (PFC ``flatjoint``) when ``material`` is a :class:`FlatJointMaterial`.
 
     Parameters
     ----------
     positions : (N, 3) array [m]
     radii : (N,) array [m], > 0
     density : float or (N,) array [kg/m^3], > 0
-    material : Material
+    material : Material or FlatJointMaterial (the contact model of the installed pairs)
     damping : local damping coefficient alpha in [0, 1) (0.7 quasi-static, 0 dynamic)
     gravity : (3,) [m/s^2]
     skin : Verlet skin [m]; default 0.125 x the smallest radius
@@ -122,8 +126,9 @@ class Model(WallsMixin, BondsMixin, MeasureMixin):
         if bad.size:
             raise InputError(f"density: ball {bad[0]} has density {float(dens[bad[0]])!r}; "
                              "expected > 0 kg/m^3")
-        if not isinstance(material, Material):
-            raise InputError(f"material: expected a bpmcal.dem.Material, got {type(material).__name__}")
+        if not isinstance(material, MATERIALS):
+            raise InputError("material: expected a bpmcal.dem.Material or FlatJointMaterial, "
+                             f"got {type(material).__name__}")
         if skin is None:
             skin = 0.125 * float(rad.min())
         if not (float(skin) > 0 and math.isfinite(float(skin))):
@@ -155,6 +160,7 @@ class Model(WallsMixin, BondsMixin, MeasureMixin):
         self.prm[P_MAXSPEED] = float(max_speed)
         self.set_damping(damping)
         self.set_gravity(gravity)
+        self.Fj = empty_flatjoints(0)
         self.set_material(material)
         self._alloc_pairs(int(pair_capacity) if pair_capacity else max(64, 8 * n))
         self.Bd = self._empty_bonds(0)
@@ -216,12 +222,40 @@ class Model(WallsMixin, BondsMixin, MeasureMixin):
             self._alloc_slots(int(need_w * 1.5) + 16, old=self.S)
 
     # ------------------------------------------------------------------ parameters
-    def set_material(self, material: Material):
-        """Install material properties (takes effect at the next step)."""
-        if not isinstance(material, Material):
-            raise InputError(f"material: expected a bpmcal.dem.Material, got {type(material).__name__}")
+    def set_material(self, material: Material | FlatJointMaterial):
+        """Install material properties (takes effect at the next step). The contact model
+        cannot change once bonds or flat joints are installed."""
+        if not isinstance(material, MATERIALS):
+            raise InputError("material: expected a bpmcal.dem.Material or FlatJointMaterial, "
+                             f"got {type(material).__name__}")
+        old = getattr(self, "material", None)
+        if old is not None and self.n_bonds and old.contact_model != material.contact_model:
+            raise InputError(f"material: contact model {material.contact_model!r}, but the "
+                             f"model has {self.n_bonds} {old.contact_model} contacts installed")
+        if isinstance(material, FlatJointMaterial):
+            if self.n_bonds and (material.fj_nr, material.fj_nal) != (old.fj_nr, old.fj_nal):
+                raise InputError(f"material: fj_nr x fj_nal = {material.fj_nr} x "
+                                 f"{material.fj_nal}, but the installed flat joints have "
+                                 f"{old.fj_nr} x {old.fj_nal} elements")
+            self.material = material
+            p = self.prm
+            p[P_MODEL] = 1.0
+            p[P_EMOD] = material.emod
+            p[P_KRATIO] = material.kratio
+            p[P_FRIC] = material.fric
+            for k in (P_PB_EMOD, P_PB_KRATIO, P_PB_RMUL):
+                p[k] = 1.0  # unused; finite so that nothing divides by zero
+            for k in (P_PB_TEN, P_PB_COH, P_PB_TANFA, P_PB_MCF):
+                p[k] = 0.0
+            p[P_DP_N] = material.dp_nratio
+            p[P_DP_S] = material.dp_sratio
+            self.Fj.prm[:] = flatjoint_params(material)
+            if hasattr(self, 'iprm'):
+                self._touch()
+            return
         self.material = material
         p = self.prm
+        p[P_MODEL] = 0.0
         p[P_EMOD] = material.emod
         p[P_KRATIO] = material.kratio
         p[P_FRIC] = material.fric
@@ -311,10 +345,12 @@ class Model(WallsMixin, BondsMixin, MeasureMixin):
     def critical_timestep(self) -> tuple[float, int]:
         """(dt_crit, limiting ball): min over balls of sqrt(m/k_tran), sqrt(I/k_rot)."""
         self._ensure_lists()
+        F = self.Fj
         dtc, arg = D.stiffness_timestep(self.B.radius, self.B.mass, self.B.inertia, self.B.fix,
                                         self.P.pi, self.P.pj, int(self.iprm[I_NPAIRS]),
                                         int(self.iprm[I_NB]), self.Bd.state, self.S.b,
-                                        int(self.iprm[I_NSLOTS]), self.prm)
+                                        int(self.iprm[I_NSLOTS]), self.prm, F.prm,
+                                        F.flag[:, FJ.K_LIVE], FJ.twist_factor(F.geo))
         if not math.isfinite(dtc):  # no contacts at all: use a lone ball on a wall
             i = int(np.argmin(self.B.mass / self.B.radius))
             kn = math.pi * self.B.radius[i] * self.material.emod
@@ -422,12 +458,29 @@ class Model(WallsMixin, BondsMixin, MeasureMixin):
         """(i, j) of the pairs in contact now (gap below reference gap, or intact bond)."""
         i, j = self.pairs()
         nb = self.n_bonds
-        rg = np.zeros(i.shape[0])
-        rg[:nb] = bb.get_field(self.Bd.blk, bb.S_RG, nb)
-        intact = np.zeros(i.shape[0], bool)
-        intact[:nb] = self.Bd.state == BOND_INTACT
-        sel = (self.pair_gaps(i, j) < rg) | intact
+        sel = np.zeros(i.shape[0], bool)
+        sel[nb:] = self.pair_gaps(i[nb:], j[nb:]) < 0.0
+        sel[:nb] = self._installed_in_contact()
         return i[sel], j[sel]
+
+    def _installed_in_contact(self) -> np.ndarray:
+        """Which installed pairs (bonds or flat joints) are in contact now: an intact
+        bond or a linear part within its reference gap; a flat joint with a bonded element
+        or a closed point of its interface (a deleted one: its balls overlap)."""
+        nb = self.n_bonds
+        i, j = self.P.pi[:nb], self.P.pj[:nb]
+        g = self.pair_gaps(i, j)
+        if self.material.contact_model == "flatjoint":
+            F = self.Fj
+            rad = self.material.fj_rmul * np.minimum(self.B.radius[i], self.B.radius[j])
+            gs = g - F.c[:, FJ.C_GREF]
+            live = F.flag[:, FJ.K_LIVE] == 1
+            tb = np.hypot(F.c[:, FJ.C_TBS], F.c[:, FJ.C_TBT])
+            closed = gs - tb * rad < 0.0
+            bonded = (F.es == FJ.E_BONDED).any(axis=1)
+            return np.where(live, bonded | closed, g < 0.0)
+        rg = bb.get_field(self.Bd.blk, bb.S_RG, nb)
+        return (g < rg) | (self.Bd.state == BOND_INTACT)
 
     @property
     def n_rebuilds(self) -> int:
@@ -452,8 +505,9 @@ class Model(WallsMixin, BondsMixin, MeasureMixin):
         self._check_spin()
         done = 0
         while True:
-            st, k = K.run_steps(self.B, self.P, self.Bd, self.S, self.W, self.prm, self.iprm,
-                                self.eacc, nsteps - done, record, numba.get_num_threads() == 1)
+            st, k = K.run_steps(self.B, self.P, self.Bd, self.S, self.W, self.Fj, self.prm,
+                                self.iprm, self.eacc, nsteps - done, record,
+                                numba.get_num_threads() == 1)
             done += int(k)
             if st == 0 and done >= nsteps:
                 break

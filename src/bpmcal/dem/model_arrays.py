@@ -4,7 +4,9 @@
 Each record is a namedtuple of numpy arrays, passed as is to the numba kernels: ``Balls``
 (one row per ball), ``Pairs`` (the neighbour list, bond pairs first), ``Bonds`` (the
 parallel bonds, their blocked state in ``blk``: ``bondblock``), ``Slots`` (ball-wall
-contacts) and ``Walls``. ``Model`` allocates and grows them; nothing here runs a step.
+contacts), ``Walls`` and ``FlatJoints`` (the flat joints' state, when the installed
+pairs are flat joints rather than parallel bonds). ``Model`` allocates and grows them;
+nothing here runs a step.
 """
 from __future__ import annotations
 
@@ -21,6 +23,11 @@ Bonds = namedtuple("Bonds", "blk state step pos nrm energy estr sig ptr part")
 Slots = namedtuple("Slots", "b w fs df rg f m rad slip dash estr ptr b2 w2 fs2 ptr2")
 Walls = namedtuple("Walls", "type pos nrm rad disk vel radv fric mass force radsum work "
                    "grav disp")
+#: flat joints (``flatjoint.py``): per contact ``c`` (floats, C_*), ``flag`` (K_*); per
+#: element state ``es``, shear force ``ef`` (s, t), slip flag ``eslip``; the element
+#: table ``geo``; per element break records (``estep``: -1 intact, ``epos``, ``enrm``,
+#: ``esig`` (sigma, tau), ``een`` released energy); ``prm`` the law's parameters
+FlatJoints = namedtuple("FlatJoints", "c flag es ef eslip geo estep epos enrm esig een prm")
 
 #: type of the ball indices in the pair and wall-slot lists: unsigned, so that numba
 #: emits no negative-index wraparound code where the kernels index ball arrays with them

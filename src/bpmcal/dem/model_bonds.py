@@ -15,6 +15,7 @@ import numpy as np
 
 from . import bondblock as bb
 from .errors import InputError
+from .flatjoint import C_LX, C_LZ, C_SF
 from .layout import BOND_INTACT, E_DASH, E_SLIP, I_NB, I_NBROKEN, I_NPAIRS, I_REBUILD
 from .model_arrays import IDX, Bonds, readonly
 
@@ -58,6 +59,11 @@ class BondsMixin:
         g = float(gap)
         if not math.isfinite(g):
             raise InputError(f"gap={gap!r}: expected a finite installation gap in m")
+        if self.material.contact_model == "flatjoint":
+            if rgap is not None:
+                raise InputError("rgap: flat joints are installed force-free; a reference "
+                                 "gap applies to parallel bonds only")
+            return self._install_flatjoints(g)
         self._touch()
         self._ensure_lists()
         P, Bd = self.P, self.Bd
@@ -135,24 +141,35 @@ class BondsMixin:
         ``factors[k]`` (its friction angle and stiffnesses are unchanged). PFC gives every
         contact its own ``pb_ten`` / ``pb_coh``; here the material holds the common value
         and this factor the per-bond deviation. New bonds get factor 1. A scalar applies to
-        every bond."""
+        every bond. For flat joints the factor multiplies ``fj_ten`` and ``fj_coh`` of
+        every element of the contact."""
         nb = self.n_bonds
         f = np.broadcast_to(np.asarray(factors, float), (nb,)) if np.ndim(factors) == 0 \
             else np.asarray(factors, float).reshape(-1)
         if f.shape != (nb,) or not np.all(np.isfinite(f)) or np.any(f < 0):
             raise InputError(f"strength factors: expected {nb} finite values >= 0, got "
                              f"shape {f.shape}")
-        bb.set_field(self.Bd.blk, bb.S_SF, nb, f)
+        if self.material.contact_model == "flatjoint":
+            self.Fj.c[:, C_SF] = f
+        else:
+            bb.set_field(self.Bd.blk, bb.S_SF, nb, f)
         self._touch()
 
     @property
     def bond_strength_factors(self) -> np.ndarray:
         """Strength factor of every bond pair (a copy; :meth:`set_bond_strength_factors`)."""
+        if self.material.contact_model == "flatjoint":
+            return self.Fj.c[:, C_SF].copy()
         return bb.get_field(self.Bd.blk, bb.S_SF, self.n_bonds)
 
     def breaks(self) -> dict:
         """Broken bonds as events sorted by (step, bond index): step, time, bond, i, j,
-        mode (1 tension, 2 shear), position, normal, bond radius, released energy."""
+        mode (1 tension, 2 shear), position, normal, bond radius, released energy. With
+        flat joints, one event per broken element (``bond`` is the contact), with its
+        ``element`` index and ``area``; ``radius`` is that of a disk of the element's
+        area."""
+        if self.material.contact_model == "flatjoint":
+            return self._flatjoint_breaks()
         st = self.Bd.state
         k = np.flatnonzero(st != BOND_INTACT)
         k = k[np.lexsort((k, self.Bd.step[k]))]
@@ -167,7 +184,10 @@ class BondsMixin:
     def bond_state(self) -> dict:
         """Current parallel-bond state of every bond pair (copies): normal force (tension
         positive) [N], shear force vector [N], twisting moment [N m], bending moment vector
-        [N m], state (0 intact, 1 tension, 2 shear), reference gap of the linear part [m]."""
+        [N m], state (0 intact, 1 tension, 2 shear), reference gap of the linear part [m].
+        Flat joints: :meth:`flatjoint_state`."""
+        if self.material.contact_model == "flatjoint":
+            raise InputError("bond_state: the model has flat joints; use flatjoint_state()")
         Bd = self.Bd
         nb = self.n_bonds
         g = lambda f: bb.get_field(Bd.blk, f, nb)  # noqa: E731
@@ -180,6 +200,9 @@ class BondsMixin:
         self._ensure_lists()
         out = self.P.fs[: int(self.iprm[I_NPAIRS])].copy()
         nb = self.n_bonds
+        if self.material.contact_model == "flatjoint":  # deleted flat joints
+            out[:nb] = self.Fj.c[:, C_LX:C_LZ + 1]
+            return out
         for c in range(3):
             out[:nb, c] = bb.get_field(self.Bd.blk, bb.S_LX + c, nb)
         return out

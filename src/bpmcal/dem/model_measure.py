@@ -44,7 +44,7 @@ class MeasureMixin:
         lin, bond, slip, dash, damp, grav, fixw, rel = D.sum_energies(
             B.edamp, B.egrav, B.efix, P.estr, P.slip, P.dash, int(self.iprm[I_NPAIRS]),
             Bd.estr, Bd.energy, Bd.state, int(self.iprm[I_NB]), S.estr, S.slip, S.dash,
-            int(self.iprm[I_NSLOTS]), self.eacc)
+            int(self.iprm[I_NSLOTS]), self.eacc, self.material.contact_model == "flatjoint")
         kin, dmp2, grv2, cst2 = D.measure_balls(B.vel, B.angvel, B.force, B.moment, B.mass,
                                                 B.inertia, B.fix, B.fbuf, B.pmask, S.ptr,
                                                 S.f, S.m, self.prm)
@@ -88,7 +88,7 @@ class MeasureMixin:
         fu = np.linalg.norm(self.B.force[free], axis=1).mean()
         fc, cnt = D.contact_force_mean(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                                        self.P.fs, int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]),
-                                       self.Bd.state, self.Bd.blk, self.prm)
+                                       self.Bd.state, self.Bd.blk, self.prm, self.Fj.c)
         if cnt == 0 or fc == 0.0:
             return math.inf if fu > 0 else 0.0
         return float(fu / fc)
@@ -96,6 +96,14 @@ class MeasureMixin:
     def coordination_numbers(self) -> np.ndarray:
         """Contacts per ball now (bonded or touching)."""
         self._ensure_lists()
+        if self.material.contact_model == "flatjoint":
+            nb = self.n_bonds
+            i, j = self.pairs()
+            sel = np.zeros(i.shape[0], bool)
+            sel[nb:] = self.pair_gaps(i[nb:], j[nb:]) < 0.0
+            sel[:nb] = self._installed_in_contact()
+            return (np.bincount(i[sel], minlength=self.n)
+                    + np.bincount(j[sel], minlength=self.n)).astype(np.int64)
         return D.coordination(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                               int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]), self.Bd.state,
                               self.Bd.blk)
