@@ -124,7 +124,6 @@ def test_T2_pure_shear_breaks_at_cohesion_then_carries_nothing():
 def test_T2b_shear_under_compression_rebuilds_to_the_friction_limit():
     m = fj_two_balls()
     g = -2.0e-7  # sigma = -5 MPa
-    v = 1e-4
     n = 200
     m.set_velocity([1], vel=[g / (n * m.dt), 0, 0])
     m.cycle(n)

@@ -451,14 +451,21 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
                 mode = E_SHEAR
             if mode != 0:
                 # released: the element's strain energy, in the step-consistent form
-                # 1/2 k g_old g_trial (normal) + 1/2 F_old . F_trial / k (shear)
+                # 1/2 k g_old g_trial (normal) + 1/2 F_old . F_trial / k (shear);
                 _, _, _, e2x = closed_element(kn, area, xs, xt, iss, itt, ist,
                                               0.5 * (gs + gs0), 0.5 * (ws + ws0),
                                               0.5 * (wt + wt0))
                 _, _, _, e2a = closed_element(kn, area, xs, xt, iss, itt, ist,
                                               0.5 * (gs - gs0), 0.5 * (ws - ws0),
                                               0.5 * (wt - wt0))
-                erel = 0.5 * kn * (e2x - e2a) + 0.5 * (f0s * us + f0t * ut) / ka
+                # only the stretched part is released: an element compressed everywhere
+                # keeps its normal strain energy as an unbonded one (same law there);
+                # in between, the share of the energy held by the opening part
+                _, _, _, e2u = unbonded_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt,
+                                                geo[e, G_RA] * rad, geo[e, G_RB] * rad,
+                                                geo[e, G_P0], geo[e, G_P1], brk)
+                share = 1.0 - e2u / e2 if e2 > 0.0 else 1.0
+                erel = share * 0.5 * kn * (e2x - e2a) + 0.5 * (f0s * us + f0t * ut) / ka
                 crk[nbrk, 0] = e
                 crk[nbrk, 1] = mode
                 crk[nbrk, 2] = xs * sx + xt * tx
