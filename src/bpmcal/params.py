@@ -68,6 +68,75 @@ PARAMS: dict[str, Param] = {p.name: p for p in [
 
 PARAM_NAMES: tuple[str, ...] = tuple(PARAMS)
 
+#: The ball parameters every contact model shares.
+BALL_PARAMS: tuple[str, ...] = ("rmin_mm", "porosity")
+
+#: The flat-joint card (PFC ``flatjoint``, docs/contact_laws.md): the interface's
+#: deformability and strength, its discretisation, and the flat-jointed material's
+#: microstructure (FJM.md §6). ``lo``/``hi`` are starting design ranges, not Table 2.
+FJ_PARAMS: dict[str, Param] = {p.name: p for p in [
+    Param("fj_emod_GPa", "Ec", r"$E_c$", "GPa", 1e9, 20.0, 120.0, 0.0, math.inf, True,
+          "flat-joint effective modulus (= linear emod at walls and new contacts)",
+          unicode="E*"),
+    Param("fj_kratio", "k*", r"$k^*$", "", 1.0, 1.0, 4.0, 0.0, math.inf, True,
+          "flat-joint normal-to-shear stiffness ratio", unicode="κ*"),
+    Param("fj_ten_MPa", "sigma_b", r"$\sigma_b$", "MPa", 1e6, 5.0, 60.0, 0.0, math.inf, False,
+          "tensile strength of bonded elements", unicode="σb"),
+    Param("fj_coh_MPa", "c_b", r"$c_b$", "MPa", 1e6, 20.0, 300.0, 0.0, math.inf, False,
+          "cohesion of bonded elements", unicode="cb"),
+    Param("fj_fa_deg", "phi_b", r"$\varphi_b$", "deg", 1.0, 0.0, 50.0, 0.0, 90.0, False,
+          "local friction angle of bonded elements", hi_open=True, unicode="φb"),
+    Param("fj_fric", "mu", r"$\mu$", "", 1.0, 0.3, 0.9, 0.0, math.inf, False,
+          "friction coefficient of unbonded elements (and of linear contacts)", unicode="μ"),
+    Param("fj_rmul", "lambda", r"$\lambda$", "", 1.0, 1.0, 1.0, 0.0, math.inf, True,
+          "interface radius multiplier", unicode="λ"),
+    Param("fj_nr", "N_r", r"$N_r$", "", 1.0, 1.0, 1.0, 1.0, 16.0, False,
+          "elements in the radial direction (integer)", unicode="Nr"),
+    Param("fj_nal", "N_al", r"$N_\alpha$", "", 1.0, 3.0, 3.0, 1.0, 32.0, False,
+          "elements in the circumferential direction (integer)", unicode="Nα"),
+    Param("fj_gi_ratio", "g_i", r"$g_i/\bar R$", "", 1.0, 0.0, 0.5, 0.0, 5.0, False,
+          "installation gap over the mean ball radius", unicode="gi/R̄"),
+    Param("fj_slit_frac", "phi_S", r"$\phi_S$", "", 1.0, 0.0, 0.5, 0.0, 1.0, False,
+          "fraction of slit (unbonded, closed) flat joints", unicode="φS"),
+    Param("fj_gap_frac", "phi_G", r"$\phi_G$", "", 1.0, 0.0, 0.5, 0.0, 1.0, False,
+          "fraction of gapped (unbonded, open) flat joints", unicode="φG"),
+    Param("fj_gap0_ratio", "g_0", r"$g_0/\bar R$", "", 1.0, 0.0, 0.1, 0.0, 5.0, False,
+          "initial gap of gapped flat joints over the mean ball radius", unicode="g0/R̄"),
+]}
+
+#: defaults of the flat-joint card's optional keys (PFC's usual 3D choices, FJM.md §5-6)
+FJ_DEFAULTS: dict[str, float] = {"fj_rmul": 1.0, "fj_nr": 1.0, "fj_nal": 3.0,
+                                 "fj_gi_ratio": 0.0, "fj_slit_frac": 0.0, "fj_gap_frac": 0.0,
+                                 "fj_gap0_ratio": 0.0}
+#: integer-valued flat-joint parameters (element counts)
+FJ_INTEGERS: tuple[str, ...] = ("fj_nr", "fj_nal")
+
+#: contact models by PFC name: the parameters of their cards
+CONTACT_MODELS: dict[str, dict[str, Param]] = {
+    "linearpbond": PARAMS,
+    "flatjoint": {**{k: PARAMS[k] for k in BALL_PARAMS}, **FJ_PARAMS}}
+DEFAULT_CONTACT_MODEL = "linearpbond"
+
+
+def card_model(values: dict) -> str:
+    """The contact model of a card (its ``contact_model`` key, or the model whose own
+    names it uses; parallel bond if neither). A card mixing both models' names, or naming
+    one model and using the other's names, raises :class:`ParameterError`."""
+    named = values.get("contact_model")
+    if named is not None and named not in CONTACT_MODELS:
+        raise ParameterError(f"contact_model={named!r}: expected one of "
+                             f"{', '.join(CONTACT_MODELS)}")
+    pb = sorted(k for k in values if k in PARAMS and k not in BALL_PARAMS)
+    fj = sorted(k for k in values if k in FJ_PARAMS)
+    if pb and fj:
+        raise ParameterError(f"mixed card: parallel-bond keys {pb} and flat-joint keys {fj}; "
+                             "a card is for one contact model")
+    used = "flatjoint" if fj else ("linearpbond" if pb else None)
+    if named is not None and used is not None and used != named:
+        keys = fj or pb
+        raise ParameterError(f"contact_model={named!r}, but the card has {used} keys {keys}")
+    return named or used or DEFAULT_CONTACT_MODEL
+
 
 def table2_ranges() -> dict[str, tuple[float, float]]:
     """The paper's Table 2 sampling ranges (paper units): the design space of the default
@@ -131,6 +200,8 @@ def to_si(name: str, value: float) -> float:
     """Paper units -> SI for a parameter or response name."""
     if name in PARAMS:
         return float(value) * PARAMS[name].si
+    if name in FJ_PARAMS:
+        return float(value) * FJ_PARAMS[name].si
     if name in RESPONSES:
         return float(value) * RESPONSES[name].si
     raise ParameterError(f"unknown quantity {name!r}")
@@ -140,6 +211,8 @@ def from_si(name: str, value: float) -> float:
     """SI -> paper units."""
     if name in PARAMS:
         return float(value) / PARAMS[name].si
+    if name in FJ_PARAMS:
+        return float(value) / FJ_PARAMS[name].si
     if name in RESPONSES:
         return float(value) / RESPONSES[name].si
     raise ParameterError(f"unknown quantity {name!r}")
@@ -171,16 +244,23 @@ def validate_params(values: dict, *, require_all: bool = True, within_table2: bo
     physical domain raise :class:`ParameterError` naming the value and what is expected;
     ``within_table2`` additionally requires the Table 2 ranges.
     """
-    unknown = sorted(set(values) - set(PARAMS))
+    model = card_model(values)
+    table = CONTACT_MODELS[model]
+    values = {k: v for k, v in values.items() if k != "contact_model"}
+    unknown = sorted(set(values) - set(table))
     if unknown:
-        raise ParameterError(f"unknown parameter(s) {unknown}; expected names from {list(PARAMS)}")
+        raise ParameterError(f"unknown parameter(s) {unknown}; expected names from {list(table)}"
+                             + (f" (contact model {model})" if model != DEFAULT_CONTACT_MODEL
+                                else ""))
     if require_all:
-        missing = [p for p in PARAMS if p not in values]
+        if model == "flatjoint":
+            values = {**{k: v for k, v in FJ_DEFAULTS.items() if k not in values}, **values}
+        missing = [p for p in table if p not in values]
         if missing:
             raise ParameterError(f"missing parameter(s) {missing}")
     out = {}
     for k, v in values.items():
-        p = PARAMS[k]
+        p = table[k]
         x = as_number(v, k, f"a number in {p.unit}" if p.unit else "a dimensionless number",
                       ParameterError)
         unit = f" {p.unit}" if p.unit else ""
@@ -194,5 +274,14 @@ def validate_params(values: dict, *, require_all: bool = True, within_table2: bo
         if within_table2 and not (p.lo <= x <= p.hi):
             raise ParameterError(f"{k}={x:g}{unit} is outside the Table 2 range "
                                  f"[{p.lo:g}, {p.hi:g}]{unit}")
+        if k in FJ_INTEGERS and x != int(x):
+            raise ParameterError(f"{k}={x:g}: expected an integer ({p.description})")
         out[k] = x
+    if model == "flatjoint":
+        frac = out.get("fj_slit_frac", 0.0) + out.get("fj_gap_frac", 0.0)
+        if frac > 1.0:
+            raise ParameterError(f"fj_slit_frac + fj_gap_frac = {frac:g}: expected at most 1 "
+                                 "(the rest of the flat joints are bonded)")
+        out = {k: out[k] for k in table if k in out}
+        out["contact_model"] = model
     return out

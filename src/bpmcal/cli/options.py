@@ -13,6 +13,7 @@ modules are imported inside the functions, so that importing this module loads n
 from __future__ import annotations
 
 from ..lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
+from ..params import CONTACT_MODELS
 from .args import SEED, THREADS, choice, fraction, integer, number, positive
 
 
@@ -20,7 +21,8 @@ def add_source_args(p):
     """Where a DEM run command takes its parameters and seed from, and its output file."""
     src = p.add_mutually_exclusive_group()
     src.add_argument("--params", default=None,
-                     help="YAML file with the 8 meso-parameters (or a material card)")
+                     help="YAML file with the meso-parameters of either contact model "
+                          "(or a material card)")
     src.add_argument("--design", default=None,
                      help="take the parameters and the seed from this design CSV ...")
     p.add_argument("--sample", default=None, help="... row with this sample_id")
@@ -29,6 +31,9 @@ def add_source_args(p):
                    help="override one parameter (repeatable)")
     p.add_argument("--seed", type=SEED, default=None,
                    help="packing seed (default 1, or the design row's)")
+    p.add_argument("--contact-model", default=None, type=choice("contact-model", CONTACT_MODELS),
+                   help="contact model of a card built with --set (linearpbond or "
+                        "flatjoint; default: the card's own, parallel bond if it names none)")
 
 
 FAILED_OK_HELP = ("a failed run (failure record written) exits 0 instead of 3; the workflow "

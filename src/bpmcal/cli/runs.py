@@ -58,6 +58,7 @@ def _lab_tests(args, tests, flags=None) -> int:
     progs = [Progress(f"{t} {Path(o).name}", enabled=not args.quiet) for t, o, *_ in tests]
     outs = lab_test_files([(t, o, g, st) for t, o, g, st, _ in tests], params_file=args.params,
                           sets=args.set, design=args.design, sample=args.sample, seed=args.seed,
+                          contact_model=args.contact_model,
                           cache=args.specimen_cache, threads=args.threads, progress=progs,
                           flags=flags, **budget_of(args))
     rc = EXIT_OK
@@ -200,8 +201,10 @@ def _add_impact(p):
     from ..stages.runs import impact_file
 
     im, seed = ImpactSettings(), defaults_of(impact_file)["seed"]
-    p.add_argument("--card", required=True,
-                   help="material card (verified or calibrated) or a YAML of the 8 parameters")
+    p.add_argument("--card", "--params", dest="card", required=True,
+                   help="material card (verified or calibrated) or a YAML of the "
+                        "meso-parameters of either contact model (--params is the same "
+                        "option, as in the other lab tests)")
     p.add_argument("--out", required=True)
     p.add_argument("--velocity", type=number("velocity", 0.0, 100.0, lo_open=True,
                                              unit="m/s"), default=im.velocity,

@@ -37,6 +37,9 @@ from ._jit import jit, numba
 from .laws import kinematics, linear_shear, linear_stiffness, rotate_shear
 
 _inl = numba.njit(cache=True, inline="always")
+#: inlined into its caller (``fj_range``): a call passing ten arrays per contact costs
+#: about as much as the contact's law
+_inl_law = numba.njit(cache=True, inline="always", error_model="numpy", fastmath={"contract"})
 
 # ---- element table columns ------------------------------------------------------------
 G_A, G_XS, G_XT, G_ISS, G_ITT, G_IST, G_RA, G_RB, G_P0, G_P1 = range(10)
@@ -49,7 +52,7 @@ C_GREF = 5  # reference gap: g_s = gap - g_ref [m]
 C_G0 = 6  # initial surface gap g_0 (gapped contacts) [m]
 C_SF = 7  # strength factor (x fj_ten, fj_coh) [-]
 C_LX, C_LY, C_LZ = 8, 9, 10  # linear shear force once the flat joint is deleted [N]
-C_FX, C_FY, C_FZ = 11, 12, 13  # force on j of the last evaluation (diagnostics) [N]
+C_FX, C_FY, C_FZ = 11, 12, 13  # force on j of the last recording step (diagnostics) [N]
 NC = 14
 
 # ---- per-contact flags: Fj.flag[k, ...] ------------------------------------------------
@@ -306,42 +309,38 @@ def unbonded_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, a, b, p0, p1, 
 # ---------------------------------------------------------------------------------------
 # one contact
 # ---------------------------------------------------------------------------------------
-@jit
+# (its parts share ~40 local values; as separate calls it measured slower: flatjoint_speed.py)
+# long: one contact's law for one step, inlined into the hot loop
+@_inl_law
 def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy, wjz, dt,
-               c, flag, es, ef, esl, geo, prm_fj, brk, out, crk):
+               c, flag, es, ef, esl, geo, prm_fj, brk, crk, record):
     """Force-displacement of flat-jointed pair ``k`` for one step.
 
     ``prm_fj`` = (E*, 1/kappa*, sigma_b, c_b, tan phi_b, mu, lambda, E* lin, 1/kappa* lin,
-    mu lin). Writes into ``out``: force on j (3), couple on j (3), lever arms ai, aj, slip
-    energy, strain energy (interface), strain energy (linear, deleted contacts), number
-    of elements broken, the unit normal (3); and into ``crk[e]`` for every element broken in this step:
-    (element, mode, crack position relative to ball i (3), sigma, tau, released energy).
-    Returns the number of elements broken."""
+    mu lin). Returns the force on j (3), the couple on j (3), the lever arms ai, aj, the
+    unit normal (3), the slip energy, the strain energy of the interface and of a deleted
+    (linear) contact (recording steps only) and the number of elements broken, listed in
+    ``crk[q]`` = (element, mode, crack position relative to ball i (3), sigma, tau,
+    released energy). Returned as values, not through an array, so that they stay in
+    registers once inlined."""
     (nx, ny, nz, gap, inv_l, ai, aj, vrx, vry, vrz, vn, dun, dusx, dusy, dusz,
      dphi) = kinematics(dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy, wjz, ri, rj, dt)
-    out[6] = ai
-    out[7] = aj
-    out[8] = 0.0
-    out[9] = 0.0
-    out[10] = 0.0
-    out[11] = 0.0
-    out[12] = nx
-    out[13] = ny
-    out[14] = nz
     if flag[k, K_LIVE] == 0:
         # deleted: a linear contact (reference gap 0), as the pairs found later
         kn, ks = linear_stiffness(ri, rj, inv_l, prm_fj[7], prm_fj[8])
         sx, sy, sz = rotate_shear(c[k, C_LX], c[k, C_LY], c[k, C_LZ], nx, ny, nz, dphi)
+        eslip = 0.0
+        elin = 0.0
         if gap < 0.0:
             fn = -kn * gap
             ux, uy, uz, tx, ty, tz, esl_ = linear_shear(sx, sy, sz, dusx, dusy, dusz, ks,
                                                         1.0 / ks, prm_fj[9] * fn)
-            out[8] = esl_
-            out[10] = 0.5 * fn * fn / kn + 0.5 * (ux * ux + uy * uy + uz * uz) / ks
+            eslip = esl_
+            elin = 0.5 * fn * fn / kn + 0.5 * (ux * ux + uy * uy + uz * uz) / ks
         else:
             if sx != 0.0 or sy != 0.0 or sz != 0.0:
-                out[8] = 0.5 * (sx * (sx - ks * dusx) + sy * (sy - ks * dusy)
-                                + sz * (sz - ks * dusz)) / ks
+                eslip = 0.5 * (sx * (sx - ks * dusx) + sy * (sy - ks * dusy)
+                               + sz * (sz - ks * dusz)) / ks
             fn = 0.0
             ux = 0.0
             uy = 0.0
@@ -352,16 +351,11 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
         fx = fn * nx + ux
         fy = fn * ny + uy
         fz = fn * nz + uz
-        out[0] = fx
-        out[1] = fy
-        out[2] = fz
-        out[3] = 0.0
-        out[4] = 0.0
-        out[5] = 0.0
-        c[k, C_FX] = fx
-        c[k, C_FY] = fy
-        c[k, C_FZ] = fz
-        return 0
+        if record:
+            c[k, C_FX] = fx
+            c[k, C_FY] = fy
+            c[k, C_FZ] = fz
+        return (fx, fy, fz, 0.0, 0.0, 0.0, ai, aj, nx, ny, nz, eslip, 0.0, elin, 0)
     rad = prm_fj[6] * min(ri, rj)
     r2 = rad * rad
     r4 = r2 * r2
@@ -374,16 +368,17 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
     mu = prm_fj[5]
     # ---- carry the frame: drop the component along the new normal, turn by the spin
     sx, sy, sz = rotate_shear(c[k, C_SX], c[k, C_SY], c[k, C_SZ], nx, ny, nz, dphi)
-    sm = math.sqrt(sx * sx + sy * sy + sz * sz)
-    if sm < 1e-6:  # degenerate (never after installation): any perpendicular unit vector
+    sm = sx * sx + sy * sy + sz * sz
+    if sm < 1e-12:  # degenerate (never after installation): any perpendicular unit vector
         if abs(nx) < 0.9:
             sx, sy, sz = 0.0, -nz, ny
         else:
             sx, sy, sz = nz, 0.0, -nx
-        sm = math.sqrt(sx * sx + sy * sy + sz * sz)
-    sx /= sm
-    sy /= sm
-    sz /= sm
+        sm = sx * sx + sy * sy + sz * sz
+    sm = 1.0 / math.sqrt(sm)
+    sx *= sm
+    sy *= sm
+    sz *= sm
     tx = ny * sz - nz * sy
     ty = nz * sx - nx * sz
     tz = nx * sy - ny * sx
@@ -442,14 +437,18 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
         us = f0s - ka * (dds - dtht * xt)
         ut = f0t - ka * (ddt + dtht * xs)
         if st == E_BONDED:
-            sig = fn / area
-            tau = math.sqrt(us * us + ut * ut) / area
+            # sigma = F_n/A >= sigma_b, else tau = |F_s|/A >= c_b - sigma tan(phi_b):
+            # multiplied through by A and squared (no division, no square root)
             mode = 0
-            if sig >= ten:
+            if fn >= ten * area:
                 mode = E_TENSION
-            elif tau >= coh - sig * tanfa:
-                mode = E_SHEAR
+            else:
+                lim = coh * area - fn * tanfa
+                if lim <= 0.0 or us * us + ut * ut >= lim * lim:
+                    mode = E_SHEAR
             if mode != 0:
+                sig = fn / area
+                tau = math.sqrt(us * us + ut * ut) / area
                 # released: the element's strain energy, in the step-consistent form
                 # 1/2 k g_old g_trial (normal) + 1/2 F_old . F_trial / k (shear);
                 _, _, _, e2x = closed_element(kn, area, xs, xt, iss, itt, ist,
@@ -508,24 +507,20 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
         fst += us
         ftt += ut
         mnt += xs * ut - xt * us
-        e2n += e2
-        esh += 0.5 * (us * us + ut * ut) / ka
+        if record:
+            e2n += e2
+            esh += 0.5 * (us * us + ut * ut) / ka
     # ---- resultants on piece 2
     fx = -fnt * nx + fst * sx + ftt * tx
     fy = -fnt * ny + fst * sy + ftt * ty
     fz = -fnt * nz + fst * sz + ftt * tz
-    out[0] = fx
-    out[1] = fy
-    out[2] = fz
-    out[3] = -qtt * sx + qst * tx + mnt * nx
-    out[4] = -qtt * sy + qst * ty + mnt * ny
-    out[5] = -qtt * sz + qst * tz + mnt * nz
-    out[8] = eslip
-    out[9] = 0.5 * kn * e2n + esh
-    out[11] = nbrk
-    c[k, C_FX] = fx
-    c[k, C_FY] = fy
-    c[k, C_FZ] = fz
+    mx = -qtt * sx + qst * tx + mnt * nx
+    my = -qtt * sy + qst * ty + mnt * ny
+    mz = -qtt * sz + qst * tz + mnt * nz
+    if record:
+        c[k, C_FX] = fx
+        c[k, C_FY] = fy
+        c[k, C_FZ] = fz
     # crack positions: contact point + element centroid offset (global)
     for q in range(nbrk):
         crk[q, 2] += ai * nx
@@ -542,12 +537,13 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
             c[k, C_LX] = 0.0
             c[k, C_LY] = 0.0
             c[k, C_LZ] = 0.0
-    return nbrk
+    return (fx, fy, fz, mx, my, mz, ai, aj, nx, ny, nz, eslip, 0.5 * kn * e2n + esh, 0.0,
+            nbrk)
 
 
 @jit
 def fj_range(pos, vel, angvel, radius, pi, pj, pslip, pestr, bstate, bstep, be, bestr, fb,
-             k0, k1, dt, Fj, prm_fj, step, record, brk, out, crk):
+             k0, k1, dt, Fj, prm_fj, step, record, brk, crk):
     """Flat-jointed pairs k0..k1: ``fj_contact`` for each, scattered into the partition
     buffer ``fb`` in increasing pair order; element breaks recorded in ``Fj``. Returns the
     number of elements broken."""
@@ -555,40 +551,33 @@ def fj_range(pos, vel, angvel, radius, pi, pj, pslip, pestr, bstate, bstep, be, 
     for k in range(k0, k1):
         i = pi[k]
         j = pj[k]
-        nbk = fj_contact(k, i, radius[i], radius[j], pos[j, 0] - pos[i, 0],
-                         pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2],
-                         vel[j, 0] - vel[i, 0], vel[j, 1] - vel[i, 1], vel[j, 2] - vel[i, 2],
-                         angvel[i, 0], angvel[i, 1], angvel[i, 2], angvel[j, 0], angvel[j, 1],
-                         angvel[j, 2], dt, Fj.c, Fj.flag, Fj.es, Fj.ef, Fj.eslip, Fj.geo,
-                         prm_fj, brk, out, crk)
-        fx = out[0]
-        fy = out[1]
-        fz = out[2]
-        ai = out[6]
-        aj = out[7]
-        nx = out[12]
-        ny = out[13]
-        nz = out[14]
+        (fx, fy, fz, mx, my, mz, ai, aj, nx, ny, nz, esl_, ebond, elin,
+         nbk) = fj_contact(k, i, radius[i], radius[j], pos[j, 0] - pos[i, 0],
+                           pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2],
+                           vel[j, 0] - vel[i, 0], vel[j, 1] - vel[i, 1],
+                           vel[j, 2] - vel[i, 2], angvel[i, 0], angvel[i, 1], angvel[i, 2],
+                           angvel[j, 0], angvel[j, 1], angvel[j, 2], dt, Fj.c, Fj.flag, Fj.es,
+                           Fj.ef, Fj.eslip, Fj.geo, prm_fj, brk, crk, record)
         cx = ny * fz - nz * fy
         cy = nz * fx - nx * fz
         cz = nx * fy - ny * fx
         fb[i, 0] -= fx
         fb[i, 1] -= fy
         fb[i, 2] -= fz
-        fb[i, 3] -= ai * cx + out[3]
-        fb[i, 4] -= ai * cy + out[4]
-        fb[i, 5] -= ai * cz + out[5]
+        fb[i, 3] -= ai * cx + mx
+        fb[i, 4] -= ai * cy + my
+        fb[i, 5] -= ai * cz + mz
         fb[j, 0] += fx
         fb[j, 1] += fy
         fb[j, 2] += fz
-        fb[j, 3] += aj * cx + out[3]
-        fb[j, 4] += aj * cy + out[4]
-        fb[j, 5] += aj * cz + out[5]
-        if out[8] != 0.0:
-            pslip[k] += out[8]
+        fb[j, 3] += aj * cx + mx
+        fb[j, 4] += aj * cy + my
+        fb[j, 5] += aj * cz + mz
+        if esl_ != 0.0:
+            pslip[k] += esl_
         if record:
-            bestr[k] = out[9]
-            pestr[k] = out[10]
+            bestr[k] = ebond
+            pestr[k] = elin
         for q in range(nbk):
             e = int(crk[q, 0])
             Fj.estep[k, e] = step

@@ -121,7 +121,7 @@ def pair_partition(p, pos, vel, angvel, radius, mass, pi, pj, pfs, pdf, pact, ps
     if kb > k0 and prm[P_MODEL] > 0.0:  # flat-jointed pairs
         nbroken += fj_range(pos, vel, angvel, radius, pi, pj, pslip, pestr, bstate, bstep, be,
                             bestr, fbuf[p], k0, kb, dt, Fj, Fj.prm, step, record,
-                            np.empty(8), np.empty(15), np.empty((Fj.geo.shape[0], 8)))
+                            np.empty(8), np.empty((Fj.geo.shape[0], 8)))
     elif kb > k0:  # bond pairs: vectorised blocks
         nbroken += bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash,
                               pestr, bstate, bstep, bpos, bnrm, be, bestr, bsig, fbuf[p],

@@ -66,10 +66,15 @@ class FlatJointsMixin:
             return 0
         self.eacc[E_SLIP] += P.slip[:m].sum()
         self.eacc[E_DASH] += P.dash[:m].sum()
-        ni, nj, gi = vi[sel], vj[sel], g[sel]
+        ni, nj = vi[sel], vj[sel]
         # pairs in increasing (i, j) order, as the bond pairs
         order = np.lexsort((nj, ni))
-        ni, nj, gi = ni[order], nj[order], gi[order]
+        ni, nj = ni[order], nj[order]
+        # the reference gap in the kernel's own operations (laws.kinematics), so that
+        # installation is force-free to the last bit
+        dd = self.B.pos[nj] - self.B.pos[ni]
+        gi = np.sqrt(dd[:, 0] * dd[:, 0] + dd[:, 1] * dd[:, 1] + dd[:, 2] * dd[:, 2]) - (
+            self.B.radius[ni] + self.B.radius[nj])
         nb = ni.shape[0]
         mat = self.material
         F = empty_flatjoints(nb, mat.fj_nr, mat.fj_nal)

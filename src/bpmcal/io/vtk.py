@@ -68,7 +68,7 @@ def export_run(h5path, outdir) -> list[Path]:
     n = ini["position"].shape[0] if ini else 0
     broken = np.zeros(n, np.int64)
     if bonds and n:
-        st = bonds["state"] != 0
+        st = np.isin(bonds["state"], (1, 2))  # broken (3: a flat joint never bonded)
         np.add.at(broken, bonds["i"][st], 1)
         np.add.at(broken, bonds["j"][st], 1)
     if ini:
@@ -84,7 +84,8 @@ def export_run(h5path, outdir) -> list[Path]:
         nrm = cr[["normal_x", "normal_y", "normal_z"]].to_numpy()
         files.append(write_vtp(out / "cracks.vtp", pts, {
             "normal": nrm, "radius": cr["radius"].to_numpy(), "mode": cr["mode"].to_numpy(),
-            "step": cr["step"].to_numpy(), "energy": cr["energy"].to_numpy()}))
+            "step": cr["step"].to_numpy(), "energy": cr["energy"].to_numpy(),
+            **{k: cr[k].to_numpy() for k in ("element", "area") if k in cr}}))
     else:
         files.append(write_vtp(out / "cracks.vtp", np.zeros((0, 3)), {}))
     pvd = out / "run.pvd"

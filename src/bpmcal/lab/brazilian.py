@@ -461,7 +461,6 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
         ft = abs(m.wall_force(wt)[1])
         delta = (float(m.wall_position(wb)[1]) - yb0) + (yt0 - float(m.wall_position(wt)[1]))
         P = 0.5 * (fb + ft)
-        states = m.bond_states
         ser["step"].append(m.step - step0)
         ser["time"].append(m.time - t_start)
         ser["displacement"].append(delta)
@@ -470,7 +469,7 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
         ser["load_bottom"].append(fb)
         ser["load_top"].append(ft)
         ser["tensile_stress"].append(float(tensile_strength(P, D, t)))
-        append_cracks(ser, states)
+        append_cracks(ser, m)
         append_energies(ser, e, e0)
         ser["work_walls"].append(e["work_walls_each"][wb] + e["work_walls_each"][wt]
                                  - e0_walls)
@@ -528,7 +527,7 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
         "diameter_mm": D * 1e3, "thickness_mm": t * 1e3,
         "mean_ball_diameter_mm": dbar * 1e3, "balls_across": D / dbar,
         "contact_events": len(events), "contact_cap_bonds": int(caps.size),
-        "contact_cap_broken": int(np.count_nonzero(m.bond_states[caps] != 0)),
+        "contact_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
         "contact_event_max_MPa": (max(float(tensile_strength(e["load_N"], D, t))
                                       for e in events) / 1e6 if events else 0.0),
         "peak_step": int(series["step"][ip]),

@@ -180,14 +180,13 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
         ft = -float(f[top, 2].sum())  # the specimen pulls the top grip down
         fb = float(f[bot, 2].sum())
         eps = 2.0 * v * (m.time - t_start) / H0
-        states = m.bond_states
         ser["step"].append(m.step - step0)
         ser["time"].append(m.time - t_start)
         ser["axial_strain"].append(eps)
         ser["axial_stress"].append(0.5 * (ft + fb) / area)
         ser["stress_top"].append(ft / area)
         ser["stress_bottom"].append(fb / area)
-        append_cracks(ser, states)
+        append_cracks(ser, m)
         append_energies(ser, e, e0)
         ser["unbalanced"].append(m.unbalanced_ratio())
         return ser["axial_stress"][-1], eps

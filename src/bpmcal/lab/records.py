@@ -3,10 +3,6 @@ time series, its crack counts by mode, and its crack events timed from the start
 loading. Shared by the UCS, triaxial, Brazilian and direct-tension tests."""
 from __future__ import annotations
 
-import numpy as np
-
-from ..dem.layout import BOND_SHEAR, BOND_TENSION
-
 #: energy terms of a test's series: state energies as they are, dissipated ones counted
 #: from the start of the loading (``e0``)
 ENERGY_TERMS = ("kinetic", "strain_linear", "strain_bond", "slip", "damping", "dashpot",
@@ -21,10 +17,12 @@ def append_energies(ser: dict, e: dict, e0: dict) -> None:
         ser[k].append(e[k] - e0[k] if k in _SINCE_START else e[k])
 
 
-def append_cracks(ser: dict, states) -> None:
-    """Append the counts of bonds broken in tension and in shear (``Model.bond_states``)."""
-    ser["cracks_tension"].append(int(np.count_nonzero(states == BOND_TENSION)))
-    ser["cracks_shear"].append(int(np.count_nonzero(states == BOND_SHEAR)))
+def append_cracks(ser: dict, m) -> None:
+    """Append the counts of cracks in tension and in shear of model ``m``
+    (``Model.crack_counts``: broken parallel bonds, or broken flat-joint elements)."""
+    nt, ns = m.crack_counts()
+    ser["cracks_tension"].append(nt)
+    ser["cracks_shear"].append(ns)
 
 
 def loading_cracks(m, step0: int, dt: float) -> dict:

@@ -38,9 +38,9 @@ from .specimen import (
     GenesisError,
     SpecimenSpec,
     build_specimen,
+    card_material,
     default_install_gap,
     get_packing,
-    paper_material,
 )
 from .triaxial import TriaxialSettings, run_triaxial
 from .triaxial import settings_dict as tx_dict
@@ -126,17 +126,18 @@ def specimen_spec(params: dict, seed: int, geometry: Geometry) -> SpecimenSpec:
 def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, cache=None,
                   threads=None, progress=None, genesis_max_steps=None,
                   boundary: str = "platens"):
-    """Validated parameters (paper units) -> a bonded Specimen (packing from the cache);
-    ``boundary``: which vessel walls stay (``build_specimen``)."""
+    """Validated parameters (paper units) of either contact model -> a bonded (or
+    flat-jointed) Specimen (packing from the cache); ``boundary``: which vessel walls stay
+    (``build_specimen``). A flat-joint card's installation gap is its own ``fj_gi_ratio``
+    (``geometry.install_gap_mm`` applies to parallel bonds)."""
     p = P.validate_params(params)
     spec = specimen_spec(p, seed, geometry)
     pk = get_packing(spec, cache=cache, progress=progress, threads=threads)
-    mat = paper_material(p["pb_emod_GPa"], p["pb_kratio"], p["pb_ten_MPa"], p["pb_coh_MPa"],
-                         p["pb_fa_deg"], p["fric"])
-    return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6,
-                          install_gap=geometry.install_gap(p["rmin_mm"]) * 1e-3, threads=threads,
-                          progress=progress, max_steps=genesis_max_steps, boundary=boundary,
-                          genesis=geometry.genesis)
+    mat, micro = card_material(p)
+    gap = None if micro is not None else geometry.install_gap(p["rmin_mm"]) * 1e-3
+    return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6, install_gap=gap,
+                          threads=threads, progress=progress, max_steps=genesis_max_steps,
+                          boundary=boundary, genesis=geometry.genesis, microstructure=micro)
 
 
 #: the ISRM Brazilian disc at full size: D = 50 mm, t = D / 2 (scaled like the cylinder)
@@ -152,8 +153,12 @@ def bts_geometry(scale: float = 1.0, diameter_mm: float = BTS_DIAMETER_MM,
 
 # ------------------------------------------------------------------ the inputs a run records
 def _base_inputs(params: dict, seed: int, geometry: Geometry) -> dict:
-    d = {k: float(params[k]) for k in P.PARAMS if k in params}
+    model = params.get("contact_model", P.DEFAULT_CONTACT_MODEL)
+    d = {k: float(params[k]) for k in P.CONTACT_MODELS[model] if k in params}
     d.update(geometry.to_dict(params.get("rmin_mm")))
+    if model != P.DEFAULT_CONTACT_MODEL:  # parallel-bond run files are as before
+        d["contact_model"] = model
+        d["install_gap_mm"] = math.nan  # the card's fj_gi_ratio applies
     d["seed"] = int(seed)
     return d
 
@@ -197,7 +202,9 @@ def _crack_arrays(ev: dict) -> dict:
     return {"step": ev["step"], "time": ev["time"], "position": ev["pos"],
             "normal": ev["normal"], "mode": ev["mode"], "radius": ev["radius"],
             "energy": ev["energy"], "sigma": ev["sigma"], "tau": ev["tau"],
-            "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"]}
+            "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"],
+            # flat joints: one crack per broken element (its index in the contact, area)
+            **{k: ev[k] for k in ("element", "area") if k in ev}}
 
 
 #: the series whose maximum is the peak of each test (for the morphology)

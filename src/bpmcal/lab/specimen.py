@@ -80,8 +80,10 @@ from pathlib import Path
 import numpy as np
 
 from .. import params as P
-from ..dem import Material, Model
+from ..dem import FlatJointMaterial, Material, Model
+from ..dem import flatjoint as FJ
 from ..dem.errors import InputError
+from ..dem.material import stiffest_modulus
 from ..dem.order import morton_order
 from ..io.atomic import atomic_path
 from ..portable import libm_pow
@@ -422,6 +424,47 @@ def get_packing(spec: SpecimenSpec, cache: str | os.PathLike | None = None,
     return pk
 
 
+@dataclass(frozen=True)
+class Microstructure:
+    """A flat-jointed material's microstructure (FJM.md §6; the card's ``fj_gi_ratio``,
+    ``fj_slit_frac``, ``fj_gap_frac``, ``fj_gap0_ratio``): flat joints are installed on
+    every pair whose surface gap is at most ``gi_ratio`` x the mean ball radius; each is
+    drawn, independently and from the packing seed, to be gapped (``gap_frac``: all
+    elements unbonded, surfaces ``gap0_ratio`` x the mean radius apart), slit
+    (``slit_frac``: unbonded, touching) or bonded (the rest)."""
+
+    gi_ratio: float = 0.0
+    slit_frac: float = 0.0
+    gap_frac: float = 0.0
+    gap0_ratio: float = 0.0
+
+    def __post_init__(self):
+        for name in ("gi_ratio", "slit_frac", "gap_frac", "gap0_ratio"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise InputError(f"fj_{name}={v!r}: expected a finite number >= 0")
+        if self.slit_frac + self.gap_frac > 1.0:
+            raise InputError(f"fj_slit_frac + fj_gap_frac = {self.slit_frac + self.gap_frac:g}:"
+                             " expected at most 1")
+
+
+def install_microstructure(m: Model, micro: Microstructure, seed: int, rmean: float) -> dict:
+    """Draw each installed flat joint's type (``Microstructure``) from the packing seed,
+    in contact order, and install it. Returns the fractions actually installed."""
+    nb = m.n_bonds
+    u = np.random.default_rng([int(seed), 0x464A]).random(nb)
+    t = np.full(nb, FJ.MT_BONDED)
+    t[u < micro.gap_frac + micro.slit_frac] = FJ.MT_SLIT
+    t[u < micro.gap_frac] = FJ.MT_GAPPED
+    m.set_flatjoint_types(t, gap0=micro.gap0_ratio * rmean)
+    frac = np.bincount(t, minlength=3) / max(nb, 1)
+    return {"fj_bonded_frac": float(frac[FJ.MT_BONDED]),
+            "fj_gapped_frac": float(frac[FJ.MT_GAPPED]),
+            "fj_slit_frac_installed": float(frac[FJ.MT_SLIT]),
+            "fj_gi_mm": float(micro.gi_ratio * rmean * 1e3),
+            "fj_gap0_mm": float(micro.gap0_ratio * rmean * 1e3)}
+
+
 @dataclass
 class Specimen:
     """A bonded specimen ready for testing."""
@@ -458,14 +501,16 @@ def speed_guard(material: Material, density: float) -> float:
     settles under the real moduli, ball speeds scale with that wave speed (~200-500 m/s
     at 100 GPa), so a fixed 500 m/s would stop a stiff rock's genesis although nothing
     blew up; a real blow-up grows without bound and is still caught."""
-    e = max(float(material.emod), float(material.pb_emod))
+    e = stiffest_modulus(material)
     return max(500.0, 2.0 * math.sqrt(e / float(density)))
 
 
-def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e6,
-                   install_gap: float | None = None, damping: float = 0.7, threads=None,
-                   progress=None, max_steps: int | None = None,
-                   boundary: str = "platens", genesis: str = DEFAULT_GENESIS) -> Specimen:
+def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
+                   sigma0: float = 0.1e6, install_gap: float | None = None,
+                   damping: float = 0.7, threads=None, progress=None,
+                   max_steps: int | None = None, boundary: str = "platens",
+                   genesis: str = DEFAULT_GENESIS,
+                   microstructure: Microstructure | None = None) -> Specimen:
     """Steps 4-5: install the material, relieve the locked-in stress (to ``sigma0`` with
     ``genesis="bpmcal"``, to zero with ``"pfc"``: see the module docstring), bond the
     pairs within ``install_gap`` [m] (None: the genesis's default, ``default_install_gap``),
@@ -476,8 +521,20 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     removes the cylinder and keeps the end walls as platens (wall ids 0, 1);
     ``"vessel"`` (triaxial) keeps the cylinder (wall 0) and the end walls (1, 2), and the
     specimen settles inside the closed vessel at the locked-in stress; ``"free"``
-    (Brazilian) removes all three walls and the specimen settles free."""
+    (Brazilian) removes all three walls and the specimen settles free.
+
+    With a :class:`FlatJointMaterial` the pairs get flat joints instead of parallel
+    bonds (force-free), on every pair within ``microstructure.gi_ratio`` x the mean ball
+    radius (``install_gap`` does not apply), with the microstructure's types drawn from
+    the packing seed (``install_microstructure``)."""
     spec = packing.spec
+    flat = isinstance(material, FlatJointMaterial)
+    if flat:
+        microstructure = microstructure or Microstructure()
+        install_gap = microstructure.gi_ratio * float(np.mean(packing.radius))
+    elif microstructure is not None:
+        raise InputError("microstructure: a flat-jointed material's; the material is "
+                         f"{material.contact_model}")
     if not (sigma0 >= 0 and math.isfinite(sigma0)):
         raise InputError(f"sigma0={sigma0!r}: expected an isotropic stress >= 0 Pa")
     if genesis not in GENESES:
@@ -527,7 +584,9 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
     rg = np.where(gaps[sel] < 0.0, gaps[sel] * (1.0 - f), 0.0)
     n_touching = _count_touching(m.positions, m.radii, install_gap)
     n_overlapping = int(np.count_nonzero(gaps < 0.0))
-    nb = m.bond(gap=install_gap, rgap=rg)
+    nb = m.bond(gap=install_gap, rgap=None if flat else rg)
+    fj_report = (install_microstructure(m, microstructure, spec.seed,
+                                        float(np.mean(packing.radius))) if flat else {})
     for w in range(3):
         m.scale_wall_overlaps(w, f)
     z = m.coordination_numbers()
@@ -582,6 +641,9 @@ def build_specimen(packing: Packing, material: Material, *, sigma0: float = 0.1e
         "surface_balls": int(surface.size),
         "diameter_after_settle_mm": 2e3 * float(np.percentile(rho, 99.5)),
     })
+    if flat:  # a parallel-bond run file records exactly what it did before flat joints
+        report.update({"contact_model": material.contact_model,
+                       "flatjoints_per_ball": float(2.0 * nb / m.n), **fj_report})
     return Specimen(model=m, spec=spec, material=material, report=report, surface=surface,
                     z_bottom=z_bot, z_top=z_top, radius0=0.5 * spec.diameter,
                     platens=platens, lateral_wall=lateral, boundary=boundary)
@@ -615,6 +677,29 @@ def apply_end_caps(sp: Specimen, height_d: float, factor: float) -> dict:
     f[idx] *= factor
     sp.model.set_bond_strength_factors(f)
     return {"end_cap_bonds": int(idx.size), "end_cap_index": idx}
+
+
+def flatjoint_material(p: dict, dp_nratio=0.0, dp_sratio=0.0) -> FlatJointMaterial:
+    """A validated flat-joint card (paper units, ``params.FJ_PARAMS``) as a material."""
+    return FlatJointMaterial(
+        fj_emod=P.to_si("fj_emod_GPa", p["fj_emod_GPa"]), fj_kratio=float(p["fj_kratio"]),
+        fj_ten=P.to_si("fj_ten_MPa", p["fj_ten_MPa"]),
+        fj_coh=P.to_si("fj_coh_MPa", p["fj_coh_MPa"]), fj_fa=float(p["fj_fa_deg"]),
+        fj_fric=float(p["fj_fric"]), fj_rmul=float(p["fj_rmul"]), fj_nr=int(p["fj_nr"]),
+        fj_nal=int(p["fj_nal"]), dp_nratio=dp_nratio, dp_sratio=dp_sratio)
+
+
+def card_material(p: dict, dp_nratio=0.0, dp_sratio=0.0):
+    """The material of a validated card (``params.validate_params``) of either contact
+    model, and its flat-jointed microstructure (None for the parallel bond)."""
+    if p.get("contact_model", P.DEFAULT_CONTACT_MODEL) == "flatjoint":
+        micro = Microstructure(gi_ratio=float(p["fj_gi_ratio"]),
+                               slit_frac=float(p["fj_slit_frac"]),
+                               gap_frac=float(p["fj_gap_frac"]),
+                               gap0_ratio=float(p["fj_gap0_ratio"]))
+        return flatjoint_material(p, dp_nratio, dp_sratio), micro
+    return paper_material(p["pb_emod_GPa"], p["pb_kratio"], p["pb_ten_MPa"], p["pb_coh_MPa"],
+                          p["pb_fa_deg"], p["fric"], dp_nratio, dp_sratio), None
 
 
 def paper_material(pb_emod_GPa, pb_kratio, pb_ten_MPa, pb_coh_MPa, pb_fa_deg, fric,

@@ -239,7 +239,6 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
         ea = 2 * v * (m.time - t_start) / H0
         rho = np.hypot(m.positions[gauge, 0], m.positions[gauge, 1])
         er = -float((rho - rho0).mean()) / R0
-        states = m.bond_states
         ser["step"].append(m.step - step0)
         ser["time"].append(m.time - t_start)
         ser["axial_strain"].append(ea)
@@ -252,7 +251,7 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
         ser["axial_stress"].append(0.5 * (ft + fb) / area)
         ser["stress_top"].append(ft / area)
         ser["stress_bottom"].append(fb / area)
-        append_cracks(ser, states)
+        append_cracks(ser, m)
         append_energies(ser, e, e0)
         ser["work_walls"].append(e["work_walls_each"][wb] + e["work_walls_each"][wt]
                                  - e0_walls)
@@ -291,7 +290,7 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
         "dt": dt, "platen_velocity": v, "strain_rate": 2 * v / H0,
         "records": int(series["step"].size),
         "end_cap_bonds": int(caps.size),
-        "end_cap_broken": int(np.count_nonzero(m.bond_states[caps] != 0)),
+        "end_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
     })
     ev = loading_cracks(m, step0, dt)  # relative to the start of loading (< 0: during genesis)
     return UCSResult(summary=summ, series=series, cracks=ev, settings=st)

@@ -191,17 +191,21 @@ def parse_set(items) -> dict:
     return out
 
 
-def load_params(path, overrides=()) -> dict:
+def load_params(path, overrides=(), contact_model=None) -> dict:
     """Parameters from a YAML file (a flat mapping of the 8 names, or a material card: the
     parameters it stands for, ``card_parameters``, i.e. a verified card's closed-loop
     parameters) plus NAME=VALUE overrides, validated (unknown, missing, non-numeric,
-    boolean, NaN or out-of-domain values raise)."""
+    boolean, NaN or out-of-domain values raise). ``contact_model`` (``--contact-model``)
+    names the card's contact model (a card naming the other one, or using its keys, is
+    refused)."""
     d = {}
     if path is not None:
         d = read_yaml(path, "--params")
         if is_card(d):
             d = card_parameters(check_card(d, f"--params {path}"))
     d.update(parse_set(overrides))
+    if contact_model is not None:
+        d["contact_model"] = contact_model
     try:
         return P.validate_params(d)
     except P.ParameterError as e:
@@ -239,14 +243,17 @@ def params_from_design(path, sample_id) -> tuple[dict, int, str]:
     return params, int(seed), ""
 
 
-def run_source(*, params_file=None, sets=(), design=None, sample=None, seed=None
-               ) -> tuple[dict, int, str]:
+def run_source(*, params_file=None, sets=(), design=None, sample=None, seed=None,
+               contact_model=None) -> tuple[dict, int, str]:
     """Parameters, packing seed and (for a plan row not to be run) the reason, of a DEM run
     command: ``params_file`` (+ ``sets``) or a ``design`` row ``sample`` (exclusive)."""
     skip = ""
     if design is not None:
         if sample is None:
             raise BadInput("--design needs --sample ID (the row to run)")
+        if contact_model not in (None, P.DEFAULT_CONTACT_MODEL):
+            raise BadInput(f"--contact-model {contact_model}: a design's rows are "
+                           f"{P.DEFAULT_CONTACT_MODEL} cards")
         params, row_seed, skip = params_from_design(design, sample)
         if not skip and sets:
             params = P.validate_params({**params, **parse_set(sets)})
@@ -254,7 +261,7 @@ def run_source(*, params_file=None, sets=(), design=None, sample=None, seed=None
     else:
         if sample is not None:
             raise BadInput(f"--sample {sample}: needs --design FILE")
-        params = load_params(params_file, sets)
+        params = load_params(params_file, sets, contact_model)
         seed = 1 if seed is None else seed
     return params, int(seed), skip
 
@@ -294,7 +301,7 @@ def lab_test_file(test: str, out, *, geometry, settings, params_file=None, sets=
 def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None, seed=None,
                    max_balls=MAX_BALLS, mem_budget_mb=None, cache=None, threads=None,
                    progress=None, genesis_max_steps=None, keep_particles: bool = True,
-                   flags=None) -> list[RunOutcome]:
+                   flags=None, contact_model=None) -> list[RunOutcome]:
     """Several lab tests of one parameter set and packing seed in one process, one after
     the other: ``tests`` is a list of ``(test, out, geometry, settings)``. The study's
     sample job runs the UCS test and the Brazilian test this way (``bpmcal ucs
@@ -305,7 +312,7 @@ def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None
     error messages (default ``--out``); ``progress``: one callable for all tests or a list,
     one per test."""
     params, seed, skip = run_source(params_file=params_file, sets=sets, design=design,
-                                    sample=sample, seed=seed)
+                                    sample=sample, seed=seed, contact_model=contact_model)
     flags = flags or ["--out"] * len(tests)
     if not skip:
         for test, _, geometry, _ in tests:
