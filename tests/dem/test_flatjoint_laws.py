@@ -239,7 +239,8 @@ def _interface(gs, theta, axis_angle, nr, nal, rad=R):
             KN, tab[e, fj.G_A] * rad ** 2, tab[e, fj.G_XS] * rad, tab[e, fj.G_XT] * rad,
             tab[e, fj.G_ISS] * rad ** 4, tab[e, fj.G_ITT] * rad ** 4, tab[e, fj.G_IST] * rad ** 4,
             gs, ws, wt, tab[e, fj.G_RA] * rad, tab[e, fj.G_RB] * rad, tab[e, fj.G_P0],
-            tab[e, fj.G_P1], brk)
+            tab[e, fj.G_P1], tab[e, fj.G_C0], tab[e, fj.G_S0], tab[e, fj.G_C1],
+            tab[e, fj.G_S1], brk)
         fn += f
         qs += a
         qt += b
@@ -392,3 +393,23 @@ def test_slit_joint_resists_moment_under_compression_where_a_broken_bond_cannot(
     m.cycle(200)
     f, mom = m.ball_forces()
     assert np.abs(f).max() == 0.0 and np.abs(mom).max() == 0.0
+
+
+@pytest.mark.parametrize("nr,nal", [(1, 1), (1, 2), (2, 3), (3, 5), (1, 8)])
+def test_gap_range_matches_dense_sampling_of_every_element(nr, nal):
+    """The smallest and largest gap over each element (corners and the outer arc's
+    extremes, found by cross products) against a dense sampling of the sector."""
+    tab = fj.element_table(nr, nal)
+    g = np.random.default_rng(7)
+    for _ in range(40):
+        gs, ws, wt = g.normal(0, 1e-7), g.normal(0, 1e-4), g.normal(0, 1e-4)
+        for e in range(nr * nal):
+            a, b = tab[e, fj.G_RA] * R, tab[e, fj.G_RB] * R
+            p0, p1 = tab[e, fj.G_P0], tab[e, fj.G_P1]
+            lo, hi = fj.gap_range(gs, ws, wt, a, b, p0, p1, tab[e, fj.G_C0], tab[e, fj.G_S0],
+                                  tab[e, fj.G_C1], tab[e, fj.G_S1])
+            r, phi = np.meshgrid(np.linspace(a, b, 5), np.linspace(p0, p1, 4001))
+            gg = gs + r * (ws * np.cos(phi) + wt * np.sin(phi))
+            tol = 1e-6 * b * math.hypot(ws, wt)
+            assert lo <= gg.min() + 1e-15 and hi >= gg.max() - 1e-15
+            assert lo >= gg.min() - tol and hi <= gg.max() + tol

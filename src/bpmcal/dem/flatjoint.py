@@ -43,7 +43,8 @@ _inl_law = numba.njit(cache=True, inline="always", error_model="numpy", fastmath
 
 # ---- element table columns ------------------------------------------------------------
 G_A, G_XS, G_XT, G_ISS, G_ITT, G_IST, G_RA, G_RB, G_P0, G_P1 = range(10)
-NG = 10
+G_C0, G_S0, G_C1, G_S1 = range(10, 14)  # cos, sin of the sector's bounding angles
+NG = 14
 
 # ---- per-contact float fields: Fj.c[k, ...] -------------------------------------------
 C_SX, C_SY, C_SZ = 0, 1, 2  # unit vector s of the local frame (t = n x s)
@@ -102,9 +103,10 @@ def element_table(nr: int, nal: int) -> np.ndarray:
             iuu = r4 * (0.5 * da + 0.5 * math.sin(da))
             ivv = r4 * (0.5 * da - 0.5 * math.sin(da))
             c, s = math.cos(psi), math.sin(psi)
+            p0, p1 = j * da, (j + 1) * da
             tab[e] = (area, rho * c, rho * s, iuu * c * c + ivv * s * s,
-                      iuu * s * s + ivv * c * c, (iuu - ivv) * s * c, a, b, j * da,
-                      (j + 1) * da)
+                      iuu * s * s + ivv * c * c, (iuu - ivv) * s * c, a, b, p0, p1,
+                      math.cos(p0), math.sin(p0), math.cos(p1), math.sin(p1))
     return tab
 
 
@@ -271,39 +273,59 @@ def partial_element(kn, gs, ws, wt, a, b, p0, p1, brk):
 
 
 @_inl
-def gap_range(gs, ws, wt, a, b, p0, p1):
-    """Smallest and largest gap over an annular sector (corners and the outer arc's
-    extreme points; the inner arc has none that beat the outer one)."""
+def gap_range(gs, ws, wt, a, b, p0, p1, c0, s0, c1, s1):
+    """Smallest and largest gap over an annular sector: at its four corners and at the
+    outer arc's extreme points (the directions +-w) when they lie in the sector (the
+    inner arc has none that beat the outer one). No trigonometry: the corners' cos/sin
+    come from the element table, and a direction is tested against the sector's bounding
+    rays by cross products."""
     gmin = math.inf
     gmax = -math.inf
-    for q in range(6):
-        if q < 4:
-            r = a if q < 2 else b
-            phi = p0 if q % 2 == 0 else p1
-        else:
-            wm = math.sqrt(ws * ws + wt * wt)
-            if wm == 0.0:
-                continue
-            phi = math.atan2(wt, ws) + (0.0 if q == 4 else math.pi)
-            phi = p0 + ((phi - p0) % TWO_PI)
-            if phi > p1:
-                continue
-            r = b
-        g = gs + r * (ws * math.cos(phi) + wt * math.sin(phi))
+    for q in range(4):
+        r = a if q < 2 else b
+        cq = c0 if q % 2 == 0 else c1
+        sq = s0 if q % 2 == 0 else s1
+        g = gs + r * (ws * cq + wt * sq)
         gmin = min(gmin, g)
         gmax = max(gmax, g)
+    wm = math.sqrt(ws * ws + wt * wt)
+    if wm > 0.0:
+        span = p1 - p0
+        for sgn in (1.0, -1.0):
+            ux = sgn * ws
+            uy = sgn * wt
+            if span >= TWO_PI * (1.0 - 1e-12):
+                inside = True
+            elif span <= math.pi:
+                inside = c0 * uy - s0 * ux >= 0.0 and ux * s1 - uy * c1 >= 0.0
+            else:  # wider than a half plane: not inside the complementary sector
+                inside = not (c1 * uy - s1 * ux > 0.0 and ux * s0 - uy * c0 > 0.0)
+            if inside:
+                g = gs + sgn * b * wm
+                gmin = min(gmin, g)
+                gmax = max(gmax, g)
     return gmin, gmax
 
 
 @jit
-def unbonded_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, a, b, p0, p1, brk):
+def unbonded_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, a, b, p0, p1, c0, s0, c1,
+                     s1, brk):
     """(F_n, Q_s, Q_t, 2 E/k_n) of an unbonded element: compression only."""
-    gmin, gmax = gap_range(gs, ws, wt, a, b, p0, p1)
+    gmin, gmax = gap_range(gs, ws, wt, a, b, p0, p1, c0, s0, c1, s1)
     if gmin >= 0.0:
         return 0.0, 0.0, 0.0, 0.0
     if gmax <= 0.0:
         return closed_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt)
     return partial_element(kn, gs, ws, wt, a, b, p0, p1, brk)
+
+
+@_inl
+def _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo, e, rad, brk):
+    """``unbonded_element`` of element ``e`` of the table ``geo`` at interface radius
+    ``rad``."""
+    return unbonded_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo[e, G_RA] * rad,
+                            geo[e, G_RB] * rad, geo[e, G_P0], geo[e, G_P1], geo[e, G_C0],
+                            geo[e, G_S0], geo[e, G_C1], geo[e, G_S1], brk)
 
 
 # ---------------------------------------------------------------------------------------
@@ -427,9 +449,7 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
         if st == E_BONDED:
             fn, qs, qt, e2 = closed_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt)
         else:
-            fn, qs, qt, e2 = unbonded_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt,
-                                              geo[e, G_RA] * rad, geo[e, G_RB] * rad,
-                                              geo[e, G_P0], geo[e, G_P1], brk)
+            fn, qs, qt, e2 = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo, e, rad, brk)
         # ---- incremental shear at the centroid (interface shear + twist x arm)
         ka = ks * area
         f0s = ef[k, e, 0]
@@ -460,9 +480,7 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
                 # only the stretched part is released: an element compressed everywhere
                 # keeps its normal strain energy as an unbonded one (same law there);
                 # in between, the share of the energy held by the opening part
-                _, _, _, e2u = unbonded_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt,
-                                                geo[e, G_RA] * rad, geo[e, G_RB] * rad,
-                                                geo[e, G_P0], geo[e, G_P1], brk)
+                _, _, _, e2u = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo, e, rad, brk)
                 share = 1.0 - e2u / e2 if e2 > 0.0 else 1.0
                 erel = share * 0.5 * kn * (e2x - e2a) + 0.5 * (f0s * us + f0t * ut) / ka
                 crk[nbrk, 0] = e
@@ -476,9 +494,7 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
                 nbrk += 1
                 es[k, e] = mode
                 st = mode
-                fn, qs, qt, e2 = unbonded_element(kn, area, xs, xt, iss, itt, ist, gs, ws,
-                                                  wt, geo[e, G_RA] * rad, geo[e, G_RB] * rad,
-                                                  geo[e, G_P0], geo[e, G_P1], brk)
+                fn, qs, qt, e2 = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo, e, rad, brk)
                 us = 0.0  # residual mode 0: the shear force is removed at breakage
                 ut = 0.0
                 f0s = 0.0
