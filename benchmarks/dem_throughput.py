@@ -78,12 +78,13 @@ def _sorted(pos, r, L):
     return pos[o], r[o], L
 
 
-def bench_model(n: int, seed: int = 1, threads=None):
+def bench_model(n: int, seed: int = 1, threads=None, material=None):
     """The reference case, ready to cycle: (model, number of bonds). The time step is 0.8 x
-    the critical step of the bonded pack (the peers use the same dt)."""
+    the critical step of the bonded pack (the peers use the same dt). ``material``: another
+    material on the same pack and loading (``flatjoint_speed.py``: flat joints)."""
     from bpmcal.dem import Model
     pos, r, L = make_pack(n, seed)
-    m = Model(pos, r, RHO, _material(0.5), damping=0.7, threads=threads)
+    m = Model(pos, r, RHO, material or _material(0.5), damping=0.7, threads=threads)
     _box_walls(m, L)
     nb = m.bond(gap=0.0)
     m.set_wall_velocity(4, velocity=(0, 0, WALL_SPEED))

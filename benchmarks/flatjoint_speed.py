@@ -29,7 +29,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from dem_throughput import E_MOD, RHO, WALL_SPEED, _box_walls, _material, make_pack  # noqa: E402
+from dem_throughput import E_MOD, bench_model  # noqa: E402
 from peers import host_info  # noqa: E402
 
 MODELS = ("linearpbond", "flatjoint 1x3", "flatjoint 2x4")
@@ -42,20 +42,11 @@ def _fj_material(nr, nal):
 
 
 def build(model: str, n: int, seed: int = 1):
-    from bpmcal.dem import Model
-    pos, r, L = make_pack(n, seed)
+    """``dem_throughput.bench_model`` with the model's material."""
     if model == "linearpbond":
-        mat = _material(0.5)
-    else:
-        nr, nal = (int(x) for x in model.split()[1].split("x"))
-        mat = _fj_material(nr, nal)
-    m = Model(pos, r, RHO, mat, damping=0.7)
-    _box_walls(m, L)
-    nb = m.bond(gap=0.0)
-    m.set_wall_velocity(4, velocity=(0, 0, WALL_SPEED))
-    m.set_wall_velocity(5, velocity=(0, 0, -WALL_SPEED))
-    m.set_timestep(None)
-    return m, nb
+        return bench_model(n, seed)
+    nr, nal = (int(x) for x in model.split()[1].split("x"))
+    return bench_model(n, seed, material=_fj_material(nr, nal))
 
 
 def state_bytes(m) -> tuple[float, float]:
