@@ -447,7 +447,11 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
         ist = geo[e, G_IST] * r4
         st = es[k, e]
         if st == E_BONDED:
-            fn, qs, qt, e2 = closed_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt)
+            # force and first moment only: the energy is computed where it is used
+            fn = kn * area * (gs + ws * xs + wt * xt)
+            qs = kn * (gs * area * xs + iss * ws + ist * wt)
+            qt = kn * (gs * area * xt + ist * ws + itt * wt)
+            e2 = 0.0
         else:
             fn, qs, qt, e2 = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo, e, rad, brk)
         # ---- incremental shear at the centroid (interface shear + twist x arm)
@@ -480,6 +484,7 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
                 # only the stretched part is released: an element compressed everywhere
                 # keeps its normal strain energy as an unbonded one (same law there);
                 # in between, the share of the energy held by the opening part
+                _, _, _, e2 = closed_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt)
                 _, _, _, e2u = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo, e, rad, brk)
                 share = 1.0 - e2u / e2 if e2 > 0.0 else 1.0
                 erel = share * 0.5 * kn * (e2x - e2a) + 0.5 * (f0s * us + f0t * ut) / ka
@@ -524,6 +529,8 @@ def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy,
         ftt += ut
         mnt += xs * ut - xt * us
         if record:
+            if st == E_BONDED:
+                _, _, _, e2 = closed_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt)
             e2n += e2
             esh += 0.5 * (us * us + ut * ut) / ka
     # ---- resultants on piece 2
