@@ -58,10 +58,10 @@ def design_samples(design, ids, a1_seeds, label="A1 s{seed}"):
 
 
 def ucs_settings(cfg: dict):
-    """The UCS test settings of a config's ``ucs`` section."""
+    """The UCS test settings of a config's ``compression`` section."""
     from bpmcal.lab.ucs import UCSSettings
 
-    u = cfg["ucs"]
+    u = cfg["compression"]
     return UCSSettings(platen_velocity=u["platen_velocity"], damping=u["damping"],
                        stop_drop=u["stop_drop"], max_strain=u["max_strain"],
                        platen_fric=u["platen_fric"], record_strain=u["record_strain"])

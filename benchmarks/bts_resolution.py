@@ -57,10 +57,11 @@ def _bts_settings(cfg: dict, **over):
     """BTSSettings of a config's ``bts`` section (every key that is a settings field)."""
     from dataclasses import fields
 
+    from bpmcal.cli import config_key
     from bpmcal.lab.brazilian import BTSSettings
 
-    names = {f.name for f in fields(BTSSettings)}
-    kw = {k: v for k, v in cfg["bts"].items() if k in names}
+    b = cfg["bts"]  # a field's config key may differ (post_peak_min: post_peak_strain)
+    kw = {f.name: b[config_key(f.name)] for f in fields(BTSSettings) if config_key(f.name) in b}
     kw.update(over)
     return BTSSettings(**kw)
 
@@ -99,12 +100,13 @@ def _run_dtt(job):
     params, seed, scale, cfg, cache = job
     from dataclasses import fields
 
+    from bpmcal.cli import config_key
     from bpmcal.lab.direct_tension import DTTSettings
     from bpmcal.lab.runner import Geometry, dtt_test
 
     sp, d = cfg["specimen"], cfg["dtt"]
-    names = {f.name for f in fields(DTTSettings)}
-    st = DTTSettings(**{k: v for k, v in d.items() if k in names})
+    st = DTTSettings(**{f.name: d[config_key(f.name)] for f in fields(DTTSettings)
+                        if config_key(f.name) in d})
     geo = Geometry(scale=scale, diameter_mm=sp["diameter_mm"], height_mm=sp["height_mm"],
                    sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
                    relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])

@@ -75,7 +75,10 @@ def main(argv=None) -> int:
     ucs_st = ucs_settings(cfg)
     from dataclasses import fields
 
-    study = BTSSettings(**{k: b[k] for k in {f.name for f in fields(BTSSettings)} if k in b})
+    from bpmcal.cli import config_key
+
+    study = BTSSettings(**{f.name: b[config_key(f.name)] for f in fields(BTSSettings)
+                           if config_key(f.name) in b})
     ref = BTSSettings()
     half = replace(study, platen_velocity=study.platen_velocity / 2)
     set_threads(a.threads)

@@ -131,7 +131,7 @@ def _settings(cfg: dict, scale: float, bts_scale: float, bts_over: dict):
     from bpmcal.lab.triaxial import TriaxialSettings
     from bpmcal.lab.ucs import UCSSettings
 
-    sp, u = cfg["specimen"], cfg["ucs"]
+    sp, u = cfg["specimen"], cfg["compression"]
     geo = Geometry(scale=scale, diameter_mm=sp["diameter_mm"], height_mm=sp["height_mm"],
                    sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
                    relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
@@ -254,7 +254,7 @@ def run(a, argv) -> dict:
     rec = {**_meta(argv), "command": "python benchmarks/flatjoint_reach.py " + shlex.join(argv),
            "config": str(a.config), "scale": a.scale, "bts_scale": bts_scale, "seeds": seeds,
            "sigma3_MPa": list(SIGMA3), "threads": 1, "nice": os.nice(0),
-           "settings": {"specimen": cfg["specimen"], "ucs": cfg["ucs"],
+           "settings": {"specimen": cfg["specimen"], "ucs": cfg["compression"],
                         "bts": {**cfg["bts"], **bts_over}, "bts_overrides": bts_over,
                         "servo_gain": cfg["triaxial"]["servo_gain"]},
            "base": BASE, "sweeps": {k: [v[0], v[1]] for k, v in SWEEPS.items()},

@@ -45,7 +45,7 @@ def main(argv=None) -> int:
     ap.add_argument("--sample", default="s000")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--threads", type=int, default=1,
-                    help="numba threads for the whole run (the workflow's ucs_threads: 1)")
+                    help="numba threads for the whole run (the workflow's resources.dem_threads: 1)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args(argv)
 

@@ -65,7 +65,7 @@ def main(argv=None) -> int:
         k, v = kv.split("=", 1)
         planted[k] = float(v)
     study = Path(a.study)
-    sp, u, b, v = cfg["specimen"], cfg["ucs"], cfg["bts"], cfg["verification"]
+    sp, u, b, v = cfg["specimen"], cfg["compression"], cfg["bts"], cfg["verification"]
     common = ["--scale", str(sp["scale"]), "--platen-velocity", str(u["platen_velocity"]),
               "--record-strain", str(u["record_strain"]), "--threads", "1", "--quiet"]
     bts_opts = ["--bts-scale", str(b["scale"]), "--bts-loading", b["loading"],
@@ -73,7 +73,7 @@ def main(argv=None) -> int:
                 "--bts-platen-velocity", str(b["platen_velocity"]),
                 "--bts-approach-velocity", str(b["approach_velocity"]),
                 "--bts-stop-drop", str(b["stop_drop"]),
-                "--bts-post-peak-min", str(b["post_peak_min"])]
+                "--bts-post-peak-min", str(b["post_peak_strain"])]
     log: list[dict] = []
     cpu0 = time.process_time()
     c0 = os.times()
@@ -107,7 +107,7 @@ def main(argv=None) -> int:
               str(study / "regression" / "models.json"), "--lab", str(lab_csv), "--cards",
               str(card), "--fixed", json.dumps({k: planted[k] for k in c["fixed"]}),
               "--free", ",".join(c["free"]), "--ranges", json.dumps(cfg["ranges"]),
-              "--ratio", str(c["ratio"]), "--n-boot", "0", "--seed", str(c["seed"])], log)
+              "--ratio", str(c["strength_ratio"]), "--n-boot", "0", "--seed", str(c["seed"])], log)
         verified = tmp / "P1.verified.yaml"
         _run(["bpmcal", "verify", "--card", str(card), "--models",
               str(study / "regression" / "models.json"), "--out-card", str(verified),

@@ -315,9 +315,9 @@ CONFIG_CASES = [
     ("fixed-bool", {"calibration__fixed__fric": True}, "calibration.fixed.fric: True"),
     ("n-samples-bool", {"study__n_samples": True}, "study.n_samples: True"),
     ("scale-nan", {"specimen__scale": float("nan")}, "specimen.scale: nan"),
-    ("end-cap-neg", {"ucs__end_cap": -1.0}, "ucs.end_cap: -1.0"),
+    ("end-cap-neg", {"compression__end_cap": -1.0}, "compression.end_cap: -1.0"),
     ("max-balls", {"resources__max_balls": 100}, "more than the budget of 100"),
-    ("mem-budget", {"resources__ucs_mem_mb": 100, "ranges__rmin_mm": [0.6, 1.0],
+    ("mem-budget", {"resources__dem_mem_mb": 100, "ranges__rmin_mm": [0.6, 1.0],
                     "specimen__scale": 1.0}, "budget of 100 MB"),
 ]
 

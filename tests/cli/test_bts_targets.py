@@ -271,7 +271,7 @@ def test_the_report_names_the_missed_target_and_the_ratio_set_by_sigma_t(cards, 
         shutil.copy(cards["dir"] / f"{s}.yaml", lay.card(s))
     Path(lay.table(L.CALIBRATION)).parent.mkdir(parents=True, exist_ok=True)
     pd.DataFrame({"specimen": ["B1", "B2"]}).to_csv(lay.table(L.CALIBRATION), index=False)
-    cfg = {"calibration": {"ratio": 1.4}, "ratio_sweep": {"enabled": False}}
+    cfg = {"calibration": {"strength_ratio": 1.4}, "ratio_sweep": {"enabled": False}}
     text = _calibration(lay, cfg, [])
     b2 = cards["B2"]
     miss = next(m for m in b2["missed"] if m["target"] == BTS)

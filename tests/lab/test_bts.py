@@ -149,10 +149,12 @@ def test_the_study_settings_give_the_sigma_t_of_the_default_settings(base, cache
     switch to the loading speed at the first crack."""
     import yaml
 
+    from bpmcal.cli import config_key
+
     b = yaml.safe_load((REPO / "config" / "config.yaml").read_text())["bts"]
     keys = ("platen_velocity", "approach_velocity", "post_peak_min", "stop_drop", "loading",
             "contact_cap")
-    r, _ = bts(A1, cache, **{k: b[k] for k in keys})
+    r, _ = bts(A1, cache, **{k: b[config_key(k)] for k in keys})
     s = r.summary
     assert s["bts_valid"] and base.summary["bts_valid"]
     assert s["bts_MPa"] == pytest.approx(base.summary["bts_MPa"], rel=0.02)

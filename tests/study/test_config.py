@@ -74,7 +74,7 @@ def test_lab_csv_comment_lines_are_skipped(tmp_path):
     ({"calibration": {"fixed": {"porosity": 0.4}}},
      "calibration.fixed.porosity: 0.4 is outside ranges.porosity [0.2, 0.36]"),
     ({"ranges": {"pb_ten_MPa": [10.0, 50.0]}},
-     "calibration.ratio: 1.4 x pb_coh_MPa in [50, 300] never falls inside pb_ten_MPa [10, 50]"),
+     "calibration.strength_ratio: 1.4 x pb_coh_MPa in [50, 300] never falls inside pb_ten_MPa [10, 50]"),
     ({"study": {"reference": "yu2026"}},
      "study.reference: yu2026 compares the results with the paper's green sandstone specimens"),
     ({"study": {"reference": "yu2025"}}, "study.reference: 'yu2025' is not one of"),

@@ -42,7 +42,7 @@ def test_every_section_and_key_is_documented_with_a_meaning():
 
 def test_the_check_can_fail():
     broken = {**SCHEMA, "properties": {**SCHEMA["properties"],
-                                       "ucs": {**SCHEMA["properties"]["ucs"], "properties": {
-                                           **SCHEMA["properties"]["ucs"]["properties"],
+                                       "compression": {**SCHEMA["properties"]["compression"], "properties": {
+                                           **SCHEMA["properties"]["compression"]["properties"],
                                            "new_key": {"type": "number", "default": 1.0}}}}}
     assert schema_reference(broken) != schema_reference(SCHEMA)

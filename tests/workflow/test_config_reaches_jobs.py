@@ -1,4 +1,4 @@
-"""Every key of the config's specimen, ucs and bts sections reaches the DEM jobs that use
+"""Every key of the config's specimen, compression and bts sections reaches the DEM jobs that use
 it (the sample job ``bpmcal ucs`` with its Brazilian test, verify, transfer): the commands
 of a dry run are parsed by the ``bpmcal`` parser itself and each option's value is
 compared with the config. (A Brazilian option the rule forgot to pass runs the
@@ -18,14 +18,14 @@ pytestmark = pytest.mark.slow  # a Snakemake dry run of the smoke study with eve
 OVERLAY = {
     "specimen": {"diameter_mm": 51.5, "height_mm": 101.5, "sigma0_MPa": 0.137,
                  "genesis": "bpmcal", "install_gap_mm": 0.0371, "relax_ratio": 0.0137},
-    "ucs": {"platen_velocity": 0.173, "damping": 0.613, "stop_drop": 0.713,
-            "max_strain": 0.0313, "platen_fric": 0.0137, "record_strain": 2.37e-5,
-            "end_cap": 1.37, "end_cap_factor": 137.0},
+    "compression": {"platen_velocity": 0.173, "damping": 0.613, "stop_drop": 0.713,
+                    "max_strain": 0.0313, "platen_fric": 0.0137, "record_strain": 2.37e-5,
+                    "end_cap": 1.37, "end_cap_factor": 137.0},
     "bts": {"enabled": True, "diameter_mm": 71.3, "thickness_mm": 36.7, "scale": 0.437,
             "loading": "jaws", "jaw_ratio": 1.37, "contact_cap": 1.37,
             "contact_cap_factor": 137.0, "central_zone": 0.437,
             "platen_velocity": 0.0237, "approach_velocity": 0.137, "stop_drop": 0.237,
-            "post_peak_min": 0.000437, "platen_fric": 0.337, "damping": 0.637,
+            "post_peak_strain": 0.000437, "platen_fric": 0.337, "damping": 0.637,
             "max_strain": 0.0437, "record_strain": 1.37e-5},
     "transfer": {"enabled": True},
     "verification": {"range_margin": 0.137, "polish": False},
@@ -36,7 +36,8 @@ OVERLAY = {
 }
 #: config key -> option destination where the names differ
 DEST = {"diameter_mm": "diameter", "height_mm": "height", "thickness_mm": "thickness",
-        "sigma0_MPa": "sigma0", "install_gap_mm": "install_gap", "scale": "scale"}
+        "sigma0_MPa": "sigma0", "install_gap_mm": "install_gap", "scale": "scale",
+        "post_peak_strain": "post_peak_min"}
 
 
 @pytest.fixture(scope="module")
@@ -66,10 +67,10 @@ def _expect(a, section, keys, prefix=""):
         assert got == want, f"{section}.{k} = {want!r} reaches `bpmcal {a.cmd}` as {got!r}"
 
 
-def test_the_ucs_job_gets_every_specimen_and_ucs_key(commands):
+def test_the_ucs_job_gets_every_specimen_and_compression_key(commands):
     a = commands["ucs"]
     _expect(a, "specimen", OVERLAY["specimen"])
-    _expect(a, "ucs", OVERLAY["ucs"])
+    _expect(a, "compression", OVERLAY["compression"])
 
 
 @pytest.mark.parametrize("cmd", ["ucs", "verify", "transfer"])
@@ -81,7 +82,7 @@ def test_every_brazilian_test_runs_with_the_studys_bts_section(commands, cmd):
         assert a.bts_out is not None and a.bts_out.endswith(".h5")
     _expect(a, "bts", [k for k in OVERLAY["bts"] if k != "enabled"], prefix="bts_")
     _expect(a, "specimen", OVERLAY["specimen"])
-    _expect(a, "ucs", OVERLAY["ucs"])
+    _expect(a, "compression", OVERLAY["compression"])
 
 
 @pytest.mark.parametrize("cmd", ["verify", "transfer"])

@@ -12,7 +12,7 @@ from support.repo import SCHEMA as SCHEMA_FILE
 
 from bpmcal import params as P
 from bpmcal.analysis import DEFAULT_FREE, PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
-from bpmcal.cli import build_parser
+from bpmcal.cli import build_parser, config_key
 from bpmcal.lab.brazilian import BTSSettings
 from bpmcal.lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
 from bpmcal.lab.direct_tension import DTTSettings
@@ -49,21 +49,21 @@ DEFAULTS = {
     "specimen.install_gap_mm": (GEO.install_gap_mm, ("ucs", "install_gap", None)),
     "specimen.relax_ratio": (GEO.relax_ratio, ("ucs", "relax_ratio", None)),
     "specimen.genesis": (GEO.genesis, ("ucs", "genesis", None)),
-    "ucs.platen_velocity": (UCS.platen_velocity, ("ucs", "platen_velocity", None)),
-    "ucs.damping": (UCS.damping, ("ucs", "damping", None)),
-    "ucs.stop_drop": (UCS.stop_drop, ("ucs", "stop_drop", None)),
-    "ucs.max_strain": (UCS.max_strain, ("ucs", "max_strain", None)),
-    "ucs.platen_fric": (UCS.platen_fric, ("ucs", "platen_fric", None)),
-    "ucs.record_strain": (UCS.record_strain, ("ucs", "record_strain", None)),
-    "ucs.end_cap": (UCS.end_cap, ("ucs", "end_cap", None)),
-    "ucs.end_cap_factor": (UCS.end_cap_factor, ("ucs", "end_cap_factor", None)),
+    "compression.platen_velocity": (UCS.platen_velocity, ("ucs", "platen_velocity", None)),
+    "compression.damping": (UCS.damping, ("ucs", "damping", None)),
+    "compression.stop_drop": (UCS.stop_drop, ("ucs", "stop_drop", None)),
+    "compression.max_strain": (UCS.max_strain, ("ucs", "max_strain", None)),
+    "compression.platen_fric": (UCS.platen_fric, ("ucs", "platen_fric", None)),
+    "compression.record_strain": (UCS.record_strain, ("ucs", "record_strain", None)),
+    "compression.end_cap": (UCS.end_cap, ("ucs", "end_cap", None)),
+    "compression.end_cap_factor": (UCS.end_cap_factor, ("ucs", "end_cap_factor", None)),
     "bts.diameter_mm": (BTS_DIAMETER_MM, ("bts", "diameter", None)),
     "bts.thickness_mm": (BTS_THICKNESS_MM, ("bts", "thickness", None)),
-    **{f"bts.{k}": (getattr(BTS, k), ("bts", k, None))
+    **{f"bts.{config_key(k)}": (getattr(BTS, k), ("bts", k, None))
        for k in ("platen_velocity", "damping", "platen_fric", "stop_drop", "max_strain",
                  "record_strain", "post_peak_min", "approach_velocity", "loading", "jaw_ratio",
                  "contact_cap", "contact_cap_factor", "central_zone")},
-    **{f"dtt.{k}": (getattr(DTT, k), ("dtt", k, None))
+    **{f"dtt.{config_key(k)}": (getattr(DTT, k), ("dtt", k, None))
        for k in ("grip_velocity", "grip_length", "grip_clearance", "damping", "stop_drop",
                  "post_peak_min", "max_strain", "record_strain")},
     "resources.max_balls": (MAX_BALLS, ("ucs", "max_balls", None)),
@@ -83,7 +83,7 @@ DEFAULTS = {
     "regression.cv_repeats": (REG["cv_repeats"], ("regress", "cv_repeats", None)),
     "regression.seed": (REG["seed"], ("regress", "seed", None)),
     "calibration.free": (list(DEFAULT_FREE), None),
-    "calibration.ratio": (PAPER_RATIO, ("calibrate", "ratio", None)),
+    "calibration.strength_ratio": (PAPER_RATIO, ("calibrate", "ratio", None)),
     "calibration.n_boot": (CAL["n_boot"], ("calibrate", "n_boot", None)),
     "calibration.seed": (CAL["seed"], ("calibrate", "seed", None)),
     "verification.rtol": (LOOP["rtol"], ("verify", "rtol", None)),
@@ -119,7 +119,7 @@ DEFAULTS = {
 #: schema defaults that only the study has (no command option or dataclass sets them)
 STUDY_ONLY = {
     "study.reference",  # which published study the report compares with
-    "resources.ucs_threads", "resources.ucs_runtime_min", "resources.ucs_mem_mb",  # Slurm
+    "resources.dem_threads", "resources.dem_runtime_min", "resources.dem_mem_mb",  # Slurm
     "calibration.bounds",  # {} = no narrowing; the stage's bounds=None means the same
     "verification.scatter_seeds",  # the seeds of the scatter job
     "verification.holdout_seeds",  # the fresh seeds of the holdout jobs ([]: no such jobs)
@@ -191,9 +191,9 @@ def test_the_two_known_disagreements_are_settled_as_the_study_runs():
 
 def test_the_check_can_fail(monkeypatch):
     assert not same(0.05, 0.1) and not same("gain", "shap") and not same(5, 6)
-    monkeypatch.setitem(DEFAULTS, "ucs.damping", (0.8, ("ucs", "damping", None)))
+    monkeypatch.setitem(DEFAULTS, "compression.damping", (0.8, ("ucs", "damping", None)))
     with pytest.raises(AssertionError):
-        test_schema_cli_and_settings_defaults_agree("ucs.damping")
+        test_schema_cli_and_settings_defaults_agree("compression.damping")
 
 
 # ------------------------------------------------------------------------ domains

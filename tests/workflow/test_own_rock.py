@@ -211,7 +211,7 @@ def example(tmp_path_factory):
 def test_example_card_is_bounded_by_the_configured_ranges_and_reachable(example):
     out, cfg = example
     card = yaml.safe_load((out / "calibration" / "LdB.yaml").read_text())
-    rng, ratio = cfg["ranges"], cfg["calibration"]["ratio"]
+    rng, ratio = cfg["ranges"], cfg["calibration"]["strength_ratio"]
     assert card["ranges"] == {k: [float(a), float(b)] for k, (a, b) in rng.items()}
     b = card["bounds"]
     for p in ("pb_emod_GPa", "pb_kratio"):

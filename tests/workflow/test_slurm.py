@@ -71,7 +71,7 @@ def test_smoke_study_runs_through_sbatch(local_slurm, tmp_path):
     wf = copy_workflow(tmp_path / "wf")
     (wf / "config" / "slurm_test.yaml").write_text(yaml.safe_dump(
         {"outdir": "results", "study": {"name": "slurm", "n_samples": N_SAMPLES, "lhs_seed": 5},
-         "resources": {"ucs_runtime_min": 5},
+         "resources": {"dem_runtime_min": 5},
          "bts": {"enabled": False}}))  # UCS only: shorter sample jobs, same batches
 
     run = sc.run_snakemake_on_slurm(
@@ -117,7 +117,7 @@ def test_smoke_study_runs_through_sbatch(local_slurm, tmp_path):
     assert len(submitted) < N_SAMPLES, diagnostics
     assert len(set(submitted)) == len(submitted) == 2, diagnostics
     # each batch was sized for serial execution inside its allocation (profile `cores: 1`):
-    # 1 CPU and -t = 2 jobs x 5 min (ucs_runtime_min; finished jobs stay visible for
+    # 1 CPU and -t = 2 jobs x 5 min (dem_runtime_min; finished jobs stay visible for
     # MinJobAge = 300 s)
     for jobid in submitted:
         info = cluster.run("scontrol", "show", "job", "-o", jobid).stdout

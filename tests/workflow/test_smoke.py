@@ -181,8 +181,8 @@ def test_same_seed_reproduces_design_and_results(tmp_path, smoke):
     again = tmp_path / "again.h5"
     r = subprocess.run(["bpmcal", "ucs", "--design", str(design), "--sample", "s001", "--out",
                         str(again), "--scale", str(cfg["specimen"]["scale"]),
-                        "--platen-velocity", str(cfg["ucs"]["platen_velocity"]),
-                        "--record-strain", str(cfg["ucs"]["record_strain"]), "--threads", "1",
+                        "--platen-velocity", str(cfg["compression"]["platen_velocity"]),
+                        "--record-strain", str(cfg["compression"]["record_strain"]), "--threads", "1",
                         "--quiet"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     a, b = read_summary(h), read_summary(again)
@@ -194,7 +194,7 @@ def test_same_seed_reproduces_design_and_results(tmp_path, smoke):
 @pytest.mark.parametrize("patch, needle", [
     ({"study": {"n_samples": "many"}}, "study.n_samples: 'many' is not of type 'integer'"),
     ({"ranges": {"porosity": [0.2, 0.95]}}, "ranges.porosity[1]: 0.95 is greater than"),
-    ({"ucs": {"platen_velocty": 0.1}}, "ucs: unknown key(s) ['platen_velocty']"),
+    ({"compression": {"platen_velocty": 0.1}}, "compression: unknown key(s) ['platen_velocty']"),
     ({"lab": {"csv": "config/lab/missing.csv"}}, "lab.csv: file 'config/lab/missing.csv'"),
     ({"ranges": {"pb_ten_MPa": [50, 10]}}, "ranges.pb_ten_MPa: low 50 exceeds high 10"),
     ({"specimen": {"scale": 0.05}}, "specimen.scale: 0.05 gives"),
@@ -333,7 +333,7 @@ def test_unreachable_ratios_run_through_the_dag(smoke):
         index = (out / "report" / "index.md").read_text()
         assert all(f"({sid}): unreachable" in index for sid in plan["sample_id"])
         card = yaml.safe_load((out / "calibration" / "B1.yaml").read_text())
-        assert card["ratio_ten_coh"] == 1.4  # calibration.ratio
+        assert card["ratio_ten_coh"] == 1.4  # calibration.strength_ratio
 
 
 def test_snakemake_html_report_has_every_caption(smoke):
@@ -544,7 +544,7 @@ RERUN = {
     "specimen.install_gap_mm": (0.05, _DEM),
     "specimen.relax_ratio": (0.011, _DEM),
     "specimen.genesis": ("bpmcal", _DEM),
-    **{f"ucs.{k}": (v, _AXIAL) for k, v in {
+    **{f"compression.{k}": (v, _AXIAL) for k, v in {
         "platen_velocity": 0.21, "damping": 0.71, "stop_drop": 0.71, "max_strain": 0.031,
         "platen_fric": 0.01, "record_strain": 2.1e-5, "end_cap": 0.5,
         "end_cap_factor": 999.0}.items()},
@@ -553,18 +553,18 @@ RERUN = {
         "loading": "jaws", "jaw_ratio": 1.4, "contact_cap": 1.4,
         "contact_cap_factor": 999.0, "central_zone": 0.45, "platen_velocity": 0.051,
         "approach_velocity": 0.11, "platen_fric": 0.31, "damping": 0.71, "stop_drop": 0.21,
-        "max_strain": 0.051, "record_strain": 1.1e-5, "post_peak_min": 0.00031}.items()},
+        "max_strain": 0.051, "record_strain": 1.1e-5, "post_peak_strain": 0.00031}.items()},
     "dtt.enabled": (True, {"ucs"}),  # the sample jobs gain the test
     **{f"dtt.{k}": (v, set()) for k, v in {  # off in the smoke study: nothing reads them
         "scale": 0.31, "grip_velocity": 0.011, "grip_length": 0.21, "grip_clearance": 1.1,
-        "damping": 0.71, "stop_drop": 0.21, "post_peak_min": 0.00011, "max_strain": 0.021,
+        "damping": 0.71, "stop_drop": 0.21, "post_peak_strain": 0.00011, "max_strain": 0.021,
         "record_strain": 2.1e-6}.items()},
     "lab.csv": ("config/lab/green_sandstone_copy.csv",
                 {"calibrate_initial", "calibrate", "verification_tables",
                  "triaxial_envelopes"}),
-    "resources.ucs_threads": (2, set()),  # a job's threads and Slurm time: no rerun
-    "resources.ucs_runtime_min": (31, set()),
-    "resources.ucs_mem_mb": (2100, _DEM),  # the jobs' memory budget (--mem-budget-mb)
+    "resources.dem_threads": (2, set()),  # a job's threads and Slurm time: no rerun
+    "resources.dem_runtime_min": (31, set()),
+    "resources.dem_mem_mb": (2100, _DEM),  # the jobs' memory budget (--mem-budget-mb)
     "resources.max_balls": (1_999_999, _DEM),
     "resources.genesis_max_steps": (49_999, _DEM),
     "screening.threshold_pct": (9.0, {"screen"}),
@@ -584,7 +584,7 @@ RERUN = {
     "calibration.fixed.pb_fa_deg": (36.0, _CAL),
     "calibration.fixed.fric": (0.36, _CAL),
     "calibration.free": (["pb_kratio", "pb_emod_GPa", "pb_coh_MPa"], _CAL),
-    "calibration.ratio": (1.5, _CAL),
+    "calibration.strength_ratio": (1.5, _CAL),
     "calibration.bounds.pb_emod_GPa": ([11.0, 49.0], _CAL),
     "calibration.n_boot": (21, {"calibrate"}),  # the initial calibration bootstraps nothing
     "calibration.seed": (14, _CAL),

@@ -94,8 +94,12 @@ rule calibrate_initial:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        # not n_boot: the initial calibration runs no bootstrap
-        c={k: config["calibration"][k] for k in ("ratio", "seed")},
+        # not n_boot: the initial calibration runs no bootstrap; c's keys are the options'
+        # (--ratio), so that a study run before the key's rename does not rerun
+        c={
+            "ratio": config["calibration"]["strength_ratio"],
+            "seed": config["calibration"]["seed"],
+        },
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
         ranges=json.dumps(config["ranges"]),
@@ -122,7 +126,11 @@ rule calibrate:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        c={k: config["calibration"][k] for k in ("ratio", "n_boot", "seed")},
+        # c's keys are the options' (--ratio): as in calibrate_initial
+        c={
+            "ratio": config["calibration"]["strength_ratio"],
+            **{k: config["calibration"][k] for k in ("n_boot", "seed")},
+        },
         fixed=json.dumps(config["calibration"]["fixed"]),
         free=",".join(config["calibration"]["free"]),
         ratio_from=lambda wc, input: (
@@ -152,12 +160,12 @@ rule verify:
         FILES.log("verify", "{spec}"),
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["ucs_threads"]
+    threads: config["resources"]["dem_threads"]
     resources:
-        runtime=config["resources"]["ucs_runtime_min"]
+        runtime=config["resources"]["dem_runtime_min"]
         * config["verification"]["max_rounds"]
         * config["verification"]["max_seeds"],
-        mem_mb=config["resources"]["ucs_mem_mb"],
+        mem_mb=config["resources"]["dem_mem_mb"],
     params:
         # only the keys verify reads: changing another verification key (the holdout
         # or scatter seeds) must not rerun the closed loops
@@ -205,11 +213,11 @@ rule transfer:
         FILES.log("transfer", "{spec}"),
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["ucs_threads"]
+    threads: config["resources"]["dem_threads"]
     resources:
-        runtime=config["resources"]["ucs_runtime_min"]
+        runtime=config["resources"]["dem_runtime_min"]
         * (1 + config["transfer"]["max_rounds"]),
-        mem_mb=config["resources"]["ucs_mem_mb"],
+        mem_mb=config["resources"]["dem_mem_mb"],
     params:
         t={"max_rounds": config["transfer"]["max_rounds"]},
         # the first packing seed no closed loop may use (grown seed sets included)
@@ -254,10 +262,10 @@ rule seed_scatter:
         FILES.log("seed_scatter"),
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["ucs_threads"]
+    threads: config["resources"]["dem_threads"]
     resources:
-        runtime=config["resources"]["ucs_runtime_min"] * len(SCATTER_SEEDS),
-        mem_mb=config["resources"]["ucs_mem_mb"],
+        runtime=config["resources"]["dem_runtime_min"] * len(SCATTER_SEEDS),
+        mem_mb=config["resources"]["dem_mem_mb"],
     params:
         seeds=",".join(str(s) for s in SCATTER_SEEDS),
         rtol=config["verification"]["rtol"],
@@ -290,10 +298,10 @@ rule holdout:
         FILES.log("holdout", "{spec}"),
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["ucs_threads"]
+    threads: config["resources"]["dem_threads"]
     resources:
-        runtime=config["resources"]["ucs_runtime_min"] * max(1, len(HOLDOUT_SEEDS)),
-        mem_mb=config["resources"]["ucs_mem_mb"],
+        runtime=config["resources"]["dem_runtime_min"] * max(1, len(HOLDOUT_SEEDS)),
+        mem_mb=config["resources"]["dem_mem_mb"],
     params:
         seeds=",".join(str(s) for s in HOLDOUT_SEEDS),
         bts_runs=lambda wc, output: (

@@ -11,7 +11,7 @@
 # patterns at validation (bpmcal.io.paths).
 import json
 
-from bpmcal.cli import BTS_OPTIONS, DTT_OPTIONS
+from bpmcal.cli import BTS_OPTIONS, DTT_OPTIONS, config_key
 from bpmcal.io import layout as L
 from bpmcal.study.config import ConfigError, load_lab, transfer_seed, validate_config
 
@@ -62,12 +62,12 @@ def beside(*files):
 
 
 def specimen_args(cfg=config, scale=None, loading=True):
-    """bpmcal ucs/impact options of the specimen, loading (the ucs section; ``loading``
+    """bpmcal ucs/impact options of the specimen, loading (the compression section; ``loading``
     False for a job that does not load a cylinder axially: the impact) and resources
     sections, as a list of arguments (for {params.opts:q}: each one is shell-quoted).
     A job's params hold only what it reads, so that a changed key reruns exactly those
     jobs (tests/workflow/test_smoke.py, the rerun map)."""
-    sp, u, r = cfg["specimen"], cfg["ucs"], cfg["resources"]
+    sp, u, r = cfg["specimen"], cfg["compression"], cfg["resources"]
     scale = sp["scale"] if scale is None else scale
     opts = {
         "--scale": scale,
@@ -94,7 +94,7 @@ def specimen_args(cfg=config, scale=None, loading=True):
         {
             "--specimen-cache": FILES.packings,
             "--max-balls": r["max_balls"],
-            "--mem-budget-mb": r["ucs_mem_mb"],
+            "--mem-budget-mb": r["dem_mem_mb"],
             "--genesis-max-steps": r["genesis_max_steps"],
         }
     )
@@ -111,9 +111,9 @@ def bts_args(cfg=config):
     opts = {"--bts-diameter": b["diameter_mm"], "--bts-thickness": b["thickness_mm"]}
     if b["scale"] is not None:  # null: the disc at the cylinder's scale
         opts["--bts-scale"] = b["scale"]
-    # the BTSSettings fields that are options (bpmcal.cli.options)
+    # the BTSSettings fields that are options (bpmcal.cli.options), by their config keys
     for f in BTS_OPTIONS:
-        opts[f"--bts-{f.replace('_', '-')}"] = b[f]
+        opts[f"--bts-{f.replace('_', '-')}"] = b[config_key(f)]
     return [str(x) for k, v in opts.items() for x in (k, v)]
 
 
@@ -125,7 +125,7 @@ def dtt_args(cfg=config):
     opts = {}
     if d["scale"] is not None:  # null: the cylinder's scale
         opts["--dtt-scale"] = d["scale"]
-    # the DTTSettings fields that are options (bpmcal.cli.options)
+    # the DTTSettings fields that are options (bpmcal.cli.options), by their config keys
     for f in DTT_OPTIONS:
-        opts[f"--dtt-{f.replace('_', '-')}"] = d[f]
+        opts[f"--dtt-{f.replace('_', '-')}"] = d[config_key(f)]
     return [str(x) for k, v in opts.items() for x in (k, v)]

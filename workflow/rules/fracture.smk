@@ -30,10 +30,10 @@ rule sweep_ucs:
         rid=r"a\d+",
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["ucs_threads"]
+    threads: config["resources"]["dem_threads"]
     resources:
-        runtime=config["resources"]["ucs_runtime_min"],
-        mem_mb=config["resources"]["ucs_mem_mb"],
+        runtime=config["resources"]["dem_runtime_min"],
+        mem_mb=config["resources"]["dem_mem_mb"],
     params:
         opts=specimen_args(),
     shell:
@@ -88,10 +88,10 @@ rule impact:
         v=r"[0-9][0-9.e+-]*",
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["ucs_threads"]
+    threads: config["resources"]["dem_threads"]
     resources:
-        runtime=config["resources"]["ucs_runtime_min"] * 2,
-        mem_mb=config["resources"]["ucs_mem_mb"],
+        runtime=config["resources"]["dem_runtime_min"] * 2,
+        mem_mb=config["resources"]["dem_mem_mb"],
     params:
         # what an impact run reads (not the velocities: a job's own is its wildcard)
         i={

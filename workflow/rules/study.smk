@@ -36,10 +36,10 @@ rule ucs:
         sample=r"s\d+",
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["ucs_threads"]
+    threads: config["resources"]["dem_threads"]
     resources:
-        runtime=config["resources"]["ucs_runtime_min"],
-        mem_mb=config["resources"]["ucs_mem_mb"],
+        runtime=config["resources"]["dem_runtime_min"],
+        mem_mb=config["resources"]["dem_mem_mb"],
     params:
         opts=specimen_args(),
         # the Brazilian settings as a plain value (a callable's value is not compared by

@@ -14,10 +14,10 @@ rule triaxial:
         s3=r"[0-9.e+]+",
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["ucs_threads"]
+    threads: config["resources"]["dem_threads"]
     resources:
-        runtime=config["resources"]["ucs_runtime_min"],
-        mem_mb=config["resources"]["ucs_mem_mb"],
+        runtime=config["resources"]["dem_runtime_min"],
+        mem_mb=config["resources"]["dem_mem_mb"],
     params:
         t={k: config["triaxial"][k] for k in ("seed", "servo_gain")},
         opts=specimen_args(),

@@ -177,6 +177,18 @@ BTS_OPTIONS = ("loading", "jaw_ratio", "contact_cap", "contact_cap_factor", "cen
                "post_peak_min", "max_strain", "record_strain")
 
 
+#: the study config's key (in the bts and dtt sections) of a BTS_OPTIONS/DTT_OPTIONS field
+#: whose config name differs: post_peak_min is a strain (the config's old name, like the
+#: field's, read as minutes); the field and its option keep their name (it is written into
+#: every run file's settings)
+OPTION_CONFIG_KEYS = {"post_peak_min": "post_peak_strain"}
+
+
+def config_key(field: str) -> str:
+    """The bts/dtt config key of the settings field ``field`` (:data:`OPTION_CONFIG_KEYS`)."""
+    return OPTION_CONFIG_KEYS.get(field, field)
+
+
 def _stop_spec(lab) -> dict:
     """The options every quasi-static tensile test shares (damping and the load-drop stop),
     in the ``spec`` form of :func:`add_bts_args` and :func:`add_dtt_args`."""

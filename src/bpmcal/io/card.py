@@ -15,6 +15,8 @@ Format 1 (keys in this order; paper units)::
                         the lab's tensile strength sets it)
     strength_ratio      value: pb_ten/pb_coh of ``parameters``; set_by: bts_MPa target |
                         ratio sweep | config calibration.ratio | both strengths free
+                        (the config key is calibration.strength_ratio now; the set_by
+                        value keeps its card-format-1 spelling)
     parameters          the 8 meso-parameters (the regression's answer)
     roles               free | derived | fixed, per parameter
     ranges              the design space (the config's ranges)

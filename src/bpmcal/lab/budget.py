@@ -88,7 +88,7 @@ def budget_problem(rmin_mm, porosity, *, scale=1.0, diameter_mm=50.0, height_mm=
         if mb > mem_budget_mb:
             return (f"{spec} needs about {nb} balls and ~{mb:,.0f} MB of memory, more "
                     f"than the budget of {mem_budget_mb:,.0f} MB (raise --mem-budget-mb / "
-                    "resources.ucs_mem_mb, or a larger rmin_mm / smaller specimen)")
+                    "resources.dem_mem_mb, or a larger rmin_mm / smaller specimen)")
     return None
 
 

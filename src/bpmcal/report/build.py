@@ -28,6 +28,7 @@ from ..io.provenance import git_commit
 from ..io.tables import markdown_table, write_table
 from ..stages.holdout import false_alarm
 from ..study import paper
+from ..study.config import translate_deprecated
 
 #: tables and figures of the report (stem -> caption)
 TABLES = {
@@ -112,6 +113,7 @@ def report(outdir=None, *, config=None, config_json=None, config_out=None) -> Pa
         cfg = read_yaml(config, "--config")
     if not isinstance(cfg, dict) or not isinstance(cfg.get("study"), dict):
         raise BadInput("--config: not a study config (no 'study' section)")
+    translate_deprecated(cfg)  # a config file with keys renamed since (one line each)
     if outdir is None:
         if not isinstance(cfg.get("outdir"), str):
             raise BadInput("--config: no 'outdir' (give --outdir)")
@@ -184,7 +186,7 @@ def is_paper_study(cfg: dict) -> bool:
 def _settings(lay, cfg, ref=False) -> str:
     ds_path = Path(lay.dataset)
     lines = ["## Settings\n"]
-    sp, u = cfg["specimen"], cfg["ucs"]
+    sp, u = cfg["specimen"], cfg["compression"]
     lines.append(f"- Samples: {cfg['study']['n_samples']} (Latin hypercube, seed "
                  f"{cfg['study']['lhs_seed']}, packing seeds derived from it)")
     lines.append("- Sampled ranges (the design space; the calibration stays inside them): "
@@ -375,7 +377,7 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
     ratio = (json.loads(chosen.read_text())["chosen_ratio"] if sweep and chosen.exists()
              else None)
     if ratio is None:  # no sweep, or it chose no ratio: the configured one was used
-        ratio = cfg["calibration"]["ratio"]
+        ratio = cfg["calibration"]["strength_ratio"]
     header = ["specimen", "parameter", "calibrated", "95 % bootstrap interval", "bounds"]
     if ref:
         header += ["paper", "difference"]
@@ -557,7 +559,7 @@ def _ratio(lay, comp, ref=False) -> str:
                 for r in bad.itertuples()) + "\n"
     if ch.get("chosen_ratio") is None:
         s = (f"## Bond-strength ratio\n\nNo ratio chosen: {ch.get('reason', '')}. The "
-             "calibration used the configured ratio (calibration.ratio)")
+             "calibration used the configured ratio (calibration.strength_ratio)")
         if not ref:
             return s + ".\n" + failed
         _cmp(comp, "Ratio sweep", "bond-strength ratio a", None, paper.RATIO)

@@ -108,6 +108,7 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
                          "intervals": []}
         set_by = (f"{ratio_by} target" if ratio_by in TENSILE else
                   "ratio sweep" if ratio_from and not note_is_fallback(note)
+                  # the card-format-1 spelling, kept (the key is calibration.strength_ratio)
                   else "config calibration.ratio" if s_ratio is not None
                   else "both strengths free")
         card = calibration_card(

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import copy
 import math
+import sys
 from pathlib import Path
 
 import yaml
@@ -51,13 +52,62 @@ def load_schema(path) -> dict:
         return yaml.safe_load(f)
 
 
-def validate_config(config: dict, schema_path, base_dir=".") -> dict:
-    """Validate ``config`` in place (defaults filled in) and return it.
+#: config keys renamed, old -> new (each a path of keys; a key keeps its section). The old
+#: name is accepted for one release: :func:`translate_deprecated` prints one line for it and
+#: renames it before the schema validation. Remove an entry one release after it was added.
+RENAMED_KEYS = {
+    ("ucs",): ("compression",),  # the loading of every cylinder test, not just the UCS
+    ("resources", "ucs_threads"): ("resources", "dem_threads"),  # size every DEM job
+    ("resources", "ucs_runtime_min"): ("resources", "dem_runtime_min"),
+    ("resources", "ucs_mem_mb"): ("resources", "dem_mem_mb"),
+    ("bts", "post_peak_min"): ("bts", "post_peak_strain"),  # a strain, not minutes
+    ("dtt", "post_peak_min"): ("dtt", "post_peak_strain"),
+    ("calibration", "ratio"): ("calibration", "strength_ratio"),
+}
+assert all(old[:-1] == new[:-1] for old, new in RENAMED_KEYS.items())
+
+
+def _stderr_line(line: str) -> None:
+    print(line, file=sys.stderr)
+
+
+def translate_deprecated(config: dict, note=_stderr_line) -> dict:
+    """Rename the deprecated keys of ``config`` (:data:`RENAMED_KEYS`) in place, in their
+    place in the section, calling ``note`` with one line per old key found; return
+    ``config``. Raises :class:`ConfigError` naming both keys when a config gives an old
+    key and its new name."""
+    both = []
+    for old, new in RENAMED_KEYS.items():
+        section = config
+        for k in old[:-1]:
+            section = section.get(k) if isinstance(section, dict) else None
+        if not isinstance(section, dict) or old[-1] not in section:
+            continue
+        o, n = ".".join(old), ".".join(new)
+        if new[-1] in section:
+            both.append(f"{o} and {n} both given: {o} is the deprecated name of {n}; keep "
+                        f"only {n} (a config file with {o} merged over one with {n}, e.g. "
+                        f"config/config.yaml, gives both: rename {o} there)")
+            continue
+        note(f"config key {o} is deprecated: use {n} ({o} will be removed in the next "
+             "release)")
+        items = [(new[-1] if k == old[-1] else k, v) for k, v in section.items()]
+        section.clear()
+        section.update(items)
+    if both:
+        raise ConfigError("invalid configuration:\n  " + "\n  ".join(both))
+    return config
+
+
+def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line) -> dict:
+    """Validate ``config`` in place (deprecated keys renamed, :func:`translate_deprecated`,
+    with one line each to ``note``; defaults filled in) and return it.
 
     Raises :class:`ConfigError` listing every problem as ``key: message``.
     """
     import jsonschema
 
+    translate_deprecated(config, note)
     schema = load_schema(schema_path)
     Validator = _fill_defaults(jsonschema.Draft7Validator)
     errors = sorted(Validator(schema).iter_errors(config), key=lambda e: list(e.absolute_path))
@@ -164,7 +214,7 @@ def _check_lab_triaxial(cfg: dict, lab: Path, base: Path) -> list[str]:
 def _budget_checks(cfg: dict) -> list[str]:
     """The largest specimen the study can build (smallest Rmin and porosity of the ranges
     and of the fixed calibration values, at the UCS, the impact and the disc's scale) must fit
-    ``resources.max_balls`` and ``resources.ucs_mem_mb``."""
+    ``resources.max_balls`` and ``resources.dem_mem_mb``."""
     res = cfg["resources"]
     rg, fx = cfg["ranges"], cfg["calibration"]["fixed"]
     rmin = min([min(rg["rmin_mm"])] + ([fx["rmin_mm"]] if "rmin_mm" in fx else []))
@@ -179,7 +229,7 @@ def _budget_checks(cfg: dict) -> list[str]:
     for what, scale, dia, height in shapes:
         m = budget_problem(rmin, por, scale=scale, diameter_mm=dia,
                            height_mm=height, max_balls=res["max_balls"],
-                           mem_budget_mb=res["ucs_mem_mb"],
+                           mem_budget_mb=res["dem_mem_mb"],
                            what=f"{what}={scale:g} with the smallest ")
         if m:
             out.append(f"resources: {m}")
@@ -242,7 +292,7 @@ def _check_calibration_space(cfg: dict) -> list[str]:
     strength ratio) some cohesion whose derived tensile strength lies in its range."""
     msgs = []
     rng, cal = cfg["ranges"], cfg["calibration"]
-    ratio = cal.get("ratio")
+    ratio = cal.get("strength_ratio")
     free = list(cal.get("free", []))
     derived = ["pb_ten_MPa"] if ratio and "pb_ten_MPa" not in free else []
     for name, v in cal["fixed"].items():
@@ -269,8 +319,8 @@ def _check_calibration_space(cfg: dict) -> list[str]:
     if not msgs and derived and "pb_coh_MPa" in free:
         (clo, chi), (tlo, thi) = box["pb_coh_MPa"], box["pb_ten_MPa"]
         if not max(clo, tlo / ratio) < min(chi, thi / ratio):
-            msgs.append(f"calibration.ratio: {ratio:g} x pb_coh_MPa in [{clo:g}, {chi:g}] never falls "
-                        f"inside pb_ten_MPa [{tlo:g}, {thi:g}]: widen ranges.pb_ten_MPa or "
+            msgs.append(f"calibration.strength_ratio: {ratio:g} x pb_coh_MPa in [{clo:g}, {chi:g}] "
+                        f"never falls inside pb_ten_MPa [{tlo:g}, {thi:g}]: widen ranges.pb_ten_MPa or "
                         "ranges.pb_coh_MPa, or change the ratio")
     return msgs
 
