@@ -73,9 +73,11 @@ E_SHEAR = 2  # broken in shear
 E_BONDED = 3
 
 #: a flat joint whose elements are all unbonded is deleted (becomes a linear contact)
-#: once its interface is open everywhere by more than its initial gap plus this
-#: fraction of its radius (bpmcal's choice: docs/contact_laws.md)
-DELETE_GAP = 0.1
+#: once its interface is open everywhere by more than its initial gap plus this many
+#: interface radii: 2, its diameter (Potyondy 2015: a fully broken contact persists as a
+#: frictional, moment-resisting face until the relative displacement exceeds the
+#: flat-joint diameter; docs/contact_laws.md)
+DELETE_GAP = 2.0
 
 TWO_PI = 2.0 * math.pi
 

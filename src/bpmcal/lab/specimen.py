@@ -428,10 +428,11 @@ def get_packing(spec: SpecimenSpec, cache: str | os.PathLike | None = None,
 class Microstructure:
     """A flat-jointed material's microstructure (FJM.md §6; the card's ``fj_gi_ratio``,
     ``fj_slit_frac``, ``fj_gap_frac``, ``fj_gap0_ratio``): flat joints are installed on
-    every pair whose surface gap is at most ``gi_ratio`` x the mean ball radius; each is
-    drawn, independently and from the packing seed, to be gapped (``gap_frac``: all
-    elements unbonded, surfaces ``gap0_ratio`` x the mean radius apart), slit
-    (``slit_frac``: unbonded, touching) or bonded (the rest)."""
+    every pair whose surface gap is at most ``gi_ratio`` x the mean ball radius; of the N
+    joints, round(``gap_frac`` N) are gapped (all elements unbonded, surfaces
+    ``gap0_ratio`` x the mean radius apart), round(``slit_frac`` N) slit (unbonded,
+    touching) and the rest bonded, on a random order of the contacts drawn from the
+    packing seed (``install_microstructure``; Itasca's fistPkg takes exact counts too)."""
 
     gi_ratio: float = 0.0
     slit_frac: float = 0.0
@@ -452,10 +453,15 @@ def install_microstructure(m: Model, micro: Microstructure, seed: int, rmean: fl
     """Draw each installed flat joint's type (``Microstructure``) from the packing seed,
     in contact order, and install it. Returns the fractions actually installed."""
     nb = m.n_bonds
-    u = np.random.default_rng([int(seed), 0x464A]).random(nb)
+    # exact counts, as Itasca's fistPkg (round(phi_G N) gapped, round(phi_S N) slit, the
+    # rest bonded), on a seeded random order of the contacts (bpmcal's contact order
+    # follows the balls' space-filling order: taking it as it is would cluster each type)
+    n_g = int(round(micro.gap_frac * nb))
+    n_s = min(int(round(micro.slit_frac * nb)), nb - n_g)
+    order = np.random.default_rng([int(seed), 0x464A]).permutation(nb)
     t = np.full(nb, FJ.MT_BONDED)
-    t[u < micro.gap_frac + micro.slit_frac] = FJ.MT_SLIT
-    t[u < micro.gap_frac] = FJ.MT_GAPPED
+    t[order[:n_g]] = FJ.MT_GAPPED
+    t[order[n_g:n_g + n_s]] = FJ.MT_SLIT
     m.set_flatjoint_types(t, gap0=micro.gap0_ratio * rmean)
     frac = np.bincount(t, minlength=3) / max(nb, 1)
     return {"fj_bonded_frac": float(frac[FJ.MT_BONDED]),
