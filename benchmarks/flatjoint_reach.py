@@ -5,9 +5,14 @@ A base flat-joint card (Lac du Bonnet-like, ``BASE``) and one-at-a-time sweeps o
 microstructure: the slit fraction ``fj_slit_frac`` (0, 0.2, 0.4), the installation gap
 ``fj_gi_ratio`` (0, 0.2, 0.4) and the element count ``fj_nr`` x ``fj_nal`` (1x3, 2x4).
 Every card runs, on each packing seed, a UCS test (sigma_c, E, nu), a Brazilian test
-(sigma_t = ``bts_MPa``, the mean of the valid discs: an invalid disc gives no sigma_t)
-and triaxial tests at sigma3 = 5 and 10 MPa, all with the study's settings
-(``config/config.yaml``: sections specimen, ucs, bts, triaxial) at ``--scale``; the UCS
+(sigma_t = ``bts_MPa``, the mean of the valid discs: an invalid disc gives no sigma_t),
+a direct-tension test on the UCS cylinder (sigma_t,d = ``dtt_MPa``, the mean of the valid
+runs; Itasca's test of a flat-jointed material's tensile strength, whose Brazilian discs
+often fail from the platens) and triaxial tests at sigma3 = 5 and 10 MPa, all with the
+study's settings (``config/config.yaml``: sections specimen, ucs, bts, dtt (the schema's
+defaults = ``DTTSettings()`` where the config has none; its ``scale`` is not used: the
+cylinder is the UCS's), triaxial) at ``--scale``; sigma_c/sigma_t,d is the card's ratio;
+the UCS
 (sigma3 = 0) and the two triaxial peaks give a Mohr-Coulomb envelope (phi, c) and a
 Hoek-Brown envelope (sigma_ci and m_i both fitted, as the study's ``bpmcal envelopes``;
 also m_i with sigma_ci = sigma_c), ``bpmcal.analysis.envelopes``. One process, one numba
@@ -37,7 +42,10 @@ change to ``card_result``); ``--note`` keeps a note in the JSON record and the p
 ``--budget-min`` starts no further card once the elapsed wall time plus the slowest card
 so far would exceed it (the record lists the cards not run); ``--reuse`` takes the cards
 an earlier record measured with the same card, seeds, scales and settings instead of
-running them again (the record says which). The JSON is rewritten after every card.
+running them again (the record says which); a reused card whose runs lack the
+direct-tension test (a record from before it was added), or ran it with other dtt
+settings, keeps its other runs and gets only the direct-tension tests. Write ``--out`` to
+another file than ``--reuse`` (the JSON is rewritten after every card).
 """
 from __future__ import annotations
 
@@ -142,7 +150,28 @@ def _settings(cfg: dict, scale: float, bts_scale: float, bts_over: dict):
     ucs = UCSSettings(**load)
     tx = {s3: TriaxialSettings(sigma3=s3 * 1e6, servo_alpha=cfg["triaxial"]["servo_gain"],
                                **load) for s3 in SIGMA3}
-    return geo, ucs, _disc(cfg, bts_scale), _bts_settings(cfg, **bts_over), tx
+    return (geo, ucs, _disc(cfg, bts_scale), _bts_settings(cfg, **bts_over), tx,
+            _dtt_settings(cfg))
+
+
+def _dtt_settings(cfg: dict):
+    """The study's direct-tension settings: the config's ``dtt`` section (validated: the
+    schema's defaults filled in), else ``DTTSettings()``; its ``scale`` is not used."""
+    from dataclasses import fields
+
+    from bpmcal.lab.direct_tension import DTTSettings
+
+    d = cfg.get("dtt")
+    if not d:
+        return DTTSettings()
+    names = {f.name for f in fields(DTTSettings)}
+    return DTTSettings(**{k: v for k, v in d.items() if k in names})
+
+
+def _dtt_dict(st) -> dict:
+    from bpmcal.lab.direct_tension import settings_dict
+
+    return settings_dict(st)
 
 
 def _timed(fn, *args, **kw):
@@ -161,7 +190,7 @@ def run_seed(params: dict, seed: int, setup, cache: str, log) -> dict:
     """The four tests of one card on one packing seed."""
     from bpmcal.lab.runner import bts_test, triaxial_test, ucs_test
 
-    geo, ucs, disc, bts, tx = setup
+    geo, ucs, disc, bts, tx, _ = setup
     kw = dict(cache=cache, threads=1, keep_particles=False)
     out = {"seed": seed}
     s, why, cpu = _timed(ucs_test, params, seed, geo, ucs, **kw)
@@ -188,7 +217,27 @@ def run_seed(params: dict, seed: int, setup, cache: str, log) -> dict:
             "sigma3_maxdev_rel": s["sigma3_maxdev_rel"]} if s else {})}
         log(f"  triaxial σ3 {s3:g} seed {seed}: "
             + (f"σ1 {s['sigma1_MPa']:.2f} MPa" if s else why) + f", CPU {cpu:.0f} s")
+    out["dtt"] = run_dtt(params, seed, setup, cache, log)
     return out
+
+
+def run_dtt(params: dict, seed: int, setup, cache: str, log) -> dict:
+    """The direct-tension test of one card on one packing seed (the UCS cylinder)."""
+    from bpmcal.lab.runner import dtt_test
+
+    geo, dtt = setup[0], setup[5]
+    s, why, cpu = _timed(dtt_test, params, seed, geo, dtt, cache=cache, threads=1,
+                         keep_particles=False)
+    log(f"  dtt seed {seed}: " + (f"peak {s['dtt_peak_MPa']:.2f} MPa, valid "
+                                  f"{bool(s['dtt_valid'])} {s['dtt_invalid_reason']}"
+                                  if s else why) + f", CPU {cpu:.0f} s")
+    return {"ok": s is not None, "reason": why, "cpu_s": cpu, **({
+        "dtt_MPa": s["dtt_MPa"], "dtt_peak_MPa": s["dtt_peak_MPa"],
+        "dtt_valid": bool(s["dtt_valid"]), "invalid_reason": s["dtt_invalid_reason"],
+        "E_t_GPa": s.get("E_t_GPa", math.nan), "fracture_height": s["fracture_height"],
+        "balls_across": s["balls_across"], "n_balls": s["n_balls"], "steps": s["steps"],
+        "stop_reason": s["stop_reason"], "cracks_tension": s["cracks_tension"],
+        "cracks_shear": s["cracks_shear"]} if s else {})}
 
 
 def _mean(v):
@@ -204,15 +253,23 @@ def card_result(runs: list[dict]) -> dict:
     u = [r["ucs"] for r in runs if r["ucs"]["ok"]]
     b = [r["bts"] for r in runs if r["bts"]["ok"]]
     bv = [x for x in b if x["bts_valid"]]
+    d = [r["dtt"] for r in runs if r.get("dtt", {}).get("ok")]
+    dv = [x for x in d if x["dtt_valid"]]
     out = {"sigma_c_MPa": _mean([x["ucs_MPa"] for x in u]), "E_GPa": _mean([x["E_GPa"] for x in u]),
            "nu": _mean([x["nu"] for x in u]),
            "sigma_t_MPa": _mean([x["bts_MPa"] for x in bv]),
            "bts_peak_all_MPa": _mean([x["bts_peak_MPa"] for x in b]),
            "bts_valid": f"{len(bv)}/{len(runs)}",
-           "cpu_s": sum(r["ucs"]["cpu_s"] + r["bts"]["cpu_s"]
+           "dtt_MPa": _mean([x["dtt_MPa"] for x in dv]),
+           "dtt_peak_all_MPa": _mean([x["dtt_peak_MPa"] for x in d]),
+           "dtt_valid": (f"{len(dv)}/{len(runs)}" if all("dtt" in r for r in runs)
+                         else "not run"),
+           "cpu_s": sum(r["ucs"]["cpu_s"] + r["bts"]["cpu_s"] + r.get("dtt", {}).get("cpu_s", 0)
                         + sum(t["cpu_s"] for t in r["triaxial"].values()) for r in runs)}
     out["ratio"] = out["sigma_c_MPa"] / out["sigma_t_MPa"]
     out["ratio_peak"] = out["sigma_c_MPa"] / out["bts_peak_all_MPa"]
+    out["ratio_dtt"] = out["sigma_c_MPa"] / out["dtt_MPa"]
+    out["ratio_dtt_peak"] = out["sigma_c_MPa"] / out["dtt_peak_all_MPa"]
     s1 = {s3: _mean([r["triaxial"][f"{s3:g}"].get("sigma1_MPa") for r in runs
                      if r["triaxial"][f"{s3:g}"]["ok"]]) for s3 in SIGMA3}
     out["sigma1_MPa"] = {f"{k:g}": v for k, v in s1.items()}
@@ -234,7 +291,18 @@ def card_result(runs: list[dict]) -> dict:
 
 
 def _same_setup(old: dict, rec: dict) -> bool:
-    return all(old.get(k) == rec.get(k) for k in ("scale", "bts_scale", "seeds", "settings"))
+    """The same cylinder, disc, seeds and settings of the UCS, Brazilian and triaxial
+    tests (the direct-tension settings are checked per card: ``_needs_dtt``)."""
+    def other(s):
+        return {k: v for k, v in (s or {}).items() if k != "dtt"}
+    return (all(old.get(k) == rec.get(k) for k in ("scale", "bts_scale", "seeds"))
+            and other(old.get("settings")) == other(rec.get("settings")))
+
+
+def _needs_dtt(card: dict, dtt_settings: dict) -> bool:
+    """A reused card to run the direct-tension tests of: none yet, or other settings."""
+    return (any("dtt" not in r for r in card["runs"])
+            or card.get("dtt_settings") != dtt_settings)
 
 
 def run(a, argv) -> dict:
@@ -256,7 +324,8 @@ def run(a, argv) -> dict:
            "sigma3_MPa": list(SIGMA3), "threads": 1, "nice": os.nice(0),
            "settings": {"specimen": cfg["specimen"], "ucs": cfg["compression"],
                         "bts": {**cfg["bts"], **bts_over}, "bts_overrides": bts_over,
-                        "servo_gain": cfg["triaxial"]["servo_gain"]},
+                        "servo_gain": cfg["triaxial"]["servo_gain"],
+                        "dtt": _dtt_dict(setup[5])},
            "base": BASE, "sweeps": {k: [v[0], v[1]] for k, v in SWEEPS.items()},
            "pb_span": pb_span(), "requested": names, "cards": {}, "not_run": [],
            "reused_from": None, "complete": False}
@@ -270,7 +339,8 @@ def run(a, argv) -> dict:
             print(f"--reuse {a.reuse}: other scale, seeds or settings; nothing reused",
                   flush=True)
     t0 = time.time()
-    slowest = 0.0
+    slowest = slowest_dtt = 0.0
+    dtt_set = rec["settings"]["dtt"]
 
     def log(msg):
         print(f"[{(time.time() - t0) / 60:5.1f} min] {msg}", flush=True)
@@ -278,11 +348,41 @@ def run(a, argv) -> dict:
     with __import__("tempfile").TemporaryDirectory() as tmp:
         for name in names:
             params = allc[name]
-            if name in old and old[name]["params"] == params:
-                rec["cards"][name] = {**old[name], "reused": True}
-                log(f"{name}: reused from {a.reuse}")
-                continue
             el = time.time() - t0
+            if name in old and old[name]["params"] == params:
+                card = {**old[name], "reused": True}
+                if not _needs_dtt(card, dtt_set):
+                    rec["cards"][name] = card
+                    log(f"{name}: reused from {a.reuse}")
+                    continue
+                if a.budget_min and el + slowest_dtt > 60 * a.budget_min:
+                    card.update(card_result(card["runs"]))  # kept, without the DTT
+                    rec["cards"][name] = card
+                    rec["dtt_not_run"] = rec.get("dtt_not_run", []) + [name]
+                    log(f"{name}: reused without its direct-tension tests (elapsed "
+                        f"{el / 60:.1f} min > budget {a.budget_min:g} min)")
+                    continue
+                log(f"{name}: reused from {a.reuse}; adding the direct-tension tests")
+                w0 = time.time()
+                runs = [{**r, "dtt": run_dtt(params, r["seed"], setup,
+                                             str(Path(tmp) / "cache"), log)}
+                        for r in card["runs"]]
+                wall = time.time() - w0
+                slowest_dtt = max(slowest_dtt, wall)
+                # a full card: its old runs' wall time plus the direct-tension tests
+                slowest = max(slowest, card.get("wall_s", 0.0) + wall)
+                card.update(card_result(runs))
+                card.update({"runs": runs, "dtt_added": True, "dtt_wall_s": wall,
+                             "dtt_settings": dtt_set, "load_average_end": os.getloadavg()})
+                rec["cards"][name] = card
+                log(f"{name}: σt,d {card['dtt_MPa']:.2f} (valid {card['dtt_valid']}, peak "
+                    f"{card['dtt_peak_all_MPa']:.2f}), σc/σt,d {card['ratio_dtt']:.2f}, "
+                    f"wall {wall:.0f} s")
+                rec["load_average_end"] = os.getloadavg()
+                rec["wall_s"] = time.time() - t0
+                if a.out:
+                    Path(a.out).write_text(json.dumps(rec, indent=1, default=float) + "\n")
+                continue
             if a.budget_min and el + slowest > 60 * a.budget_min:
                 rec["not_run"].append(name)
                 log(f"{name}: not run (elapsed {el / 60:.1f} min + slowest card "
@@ -300,9 +400,11 @@ def run(a, argv) -> dict:
             wall = time.time() - w0
             slowest = max(slowest, wall)
             rec["cards"][name] = {"params": params, "reused": False, "wall_s": wall,
-                                  "load_average_end": os.getloadavg(), **res, "runs": runs}
+                                  "load_average_end": os.getloadavg(), "dtt_settings": dtt_set,
+                                  **res, "runs": runs}
             log(f"{name}: σc {res['sigma_c_MPa']:.1f}, σt {res['sigma_t_MPa']:.2f} "
-                f"(valid {res['bts_valid']}), ratio {res['ratio']:.2f}, φ {res['phi_deg']:.1f}, "
+                f"(valid {res['bts_valid']}), σt,d {res['dtt_MPa']:.2f} (valid "
+                f"{res['dtt_valid']}), σc/σt,d {res['ratio_dtt']:.2f}, φ {res['phi_deg']:.1f}, "
                 f"mi {res['mi']:.2f}, CPU {res['cpu_s']:.0f} s, wall {wall:.0f} s")
             rec["load_average_end"] = os.getloadavg()
             rec["wall_s"] = time.time() - t0
@@ -319,12 +421,19 @@ def _f(x, fmt):
     return "–" if x is None or not math.isfinite(x) else format(x, fmt)
 
 
+def _reused(c: dict) -> str:
+    if not c.get("reused"):
+        return ""
+    return " (reused, DTT added)" if c.get("dtt_added") else " (reused)"
+
+
 def markdown(rec: dict, figure: str | None = None) -> str:
     """The measurement record (docs/measurements) from the JSON record."""
     pb = rec["pb_span"]
     stem = Path(figure).name if figure else None
     la = ", ".join(f"{x:.2f}" for x in rec["load_average_start"])
     lb = ", ".join(f"{x:.2f}" for x in rec.get("load_average_end", [math.nan] * 3))
+    dtt = rec["settings"].get("dtt")
     lines = [f"# What flat joints reach: σc/σt and mi against the microstructure ({rec['date']})",
              "", "| | |", "|---|---|", f"| date | {rec['date']} |",
              f"| commit | {rec['commit']} ('+dirty': uncommitted changes under src/) |",
@@ -339,26 +448,35 @@ def markdown(rec: dict, figure: str | None = None) -> str:
              f"Brazilian disc at scale {rec['bts_scale']:g}, packing seeds "
              f"{', '.join(map(str, rec['seeds']))}; the study's settings "
              f"(`{Path(rec['config']).name}`: specimen, ucs, bts, triaxial servo gain "
-             f"{rec['settings']['servo_gain']:g}). Per card: a UCS test (σc, E, ν), a "
+             f"{rec['settings']['servo_gain']:g}"
+             + (", dtt: " + ", ".join(f"{k} {v}" for k, v in dtt.items()) if dtt else "")
+             + "). Per card: a UCS test (σc, E, ν), a "
              "Brazilian test (σt: the mean of the valid discs; an invalid disc gives no σt, "
-             "its peak is in the JSON) and triaxial tests at σ3 = "
-             f"{' and '.join(f'{s:g}' for s in rec['sigma3_MPa'])} MPa. The envelopes go "
+             "its peak is in the JSON), a direct-tension test on the UCS cylinder (σt,d: the "
+             "mean of the valid runs; Itasca's test of a flat-jointed material's tensile "
+             "strength) and triaxial tests at σ3 = "
+             f"{' and '.join(f'{s:g}' for s in rec['sigma3_MPa'])} MPa. The card's ratio is "
+             "σc/σt,d; σc/σt (Brazilian) and, in brackets, σc over the Brazilian peak of an "
+             "invalid disc are shown beside it. The envelopes go "
              "through (0, σc) and the triaxial peaks: Mohr–Coulomb φ, Hoek–Brown mi with σci "
              "fitted too (as `bpmcal envelopes`) and, in brackets, mi with σci = σc. CPU: the "
              "process's CPU seconds of the card's tests, genesis included.", "",
              "Base card: " + ", ".join(f"`{k}` {v:g}" if not isinstance(v, str) else f"`{k}` {v}"
                                        for k, v in rec["base"].items()) + ".", "",
-             "| card | swept | σc (MPa) | E (GPa) | ν | σt (MPa) | Brazilian valid | Brazilian "
-             "peak (MPa) | σc/σt (σc/peak) | φ (°) | mi (σci = σc) | σ1 at σ3 = "
+             "| card | swept | σc (MPa) | E (GPa) | ν | σt,d (MPa) | DTT valid | σc/σt,d | "
+             "σt (MPa) | Brazilian valid | Brazilian peak (MPa) | σc/σt (σc/peak) | φ (°) | "
+             "mi (σci = σc) | σ1 at σ3 = "
              + " / ".join(f"{s:g}" for s in rec["sigma3_MPa"]) + " (MPa) | CPU s |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, c in rec["cards"].items():
         p = c["params"]
         diff = [f"{k} {p[k]:g}" for k in p if k != "contact_model" and p[k] != rec["base"][k]]
         s1 = " / ".join(_f(c["sigma1_MPa"][f"{s:g}"], ".1f") for s in rec["sigma3_MPa"])
         lines.append(
-            f"| {name}{' (reused)' if c.get('reused') else ''} | {', '.join(diff) or 'base'} | "
+            f"| {name}{_reused(c)} | {', '.join(diff) or 'base'} | "
             f"{_f(c['sigma_c_MPa'], '.1f')} | {_f(c['E_GPa'], '.1f')} | {_f(c['nu'], '.3f')} | "
+            f"{_f(c.get('dtt_MPa', math.nan), '.2f')} | {c.get('dtt_valid', 'not run')} | "
+            f"{_f(c.get('ratio_dtt', math.nan), '.1f')} | "
             f"{_f(c['sigma_t_MPa'], '.2f')} | {c['bts_valid']} | "
             f"{_f(c['bts_peak_all_MPa'], '.2f')} | {_f(c['ratio'], '.1f')} "
             f"({_f(c['ratio_peak'], '.1f')}) | "
@@ -374,14 +492,19 @@ def markdown(rec: dict, figure: str | None = None) -> str:
               "(there mi is fitted with σci through σ3 = 0, 5, 10 and 20 MPa, and σt came from "
               "the Brazilian settings of that date).", ""]
     if stem:
-        lines += [f"![σc/σt and mi against each swept variable]({stem})", ""]
+        lines += [f"![σc/σt,d and mi against each swept variable]({stem})", ""]
     notes = []
     for name, c in rec["cards"].items():
         for r in c["runs"]:
             for t, x in [("UCS", r["ucs"]), ("Brazilian", r["bts"])] + [
-                    (f"triaxial σ3 = {k}", v) for k, v in r["triaxial"].items()]:
+                    (f"triaxial σ3 = {k}", v) for k, v in r["triaxial"].items()] + (
+                    [("direct tension", r["dtt"])] if "dtt" in r else []):
                 if not x["ok"]:
                     notes.append(f"{name}, seed {r['seed']}, {t}: failed ({x['reason']})")
+            d = r.get("dtt")
+            if d and d["ok"] and not d["dtt_valid"]:
+                notes.append(f"{name}, seed {r['seed']}: direct-tension run invalid "
+                             f"({d['invalid_reason']}; peak {d['dtt_peak_MPa']:.2f} MPa)")
             b = r["bts"]
             if b["ok"] and not b["bts_valid"]:
                 notes.append(f"{name}, seed {r['seed']}: Brazilian disc invalid "
@@ -393,7 +516,12 @@ def markdown(rec: dict, figure: str | None = None) -> str:
         r = rec["reused_from"]
         notes.append(f"cards marked (reused) were measured by an earlier run of this benchmark "
                      f"({r['date']}, commit {r['commit']}) with the same cards, seeds, scales "
-                     "and settings, and taken from its record")
+                     "and settings, and taken from its record; (reused, DTT added): its UCS, "
+                     "Brazilian and triaxial runs taken from there, the direct-tension tests "
+                     "run by this run")
+    if rec.get("dtt_not_run"):
+        notes.append("reused without the direct-tension tests (the wall-time budget): "
+                     + ", ".join(rec["dtt_not_run"]))
     if rec["not_run"]:
         notes.append("not run (the wall-time budget): " + ", ".join(rec["not_run"]))
     if not rec.get("complete", True):
@@ -405,8 +533,9 @@ def markdown(rec: dict, figure: str | None = None) -> str:
 
 
 def figure(rec: dict, path: str) -> None:
-    """σc/σt and mi (rows) against each swept variable (columns), the parallel-bond span
-    as a band."""
+    """σc/σt,d and mi (rows) against each swept variable (columns), the parallel-bond span
+    (σc/σt from Brazilian tests) as a band; σc over the Brazilian peak, open, only where a
+    card has no valid direct-tension run."""
     from bpmcal.plots.style import C_ALT, C_SIM, DOUBLE
     from bpmcal.plots.style import figure as new_figure
 
@@ -414,20 +543,23 @@ def figure(rec: dict, path: str) -> None:
     fig, axes = new_figure(DOUBLE, 3.6, nrows=2, ncols=len(SWEEPS), sharey="row")
     pts = sweep_points(rec["cards"])
     for j, (var, (label, _)) in enumerate(rec["sweeps"].items()):
-        for i, (key, band, ylab) in enumerate((("ratio", pb["ratio"], r"$\sigma_c/\sigma_t$"),
+        for i, (key, band, ylab) in enumerate((("ratio_dtt", pb["ratio"],
+                                                r"$\sigma_c/\sigma_{t,d}$"),
                                                ("mi", pb["mi"], r"Hoek–Brown $m_i$"))):
             ax = axes[i, j]
             ax.axhspan(band[0], band[1], color="0.8", lw=0,
-                       label="parallel bond, default study B1–B3")
+                       label="parallel bond, default study B1–B3 (σc/σt Brazilian)")
             xs = list(range(len(pts[var])))
             ys = [rec["cards"].get(n, {}).get(key, math.nan) for _, n in pts[var]]
-            ax.plot(xs, ys, "o-", color=C_SIM, label="flat joint")
-            if key == "ratio":  # no valid disc: sigma_c over the Brazilian peak, open
+            ax.plot(xs, ys, "o-", color=C_SIM,
+                    label="flat joint, " + ("σc/σt,d (direct tension)" if i == 0
+                                                  else "mi (σci fitted)"))
+            if key == "ratio_dtt":  # no valid DTT: sigma_c over the Brazilian peak, open
                 yp = [math.nan if math.isfinite(y) else
                       rec["cards"].get(n, {}).get("ratio_peak", math.nan)
                       for y, (_, n) in zip(ys, pts[var])]
                 ax.plot(xs, yp, "o", color=C_SIM, mfc="none",
-                        label="flat joint, σc / Brazilian peak (no valid disc)")
+                        label="flat joint, σc / Brazilian peak (no valid direct-tension run)")
             if key == "mi":
                 yf = [rec["cards"].get(n, {}).get("mi_fixed", math.nan) for _, n in pts[var]]
                 ax.plot(xs, yf, "s--", color=C_ALT, mfc="none",
