@@ -164,8 +164,9 @@ def _dtt_settings(cfg: dict):
     d = cfg.get("dtt")
     if not d:
         return DTTSettings()
-    names = {f.name for f in fields(DTTSettings)}
-    return DTTSettings(**{k: v for k, v in d.items() if k in names})
+    from bpmcal.cli import config_key  # a field's config key may differ (post_peak_strain)
+    return DTTSettings(**{f.name: d[config_key(f.name)] for f in fields(DTTSettings)
+                          if config_key(f.name) in d})
 
 
 def _dtt_dict(st) -> dict:
