@@ -96,14 +96,10 @@ class MeasureMixin:
     def coordination_numbers(self) -> np.ndarray:
         """Contacts per ball now (bonded or touching)."""
         self._ensure_lists()
-        if self.material.contact_model == "flatjoint":
-            nb = self.n_bonds
-            i, j = self.pairs()
-            sel = np.zeros(i.shape[0], bool)
-            sel[nb:] = self.pair_gaps(i[nb:], j[nb:]) < 0.0
-            sel[:nb] = self._installed_in_contact()
-            return (np.bincount(i[sel], minlength=self.n)
-                    + np.bincount(j[sel], minlength=self.n)).astype(np.int64)
+        if self.material.contact_model == "flatjoint":  # the contacts of Model.contacts
+            i, j = self.contacts()
+            return (np.bincount(i, minlength=self.n)
+                    + np.bincount(j, minlength=self.n)).astype(np.int64)
         return D.coordination(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                               int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]), self.Bd.state,
                               self.Bd.blk)

@@ -535,9 +535,10 @@ def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
     the packing seed (``install_microstructure``)."""
     spec = packing.spec
     flat = isinstance(material, FlatJointMaterial)
+    rmean = float(np.mean(packing.radius))
     if flat:
         microstructure = microstructure or Microstructure()
-        install_gap = microstructure.gi_ratio * float(np.mean(packing.radius))
+        install_gap = microstructure.gi_ratio * rmean
     elif microstructure is not None:
         raise InputError("microstructure: a flat-jointed material's; the material is "
                          f"{material.contact_model}")
@@ -591,8 +592,7 @@ def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
     n_touching = _count_touching(m.positions, m.radii, install_gap)
     n_overlapping = int(np.count_nonzero(gaps < 0.0))
     nb = m.bond(gap=install_gap, rgap=None if flat else rg)
-    fj_report = (install_microstructure(m, microstructure, spec.seed,
-                                        float(np.mean(packing.radius))) if flat else {})
+    fj_report = install_microstructure(m, microstructure, spec.seed, rmean) if flat else {}
     for w in range(3):
         m.scale_wall_overlaps(w, f)
     z = m.coordination_numbers()
