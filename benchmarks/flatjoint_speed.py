@@ -10,7 +10,10 @@ that nothing breaks). The same pack is run with the linear parallel bond
 E* = 10 GPa, kappa* = 2, all bonded, force-free installation). Each repeat runs the three
 models one after the other in one process, the order rotating between repeats; the table
 gives the median of particle-steps per CPU-second (one thread: CPU time is less
-sensitive to other processes than wall time) and the ratio to the parallel bond.
+sensitive to other processes than wall time), the ratio of the medians to the parallel
+bond's and the paired ratio: the median over the repeats of each repeat's ratio (on a host
+whose speed drifts from one repeat to the next, the models of one repeat see the same
+host; use many short repeats there, e.g. ``--steps 300 --repeat 15``).
 
 Bytes per particle-step: an accounting of the contact state each model reads and writes
 in one step (the arrays of the installed pairs, per ball), not a hardware counter; the
@@ -112,19 +115,35 @@ def main(argv=None):
             runs.append(run_one(model, a.n, a.steps, a.seed, log))
     med = {mo: statistics.median(x["psteps_per_cpu_s"] for x in runs if x["model"] == mo)
            for mo in MODELS}
+    # paired: each repeat's ratio to the parallel bond of the same repeat (the models of a
+    # repeat run within seconds of each other, so a host whose speed drifts between
+    # repeats moves both alike), then the median over the repeats
+    paired = {}
+    for mo in MODELS:
+        rat = []
+        for r in range(a.repeat):
+            rep = runs[3 * r:3 * r + 3]
+            x = next(q for q in rep if q["model"] == mo)
+            y = next(q for q in rep if q["model"] == "linearpbond")
+            rat.append(x["psteps_per_cpu_s"] / y["psteps_per_cpu_s"])
+        paired[mo] = rat
     rows = []
     for mo in MODELS:
         one = next(x for x in runs if x["model"] == mo)
         rows.append({"model": mo, "psteps_per_cpu_s": med[mo],
                      "ratio_to_pbond": med[mo] / med["linearpbond"],
+                     "ratio_paired_median": statistics.median(paired[mo]),
+                     "ratio_paired": paired[mo],
                      "state_bytes_read": one["state_bytes_read"],
                      "state_bytes_written": one["state_bytes_written"],
                      "contacts_per_ball": 2 * one["contacts"] / a.n})
-    log(f"\n{'model':14s} {'M p-steps/CPU-s':>16s} {'x pbond':>8s} {'B read':>8s} "
-        f"{'B written':>10s}  (per particle-step; N = {a.n}, {a.threads} thread)")
+    log(f"\n{'model':14s} {'M p-steps/CPU-s':>16s} {'x pbond':>8s} {'paired':>7s} "
+        f"{'B read':>8s} {'B written':>10s}  (per particle-step; N = {a.n}, "
+        f"{a.threads} thread)")
     for x in rows:
-        log(f"{x['model']:14s} {x['psteps_per_cpu_s'] / 1e6:16.3f} {x['ratio_to_pbond']:8.2f} "
-            f"{x['state_bytes_read']:8.0f} {x['state_bytes_written']:10.0f}")
+        log(f"{x['model']:14s} {x['psteps_per_cpu_s'] / 1e6:16.3f} {x['ratio_to_pbond']:8.3f} "
+            f"{x['ratio_paired_median']:7.3f} {x['state_bytes_read']:8.0f} "
+            f"{x['state_bytes_written']:10.0f}")
     if a.json:
         import os
         import subprocess

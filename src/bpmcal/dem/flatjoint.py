@@ -37,9 +37,6 @@ from ._jit import jit, numba
 from .laws import kinematics, linear_shear, linear_stiffness, rotate_shear
 
 _inl = numba.njit(cache=True, inline="always")
-#: inlined into its caller (``fj_range``): a call passing ten arrays per contact costs
-#: about as much as the contact's law
-_inl_law = numba.njit(cache=True, inline="always", error_model="numpy", fastmath={"contract"})
 
 # ---- element table columns ------------------------------------------------------------
 G_A, G_XS, G_XT, G_ISS, G_ITT, G_IST, G_RA, G_RB, G_P0, G_P1 = range(10)
@@ -331,258 +328,286 @@ def _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo, e, rad, brk):
 
 
 # ---------------------------------------------------------------------------------------
-# one contact
+# the flat-jointed pairs
 # ---------------------------------------------------------------------------------------
-# (its parts share ~40 local values; as separate calls it measured slower: flatjoint_speed.py)
-# long: one contact's law for one step, inlined into the hot loop
-@_inl_law
-def fj_contact(k, i, ri, rj, dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy, wjz, dt,
-               c, flag, es, ef, esl, geo, prm_fj, brk, crk, record):
-    """Force-displacement of flat-jointed pair ``k`` for one step.
-
-    ``prm_fj`` = (E*, 1/kappa*, sigma_b, c_b, tan phi_b, mu, lambda, E* lin, 1/kappa* lin,
-    mu lin). Returns the force on j (3), the couple on j (3), the lever arms ai, aj, the
-    unit normal (3), the slip energy, the strain energy of the interface and of a deleted
-    (linear) contact (recording steps only) and the number of elements broken, listed in
-    ``crk[q]`` = (element, mode, crack position relative to ball i (3), sigma, tau,
-    released energy). Returned as values, not through an array, so that they stay in
-    registers once inlined."""
-    (nx, ny, nz, gap, inv_l, ai, aj, vrx, vry, vrz, vn, dun, dusx, dusy, dusz,
-     dphi) = kinematics(dx, dy, dz, dvx, dvy, dvz, wix, wiy, wiz, wjx, wjy, wjz, ri, rj, dt)
-    if flag[k, K_LIVE] == 0:
-        # deleted: a linear contact (reference gap 0), as the pairs found later
-        kn, ks = linear_stiffness(ri, rj, inv_l, prm_fj[7], prm_fj[8])
-        sx, sy, sz = rotate_shear(c[k, C_LX], c[k, C_LY], c[k, C_LZ], nx, ny, nz, dphi)
-        eslip = 0.0
-        elin = 0.0
-        if gap < 0.0:
-            fn = -kn * gap
-            ux, uy, uz, tx, ty, tz, esl_ = linear_shear(sx, sy, sz, dusx, dusy, dusz, ks,
-                                                        1.0 / ks, prm_fj[9] * fn)
-            eslip = esl_
-            elin = 0.5 * fn * fn / kn + 0.5 * (ux * ux + uy * uy + uz * uz) / ks
-        else:
-            if sx != 0.0 or sy != 0.0 or sz != 0.0:
-                eslip = 0.5 * (sx * (sx - ks * dusx) + sy * (sy - ks * dusy)
-                               + sz * (sz - ks * dusz)) / ks
-            fn = 0.0
-            ux = 0.0
-            uy = 0.0
-            uz = 0.0
-        c[k, C_LX] = ux
-        c[k, C_LY] = uy
-        c[k, C_LZ] = uz
-        fx = fn * nx + ux
-        fy = fn * ny + uy
-        fz = fn * nz + uz
-        if record:
-            c[k, C_FX] = fx
-            c[k, C_FY] = fy
-            c[k, C_FZ] = fz
-        return (fx, fy, fz, 0.0, 0.0, 0.0, ai, aj, nx, ny, nz, eslip, 0.0, elin, 0)
-    rad = prm_fj[6] * min(ri, rj)
-    r2 = rad * rad
-    r4 = r2 * r2
-    kn = prm_fj[0] * inv_l
-    ks = kn * prm_fj[1]
-    sf = c[k, C_SF]
-    ten = prm_fj[2] * sf
-    coh = prm_fj[3] * sf
-    tanfa = prm_fj[4]
-    mu = prm_fj[5]
-    # ---- carry the frame: drop the component along the new normal, turn by the spin
-    sx, sy, sz = rotate_shear(c[k, C_SX], c[k, C_SY], c[k, C_SZ], nx, ny, nz, dphi)
-    sm = sx * sx + sy * sy + sz * sz
-    if sm < 1e-12:  # degenerate (never after installation): any perpendicular unit vector
-        if abs(nx) < 0.9:
-            sx, sy, sz = 0.0, -nz, ny
-        else:
-            sx, sy, sz = nz, 0.0, -nx
-        sm = sx * sx + sy * sy + sz * sz
-    sm = 1.0 / math.sqrt(sm)
-    sx *= sm
-    sy *= sm
-    sz *= sm
-    tx = ny * sz - nz * sy
-    ty = nz * sx - nx * sz
-    tz = nx * sy - ny * sx
-    c[k, C_SX] = sx
-    c[k, C_SY] = sy
-    c[k, C_SZ] = sz
-    # ---- increments in the local frame
-    dwx = (wjx - wix) * dt
-    dwy = (wjy - wiy) * dt
-    dwz = (wjz - wiz) * dt
-    dtbs = dwx * sx + dwy * sy + dwz * sz
-    dtbt = dwx * tx + dwy * ty + dwz * tz
-    dtht = dwx * nx + dwy * ny + dwz * nz
-    dds = dusx * sx + dusy * sy + dusz * sz
-    ddt = dusx * tx + dusy * ty + dusz * tz
-    tbs = c[k, C_TBS] + dtbs
-    tbt = c[k, C_TBT] + dtbt
-    c[k, C_TBS] = tbs
-    c[k, C_TBT] = tbt
-    gs = gap - c[k, C_GREF]
-    ws = -tbt
-    wt = tbs
-    gs0 = gs - dun  # the state before this step (for the released energy)
-    ws0 = ws + dtbt
-    wt0 = wt - dtbs
-    fnt = 0.0
-    qst = 0.0
-    qtt = 0.0
-    fst = 0.0
-    ftt = 0.0
-    mnt = 0.0
-    e2n = 0.0
-    esh = 0.0
+@_inl
+def _deleted_contact(ri, rj, inv_l, gap, nx, ny, nz, dphi, dusx, dusy, dusz, lx, ly, lz,
+                     emod, ikr, mu):
+    """A deleted flat joint: a linear contact (reference gap 0), as the pairs found later.
+    ``l`` = its stored shear force. Returns the force on j (3), the new shear force (3), the
+    slip energy and the strain energy."""
+    kn, ks = linear_stiffness(ri, rj, inv_l, emod, ikr)
+    sx, sy, sz = rotate_shear(lx, ly, lz, nx, ny, nz, dphi)
     eslip = 0.0
-    nbrk = 0
-    nbonded = 0
-    ne = geo.shape[0]
-    for e in range(ne):
-        area = geo[e, G_A] * r2
-        xs = geo[e, G_XS] * rad
-        xt = geo[e, G_XT] * rad
-        iss = geo[e, G_ISS] * r4
-        itt = geo[e, G_ITT] * r4
-        ist = geo[e, G_IST] * r4
-        st = es[k, e]
-        if st == E_BONDED:
-            # force and first moment only: the energy is computed where it is used
-            fn = kn * area * (gs + ws * xs + wt * xt)
-            qs = kn * (gs * area * xs + iss * ws + ist * wt)
-            qt = kn * (gs * area * xt + ist * ws + itt * wt)
-            e2 = 0.0
-        else:
-            fn, qs, qt, e2 = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo, e, rad, brk)
-        # ---- incremental shear at the centroid (interface shear + twist x arm)
-        ka = ks * area
-        f0s = ef[k, e, 0]
-        f0t = ef[k, e, 1]
-        us = f0s - ka * (dds - dtht * xt)
-        ut = f0t - ka * (ddt + dtht * xs)
-        if st == E_BONDED:
-            # sigma = F_n/A >= sigma_b, else tau = |F_s|/A >= c_b - sigma tan(phi_b):
-            # multiplied through by A and squared (no division, no square root)
-            mode = 0
-            if fn >= ten * area:
-                mode = E_TENSION
-            else:
-                lim = coh * area - fn * tanfa
-                if lim <= 0.0 or us * us + ut * ut >= lim * lim:
-                    mode = E_SHEAR
-            if mode != 0:
-                sig = fn / area
-                tau = math.sqrt(us * us + ut * ut) / area
-                # released: the element's strain energy, in the step-consistent form
-                # 1/2 k g_old g_trial (normal) + 1/2 F_old . F_trial / k (shear);
-                _, _, _, e2x = closed_element(kn, area, xs, xt, iss, itt, ist,
-                                              0.5 * (gs + gs0), 0.5 * (ws + ws0),
-                                              0.5 * (wt + wt0))
-                _, _, _, e2a = closed_element(kn, area, xs, xt, iss, itt, ist,
-                                              0.5 * (gs - gs0), 0.5 * (ws - ws0),
-                                              0.5 * (wt - wt0))
-                # only the stretched part is released: an element compressed everywhere
-                # keeps its normal strain energy as an unbonded one (same law there);
-                # in between, the share of the energy held by the opening part
-                _, _, _, e2 = closed_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt)
-                _, _, _, e2u = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo, e, rad, brk)
-                share = 1.0 - e2u / e2 if e2 > 0.0 else 1.0
-                erel = share * 0.5 * kn * (e2x - e2a) + 0.5 * (f0s * us + f0t * ut) / ka
-                crk[nbrk, 0] = e
-                crk[nbrk, 1] = mode
-                crk[nbrk, 2] = xs * sx + xt * tx
-                crk[nbrk, 3] = xs * sy + xt * ty
-                crk[nbrk, 4] = xs * sz + xt * tz
-                crk[nbrk, 5] = sig
-                crk[nbrk, 6] = tau
-                crk[nbrk, 7] = erel
-                nbrk += 1
-                es[k, e] = mode
-                st = mode
-                fn, qs, qt, e2 = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt, geo, e, rad, brk)
-                us = 0.0  # residual mode 0: the shear force is removed at breakage
-                ut = 0.0
-                f0s = 0.0
-                f0t = 0.0
-            else:
-                nbonded += 1
-        if st != E_BONDED:
-            lim = mu * max(0.0, -fn)
-            uu = us * us + ut * ut
-            if uu > lim * lim:
-                sc = lim / math.sqrt(uu)
-                vs = us * sc
-                vt = ut * sc
-                # dissipated: -1/2 (F_old + F_new) . (slip displacement)
-                eslip += 0.5 * ((f0s + vs) * (us - vs) + (f0t + vt) * (ut - vt)) / ka
-                us = vs
-                ut = vt
-                esl[k, e] = 1
-            else:
-                esl[k, e] = 0
-        ef[k, e, 0] = us
-        ef[k, e, 1] = ut
-        fnt += fn
-        qst += qs
-        qtt += qt
-        fst += us
-        ftt += ut
-        mnt += xs * ut - xt * us
-        if record:
-            if st == E_BONDED:
-                _, _, _, e2 = closed_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt)
-            e2n += e2
-            esh += 0.5 * (us * us + ut * ut) / ka
-    # ---- resultants on piece 2
-    fx = -fnt * nx + fst * sx + ftt * tx
-    fy = -fnt * ny + fst * sy + ftt * ty
-    fz = -fnt * nz + fst * sz + ftt * tz
-    mx = -qtt * sx + qst * tx + mnt * nx
-    my = -qtt * sy + qst * ty + mnt * ny
-    mz = -qtt * sz + qst * tz + mnt * nz
-    if record:
-        c[k, C_FX] = fx
-        c[k, C_FY] = fy
-        c[k, C_FZ] = fz
-    # crack positions: contact point + element centroid offset (global)
-    for q in range(nbrk):
-        crk[q, 2] += ai * nx
-        crk[q, 3] += ai * ny
-        crk[q, 4] += ai * nz
-    # ---- deletion: every element unbonded and the interface open everywhere
-    if nbonded == 0:
-        wm = math.sqrt(ws * ws + wt * wt)
-        if gs - wm * rad > c[k, C_G0] + DELETE_GAP * rad:
-            flag[k, K_LIVE] = 0
-            for e in range(ne):
-                ef[k, e, 0] = 0.0
-                ef[k, e, 1] = 0.0
-            c[k, C_LX] = 0.0
-            c[k, C_LY] = 0.0
-            c[k, C_LZ] = 0.0
-    return (fx, fy, fz, mx, my, mz, ai, aj, nx, ny, nz, eslip, 0.5 * kn * e2n + esh, 0.0,
-            nbrk)
+    elin = 0.0
+    if gap < 0.0:
+        fn = -kn * gap
+        ux, uy, uz, tx, ty, tz, esl_ = linear_shear(sx, sy, sz, dusx, dusy, dusz, ks,
+                                                    1.0 / ks, mu * fn)
+        eslip = esl_
+        elin = 0.5 * fn * fn / kn + 0.5 * (ux * ux + uy * uy + uz * uz) / ks
+    else:
+        if sx != 0.0 or sy != 0.0 or sz != 0.0:
+            eslip = 0.5 * (sx * (sx - ks * dusx) + sy * (sy - ks * dusy)
+                           + sz * (sz - ks * dusz)) / ks
+        fn = 0.0
+        ux = 0.0
+        uy = 0.0
+        uz = 0.0
+    return fn * nx + ux, fn * ny + uy, fn * nz + uz, ux, uy, uz, eslip, elin
 
 
+# long: the hot loop. The law of one contact is written out inside the loop over the pairs,
+# not called: as a function inlined by numba its array arguments cost a reference-count
+# increment and decrement each per pair, and as a plain call more still (the record
+# docs/measurements/2026-11-27-flatjoint-speed.md gives the throughput before and after)
 @jit
 def fj_range(pos, vel, angvel, radius, pi, pj, pslip, pestr, bstate, bstep, be, bestr, fb,
              k0, k1, dt, Fj, prm_fj, step, record, brk, crk):
-    """Flat-jointed pairs k0..k1: ``fj_contact`` for each, scattered into the partition
-    buffer ``fb`` in increasing pair order; element breaks recorded in ``Fj``. Returns the
-    number of elements broken."""
+    """Force-displacement of the flat-jointed pairs k0..k1 for one step, scattered into the
+    partition buffer ``fb`` in increasing pair order; element breaks recorded in ``Fj``.
+    Returns the number of elements broken.
+
+    ``prm_fj`` = (E*, 1/kappa*, sigma_b, c_b, tan phi_b, mu, lambda, E* lin, 1/kappa* lin,
+    mu lin). Per pair: the force and couple on j, the slip energy (``pslip``), the strain
+    energy of the interface (``bestr``) or of a deleted (linear) contact (``pestr``) on
+    recording steps, and per element broken (listed in the scratch ``crk[q]`` = (element,
+    mode, crack position relative to ball i (3), sigma, tau, released energy)) its step,
+    position, normal, stresses and released energy. ``brk``: scratch of 8 floats."""
+    c = Fj.c
+    flag = Fj.flag
+    es = Fj.es
+    ef = Fj.ef
+    esl = Fj.eslip
+    geo = Fj.geo
+    estep = Fj.estep
+    epos = Fj.epos
+    enrm = Fj.enrm
+    esig = Fj.esig
+    een = Fj.een
+    emod = prm_fj[0]
+    ikr = prm_fj[1]
+    ten0 = prm_fj[2]
+    coh0 = prm_fj[3]
+    tanfa = prm_fj[4]
+    mu = prm_fj[5]
+    rmul = prm_fj[6]
+    ne = geo.shape[0]
     nbroken = 0
     for k in range(k0, k1):
         i = pi[k]
         j = pj[k]
-        (fx, fy, fz, mx, my, mz, ai, aj, nx, ny, nz, esl_, ebond, elin,
-         nbk) = fj_contact(k, i, radius[i], radius[j], pos[j, 0] - pos[i, 0],
-                           pos[j, 1] - pos[i, 1], pos[j, 2] - pos[i, 2],
-                           vel[j, 0] - vel[i, 0], vel[j, 1] - vel[i, 1],
-                           vel[j, 2] - vel[i, 2], angvel[i, 0], angvel[i, 1], angvel[i, 2],
-                           angvel[j, 0], angvel[j, 1], angvel[j, 2], dt, Fj.c, Fj.flag, Fj.es,
-                           Fj.ef, Fj.eslip, Fj.geo, prm_fj, brk, crk, record)
+        ri = radius[i]
+        rj = radius[j]
+        wix = angvel[i, 0]
+        wiy = angvel[i, 1]
+        wiz = angvel[i, 2]
+        wjx = angvel[j, 0]
+        wjy = angvel[j, 1]
+        wjz = angvel[j, 2]
+        (nx, ny, nz, gap, inv_l, ai, aj, vrx, vry, vrz, vn, dun, dusx, dusy, dusz,
+         dphi) = kinematics(pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1],
+                            pos[j, 2] - pos[i, 2], vel[j, 0] - vel[i, 0],
+                            vel[j, 1] - vel[i, 1], vel[j, 2] - vel[i, 2], wix, wiy, wiz,
+                            wjx, wjy, wjz, ri, rj, dt)
+        nbrk = 0
+        if flag[k, K_LIVE] == 0:
+            fx, fy, fz, lx, ly, lz, eslip, elin = _deleted_contact(
+                ri, rj, inv_l, gap, nx, ny, nz, dphi, dusx, dusy, dusz, c[k, C_LX],
+                c[k, C_LY], c[k, C_LZ], prm_fj[7], prm_fj[8], prm_fj[9])
+            c[k, C_LX] = lx
+            c[k, C_LY] = ly
+            c[k, C_LZ] = lz
+            mx = 0.0
+            my = 0.0
+            mz = 0.0
+            ebond = 0.0
+        else:
+            rad = rmul * min(ri, rj)
+            r2 = rad * rad
+            r4 = r2 * r2
+            kn = emod * inv_l
+            ks = kn * ikr
+            sf = c[k, C_SF]
+            ten = ten0 * sf
+            coh = coh0 * sf
+            # ---- carry the frame: drop the component along the new normal, turn by the spin
+            sx, sy, sz = rotate_shear(c[k, C_SX], c[k, C_SY], c[k, C_SZ], nx, ny, nz, dphi)
+            sm = sx * sx + sy * sy + sz * sz
+            if sm < 1e-12:  # degenerate (never after installation): any perpendicular
+                if abs(nx) < 0.9:
+                    sx, sy, sz = 0.0, -nz, ny
+                else:
+                    sx, sy, sz = nz, 0.0, -nx
+                sm = sx * sx + sy * sy + sz * sz
+            sm = 1.0 / math.sqrt(sm)
+            sx *= sm
+            sy *= sm
+            sz *= sm
+            tx = ny * sz - nz * sy
+            ty = nz * sx - nx * sz
+            tz = nx * sy - ny * sx
+            c[k, C_SX] = sx
+            c[k, C_SY] = sy
+            c[k, C_SZ] = sz
+            # ---- increments in the local frame
+            dwx = (wjx - wix) * dt
+            dwy = (wjy - wiy) * dt
+            dwz = (wjz - wiz) * dt
+            dtbs = dwx * sx + dwy * sy + dwz * sz
+            dtbt = dwx * tx + dwy * ty + dwz * tz
+            dtht = dwx * nx + dwy * ny + dwz * nz
+            dds = dusx * sx + dusy * sy + dusz * sz
+            ddt = dusx * tx + dusy * ty + dusz * tz
+            tbs = c[k, C_TBS] + dtbs
+            tbt = c[k, C_TBT] + dtbt
+            c[k, C_TBS] = tbs
+            c[k, C_TBT] = tbt
+            gs = gap - c[k, C_GREF]
+            ws = -tbt
+            wt = tbs
+            gs0 = gs - dun  # the state before this step (for the released energy)
+            ws0 = ws + dtbt
+            wt0 = wt - dtbs
+            fnt = 0.0
+            qst = 0.0
+            qtt = 0.0
+            fst = 0.0
+            ftt = 0.0
+            mnt = 0.0
+            e2n = 0.0
+            esh = 0.0
+            eslip = 0.0
+            nbrk = 0
+            nbonded = 0
+            for e in range(ne):
+                area = geo[e, G_A] * r2
+                xs = geo[e, G_XS] * rad
+                xt = geo[e, G_XT] * rad
+                iss = geo[e, G_ISS] * r4
+                itt = geo[e, G_ITT] * r4
+                ist = geo[e, G_IST] * r4
+                st = es[k, e]
+                if st == E_BONDED:
+                    # force and first moment only: the energy is computed where it is used
+                    fn = kn * area * (gs + ws * xs + wt * xt)
+                    qs = kn * (gs * area * xs + iss * ws + ist * wt)
+                    qt = kn * (gs * area * xt + ist * ws + itt * wt)
+                    e2 = 0.0
+                else:
+                    fn, qs, qt, e2 = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt,
+                                                  geo, e, rad, brk)
+                # ---- incremental shear at the centroid (interface shear + twist x arm)
+                ka = ks * area
+                f0s = ef[k, e, 0]
+                f0t = ef[k, e, 1]
+                us = f0s - ka * (dds - dtht * xt)
+                ut = f0t - ka * (ddt + dtht * xs)
+                if st == E_BONDED:
+                    # sigma = F_n/A >= sigma_b, else tau = |F_s|/A >= c_b - sigma tan(phi_b):
+                    # multiplied through by A and squared (no division, no square root)
+                    mode = 0
+                    if fn >= ten * area:
+                        mode = E_TENSION
+                    else:
+                        lim = coh * area - fn * tanfa
+                        if lim <= 0.0 or us * us + ut * ut >= lim * lim:
+                            mode = E_SHEAR
+                    if mode != 0:
+                        sig = fn / area
+                        tau = math.sqrt(us * us + ut * ut) / area
+                        # released: the element's strain energy, in the step-consistent form
+                        # 1/2 k g_old g_trial (normal) + 1/2 F_old . F_trial / k (shear);
+                        _, _, _, e2x = closed_element(kn, area, xs, xt, iss, itt, ist,
+                                                      0.5 * (gs + gs0), 0.5 * (ws + ws0),
+                                                      0.5 * (wt + wt0))
+                        _, _, _, e2a = closed_element(kn, area, xs, xt, iss, itt, ist,
+                                                      0.5 * (gs - gs0), 0.5 * (ws - ws0),
+                                                      0.5 * (wt - wt0))
+                        # only the stretched part is released: an element compressed everywhere
+                        # keeps its normal strain energy as an unbonded one (same law there);
+                        # in between, the share of the energy held by the opening part
+                        _, _, _, e2 = closed_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt)
+                        _, _, _, e2u = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt,
+                                                    geo, e, rad, brk)
+                        share = 1.0 - e2u / e2 if e2 > 0.0 else 1.0
+                        erel = (share * 0.5 * kn * (e2x - e2a)
+                                + 0.5 * (f0s * us + f0t * ut) / ka)
+                        crk[nbrk, 0] = e
+                        crk[nbrk, 1] = mode
+                        crk[nbrk, 2] = xs * sx + xt * tx
+                        crk[nbrk, 3] = xs * sy + xt * ty
+                        crk[nbrk, 4] = xs * sz + xt * tz
+                        crk[nbrk, 5] = sig
+                        crk[nbrk, 6] = tau
+                        crk[nbrk, 7] = erel
+                        nbrk += 1
+                        es[k, e] = mode
+                        st = mode
+                        fn, qs, qt, e2 = _unbonded_at(kn, area, xs, xt, iss, itt, ist, gs, ws, wt,
+                                                      geo, e, rad, brk)
+                        us = 0.0  # residual mode 0: the shear force is removed at breakage
+                        ut = 0.0
+                        f0s = 0.0
+                        f0t = 0.0
+                    else:
+                        nbonded += 1
+                if st != E_BONDED:
+                    lim = mu * max(0.0, -fn)
+                    uu = us * us + ut * ut
+                    if uu > lim * lim:
+                        sc = lim / math.sqrt(uu)
+                        vs = us * sc
+                        vt = ut * sc
+                        # dissipated: -1/2 (F_old + F_new) . (slip displacement)
+                        eslip += 0.5 * ((f0s + vs) * (us - vs) + (f0t + vt) * (ut - vt)) / ka
+                        us = vs
+                        ut = vt
+                        esl[k, e] = 1
+                    else:
+                        esl[k, e] = 0
+                ef[k, e, 0] = us
+                ef[k, e, 1] = ut
+                fnt += fn
+                qst += qs
+                qtt += qt
+                fst += us
+                ftt += ut
+                mnt += xs * ut - xt * us
+                if record:
+                    if st == E_BONDED:
+                        _, _, _, e2 = closed_element(kn, area, xs, xt, iss, itt, ist, gs, ws, wt)
+                    e2n += e2
+                    esh += 0.5 * (us * us + ut * ut) / ka
+            # ---- resultants on piece 2
+            fx = -fnt * nx + fst * sx + ftt * tx
+            fy = -fnt * ny + fst * sy + ftt * ty
+            fz = -fnt * nz + fst * sz + ftt * tz
+            mx = -qtt * sx + qst * tx + mnt * nx
+            my = -qtt * sy + qst * ty + mnt * ny
+            mz = -qtt * sz + qst * tz + mnt * nz
+            # crack positions: contact point + element centroid offset (global)
+            for q in range(nbrk):
+                crk[q, 2] += ai * nx
+                crk[q, 3] += ai * ny
+                crk[q, 4] += ai * nz
+            # ---- deletion: every element unbonded and the interface open everywhere
+            if nbonded == 0:
+                wm = math.sqrt(ws * ws + wt * wt)
+                if gs - wm * rad > c[k, C_G0] + DELETE_GAP * rad:
+                    flag[k, K_LIVE] = 0
+                    for e in range(ne):
+                        ef[k, e, 0] = 0.0
+                        ef[k, e, 1] = 0.0
+                    c[k, C_LX] = 0.0
+                    c[k, C_LY] = 0.0
+                    c[k, C_LZ] = 0.0
+            ebond = 0.5 * kn * e2n + esh
+            elin = 0.0
+        if record:
+            c[k, C_FX] = fx
+            c[k, C_FY] = fy
+            c[k, C_FZ] = fz
         cx = ny * fz - nz * fy
         cy = nz * fx - nx * fz
         cz = nx * fy - ny * fx
@@ -598,30 +623,30 @@ def fj_range(pos, vel, angvel, radius, pi, pj, pslip, pestr, bstate, bstep, be, 
         fb[j, 3] += aj * cx + mx
         fb[j, 4] += aj * cy + my
         fb[j, 5] += aj * cz + mz
-        if esl_ != 0.0:
-            pslip[k] += esl_
+        if eslip != 0.0:
+            pslip[k] += eslip
         if record:
             bestr[k] = ebond
             pestr[k] = elin
-        for q in range(nbk):
+        for q in range(nbrk):
             e = int(crk[q, 0])
-            Fj.estep[k, e] = step
+            estep[k, e] = step
             for d in range(3):
-                Fj.epos[k, e, d] = pos[i, d] + crk[q, 2 + d]
-            Fj.enrm[k, e, 0] = nx
-            Fj.enrm[k, e, 1] = ny
-            Fj.enrm[k, e, 2] = nz
-            Fj.esig[k, e, 0] = crk[q, 5]
-            Fj.esig[k, e, 1] = crk[q, 6]
-            Fj.een[k, e] = crk[q, 7]
+                epos[k, e, d] = pos[i, d] + crk[q, 2 + d]
+            enrm[k, e, 0] = nx
+            enrm[k, e, 1] = ny
+            enrm[k, e, 2] = nz
+            esig[k, e, 0] = crk[q, 5]
+            esig[k, e, 1] = crk[q, 6]
+            een[k, e] = crk[q, 7]
             be[k] += crk[q, 7]
-        if nbk > 0:
+        if nbrk > 0:
             anyb = False
-            for e in range(Fj.es.shape[1]):
-                if Fj.es[k, e] == E_BONDED:
+            for e in range(ne):
+                if es[k, e] == E_BONDED:
                     anyb = True
             if not anyb and bstate[k] == 0:
-                bstate[k] = int(crk[nbk - 1, 1])
+                bstate[k] = int(crk[nbrk - 1, 1])
                 bstep[k] = step
-        nbroken += nbk
+        nbroken += nbrk
     return nbroken

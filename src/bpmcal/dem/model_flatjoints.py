@@ -32,7 +32,7 @@ def empty_flatjoints(nb: int, nr: int = 1, nal: int = 1) -> FlatJoints:
 
 
 def flatjoint_params(material: FlatJointMaterial) -> np.ndarray:
-    """The law's parameters in the order ``flatjoint.fj_contact`` reads them."""
+    """The law's parameters in the order ``flatjoint.fj_range`` reads them."""
     return np.array([material.fj_emod, 1.0 / material.fj_kratio, material.fj_ten,
                      material.fj_coh, math.tan(math.radians(material.fj_fa)),
                      material.fj_fric, material.fj_rmul, material.emod, 1.0 / material.kratio,
