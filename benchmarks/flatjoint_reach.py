@@ -3,7 +3,8 @@ their microstructure, beside the parallel-bond default study's span.
 
 A base flat-joint card (Lac du Bonnet-like, ``BASE``) and one-at-a-time sweeps of its
 microstructure: the slit fraction ``fj_slit_frac`` (0, 0.2, 0.4), the installation gap
-``fj_gi_ratio`` (0, 0.2, 0.4) and the element count ``fj_nr`` x ``fj_nal`` (1x3, 2x4).
+``fj_gi_ratio`` (0, 0.2, 0.4) and the element count ``fj_nr`` x ``fj_nal`` (1x3, 2x4);
+and of its element modulus ``fj_emod_GPa`` (60, 90: E scales with it).
 Every card runs, on each packing seed, a UCS test (sigma_c, E, nu), a Brazilian test
 (sigma_t = ``bts_MPa``, the mean of the valid discs: an invalid disc gives no sigma_t),
 a direct-tension test on the UCS cylinder (sigma_t,d = ``dtt_MPa``, the mean of the valid
@@ -74,6 +75,9 @@ SWEEPS = {
     "fj_gi_ratio": ("installation gap gi/R̄", [{"fj_gi_ratio": v} for v in (0.0, 0.2, 0.4)]),
     "elements": ("elements Nr × Nα", [{"fj_nr": 1.0, "fj_nal": 3.0},
                                       {"fj_nr": 2.0, "fj_nal": 4.0}]),
+    # E scales with the element modulus (test_flatjoint_lab's scaling test): 90 GPa puts
+    # the base card's E (48 GPa at 60) near Lac du Bonnet's 69 GPa
+    "fj_emod_GPa": ("element modulus E* (GPa)", [{"fj_emod_GPa": v} for v in (60.0, 90.0)]),
 }
 #: the cards of ``--quick``: the slit-fraction sweep
 QUICK = ("base", "slit0", "slit0.4")
@@ -92,7 +96,7 @@ def card_name(over: dict) -> str:
         o = {**BASE, **over}
         return f"el{int(o['fj_nr'])}x{int(o['fj_nal'])}"
     (k, v), = diff.items()
-    return {"fj_slit_frac": "slit", "fj_gi_ratio": "gi"}[k] + f"{v:g}"
+    return {"fj_slit_frac": "slit", "fj_gi_ratio": "gi", "fj_emod_GPa": "emod"}[k] + f"{v:g}"
 
 
 def cards() -> dict[str, dict]:
