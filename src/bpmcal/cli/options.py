@@ -93,7 +93,10 @@ def add_specimen_args(p, geo=None, what: str = "the 50 x 100 mm cylinder"):
                    default=geo.relax_ratio,
                    help="genesis equilibrium: mean unbalanced-force ratio "
                         f"(default {geo.relax_ratio:g})")
-    p.add_argument("--threads", type=THREADS, default=None, help="numba threads (>= 1)")
+    p.add_argument("--threads", type=THREADS, default=None,
+                   help="numba threads (>= 1); default: chosen by the run from its ball "
+                        "count and the CPUs free, again every half second "
+                        "(bpmcal.dem.threads)")
     p.add_argument("--specimen-cache", default=None,
                    help="directory of cached packings (default ~/.cache/bpmcal/packings or "
                         "$BPMCAL_SPECIMEN_CACHE)")

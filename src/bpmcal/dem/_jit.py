@@ -53,10 +53,27 @@ jit_parallel = njit(cache=True, nogil=True, parallel=True, error_model="numpy",
                     fastmath={"contract"})
 
 
+#: the thread count a caller forced (``set_threads(n)``), or None: models choose their own
+#: (``threads.AutoThreads``)
+_FORCED: list = [None]
+
+
 def set_threads(n: int | None) -> int:
-    """Set the number of numba threads (``None``: leave as is). Returns the number in use."""
+    """Force the number of numba threads for this process (``None``: leave as is; models
+    then choose theirs, ``threads.auto_threads``). Returns the number in use."""
     if n is not None:
         if int(n) < 1:
             raise ValueError(f"threads must be >= 1, got {n}")
-        numba.set_num_threads(min(int(n), numba.config.NUMBA_NUM_THREADS))
+        _FORCED[0] = min(int(n), numba.config.NUMBA_NUM_THREADS)
+        numba.set_num_threads(_FORCED[0])
     return numba.get_num_threads()
+
+
+def forced_threads() -> int | None:
+    """The thread count forced by :func:`set_threads`, or None."""
+    return _FORCED[0]
+
+
+def unforce_threads() -> None:
+    """Let models choose their thread count again (tests; a long-lived process)."""
+    _FORCED[0] = None

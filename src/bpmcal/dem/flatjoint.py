@@ -357,10 +357,11 @@ def _deleted_contact(ri, rj, inv_l, gap, nx, ny, nz, dphi, dusx, dusy, dusz, lx,
     return fn * nx + ux, fn * ny + uy, fn * nz + uz, ux, uy, uz, eslip, elin
 
 
-# long: the hot loop. The law of one contact is written out inside the loop over the pairs,
-# not called: as a function inlined by numba its array arguments cost a reference-count
-# increment and decrement each per pair, and as a plain call more still (the record
-# docs/measurements/2026-11-27-flatjoint-speed.md gives the throughput before and after)
+# The law of one contact is written out inside the loop over the pairs, not called: as a
+# function inlined by numba its array arguments cost a reference-count increment and
+# decrement each per pair, and as a plain call more still (the record
+# docs/measurements/2026-11-27-flatjoint-speed.md gives the throughput before and after).
+# long: the hot loop, one contact's law written out inside it
 @jit
 def fj_range(pos, vel, angvel, radius, pi, pj, pslip, pestr, bstate, bstep, be, bestr, fb,
              k0, k1, dt, Fj, prm_fj, step, record, brk, crk):

@@ -77,6 +77,7 @@ from .model_bonds import BondsMixin
 from .model_flatjoints import FlatJointsMixin, empty_flatjoints, flatjoint_params
 from .model_measure import ENERGY_TERMS, MeasureMixin
 from .model_walls import WallsMixin
+from .threads import AutoThreads
 
 __all__ = ["Model", "ENERGY_TERMS"]
 
@@ -95,7 +96,9 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
     gravity : (3,) [m/s^2]
     skin : Verlet skin [m]; default 0.125 x the smallest radius
     max_speed : blow-up guard [m/s]; a ball faster than this stops the run
-    threads : numba threads (None: leave numba's setting)
+    threads : numba threads, forced for the process (None: unless a caller forced a count
+        with ``set_threads``, the model chooses its own between chunks of steps:
+        :mod:`bpmcal.dem.threads`)
     partitions : number of fixed pair partitions (>= threads to use all threads). Forces
         are summed per partition in a fixed order, so results are bitwise identical for
         any number of threads at a given ``partitions``.
@@ -136,6 +139,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         if not (float(max_speed) > 0):
             raise InputError(f"max_speed={max_speed!r}: expected a positive speed in m/s")
         set_threads(threads)
+        self._threads = AutoThreads()
         npart = int(partitions)
         if not 1 <= npart <= 63:
             raise InputError(f"partitions={partitions!r}: expected an integer in [1, 63]")
@@ -483,6 +487,12 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         return (g < rg) | (self.Bd.state == BOND_INTACT)
 
     @property
+    def threads_used(self) -> list[int]:
+        """The numba thread counts this model has run with (sorted; one value unless it
+        chose its own and the machine's load changed during the run)."""
+        return sorted(self._threads.used)
+
+    @property
     def n_rebuilds(self) -> int:
         """Neighbour-list rebuilds so far (diagnostics)."""
         return int(self.iprm[I_NREBUILDS])
@@ -503,6 +513,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         if self.prm[P_DT] <= 0:
             raise InputError("timestep not set: call set_timestep() first")
         self._check_spin()
+        self._threads.apply(self.n)
         done = 0
         while True:
             st, k = K.run_steps(self.B, self.P, self.Bd, self.S, self.W, self.Fj, self.prm,

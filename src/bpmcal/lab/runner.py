@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import params as P
-from ..dem._jit import set_threads
+from ..dem._jit import numba, set_threads
 from ..dem.errors import InputError, InstabilityError
 from .brazilian import BTSSettings, run_bts
 from .brazilian import settings_dict as bts_dict
@@ -264,7 +264,9 @@ def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: di
                  "install_gap_mm": g["install_gap_mm"], "genesis": g["genesis"],
                  "locked_in_stress_MPa": g["locked_in_stress_MPa"],
                  "genesis_s": t_gen, "wall_s": time.perf_counter() - t0,
-                 "test_s": summ["wall_s"]})
+                 "test_s": summ["wall_s"],
+                 # the most numba threads the test ran with (forced, or chosen by the model)
+                 "threads": max(m.threads_used, default=numba.get_num_threads())})
     bad = [k for k in finite if not math.isfinite(summ[k])]
     if bad:
         summ["warning"] = (f"{', '.join(bad)} not finite: too few records in the fit window "
@@ -355,6 +357,7 @@ def impact_test(params: dict, seed: int, geometry: Geometry = Geometry(),
     summ["velocity"] = st.velocity
     summ["hammer_mass"] = st.hammer_mass
     summ["total_s"] = time.perf_counter() - t0
+    summ["threads"] = max(m.threads_used, default=numba.get_num_threads())
     summ.update({k: sp.report[k] for k in ("genesis", "install_gap_mm", "coordination",
                                            "bonds_per_ball", "bonds_per_cm3")})
     bi, bj = m.bond_pairs()
