@@ -14,7 +14,9 @@ process's wall time and CPU time (``os.wait4``) and the thread count its run fil
 - the thread setting of every run in the scenario: ``default`` (no ``--threads``: the
   run chooses, ``bpmcal.dem.threads``), ``t1`` (``--threads 1``), ``t2`` (``--threads 2``,
   numba's default before that rule: every CPU). ``--skip-forced`` leaves out ``pair t2``
-  and ``busy t2`` (the slow ones: minutes each).
+  and ``busy t2`` (the slow ones: minutes each); ``--only`` names the scenarios to run
+  (``alone t1`` is always run: the reference); ``--env`` sets a variable for every run
+  (e.g. ``GOMP_SPINCOUNT=0``, OpenMP's spin before a waiting thread sleeps).
 
 The table gives the median wall time per run of each scenario and its ratio to ``alone
 t1`` of the same invocation.
@@ -55,7 +57,7 @@ def _cmd(card, scale, out, threads, cache):
     return c + ([] if threads is None else ["--threads", str(threads)])
 
 
-def scenario(kind, threads, card, scale, tmp, cache) -> list[dict]:
+def scenario(kind, threads, card, scale, tmp, cache, env=None) -> list[dict]:
     """Start the scenario's processes at once; each run's wall, CPU and threads."""
     n = 2 if kind == "pair" else 1
     busy = None
@@ -67,7 +69,8 @@ def scenario(kind, threads, card, scale, tmp, cache) -> list[dict]:
         o.unlink(missing_ok=True)
     t0 = time.perf_counter()
     procs = [subprocess.Popen(_cmd(card, scale, o, threads, cache), stdout=subprocess.DEVNULL,
-                              stderr=subprocess.PIPE) for o in outs]
+                              stderr=subprocess.PIPE, env={**os.environ, **(env or {})})
+             for o in outs]
     res = {}
     while len(res) < n:
         pid, status, ru = os.wait4(-1, 0)
@@ -93,22 +96,32 @@ def main(argv=None) -> int:
     ap.add_argument("--scale", type=float, default=0.4)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--skip-forced", action="store_true")
+    ap.add_argument("--env", action="append", default=[], metavar="NAME=VALUE",
+                    help="an environment variable for every run (e.g. GOMP_SPINCOUNT=0)")
+    ap.add_argument("--only", default=None,
+                    help="comma-separated scenarios to run, e.g. 'alone t1,pair t2'")
     ap.add_argument("--json", default=None)
     a = ap.parse_args(argv)
+    env = dict(e.split("=", 1) for e in a.env)
     scen = [("alone", 1), ("alone", None), ("alone", 2), ("pair", 1), ("pair", None),
             ("busy", 1), ("busy", None)]
     if not a.skip_forced:
         scen += [("pair", 2), ("busy", 2)]
+    if a.only:
+        want = [w.split() for w in a.only.split(",")]
+        scen = [(k, None if t == "default" else int(t[1:])) for k, t in want]
+        if ("alone", 1) not in scen:
+            scen.insert(0, ("alone", 1))
     load0 = os.getloadavg()
     runs = []
     with tempfile.TemporaryDirectory() as td:
         tmp = Path(td)
         card = _card(tmp)
         cache = tmp / "packings"
-        scenario("alone", 1, card, a.scale, tmp, cache)  # warm: packing cache, numba cache
+        scenario("alone", 1, card, a.scale, tmp, cache, env)  # warm: packing cache, numba cache
         for r in range(a.repeat):
             for kind, th in scen:
-                for x in scenario(kind, th, card, a.scale, tmp, cache):
+                for x in scenario(kind, th, card, a.scale, tmp, cache, env):
                     runs.append({"scenario": kind, "threads_opt": th, "repeat": r, **x})
                     print(f"repeat {r + 1}: {kind:5s} {('default' if th is None else f't{th}'):7s}"
                           f" wall {x['wall_s']:7.2f} s  CPU {x['cpu_s']:7.2f} s  "

@@ -298,8 +298,13 @@ def card_result(runs: list[dict]) -> dict:
 def _same_setup(old: dict, rec: dict) -> bool:
     """The same cylinder, disc, seeds and settings of the UCS, Brazilian and triaxial
     tests (the direct-tension settings are checked per card: ``_needs_dtt``)."""
-    def other(s):
-        return {k: v for k, v in (s or {}).items() if k != "dtt"}
+    import copy
+
+    from bpmcal.study.config import translate_deprecated
+
+    def other(s):  # config keys renamed since the old record (RENAMED_KEYS) under new names
+        s = translate_deprecated(copy.deepcopy(s or {}), note=lambda line: None)
+        return {k: v for k, v in s.items() if k != "dtt"}
     return (all(old.get(k) == rec.get(k) for k in ("scale", "bts_scale", "seeds"))
             and other(old.get("settings")) == other(rec.get("settings")))
 

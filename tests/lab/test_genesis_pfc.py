@@ -61,6 +61,19 @@ def test_pfc_genesis_bonds_more_pairs_per_ball_on_the_same_packing(packing):
         assert r["bonds_per_cm3"] == pytest.approx(r["n_bonds"] / vol_cm3)
 
 
+def test_contacts_per_ball_counts_touching_balls_not_bonds(packing):
+    """The run file's contact-based coordination: overlapping balls per ball, counted here
+    by brute force over all pairs (not the engine's lists); below the bonds per ball when
+    bonds span gaps (the PFC genesis's installation gap)."""
+    sp = build_specimen(packing, MAT, genesis="pfc")
+    m, r = sp.model, sp.report
+    x, rad = m.positions, m.radii
+    d = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=2)
+    touching = np.triu(d - rad[:, None] - rad[None, :] < 0.0, k=1)
+    assert r["contacts_per_ball"] == pytest.approx(2.0 * touching.sum() / m.n, rel=1e-12)
+    assert 0.0 < r["contacts_per_ball"] < r["bonds_per_ball"]
+
+
 def test_pfc_genesis_leaves_no_force_in_the_linear_part(packing):
     sp = build_specimen(packing, MAT, genesis="pfc")
     m = sp.model

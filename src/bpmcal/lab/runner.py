@@ -260,6 +260,7 @@ def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: di
     summ.update({"n_balls": g["n_balls"], "n_bonds": g["n_bonds"],
                  "porosity_achieved": g["porosity_achieved"],
                  "coordination": g["coordination"],
+                 "contacts_per_ball": g["contacts_per_ball"],
                  "bonds_per_ball": g["bonds_per_ball"], "bonds_per_cm3": g["bonds_per_cm3"],
                  "install_gap_mm": g["install_gap_mm"], "genesis": g["genesis"],
                  "locked_in_stress_MPa": g["locked_in_stress_MPa"],
@@ -359,6 +360,7 @@ def impact_test(params: dict, seed: int, geometry: Geometry = Geometry(),
     summ["total_s"] = time.perf_counter() - t0
     summ["threads"] = max(m.threads_used, default=numba.get_num_threads())
     summ.update({k: sp.report[k] for k in ("genesis", "install_gap_mm", "coordination",
+                                           "contacts_per_ball",
                                            "bonds_per_ball", "bonds_per_cm3")})
     bi, bj = m.bond_pairs()
     return LabRun(test="impact", inputs=inputs, summary=summ, genesis=sp.report,

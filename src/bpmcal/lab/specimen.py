@@ -358,6 +358,12 @@ def _count_touching(pos, radius, gap):
     return int(np.count_nonzero(d - radius[i] - radius[j] <= gap))
 
 
+def _touching_per_ball(m) -> float:
+    """Listed pairs whose balls overlap (surface gap < 0), twice, per ball."""
+    i, j = m.pairs()
+    return float(2.0 * np.count_nonzero(m.pair_gaps(i, j) < 0.0) / m.n)
+
+
 def relax_packing(spec: SpecimenSpec, progress=None, threads=None) -> Packing:
     """Steps 1-3 at the reference modulus (frictionless balls and vessel); ``threads``:
     numba threads (None: leave numba's setting; the packing is the same for any number)."""
@@ -631,6 +637,10 @@ def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
         "contacts_at_bonding": int(n_touching),
         "overlapping_at_bonding": n_overlapping,
         "coordination": float(z.mean()),
+        # balls touching (surface gap < 0) per ball: with every touching pair bonded at
+        # genesis, the coordination (contacts incl. bonded ones, PFC's) equals the bonds
+        # per ball; this count says how many of them the balls actually press on
+        "contacts_per_ball": _touching_per_ball(m),
         "bonds_per_ball": float(2.0 * nb / m.n),
         "bonds_per_cm3": float(nb / (spec.volume * 1e6)),
         "porosity_requested": float(spec.porosity),
