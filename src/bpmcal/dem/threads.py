@@ -25,9 +25,10 @@ from pathlib import Path
 
 from ._jit import forced_threads, numba
 
-#: fewest balls per thread for a second thread to pay (measured on a 2-core AMD EPYC:
-#: docs/measurements/2026-11-27-threads.md)
-MIN_BALLS_PER_THREAD = 4000
+#: fewest balls per thread for another thread to pay: on a 2-core AMD EPYC two threads
+#: ran a bonded pack 1.06x faster than one at 2,000 balls, 1.54x at 4,000 and 1.97x at
+#: 16,000 (docs/measurements/2026-11-27-threads.md)
+MIN_BALLS_PER_THREAD = 2000
 #: seconds between two re-evaluations of the thread count of a running model
 RECHECK_S = 0.5
 
