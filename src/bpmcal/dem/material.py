@@ -172,3 +172,35 @@ def stiffest_modulus(material) -> float:
     if isinstance(material, FlatJointMaterial):
         return max(float(material.emod), float(material.fj_emod))
     return max(float(material.emod), float(material.pb_emod))
+
+
+def stiffest_spring(material) -> str:
+    """Which of a material's springs is the stiffest (it sets the critical timestep), named
+    by the property that makes it so: the normal springs are E* of each part, the shear
+    springs E*/kappa* (PFC's deformability method; the same contact area and length scale
+    every spring of a contact alike)."""
+    if isinstance(material, FlatJointMaterial):
+        parts = (("emod", "kratio", "linear contacts"), ("fj_emod", "fj_kratio", "flat joints"))
+    else:
+        parts = (("emod", "kratio", "linear contacts"), ("pb_emod", "pb_kratio",
+                                                         "parallel bonds"))
+    cands = []
+    for e, k, what in parts:
+        E = float(getattr(material, e))
+        kr = float(getattr(material, k))
+        cands.append((E, f"{e} = {E:.4g} Pa (the normal stiffness of the {what})"))
+        cands.append((E / kr, f"{k} = {kr:.4g} (the shear stiffness of the {what}, "
+                              f"{e}/{k} = {E / kr:.4g} Pa, is {1.0 / kr:.4g} x their normal "
+                              "stiffness)"))
+    # a tie (a card gives the linear contacts the bond's moduli) names the bond's property:
+    # that is the one a card sets
+    return max(enumerate(cands), key=lambda c: (c[1][0], c[0]))[1][1]
+
+
+def expected_failure_strain(material) -> float:
+    """A scale of the strain at which a bonded specimen of this material fails: its
+    bonds' (flat joints') larger strength over their modulus. Lab tests run to a few times
+    this (``lab.budget.check_loading_steps``); only a step estimate uses it."""
+    if isinstance(material, FlatJointMaterial):
+        return max(float(material.fj_ten), float(material.fj_coh)) / float(material.fj_emod)
+    return max(float(material.pb_ten), float(material.pb_coh)) / float(material.pb_emod)

@@ -80,10 +80,12 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
+from ..dem.material import expected_failure_strain, stiffest_spring
+from .budget import budget_steps, check_loading_steps
 from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
-from .stepping import cycle
+from .stepping import LoadingProgress, cycle, heartbeat, measured_rate
 from .validity import INIT_MIN, bts_validity
 
 #: how the disc is loaded: ISRM curved jaws or two planar platens
@@ -435,6 +437,12 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
+    bound = check_loading_steps(
+        "Brazilian", strain_per_step=2 * v * dt / D, max_strain=st.max_strain,
+        max_steps=budget_steps(m.n, measured_rate()), dt=dt,
+        spring=stiffest_spring(m.material),
+        loading=f"platens at {v:g} m/s each on a {D * 1e3:.3g} mm disc",
+        failure_strain=expected_failure_strain(m.material))
     seated = seat(sp, (wb, wt), st)
 
     def platens(speed):
@@ -480,31 +488,31 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
 
     record()
     track = PeakTracker(st.stop_drop, st.post_peak_min)
-    while True:
-        if m.step - step0 >= st.max_steps:
-            reason = "max_steps"
-            break
-        cycle(m, n_rec)
-        P, eps = record()
-        if approach and ser["cracks_tension"][-1] + ser["cracks_shear"][-1] > 0:
-            approach, approach_strain = False, eps  # the first crack: load at v from here
-            n_rec = platens(v)
-        dropped = track.add(P, eps)
-        if progress is not None:
-            progress({"strain": eps, "stress_MPa": ser["tensile_stress"][-1] / 1e6,
-                      "peak_MPa": float(tensile_strength(track.peak, D, t)) / 1e6,
-                      "cracks": ser["cracks_tension"][-1] + ser["cracks_shear"][-1],
-                      "steps": m.step - step0, "wall_s": time.perf_counter() - t0})
-        if dropped:
-            ip = track.peak_record
-            since = ser["step"][ip - 1] if ip > 0 else -1
-            if track.judge(_split_started(m, step0, since, c0, R, half_band,
-                                          st.central_zone)):
-                reason = "post_peak_drop"
+    tell = LoadingProgress(progress, m, step0, bound)
+    with heartbeat(lambda: tell(strain=ser["diametral_strain"][-1])):
+        while True:
+            if m.step - step0 >= st.max_steps:
+                reason = "max_steps"
                 break
-        if eps >= st.max_strain:
-            reason = "max_strain"
-            break
+            cycle(m, n_rec)
+            P, eps = record()
+            if approach and ser["cracks_tension"][-1] + ser["cracks_shear"][-1] > 0:
+                approach, approach_strain = False, eps  # the first crack: load at v from here
+                n_rec = platens(v)
+            dropped = track.add(P, eps)
+            tell(strain=eps, stress_MPa=ser["tensile_stress"][-1] / 1e6,
+                 peak_MPa=float(tensile_strength(track.peak, D, t)) / 1e6,
+                 cracks=ser["cracks_tension"][-1] + ser["cracks_shear"][-1])
+            if dropped:
+                ip = track.peak_record
+                since = ser["step"][ip - 1] if ip > 0 else -1
+                if track.judge(_split_started(m, step0, since, c0, R, half_band,
+                                              st.central_zone)):
+                    reason = "post_peak_drop"
+                    break
+            if eps >= st.max_strain:
+                reason = "max_strain"
+                break
     ip, events = track.peak_record, track.events
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}

@@ -103,3 +103,68 @@ def check_budget(params: dict, geometry, *, max_balls=MAX_BALLS, mem_budget_mb=N
                          max_balls=max_balls, mem_budget_mb=mem_budget_mb)
     if msg:
         raise BudgetError(msg)
+
+
+# ---- the loading phase of a lab test ---------------------------------------------------
+#: a lab test's loading is estimated to run to this many times the card's failure-strain
+#: scale (``dem.material.expected_failure_strain``: bond strength over bond modulus), or to
+#: the test's ``max_strain`` if that comes first. Generous: a UCS of the paper's cards peaks
+#: at about 1-2 times the scale
+FAILURE_STRAIN_FACTOR = 10.0
+
+
+#: a loading whose estimated run time on this machine exceeds this is refused [s]
+LOADING_BUDGET_S = 3600.0
+#: ball-steps per second assumed before a run has measured its own speed (``stepping``
+#: measures it during genesis): a slow host's single thread
+DEFAULT_BALL_STEPS_PER_S = 1.0e6
+
+
+class StepBudgetError(RuntimeError):
+    """A lab test's loading would take longer than the loading budget: refused before the
+    loading starts (a run failure: the run file records it with this message)."""
+
+
+def loading_steps(strain_per_step: float, max_strain: float,
+                  failure_strain: float | None = None) -> float:
+    """Steps a loading needs: to ``FAILURE_STRAIN_FACTOR`` x ``failure_strain`` or to
+    ``max_strain``, whichever is smaller, at ``strain_per_step``."""
+    target = float(max_strain)
+    if failure_strain is not None and failure_strain > 0:
+        target = min(target, FAILURE_STRAIN_FACTOR * float(failure_strain))
+    return target / float(strain_per_step)
+
+
+def budget_steps(n_balls: int, ball_steps_per_s: float | None,
+                 budget_s: float | None = None) -> float:
+    """Steps of ``n_balls`` balls that fit in ``budget_s`` (default: the environment's
+    ``BPMCAL_LOADING_BUDGET_S``, else :data:`LOADING_BUDGET_S`) at the measured speed
+    (default :data:`DEFAULT_BALL_STEPS_PER_S`)."""
+    rate = ball_steps_per_s or DEFAULT_BALL_STEPS_PER_S
+    if budget_s is None:
+        env = os.environ.get("BPMCAL_LOADING_BUDGET_S")
+        try:
+            budget_s = float(env) if env else LOADING_BUDGET_S
+        except ValueError:
+            raise P.ParameterError(f"BPMCAL_LOADING_BUDGET_S={env!r}: expected a number of "
+                                   "seconds") from None
+    return float(budget_s) * rate / max(n_balls, 1)
+
+
+def check_loading_steps(test: str, *, strain_per_step: float, max_strain: float,
+                        max_steps: float, dt: float, loading: str, spring: str,
+                        failure_strain: float | None = None) -> int:
+    """The loading's estimated steps (:func:`loading_steps`, rounded up); a
+    :class:`StepBudgetError` naming the timestep's cause (``spring``, the card's property
+    that makes the stiffest spring) and the loading (``loading``, e.g. the platen
+    velocity) when it exceeds ``max_steps`` (the budget: :func:`budget_steps`)."""
+    est = loading_steps(strain_per_step, max_strain, failure_strain)
+    if not est <= max_steps:
+        target = est * strain_per_step
+        raise StepBudgetError(
+            f"{test}: the loading would need about {est:.3g} steps (strain {target:.3g} at "
+            f"{strain_per_step:.3g} per step: {loading}, timestep {dt:.3g} s), more than the "
+            f"{max_steps:.3g} steps of its budget; the timestep is set by {spring}. Refused "
+            "before loading: change that property or load faster (the budget: "
+            "BPMCAL_LOADING_BUDGET_S, default an hour at this machine's measured speed)")
+    return int(math.ceil(est))

@@ -45,10 +45,12 @@ import numpy as np
 
 from ..dem.errors import InputError
 from ..dem.layout import FIX_VZ
+from ..dem.material import expected_failure_strain, stiffest_spring
 from ..portable import lsq_slope
+from .budget import budget_steps, check_loading_steps
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen
-from .stepping import cycle
+from .stepping import LoadingProgress, cycle, heartbeat, measured_rate
 from .validity import dtt_validity
 
 #: columns of the recorded time series
@@ -164,6 +166,12 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
+    bound = check_loading_steps(
+        "direct tension", strain_per_step=2 * v * dt / H0, max_strain=st.max_strain,
+        max_steps=budget_steps(m.n, measured_rate()), dt=dt,
+        spring=stiffest_spring(m.material),
+        loading=f"grips at {v:g} m/s each on a {H0 * 1e3:.3g} mm specimen",
+        failure_strain=expected_failure_strain(m.material))
     n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
     ser = {k: [] for k in DTT_SERIES}
     e0 = m.energies()
@@ -192,24 +200,24 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
         return ser["axial_stress"][-1], eps
 
     record()
-    while True:
-        if m.step - step0 >= st.max_steps:
-            reason = "max_steps"
-            break
-        cycle(m, n_rec)
-        s, eps = record()
-        if s > peak:
-            peak, peak_strain = s, eps
-        if progress is not None:
-            progress({"strain": eps, "stress_MPa": s / 1e6, "peak_MPa": peak / 1e6,
-                      "cracks": ser["cracks_tension"][-1] + ser["cracks_shear"][-1],
-                      "steps": m.step - step0, "wall_s": time.perf_counter() - t0})
-        if peak > 0 and s < st.stop_drop * peak and eps - peak_strain >= st.post_peak_min:
-            reason = "post_peak_drop"
-            break
-        if eps >= st.max_strain:
-            reason = "max_strain"
-            break
+    tell = LoadingProgress(progress, m, step0, bound)
+    with heartbeat(lambda: tell(strain=2.0 * v * (m.time - t_start) / H0)):
+        while True:
+            if m.step - step0 >= st.max_steps:
+                reason = "max_steps"
+                break
+            cycle(m, n_rec)
+            s, eps = record()
+            if s > peak:
+                peak, peak_strain = s, eps
+            tell(strain=eps, stress_MPa=s / 1e6, peak_MPa=peak / 1e6,
+                 cracks=ser["cracks_tension"][-1] + ser["cracks_shear"][-1])
+            if peak > 0 and s < st.stop_drop * peak and eps - peak_strain >= st.post_peak_min:
+                reason = "post_peak_drop"
+                break
+            if eps >= st.max_strain:
+                reason = "max_strain"
+                break
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}
     summ = analyse(series, st)

@@ -27,6 +27,7 @@ from ..dem._jit import numba, set_threads
 from ..dem.errors import InputError, InstabilityError
 from .brazilian import BTSSettings, run_bts
 from .brazilian import settings_dict as bts_dict
+from .budget import StepBudgetError
 from .direct_tension import DTTSettings, run_dtt
 from .direct_tension import settings_dict as dtt_dict
 from .impact import ImpactSettings, run_impact
@@ -47,7 +48,7 @@ from .triaxial import settings_dict as tx_dict
 from .ucs import UCSSettings, run_ucs, settings_dict
 
 #: the exceptions that mean "this run failed" (a failure record, not a bug)
-RUN_FAILURES = (InstabilityError, GenesisError, ServoError)
+RUN_FAILURES = (InstabilityError, GenesisError, ServoError, StepBudgetError)
 
 
 @dataclass(frozen=True)

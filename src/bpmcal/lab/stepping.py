@@ -15,6 +15,7 @@ The virtual tests (genesis, UCS, impact and new ones) call ``cycle(m, n)`` inste
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 
 #: target duration of one numba call [s]
 CALL_S = 0.2
@@ -23,6 +24,34 @@ CALL_S = 0.2
 FIRST_BALL_STEPS = 500_000
 
 _rate = None  # measured ball-steps per second (the last calls)
+
+#: seconds between two heartbeats (:func:`heartbeat`) during a long ``cycle``
+HEARTBEAT_S = 5.0
+_beat = [None, 0.0, HEARTBEAT_S]  # callback, time of the last beat, interval
+
+
+@contextmanager
+def heartbeat(fn, every: float | None = None):
+    """Inside the block, :func:`cycle` calls ``fn()`` between its pieces whenever ``every``
+    seconds (default :data:`HEARTBEAT_S`) have passed since the last call (or since the
+    block began): a lab test's progress line keeps coming while one record interval takes
+    minutes."""
+    prev = list(_beat)
+    _beat[:] = [fn, time.perf_counter(), float(HEARTBEAT_S if every is None else every)]
+    try:
+        yield
+    finally:
+        _beat[:] = prev
+
+
+def measured_rate() -> float | None:
+    """Ball-steps per second of the last numba calls of :func:`cycle` (None before any)."""
+    return _rate
+
+
+def beat_now() -> None:
+    """Restart the heartbeat's interval (the caller has just reported progress itself)."""
+    _beat[1] = time.perf_counter()
 
 
 def cycle(m, nsteps: int, record: bool = True) -> None:
@@ -44,3 +73,31 @@ def cycle(m, nsteps: int, record: bool = True) -> None:
         if el > 1e-3:  # a measurable call: update the speed (fast to slow down)
             r = k * n / el
             _rate = r if _rate is None or r < _rate else 0.7 * _rate + 0.3 * r
+        if _beat[0] is not None and done < nsteps:
+            now = time.perf_counter()
+            if now - _beat[1] >= _beat[2]:
+                _beat[1] = now
+                _beat[0]()
+
+
+class LoadingProgress:
+    """Progress of a lab test's loading: ``tell(**values)`` passes the latest values (kept
+    between calls: a heartbeat may update only the strain) to ``progress`` with the steps
+    so far, the wall time and the loading's step bound (``bound_steps``,
+    ``budget.check_loading_steps``), from which a progress line shows percent and ETA."""
+
+    def __init__(self, progress, m, step0: int, bound: int):
+        self.progress = progress
+        self.m = m
+        self.step0 = step0
+        self.bound = int(bound)
+        self.last = {}
+        self.t0 = time.perf_counter()
+
+    def __call__(self, **values):
+        self.last.update(values)
+        beat_now()
+        if self.progress is not None:
+            self.progress({**self.last, "steps": self.m.step - self.step0,
+                           "wall_s": time.perf_counter() - self.t0,
+                           "bound_steps": self.bound})

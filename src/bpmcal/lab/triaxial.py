@@ -62,9 +62,12 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
+from ..dem.material import expected_failure_strain, stiffest_spring
+from .budget import budget_steps, check_loading_steps
 from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
+from .stepping import LoadingProgress, heartbeat, measured_rate
 from .ucs import END_CAP_FACTOR, END_CAP_HEIGHT, check_end_cap, fit_slope, install_end_caps
 
 #: columns of the recorded time series
@@ -274,6 +277,14 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
+    vh = st.platen_velocity if st.strain_rate is None else 0.5 * st.strain_rate * (
+        sp.z_top - sp.z_bottom)
+    bound = check_loading_steps(
+        "triaxial", strain_per_step=2 * vh * dt / (sp.z_top - sp.z_bottom), max_strain=st.max_strain,
+        max_steps=budget_steps(m.n, measured_rate()), dt=dt,
+        spring=stiffest_spring(m.material),
+        loading=f"platens at {vh:g} m/s each on a {(sp.z_top - sp.z_bottom) * 1e3:.3g} mm specimen",
+        failure_strain=expected_failure_strain(m.material))
     t_c = time.perf_counter()
     con = consolidate(sp, st)
     lateral = con.pop("servo")
@@ -336,26 +347,26 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
         return s1 - s3, ea
 
     record()
-    while True:
-        if m.step - step0 >= st.max_steps:
-            reason = "max_steps"
-            break
-        loop.run(n_rec)
-        q, ea = record()
-        if q > peak:
-            peak, peak_strain = q, ea
-        if progress is not None:
-            progress({"strain": ea, "stress_MPa": ser["axial_stress"][-1] / 1e6,
-                      "peak_MPa": (peak + st.sigma3) / 1e6,
-                      "cracks": ser["cracks_tension"][-1] + ser["cracks_shear"][-1],
-                      "steps": m.step - step0, "wall_s": time.perf_counter() - t0})
-        if peak > 0 and q < st.stop_drop * peak and \
-                ea - peak_strain >= min(st.post_peak_min, 0.5 * peak_strain):
-            reason = "post_peak_drop"
-            break
-        if ea >= st.max_strain:
-            reason = "max_strain"
-            break
+    tell = LoadingProgress(progress, m, step0, bound)
+    with heartbeat(lambda: tell(strain=2 * v * (m.time - t_start) / H0)):
+        while True:
+            if m.step - step0 >= st.max_steps:
+                reason = "max_steps"
+                break
+            loop.run(n_rec)
+            q, ea = record()
+            if q > peak:
+                peak, peak_strain = q, ea
+            tell(strain=ea, stress_MPa=ser["axial_stress"][-1] / 1e6,
+                 peak_MPa=(peak + st.sigma3) / 1e6,
+                 cracks=ser["cracks_tension"][-1] + ser["cracks_shear"][-1])
+            if peak > 0 and q < st.stop_drop * peak and \
+                    ea - peak_strain >= min(st.post_peak_min, 0.5 * peak_strain):
+                reason = "post_peak_drop"
+                break
+            if ea >= st.max_strain:
+                reason = "max_strain"
+                break
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}
     summ = analyse(series, st)

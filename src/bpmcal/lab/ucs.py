@@ -59,10 +59,12 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
+from ..dem.material import expected_failure_strain, stiffest_spring
 from ..portable import lsq_slope
+from .budget import budget_steps, check_loading_steps
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen, apply_end_caps
-from .stepping import cycle
+from .stepping import LoadingProgress, cycle, heartbeat, measured_rate
 
 #: columns of the recorded time series
 SERIES = ("step", "time", "axial_strain", "lateral_strain", "volumetric_strain",
@@ -211,6 +213,12 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
+    bound = check_loading_steps(
+        "UCS", strain_per_step=2 * v * dt / H0, max_strain=st.max_strain,
+        max_steps=budget_steps(m.n, measured_rate()), dt=dt,
+        spring=stiffest_spring(m.material),
+        loading=f"platens at {v:g} m/s each on a {H0 * 1e3:.3g} mm specimen",
+        failure_strain=expected_failure_strain(m.material))
     n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
     pos0 = m.positions.copy()
     z0 = pos0[sp.surface, 2]
@@ -260,26 +268,26 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
 
     t_start = m.time
     e0_walls = e0["work_walls_each"][wb] + e0["work_walls_each"][wt]
+    tell = LoadingProgress(progress, m, step0, bound)
     record()
-    while True:
-        if m.step - step0 >= st.max_steps:
-            reason = "max_steps"
-            break
-        cycle(m, n_rec)
-        s, ea = record()
-        if s > peak:
-            peak, peak_strain = s, ea
-        if progress is not None:
-            progress({"strain": ea, "stress_MPa": s / 1e6, "peak_MPa": peak / 1e6,
-                      "cracks": ser["cracks_tension"][-1] + ser["cracks_shear"][-1],
-                      "steps": m.step - step0, "wall_s": time.perf_counter() - t0})
-        if peak > 0 and s < st.stop_drop * peak and \
-                ea - peak_strain >= min(st.post_peak_min, 0.5 * peak_strain):
-            reason = "post_peak_drop"
-            break
-        if ea >= st.max_strain:
-            reason = "max_strain"
-            break
+    with heartbeat(lambda: tell(strain=2 * v * (m.time - t_start) / H0)):
+        while True:
+            if m.step - step0 >= st.max_steps:
+                reason = "max_steps"
+                break
+            cycle(m, n_rec)
+            s, ea = record()
+            if s > peak:
+                peak, peak_strain = s, ea
+            tell(strain=ea, stress_MPa=s / 1e6, peak_MPa=peak / 1e6,
+                 cracks=ser["cracks_tension"][-1] + ser["cracks_shear"][-1])
+            if peak > 0 and s < st.stop_drop * peak and \
+                    ea - peak_strain >= min(st.post_peak_min, 0.5 * peak_strain):
+                reason = "post_peak_drop"
+                break
+            if ea >= st.max_strain:
+                reason = "max_strain"
+                break
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}
     summ = analyse(series, st)

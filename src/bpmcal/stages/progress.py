@@ -7,6 +7,15 @@ import sys
 import time
 
 
+def _duration(s: float) -> str:
+    """``s`` seconds as 42 s, 7 min or 3.5 h."""
+    if s < 120:
+        return f"{s:.0f} s"
+    if s < 7200:
+        return f"{s / 60:.0f} min"
+    return f"{s / 3600:.1f} h"
+
+
 class Progress:
     """A one-line progress bar on a terminal, plain log lines (every ``every`` s) otherwise."""
 
@@ -36,6 +45,11 @@ class Progress:
         line = (f"{self.label}: strain {d.get('strain', 0) * 100:6.3f} %  stress "
                 f"{d.get('stress_MPa', 0):7.2f} MPa (peak {d.get('peak_MPa', 0):7.2f})  cracks "
                 f"{d.get('cracks', 0):6d}  {d.get('steps', 0):8d} steps  {rate:8.0f} steps/s")
+        if d.get("bound_steps"):  # the loading's step estimate: an upper bound
+            b = d["bound_steps"]
+            left = max(b - d.get("steps", 0), 0) / max(rate, 1e-9)
+            line += (f"  {min(100.0 * d.get('steps', 0) / b, 100.0):5.1f} % of at most {b} "
+                     f"steps, ETA <= {_duration(left)}")
         self._write(line)
 
     def _write(self, line: str):
