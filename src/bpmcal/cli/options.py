@@ -132,6 +132,10 @@ def add_run_args(p, loading=None):
     p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
                    default=ld.max_strain,
                    help=f"stop at this axial strain (default {ld.max_strain:g})")
+    p.add_argument("--max-steps", type=integer("max-steps", 1), default=ld.max_steps,
+                   help="stop the loading after this many steps; a loading estimated to "
+                        "need more, whose steps would take over ten minutes, is refused "
+                        f"before it starts (default {ld.max_steps})")
     p.add_argument("--platen-fric", type=number("platen-fric", 0.0, 10.0),
                    default=ld.platen_fric,
                    help=f"platen friction coefficient in [0, 10] (default {ld.platen_fric:g})")
@@ -164,7 +168,8 @@ def run_settings(args, cls=None, **extra):
     return cls(platen_velocity=args.platen_velocity, strain_rate=args.strain_rate,
                damping=args.damping, stop_drop=args.stop_drop, max_strain=args.max_strain,
                platen_fric=args.platen_fric, record_strain=args.record_strain,
-               end_cap=args.end_cap, end_cap_factor=args.end_cap_factor, **extra)
+               end_cap=args.end_cap, end_cap_factor=args.end_cap_factor,
+               max_steps=args.max_steps, **extra)
 
 
 def file_arg(p, flag, help_, nargs=None):

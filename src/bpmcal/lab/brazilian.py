@@ -81,7 +81,7 @@ import numpy as np
 
 from ..dem.errors import InputError
 from ..dem.material import expected_failure_strain, stiffest_spring
-from .budget import budget_steps, check_loading_steps
+from .budget import check_loading_steps
 from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
@@ -439,7 +439,8 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
     dt = m.dt
     bound = check_loading_steps(
         "Brazilian", strain_per_step=2 * v * dt / D, max_strain=st.max_strain,
-        max_steps=budget_steps(m.n, measured_rate()), dt=dt,
+        max_steps=st.max_steps, dt=dt, n_balls=m.n,
+        ball_steps_per_s=measured_rate(),
         spring=stiffest_spring(m.material),
         loading=f"platens at {v:g} m/s each on a {D * 1e3:.3g} mm disc",
         failure_strain=expected_failure_strain(m.material))

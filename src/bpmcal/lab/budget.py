@@ -113,21 +113,20 @@ def check_budget(params: dict, geometry, *, max_balls=MAX_BALLS, mem_budget_mb=N
 FAILURE_STRAIN_FACTOR = 10.0
 
 
-#: a loading whose estimated run time on this machine exceeds this is refused [s]: a day.
-#: The estimate is an upper bound (for the A1 card at scale 0.4 about 4x the steps its UCS
-#: took to the end), and a full-size flat-jointed UCS took
-#: 1.4 h (docs/measurements/2026-11-26-flatjoint-fullsize-ucs.md): a budget of an hour
-#: against the bound would refuse real runs; the runs it is for (a collapsed timestep) are
-#: off by orders of magnitude
-LOADING_BUDGET_S = 86400.0
+#: a loading that would be cut off by its ``max_steps`` before its estimate is done is
+#: refused up front when the steps up to the cut-off take longer than this at this
+#: machine's measured speed [s] (shorter ones run: a test may cut a loading short on
+#: purpose); ``BPMCAL_LOADING_BUDGET_S`` overrides it
+LOADING_BUDGET_S = 600.0
 #: ball-steps per second assumed before a run has measured its own speed (``stepping``
 #: measures it during genesis): a slow host's single thread
 DEFAULT_BALL_STEPS_PER_S = 1.0e6
 
 
 class StepBudgetError(RuntimeError):
-    """A lab test's loading would take longer than the loading budget: refused before the
-    loading starts (a run failure: the run file records it with this message)."""
+    """A lab test's loading would be cut off by ``max_steps`` long before it is done:
+    refused before the loading starts (a run failure: the run file records it with this
+    message)."""
 
 
 def loading_steps(strain_per_step: float, max_strain: float,
@@ -140,36 +139,40 @@ def loading_steps(strain_per_step: float, max_strain: float,
     return target / float(strain_per_step)
 
 
-def budget_steps(n_balls: int, ball_steps_per_s: float | None,
-                 budget_s: float | None = None) -> float:
-    """Steps of ``n_balls`` balls that fit in ``budget_s`` (default: the environment's
-    ``BPMCAL_LOADING_BUDGET_S``, else :data:`LOADING_BUDGET_S`) at the measured speed
-    (default :data:`DEFAULT_BALL_STEPS_PER_S`)."""
-    rate = ball_steps_per_s or DEFAULT_BALL_STEPS_PER_S
-    if budget_s is None:
-        env = os.environ.get("BPMCAL_LOADING_BUDGET_S")
-        try:
-            budget_s = float(env) if env else LOADING_BUDGET_S
-        except ValueError:
-            raise P.ParameterError(f"BPMCAL_LOADING_BUDGET_S={env!r}: expected a number of "
-                                   "seconds") from None
-    return float(budget_s) * rate / max(n_balls, 1)
+def budget_seconds() -> float:
+    """The environment's ``BPMCAL_LOADING_BUDGET_S``, else :data:`LOADING_BUDGET_S`."""
+    env = os.environ.get("BPMCAL_LOADING_BUDGET_S")
+    if not env:
+        return LOADING_BUDGET_S
+    try:
+        v = float(env)
+    except ValueError:
+        v = math.nan
+    if not v >= 0:
+        raise P.ParameterError(f"BPMCAL_LOADING_BUDGET_S={env!r}: expected a number of "
+                               "seconds >= 0")
+    return v
 
 
 def check_loading_steps(test: str, *, strain_per_step: float, max_strain: float,
-                        max_steps: float, dt: float, loading: str, spring: str,
+                        max_steps: int, dt: float, loading: str, spring: str, n_balls: int,
+                        ball_steps_per_s: float | None,
                         failure_strain: float | None = None) -> int:
-    """The loading's estimated steps (:func:`loading_steps`, rounded up); a
-    :class:`StepBudgetError` naming the timestep's cause (``spring``, the card's property
-    that makes the stiffest spring) and the loading (``loading``, e.g. the platen
-    velocity) when it exceeds ``max_steps`` (the budget: :func:`budget_steps`)."""
+    """The loading's estimated steps (:func:`loading_steps`, rounded up). When they exceed
+    ``max_steps`` (the loading would be cut off before it is done) and the steps up to the
+    cut-off take longer than :func:`budget_seconds` at ``ball_steps_per_s`` (default
+    :data:`DEFAULT_BALL_STEPS_PER_S`), a :class:`StepBudgetError` naming the timestep's
+    cause (``spring``, the card's property that makes the stiffest spring) and the loading
+    (``loading``, e.g. the platen velocity)."""
     est = loading_steps(strain_per_step, max_strain, failure_strain)
-    if not est <= max_steps:
+    rate = ball_steps_per_s or DEFAULT_BALL_STEPS_PER_S
+    cut_s = min(est, max_steps) * max(n_balls, 1) / rate
+    if not est <= max_steps and not cut_s <= budget_seconds():
         target = est * strain_per_step
         raise StepBudgetError(
             f"{test}: the loading would need about {est:.3g} steps (strain {target:.3g} at "
-            f"{strain_per_step:.3g} per step: {loading}, timestep {dt:.3g} s), more than the "
-            f"{max_steps:.3g} steps of its budget; the timestep is set by {spring}. Refused "
-            "before loading: change that property or load faster (the budget: "
-            "BPMCAL_LOADING_BUDGET_S, default a day at this machine's measured speed)")
+            f"{strain_per_step:.3g} per step: {loading}, timestep {dt:.3g} s), more than "
+            f"max_steps = {int(max_steps)}, and would be cut off after about "
+            f"{cut_s / 60:.0f} min; the timestep is set by {spring}. Refused before "
+            "loading: change that property, load faster, or raise max_steps")
     return int(math.ceil(est))

@@ -61,7 +61,7 @@ import numpy as np
 from ..dem.errors import InputError
 from ..dem.material import expected_failure_strain, stiffest_spring
 from ..portable import lsq_slope
-from .budget import budget_steps, check_loading_steps
+from .budget import check_loading_steps
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen, apply_end_caps
 from .stepping import LoadingProgress, cycle, heartbeat, measured_rate
@@ -215,7 +215,8 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
     dt = m.dt
     bound = check_loading_steps(
         "UCS", strain_per_step=2 * v * dt / H0, max_strain=st.max_strain,
-        max_steps=budget_steps(m.n, measured_rate()), dt=dt,
+        max_steps=st.max_steps, dt=dt, n_balls=m.n,
+        ball_steps_per_s=measured_rate(),
         spring=stiffest_spring(m.material),
         loading=f"platens at {v:g} m/s each on a {H0 * 1e3:.3g} mm specimen",
         failure_strain=expected_failure_strain(m.material))
