@@ -80,12 +80,10 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.material import expected_failure_strain, stiffest_spring
-from .budget import check_loading_steps
 from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
-from .stepping import LoadingProgress, cycle, heartbeat, measured_rate
+from .stepping import LoadingProgress, cycle, heartbeat, loading_bound
 from .validity import INIT_MIN, bts_validity
 
 #: how the disc is loaded: ISRM curved jaws or two planar platens
@@ -437,13 +435,7 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
-    bound = check_loading_steps(
-        "Brazilian", strain_per_step=2 * v * dt / D, max_strain=st.max_strain,
-        max_steps=st.max_steps, dt=dt, n_balls=m.n,
-        ball_steps_per_s=measured_rate(),
-        spring=stiffest_spring(m.material),
-        loading=f"platens at {v:g} m/s each on a {D * 1e3:.3g} mm disc",
-        failure_strain=expected_failure_strain(m.material))
+    bound = loading_bound("Brazilian", m, st, v, D, body="disc")
     seated = seat(sp, (wb, wt), st)
 
     def platens(speed):

@@ -45,12 +45,10 @@ import numpy as np
 
 from ..dem.errors import InputError
 from ..dem.layout import FIX_VZ
-from ..dem.material import expected_failure_strain, stiffest_spring
 from ..portable import lsq_slope
-from .budget import check_loading_steps
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen
-from .stepping import LoadingProgress, cycle, heartbeat, measured_rate
+from .stepping import LoadingProgress, cycle, heartbeat, loading_bound
 from .validity import dtt_validity
 
 #: columns of the recorded time series
@@ -166,13 +164,7 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
-    bound = check_loading_steps(
-        "direct tension", strain_per_step=2 * v * dt / H0, max_strain=st.max_strain,
-        max_steps=st.max_steps, dt=dt, n_balls=m.n,
-        ball_steps_per_s=measured_rate(),
-        spring=stiffest_spring(m.material),
-        loading=f"grips at {v:g} m/s each on a {H0 * 1e3:.3g} mm specimen",
-        failure_strain=expected_failure_strain(m.material))
+    bound = loading_bound("direct tension", m, st, v, H0, loaders="grips")
     n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
     ser = {k: [] for k in DTT_SERIES}
     e0 = m.energies()

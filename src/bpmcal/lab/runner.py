@@ -241,6 +241,11 @@ def _morphology(test: str, sp, res, ini: dict) -> dict:
                        half_thickness=3.0 * float(np.mean(r0)), **geo)
 
 
+def _threads(m) -> int:
+    """The most numba threads the model ran with (forced, or chosen by the model)."""
+    return max(m.threads_used, default=numba.get_num_threads())
+
+
 def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
               boundary: str, run, *, cache, threads, keep_particles, progress=None,
               genesis_max_steps=None, finite=()) -> LabRun:
@@ -267,8 +272,7 @@ def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: di
                  "locked_in_stress_MPa": g["locked_in_stress_MPa"],
                  "genesis_s": t_gen, "wall_s": time.perf_counter() - t0,
                  "test_s": summ["wall_s"],
-                 # the most numba threads the test ran with (forced, or chosen by the model)
-                 "threads": max(m.threads_used, default=numba.get_num_threads())})
+                 "threads": _threads(m)})
     bad = [k for k in finite if not math.isfinite(summ[k])]
     if bad:
         summ["warning"] = (f"{', '.join(bad)} not finite: too few records in the fit window "
@@ -359,7 +363,7 @@ def impact_test(params: dict, seed: int, geometry: Geometry = Geometry(),
     summ["velocity"] = st.velocity
     summ["hammer_mass"] = st.hammer_mass
     summ["total_s"] = time.perf_counter() - t0
-    summ["threads"] = max(m.threads_used, default=numba.get_num_threads())
+    summ["threads"] = _threads(m)
     summ.update({k: sp.report[k] for k in ("genesis", "install_gap_mm", "coordination",
                                            "contacts_per_ball",
                                            "bonds_per_ball", "bonds_per_cm3")})

@@ -17,6 +17,9 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 
+from ..dem.material import expected_failure_strain, stiffest_spring
+from .budget import check_loading_steps
+
 #: target duration of one numba call [s]
 CALL_S = 0.2
 #: ball-steps of the first call, before any speed is measured (~0.1-0.5 s at 1-5 M
@@ -42,11 +45,6 @@ def heartbeat(fn, every: float | None = None):
         yield
     finally:
         _beat[:] = prev
-
-
-def measured_rate() -> float | None:
-    """Ball-steps per second of the last numba calls of :func:`cycle` (None before any)."""
-    return _rate
 
 
 def beat_now() -> None:
@@ -78,6 +76,20 @@ def cycle(m, nsteps: int, record: bool = True) -> None:
             if now - _beat[1] >= _beat[2]:
                 _beat[1] = now
                 _beat[0]()
+
+
+def loading_bound(test: str, m, settings, velocity: float, length: float,
+                  loaders: str = "platens", body: str = "specimen") -> int:
+    """``budget.check_loading_steps`` for a loading whose two ``loaders`` move apart or
+    together at ``velocity`` each along a ``body`` of ``length`` (strain per step
+    2 v dt / L), on model ``m`` with the test's ``settings`` (``max_strain``,
+    ``max_steps``): the loading's step bound, or a ``StepBudgetError``."""
+    return check_loading_steps(
+        test, strain_per_step=2.0 * velocity * m.dt / length, max_strain=settings.max_strain,
+        max_steps=settings.max_steps, dt=m.dt, n_balls=m.n, ball_steps_per_s=_rate,
+        spring=stiffest_spring(m.material),
+        loading=f"{loaders} at {velocity:g} m/s each on a {length * 1e3:.3g} mm {body}",
+        failure_strain=expected_failure_strain(m.material))
 
 
 class LoadingProgress:

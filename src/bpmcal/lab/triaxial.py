@@ -62,12 +62,10 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.material import expected_failure_strain, stiffest_spring
-from .budget import check_loading_steps
 from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
-from .stepping import LoadingProgress, heartbeat, measured_rate
+from .stepping import LoadingProgress, heartbeat, loading_bound
 from .ucs import END_CAP_FACTOR, END_CAP_HEIGHT, check_end_cap, fit_slope, install_end_caps
 
 #: columns of the recorded time series
@@ -279,13 +277,7 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
     dt = m.dt
     vh = st.platen_velocity if st.strain_rate is None else 0.5 * st.strain_rate * (
         sp.z_top - sp.z_bottom)
-    bound = check_loading_steps(
-        "triaxial", strain_per_step=2 * vh * dt / (sp.z_top - sp.z_bottom), max_strain=st.max_strain,
-        max_steps=st.max_steps, dt=dt, n_balls=m.n,
-        ball_steps_per_s=measured_rate(),
-        spring=stiffest_spring(m.material),
-        loading=f"platens at {vh:g} m/s each on a {(sp.z_top - sp.z_bottom) * 1e3:.3g} mm specimen",
-        failure_strain=expected_failure_strain(m.material))
+    bound = loading_bound("triaxial", m, st, vh, sp.z_top - sp.z_bottom)
     t_c = time.perf_counter()
     con = consolidate(sp, st)
     lateral = con.pop("servo")

@@ -59,12 +59,10 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.material import expected_failure_strain, stiffest_spring
 from ..portable import lsq_slope
-from .budget import check_loading_steps
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen, apply_end_caps
-from .stepping import LoadingProgress, cycle, heartbeat, measured_rate
+from .stepping import LoadingProgress, cycle, heartbeat, loading_bound
 
 #: columns of the recorded time series
 SERIES = ("step", "time", "axial_strain", "lateral_strain", "volumetric_strain",
@@ -213,13 +211,7 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
-    bound = check_loading_steps(
-        "UCS", strain_per_step=2 * v * dt / H0, max_strain=st.max_strain,
-        max_steps=st.max_steps, dt=dt, n_balls=m.n,
-        ball_steps_per_s=measured_rate(),
-        spring=stiffest_spring(m.material),
-        loading=f"platens at {v:g} m/s each on a {H0 * 1e3:.3g} mm specimen",
-        failure_strain=expected_failure_strain(m.material))
+    bound = loading_bound("UCS", m, st, v, H0)
     n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
     pos0 = m.positions.copy()
     z0 = pos0[sp.surface, 2]
