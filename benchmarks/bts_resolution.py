@@ -14,6 +14,9 @@ Three parts, each a JSON record (date, commit, CPU model, load average, the comm
   how far the caps move sigma_t).
 - ``dtt``: the direct-tension test of A1 on the UCS cylinder (the config's ``dtt``
   settings), its sigma_t, seed CV and cost, for comparison.
+- ``cards``: sigma_t of each card file of ``--cards`` (a study's calibrated or verified
+  cards: the parameters the card stands for) and of A1, on packing ``--seeds``, with the
+  config's ``bts`` settings: valid fraction, mean and seed CV per card.
 
     python benchmarks/bts_resolution.py curve --scales 0.4,0.55,0.7,0.85,1.0 \\
         --seeds 1,2,3,4,5 --out benchmarks/results_bts_resolution_DATE.json
@@ -21,6 +24,8 @@ Three parts, each a JSON record (date, commit, CPU model, load average, the comm
         --design-samples 12 --out benchmarks/results_bts_loadings_DATE.json
     python benchmarks/bts_resolution.py dtt --seeds 1,...,8 \\
         --out benchmarks/results_bts_dtt_DATE.json
+    python benchmarks/bts_resolution.py cards --cards results/verification/B1/card.yaml,... \
+        --seeds 1,...,5 --out benchmarks/results_bts_cards_DATE.json
     python benchmarks/bts_resolution.py markdown RECORD.json [RECORD.json ...] \\
         --out docs/measurements/DATE-bts-resolution.md
 
@@ -50,7 +55,12 @@ VARIANTS = {
     "flat, no caps": {"loading": "flat", "contact_cap": 0.0},
     "jaws, caps": {"loading": "jaws"},
     "jaws, no caps": {"loading": "jaws", "contact_cap": 0.0},
+    "flat, caps 2": {"loading": "flat", "contact_cap": 2.0},
+    "flat, caps 2.5": {"loading": "flat", "contact_cap": 2.5},
+    "jaws, caps 2": {"loading": "jaws", "contact_cap": 2.0},
 }
+#: the variants the ``loadings`` part runs unless ``--variants`` names others
+DEFAULT_VARIANTS = ("flat, caps", "flat, no caps", "jaws, caps", "jaws, no caps")
 
 
 def _bts_settings(cfg: dict, **over):
@@ -210,7 +220,12 @@ def loadings(a, argv) -> dict:
 
     with tempfile.TemporaryDirectory() as tmp:
         jobs = []
-        for name, over in VARIANTS.items():
+        names = [v.strip() for v in a.variants.split(";")] if a.variants else DEFAULT_VARIANTS
+        for name in names:
+            if name not in VARIANTS:
+                raise SystemExit(f"--variants: {name!r} is not one of {sorted(VARIANTS)}")
+        for name in names:
+            over = VARIANTS[name]
             jobs += [("A1", dict(A1), s, scale, over, str(Path(tmp) / "a1"), cfg)
                      for s in seeds]
             jobs += [(row.sample_id, {k: float(getattr(row, k)) for k in P.PARAMS},
@@ -218,7 +233,8 @@ def loadings(a, argv) -> dict:
                      for row in picks.itertuples()]
         rows = _pool(jobs, a.jobs)
     out = {}
-    for name, over in VARIANTS.items():
+    for name in names:
+        over = VARIANTS[name]
         mine = [r for r in rows if r["variant"] == over]
         out[name] = {"a1": _stats([r for r in mine if r["label"] == "A1"]),
                      "design": _stats([r for r in mine if r["label"] != "A1"])}
@@ -227,8 +243,33 @@ def loadings(a, argv) -> dict:
             "load_average_end": os.getloadavg(), "variants": out, "runs": rows}
 
 
+def cards(a, argv) -> dict:
+    from bpmcal import params as P
+    from bpmcal.io.card import card_parameters
+
+    cfg = _config(a.config)
+    meta = _meta(argv)
+    scale = cfg["bts"]["scale"] or cfg["specimen"]["scale"]
+    seeds = [int(x) for x in a.seeds.split(",")]
+    named = {"A1": dict(A1)}
+    for f in (x for x in a.cards.split(",") if x):
+        card = yaml.safe_load(Path(f).read_text())
+        prm = card_parameters(card)
+        named[f"{card['specimen']} ({Path(f).parent.name}/{Path(f).name})"] = {
+            k: float(prm[k]) for k in P.PARAMS}
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs = [(name, prm, s, scale, {}, str(Path(tmp) / f"c{i}"), cfg)
+                for i, (name, prm) in enumerate(named.items()) for s in seeds]
+        rows = _pool(jobs, a.jobs)
+    return {**meta, "part": "cards", "config": str(a.config), "bts": cfg["bts"],
+            "scale": scale, "seeds": seeds, "parameters": named,
+            "load_average_end": os.getloadavg(),
+            "cards": {n: _stats([r for r in rows if r["label"] == n]) for n in named},
+            "runs": rows}
+
+
 #: the JSON record of each part
-_STEM = {"loadings": "loadings", "curve": "resolution", "dtt": "dtt"}
+_STEM = {"loadings": "loadings", "curve": "resolution", "dtt": "dtt", "cards": "cards"}
 
 
 def markdown(records: list[dict], title: str | None = None) -> str:
@@ -263,6 +304,15 @@ def markdown(records: list[dict], title: str | None = None) -> str:
                       f"| {rec['scale']:g} | {st['balls_across']:.1f} | {st['n_balls']:.0f} | "
                       f"{st['n']} | {st['n_valid']} | {st['sigma_t_mean_MPa']:.2f} | "
                       f"{100 * st['seed_cv']:.1f} % | {st['cpu_s_median']:.1f} |"]
+        elif rec["part"] == "cards":
+            lines += [f"σt of each card at the study's Brazilian settings (disc scale "
+                      f"{rec['scale']:g}), packing seeds {', '.join(map(str, rec['seeds']))}.",
+                      "", "| card | runs | valid | σt mean of the valid (MPa) | seed CV | "
+                      "balls across | CPU s per run (median) |", "|---|---|---|---|---|---|---|"]
+            for name, st in rec["cards"].items():
+                lines.append(f"| {name} | {st['n']} | {st['n_valid']} | "
+                             f"{st['sigma_t_mean_MPa']:.2f} | {100 * st['seed_cv']:.1f} % | "
+                             f"{st['balls_across']:.1f} | {st['cpu_s_median']:.1f} |")
         else:
             lines += [f"Disc scale {rec['scale']:g}; design samples "
                       f"{', '.join(rec['design_samples'])}.", "",
@@ -290,7 +340,13 @@ def main(argv=None) -> int:
     lo = sub.add_parser("loadings")
     lo.add_argument("--a1-seeds", default="1,2,3,4,5,6,7,8,9,10")
     lo.add_argument("--design-samples", type=int, default=12)
-    for p in (c, lo, dd):
+    lo.add_argument("--variants", default=None,
+                    help="loading variants to run, separated by ';' (default: "
+                         + "; ".join(DEFAULT_VARIANTS) + f"; known: {'; '.join(VARIANTS)})")
+    ca = sub.add_parser("cards")
+    ca.add_argument("--cards", required=True, help="card files, separated by ','")
+    ca.add_argument("--seeds", default="1,2,3,4,5")
+    for p in (c, lo, dd, ca):
         p.add_argument("--config", default=str(CONFIG))
         p.add_argument("--jobs", type=int, default=2)
         p.add_argument("--out", default=None, help="write the JSON record here")
@@ -306,7 +362,7 @@ def main(argv=None) -> int:
             Path(a.out).write_text(text)
         print(text)
         return 0
-    rec = {"curve": curve, "loadings": loadings, "dtt": dtt}[a.part](a, argv)
+    rec = {"curve": curve, "loadings": loadings, "dtt": dtt, "cards": cards}[a.part](a, argv)
     text = json.dumps(rec, indent=1, default=float)
     if a.out:
         Path(a.out).write_text(text + "\n")

@@ -105,3 +105,50 @@ def test_bad_settings_name_the_value():
         XGBScreening(params=["pb_coh"])
     with pytest.raises(ValueError, match="seed"):
         XGBScreening(xgb_params={"random_state": 3})
+
+
+@pytest.fixture(scope="module")
+def spread(design):
+    """sigma_t-like: two strong parameters and two weak but real ones (a few % of the
+    importance each, below the paper's 10 %), four inert."""
+    df = design(150, seed=8)
+    rng = np.random.default_rng(9)
+    z = {p: (df[p] - df[p].mean()) / df[p].std() for p in PARAM_NAMES}
+    df["bts_MPa"] = (10 + 3.0 * z["pb_ten_MPa"] + 3.0 * z["pb_coh_MPa"] + 0.9 * z["pb_kratio"]
+                     + 0.9 * z["pb_fa_deg"] + rng.normal(0, 0.1, len(df)))
+    return df
+
+
+def test_rules_threshold_above_noise_and_all(spread):
+    kw = dict(responses=("bts_MPa",), xgb_params=FAST, n_repeats=2, seed=2)
+    paper = XGBScreening(**kw).fit(spread)
+    share = paper.share("gain")["bts_MPa"]
+    assert share["pb_kratio"] < 10 and share["pb_fa_deg"] < 10  # the planted weak ones
+    assert set(paper.selected["bts_MPa"]) == {"pb_ten_MPa", "pb_coh_MPa"}
+    noise = XGBScreening(rule="above_noise", **kw).fit(spread)
+    assert {"pb_kratio", "pb_fa_deg"} <= set(noise.selected["bts_MPa"])
+    assert noise.selected["bts_MPa"][:2] in {("pb_ten_MPa", "pb_coh_MPa"),
+                                             ("pb_coh_MPa", "pb_ten_MPa")}
+    every = XGBScreening(rule="all", **kw).fit(spread)
+    assert set(every.selected["bts_MPa"]) == set(PARAM_NAMES)
+    assert every.selected["bts_MPa"][0] in {"pb_ten_MPa", "pb_coh_MPa"}  # largest share first
+    assert "(all)" in every.summary() and "(above noise)" in noise.summary()
+
+
+def test_combined_screenings_keep_each_responses_rule(planted, spread):
+    from bpmcal.analysis.screening import combine
+
+    a = XGBScreening(responses=("ucs_MPa",), xgb_params=FAST, n_repeats=2, seed=1).fit(planted)
+    b = XGBScreening(responses=("bts_MPa",), xgb_params=FAST, n_repeats=2, seed=1,
+                     rule="all").fit(spread)
+    both = combine(a, b)
+    assert both.rule_of("ucs_MPa") == "threshold" and both.rule_of("bts_MPa") == "all"
+    assert both.selected["ucs_MPa"] == a.selected["ucs_MPa"]
+    assert set(both.selected["bts_MPa"]) == set(PARAM_NAMES)
+
+
+def test_bad_rule_names_the_value():
+    with pytest.raises(ValueError, match="rule='boruta'"):
+        XGBScreening(rule="boruta")
+    with pytest.raises(ValueError, match="shadow=True"):
+        XGBScreening(rule="above_noise", shadow=False)

@@ -177,6 +177,12 @@ def test_table3_and_the_selection_have_sigma_t(analysed):
     # the planted sigma_t depends on the bond tensile strength and Rmin only
     assert set(t3["bts_MPa"].nlargest(2).index) == {"pb_ten_MPa", "rmin_mm"}
     assert set(s["selected"]["bts_MPa"]) >= {"pb_ten_MPa", "rmin_mm"}
+    # sigma_t's candidates are every parameter (the stepwise regression chooses), the
+    # paper's responses keep the paper's 10 % rule; selected.json says which rule
+    sel = json.loads(o["selected"].read_text())
+    assert sel["rule"] == {**{r: "threshold" for r in P.TARGETS}, "bts_MPa": "all"}
+    assert set(s["selected"]["bts_MPa"]) == set(P.PARAMS)
+    assert "pb_fa_deg" not in s["selected"]["nu"]
     assert "σt (%)" in (o["table3"].with_suffix(".md")).read_text()
     # sigma_t was screened on the 43 samples with a valid Brazilian result (s005's UCS failed,
     # its Brazilian test did not; s007-s009 failed, s010-s011 are invalid), the UCS

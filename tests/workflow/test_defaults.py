@@ -24,6 +24,7 @@ from bpmcal.stages import defaults_of
 from bpmcal.stages.analysis import calibrate, transfer, verify
 from bpmcal.stages.fracture import sweep_analyse, sweep_plan
 from bpmcal.stages.runs import impact_file
+from bpmcal.stages.screening import TENSILE_RULE
 from bpmcal.stages.triaxial import DEFAULT_SIGMA3_MPA
 from bpmcal.study.design import lhs_design
 from bpmcal.study.sweep import DEFAULT_RATIOS
@@ -75,6 +76,8 @@ DEFAULTS = {
     "screening.n_splits": (SCR["n_splits"], ("screen", "splits", None)),
     "screening.n_repeats": (SCR["n_repeats"], ("screen", "repeats", None)),
     "screening.seed": (SCR["seed"], ("screen", "seed", None)),
+    "screening.rule": (SCR["rule"], ("screen", "rule", None)),
+    "screening.tensile_rule": (TENSILE_RULE, ("screen", "tensile_rule", None)),
     "regression.alpha_in": (REG["alpha_in"], ("regress", "alpha_in", None)),
     "regression.alpha_out": (REG["alpha_out"], ("regress", "alpha_out", None)),
     "regression.vif_max": (REG["vif_max"], ("regress", "vif_max", None)),

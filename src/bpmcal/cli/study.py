@@ -81,6 +81,15 @@ def _add_screen(p):
     p.add_argument("--importance", default=d["select_by"],
                    choices=["gain", "total_gain", "permutation", "shap"],
                    help=f"importance type that drives the selection (default {d['select_by']})")
+    from ..analysis.screening import RULES
+    from ..stages.screening import TENSILE_RULE
+
+    p.add_argument("--rule", default=d["rule"], choices=RULES,
+                   help=f"selection rule of σc, E, ν: threshold (the paper's: share above "
+                        f"--threshold) or above_noise (also every parameter above the largest "
+                        f"shadow share) (default {d['rule']})")
+    p.add_argument("--tensile-rule", default=TENSILE_RULE, choices=RULES,
+                   help=f"selection rule of σt (default {TENSILE_RULE})")
     p.add_argument("--splits", type=integer("splits", 2, 100), default=d["n_splits"],
                    help=f"CV folds (default {d['n_splits']})")
     p.add_argument("--repeats", type=integer("repeats", 1, 1000), default=d["n_repeats"],
@@ -96,7 +105,8 @@ def cmd_screen(args) -> int:
                figure=args.figure, importance_table=args.importance_table,
                cv_table=args.cv_table, shadow_table=args.shadow_table, summary=args.summary,
                threshold=args.threshold, importance=args.importance, n_splits=args.splits,
-               n_repeats=args.repeats, seed=args.seed)
+               n_repeats=args.repeats, seed=args.seed, rule=args.rule,
+               tensile_rule=args.tensile_rule)
     print(r["note"])
     for k, v in r["selected"].items():
         print(f"{k}: {', '.join(v)}")

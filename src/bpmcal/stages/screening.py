@@ -26,15 +26,21 @@ from .inputs import CSV, JSON, PNG, TXT, outputs, read_dataset, usable
 
 #: the defaults of the stage are those of the analysis it runs
 _SCREEN = defaults_of(XGBScreening)
+#: the selection rule of σt, which the paper does not screen: every parameter is a
+#: candidate and the stepwise regression chooses (analysis.screening, docs/measurements)
+TENSILE_RULE = "all"
 
 
 def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
            shadow_table, summary, threshold=_SCREEN["threshold"],
            importance=_SCREEN["select_by"], n_splits=_SCREEN["n_splits"],
-           n_repeats=_SCREEN["n_repeats"], seed=_SCREEN["seed"]) -> dict:
+           n_repeats=_SCREEN["n_repeats"], seed=_SCREEN["seed"], rule=_SCREEN["rule"],
+           tensile_rule=TENSILE_RULE) -> dict:
     """XGBoost screening of ``dataset`` -> ``selected`` (JSON), Table 3, the importance
     figure and the supplementary tables (every importance type, CV R², shadow maxima) and
-    ``summary`` (text). Returns the selection and the note on left-out samples."""
+    ``summary`` (text). ``rule`` selects the candidates of σc, E and ν, ``tensile_rule``
+    those of σt (``analysis.screening.RULES``). Returns the selection and the note on
+    left-out samples."""
     df = read_dataset(dataset, min_ok=4)  # the smallest K-fold CV (2 folds) needs 4 rows
     outputs((selected, "--selected", JSON), (table3_csv, "--table3", CSV),
             (figure, "--figure", PNG), (importance_table, "--importance-table", CSV),
@@ -51,7 +57,7 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
         note += f"; {n_splits}-fold CV needs {2 * n_splits} usable samples, so {k}-fold CV was used"
         n_splits = k
     res = XGBScreening(n_splits=n_splits, threshold=threshold, select_by=importance,
-                       n_repeats=n_repeats, seed=seed).fit(df)
+                       n_repeats=n_repeats, seed=seed, rule=rule).fit(df)
     for resp in tensile_responses(df):  # sigma_t: on the samples whose test is valid
         tv = tensile_view(df, resp)
         test = P.TENSILE_TESTS[resp]
@@ -65,7 +71,7 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
             note += f"; {_RESP_NAME[resp]}: {tensile_note(tv, test)}"
             res = combine_screenings(res, XGBScreening(
                 responses=(resp,), n_splits=k, threshold=threshold, select_by=importance,
-                n_repeats=n_repeats, seed=seed).fit(tv))
+                n_repeats=n_repeats, seed=seed, rule=tensile_rule).fit(tv))
     write_table(table3(res, importance=importance), table3_csv,
                 markdown=table3_markdown(res, importance=importance))
     write_table(res.to_frame(), importance_table)
@@ -73,7 +79,7 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
     write_table(res.shadow_max, shadow_table)
     sel = {r: list(v) for r, v in res.selected.items()}
     write_json(selected, {"selected": sel, "threshold_pct": threshold, "importance": importance,
-                          "note": note,
+                          "rule": {r: res.rule_of(r) for r in res.responses}, "note": note,
                           "provenance": provenance({"dataset": str(dataset), "seed": seed})})
     write_text(summary, res.summary() + "\n" + note + "\n")
     save_figure(fig_importance(res.to_frame(), res.shadow_max, importance, threshold), figure)
