@@ -205,7 +205,9 @@ def test_settings_refuse_bad_values():
                        (dict(loading="curved"), "loading='curved'"),
                        (dict(jaw_ratio=0.8), "jaw_ratio=0.8: expected a jaw radius larger"),
                        (dict(contact_cap=-1.0), "contact_cap=-1.0"),
-                       (dict(central_zone=0.0), "central_zone=0.0")]:
+                       (dict(central_zone=0.0), "central_zone=0.0"),
+                       (dict(retests=-1), "retests=-1"), (dict(retests=1.5), "retests=1.5"),
+                       (dict(retests=11), "retests=11")]:
         with pytest.raises(InputError, match=needle):
             BTSSettings(**kw)
 
@@ -323,3 +325,62 @@ def test_curved_jaws_touch_the_disc_without_overlap_and_split_it(cache):
     assert s["loading"] == "jaws"
     assert s["stop_reason"] == "post_peak_drop" and s["bts_peak_MPa"] > 0
     assert 0 < s["arc_deg_peak"] < 30  # the jaw bears on an arc around the loaded diameter
+
+
+def test_the_run_of_a_valid_first_disc_records_one_disc(base):
+    s = base.summary
+    assert s["bts_valid"] and s["discs"] == 1 and s["disc_seed"] == SEED
+    assert s["discarded"] == ""
+
+
+def _fake_disc(valid_from: int, seed0: int):
+    """A stand-in for one disc's test (``runner._lab_test``): discs packed with the seeds
+    of retests below ``valid_from`` are invalid, the others valid."""
+    from bpmcal.lab.brazilian import retest_seed
+    from bpmcal.lab.runner import LabRun
+
+    seeds = [retest_seed(seed0, k) for k in range(11)]
+
+    def fake(test, params, seed, geometry, inputs, boundary, run, **kw):
+        k = seeds.index(seed)
+        ok = k >= valid_from
+        summ = {"bts_valid": ok, "bts_MPa": 7.0 + k if ok else math.nan,
+                "bts_peak_MPa": 7.0 + k, "wall_s": 1.5,
+                "bts_invalid_reason": "" if ok else f"planted: disc {k}"}
+        return LabRun(test=test, inputs=inputs, summary=summ, genesis={}, series={},
+                      cracks={})
+    return fake
+
+
+@pytest.mark.parametrize("valid_from, retests, discs, valid", [
+    (0, 2, 1, True), (1, 2, 2, True), (2, 2, 3, True), (3, 2, 3, False), (1, 0, 1, False)])
+def test_an_invalid_disc_is_discarded_and_another_tested(monkeypatch, valid_from, retests,
+                                                         discs, valid):
+    """ISRM practice: an invalid disc gives no sigma_t and another disc of the card is
+    tested (packed with the next retest seed), up to ``retests`` more; the first valid one
+    is the test, and the run names every discarded disc and its reason."""
+    from bpmcal.lab import runner
+    from bpmcal.lab.brazilian import retest_seed
+
+    monkeypatch.setattr(runner, "_lab_test", _fake_disc(valid_from, SEED))
+    notes = []
+    r = runner.bts_test(A1, SEED, DISC, BTSSettings(retests=retests),
+                        progress=lambda d: notes.append(d.get("note")))
+    s = r.summary
+    assert s["discs"] == discs and s["bts_valid"] is valid
+    assert s["disc_seed"] == retest_seed(SEED, discs - 1)
+    assert s["wall_s"] == pytest.approx(1.5 * discs)  # the time of every disc tested
+    gone = [x for x in s["discarded"].split("; ") if x]
+    assert gone == [f"seed {retest_seed(SEED, k)}: planted: disc {k}" for k in range(discs - 1)]
+    assert len([n for n in notes if n]) == discs - 1
+    assert r.inputs["seed"] == SEED and r.inputs["bts_retests"] == retests
+    if valid:
+        assert s["bts_MPa"] == 7.0 + discs - 1
+
+
+def test_retest_seeds_are_deterministic_distinct_and_in_range():
+    from bpmcal.lab.brazilian import retest_seed
+
+    assert retest_seed(5, 0) == 5
+    seeds = [retest_seed(2 ** 32 - 3, k) for k in range(4)]
+    assert len(set(seeds)) == 4 and all(0 <= x < 2 ** 32 for x in seeds)

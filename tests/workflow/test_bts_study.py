@@ -102,6 +102,27 @@ def test_an_invalid_brazilian_test_gives_no_sigma_t_and_says_why(tmp_path):
     assert f"s001: bts invalid: {reason}" in report
 
 
+def test_gather_counts_the_discs_discarded_before_a_valid_one(tmp_path):
+    """A sample whose first disc was invalid and whose second was valid (bts.retests): its
+    sigma_t is the valid disc's, the dataset says it took two discs, and the report says
+    how many first discs were valid."""
+    design = _design(tmp_path, [A1, A1])
+    for i in (0, 1):
+        _ucs_ok(tmp_path / "u" / f"s00{i}.h5", 40.0)
+    for i, discs in ((0, 1), (1, 2)):
+        h5.write_run(tmp_path / "b" / f"s00{i}.h5", test="bts", inputs={"seed": 7 + i},
+                     summary={"bts_MPa": 6.5 + i, "bts_peak_MPa": 6.5 + i, "bts_valid": True,
+                              "balls_across": 13.0, "wall_s": 2.5 * discs, "discs": discs,
+                              "discarded": "" if discs == 1 else "seed 8: planted"})
+    df, report = gather(design, [tmp_path / "u" / f"s00{i}.h5" for i in (0, 1)],
+                        tmp_path / "d.csv",
+                        bts_runs=[tmp_path / "b" / f"s00{i}.h5" for i in (0, 1)])
+    assert list(df["bts_discs"]) == [1, 2] and list(df["bts_status"]) == ["ok", "ok"]
+    assert df["bts_MPa"].tolist() == [6.5, 7.5]
+    assert ("1 samples had an invalid first disc and tested another (1 discs discarded, "
+            "their reasons in the run files); first discs valid: 1 of 2") in report
+
+
 def test_gather_without_brazilian_runs_has_no_brazilian_columns(tmp_path):
     design = _design(tmp_path, [A1])
     _ucs_ok(tmp_path / "u" / "s000.h5", 40.0)

@@ -23,7 +23,7 @@ OVERLAY = {
                     "end_cap": 1.37, "end_cap_factor": 137.0},
     "bts": {"enabled": True, "diameter_mm": 71.3, "thickness_mm": 36.7, "scale": 0.437,
             "loading": "jaws", "jaw_ratio": 1.37, "contact_cap": 1.37,
-            "contact_cap_factor": 137.0, "central_zone": 0.437,
+            "contact_cap_factor": 137.0, "central_zone": 0.437, "retests": 7,
             "platen_velocity": 0.0237, "approach_velocity": 0.137, "stop_drop": 0.237,
             "post_peak_strain": 0.000437, "platen_fric": 0.337, "damping": 0.637,
             "max_strain": 0.0437, "record_strain": 1.37e-5},

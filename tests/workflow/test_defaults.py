@@ -63,7 +63,7 @@ DEFAULTS = {
     **{f"bts.{config_key(k)}": (getattr(BTS, k), ("bts", k, None))
        for k in ("platen_velocity", "damping", "platen_fric", "stop_drop", "max_strain",
                  "record_strain", "post_peak_min", "approach_velocity", "loading", "jaw_ratio",
-                 "contact_cap", "contact_cap_factor", "central_zone")},
+                 "contact_cap", "contact_cap_factor", "central_zone", "retests")},
     **{f"dtt.{config_key(k)}": (getattr(DTT, k), ("dtt", k, None))
        for k in ("grip_velocity", "grip_length", "grip_clearance", "damping", "stop_drop",
                  "post_peak_min", "max_strain", "record_strain")},

@@ -551,7 +551,7 @@ RERUN = {
     **{f"bts.{k}": (v, {"ucs", "holdout"}) for k, v in {  # holdout: every card's σt
         "enabled": False, "scale": 0.43, "diameter_mm": 51.0, "thickness_mm": 26.0,
         "loading": "jaws", "jaw_ratio": 1.4, "contact_cap": 1.4,
-        "contact_cap_factor": 999.0, "central_zone": 0.45, "platen_velocity": 0.051,
+        "contact_cap_factor": 999.0, "central_zone": 0.45, "retests": 1, "platen_velocity": 0.051,
         "approach_velocity": 0.11, "platen_fric": 0.31, "damping": 0.71, "stop_drop": 0.21,
         "max_strain": 0.051, "record_strain": 1.1e-5, "post_peak_strain": 0.00031}.items()},
     "dtt.enabled": (True, {"ucs"}),  # the sample jobs gain the test
@@ -572,6 +572,8 @@ RERUN = {
     "screening.n_splits": (4, {"screen"}),
     "screening.n_repeats": (3, {"screen"}),
     "screening.seed": (12, {"screen"}),
+    "screening.rule": ("above_noise", {"screen"}),
+    "screening.tensile_rule": ("threshold", {"screen"}),
     "regression.alpha_in": (0.04, {"regress"}),
     "regression.alpha_out": (0.06, {"regress"}),
     "regression.vif_max": (11.0, {"regress"}),

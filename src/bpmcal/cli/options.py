@@ -181,8 +181,8 @@ def file_arg(p, flag, help_, nargs=None):
 #: loop of a card with a σt target, ``bpmcal verify/transfer --bts-FIELD`` (the study
 #: passes its `bts` section to all three, so σt is measured as for the regression's model)
 BTS_OPTIONS = ("loading", "jaw_ratio", "contact_cap", "contact_cap_factor", "central_zone",
-               "platen_velocity", "approach_velocity", "platen_fric", "damping", "stop_drop",
-               "post_peak_min", "max_strain", "record_strain")
+               "retests", "platen_velocity", "approach_velocity", "platen_fric", "damping",
+               "stop_drop", "post_peak_min", "max_strain", "record_strain")
 
 
 #: the study config's key (in the bts and dtt sections) of a BTS_OPTIONS/DTT_OPTIONS field
@@ -257,6 +257,10 @@ def add_bts_args(p, prefix: str = ""):
         "central_zone": (number(lab("central_zone"), 0.0, 1.0, lo_open=True),
                          "a valid fracture starts within this fraction of the radius of the "
                          "disc centre along the loaded diameter (default {d:g}, ISRM)"),
+        "retests": (integer(lab("retests"), 0, 10),
+                    "discs tested after an invalid one, each packed with a further seed; the "
+                    "first valid disc is the test (ISRM: an invalid test is discarded) "
+                    "(default {d}; 0: one disc)"),
         "platen_velocity": (number(lab("platen_velocity"), 0.0, 100.0, lo_open=True,
                                    unit="m/s"),
                             "speed of each platen [m/s] (default {d:g}; its effect on sigma_t: "

@@ -51,6 +51,15 @@ y-component the balls exert on each), the two forces, the approach, ``tensile_st
 2 P / (pi D t) (Hondros/ISRM, nominal D and t), cracks by mode, the energy terms of the
 engine, ``arc_deg``.
 
+One disc, one verdict: ``run_bts`` tests the disc it is given. ``runner.bts_test`` (every
+Brazilian test of the CLI, the API and the study) does what a laboratory does with a
+disc whose fracture did not start at its centre (ISRM: invalid, discarded): it tests
+another disc of the same card, up to ``retests`` (2) more, each packed with the next seed
+of :func:`retest_seed`, and keeps the first valid one. The run records ``discs`` (how many
+were tested), ``disc_seed`` (the packing seed of the disc kept) and ``discarded`` (each
+discarded disc's seed and reason); if every disc was invalid, the last one is recorded,
+invalid, and gives no σt. ``wall_s`` is the time of all of them.
+
 The peak (``PeakTracker``) is the load at which the disc splits: when the load falls
 below ``stop_drop`` of the peak (at least ``post_peak_min`` diametral strain past it), the
 cracks formed since the peak must reach the central zone (``_split_started``); a drop
@@ -119,6 +128,7 @@ class BTSSettings:
     approach_velocity: float = 0.0  # m/s, each platen until the first crack (0: off)
     loading: str = "flat"  # "flat": two planar platens | "jaws": ISRM curved jaws
     jaw_ratio: float = 1.5  # jaw radius / disc radius (ISRM: 1.5)
+    retests: int = 2  # discs tested after an invalid one (runner.bts_test; ISRM practice)
 
     def __post_init__(self):
         if not (self.platen_velocity > 0 and math.isfinite(self.platen_velocity)):
@@ -168,6 +178,10 @@ class BTSSettings:
                 and 1.0 <= self.contact_cap_factor <= 1e6):
             raise InputError(f"contact_cap_factor={self.contact_cap_factor!r}: expected a "
                              "strength factor in [1, 1e6]")
+        if isinstance(self.retests, bool) or not (
+                isinstance(self.retests, (int, np.integer)) and 0 <= self.retests <= 10):
+            raise InputError(f"retests={self.retests!r}: expected a whole number of further "
+                             "discs in [0, 10] (0: one disc, whatever its verdict)")
         if not (0.0 < self.central_zone <= 1.0):
             raise InputError(f"central_zone={self.central_zone!r}: expected a fraction of "
                              "the disc radius in (0, 1]")
@@ -417,6 +431,17 @@ def _arc_half_angle(m, w, centre) -> float:
     p = m.positions[b]
     ang = np.arctan2(np.abs(p[:, 0] - centre[0]), np.abs(p[:, 1] - centre[1]))
     return float(math.sqrt(3.0) * math.sqrt(float(np.mean(ang ** 2))))
+
+
+#: the step between the packing seeds of a card's successive discs (a large prime, so
+#: that the retest discs of neighbouring seeds do not coincide)
+RETEST_SEED_STEP = 1_000_003
+
+
+def retest_seed(seed: int, k: int) -> int:
+    """The packing seed of the ``k``-th disc tested after an invalid one (``k`` = 0: the
+    first disc, ``seed`` itself), in [0, 2**32)."""
+    return (int(seed) + int(k) * RETEST_SEED_STEP) % 2 ** 32
 
 
 def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) -> BTSResult:

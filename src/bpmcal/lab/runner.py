@@ -25,7 +25,7 @@ import numpy as np
 from .. import params as P
 from ..dem._jit import numba, set_threads
 from ..dem.errors import InputError, InstabilityError
-from .brazilian import BTSSettings, run_bts
+from .brazilian import BTSSettings, retest_seed, run_bts
 from .brazilian import settings_dict as bts_dict
 from .budget import StepBudgetError
 from .direct_tension import DTTSettings, run_dtt
@@ -303,15 +303,35 @@ def ucs_test(params: dict, seed: int, geometry: Geometry = Geometry(),
 def bts_test(params: dict, seed: int, geometry: Geometry | None = None,
              settings: BTSSettings | None = None, *, cache=None, threads=None, progress=None,
              keep_particles: bool = True, genesis_max_steps: int | None = None) -> LabRun:
-    """One Brazilian test (``lab.brazilian``); ``geometry`` defaults to the ISRM disc
-    50 x 25 mm at scale 1 (``bts_geometry``)."""
+    """One Brazilian test (``lab.brazilian``) of packing ``seed``: the first valid of up to
+    ``1 + settings.retests`` discs (an invalid disc is discarded and another packed with
+    ``retest_seed``; the summary's ``discs``, ``disc_seed`` and ``discarded`` say which);
+    ``geometry`` defaults to the ISRM disc 50 x 25 mm at scale 1 (``bts_geometry``)."""
     st = settings or BTSSettings()
     geo = geometry or bts_geometry()
     p = P.validate_params(params)
-    return _lab_test("bts", p, seed, geo, bts_inputs(p, seed, geo, st), "free",
-                     lambda sp: run_bts(sp, st, progress=progress), cache=cache,
-                     threads=threads, keep_particles=keep_particles, progress=progress,
-                     genesis_max_steps=genesis_max_steps, finite=("bts_MPa",))
+    inputs = bts_inputs(p, seed, geo, st)
+
+    def disc(k: int) -> LabRun:
+        return _lab_test("bts", p, retest_seed(seed, k), geo, inputs, "free",
+                         lambda sp: run_bts(sp, st, progress=progress), cache=cache,
+                         threads=threads, keep_particles=keep_particles, progress=progress,
+                         genesis_max_steps=genesis_max_steps, finite=("bts_MPa",))
+
+    # an invalid disc is discarded and another tested, as in the laboratory (lab.brazilian)
+    run, discarded, wall = disc(0), [], 0.0
+    k = 0
+    while not run.summary["bts_valid"] and k < st.retests:
+        discarded.append(f"seed {retest_seed(seed, k)}: {run.summary['bts_invalid_reason']}")
+        wall += run.summary["wall_s"]
+        k += 1
+        if progress is not None:
+            progress({"note": f"disc {k} invalid ({run.summary['bts_invalid_reason']}); "
+                              f"testing disc {k + 1} of at most {st.retests + 1}"})
+        run = disc(k)
+    run.summary.update(discs=k + 1, disc_seed=retest_seed(seed, k),
+                       discarded="; ".join(discarded), wall_s=wall + run.summary["wall_s"])
+    return run
 
 
 def dtt_test(params: dict, seed: int, geometry: Geometry = Geometry(),

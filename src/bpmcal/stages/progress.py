@@ -32,6 +32,12 @@ class Progress:
         if not self.enabled:
             return
         now = time.perf_counter()
+        if "note" in d:  # an event worth a line of its own (never throttled)
+            if self.tty:
+                self.stream.write("\n")
+            self.stream.write(f"{self.label}: {d['note']}\n")
+            self.stream.flush()
+            return
         if not self.tty and now - self._last < self.every:
             return
         self._last = now

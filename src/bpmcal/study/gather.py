@@ -23,7 +23,9 @@ With the Brazilian run files of the samples (the study's ``bts`` job), each row 
 
 and ``bts_valid`` (the run's verdict; empty for a run file without one), ``bts_peak_MPa``
 (2 P / (pi D t) at the peak load: the number an invalid run measured, kept for inspection,
-never a sigma_t) and ``bts_balls_across`` (the disc's diameter in mean ball diameters).
+never a sigma_t), ``bts_balls_across`` (the disc's diameter in mean ball diameters) and
+``bts_discs`` (the discs tested: more than one when an invalid disc was discarded and
+another tested, ``bts.retests``; empty for a run file from before).
 The two tests are independent: a sample whose Brazilian test failed keeps its UCS
 responses and its ``status`` (and the other way round); ``bts_MPa`` is NaN unless
 ``bts_status`` is "ok". The sigma_t analyses use the rows whose ``bts_status`` is "ok"
@@ -49,9 +51,10 @@ RESPONSE_COLUMNS = ("ucs_MPa", "E_GPa", "nu", "peak_strain", "u_pre_MJm3", "crac
 #: Brazilian columns of the dataset (when the study runs the Brazilian test): summary key
 #: of the run file -> column
 BTS_RESPONSES = {"bts_MPa": "bts_MPa", "wall_s": "bts_wall_s", "bts_valid": "bts_valid",
-                 "bts_peak_MPa": "bts_peak_MPa", "balls_across": "bts_balls_across"}
+                 "bts_peak_MPa": "bts_peak_MPa", "balls_across": "bts_balls_across",
+                 "discs": "bts_discs"}
 BTS_COLUMNS = ("bts_MPa", "bts_wall_s", "bts_status", "bts_error", "bts_valid",
-               "bts_peak_MPa", "bts_balls_across")
+               "bts_peak_MPa", "bts_balls_across", "bts_discs")
 #: the same for the direct-tension test (``dtt``), when the study runs it
 DTT_RESPONSES = {"dtt_MPa": "dtt_MPa", "wall_s": "dtt_wall_s", "dtt_valid": "dtt_valid",
                  "dtt_peak_MPa": "dtt_peak_MPa", "balls_across": "dtt_balls_across"}
@@ -168,6 +171,14 @@ def status_report(df: pd.DataFrame) -> str:
         for r in df[df[f"{test}_status"] != "ok"].itertuples():
             lines.append(f"  {r.sample_id}: {test} {getattr(r, f'{test}_status')}: "
                          f"{getattr(r, f'{test}_error')}")
+        discs = df.get(f"{test}_discs")
+        if discs is not None and (discs.astype(float) > 1).any():
+            d = discs.astype(float)
+            first = int(((d == 1) & (df[f"{test}_status"] == "ok")).sum())
+            lines.append(f"  {int((d > 1).sum())} samples had an invalid first disc and "
+                         f"tested another ({int((d - 1).clip(lower=0).sum())} discs "
+                         f"discarded, their reasons in the run files); first discs valid: "
+                         f"{first} of {int(d.notna().sum())}")
         okb = df[df[f"{test}_status"] == "ok"]
         if len(okb):
             w = okb[f"{test}_wall_s"].astype(float)
