@@ -6,7 +6,7 @@
 #
 # The config is validated against workflow/schemas/config.schema.yaml before any job runs
 # (every key: config/README.md). Every file of the study is named in one place,
-# bpmcal.io.layout (docs/architecture.md); the rules declare each file they read and write.
+# bpmcal.io.study_files (docs/architecture.md); the rules declare each file they read and write.
 from snakemake.utils import min_version
 
 min_version("8.0")

@@ -314,8 +314,11 @@ def markdown(records: list[dict], title: str | None = None) -> str:
                              f"{st['sigma_t_mean_MPa']:.2f} | {100 * st['seed_cv']:.1f} % | "
                              f"{st['balls_across']:.1f} | {st['cpu_s_median']:.1f} |")
         else:
+            ds = rec["design_samples"]
             lines += [f"Disc scale {rec['scale']:g}; design samples "
-                      f"{', '.join(rec['design_samples'])}.", "",
+                      + (f"{', '.join(ds)}." if len(ds) <= 24 else
+                         f"{ds[0]} to {ds[-1]} ({len(ds)}: every sample of the design, each "
+                         "with the study's packing seed)."), "",
                       "| loading | A1: valid | A1: σt mean (MPa) | A1: seed CV | design: valid "
                       "| CPU s per run (median) |", "|---|---|---|---|---|---|"]
             for name, v in rec["variants"].items():

@@ -6,12 +6,12 @@ stage is timed ``--repeats`` times (wall and CPU time; on a shared machine the C
 the better comparison) and the medians are printed with the load average. The replaced
 operations are timed on their own as well, on the sample's own data: ball masses (numpy's
 ``r ** 3`` vs the C library's ``pow`` per ball) and the UCS fits of E and nu
-(``np.polyfit`` vs :func:`bpmcal.portable.lsq_slope`).
+(``np.polyfit`` vs :func:`bpmcal.exact_math.lsq_slope`).
 
     python benchmarks/host_independence_cost.py --sample s000 --repeats 3 [--json]
 
 Runs with any bpmcal version on ``PYTHONPATH`` (the micro-benchmarks need
-``bpmcal.portable``), so the same script times the code before and after the change.
+``bpmcal.exact_math``), so the same script times the code before and after the change.
 """
 from __future__ import annotations
 
@@ -106,8 +106,8 @@ def main(argv=None) -> int:
         "cpu": cpu_model(), "loadavg_before": load0, "loadavg_after": os.getloadavg(),
     }
     try:
-        from bpmcal.portable import libm_pow, lsq_slope
-    except ImportError:  # a version before bpmcal.portable: end-to-end timings only
+        from bpmcal.exact_math import libm_pow, lsq_slope
+    except ImportError:  # a version before bpmcal.exact_math: end-to-end timings only
         libm_pow = lsq_slope = None
     if libm_pow is not None:
         r = sp.model.B.radius

@@ -73,10 +73,35 @@ def _results(clone: Path) -> dict:
                 "off the diameter": int(err.str.startswith(
                     "the fracture did not follow").sum()),
                 "no split": int(err.str.contains("did not split").sum())}
+        if "bts_discs" in ds.columns:  # Brazilian retests (bts.retests)
+            d = ds["bts_discs"].astype(float)
+            out["bts_discs"] = {"first_valid": int(((d == 1) & (ds["bts_status"] == "ok")).sum()),
+                                "retested": int((d > 1).sum()), "total": int(d.sum()),
+                                "samples": int(d.notna().sum())}
     out["ucs_wall_s_median"] = float(ds.loc[ds["status"] == "ok", "wall_s"].median())
     fit = pd.read_csv(clone / "results" / "tables" / "regression_fit.csv")
     out["adj_r2"] = {f"{r.response}/{r.stage}": float(r.adj_r2) for r in fit.itertuples()}
+    sel = json.loads((clone / "results" / "screening" / "selected.json").read_text())
+    rule = (sel.get("rule") or {}).get("bts_MPa", "threshold")
+    out["bts_rule"] = rule
+    if "bts_status" in ds.columns and rule != "threshold":
+        out["adj_r2_threshold_rule"] = _threshold_rule_r2(clone, ds, sel)
     return out
+
+
+def _threshold_rule_r2(clone: Path, ds: pd.DataFrame, sel: dict) -> dict:
+    """σt's adjusted R² per stage had its candidates been chosen by the paper's threshold
+    rule (the screening's gain shares above its threshold), on the same dataset and with
+    the regression's default settings: what the study's σt rule changed."""
+    from bpmcal.analysis import StepwiseRegression
+
+    imp = pd.read_csv(clone / "results" / "screening" / "importance_all_types.csv")
+    t = imp[(imp["response"] == "bts_MPa") & (imp["gain_mean"] > sel["threshold_pct"])]
+    cands = list(t.sort_values("gain_mean", ascending=False)["parameter"])
+    rows = ds[ds["bts_status"] == "ok"]
+    res = StepwiseRegression().fit(rows, {"bts_MPa": cands})
+    return {"candidates": cands, **{f"bts_MPa/{k}": float(m.adj_r2)
+                                    for k, m in res.models["bts_MPa"].items()}}
 
 
 def _load(path: Path) -> list[list[float]]:
@@ -159,6 +184,23 @@ def markdown(rec: dict) -> str:
     for label, r in rec["runs"].items():
         if r.get("note"):
             lines += ["", f"{label}: {r['note']}"]
+        res = r["results"]
+        dd = res.get("bts_discs")
+        if dd:
+            lines += ["", f"{label}: Brazilian discs: {dd['first_valid']} of {dd['samples']} "
+                          f"first discs valid ({100 * dd['first_valid'] / dd['samples']:.1f} %); "
+                          f"{dd['retested']} samples tested another disc (bts.retests), "
+                          f"{dd['total']} discs in all; samples with a valid σt "
+                          f"{res['bts_status'].get('ok', 0)} of {dd['samples']} "
+                          f"({100 * res['bts_status'].get('ok', 0) / dd['samples']:.1f} %)"]
+        tr = res.get("adj_r2_threshold_rule")
+        if tr:
+            lines += ["", f"{label}: σt's candidates chosen by screening.tensile_rule "
+                          f"`{res['bts_rule']}`; with the paper's threshold rule instead "
+                          f"({', '.join(tr['candidates'])}) the same dataset gives σt adj. R² "
+                          + " → ".join(f"{tr[f'bts_MPa/{s}']:.3f}" for s in
+                                       ("main", "quadratic", "interaction")
+                                       if f"bts_MPa/{s}" in tr)]
         rj = r.get("rejudged")
         if rj:
             c = rj["counts"]

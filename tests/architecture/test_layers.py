@@ -11,7 +11,7 @@ SRC = Path(__file__).resolve().parents[2] / "src" / "bpmcal"
 
 #: the layers, bottom up (docs/architecture.md)
 LAYERS = [
-    {"bpmcal", "bpmcal.params", "bpmcal.portable"},
+    {"bpmcal", "bpmcal.params", "bpmcal.exact_math"},
     {"bpmcal.dem"},
     {"bpmcal.io"},
     {"bpmcal.lab"},

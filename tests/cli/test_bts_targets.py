@@ -262,10 +262,10 @@ def test_verify_without_sigma_t_runs_no_brazilian_test(cards, d, tmp_path, dem):
 def test_the_report_names_the_missed_target_and_the_ratio_set_by_sigma_t(cards, d, tmp_path, dem):
     import shutil
 
-    from bpmcal.io import layout as L
+    from bpmcal.io import study_files as L
     from bpmcal.report.build import _calibration, _verification
 
-    lay = L.Layout(tmp_path / "study")
+    lay = L.StudyFiles(tmp_path / "study")
     for s in ("B1", "B2"):
         Path(lay.card(s)).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(cards["dir"] / f"{s}.yaml", lay.card(s))

@@ -6,7 +6,7 @@ import pytest
 from dem_util import RHO, material
 
 from bpmcal.dem import BOND_INTACT, InputError, Model
-from bpmcal.dem.layout import FIX_ALL, WALL_CYLINDER, WALL_PLANE
+from bpmcal.dem.slots import FIX_ALL, WALL_CYLINDER, WALL_PLANE
 
 
 def _ball_on_floor():

@@ -9,7 +9,7 @@ from lab_util import A1
 
 from bpmcal.cli import main
 from bpmcal.dem.errors import InputError
-from bpmcal.dem.layout import FIX_VZ
+from bpmcal.dem.slots import FIX_VZ
 from bpmcal.io import h5
 from bpmcal.lab.direct_tension import DTTSettings, grips, run_dtt
 from bpmcal.lab.runner import Geometry, make_specimen

@@ -346,10 +346,10 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     monkeypatch.setattr(V, "save_figure", lambda fig, path: None)
     lab = tmp_path / "lab.csv"
     lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60.0,14.0,0.336,0.1\n")
-    from bpmcal.io import layout as L
+    from bpmcal.io import study_files as L
     from bpmcal.report.build import _verification
 
-    lay = L.Layout(tmp_path / "study")
+    lay = L.StudyFiles(tmp_path / "study")
     t5 = A.verification_tables([tmp_path / "v" / "card.yaml", tmp_path / "v0" / "card.yaml"],
                                [tmp_path / "v" / "best.h5"] * 2, lab,
                                table5=lay.table(L.TABLE5), table6=lay.table(L.TABLE6),

@@ -6,7 +6,7 @@ import pytest
 from support.paper import A1
 
 from bpmcal.analysis import fit_terms
-from bpmcal.io.layout import ratio_grid
+from bpmcal.io.study_files import ratio_grid
 from bpmcal.study.sweep import analyse_sweep, sweep_plan
 
 

@@ -94,7 +94,7 @@ def test_card_bounds_are_the_configured_ranges_and_reachable_inside(study):
 def test_unreachable_card_names_the_configured_bound_and_what_to_widen(study, tmp_path):
     from bpmcal.io.card import read_card
     from bpmcal.io.h5 import read_summary
-    from bpmcal.io.layout import Layout
+    from bpmcal.io.study_files import StudyFiles
     from bpmcal.stages.analysis import verification_tables
 
     # E = 1.2 Ecp - 1.5 kp* needs Ecp ~ 170 GPa for 200 GPa: beyond ranges.pb_emod_GPa [30, 120]
@@ -108,7 +108,7 @@ def test_unreachable_card_names_the_configured_bound_and_what_to_widen(study, tm
     assert f"widen ranges.pb_emod_GPa above {w['needed']:.4g}" in card["message"]
     assert "rerun the design" in card["advice"]
     # the closed loop does not start from it: no DEM run, and the verified card says why
-    lay = Layout(tmp_path / "verif")
+    lay = StudyFiles(tmp_path / "verif")
     v = _verify(card_dir / "stiff.yaml", study["models"], lay, "stiff")["verification"]
     assert v["status"] == "not-run" and v["rounds"] == 0 and "from_unreachable: false" in v["message"]
     assert "ranges.pb_emod_GPa" in v["message"] and v["widen"] == card["widen"]
@@ -148,12 +148,12 @@ def test_report_shows_the_paper_only_for_the_paper_study(study, tmp_path, refere
     """The same outputs (specimen B1 with the paper's lab values; its card unreachable in the
     widened synthetic space, so its closed loop did not run) reported as the paper's study
     and as another rock's."""
-    from bpmcal.io import layout as L
+    from bpmcal.io import study_files as L
     from bpmcal.report.build import build
     from bpmcal.stages.analysis import calibrate, verification_tables
 
     out = tmp_path / "results"
-    lay = L.Layout(out)
+    lay = L.StudyFiles(out)
     lab = REPO / "config/lab/green_sandstone.csv"
     c = study["cfg"]["calibration"]
     specs = ("B1", "B2", "B3")

@@ -231,7 +231,7 @@ def _published_values():
 
 
 def test_report_holds_every_table_and_figure(smoke):
-    from bpmcal.io.layout import TRIAXIAL_LAB
+    from bpmcal.io.study_files import TRIAXIAL_LAB
     from bpmcal.report.build import FIGURES, TABLES
 
     rep = smoke / OUTDIR / "report"
@@ -435,13 +435,13 @@ def test_verify_averages_seeds_and_the_transfer_runs_at_its_scale(smoke):
     seed mean, CV and n_seeds; every transferred card carries calibrated_at_scale; the
     impact runs the transferred card."""
     from bpmcal.io.h5 import read_inputs
-    from bpmcal.io.layout import TABLE5, TRANSFER, Layout, velocity_tag
+    from bpmcal.io.study_files import TABLE5, TRANSFER, StudyFiles, velocity_tag
 
     cfg = yaml.safe_load((smoke / "config" / "smoke.yaml").read_text())
     k, scale = cfg["verification"]["seeds_per_round"], cfg["transfer"]["scale"]
     kmax = cfg["verification"]["max_seeds"]
     assert kmax > k
-    lay = Layout(str(smoke / OUTDIR))
+    lay = StudyFiles(str(smoke / OUTDIR))
     t5 = pd.read_csv(lay.table(TABLE5), index_col=0)
     for spec in ("B1", "B2", "B3"):
         v = yaml.safe_load(Path(lay.verified_card(spec)).read_text())["verification"]
@@ -479,11 +479,11 @@ def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
     on those packing seeds, none of its closed loop's, with its closed-loop parameters, and
     the holdout table's statistics are those of the seed tables."""
     from bpmcal.io.h5 import read_inputs
-    from bpmcal.io.layout import HOLDOUT, Layout
+    from bpmcal.io.study_files import HOLDOUT, StudyFiles
 
     cfg = yaml.safe_load((smoke / "config" / "smoke.yaml").read_text())
     seeds = cfg["verification"]["holdout_seeds"]
-    lay = Layout(str(smoke / OUTDIR))
+    lay = StudyFiles(str(smoke / OUTDIR))
     table = pd.read_csv(lay.table(HOLDOUT))
     # three targets and sigma_t's prediction (its Brazilian test on the same fresh seeds)
     assert len(table) == 3 * 4 and set(table["seeds"]) == {",".join(map(str, seeds))}

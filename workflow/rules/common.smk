@@ -1,6 +1,6 @@
 # Helpers shared by the rules: config validation, the study's files and ids, CLI options.
 #
-# Every file name comes from bpmcal.io.layout (Layout: the study's file contract; the stages
+# Every file name comes from bpmcal.io.study_files (StudyFiles: the study's file contract; the stages
 # use the same module). Rules declare every file their command reads (in input) and writes
 # (in output) and pass each one on the command line; a table's Markdown and a figure's PDF
 # are written beside the CSV/PNG (companions) and declared too.
@@ -8,11 +8,11 @@
 # Shell safety: every value that comes from the config or from a file name reaches a shell
 # command only through Snakemake's quoting ({x:q}; a list is quoted element by element),
 # never spliced as text. outdir, lab.csv and specimen names are also checked against safe
-# patterns at validation (bpmcal.io.paths).
+# patterns at validation (bpmcal.io.safe_names).
 import json
 
 from bpmcal.cli import BTS_OPTIONS, DTT_OPTIONS, config_key
-from bpmcal.io import layout as L
+from bpmcal.io import study_files as L
 from bpmcal.study.config import ConfigError, load_lab, transfer_seed, validate_config
 
 try:
@@ -21,7 +21,7 @@ try:
 except ConfigError as e:
     raise WorkflowError(str(e)) from None
 
-FILES = L.Layout(config["outdir"])
+FILES = L.StudyFiles(config["outdir"])
 SAMPLES = L.sample_ids(config["study"]["n_samples"])
 SPECIMENS = list(_lab["specimen"])
 SWEEP_ON = bool(config["ratio_sweep"]["enabled"])

@@ -1,5 +1,5 @@
 # The report: every table and figure next to the paper's published values. It reads the
-# study's files through bpmcal.io.layout (the files declared here) and writes its own.
+# study's files through bpmcal.io.study_files (the files declared here) and writes its own.
 
 _REPORT_OUT = FILES.report_outputs(
     SWEEP_ON, REFERENCE, TRIAX_ON, bool(TRIAX_LAB), HOLDOUT_ON

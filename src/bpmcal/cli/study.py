@@ -264,7 +264,7 @@ def cmd_sweep_analyse(args) -> int:
 
 def _add_report(p):
     p.add_argument("--outdir", default=None,
-                   help="the study's output directory (its files: bpmcal.io.layout; default: "
+                   help="the study's output directory (its files: bpmcal.io.study_files; default: "
                         "the config's outdir)")
     p.add_argument("--config", default=None, help="the study's (merged) config, JSON/YAML")
     p.add_argument("--config-json", default=None,

@@ -12,7 +12,7 @@ The contact laws are documented in ``docs/contact_laws.md``; the stepping scheme
 header of ``kernels.py``.
 """
 from .errors import InputError, InstabilityError
-from .layout import (
+from .slots import (
     BOND_INTACT,
     BOND_SHEAR,
     BOND_TENSION,

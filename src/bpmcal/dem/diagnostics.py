@@ -15,7 +15,7 @@ from ._jit import jit
 from .bondblock import S_FN, S_LX, S_RG, S_SX, state_index
 from .flatjoint import C_FX
 from .laws import bond_geometry, linear_stiffness
-from .layout import (
+from .slots import (
     BOND_INTACT,
     E_DASH,
     E_SLIP,

@@ -45,7 +45,7 @@ from .laws import (
     rotate_shear,
     wall_contact_geometry,
 )
-from .layout import (
+from .slots import (
     I_BAD,
     I_FORCES,
     I_NB,

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 
 from ._jit import numba
-from .layout import WALL_CYLINDER
+from .slots import WALL_CYLINDER
 
 _inl = numba.njit(cache=True, inline="always")
 

@@ -32,7 +32,7 @@ from . import kernels as K
 from . import neighbors as NB
 from ._jit import numba, set_threads
 from .errors import InputError, InstabilityError
-from .layout import (
+from .slots import (
     BOND_INTACT,
     FIX_ALL,
     I_BAD,
@@ -147,7 +147,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
 
         # r^3 through the C library's pow, element by element: numpy's vectorised power
         # (SVML kernels on AVX-512 hosts) rounds ~5 % of the cubes differently, and one
-        # last-bit change in a mass changes the whole trajectory (bpmcal.portable)
+        # last-bit change in a mass changes the whole trajectory (bpmcal.exact_math)
         rad3 = np.array([math.pow(r, 3.0) for r in rad.tolist()])
         mass = dens * (4.0 / 3.0) * math.pi * rad3
         inertia = 0.4 * mass * rad ** 2
@@ -409,11 +409,11 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
 
     @property
     def fix_flags(self) -> np.ndarray:
-        """Fixed degrees of freedom of every ball (N,) (bits of layout.FIX_*; 0 = free)."""
+        """Fixed degrees of freedom of every ball (N,) (bits of slots.FIX_*; 0 = free)."""
         return readonly(self.B.fix)
 
     def fix(self, idx, flags=FIX_ALL):
-        """Fix degrees of freedom of balls ``idx`` (bits of layout.FIX_*); their current
+        """Fix degrees of freedom of balls ``idx`` (bits of slots.FIX_*); their current
         velocities are then prescribed."""
         self.B.fix[np.asarray(idx)] = np.uint8(flags)
         self._touch()

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import flatjoint as fj
 from .errors import InputError
-from .layout import BOND_NONE, E_DASH, E_SLIP, I_NB, I_NPAIRS, I_REBUILD
+from .slots import BOND_NONE, E_DASH, E_SLIP, I_NB, I_NPAIRS, I_REBUILD
 from .material import FlatJointMaterial
 from .model_arrays import IDX, FlatJoints, readonly
 

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from . import diagnostics as D
-from .layout import E_REMOVED, I_FORCES, I_NB, I_NPAIRS, I_NSLOTS
+from .slots import E_REMOVED, I_FORCES, I_NB, I_NPAIRS, I_NSLOTS
 
 #: Energy terms reported by :meth:`Model.energies` (J).
 ENERGY_TERMS = ("kinetic", "kinetic_walls", "strain_linear", "strain_bond", "slip",

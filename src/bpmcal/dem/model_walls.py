@@ -14,7 +14,7 @@ import numpy as np
 
 from . import diagnostics as D
 from .errors import InputError
-from .layout import (
+from .slots import (
     E_REMOVED,
     E_WDASH,
     E_WSLIP,
@@ -144,7 +144,7 @@ class WallsMixin:
         return int(self.W.type.shape[0])
 
     def wall_type(self, w) -> int:
-        """Kind of wall ``w``: layout.WALL_PLANE or layout.WALL_CYLINDER."""
+        """Kind of wall ``w``: slots.WALL_PLANE or slots.WALL_CYLINDER."""
         return int(self.W.type[w])
 
     def wall_normal(self, w) -> np.ndarray:

@@ -8,12 +8,12 @@ exactly what the integrator will compute.
 Central differences (PFC's law of motion): v_{n+1/2} = v_{n-1/2} + (F_n + F_d) / m * dt
 per degree of freedom, with PFC's local (non-viscous) damping force
 F_d = -alpha |F_n| sign(v_{n-1/2}); a fixed degree of freedom keeps its prescribed
-velocity (fixity bits ``layout.FIX_*``).
+velocity (fixity bits ``slots.FIX_*``).
 """
 from __future__ import annotations
 
 from ._jit import jit, numba
-from .layout import FIX_VX, FIX_VY, FIX_VZ, FIX_WX, FIX_WY, FIX_WZ
+from .slots import FIX_VX, FIX_VY, FIX_VZ, FIX_WX, FIX_WY, FIX_WZ
 
 _inl = numba.njit(cache=True, inline="always")
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from ._jit import jit
 from .laws import wall_contact_geometry
-from .layout import (
+from .slots import (
     E_DASH,
     E_SLIP,
     E_WDASH,

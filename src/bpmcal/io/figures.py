@@ -1,7 +1,7 @@
 """Saving figures: every figure as PNG and PDF (same stem), atomically.
 
 ``bpmcal.plots`` builds matplotlib Figures and writes nothing; the stages save them here
-(the figure convention of ``bpmcal.io.layout``)."""
+(the figure convention of ``bpmcal.io.study_files``)."""
 from __future__ import annotations
 
 from pathlib import Path

@@ -1,6 +1,6 @@
 """One HDF5 file per virtual test run: the schema, an atomic writer and readers.
 
-Layout (``SCHEMA_VERSION`` 1)::
+StudyFiles (``SCHEMA_VERSION`` 1)::
 
     /                 attrs: schema_version, bpmcal_version, git_commit, created_utc,
                              test ("ucs" | "bts" | "triaxial" | "impact"),

@@ -3,7 +3,7 @@
 - :func:`markdown_table`: the one Markdown renderer (GitHub pipe tables; no ``tabulate``):
   the report's tables, Tables 3 and 4 in the paper's layout, the ``.md`` beside every CSV.
 - :func:`write_table`: a DataFrame as CSV plus its Markdown rendering (same stem, ``.md``;
-  the table convention of ``bpmcal.io.layout``).
+  the table convention of ``bpmcal.io.study_files``).
 - :func:`write_json`, :func:`write_yaml`: plain JSON/YAML of results (numpy scalars become
   Python numbers, NaN becomes null: :func:`plain`).
 """

@@ -44,8 +44,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.layout import FIX_VZ
-from ..portable import lsq_slope
+from ..dem.slots import FIX_VZ
+from ..exact_math import lsq_slope
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen
 from .stepping import LoadingProgress, cycle, heartbeat, loading_bound

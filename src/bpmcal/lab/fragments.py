@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from ..portable import libm_exp, libm_pow
+from ..exact_math import libm_exp, libm_pow
 
 KWH_PER_T = 3600.0  # J/kg in 1 kWh/t
 

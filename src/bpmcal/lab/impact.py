@@ -38,8 +38,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.layout import BOND_INTACT
-from ..portable import libm_pow
+from ..dem.slots import BOND_INTACT
+from ..exact_math import libm_pow
 from . import fragments as F
 from .specimen import Specimen
 from .stepping import cycle

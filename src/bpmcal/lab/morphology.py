@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-from ..portable import libm_pow
+from ..exact_math import libm_pow
 from .fragments import fragments as fragment_labels
 
 #: fewest cracks a plane is fitted to (NaN below)

@@ -36,7 +36,7 @@ import math
 import numpy as np
 
 from ..dem.errors import InputError
-from ..dem.layout import WALL_CYLINDER
+from ..dem.slots import WALL_CYLINDER
 from .stepping import cycle
 
 

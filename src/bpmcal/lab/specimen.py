@@ -86,7 +86,7 @@ from ..dem.errors import InputError
 from ..dem.material import stiffest_modulus
 from ..dem.order import morton_order
 from ..io.atomic import atomic_path
-from ..portable import libm_pow
+from ..exact_math import libm_pow
 from .stepping import cycle
 
 #: modulus used while relaxing the packing (the relaxed geometry does not depend on it)

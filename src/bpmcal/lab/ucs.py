@@ -59,7 +59,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
-from ..portable import lsq_slope
+from ..exact_math import lsq_slope
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen, apply_end_caps
 from .stepping import LoadingProgress, cycle, heartbeat, loading_bound
@@ -164,7 +164,7 @@ class UCSResult:
 
 def fit_slope(x, y):
     """Least-squares slope of y on x (NaN if fewer than 3 points), computed without BLAS
-    so that E and nu do not depend on the host (bpmcal.portable.lsq_slope)."""
+    so that E and nu do not depend on the host (bpmcal.exact_math.lsq_slope)."""
     return lsq_slope(np.asarray(x, float), np.asarray(y, float))
 
 

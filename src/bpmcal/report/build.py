@@ -5,8 +5,8 @@ the value Yu et al. (2026) publish, with the difference (and ``tables/comparison
 any other rock (``reference: none``) the paper's columns, shares and comparisons are left
 out, not filled with dashes.
 
-The report reads the files of the study's layout (``bpmcal.io.layout``: the report rule
-declares every one of them as its input) and writes the files ``Layout.report_outputs``
+The report reads the files of the study's layout (``bpmcal.io.study_files``: the report rule
+declares every one of them as its input) and writes the files ``StudyFiles.report_outputs``
 names; a file that is not there (a partial study) leaves its section out."""
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ import pandas as pd
 
 from .. import __version__
 from .. import params as P
-from ..io import layout as L
+from ..io import study_files as L
 from ..io.atomic import write_text
 from ..io.card import read_card
 from ..io.checks import BadInput, out_file, parse_json, read_json, read_yaml
@@ -72,7 +72,7 @@ def _f(v, fmt=".3f"):
     return "–" if not math.isfinite(x) else format(x, fmt)
 
 
-def _copy(lay: L.Layout, src: str) -> bool:
+def _copy(lay: L.StudyFiles, src: str) -> bool:
     """Copy a table, figure or the equations into the report folder (if it exists)."""
     if not Path(src).exists():
         return False
@@ -82,7 +82,7 @@ def _copy(lay: L.Layout, src: str) -> bool:
     return True
 
 
-def copy_outputs(lay: L.Layout, sweep: bool = True, triaxial: bool = False,
+def copy_outputs(lay: L.StudyFiles, sweep: bool = True, triaxial: bool = False,
                  triaxial_lab: bool = False, holdout: bool = False) -> dict:
     """Copy the tables, figures and equations into the report folder; returns the stems
     of the tables and figures found."""
@@ -123,7 +123,7 @@ def report(outdir=None, *, config=None, config_json=None, config_out=None) -> Pa
                        "folder)")
     if config_out is not None:
         out_file(config_out, "--config-out", suffixes=(".json",))
-    out_file(L.Layout(outdir).report_index, "--outdir", suffixes=(".md",))
+    out_file(L.StudyFiles(outdir).report_index, "--outdir", suffixes=(".md",))
     if config_out is not None:
         write_text(config_out, json.dumps(cfg, indent=1, sort_keys=True) + "\n")
     return build(outdir, cfg)
@@ -131,7 +131,7 @@ def report(outdir=None, *, config=None, config_json=None, config_out=None) -> Pa
 
 def build(outdir, config: dict) -> Path:
     """Write the report of the study in ``outdir`` (its layout) for ``config``."""
-    lay = L.Layout(outdir)
+    lay = L.StudyFiles(outdir)
     cfg = config
     sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
     tx = cfg.get("triaxial") or {}

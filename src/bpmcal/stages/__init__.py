@@ -3,7 +3,7 @@
 A stage reads the files it is given, checks them and its output paths before any work
 (bad input: one error naming the value, nothing written), calls ``lab``, ``analysis`` and
 ``plots``, and writes exactly the files it is given. File names come from
-``bpmcal.io.layout`` (the rules declare them), never from a stage.
+``bpmcal.io.study_files`` (the rules declare them), never from a stage.
 
 - :mod:`.runs` — DEM run files (``ucs``, ``bts``, ``triaxial``, ``impact``) and failure
   records;

@@ -6,7 +6,7 @@ specimen with a tensile-strength target, from σt itself.
 
 The method: ``docs/methods/calibration.md``. The stage reads the files it is given,
 checks them and its output paths before any work, and writes exactly the files it is
-given (``bpmcal.io.layout``).
+given (``bpmcal.io.study_files``).
 """
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
               seed=0, table=None) -> dict:
     """Invert the final regression models for every lab specimen; bootstrap intervals;
     one material card per specimen: ``cards`` holds one file per lab specimen, named
-    ``<specimen>.yaml`` (``bpmcal.io.layout``); ``table``: the calibration table (optional).
+    ``<specimen>.yaml`` (``bpmcal.io.study_files``); ``table``: the calibration table (optional).
     ``ranges`` is the design space the dataset was sampled over (the config's ``ranges``)
     and bounds the free parameters; ``bounds`` (the config's ``calibration.bounds``) may
     narrow it. ``ratio_from``: the strength-ratio sweep's chosen JSON (its ratio replaces

@@ -19,7 +19,7 @@ from ..io.card import read_card
 from ..io.checks import BadInput, in_file, read_csv
 from ..io.figures import save_figure
 from ..io.h5 import RunFileError, check_run_file, read_cracks, read_inputs, read_series, read_summary
-from ..io.layout import ratio_grid
+from ..io.study_files import ratio_grid
 from ..io.tables import write_csv, write_json, write_table
 from ..io.vtk import export_run
 from ..lab.fragments import fit_jk

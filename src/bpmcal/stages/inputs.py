@@ -11,7 +11,7 @@ import pandas as pd
 from .. import params as P
 from ..analysis import models_from_dict
 from ..io.checks import BadInput, in_file, out_dir, out_file, read_csv, read_json
-from ..io.paths import name_problem
+from ..io.safe_names import name_problem
 from ..study.lab_data import load_lab
 
 #: the suffixes of the files the stages write
@@ -74,7 +74,7 @@ def read_lab(path, flag: str = "--lab") -> pd.DataFrame:
 
 def runs_by_id(files, flag: str, ids=None) -> dict[str, Path]:
     """Run files given on the command line, by their stem (the sample, ratio or seed id of
-    ``bpmcal.io.layout``): each a file name ending in .h5 with a safe, unique stem; with
+    ``bpmcal.io.study_files``): each a file name ending in .h5 with a safe, unique stem; with
     ``ids``, no stem outside them. A listed file that does not exist is left to the
     caller (a missing run is data, not bad input)."""
     out: dict[str, Path] = {}
@@ -99,7 +99,7 @@ def runs_by_id(files, flag: str, ids=None) -> dict[str, Path]:
 
 
 def check_ids(ids, flag: str, what: str = "sample_id") -> None:
-    """Ids that become file names: safe names (``bpmcal.io.paths``)."""
+    """Ids that become file names: safe names (``bpmcal.io.safe_names``)."""
     for sid in ids:
         m = name_problem(sid)
         if m:

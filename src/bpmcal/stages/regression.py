@@ -4,7 +4,7 @@ coefficient and candidate tables, Table 4, the fit table and the predicted-vs-si
 figure; σt is regressed on the samples whose tensile test is valid.
 
 The stage reads the files it is given, checks them and its output paths before any work,
-and writes exactly the files it is given (``bpmcal.io.layout``).
+and writes exactly the files it is given (``bpmcal.io.study_files``).
 """
 from __future__ import annotations
 

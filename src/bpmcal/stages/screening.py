@@ -4,7 +4,7 @@ figure and the supplementary tables; σt (Brazilian or direct tension) is screen
 samples whose tensile test is valid (:func:`tensile_note` says how many).
 
 The stage reads the files it is given, checks them and its output paths before any work,
-and writes exactly the files it is given (``bpmcal.io.layout``).
+and writes exactly the files it is given (``bpmcal.io.study_files``).
 """
 from __future__ import annotations
 

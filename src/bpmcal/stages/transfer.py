@@ -4,7 +4,7 @@ there when a response misses its lab value by more than one run's seed scatter a
 size (:func:`scatter_factor`); :func:`transfer_table` collects the transferred cards.
 
 The stage reads the files it is given, checks them and its output paths before any work,
-and writes exactly the files it is given (``bpmcal.io.layout``).
+and writes exactly the files it is given (``bpmcal.io.study_files``).
 """
 from __future__ import annotations
 

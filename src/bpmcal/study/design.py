@@ -4,7 +4,7 @@
 (optionally optimised for space filling), scales them to the ranges (paper units) and
 gives every sample its own packing seed, derived from the design seed so that the whole
 study is reproducible from one number. Output columns: ``sample_id``
-(``bpmcal.io.layout.sample_ids``: s000, s001, ...), the 8 parameters, ``seed``.
+(``bpmcal.io.study_files.sample_ids``: s000, s001, ...), the 8 parameters, ``seed``.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pandas as pd
 from scipy.stats import qmc
 
 from .. import params as P
-from ..io.layout import sample_ids
+from ..io.study_files import sample_ids
 
 
 def validate_ranges(ranges: dict) -> dict[str, tuple[float, float]]:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ..io.paths import name_problem
+from ..io.safe_names import name_problem
 from .errors import ConfigError
 
 LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")

@@ -14,7 +14,7 @@ depends on tau_cp) is kept in the plan with
 does not run it), the analysis leaves it out, and when no ratio is usable the chosen-ratio
 file says so (``chosen_ratio`` null) and the calibration keeps the configured ratio.
 
-Run names come from ``bpmcal.io.layout`` (``ratio_id``: "a050" for a = 0.50, over
+Run names come from ``bpmcal.io.study_files`` (``ratio_id``: "a050" for a = 0.50, over
 ``ratio_grid``). The ratio is then chosen by a criterion on the simulated cracks: by default the tensile
 share of all cracks closest to 60 % (the brittle/shear split the paper cites), or the
 crack count closest to a target.
@@ -28,7 +28,7 @@ import pandas as pd
 
 from .. import params as P
 from ..io.h5 import RunFileError, read_summary
-from ..io.layout import ratio_id
+from ..io.study_files import ratio_id
 
 #: plan rows: "planned" (run it) or "unreachable" (no tau_cp gives the target)
 PLANNED, UNREACHABLE = "planned", "unreachable"

@@ -2,7 +2,7 @@
 in their names, defined once.
 
 ``workflow/rules/common.smk`` declares every rule's inputs and outputs with
-:class:`Layout` and passes each file to the ``bpmcal`` command; the stages open only the
+:class:`StudyFiles` and passes each file to the ``bpmcal`` command; the stages open only the
 files they are given (the report, the files of this layout); a file a stage reads is
 always one that a rule declares (``tests/workflow/test_smoke.py``,
 ``test_every_file_a_stage_reads_is_declared_by_the_rule_graph``, checks that on a real
@@ -16,7 +16,7 @@ Conventions that hold for every file here:
 - **Ids** in file names come from the functions here: sample ids ``s000`` ...
   (:func:`sample_ids`), strength-ratio sweep ids ``a050`` for a = 0.50 (:func:`ratio_id`,
   over :func:`ratio_grid`), impact velocity tags ``6`` for 6.0 m/s (:func:`velocity_tag`).
-  Lab specimen names come from the lab CSV (checked safe names, ``bpmcal.io.paths``).
+  Lab specimen names come from the lab CSV (checked safe names, ``bpmcal.io.safe_names``).
 - Paths are strings joined with ``/`` (Snakemake's wildcards such as ``"{sample}"`` pass
   through the functions unchanged, so the rules use the same functions as the code).
 
@@ -124,7 +124,7 @@ FIG_T10 = "t10_ecs"
 FIG_ENVELOPES = "triaxial_envelopes"
 
 
-class Layout:
+class StudyFiles:
     """Every file of a study under ``outdir`` (a string path; no trailing slash needed).
 
     Methods that take an id (``ucs_run("s007")``, ``card("B1")``) accept a Snakemake
@@ -134,7 +134,7 @@ class Layout:
         self.outdir = str(outdir).rstrip("/") or "."
 
     def __repr__(self):
-        return f"Layout({self.outdir!r})"
+        return f"StudyFiles({self.outdir!r})"
 
     def path(self, *parts: str) -> str:
         return "/".join([self.outdir, *parts])
