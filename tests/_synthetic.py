@@ -2,8 +2,8 @@
 tests (no DEM): the inversion is checked against a planted σt. Shared by
 tests/analysis/test_bts_calibration.py and tests/cli/test_bts_targets.py (tests/ is on the
 pytest pythonpath, see pyproject.toml)."""
-from bpmcal.analysis.calibration import BTS
 from bpmcal.analysis.stepwise import RegressionModel
+from bpmcal.params import BTS
 
 FIXED = {"porosity": 0.34, "rmin_mm": 0.8, "pb_fa_deg": 30.0, "fric": 0.4}
 TRUTH = {"pb_emod_GPa": 20.0, "pb_kratio": 2.5, "pb_coh_MPa": 25.0}

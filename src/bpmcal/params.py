@@ -174,13 +174,16 @@ TARGETS: tuple[str, ...] = ("ucs_MPa", "E_GPa", "nu")
 
 #: The Brazilian tensile strength of every design sample (the study's ``bts`` job), a
 #: column of the dataset when the study runs the Brazilian test.
-TENSILE = "bts_MPa"
+BTS = "bts_MPa"
 
 #: The tensile tests a study can run on every design sample: response -> test (the
 #: Brazilian test, ``bts``, and the direct-tension test, ``dtt``). Each is a column of
 #: the dataset with its own ``<test>_status`` when the study runs it, is screened and
 #: regressed on its own rows, and is a calibration target where the lab gives it.
 TENSILE_TESTS: dict[str, str] = {"bts_MPa": "bts", "dtt_MPa": "dtt"}
+#: The tensile strengths a card can be calibrated against (Brazilian, direct tension), in
+#: the order a card's target is looked for.
+TENSILE_RESPONSES: tuple[str, ...] = tuple(TENSILE_TESTS)
 
 #: Responses the study screens (Table 3) and regresses (Table 4, models.json): the
 #: calibration targets, and the tensile strengths the dataset has.

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from _synthetic import FIXED, TRUTH, dem_response, models, predict
 
-from bpmcal.analysis.calibration import BTS, ClosedLoop, bts_strengths, invert
-from bpmcal.params import table2_ranges
+from bpmcal.analysis.calibration import ClosedLoop, bts_strengths, invert
+from bpmcal.params import BTS, table2_ranges
 
 T2 = table2_ranges()  # pb_ten_MPa, pb_coh_MPa in [10, 50]
 

@@ -14,13 +14,13 @@ import pytest
 import yaml
 from _synthetic import FIXED, TRUTH, dem_response, models, predict
 
-from bpmcal.analysis.calibration import BTS, invert
+from bpmcal.analysis.calibration import invert
 from bpmcal.analysis.stepwise import FORMAT
 from bpmcal.cli import main
 from bpmcal.io.h5 import check_run_file, write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
-from bpmcal.params import PARAMS
+from bpmcal.params import BTS, PARAMS
 from bpmcal.stages import analysis as A
 from bpmcal.stages import verification as V
 from bpmcal.stages.runs import RunOutcome

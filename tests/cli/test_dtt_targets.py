@@ -12,12 +12,12 @@ import pytest
 import yaml
 from _synthetic import FIXED, TRUTH, dem_response, models, predict
 
-from bpmcal.analysis.calibration import BTS
 from bpmcal.analysis.stepwise import FORMAT, RegressionModel
 from bpmcal.cli import main
 from bpmcal.io.h5 import write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
+from bpmcal.params import BTS
 from bpmcal.stages import analysis as A
 from bpmcal.stages import verification as V
 from bpmcal.stages.analysis import BTS_REPLACEMENT_STRIDE

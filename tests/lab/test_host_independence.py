@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 from bpmcal.dem import Material, Model
-from bpmcal.lab.ucs import fit_slope
 from bpmcal.exact_math import OPENBLAS_CORE, libm_pow, lsq_slope, pin_openblas
+from bpmcal.lab.ucs import fit_slope
 
 SRC = str(Path(__file__).resolve().parents[2] / "src")
 X86_LINUX = sys.platform == "linux" and platform.machine().lower() in ("x86_64", "amd64")

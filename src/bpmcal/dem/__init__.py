@@ -12,6 +12,8 @@ The contact laws are documented in ``docs/contact_laws.md``; the stepping scheme
 header of ``kernels.py``.
 """
 from .errors import InputError, InstabilityError
+from .material import FlatJointMaterial, Material
+from .model import ENERGY_TERMS, Model
 from .slots import (
     BOND_INTACT,
     BOND_SHEAR,
@@ -24,8 +26,6 @@ from .slots import (
     FIX_WY,
     FIX_WZ,
 )
-from .material import FlatJointMaterial, Material
-from .model import ENERGY_TERMS, Model
 
 __all__ = ["Model", "Material", "FlatJointMaterial", "InputError", "InstabilityError", "ENERGY_TERMS",
            "FIX_ALL", "FIX_VX", "FIX_VY", "FIX_VZ", "FIX_WX", "FIX_WY", "FIX_WZ",

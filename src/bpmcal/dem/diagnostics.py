@@ -15,6 +15,7 @@ from ._jit import jit
 from .bondblock import S_FN, S_LX, S_RG, S_SX, state_index
 from .flatjoint import C_FX
 from .laws import bond_geometry, linear_stiffness
+from .motion import ball_state, ball_update, constraint_power, gather, wall_power
 from .slots import (
     BOND_INTACT,
     E_DASH,
@@ -34,7 +35,6 @@ from .slots import (
     P_PB_KRATIO,
     P_PB_RMUL,
 )
-from .motion import ball_state, ball_update, constraint_power, gather, wall_power
 
 
 @jit

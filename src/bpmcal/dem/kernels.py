@@ -45,6 +45,8 @@ from .laws import (
     rotate_shear,
     wall_contact_geometry,
 )
+from .motion import ball_state, ball_update, constraint_power, gather, wall_power
+from .neighbors import max_displacement, rebuild_lists
 from .slots import (
     I_BAD,
     I_FORCES,
@@ -78,8 +80,6 @@ from .slots import (
     P_TIME,
     P_VCAP,
 )
-from .motion import ball_state, ball_update, constraint_power, gather, wall_power
-from .neighbors import max_displacement, rebuild_lists
 
 
 # ---------------------------------------------------------------------------------------

@@ -32,6 +32,12 @@ from . import kernels as K
 from . import neighbors as NB
 from ._jit import numba, set_threads
 from .errors import InputError, InstabilityError
+from .material import MATERIALS, FlatJointMaterial, Material
+from .model_arrays import IDX, Balls, Pairs, Slots, aligned_zeros, readonly, vec3
+from .model_bonds import BondsMixin
+from .model_flatjoints import FlatJointsMixin, empty_flatjoints, flatjoint_params
+from .model_measure import ENERGY_TERMS, MeasureMixin
+from .model_walls import WallsMixin
 from .slots import (
     BOND_INTACT,
     FIX_ALL,
@@ -71,12 +77,6 @@ from .slots import (
     P_TIME,
     P_VCAP,
 )
-from .material import MATERIALS, FlatJointMaterial, Material
-from .model_arrays import IDX, Balls, Pairs, Slots, aligned_zeros, readonly, vec3
-from .model_bonds import BondsMixin
-from .model_flatjoints import FlatJointsMixin, empty_flatjoints, flatjoint_params
-from .model_measure import ENERGY_TERMS, MeasureMixin
-from .model_walls import WallsMixin
 from .threads import AutoThreads
 
 __all__ = ["Model", "ENERGY_TERMS"]

@@ -16,8 +16,8 @@ import numpy as np
 from . import bondblock as bb
 from .errors import InputError
 from .flatjoint import C_LX, C_LZ, C_SF
-from .slots import BOND_INTACT, E_DASH, E_SLIP, I_NB, I_NBROKEN, I_NPAIRS, I_REBUILD
 from .model_arrays import IDX, Bonds, readonly
+from .slots import BOND_INTACT, E_DASH, E_SLIP, I_NB, I_NBROKEN, I_NPAIRS, I_REBUILD
 
 
 class BondsMixin:

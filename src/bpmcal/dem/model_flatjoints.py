@@ -15,9 +15,9 @@ import numpy as np
 
 from . import flatjoint as fj
 from .errors import InputError
-from .slots import BOND_NONE, E_DASH, E_SLIP, I_NB, I_NPAIRS, I_REBUILD
 from .material import FlatJointMaterial
 from .model_arrays import IDX, FlatJoints, readonly
+from .slots import BOND_NONE, E_DASH, E_SLIP, I_NB, I_NPAIRS, I_REBUILD
 
 
 def empty_flatjoints(nb: int, nr: int = 1, nal: int = 1) -> FlatJoints:

@@ -14,6 +14,7 @@ import numpy as np
 
 from . import diagnostics as D
 from .errors import InputError
+from .model_arrays import Walls, vec3
 from .slots import (
     E_REMOVED,
     E_WDASH,
@@ -23,7 +24,6 @@ from .slots import (
     WALL_CYLINDER,
     WALL_PLANE,
 )
-from .model_arrays import Walls, vec3
 
 
 class WallsMixin:

@@ -85,8 +85,8 @@ from ..dem import flatjoint as FJ
 from ..dem.errors import InputError
 from ..dem.material import stiffest_modulus
 from ..dem.order import morton_order
-from ..io.atomic import atomic_path
 from ..exact_math import libm_pow
+from ..io.atomic import atomic_path
 from .stepping import cycle
 
 #: modulus used while relaxing the packing (the relaxed geometry does not depend on it)

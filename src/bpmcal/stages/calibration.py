@@ -17,11 +17,12 @@ import pandas as pd
 
 from .. import params as P
 from ..analysis import PAPER_RATIO, bootstrap_intervals, invert
-from ..analysis.calibration import BTS, TENSILE, bts_strengths, check_calibration_space, tensile_target
+from ..analysis.calibration import bts_strengths, check_calibration_space, tensile_target
 from ..io.card import write_card
 from ..io.checks import BadInput, read_json
 from ..io.provenance import provenance
 from ..io.tables import write_table
+from ..params import BTS, TENSILE_RESPONSES
 from .inputs import CSV, YAML, outputs, read_dataset, read_lab, read_models, usable
 
 
@@ -106,7 +107,7 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
         else:
             bootstrap = {"n_boot": 0, "scheme": None, "unreachable_resamples": None,
                          "intervals": []}
-        set_by = (f"{ratio_by} target" if ratio_by in TENSILE else
+        set_by = (f"{ratio_by} target" if ratio_by in TENSILE_RESPONSES else
                   "ratio sweep" if ratio_from and not note_is_fallback(note)
                   # the card-format-1 spelling, kept (the key is calibration.strength_ratio)
                   else "config calibration.ratio" if s_ratio is not None
@@ -164,7 +165,7 @@ def _check_calibrate_inputs(lab_df: pd.DataFrame, cards, fixed, ranges, bounds, 
 def _check_tensile_models(jobs: list, model_set, df: pd.DataFrame, dataset, models, lab, n_boot) -> None:
     """A specimen with a tensile-strength target needs its model (and, for the bootstrap,
     its dataset column)."""
-    for resp in TENSILE:
+    for resp in TENSILE_RESPONSES:
         having = [str(rec["specimen"]) for rec, t in jobs if resp in t]
         if not having:
             continue
@@ -223,7 +224,7 @@ def lab_targets(rec: dict) -> dict:
     (``dtt_MPa``), an alternative (``study.config.read_lab`` refuses a row with both); an
     empty optional value is not a target."""
     targets = {k: float(rec[k]) for k in P.TARGETS}
-    for r in TENSILE:
+    for r in TENSILE_RESPONSES:
         v = rec.get(r)
         if v is not None and math.isfinite(float(v)):
             targets[r] = float(v)

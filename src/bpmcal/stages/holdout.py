@@ -18,7 +18,6 @@ import pandas as pd
 
 from .. import params as P
 from ..analysis import ClosedLoop
-from ..analysis.calibration import BTS
 from ..io.card import card_parameters, read_card
 from ..io.checks import BadInput
 from ..io.tables import write_table
@@ -26,6 +25,7 @@ from ..lab.brazilian import BTSSettings
 from ..lab.budget import check_budget
 from ..lab.direct_tension import DTTSettings
 from ..lab.runner import bts_inputs, dtt_inputs, ucs_inputs
+from ..params import BTS
 from . import defaults_of
 from .inputs import CSV, H5, output_dirs, outputs
 from .runs import run_ucs_file, write_failure

@@ -24,7 +24,6 @@ import pandas as pd
 
 from .. import params as P
 from ..analysis import ClosedLoop, scatter_table
-from ..analysis.calibration import BTS, TENSILE
 from ..io.card import card_parameters, read_card, write_card
 from ..io.checks import BadInput
 from ..io.figures import save_figure
@@ -35,6 +34,7 @@ from ..lab.budget import check_budget
 from ..lab.direct_tension import DTTSettings
 from ..lab.runner import bts_geometry as _isrm_disc
 from ..lab.runner import bts_inputs, ucs_inputs
+from ..params import BTS, TENSILE_RESPONSES
 from ..plots.calibration import fig_stress_strain
 from . import defaults_of
 from .inputs import CSV, H5, PNG, YAML, output_dirs, outputs, read_lab, read_models
@@ -53,11 +53,11 @@ def _responses(rows: list[dict], targets: dict) -> dict:
     coefficient of variation, NaN with one seed), ``n_seeds`` and the errors of the mean
     in % of the lab value. σt (``bts_MPa``) is among them when it is a target."""
     ok = [r for r in rows if r.get("status") == "ok"]
-    scattered = [*P.TARGETS, *(r for r in TENSILE if r in targets)]
+    scattered = [*P.TARGETS, *(r for r in TENSILE_RESPONSES if r in targets)]
     d, sd, cv = {}, {}, {}
     for k in [*scattered, *_EXTRA]:
         v = np.array([float(r.get(k, math.nan)) for r in ok], float)
-        v = v[np.isfinite(v)] if k in TENSILE else v  # an invalid test is no measurement
+        v = v[np.isfinite(v)] if k in TENSILE_RESPONSES else v  # an invalid test is no measurement
         d[k] = float(v.mean()) if len(v) else math.nan
         if k in scattered:
             sd[k] = float(v.std(ddof=1)) if len(v) > 1 else math.nan
@@ -152,10 +152,10 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                                progress=progress, genesis_max_steps=genesis_max_steps)
             row = dict(res.summary, status=res.status, seed=seed)
             paths[-1].append(res.path)
-            out = ({r: float(res.summary[r]) for r in targets if r not in TENSILE}
+            out = ({r: float(res.summary[r]) for r in targets if r not in TENSILE_RESPONSES}
                    if res.status == "ok" else
-                   {r: math.nan for r in targets if r not in TENSILE})
-            for resp in (r for r in TENSILE if r in targets):  # σt: a valid test, or NaN
+                   {r: math.nan for r in targets if r not in TENSILE_RESPONSES})
+            for resp in (r for r in TENSILE_RESPONSES if r in targets):  # σt: a valid test, or NaN
                 test = P.TENSILE_TESTS[resp]
                 geo, st = (disc, bts_settings) if test == "bts" else (cylinder, dtt_settings)
                 b, used, invalid = valid_tensile_run(
@@ -474,7 +474,7 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
     lab_df = read_lab(lab)
     outputs((table5, "--table5", CSV), (table6, "--table6", CSV), (figure, "--figure", PNG))
     t5, t6, curves = [], [], {}
-    tensile = [r for r in TENSILE if any(r in c["targets"] for c in loaded)]
+    tensile = [r for r in TENSILE_RESPONSES if any(r in c["targets"] for c in loaded)]
     for c, run in zip(loaded, runs):
         spec = str(c["specimen"])
         v = c["verification"]

@@ -12,8 +12,8 @@ from pathlib import Path
 import yaml
 
 from .. import params as P
-from ..io.study_files import ratio_grid, ratio_id
 from ..io.safe_names import path_problem
+from ..io.study_files import ratio_grid, ratio_id
 from ..lab.budget import budget_problem
 from .config_doc import schema_reference
 from .errors import ConfigError

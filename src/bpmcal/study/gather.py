@@ -124,7 +124,7 @@ def gather(design: pd.DataFrame, run_files: dict, bts_files: dict | None = None,
     return df[[c for c in cols if c in df.columns]]
 
 
-def has_tensile(df: pd.DataFrame, response: str = P.TENSILE) -> bool:
+def has_tensile(df: pd.DataFrame, response: str = P.BTS) -> bool:
     """Whether a dataset has the columns of a tensile response (``bts_MPa`` by default;
     older datasets and studies without that test do not)."""
     test = P.TENSILE_TESTS[response]
@@ -136,7 +136,7 @@ def tensile_responses(df: pd.DataFrame) -> list[str]:
     return [r for r in P.TENSILE_TESTS if has_tensile(df, r)]
 
 
-def tensile_view(df: pd.DataFrame, response: str = P.TENSILE) -> pd.DataFrame:
+def tensile_view(df: pd.DataFrame, response: str = P.BTS) -> pd.DataFrame:
     """The dataset as the analyses of a tensile response see it: ``status``/``error`` are
     its test's (a sample whose UCS run failed but whose tensile run is ok has a usable
     strength; an invalid or failed tensile run leaves the row out)."""

@@ -34,11 +34,9 @@ from .space import _COH as _COH
 from .space import _EDGE as _EDGE
 from .space import _TEN as _TEN
 from .space import (
-    BTS,
     DEFAULT_FREE,
     PAPER_FIXED,
     PAPER_RATIO,
-    TENSILE,
     CalibrationSpace,
     bts_strengths,
     check_calibration_space,
@@ -54,6 +52,6 @@ from .widen import _what_to_widen as _what_to_widen
 #: the former name of :class:`CalibrationSpace`
 _Space = CalibrationSpace
 
-__all__ = ["PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "BTS", "TENSILE", "tensile_target", "bts_strengths",
+__all__ = ["PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "tensile_target", "bts_strengths",
            "CalibrationSpace", "check_calibration_space", "InversionResult", "invert", "BootstrapResults",
            "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "scatter_table", "seed_scatter"]

@@ -18,9 +18,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from bpmcal.params import BTS
+
 from ..stepwise import RegressionModel
 from .fit import _fit, _fmt_pct, _lhs
-from .space import BTS, PAPER_RATIO, CalibrationSpace, _check_targets, tensile_target
+from .space import PAPER_RATIO, CalibrationSpace, _check_targets, tensile_target
 from .widen import _what_to_widen
 
 

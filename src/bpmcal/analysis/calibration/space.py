@@ -19,7 +19,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from bpmcal.params import PARAMS, TENSILE_TESTS, ParameterError, validate_params
+from bpmcal.params import PARAMS, TENSILE_RESPONSES, ParameterError, validate_params
 
 from .._common import check_params, check_responses
 from ..stepwise import RegressionModel
@@ -28,14 +28,12 @@ PAPER_RATIO = 1.4
 PAPER_FIXED: dict[str, float] = {"porosity": 0.34, "rmin_mm": 0.8}
 DEFAULT_FREE: tuple[str, ...] = ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa")
 _TEN, _COH = "pb_ten_MPa", "pb_coh_MPa"
-BTS = "bts_MPa"  # the Brazilian tensile strength response
-#: the tensile strengths a card can be calibrated against (Brazilian, direct tension)
-TENSILE = tuple(TENSILE_TESTS)
 
 
 def tensile_target(targets) -> str | None:
-    """The tensile strength among ``targets`` (the first of :data:`TENSILE`), or None."""
-    return next((r for r in TENSILE if r in targets), None)
+    """The tensile strength among ``targets`` (the first of
+    :data:`bpmcal.params.TENSILE_RESPONSES`), or None."""
+    return next((r for r in TENSILE_RESPONSES if r in targets), None)
 _EDGE = 1e-6  # |u| or |1 - u| below this counts as "on the bound"
 
 
