@@ -12,13 +12,14 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 import bts_resolution  # noqa: E402
 
 
-def test_the_tensile_strength_record_is_its_json_rendered():
-    page = REPO / "docs" / "measurements" / "2026-11-26-tensile-strength.md"
-    recs = [json.loads((REPO / "benchmarks" / f).read_text()) for f in (
-        "results_bts_loadings_2026-11-26.json", "results_bts_resolution_2026-11-26.json",
-        "results_bts_dtt_2026-11-26.json")]
-    title = page.read_text().splitlines()[0][2:]
-    assert page.read_text() == bts_resolution.markdown(recs, title)
+def test_the_tensile_strength_records_are_their_json_rendered():
+    for date, stems in (("2026-11-26", ("loadings", "resolution", "dtt")),
+                        ("2026-11-27", ("loadings", "cards"))):
+        page = REPO / "docs" / "measurements" / f"{date}-tensile-strength.md"
+        recs = [json.loads((REPO / "benchmarks" / f"results_bts_{s}_{date}.json").read_text())
+                for s in stems]
+        title = page.read_text().splitlines()[0][2:]
+        assert page.read_text() == bts_resolution.markdown(recs, title), page.name
 
 
 def test_every_record_page_is_listed_in_the_index():
