@@ -81,3 +81,12 @@ def test_the_test_tiers_record_is_its_json_rendered():
         rec = json.loads(raw.read_text())
         md = REPO / "docs" / "measurements" / f"{rec['date']}-test-tiers.md"
         assert md.read_text() == test_tiers.markdown(rec), (md.name, "regenerate from", raw.name)
+
+
+def test_the_genesis_share_record_is_its_json_rendered():
+    import study_genesis_share as genesis_share
+
+    for raw in (REPO / "benchmarks").glob("results_study_genesis_share_*.json"):
+        rec = json.loads(raw.read_text())
+        md = REPO / "docs" / "measurements" / f"{rec['date']}-genesis-share.md"
+        assert md.read_text() == genesis_share.markdown(rec), (md.name, "regenerate from", raw.name)
