@@ -55,6 +55,8 @@ def main(argv=None) -> int:
     ap.add_argument("--lab-seeds", default="1001,1002,1003,1004,1005,1006,1007,1008,1009,1010")
     ap.add_argument("--out", required=True)
     ap.add_argument("--markdown", default=None)
+    ap.add_argument("--keep", default=None, metavar="DIR",
+                    help="work in DIR and keep it (the cards, rounds.csv, the run files)")
     a = ap.parse_args(argv)
     from bpmcal.study.config import validate_config
 
@@ -78,7 +80,8 @@ def main(argv=None) -> int:
     cpu0 = time.process_time()
     c0 = os.times()
     with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
+        tmp = Path(a.keep) if a.keep else Path(tmp)
+        tmp.mkdir(parents=True, exist_ok=True)
         cache = ["--specimen-cache", str(tmp / "packings")]
         pf = tmp / "planted.yaml"
         pf.write_text(yaml.safe_dump(planted))
