@@ -7,6 +7,10 @@ bpmcal version on ``PYTHONPATH``.
 """
 from __future__ import annotations
 
+import datetime as dt
+import json
+import os
+import shlex
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -65,3 +69,22 @@ def ucs_settings(cfg: dict):
     return UCSSettings(platen_velocity=u["platen_velocity"], damping=u["damping"],
                        stop_drop=u["stop_drop"], max_strain=u["max_strain"],
                        platen_fric=u["platen_fric"], record_strain=u["record_strain"])
+
+
+def record_header(script: str, argv) -> dict:
+    """The fixed header of a measurement record: date, host CPU, load, the exact command."""
+    return {"date": dt.date.today().isoformat(), "cpu_model": cpu_model(),
+            "cpus": os.cpu_count(), "load_average": list(os.getloadavg()),
+            "command": f"python benchmarks/{script} " + shlex.join(argv)}
+
+
+def write_record(rec: dict, out, markdown_path, render, **json_kw) -> str:
+    """Write the JSON record ``rec`` to ``out`` (when given) and its Markdown rendering
+    (``render(rec)``) to ``markdown_path`` (when given); print and return the Markdown."""
+    if out:
+        Path(out).write_text(json.dumps(rec, indent=1, **json_kw) + "\n")
+    text = render(rec)
+    if markdown_path:
+        Path(markdown_path).write_text(text)
+    print(text)
+    return text

@@ -17,15 +17,11 @@ busy host inflates them all alike, the share much less.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
-import json
-import os
-import shlex
 import sys
 from pathlib import Path
 
 import pandas as pd
-from _study import cpu_model
+from _study import record_header, write_record
 
 
 def shares(results: Path) -> pd.DataFrame:
@@ -53,10 +49,8 @@ def shares(results: Path) -> pd.DataFrame:
 def record(results: Path, label: str, limit: float, argv) -> dict:
     t = shares(results)
     above = t[t["share"] > limit].sort_values("share", ascending=False)
-    return {"date": dt.date.today().isoformat(), "cpu_model": cpu_model(),
-            "cpus": os.cpu_count(), "load_average": list(os.getloadavg()),
-            "command": "python benchmarks/study_genesis_share.py " + shlex.join(argv),
-            "study": label, "limit": limit, "samples": len(t),
+    return {**record_header("study_genesis_share.py", argv), "study": label, "limit": limit,
+            "samples": len(t),
             "share_median": float(t["share"].median()), "share_max": float(t["share"].max()),
             "n_above": int(len(above)), "genesis_total_s": float(
                 (t["ucs_genesis_s"] + t["bts_genesis_s"]).sum()),
@@ -93,13 +87,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None)
     ap.add_argument("--markdown", default=None)
     a = ap.parse_args(argv)
-    rec = record(Path(a.study), a.label, a.limit, argv)
-    if a.out:
-        Path(a.out).write_text(json.dumps(rec, indent=1) + "\n")
-    text = markdown(rec)
-    if a.markdown:
-        Path(a.markdown).write_text(text)
-    print(text)
+    write_record(record(Path(a.study), a.label, a.limit, argv), a.out, a.markdown, markdown)
     return 0
 
 

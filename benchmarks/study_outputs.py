@@ -18,17 +18,14 @@ the load average and this command; the Markdown page is rendered from the JSON
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
 import math
-import os
-import shlex
 import subprocess
 import sys
 from pathlib import Path
 
 import pandas as pd
-from _study import cpu_model
+from _study import record_header, write_record
 
 #: responses of Table 3 and their names in the record
 RESPONSES = {"ucs_MPa": "σc", "E_GPa": "E", "nu": "ν", "bts_MPa": "σt"}
@@ -168,16 +165,10 @@ def main(argv=None) -> int:
     head = _head(clone)
     if head is not None and not a.commit.startswith(head) and not head.startswith(a.commit):
         ap.error(f"--commit {a.commit} is not the clone's HEAD {head}")
-    rec = {"date": dt.date.today().isoformat(), "commit": a.commit, "clone": str(clone),
-           "cpu_model": cpu_model(), "cpus": os.cpu_count(), "load_average": os.getloadavg(),
-           "study_command": a.study_command,
-           "command": "python benchmarks/study_outputs.py " + shlex.join(argv),
-           "raw": a.out, "outputs": outputs(clone / "results")}
-    Path(a.out).write_text(json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
-    text = markdown(rec)
-    if a.markdown:
-        Path(a.markdown).write_text(text)
-    print(text)
+    rec = {**record_header("study_outputs.py", argv), "commit": a.commit, "clone": str(clone),
+           "study_command": a.study_command, "raw": a.out,
+           "outputs": outputs(clone / "results")}
+    write_record(rec, a.out, a.markdown, markdown, ensure_ascii=False)
     return 0
 
 

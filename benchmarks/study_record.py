@@ -17,16 +17,13 @@ A run is ``label=clone directory,time log,commit``; its results are read from th
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
-import os
 import re
-import shlex
 import sys
 from pathlib import Path
 
 import pandas as pd
-from _study import cpu_model
+from _study import record_header, write_record
 
 
 def _time(log: Path) -> dict:
@@ -243,14 +240,8 @@ def main(argv=None) -> int:
             runs[label]["note"] = notes[label]
         if label in a.rejudge:
             runs[label]["rejudged"] = rejudge(Path(clone))
-    rec = {"date": dt.date.today().isoformat(), "cpu_model": cpu_model(),
-           "cpus": os.cpu_count(), "load_average": os.getloadavg(),
-           "command": "python benchmarks/study_record.py " + shlex.join(argv), "runs": runs}
-    Path(a.out).write_text(json.dumps(rec, indent=1) + "\n")
-    text = markdown(rec)
-    if a.markdown:
-        Path(a.markdown).write_text(text)
-    print(text)
+    write_record({**record_header("study_record.py", argv), "runs": runs}, a.out, a.markdown,
+                 markdown)
     return 0
 
 

@@ -354,17 +354,18 @@ class ScreeningResults:
     def selected(self) -> dict[str, tuple[str, ...]]:
         """Regression candidates per response under its rule (:data:`RULES`)."""
         by_share = self.selected_by()
+        if set(self.rules.values()) <= {"threshold"}:
+            return by_share
         noisy = self.above_noise() if "above_noise" in self.rules.values() else {}
+        share = self.share(self.select_by)
         out = {}
         for r in self.responses:
-            if self.rule_of(r) == "all":
-                out[r] = tuple(self.share(self.select_by)[r].sort_values(ascending=False).index)
-            elif self.rule_of(r) == "above_noise":
-                keep = set(by_share[r]) | set(noisy[r])
-                out[r] = tuple(p for p in self.share(self.select_by)[r]
-                               .sort_values(ascending=False).index if p in keep)
-            else:
+            rule = self.rule_of(r)
+            if rule == "threshold":
                 out[r] = by_share[r]
+                continue
+            keep = set(share.index) if rule == "all" else set(by_share[r]) | set(noisy[r])
+            out[r] = tuple(p for p in share[r].sort_values(ascending=False).index if p in keep)
         return out
 
     def to_frame(self) -> pd.DataFrame:
