@@ -561,3 +561,76 @@ def test_a_parameter_held_at_its_bound_is_probed(start):
     i = probed[0]
     assert (h.loc[:i, "pb_ten_MPa"] == 10.0).all() and h.loc[i + 1, "pb_ten_MPa"] > 10.0
     assert res.converged and res.params["pb_ten_MPa"] > 12.0
+
+
+# -- the Jacobian and the trust region under noise -----------------------------------------
+def _loop_for_broyden():
+    loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=4)
+    return loop, np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_a_change_within_its_noise_barely_moves_the_jacobian_row():
+    """Two rounds on the same 4 seeds: ucs changes by 5 % in every seed (no scatter in the
+    change: its row takes the full secant), nu changes by +6, -6, +6, -6 % (mean 0, paired
+    SE 3.5 %: a residual of -1.2 % is mostly noise, its row moves by ~10 % of the secant)."""
+    loop, J = _loop_for_broyden()
+    t = np.abs(loop.t)
+    prev_ys = np.tile(t, (4, 1))
+    ys = prev_ys.copy()
+    ys[:, list(loop.responses).index("ucs_MPa")] *= 1.05
+    i_nu = list(loop.responses).index("nu")
+    ys[:, i_nu] *= 1 + np.array([0.06, -0.06, 0.06, -0.06]) + 0.0
+    u0, u1 = np.array([0.3, 0.3, 0.3]), np.array([0.3, 0.3, 0.312])
+    e0 = prev_ys.mean(axis=0) / t - 1
+    e1 = ys.mean(axis=0) / t - 1
+    J1, rows = loop._broyden(J, (u0, e0, prev_ys), u1, e1, ys)
+    s = u1 - u0
+    i_ucs = list(loop.responses).index("ucs_MPa")
+    full = J + np.outer((e1 - e0) - J @ s, s) / (s @ s)  # the plain Broyden update
+    np.testing.assert_allclose(J1[i_ucs], full[i_ucs], rtol=1e-9)  # the signal: all of it
+    moved = np.abs(J1[i_nu] - J[i_nu]).max() / np.abs(full[i_nu] - J[i_nu]).max()
+    assert 0.0 < moved < 0.15  # the noise: a small part
+    assert "ucs_MPa" in rows and "nu" not in rows
+    # one seed: no standard error, the plain update
+    e1_one = ys[0] / t - 1
+    J2, rows2 = loop._broyden(J, (u0, e0, prev_ys[:1]), u1, e1_one, ys[:1])
+    np.testing.assert_allclose(J2, J + np.outer((e1_one - e0) - J @ s, s) / (s @ s))
+    assert rows2 == list(loop.responses)  # no standard error: every row, fully
+    # other seeds (a grown set): no update
+    assert loop._broyden(J, (u0, e0, prev_ys[:3]), u1, e1, ys)[1] == []
+
+
+def test_the_trust_region_grows_again_after_good_capped_steps():
+    """The rule, round by round: a worse round halves the cap (to half the step that led
+    to it); a better round reached by a step the cap cut doubles it, up to max_step; a
+    better round reached by a smaller step leaves it."""
+    from bpmcal.analysis.calibration.closed_loop import _Round, _TrustRegion
+
+    loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=3,
+                      max_step=0.2)
+    space = loop._space({**FIXED, "pb_emod_GPa": 14.0, "pb_kratio": 3.0,
+                         "pb_coh_MPa": 20.0, "pb_ten_MPa": 28.0})
+    box = space.loop_box(0.0)
+    J = np.eye(3)
+    trust = _TrustRegion(0.2, 3)
+    tol = np.full(3, 0.01)
+
+    def rnd(u, err):
+        e = np.full(3, err)
+        rec = {}
+        _, u_new = loop._next_point(space, box, J, np.array(u), _Round(
+            np.zeros((3, 3)), [1, 2, 3], [], 0, [], None, None, None, tol, e), False, trust, rec)
+        return rec, u_new
+
+    rec, _ = rnd([0.5, 0.5, 0.2], 0.5)  # the first round: the base
+    assert rec["accepted"] and trust.cap == 0.2
+    rec, _ = rnd([0.5, 0.5, 0.4], 0.8)  # worse, after a step of 0.2: cut to 0.1
+    assert not rec["accepted"] and trust.cap == pytest.approx(0.1)
+    rec, _ = rnd([0.5, 0.5, 0.3], 0.3)  # better, by a step of 0.1 = the cap: doubled
+    assert rec["accepted"] and trust.cap == pytest.approx(0.2)
+    rec, _ = rnd([0.5, 0.5, 0.5], 0.2)  # better, by 0.2 = the cap, at max_step: stays
+    assert rec["accepted"] and trust.cap == pytest.approx(0.2)
+    rec, _ = rnd([0.5, 0.5, 0.6], 0.5)  # worse, by 0.1: cut to 0.05
+    assert not rec["accepted"] and trust.cap == pytest.approx(0.05)
+    rec, _ = rnd([0.5, 0.5, 0.52], 0.1)  # better, by 0.02 < the cap: it stays
+    assert rec["accepted"] and trust.cap == pytest.approx(0.05)

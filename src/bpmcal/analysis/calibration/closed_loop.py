@@ -3,8 +3,10 @@
 Every round runs the candidate on the same packing seeds and steers their mean: stop
 when every mean is within max(rtol, z standard errors) of its target, else take a
 damped, weighted Gauss-Newton (or Levenberg-Marquardt) step in the unit cube from the
-best round so far (a trust region), with the Jacobian started from the regression
-models and corrected by Broyden's secant update. Parameters held at a bound are
+best round so far (a trust region that shrinks after a worse round and grows again
+after a better one its cap cut), with the Jacobian started from the regression models
+and corrected by Broyden's secant update, each row shrunk by its signal-to-noise ratio
+(a change within the seeds' scatter barely moves it). Parameters held at a bound are
 probed; the seed set can grow when a standard error is too large to state a target to
 ``rtol``; a converged seed-averaged loop may take one polishing step.
 
@@ -51,7 +53,8 @@ class ClosedLoopResult:
     ``history`` has one row per round: the parameters, the mean of every response, its
     seed CV ``cv_<r>`` in that round, the pooled relative standard error ``se_<r>``, the
     tolerance used ``tol_<r>`` = max(rtol, z · se), the relative error ``err_<r>`` of the
-    mean, ``n_seeds`` and the step; ``samples`` one row per simulation (round, seed,
+    mean, ``n_seeds``, the Jacobian rows the round's secant updated (``broyden_rows``)
+    and the step; ``samples`` one row per simulation (round, seed,
     responses). ``jacobian`` is the final Broyden estimate of ∂response/∂parameter in
     physical units.
     """
@@ -131,7 +134,8 @@ class ClosedLoop:
     damping, max_step:
         Newton step factor (default 0.8) and cap on the move of any parameter per round
         as a fraction of its range (default 0.25); after a round that is worse than the
-        best so far the cap becomes half that round's step (the trust region, module
+        best so far the cap becomes half that round's step, after a better round that a
+        step at the cap reached it doubles, up to ``max_step`` (the trust region, module
         docstring).
     broyden:
         Update the Jacobian by Broyden's secant rule (default True).
@@ -300,7 +304,8 @@ class ClosedLoop:
             stats.add(rd.k, rd.cv)
             e, tol = rd.e, rd.tol
             self._record(rec, rd)
-            J, rec["broyden_update"] = self._broyden(J, prev, u, e, rd.k)
+            J, rows = self._broyden(J, prev, u, e, rd.ys)
+            rec["broyden_update"], rec["broyden_rows"] = bool(rows), ",".join(rows)
             within = bool(np.all(np.abs(e) <= tol))
             polishing = (polished_from is None and within and self.polish and rd.k > 1
                          and rnd < self.max_rounds - 1 and bool(np.any(np.abs(e) > rd.se)))
@@ -316,7 +321,7 @@ class ClosedLoop:
                 break
             if polishing:
                 polished_from = rnd
-            prev, u = (u, e, rd.k), u_new
+            prev, u = (u, e, rd.ys), u_new
         return self._result(space, box, history, samples, J, seeds, out)
 
     def _start(self, space: CalibrationSpace, box, initial: Mapping[str, float]) -> np.ndarray:
@@ -375,14 +380,37 @@ class ClosedLoop:
         rec.update({f"err_{r}": v for r, v in zip(self.responses, rd.e)})
         rec["max_abs_err"] = float(np.max(np.abs(rd.e)))
 
-    def _broyden(self, J: np.ndarray, prev, u: np.ndarray, e: np.ndarray, k: int) -> tuple[np.ndarray, bool]:
+    def _broyden(self, J: np.ndarray, prev, u: np.ndarray, e: np.ndarray,
+                 ys: np.ndarray) -> tuple[np.ndarray, list[str]]:
         """Broyden's ("good") secant update of ``J`` from the previous round ``prev`` =
-        (u, e, k), when it ran the same seeds; and whether it was updated."""
-        if prev is not None and self.broyden and prev[2] == k:  # the same seeds: a secant
-            s, de = u - prev[0], e - prev[1]
-            if s @ s > 1e-16:
-                return J + np.outer(de - J @ s, s) / (s @ s), True
-        return J, False
+        (u, e, ys), when it ran the same seeds (``ys``: this round's runs, seeds x
+        responses); returns J and the responses whose rows moved by more than half the
+        full secant update.
+
+        With several seeds, each row's update is shrunk by its signal-to-noise ratio:
+        the secant's residual ``r`` (the measured change of that response minus the
+        change ``J`` predicted) is applied with the gain r² / (r² + SE²), where SE is the
+        paired standard error of the change, from each seed's own change between the two
+        rounds (sd of the per-seed differences / sqrt(k)), so the part of the scatter a
+        packing keeps from one parameter set to the next cancels. A response whose change
+        lies within its noise (a sigma_t over a small step) barely moves its row, and a
+        secant through scatter cannot replace the estimate; a change well beyond the
+        noise updates it fully. With one seed (no standard error) every row is updated
+        fully."""
+        if prev is None or not self.broyden or len(prev[2]) != len(ys):  # other seeds: no secant
+            return J, []
+        s, de = u - prev[0], e - prev[1]
+        if s @ s <= 1e-16:
+            return J, []
+        resid = de - J @ s
+        k = len(ys)
+        gain = np.ones(len(resid))
+        if k > 1:
+            d = (ys - prev[2]) / np.abs(self.t)
+            var = d.var(axis=0, ddof=1) / k
+            gain = np.where(resid ** 2 + var > 0, resid ** 2 / np.maximum(resid ** 2 + var, 1e-300), 0.0)
+        return (J + np.outer(gain * resid, s) / (s @ s),
+                [r for r, g in zip(self.responses, gain) if g > 0.5])
 
     def _met(self, k: int) -> str:
         return (f"every mean of {k} seeds within max(rtol, {self.z:g} standard errors) of its "
@@ -430,6 +458,10 @@ class ClosedLoop:
         base = trust.base
         accepted = base is None or polishing or base[3] != k or merit <= base[2]
         if accepted:
+            # a better round reached by a step the cap cut: the region was too small
+            if (base is not None and not polishing and base[3] == k and merit < base[2]
+                    and float(np.max(np.abs(u - base[0]))) >= 0.99 * trust.cap):
+                trust.cap = min(2.0 * trust.cap, self.max_step)
             trust.base = (u.copy(), e.copy(), merit, k)
         else:  # half the step that led here (the cap may not have bound it)
             trust.cap = 0.5 * float(np.max(np.abs(u - base[0])))
