@@ -111,11 +111,85 @@ FJ_DEFAULTS: dict[str, float] = {"fj_rmul": 1.0, "fj_nr": 1.0, "fj_nal": 3.0,
 #: integer-valued flat-joint parameters (element counts)
 FJ_INTEGERS: tuple[str, ...] = ("fj_nr", "fj_nal")
 
+@dataclass(frozen=True)
+class ContactModel:
+    """A contact model's card, as the study sees it: the one declaration the design,
+    screening, regression, calibration, ratio sweep, schema checks, CLI help and report
+    read (issue 27's registry; :data:`CONTACT_MODELS`).
+
+    ``params``: every card parameter (ball parameters first), name -> :class:`Param`
+    (unit, physical domain, default design range ``lo``/``hi``); ``strength``: the
+    (tensile, cohesion) pair whose ratio a calibration may fix or free, or None;
+    ``ratio_symbol``: that ratio as the tables write it; ``integers``: parameters that
+    take integer values (element counts); ``defaults``: values of optional keys;
+    ``free``: the parameters a calibration frees by default (the paper's method, with
+    the tensile strength derived through the ratio); ``title``: the model in words.
+    """
+
+    name: str
+    title: str
+    params: dict[str, Param]
+    strength: tuple[str, str] | None
+    ratio_symbol: str
+    free: tuple[str, ...]
+    integers: tuple[str, ...] = ()
+    defaults: dict[str, float] | None = None
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.params)
+
+    @property
+    def ten(self) -> str | None:
+        """The tensile strength of the strength pair (the derived one under a ratio)."""
+        return self.strength[0] if self.strength else None
+
+    @property
+    def coh(self) -> str | None:
+        """The cohesion of the strength pair."""
+        return self.strength[1] if self.strength else None
+
+    def design_ranges(self) -> dict[str, tuple[float, float]]:
+        """The default design ranges (paper units): Table 2 for the parallel bond."""
+        return {p.name: (p.lo, p.hi) for p in self.params.values()}
+
+    def is_integer(self, name: str) -> bool:
+        return name in self.integers
+
+
+LINEARPBOND = ContactModel(
+    "linearpbond", "linear parallel bond", PARAMS, ("pb_ten_MPa", "pb_coh_MPa"), "σcp/τcp",
+    ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa"))
+FLATJOINT = ContactModel(
+    "flatjoint", "flat joint", {**{k: PARAMS[k] for k in BALL_PARAMS}, **FJ_PARAMS},
+    ("fj_ten_MPa", "fj_coh_MPa"), "σb/cb", ("fj_emod_GPa", "fj_kratio", "fj_coh_MPa"),
+    FJ_INTEGERS, FJ_DEFAULTS)
+
+#: contact models by PFC name: their cards (:class:`ContactModel`)
+MODELS: dict[str, ContactModel] = {m.name: m for m in (LINEARPBOND, FLATJOINT)}
 #: contact models by PFC name: the parameters of their cards
-CONTACT_MODELS: dict[str, dict[str, Param]] = {
-    "linearpbond": PARAMS,
-    "flatjoint": {**{k: PARAMS[k] for k in BALL_PARAMS}, **FJ_PARAMS}}
+CONTACT_MODELS: dict[str, dict[str, Param]] = {k: m.params for k, m in MODELS.items()}
 DEFAULT_CONTACT_MODEL = "linearpbond"
+#: every parameter of every contact model, name -> Param (the names do not overlap
+#: except for the ball parameters, which are the same Param)
+ALL_PARAMS: dict[str, Param] = {k: v for m in MODELS.values() for k, v in m.params.items()}
+
+
+def contact_model(name: str | None = None) -> ContactModel:
+    """The registered contact model ``name`` (default: the parallel bond); an unknown
+    name raises :class:`ParameterError` naming the choices."""
+    if name is None:
+        return MODELS[DEFAULT_CONTACT_MODEL]
+    if name not in MODELS:
+        raise ParameterError(f"contact_model={name!r}: expected one of {', '.join(MODELS)}")
+    return MODELS[name]
+
+
+def model_of(names) -> ContactModel:
+    """The contact model of a card, a design's columns or a list of names: the model
+    whose own parameter names they use (:func:`card_model`; a dict's ``contact_model``
+    key is honoured)."""
+    return MODELS[card_model(dict(names) if isinstance(names, dict) else dict.fromkeys(names, 0.0))]
 
 
 def card_model(values: dict) -> str:

@@ -213,10 +213,17 @@ def load_params(path, overrides=(), contact_model=None) -> dict:
 
 
 def params_from_design(path, sample_id) -> tuple[dict, int, str]:
-    """The 8 parameters, the seed and a skip reason ("" to run) of one row of a design CSV.
-    A sweep-plan row with status "unreachable" is not run: its reason is returned and its
-    parameters (NaN strengths) are not validated."""
-    d = read_csv(path, "--design", ["sample_id", *P.PARAMS, "seed"], dtype={"sample_id": str})
+    """The card parameters, the seed and a skip reason ("" to run) of one row of a design
+    CSV; the contact model is the one whose names the design's columns use (the paper's
+    8 parameters: the parallel bond). A sweep-plan row with status "unreachable" is not
+    run: its reason is returned and its parameters (NaN strengths) are not validated."""
+    head = read_csv(path, "--design", [], dtype={"sample_id": str})
+    try:
+        model = P.model_of([c for c in head.columns if c in P.ALL_PARAMS])
+    except P.ParameterError as e:
+        raise BadInput(f"--design {path}: {e}") from None
+    names = list(model.params)
+    d = read_csv(path, "--design", ["sample_id", *names, "seed"], dtype={"sample_id": str})
     row = d[d["sample_id"] == sample_id]
     if len(row) != 1:
         raise BadInput(f"--sample {sample_id!r}: {'not in' if len(row) == 0 else 'repeated in'} "
@@ -235,9 +242,9 @@ def params_from_design(path, sample_id) -> tuple[dict, int, str]:
 
     if "status" in d.columns and str(r["status"]) == UNREACHABLE:
         reason = r["reason"] if "reason" in d.columns and isinstance(r["reason"], str) else ""
-        return {k: r[k] for k in P.PARAMS}, int(seed), f"not run: unreachable ratio: {reason}"
+        return {k: r[k] for k in names}, int(seed), f"not run: unreachable ratio: {reason}"
     try:
-        params = P.validate_params({k: r[k] for k in P.PARAMS})
+        params = P.validate_params({k: r[k] for k in names})
     except P.ParameterError as e:
         raise P.ParameterError(f"--design {path} sample {sample_id}: {e}") from None
     return params, int(seed), ""
@@ -251,10 +258,11 @@ def run_source(*, params_file=None, sets=(), design=None, sample=None, seed=None
     if design is not None:
         if sample is None:
             raise BadInput("--design needs --sample ID (the row to run)")
-        if contact_model not in (None, P.DEFAULT_CONTACT_MODEL):
-            raise BadInput(f"--contact-model {contact_model}: a design's rows are "
-                           f"{P.DEFAULT_CONTACT_MODEL} cards")
         params, row_seed, skip = params_from_design(design, sample)
+        row_model = params.get("contact_model", P.DEFAULT_CONTACT_MODEL)
+        if contact_model not in (None, row_model):
+            raise BadInput(f"--contact-model {contact_model}: the design {design} has "
+                           f"{row_model} cards (its columns name that model's parameters)")
         if not skip and sets:
             params = P.validate_params({**params, **parse_set(sets)})
         seed = row_seed if seed is None else seed

@@ -118,7 +118,8 @@ def gather(design: pd.DataFrame, run_files: dict, bts_files: dict | None = None,
         for test, files in tensile.items():
             row.update(_tensile_outcome(sid, files.get(sid), test))
         rows.append(row)
-    cols = ["sample_id", *P.PARAMS, "seed", *RESPONSE_COLUMNS, "status", "error",
+    model = P.model_of([c for c in design.columns if c in P.ALL_PARAMS])
+    cols = ["sample_id", *model.params, "seed", *RESPONSE_COLUMNS, "status", "error",
             *(c for t in tensile for c in TENSILE_COLUMNS[t][1])]
     df = pd.DataFrame(rows)
     return df[[c for c in cols if c in df.columns]]
