@@ -2,7 +2,8 @@
 splits and the paper's symbols for tables (from ``bpmcal.params``, the one symbol table).
 
 Dataset contract (``results/dataset.csv``): one row per LHS sample with the 8
-meso-parameters (:data:`bpmcal.params.PARAM_NAMES`, paper units), the responses
+meso-parameters (:data:`bpmcal.params.PARAM_NAMES`, paper units; a flat-joint study
+has the flat joint's card, :data:`bpmcal.params.MODELS`), the responses
 (:data:`bpmcal.params.RESPONSES`), ``status`` (``"ok"``/``"failed"``) and ``error``.
 Only rows with ``status == "ok"`` and finite values in every column an analysis needs
 are used; :func:`usable_rows` returns how many rows were dropped and why, and every
@@ -16,25 +17,40 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from bpmcal.params import PARAMS, RESPONSES, ParameterError
+from bpmcal.params import ALL_PARAMS, RESPONSES, ParameterError, model_of
 
 
 def symbol(name: str) -> str:
     """The paper's symbol (Unicode) of a parameter or response name (the name itself if
     unknown)."""
-    q = PARAMS.get(name) or RESPONSES.get(name)
+    q = ALL_PARAMS.get(name) or RESPONSES.get(name)
     return q.unicode if q is not None else name
 
 
 def check_params(names: Iterable[str], what: str = "parameter") -> tuple[str, ...]:
-    """Return ``names`` as a tuple after checking each is one of the 8 meso-parameters."""
+    """Return ``names`` as a tuple after checking each is a card parameter of one
+    contact model (:data:`bpmcal.params.MODELS`: the paper's 8 meso-parameters, or the
+    flat joint's)."""
     names = tuple(names)
-    bad = [n for n in names if n not in PARAMS]
+    bad = [n for n in names if n not in ALL_PARAMS]
     if bad:
-        raise ParameterError(f"unknown {what}(s) {bad}; expected names from {list(PARAMS)}")
+        try:
+            known = list(model_of([n for n in names if n in ALL_PARAMS]).params)
+        except ParameterError:
+            known = list(ALL_PARAMS)
+        raise ParameterError(f"unknown {what}(s) {bad}; expected names from {known}")
     if len(set(names)) != len(names):
         raise ParameterError(f"duplicate {what} names in {list(names)}")
     return names
+
+
+def dataset_params(df: pd.DataFrame) -> tuple[str, ...]:
+    """The designed parameters of a dataset: the card parameters of its contact model
+    (the one whose names its columns use) that vary over its samples, in the model's
+    order. A parameter held at one value (a flat joint's element counts, a fixed
+    parameter of one's own rock) carries no information for screening or regression."""
+    model = model_of([c for c in df.columns if c in ALL_PARAMS])
+    return tuple(p for p in model.params if p in df.columns and df[p].nunique(dropna=True) > 1)
 
 
 def check_responses(names: Iterable[str]) -> tuple[str, ...]:

@@ -10,8 +10,8 @@ from .style import C_ALT, C_LAB, C_SIM, COLUMN, DOUBLE, figure
 
 
 def _label(name):
-    if name in P.PARAMS:
-        return P.PARAMS[name].latex
+    if name in P.ALL_PARAMS:
+        return P.ALL_PARAMS[name].latex
     r = P.RESPONSES[name]
     return f"{r.latex} ({r.unit})" if r.unit else r.latex
 
@@ -26,11 +26,12 @@ def fig_importance(importance: pd.DataFrame, shadow: pd.DataFrame | None = None,
     fig, axes = figure(DOUBLE, 2.2, ncols=len(resp), sharey=True)
     axes = np.atleast_1d(axes)
     for ax, r in zip(axes, resp):
-        sub = importance.xs(r, level="response").reindex(list(P.PARAMS))
+        sub = importance.xs(r, level="response")
+        sub = sub.reindex([p for p in P.ALL_PARAMS if p in sub.index])  # the model's order
         y = np.arange(len(sub))
         ax.barh(y, sub[f"{kind}_mean"], xerr=sub[f"{kind}_std"], color=C_SIM, height=0.65,
                 error_kw={"elinewidth": 0.6, "capsize": 1.5})
-        ax.set_yticks(y, [P.PARAMS[p].latex for p in sub.index])
+        ax.set_yticks(y, [P.ALL_PARAMS[p].latex for p in sub.index])
         ax.invert_yaxis()
         ax.axvline(threshold, color="k", ls=":", lw=0.7)
         if shadow is not None and r in shadow.index and kind in shadow.columns:

@@ -272,10 +272,10 @@ def _table3(lay, comp, ref=False) -> str:
         return ""
     t3 = pd.read_csv(f, index_col=0)
     rows = []
-    for p in P.PARAMS:
+    for p in P.ALL_PARAMS:
         if p not in t3.index:
             continue
-        r = [P.PARAMS[p].symbol]
+        r = [P.ALL_PARAMS[p].symbol]
         for resp in P.TARGETS:
             ours = t3.loc[p, resp] if resp in t3.columns else math.nan
             if ref:
@@ -351,11 +351,11 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
                     if ci else "–")
             b = bounds.get(k)
             b_s = f"[{_f(b['lower'], '.4g')}, {_f(b['upper'], '.4g')}]" if b else "–"
-            row = [spec, P.PARAMS[k].symbol, _f(p[k]), ci_s, b_s]
+            row = [spec, P.ALL_PARAMS[k].symbol, _f(p[k]), ci_s, b_s]
             if ref:
                 th = theirs.get(k) if theirs else None
                 if th is not None:
-                    _cmp(comp, "Calibration", f"{spec} {k}", p[k], th, P.PARAMS[k].unit)
+                    _cmp(comp, "Calibration", f"{spec} {k}", p[k], th, P.ALL_PARAMS[k].unit)
                 row += [_f(th) if th is not None else "–",
                         _pct(p[k], th) if th is not None else "–"]
             rows.append(row + [card["status"]])

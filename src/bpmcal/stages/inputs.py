@@ -36,7 +36,12 @@ def output_dirs(*dirs) -> None:
 
 def read_dataset(path, flag: str = "--dataset", min_ok: int = 1) -> pd.DataFrame:
     """A gathered dataset CSV with the columns the analyses need and enough ok samples."""
-    df = read_csv(path, flag, ["sample_id", *P.PARAMS, "status"])
+    head = read_csv(path, flag, ["sample_id", "status"])
+    try:
+        model = P.model_of([c for c in head.columns if c in P.ALL_PARAMS])
+    except P.ParameterError as e:
+        raise BadInput(f"{flag} {path}: {e}") from None
+    df = read_csv(path, flag, ["sample_id", *model.params, "status"])
     n_ok = int((df["status"] == "ok").sum())
     if n_ok < min_ok:
         raise BadInput(f"{flag} {path}: {n_ok} of {len(df)} samples have status ok; this step "

@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import params as P
 from ..analysis import StepwiseRegression
-from ..analysis._common import usable_rows
+from ..analysis._common import dataset_params, usable_rows
 from ..analysis.stepwise import combine as combine_regressions
 from ..io.atomic import write_text
 from ..io.checks import BadInput, read_json
@@ -61,7 +61,7 @@ def regress(dataset, selected, *, models, equations, summaries, coefficients, ca
                            f"{dataset} has no {_TEST_NAME[test]} columns ({resp}, "
                            f"{test}_status)")
         tv = tensile_view(df, resp)
-        n_t = usable_rows(tv, [*P.PARAMS, resp]).n_used
+        n_t = usable_rows(tv, [*dataset_params(df), resp]).n_used
         if n_t < max(cv_folds, 4):
             note += (f"; {resp} not regressed: {n_t} samples have a valid "
                      f"{_TEST_NAME[test]} test, at least {max(cv_folds, 4)} are needed")

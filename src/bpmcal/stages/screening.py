@@ -12,7 +12,7 @@ import pandas as pd
 
 from .. import params as P
 from ..analysis import XGBScreening, table3, table3_markdown
-from ..analysis._common import usable_rows
+from ..analysis._common import dataset_params, usable_rows
 from ..analysis.screening import combine as combine_screenings
 from ..io.atomic import write_text
 from ..io.checks import BadInput
@@ -47,7 +47,8 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
             (cv_table, "--cv-table", CSV), (shadow_table, "--shadow-table", CSV),
             (summary, "--summary", TXT))
     note = usable(df)
-    n_ok = usable_rows(df, [*P.PARAMS, *P.TARGETS]).n_used
+    designed = dataset_params(df)
+    n_ok = usable_rows(df, [*designed, *P.TARGETS]).n_used
     if n_ok < 2 * n_splits:  # failed samples left too few rows for the configured CV
         k = n_ok // 2
         if k < 2:
@@ -56,12 +57,12 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
                            "dataset's status and error columns")
         note += f"; {n_splits}-fold CV needs {2 * n_splits} usable samples, so {k}-fold CV was used"
         n_splits = k
-    res = XGBScreening(n_splits=n_splits, threshold=threshold, select_by=importance,
+    res = XGBScreening(designed, n_splits=n_splits, threshold=threshold, select_by=importance,
                        n_repeats=n_repeats, seed=seed, rule=rule).fit(df)
     for resp in tensile_responses(df):  # sigma_t: on the samples whose test is valid
         tv = tensile_view(df, resp)
         test = P.TENSILE_TESTS[resp]
-        n_t = usable_rows(tv, [*P.PARAMS, resp]).n_used
+        n_t = usable_rows(tv, [*designed, resp]).n_used
         k = min(n_splits, n_t // 2)
         if k < 2:
             note += (f"; {resp} not screened: {n_t} samples have a valid {_TEST_NAME[test]} "
@@ -70,7 +71,7 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
         else:
             note += f"; {_RESP_NAME[resp]}: {tensile_note(tv, test)}"
             res = combine_screenings(res, XGBScreening(
-                responses=(resp,), n_splits=k, threshold=threshold, select_by=importance,
+                designed, responses=(resp,), n_splits=k, threshold=threshold, select_by=importance,
                 n_repeats=n_repeats, seed=seed, rule=tensile_rule).fit(tv))
     write_table(table3(res, importance=importance), table3_csv,
                 markdown=table3_markdown(res, importance=importance))

@@ -32,7 +32,12 @@ def gather(design_csv, runs, out, bts_runs=None, dtt_runs=None) -> tuple[pd.Data
     "missing", an unreadable one "unreadable". ``bts_runs`` / ``dtt_runs``: the samples'
     Brazilian / direct-tension run files (named the same), which add sigma_t and its own
     status and error (``study.gather``). Returns the table and a status report."""
-    d = read_csv(design_csv, "--design", ["sample_id", *P.PARAMS, "seed"],
+    head = read_csv(design_csv, "--design", ["sample_id", "seed"], dtype={"sample_id": str})
+    try:
+        model = P.model_of([c for c in head.columns if c in P.ALL_PARAMS])
+    except P.ParameterError as e:
+        raise BadInput(f"--design {design_csv}: {e}") from None
+    d = read_csv(design_csv, "--design", ["sample_id", *model.params, "seed"],
                  dtype={"sample_id": str})
     check_ids(d["sample_id"], f"--design {design_csv}")
     files = runs_by_id(runs, "--runs", ids=list(d["sample_id"]))

@@ -1,0 +1,52 @@
+"""Screening and regression of a flat-joint study's dataset: the stages take the contact
+model's names from the dataset (the registry), hold no parallel-bond name, and find the
+flat-joint parameters a planted response depends on."""
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bpmcal import params as P
+from bpmcal.stages.regression import regress
+from bpmcal.stages.screening import screen
+from bpmcal.study.design import lhs_design
+
+RANGES = {"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "fj_emod_GPa": [40, 100],
+          "fj_kratio": [1.5, 3.0], "fj_ten_MPa": [5, 20], "fj_coh_MPa": [50, 200],
+          "fj_fa_deg": [0, 40], "fj_fric": [0.4, 0.8], "fj_nal": [3, 3]}
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    d = lhs_design(RANGES, 80, 11)
+    rng = np.random.default_rng(0)
+    n = len(d)
+    d["ucs_MPa"] = 1.1 * d["fj_coh_MPa"] + 8.0 * d["fj_ten_MPa"] + 5 + rng.normal(0, 2, n)
+    d["E_GPa"] = 0.8 * d["fj_emod_GPa"] - 6.0 * d["fj_kratio"] + rng.normal(0, 0.5, n)
+    d["nu"] = 0.05 * d["fj_kratio"] + 0.1 + rng.normal(0, 0.003, n)
+    d["status"], d["error"] = "ok", ""
+    f = tmp_path_factory.mktemp("fj") / "dataset.csv"
+    d.to_csv(f, index=False)
+    return f
+
+
+def test_flat_joint_dataset_is_screened_and_regressed_on_its_own_names(dataset, tmp_path):
+    o = tmp_path
+    out = screen(dataset, selected=o / "sel.json", table3_csv=o / "t3.csv", figure=o / "imp.png",
+                 importance_table=o / "imp.csv", cv_table=o / "cv.csv",
+                 shadow_table=o / "sh.csv", summary=o / "s.txt", n_repeats=1)
+    sel = out["selected"]
+    assert set(sel["ucs_MPa"]) >= {"fj_coh_MPa", "fj_ten_MPa"}
+    assert "fj_emod_GPa" in sel["E_GPa"] and "fj_kratio" in sel["nu"]
+    t3 = pd.read_csv(o / "t3.csv", index_col=0)
+    # the designed parameters, in the model's order; the fixed element count is no row
+    assert list(t3.index) == [p for p in P.FLATJOINT.names if p in RANGES and p != "fj_nal"]
+    regress(dataset, o / "sel.json", models=o / "models.json", equations=o / "eq.md",
+            summaries=o / "sum.txt", coefficients=o / "coef.csv", candidates=o / "cand.csv",
+            table4=o / "t4.csv", fit_table=o / "fit.csv", figure=o / "fit.png", cv_repeats=1)
+    models = json.loads((o / "models.json").read_text())
+    text = json.dumps(models)
+    assert "pb_" not in text and "fj_coh_MPa" in text
+    fit = pd.read_csv(o / "fit.csv")
+    assert fit.groupby("response")["adj_r2"].max().min() > 0.9
