@@ -25,15 +25,14 @@ from bpmcal.params import ParameterError
 
 from ..stepwise import RegressionModel
 from .space import (
-    _COH,
     _EDGE,
-    _TEN,
     PAPER_RATIO,
     CalibrationSpace,
     _check_ranges,
     _check_targets,
     _default_free,
     _inside,
+    space_model,
 )
 
 
@@ -209,14 +208,17 @@ class ClosedLoop:
         self.polish = bool(polish)
 
     def _space(self, initial: Mapping[str, float]) -> CalibrationSpace:
-        free = _default_free(self.free, self.ratio)
-        derived = (_TEN,) if self.ratio is not None else ()
-        fixed = {k: v for k, v in initial.items() if k not in free and k not in derived}
+        model = space_model(self.free, initial, self.ranges)
+        ten, coh = model.strength
+        free = _default_free(self.free, self.ratio, model)
+        derived = (ten,) if self.ratio is not None else ()
+        fixed = {k: v for k, v in initial.items()
+                 if k not in free and k not in derived and k != "contact_model"}
         space = CalibrationSpace(free, fixed, self.ratio, self.ranges, self.bounds)
-        if self.ratio is not None and _TEN in initial and _COH in initial:
-            if not math.isclose(float(initial[_TEN]), self.ratio * float(initial[_COH]), rel_tol=1e-9):
-                raise ParameterError(f"initial {_TEN}={initial[_TEN]!r} differs from ratio × {_COH} = "
-                                     f"{self.ratio:g} × {initial[_COH]!r}")
+        if self.ratio is not None and ten in initial and coh in initial:
+            if not math.isclose(float(initial[ten]), self.ratio * float(initial[coh]), rel_tol=1e-9):
+                raise ParameterError(f"initial {ten}={initial[ten]!r} differs from ratio × {coh} = "
+                                     f"{self.ratio:g} × {initial[coh]!r}")
         return space
 
     def _initial_jacobian(self, space: CalibrationSpace, x: np.ndarray) -> np.ndarray:

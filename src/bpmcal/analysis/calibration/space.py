@@ -19,7 +19,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from bpmcal.params import PARAMS, TENSILE_RESPONSES, ParameterError, validate_params
+from bpmcal.params import ALL_PARAMS, TENSILE_RESPONSES, ContactModel, ParameterError, model_of, validate_params
 
 from .._common import check_params, check_responses
 from ..stepwise import RegressionModel
@@ -37,27 +37,40 @@ def tensile_target(targets) -> str | None:
 _EDGE = 1e-6  # |u| or |1 - u| below this counts as "on the bound"
 
 
-def _default_free(free: Sequence[str] | None, ratio: float | None) -> tuple[str, ...]:
+def space_model(*names) -> ContactModel:
+    """The contact model of a calibration: the one whose names its free, fixed and ranged
+    parameters use (each argument an iterable of names or a mapping; None skipped)."""
+    return model_of([k for group in names if group is not None for k in group
+                     if k != "contact_model"])
+
+
+def _default_free(free: Sequence[str] | None, ratio: float | None,
+                  model: ContactModel | None = None) -> tuple[str, ...]:
+    """``free``, or the model's default free parameters (:attr:`ContactModel.free`; the
+    parallel bond's ``DEFAULT_FREE``), with its tensile strength when no ratio derives it."""
     if free is not None:
         return tuple(free)
-    return DEFAULT_FREE if ratio is not None else DEFAULT_FREE + (_TEN,)
+    model = model or space_model()
+    return model.free if ratio is not None else model.free + (model.ten,)
 
 
 def bts_strengths(targets: Mapping[str, float], free: Sequence[str] | None, fixed: Mapping[str, float],
                   ratio: float | None) -> tuple[tuple[str, ...] | None, float | None, str]:
     """The free parameters and ratio of a calibration against ``targets``: with a tensile
     strength target (``bts_MPa`` or ``dtt_MPa``) σt sets the bond-strength ratio, so
-    ``pb_ten_MPa`` is freed beside ``pb_coh_MPa`` and the ratio is None; without it
+    the model's tensile strength (``pb_ten_MPa``, ``fj_ten_MPa``) is freed beside its
+    cohesion and the ratio is None; without it
     ``free`` and ``ratio`` are returned unchanged. The third value says where the ratio
     comes from: the tensile response, or ``"ratio"`` (the given one: configured, or the
     ratio sweep's choice). ``pb_ten_MPa`` fixed by the user keeps σt a plain target
     (``"ratio"``)."""
     tr = tensile_target(targets)
-    if tr is None or _TEN in fixed:
+    model = space_model(free, fixed)
+    if tr is None or model.ten in fixed:
         return (tuple(free) if free is not None else None), ratio, "ratio"
-    base = tuple(free) if free is not None else DEFAULT_FREE
-    if _TEN not in base:
-        base = base + (_TEN,)
+    base = tuple(free) if free is not None else model.free
+    if model.ten not in base:
+        base = base + (model.ten,)
     return base, None, tr
 
 
@@ -77,21 +90,24 @@ class CalibrationSpace:
             if not (math.isfinite(ratio) and ratio > 0):
                 raise ParameterError(f"ratio={ratio!r}: expected a positive number σcp/τcp (or None)")
         self.ratio = ratio
-        self.free = check_params(_default_free(free, ratio), "free parameter")
+        self.model = space_model(free, fixed, ranges)
+        self.ten, self.coh = self.model.strength
+        self.free = check_params(_default_free(free, ratio, self.model), "free parameter")
         if not self.free:
             raise ParameterError("no free parameter: expected at least one name in free")
-        self.fixed = validate_params(dict(fixed), require_all=False)
+        self.fixed = {k: v for k, v in validate_params(dict(fixed), require_all=False).items()
+                      if k != "contact_model"}
         both = sorted(set(self.free) & set(self.fixed))
         if both:
             raise ParameterError(f"parameter(s) {both} are both free and fixed")
         if ratio is not None:
-            if _TEN in self.free or _TEN in self.fixed:
-                raise ParameterError(f"{_TEN} is derived as ratio × {_COH} (ratio={ratio:g}); remove it from "
+            if self.ten in self.free or self.ten in self.fixed:
+                raise ParameterError(f"{self.ten} is derived as ratio × {self.coh} (ratio={ratio:g}); remove it from "
                                      "free/fixed or pass ratio=None")
-            if _COH not in self.free and _COH not in self.fixed:
-                raise ParameterError(f"the strength ratio needs {_COH} to be free or fixed")
+            if self.coh not in self.free and self.coh not in self.fixed:
+                raise ParameterError(f"the strength ratio needs {self.coh} to be free or fixed")
         self.ranges = _check_ranges(ranges)
-        needed = list(self.free) + ([_TEN] if ratio is not None else [])
+        needed = list(self.free) + ([self.ten] if ratio is not None else [])
         self._check_design(needed)
         box, origin = self._apply_bounds(bounds, needed)
         self.box = box
@@ -109,7 +125,7 @@ class CalibrationSpace:
         missing = [p for p in needed if p not in self.ranges]
         if missing:
             raise ParameterError(f"ranges lacks {missing}: the sampled range (design space) of every free "
-                                 "parameter" + (f" and of the derived {_TEN}" if ratio is not None else "")
+                                 "parameter" + (f" and of the derived {self.ten}" if ratio is not None else "")
                                  + " is needed; the regression is valid only there")
         for p in needed:
             lo, hi = self.ranges[p]
@@ -140,7 +156,7 @@ class CalibrationSpace:
                 raise ParameterError(f"calibration.bounds.{name}={list(b)!r}: expected finite [lo, hi] "
                                      "with lo < hi")
             if name not in needed:
-                derived = f", derived: {_TEN}" if ratio is not None else ""
+                derived = f", derived: {self.ten}" if ratio is not None else ""
                 raise ParameterError(f"calibration.bounds.{name}: {name} is not calibrated (free: "
                                      f"{list(self.free)}{derived}); bounds apply to calibrated "
                                      "parameters only")
@@ -163,27 +179,27 @@ class CalibrationSpace:
         origin of a side it sets), or check that a fixed one's derived ``pb_ten_MPa`` lies in
         its box. The parallel-bond specific part of the space (its strength pair)."""
         ratio = self.ratio
-        if ratio is not None and _COH in self.free:
-            j = self.free.index(_COH)
-            if box[_TEN][0] / ratio > lo[j]:
-                lo[j] = box[_TEN][0] / ratio
-                self.origin[_COH]["lower"] = (origin[_TEN]["lower"][0], box[_TEN][0])
-            if box[_TEN][1] / ratio < hi[j]:
-                hi[j] = box[_TEN][1] / ratio
-                self.origin[_COH]["upper"] = (origin[_TEN]["upper"][0], box[_TEN][1])
+        if ratio is not None and self.coh in self.free:
+            j = self.free.index(self.coh)
+            if box[self.ten][0] / ratio > lo[j]:
+                lo[j] = box[self.ten][0] / ratio
+                self.origin[self.coh]["lower"] = (origin[self.ten]["lower"][0], box[self.ten][0])
+            if box[self.ten][1] / ratio < hi[j]:
+                hi[j] = box[self.ten][1] / ratio
+                self.origin[self.coh]["upper"] = (origin[self.ten]["upper"][0], box[self.ten][1])
             if not lo[j] < hi[j]:
-                raise ParameterError(f"no {_COH} in {list(box[_COH])} gives {_TEN} = {ratio:g} × {_COH} "
-                                     f"inside {list(box[_TEN])} (ranges.{_COH} and ranges.{_TEN} do not "
+                raise ParameterError(f"no {self.coh} in {list(box[self.coh])} gives {self.ten} = {ratio:g} × {self.coh} "
+                                     f"inside {list(box[self.ten])} (ranges.{self.coh} and ranges.{self.ten} do not "
                                      "overlap at this ratio): widen one of them and rerun the design")
-        if ratio is not None and _COH in self.fixed:
-            ten = ratio * self.fixed[_COH]
-            if not _inside(ten, *box[_TEN]):
-                raise ParameterError(f"{_TEN} = {ratio:g} × {self.fixed[_COH]:g} = {ten:g} is outside "
-                                     f"{origin[_TEN]['lower'][0]}={list(box[_TEN])}")
+        if ratio is not None and self.coh in self.fixed:
+            ten = ratio * self.fixed[self.coh]
+            if not _inside(ten, *box[self.ten]):
+                raise ParameterError(f"{self.ten} = {ratio:g} × {self.fixed[self.coh]:g} = {ten:g} is outside "
+                                     f"{origin[self.ten]['lower'][0]}={list(box[self.ten])}")
 
     @property
     def derived(self) -> tuple[str, ...]:
-        return (_TEN,) if self.ratio is not None else ()
+        return (self.ten,) if self.ratio is not None else ()
 
     @property
     def calibrated(self) -> tuple[str, ...]:
@@ -193,8 +209,8 @@ class CalibrationSpace:
     def bounds(self) -> dict[str, tuple[float, float]]:
         """Effective bounds of the free parameters and of the derived ``pb_ten_MPa``."""
         out = {p: (float(a), float(b)) for p, a, b in zip(self.free, self.lo, self.hi)}
-        if self.ratio is not None and _COH in out:
-            out[_TEN] = (self.ratio * out[_COH][0], self.ratio * out[_COH][1])
+        if self.ratio is not None and self.coh in out:
+            out[self.ten] = (self.ratio * out[self.coh][0], self.ratio * out[self.coh][1])
         return out
 
     def bound_origins(self) -> dict[str, dict[str, str]]:
@@ -204,9 +220,9 @@ class CalibrationSpace:
         for p in self.free:
             out[p] = {s: key + (f" / ratio {self.ratio:g}" if via is not None else "")
                       for s, (key, via) in self.origin[p].items()}
-        if self.ratio is not None and _COH in self.free:
-            out[_TEN] = {s: key + (f" × ratio {self.ratio:g}" if via is None else "")
-                         for s, (key, via) in self.origin[_COH].items()}
+        if self.ratio is not None and self.coh in self.free:
+            out[self.ten] = {s: key + (f" × ratio {self.ratio:g}" if via is None else "")
+                         for s, (key, via) in self.origin[self.coh].items()}
         return out
 
     def edge_text(self, p: str, side: str, value: float, margin: float = 0.0) -> str:
@@ -221,7 +237,7 @@ class CalibrationSpace:
         if via is None:
             return f"{p} at the {side} bound {value:g} of {key}"
         return (f"{p} at the {side} bound {value:g} (= {side} bound {via:g} of {key} / ratio {self.ratio:g}; "
-                f"{_TEN} = {via:g})")
+                f"{self.ten} = {via:g})")
 
     def beyond_limits(self, x: np.ndarray) -> list[dict]:
         """Every calibrated parameter (free or derived) of the free values ``x`` outside its
@@ -263,7 +279,7 @@ class CalibrationSpace:
         out = dict(self.fixed)
         out.update(zip(self.free, (float(v) for v in x)))
         if self.ratio is not None:
-            out[_TEN] = self.ratio * out[_COH]
+            out[self.ten] = self.ratio * out[self.coh]
         return out
 
     def free_values(self, params: Mapping[str, float]) -> np.ndarray:
@@ -287,8 +303,8 @@ class CalibrationSpace:
             grad = models[r].gradient(point)
             for j, p in enumerate(self.free):
                 J[k, j] = grad.get(p, 0.0)
-                if p == _COH and self.ratio is not None:
-                    J[k, j] += self.ratio * grad.get(_TEN, 0.0)
+                if p == self.coh and self.ratio is not None:
+                    J[k, j] += self.ratio * grad.get(self.ten, 0.0)
         return J
 
     def at_bound(self, u: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None
@@ -332,7 +348,7 @@ class CalibrationSpace:
         each parameter's physical domain (for the extrapolated "what to widen" search)."""
         lo, hi = self.lo - factor * self.width, self.hi + factor * self.width
         for j, p in enumerate(self.free):
-            d = PARAMS[p]
+            d = ALL_PARAMS[p]
             lo[j] = max(lo[j], d.phys_lo + (1e-3 * self.width[j] if d.lo_open else 0.0))
             hi[j] = min(hi[j], d.phys_hi)
         return lo, hi
