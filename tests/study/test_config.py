@@ -91,3 +91,69 @@ def test_narrowing_bounds_are_accepted():
     cfg = merged_config(*EXAMPLE)
     cfg["calibration"]["bounds"] = {"pb_emod_GPa": [40.0, 100.0], "pb_ten_MPa": [60.0, 250.0]}
     validate_config(cfg, SCHEMA, base_dir=REPO)
+
+
+# ------------------------------------------------------------ the contact model
+FJ_RANGES = {"fj_emod_GPa": [40.0, 100.0], "fj_kratio": [1.5, 3.0], "fj_ten_MPa": [5.0, 20.0],
+             "fj_coh_MPa": [50.0, 200.0], "fj_fa_deg": [0.0, 40.0], "fj_fric": [0.4, 0.8]}
+
+
+def _fj_config():
+    cfg = merged_config("config.yaml")
+    cfg["contact_model"] = "flatjoint"
+    cfg["ranges"].update(FJ_RANGES)
+    cfg["calibration"]["fixed"] = {"rmin_mm": 0.8, "porosity": 0.34, "fj_fa_deg": 20.0,
+                                   "fj_fric": 0.6}
+    cfg["calibration"].pop("free", None)
+    cfg["calibration"]["strength_ratio"] = 0.1
+    return cfg
+
+
+def test_a_flat_joint_config_takes_the_models_names_and_defaults():
+    notes = []
+    cfg = validate_config(_fj_config(), SCHEMA, base_dir=REPO, note=notes.append)
+    assert cfg["calibration"]["free"] == ["fj_emod_GPa", "fj_kratio", "fj_coh_MPa"]
+    # the parallel-bond keys inherited from config.yaml are left out, with one line
+    assert not [k for k in cfg["ranges"] if k.startswith("pb_") or k == "fric"]
+    assert len(notes) == 1 and "pb_emod_GPa" in notes[0] and "ranges.fric" in notes[0]
+    pb = validate_config(merged_config("config.yaml"), SCHEMA, base_dir=REPO)
+    assert pb["contact_model"] == "linearpbond"
+    assert pb["calibration"]["free"] == ["pb_emod_GPa", "pb_kratio", "pb_coh_MPa"]
+
+
+def test_contact_model_mistakes_are_named():
+    cfg = merged_config("config.yaml")
+    cfg["ranges"]["fj_ten_MPa"] = [5.0, 20.0]  # a flat-joint name, parallel-bond study
+    with pytest.raises(ConfigError, match=r"ranges: \['fj_ten_MPa'\] are flatjoint parameters.*"
+                                          r"set contact_model: flatjoint"):
+        validate_config(cfg, SCHEMA, base_dir=REPO)
+    cfg = _fj_config()
+    del cfg["ranges"]["fj_coh_MPa"]
+    with pytest.raises(ConfigError, match=r"ranges: no range for \['fj_coh_MPa'\]"):
+        validate_config(cfg, SCHEMA, base_dir=REPO)
+    cfg = _fj_config()
+    cfg["calibration"]["free"] = ["pb_emod_GPa"]
+    with pytest.raises(ConfigError, match="calibration.free.*linearpbond parameters"):
+        validate_config(cfg, SCHEMA, base_dir=REPO)
+    cfg = _fj_config()
+    cfg["contact_model"] = "hertz"
+    with pytest.raises(ConfigError, match="contact_model.*hertz"):
+        validate_config(cfg, SCHEMA, base_dir=REPO)
+    cfg = _fj_config()
+    cfg["calibration"]["strength_ratio"] = 1.4  # 1.4 x cb (50..200) never in sigma_b 5..20
+    with pytest.raises(ConfigError, match="strength_ratio: 1.4 x fj_coh_MPa"):
+        validate_config(cfg, SCHEMA, base_dir=REPO)
+
+
+def test_the_schema_holds_every_registered_parameter():
+    from bpmcal import params as P
+    from bpmcal.study.config import load_schema
+
+    sch = load_schema(SCHEMA)["properties"]
+    assert sch["contact_model"]["enum"] == list(P.MODELS)
+    cal = sch["calibration"]["properties"]
+    for name, p in P.ALL_PARAMS.items():
+        assert name in sch["ranges"]["properties"] and name in cal["fixed"]["properties"]
+        assert name in cal["free"]["items"]["enum"] and name in cal["bounds"]["properties"]
+    assert cal["fixed"]["properties"]["fj_slit_frac"] == {"type": "number", "minimum": 0.0,
+                                                          "maximum": 1.0}

@@ -11,7 +11,7 @@ from support.repo import REPO
 from support.repo import SCHEMA as SCHEMA_FILE
 
 from bpmcal import params as P
-from bpmcal.analysis import DEFAULT_FREE, PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
+from bpmcal.analysis import PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
 from bpmcal.cli import build_parser, config_key
 from bpmcal.lab.brazilian import BTSSettings
 from bpmcal.lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
@@ -85,7 +85,7 @@ DEFAULTS = {
     "regression.cv_folds": (REG["cv_folds"], ("regress", "cv_folds", None)),
     "regression.cv_repeats": (REG["cv_repeats"], ("regress", "cv_repeats", None)),
     "regression.seed": (REG["seed"], ("regress", "seed", None)),
-    "calibration.free": (list(DEFAULT_FREE), None),
+    "contact_model": (P.DEFAULT_CONTACT_MODEL, None),
     "calibration.strength_ratio": (PAPER_RATIO, ("calibrate", "ratio", None)),
     "calibration.n_boot": (CAL["n_boot"], ("calibrate", "n_boot", None)),
     "calibration.seed": (CAL["seed"], ("calibrate", "seed", None)),

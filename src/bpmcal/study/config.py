@@ -48,8 +48,45 @@ def _fill_defaults(validator_cls):
 
 
 def load_schema(path) -> dict:
+    """The config schema, with every contact model's parameters (the registry,
+    :data:`bpmcal.params.MODELS`) in ``ranges``, ``calibration.fixed``, ``calibration.free``
+    and ``calibration.bounds``: the YAML writes out the parallel bond's, the flat joint's
+    are generated from their declarations so they cannot drift."""
     with open(path) as f:
-        return yaml.safe_load(f)
+        schema = yaml.safe_load(f)
+    return with_model_parameters(schema)
+
+
+def _number_schema(p: P.Param) -> dict:
+    """A parameter's physical domain as JSON-schema limits."""
+    out: dict = {"type": "number"}
+    if math.isfinite(p.phys_lo):
+        out["exclusiveMinimum" if p.lo_open else "minimum"] = p.phys_lo
+    if math.isfinite(p.phys_hi):
+        out["exclusiveMaximum" if p.hi_open else "maximum"] = p.phys_hi
+    return out
+
+
+def with_model_parameters(schema: dict) -> dict:
+    """``schema`` with every registered model's parameters added where the YAML does not
+    write them (see :func:`load_schema`)."""
+    props = schema.get("properties", {})
+    if "ranges" not in props or "calibration" not in props:
+        return schema
+    ranges = props["ranges"]["properties"]
+    cal = props["calibration"]["properties"]
+    for name, p in P.ALL_PARAMS.items():
+        unit = f" [{p.unit or '-'}]"
+        if name not in ranges:
+            ranges[name] = {"type": "array", "minItems": 2, "maxItems": 2,
+                            "description": p.description + unit, "items": _number_schema(p)}
+        cal["fixed"]["properties"].setdefault(name, _number_schema(p))
+        cal["bounds"]["properties"].setdefault(
+            name, {"type": "array", "minItems": 2, "maxItems": 2, "items": {"type": "number"}})
+        enum = cal["free"]["items"]["enum"]
+        if name not in enum:
+            enum.append(name)
+    return schema
 
 
 #: config keys renamed, old -> new (each a path of keys; a key keeps its section). The old
@@ -108,6 +145,7 @@ def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line) 
     import jsonschema
 
     translate_deprecated(config, note)
+    _apply_contact_model(config, note)
     schema = load_schema(schema_path)
     Validator = _fill_defaults(jsonschema.Draft7Validator)
     errors = sorted(Validator(schema).iter_errors(config), key=lambda e: list(e.absolute_path))
@@ -126,6 +164,62 @@ def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line) 
     return config
 
 
+def _apply_contact_model(config: dict, note=_stderr_line) -> None:
+    """What depends on the contact model before the schema sees the config: the default
+    ``calibration.free`` (the model's modulus, stiffness ratio and cohesion), and, for a
+    model other than the parallel bond, the parallel bond's parameters that an overlay
+    inherits from config/config.yaml (an overlay cannot delete keys) dropped from
+    ``ranges``, ``calibration.fixed`` and ``calibration.bounds``, with one line to
+    ``note``. An unknown model is left to the schema; another model's names in a
+    parallel-bond config are an error (:func:`_model_problems`)."""
+    name = config.get("contact_model", P.DEFAULT_CONTACT_MODEL)
+    if name not in P.MODELS:
+        return
+    model = P.MODELS[name]
+    cal = config.get("calibration")
+    if name != P.DEFAULT_CONTACT_MODEL:
+        base = P.MODELS[P.DEFAULT_CONTACT_MODEL].params
+        dropped = []
+        for key, node in (("ranges", config.get("ranges")),
+                          ("calibration.fixed", (cal or {}).get("fixed")),
+                          ("calibration.bounds", (cal or {}).get("bounds"))):
+            if isinstance(node, dict):
+                for k in [k for k in node if k in base and k not in model.params]:
+                    del node[k]
+                    dropped.append(f"{key}.{k}")
+        if dropped:
+            note(f"config: contact_model {name}: {len(dropped)} parallel-bond key(s) of the base "
+                 f"config left out ({', '.join(dropped)})")
+    if isinstance(cal, dict) and "free" not in cal:
+        cal["free"] = list(model.free)
+
+
+def _model_problems(cfg: dict) -> list[str]:
+    """Every parameter name of ``ranges`` and ``calibration`` belongs to the config's
+    contact model, and every parameter of the model has a range (its optional keys
+    excepted)."""
+    model = P.MODELS[cfg["contact_model"]]
+    cal = cfg["calibration"]
+    other = {k: m for m in P.MODELS.values() for k in m.params if k not in model.params}
+    msgs = []
+    used = [("ranges", list(cfg["ranges"])), ("calibration.fixed", list(cal["fixed"])),
+            ("calibration.free", list(cal.get("free") or [])),
+            ("calibration.bounds", list(cal.get("bounds") or {}))]
+    for key, names in used:
+        bad = [k for k in names if k in other]
+        if bad:
+            msgs.append(f"{key}: {bad} are {other[bad[0]].name} parameters, but contact_model is "
+                        f"{model.name} (its parameters: {list(model.params)}); set "
+                        f"contact_model: {other[bad[0]].name} to use them")
+    if not msgs:
+        missing = [k for k in model.params if k not in cfg["ranges"]
+                   and k not in (model.defaults or {})]
+        if missing:
+            msgs.append(f"ranges: no range for {missing} (contact_model {model.name}); give "
+                        "[low, high], or [v, v] to hold one at v")
+    return msgs
+
+
 def _finite_problems(v, key="") -> list[str]:
     """NaN and inf anywhere in the config (YAML ``.nan``/``.inf``), by key."""
     if isinstance(v, dict):
@@ -142,9 +236,9 @@ MAX_SWEEP_RATIOS = 200
 
 
 def _semantic_checks(cfg: dict, base: Path) -> list[str]:
-    msgs = _finite_problems(cfg)
+    msgs = _finite_problems(cfg) or _model_problems(cfg)
     if msgs:
-        return msgs  # the checks below compare numbers
+        return msgs  # the checks below compare numbers of the model's parameters
     for key in ("outdir",):
         m = path_problem(cfg[key])
         if m:
@@ -294,8 +388,13 @@ def _check_calibration_space(cfg: dict) -> list[str]:
     rng, cal = cfg["ranges"], cfg["calibration"]
     ratio = cal.get("strength_ratio")
     free = list(cal.get("free", []))
-    derived = ["pb_ten_MPa"] if ratio and "pb_ten_MPa" not in free else []
+    model = P.MODELS[cfg["contact_model"]]
+    ten, coh = model.strength
+    derived = [ten] if ratio and ten not in free else []
     for name, v in cal["fixed"].items():
+        if name not in rng:  # an optional key of the model: designed at its default
+            d = (model.defaults or {})[name]
+            rng = {**rng, name: (d, d)}
         lo, hi = rng[name]
         if not lo <= v <= hi:
             msgs.append(f"calibration.fixed.{name}: {v:g} is outside ranges.{name} [{lo:g}, {hi:g}], "
@@ -308,7 +407,7 @@ def _check_calibration_space(cfg: dict) -> list[str]:
             msgs.append(f"calibration.bounds.{name}: low {lo:g} must be below high {hi:g}")
         elif name not in free + derived:
             msgs.append(f"calibration.bounds.{name}: {name} is not calibrated (calibration.free: "
-                        f"{free}" + (", derived: pb_ten_MPa" if derived else "")
+                        f"{free}" + (f", derived: {ten}" if derived else "")
                         + "); bounds apply to calibrated parameters only")
         elif lo < rlo or hi > rhi:
             msgs.append(f"calibration.bounds.{name}: [{lo:g}, {hi:g}] reaches beyond ranges.{name} "
@@ -316,12 +415,12 @@ def _check_calibration_space(cfg: dict) -> list[str]:
                         f"outside it): narrow the bounds, or widen ranges.{name}")
         else:
             box[name] = (lo, hi)
-    if not msgs and derived and "pb_coh_MPa" in free:
-        (clo, chi), (tlo, thi) = box["pb_coh_MPa"], box["pb_ten_MPa"]
+    if not msgs and derived and coh in free:
+        (clo, chi), (tlo, thi) = box[coh], box[ten]
         if not max(clo, tlo / ratio) < min(chi, thi / ratio):
-            msgs.append(f"calibration.strength_ratio: {ratio:g} x pb_coh_MPa in [{clo:g}, {chi:g}] "
-                        f"never falls inside pb_ten_MPa [{tlo:g}, {thi:g}]: widen ranges.pb_ten_MPa or "
-                        "ranges.pb_coh_MPa, or change the ratio")
+            msgs.append(f"calibration.strength_ratio: {ratio:g} x {coh} in [{clo:g}, {chi:g}] "
+                        f"never falls inside {ten} [{tlo:g}, {thi:g}]: widen ranges.{ten} or "
+                        f"ranges.{coh}, or change the ratio")
     return msgs
 
 
