@@ -50,3 +50,31 @@ def test_flat_joint_dataset_is_screened_and_regressed_on_its_own_names(dataset, 
     assert "pb_" not in text and "fj_coh_MPa" in text
     fit = pd.read_csv(o / "fit.csv")
     assert fit.groupby("response")["adj_r2"].max().min() > 0.9
+
+
+def test_a_flat_joint_card_is_calibrated_from_the_flat_joint_regression(dataset, tmp_path):
+    """The calibration stage on the flat-joint models: the card holds the flat joint's
+    names, its strength ratio is fj_ten/fj_coh, and its predicted responses are the lab's."""
+    from bpmcal.io.card import read_card
+    from bpmcal.stages.calibration import calibrate
+
+    o = tmp_path
+    screen(dataset, selected=o / "sel.json", table3_csv=o / "t3.csv", figure=o / "imp.png",
+           importance_table=o / "imp.csv", cv_table=o / "cv.csv", shadow_table=o / "sh.csv",
+           summary=o / "s.txt", n_repeats=1)
+    regress(dataset, o / "sel.json", models=o / "models.json", equations=o / "eq.md",
+            summaries=o / "sum.txt", coefficients=o / "coef.csv", candidates=o / "cand.csv",
+            table4=o / "t4.csv", fit_table=o / "fit.csv", figure=o / "fit.png", cv_repeats=1)
+    lab = o / "lab.csv"
+    lab.write_text("specimen,ucs_MPa,E_GPa,nu\nG1,180.0,55.0,0.22\n")
+    (o / "cards").mkdir()
+    fixed = {"rmin_mm": 0.8, "porosity": 0.3, "fj_fa_deg": 20.0, "fj_fric": 0.6, "fj_nal": 3.0}
+    calibrate(dataset, o / "models.json", lab, cards=[o / "cards" / "G1.yaml"], fixed=fixed,
+              ranges={k: v for k, v in RANGES.items()}, ratio=0.08, n_boot=0)
+    card = read_card(o / "cards" / "G1.yaml")
+    assert card["status"] == "ok", card["message"]
+    p = card["parameters"]
+    assert not [k for k in p if k.startswith("pb_")]
+    assert p["fj_ten_MPa"] == pytest.approx(0.08 * p["fj_coh_MPa"])
+    assert card["strength_ratio"]["value"] == pytest.approx(0.08)
+    assert card["roles"]["fj_ten_MPa"] == "derived" and card["roles"]["fj_coh_MPa"] == "free"

@@ -45,3 +45,24 @@ def test_sweep_choice_picks_the_tensile_share_closest_to_the_target(tmp_path):
     df, chosen = analyse_sweep(plan, runs, "tensile_share", 0.6)
     assert chosen["chosen_ratio"] == 1.0
     assert df["tensile_share"].tolist() == [0.1, 0.55, 0.9]
+
+
+def test_a_flat_joint_card_sweeps_its_own_strength_pair():
+    """The plan of a flat-joint card varies fj_ten_MPa = a x fj_coh_MPa (the registry's
+    strength pair), keeps the predicted sigma_c at the target and writes the card's names."""
+    from bpmcal import params as P
+    from bpmcal.analysis.stepwise import RegressionModel
+
+    model = RegressionModel("ucs_MPa", [("fj_coh_MPa",), ("fj_ten_MPa",)], [0.9, 3.0], 10.0)
+    card = {"parameters": {"rmin_mm": 0.8, "porosity": 0.3, "fj_emod_GPa": 70.0,
+                           "fj_kratio": 2.5, "fj_ten_MPa": 10.0, "fj_coh_MPa": 150.0,
+                           "fj_fa_deg": 30.0, "fj_fric": 0.6, "contact_model": "flatjoint"},
+            "targets": {"ucs_MPa": 175.0},
+            "ranges": {"fj_ten_MPa": [5.0, 20.0], "fj_coh_MPa": [50.0, 250.0]}}
+    plan = sweep_plan(card, model, ratio_grid(0.05, 0.1, 0.01), seed=2)
+    assert not [c for c in plan.columns if c.startswith("pb_")]
+    assert list(plan.columns[1:9]) == [k for k in P.FLATJOINT.names if k in card["parameters"]]
+    assert np.allclose(plan["fj_ten_MPa"], plan["ratio"] * plan["fj_coh_MPa"])
+    assert np.allclose(model.predict(plan), 175.0, atol=1e-6)
+    table, _ = analyse_sweep(plan, {})
+    assert {"fj_ten_MPa", "fj_coh_MPa"} <= set(table.columns)

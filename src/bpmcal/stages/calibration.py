@@ -148,10 +148,11 @@ def _check_calibrate_inputs(lab_df: pd.DataFrame, cards, fixed, ranges, bounds, 
         raise P.ParameterError(f"--n-boot {n_boot}: expected 0 (no bootstrap) or an integer "
                                ">= 2")
     if free:
-        bad = [f for f in free if f not in P.PARAMS]
+        bad = [f for f in free if f not in P.ALL_PARAMS]
         if bad:
+            known = P.model_of({**fixed, **dict.fromkeys(f for f in free if f in P.ALL_PARAMS)})
             raise BadInput(f"--free {','.join(free)}: unknown parameter(s) {bad}; expected "
-                           f"names from {list(P.PARAMS)}")
+                           f"names from {list(known.params)}")
     ratio, note = chosen_ratio(ratio_from, ratio)
     bounds = dict(bounds or {})
     for name, val in (("--ranges", ranges), ("--bounds", bounds)):
@@ -185,17 +186,20 @@ def calibration_card(spec: str, inv, rec: dict, targets: dict, *, ratio: float |
     (:class:`~bpmcal.analysis.InversionResult`), its lab row ``rec`` and ``targets``:
     ``ratio`` is the configured ratio of its inversion (None: both strengths free),
     ``set_by`` what set the strength ratio, ``bounds`` the configured narrowings."""
+    model = P.model_of(inv.solution)
+    ten, coh = model.strength
+    names = [k for k in model.params if k in inv.solution]
     return {
         "specimen": spec,
         "status": inv.status,
         "message": inv.message,
         "ratio_ten_coh": ratio,
         "strength_ratio": {
-            "value": float(inv.solution["pb_ten_MPa"] / inv.solution["pb_coh_MPa"]),
+            "value": float(inv.solution[ten] / inv.solution[coh]),
             "set_by": set_by},
-        "parameters": {k: float(inv.solution[k]) for k in P.PARAMS},
+        "parameters": {k: float(inv.solution[k]) for k in names},
         "roles": {k: ("free" if k in inv.free else "derived" if k in inv.derived
-                      else "fixed") for k in P.PARAMS},
+                      else "fixed") for k in names},
         "ranges": {k: [float(a), float(b)] for k, (a, b) in inv.ranges.items()},
         "calibration_bounds": {k: [float(a), float(b)] for k, (a, b) in bounds.items()},
         "bounds": {k: {"lower": lo, "upper": hi, "lower_from": inv.bound_origins[k]["lower"],

@@ -58,8 +58,14 @@ def sweep_analyse(plan, runs, *, criterion=_CHOICE["criterion"], target=_CHOICE[
     JSON), Fig. 4 and Fig. 5; ``vtk``: the folder of the ParaView files of the runs Fig. 5
     shows (the first and last usable ratio, 1.0 and the chosen one). ``runs``: the run
     file of every plan row (``<sample_id>.h5``)."""
-    p = read_csv(plan, "--plan", ["sample_id", "ratio", "pb_ten_MPa", "pb_coh_MPa",
-                                  "extrapolated"], dtype={"sample_id": str})
+    head = read_csv(plan, "--plan", ["sample_id", "ratio", "extrapolated"],
+                    dtype={"sample_id": str})
+    try:
+        pair = P.model_of([c for c in head.columns if c in P.ALL_PARAMS]).strength
+    except P.ParameterError as e:
+        raise BadInput(f"--plan {plan}: {e}") from None
+    p = read_csv(plan, "--plan", ["sample_id", "ratio", *pair, "extrapolated"],
+                 dtype={"sample_id": str})
     check_ids(p["sample_id"], f"--plan {plan}")
     files = runs_by_id(runs, "--runs", ids=list(p["sample_id"]))
     outputs((table, "--table", CSV), (chosen, "--chosen", JSON), (fig4, "--fig4", PNG),

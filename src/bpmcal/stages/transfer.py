@@ -132,7 +132,7 @@ def _transfer_section(res, by_round: list, best: int, targets: dict, *, base: di
         "tolerance_pct": {k: 100 * t for k, t in tol.items()}, "scatter_factor": shrink,
         "at_transfer": _responses(by_round[0], targets),
         "final": _responses(by_round[best], targets),
-        "parameters": ({k: float(x) for k, x in res.params.items() if k in P.PARAMS}
+        "parameters": ({k: float(x) for k, x in res.params.items() if k in P.ALL_PARAMS}
                        if ran else None)}
 
 

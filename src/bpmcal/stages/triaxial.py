@@ -112,8 +112,8 @@ def _read_run(path, sigma3: float, params: dict, where: str) -> dict:
     if not math.isclose(s3, sigma3, rel_tol=1e-9, abs_tol=1e-9):
         raise BadInput(f"{where} {path}: a run at sigma3 = {s3:g} MPa, expected {sigma3:g} MPa "
                        "(the runs follow --sigma3 for each card, in order)")
-    bad = [k for k in P.PARAMS if not math.isclose(_num(inp.get(k)), float(params[k]),
-                                                   rel_tol=1e-9)]
+    bad = [k for k in P.ALL_PARAMS if k in params
+           and not math.isclose(_num(inp.get(k)), float(params[k]), rel_tol=1e-9)]
     if bad:
         raise BadInput(f"{where} {path}: run with other parameters than its card ({bad[0]} = "
                        f"{inp.get(bad[0])!r}, card {params[bad[0]]!r})")

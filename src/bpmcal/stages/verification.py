@@ -383,7 +383,7 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
                      for r, row in res.jacobian.iterrows()},
         "single_pass": _responses(by_round[0], targets),
         "closed_loop": _responses(by_round[best], targets),
-        "parameters": {k: float(v) for k, v in res.params.items() if k in P.PARAMS},
+        "parameters": {k: float(v) for k, v in res.params.items() if k in P.ALL_PARAMS},
         "geometry": geometry.to_dict(), **_loop_box(res, range_margin),
     }
     v["missed"] = _missed(v["closed_loop"], targets, rtol)

@@ -5,7 +5,8 @@ over a grid (0.5 to 2.0 by 0.1). For every a, tau_cp is chosen so that the regre
 predicted sigma_c stays at the calibration target (sigma_cp = a tau_cp; a bracketing
 root search on the final sigma_c model) - the constraint the paper's procedure implies.
 The root is searched from near zero up to four times the largest cohesion the sampled
-ranges allow at that ratio (``max(ranges.pb_coh_MPa, ranges.pb_ten_MPa / a)``; the ranges
+ranges allow at that ratio (``max(ranges.pb_coh_MPa, ranges.pb_ten_MPa / a)``; a flat
+joint's strength pair fj_ten_MPa / fj_coh_MPa likewise; the ranges
 are the card's, i.e. the study's design space). A ratio whose tau_cp or sigma_cp falls
 outside the sampled ranges is still run but flagged ``extrapolated``. A ratio for which
 no tau_cp in that interval reaches the target (e.g. the refitted sigma_c model no longer
@@ -52,14 +53,16 @@ def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
     if len(set(ids)) != len(ids):
         raise P.ParameterError(f"ratios {list(ratios)}: two ratios share a run name "
                                "(a step finer than 0.01)")
-    base = {k: float(v) for k, v in card["parameters"].items()}
+    base = {k: float(v) for k, v in card["parameters"].items() if k != "contact_model"}
+    model = P.model_of(base)
+    TEN, COH = model.strength  # the model's strength pair (pb_ten/pb_coh, fj_ten/fj_coh)
     target = float(card["targets"]["ucs_MPa"])
-    clo, chi = (float(v) for v in card["ranges"]["pb_coh_MPa"])
-    tlo, thi = (float(v) for v in card["ranges"]["pb_ten_MPa"])
+    clo, chi = (float(v) for v in card["ranges"][COH])
+    tlo, thi = (float(v) for v in card["ranges"][TEN])
     rows = []
     for a in ratios:
         def resid(coh):
-            p = dict(base, pb_coh_MPa=coh, pb_ten_MPa=a * coh)
+            p = {**base, COH: coh, TEN: a * coh}
             return float(ucs_model.predict(pd.DataFrame([p]))[0]) - target
         top = 4.0 * max(chi, thi / a)
         grid = np.linspace(top / 600, top, 600)
@@ -74,21 +77,22 @@ def sweep_plan(card: dict, ucs_model, ratios, seed: int) -> pd.DataFrame:
                         f"{fin[0]:.4g} MPa for every tau_cp")
             else:
                 span = f"predicted sigma_c {fin.min():.4g}-{fin.max():.4g} MPa"
-            rows.append({"sample_id": ratio_id(a), **base, "pb_coh_MPa": math.nan,
-                         "pb_ten_MPa": math.nan, "seed": int(seed), "ratio": a,
+            rows.append({"sample_id": ratio_id(a), **base, COH: math.nan,
+                         TEN: math.nan, "seed": int(seed), "ratio": a,
                          "extrapolated": False, "status": UNREACHABLE,
                          "reason": f"no tau_cp in [{grid[0]:.3g}, {top:.4g}] MPa gives the target sigma_c "
                                    f"{target:g} MPa at a = {a:g} ({span})"})
             continue
         # the root nearest the calibrated cohesion
         roots = [brentq(resid, grid[c], grid[c + 1]) for c in cross]
-        coh = min(roots, key=lambda r: abs(r - base["pb_coh_MPa"]))
+        coh = min(roots, key=lambda r: abs(r - base[COH]))
         ten = a * coh
         extrap = not (clo <= coh <= chi and tlo <= ten <= thi)
-        rows.append({"sample_id": ratio_id(a), **base, "pb_coh_MPa": coh,
-                     "pb_ten_MPa": ten, "seed": int(seed), "ratio": a,
+        rows.append({"sample_id": ratio_id(a), **base, COH: coh,
+                     TEN: ten, "seed": int(seed), "ratio": a,
                      "extrapolated": extrap, "status": PLANNED, "reason": ""})
-    cols = ["sample_id", *P.PARAMS, "seed", "ratio", "extrapolated", "status", "reason"]
+    cols = ["sample_id", *[k for k in model.params if k in base], "seed", "ratio",
+            "extrapolated", "status", "reason"]
     return pd.DataFrame(rows)[cols]
 
 
@@ -98,6 +102,7 @@ def analyse_sweep(plan: pd.DataFrame, run_files, criterion="tensile_share", targ
     (unreachable ratio) is a row with its status and reason and no counts; when no run is
     usable, ``chosen_ratio`` is None and ``reason`` says why."""
     rows = []
+    TEN, COH = P.model_of([c for c in plan.columns if c in P.ALL_PARAMS]).strength
     for r in plan.to_dict("records"):
         f = run_files.get(r["sample_id"])
         try:
@@ -114,7 +119,7 @@ def analyse_sweep(plan: pd.DataFrame, run_files, criterion="tensile_share", targ
         ns = float(s.get("cracks_shear", np.nan)) if ok else np.nan
         tot = nt + ns
         rows.append({"ratio": r["ratio"], "sample_id": r["sample_id"],
-                     "pb_ten_MPa": r["pb_ten_MPa"], "pb_coh_MPa": r["pb_coh_MPa"],
+                     TEN: r[TEN], COH: r[COH],
                      "extrapolated": r["extrapolated"], "status": status,
                      "reason": "" if ok else reason,
                      "ucs_MPa": s.get("ucs_MPa", np.nan) if ok else np.nan,
