@@ -56,6 +56,9 @@ def main(argv=None) -> int:
     ap.add_argument("--lab-seeds", default="1001,1002,1003,1004,1005,1006,1007,1008,1009,1010")
     ap.add_argument("--out", required=True)
     ap.add_argument("--markdown", default=None)
+    ap.add_argument("--exact-lab", action="store_true",
+                    help="write the lab values without their standard errors (the loop and "
+                         "the fresh-seed check then take them as exact)")
     ap.add_argument("--keep", default=None, metavar="DIR",
                     help="work in DIR and keep it (the cards, rounds.csv, the run files)")
     a = ap.parse_args(argv)
@@ -106,10 +109,17 @@ def main(argv=None) -> int:
         valid = labs[labs["bts_valid"]]
         lab = {k: float(labs[k].mean()) for k in ("ucs_MPa", "E_GPa", "nu")}
         lab["bts_MPa"] = float(valid["bts_MPa"].mean())
+        # the lab values are means over the lab seeds: their standard errors, unless
+        # --exact-lab (then the loop takes them as exact, as it did before target_se)
+        lab_se = {} if a.exact_lab else {
+            k: float((valid if k == "bts_MPa" else labs)[k].std(ddof=1)
+                     / len(valid if k == "bts_MPa" else labs) ** 0.5) for k in lab}
         lab_csv = tmp / "lab.csv"
-        lab_csv.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3,bts_MPa\nP1,"
+        se_cols = "".join(f",{k}_se" for k in lab_se)
+        lab_csv.write_text(f"specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3,bts_MPa{se_cols}\nP1,"
                            + ",".join(repr(lab[k]) for k in ("ucs_MPa", "E_GPa", "nu"))
-                           + f",,{lab['bts_MPa']!r}\n")
+                           + f",,{lab['bts_MPa']!r}"
+                           + "".join(f",{v!r}" for v in lab_se.values()) + "\n")
         card = tmp / "P1.yaml"
         c = cfg["calibration"]
         _run(["bpmcal", "calibrate", "--dataset", str(study / "dataset.csv"), "--models",
@@ -138,7 +148,7 @@ def main(argv=None) -> int:
         # the planted card itself on the seeds of the loop's card round: how far the lab
         # seeds' mean lies from the loop seeds' mean of the true card
         own = _judge(pd.DataFrame(run_planted([int(s) for s in ver["seeds"]], "own")), lab,
-                     float(v["rtol"]))
+                     float(v["rtol"]), lab_se)
         hold = pd.read_csv(tmp / "holdout_table.csv")
         rounds = pd.read_csv(tmp / "rounds.csv")
     c1 = os.times()
@@ -148,7 +158,7 @@ def main(argv=None) -> int:
         "command": "python benchmarks/planted_card.py " + shlex.join(argv),
         "commit": subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
                                  capture_output=True, text=True).stdout.strip(),
-        "planted": planted, "lab_seeds": rows, "lab": lab,
+        "planted": planted, "lab_seeds": rows, "lab": lab, "lab_se": lab_se,
         "calibration": {"status": cal["status"], "parameters": cal["parameters"],
                         "strength_ratio": cal["strength_ratio"]},
         "verification": {k: ver[k] for k in ("status", "message", "rounds", "runs",
@@ -172,14 +182,16 @@ def main(argv=None) -> int:
     return 0
 
 
-def _judge(runs: pd.DataFrame, lab: dict, rtol: float) -> dict:
+def _judge(runs: pd.DataFrame, lab: dict, rtol: float, lab_se: dict | None = None) -> dict:
     """Mean, error against the lab value and tolerance max(rtol, 2 SE) of every target
-    over ``runs`` (sigma_t over the valid discs), as the closed loop judges a round."""
+    over ``runs`` (sigma_t over the valid discs), as the closed loop judges a round (SE
+    with the lab value's own standard error when ``lab_se`` gives it)."""
     out = {}
     for k in lab:
         x = runs.loc[runs["bts_valid"], k] if k == "bts_MPa" else runs[k]
         m = float(x.mean())
         se = float(x.std(ddof=1) / len(x) ** 0.5 / abs(m)) if len(x) > 1 else 0.0
+        se = (se ** 2 + ((lab_se or {}).get(k, 0.0) / abs(lab[k])) ** 2) ** 0.5
         out[k] = {"n": int(len(x)), "mean": m, "err_pct": 100 * (m / lab[k] - 1),
                   "tol_pct": 100 * max(rtol, 2 * se)}
     return out
@@ -194,7 +206,11 @@ def markdown(rec: dict) -> str:
              f"Command: `{rec['command']}`", "",
              f"Lab values: the means of the planted card over {len(rec['lab_seeds'])} packing "
              f"seeds (σt over the valid discs: "
-             f"{sum(r['bts_valid'] for r in rec['lab_seeds'])} of {len(rec['lab_seeds'])}).",
+             f"{sum(r['bts_valid'] for r in rec['lab_seeds'])} of {len(rec['lab_seeds'])})"
+             + (", given to the study with their standard errors (`<target>_se`: "
+                + ", ".join(f"{k} {v:.3g}" for k, v in rec["lab_se"].items())
+                + "); the loop's and the fresh seeds' tolerance is then max(1 %, "
+                  "2 sqrt(SE² + SE_lab²))." if rec.get("lab_se") else "."),
              "", "| parameter | planted | calibrated (regression) | verified (closed loop) |",
              "|---|---|---|---|"]
     for k in ("pb_emod_GPa", "pb_kratio", "pb_ten_MPa", "pb_coh_MPa"):
@@ -203,7 +219,9 @@ def markdown(rec: dict) -> str:
     v = rec["verification"]
     lines += ["", f"Closed loop: {v['status']} after {v['rounds']} round(s), {v['runs']} runs "
                   f"({v['n_seeds']} seeds in the card's round): {v['message']}", "",
-              "| target | lab | closed-loop mean | error | tolerance max(1 %, 2 SE) | seed CV |",
+              "| target | lab | closed-loop mean | error | tolerance "
+              + ("max(1 %, 2 sqrt(SE² + SE_lab²))" if rec.get("lab_se") else "max(1 %, 2 SE)")
+              + " | seed CV |",
               "|---|---|---|---|---|---|"]
     for k, c in rec["closed_loop"].items():
         cv = c["seed_cv"]
@@ -214,7 +232,9 @@ def markdown(rec: dict) -> str:
     if own:
         lines += ["", "The planted card itself on the seeds of the loop's card round (the lab "
                       "values come from other seeds): judged as the loop judges a round", "",
-                  "| target | n | mean | error against the lab | tolerance max(1 %, 2 SE) | within |",
+                  "| target | n | mean | error against the lab | tolerance "
+                  + ("max(1 %, 2 sqrt(SE² + SE_lab²))" if rec.get("lab_se") else "max(1 %, 2 SE)")
+                  + " | within |",
                   "|---|---|---|---|---|---|"]
         for k, o in own.items():
             lines.append(f"| {k} | {o['n']} | {o['mean']:.4g} | {o['err_pct']:+.2f} % | "

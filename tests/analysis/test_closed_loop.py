@@ -634,3 +634,33 @@ def test_the_trust_region_grows_again_after_good_capped_steps():
     assert not rec["accepted"] and trust.cap == pytest.approx(0.05)
     rec, _ = rnd([0.5, 0.5, 0.52], 0.1)  # better, by 0.02 < the cap: it stays
     assert rec["accepted"] and trust.cap == pytest.approx(0.05)
+
+
+def test_a_target_with_its_own_standard_error_is_met_within_both_errors(start):
+    """The lab value is a mean too (target_se): the rock itself (the planted truth),
+    measured on three packings 0.1 % apart, is 3 % off a sigma_c target whose standard error
+    is 2 %: within max(1 %, 2 sqrt(SE² + 2 %²)) at once, while an exact target sends the
+    loop away from the rock to fit that 3 %."""
+    truth = dict(start)
+    t = planted_truth(truth)
+    targets = {**t, "ucs_MPa": 1.03 * t["ucs_MPa"]}
+    se = {"ucs_MPa": 0.02 * targets["ucs_MPa"]}
+
+    def loop(**kw):
+        return ClosedLoop(TinyScatterDEM(), targets, models=MODELS, rtol=0.01, max_rounds=4,
+                          ranges=T2, polish=False, **kw).run(truth)
+
+    both = loop(target_se=se)
+    h = both.history
+    assert both.converged and both.n_rounds == 1
+    assert h.loc[0, "tol_ucs_MPa"] == pytest.approx(
+        2 * np.hypot(h.loc[0, "se_ucs_MPa"], 0.02), rel=1e-9)
+    exact = loop()
+    assert exact.history.loc[0, "tol_ucs_MPa"] == pytest.approx(0.01)
+    assert exact.n_rounds > 1 and exact.params != truth
+    with pytest.raises(ValueError, match="target_se.ucs_MPa"):
+        ClosedLoop(TinyScatterDEM(), targets, models=MODELS, ranges=T2,
+                   target_se={"ucs_MPa": -1.0})
+    with pytest.raises(ValueError, match="'bts_MPa' is not a target"):
+        ClosedLoop(TinyScatterDEM(), targets, models=MODELS, ranges=T2,
+                   target_se={"bts_MPa": 1.0})

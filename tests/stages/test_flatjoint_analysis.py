@@ -78,3 +78,25 @@ def test_a_flat_joint_card_is_calibrated_from_the_flat_joint_regression(dataset,
     assert p["fj_ten_MPa"] == pytest.approx(0.08 * p["fj_coh_MPa"])
     assert card["strength_ratio"]["value"] == pytest.approx(0.08)
     assert card["roles"]["fj_ten_MPa"] == "derived" and card["roles"]["fj_coh_MPa"] == "free"
+
+
+def test_the_labs_standard_errors_reach_the_card(dataset, tmp_path):
+    """A lab row with <target>_se columns: the card records them as target_se (the closed
+    loop and the fresh-seed check read them there)."""
+    from bpmcal.io.card import read_card
+    from bpmcal.stages.calibration import calibrate
+
+    o = tmp_path
+    screen(dataset, selected=o / "sel.json", table3_csv=o / "t3.csv", figure=o / "imp.png",
+           importance_table=o / "imp.csv", cv_table=o / "cv.csv", shadow_table=o / "sh.csv",
+           summary=o / "s.txt", n_repeats=1)
+    regress(dataset, o / "sel.json", models=o / "models.json", equations=o / "eq.md",
+            summaries=o / "sum.txt", coefficients=o / "coef.csv", candidates=o / "cand.csv",
+            table4=o / "t4.csv", fit_table=o / "fit.csv", figure=o / "fit.png", cv_repeats=1)
+    lab = o / "lab.csv"
+    lab.write_text("specimen,ucs_MPa,E_GPa,nu,ucs_MPa_se,nu_se\nG1,180.0,55.0,0.22,4.0,\n")
+    (o / "cards").mkdir()
+    fixed = {"rmin_mm": 0.8, "porosity": 0.3, "fj_fa_deg": 20.0, "fj_fric": 0.6, "fj_nal": 3.0}
+    calibrate(dataset, o / "models.json", lab, cards=[o / "cards" / "G1.yaml"], fixed=fixed,
+              ranges=dict(RANGES), ratio=0.08, n_boot=0)
+    assert read_card(o / "cards" / "G1.yaml")["target_se"] == {"ucs_MPa": 4.0}

@@ -42,6 +42,18 @@ def test_statistics_are_those_of_the_fresh_seeds():
     assert not H.holdout_stats(v, 4.5, rtol=0.5)["within_z_se"]
 
 
+def test_a_lab_value_with_its_own_standard_error_is_a_difference_of_two_means():
+    """lab_se: the z-score and both verdicts use sqrt(se^2 + lab_se^2)."""
+    v = [1.0, 2.0, 3.0, 4.0, 5.0]
+    se = math.sqrt(2.5) / math.sqrt(5)
+    s = H.holdout_stats(v, 4.5, rtol=0.01, lab_se=0.5)
+    both = math.hypot(se, 0.5)
+    assert s["z_score"] == pytest.approx(-1.5 / both) and s["within_z_se"]  # -1.73
+    assert s["tol_pct"] == pytest.approx(200 * both / 4.5) and s["met"]
+    assert s["se"] == pytest.approx(se)  # the fresh seeds' own standard error is unchanged
+    assert H.holdout_stats(v, 4.5, rtol=0.01, lab_se=0.0) == H.holdout_stats(v, 4.5, rtol=0.01)
+
+
 def test_failed_runs_do_not_count_and_one_seed_gives_no_verdict():
     s = H.holdout_stats([10.0, math.nan, 12.0], 11.0, rtol=0.01)
     assert s["n"] == 2 and s["mean"] == 11.0 and s["sd"] == pytest.approx(math.sqrt(2))

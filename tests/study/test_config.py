@@ -157,3 +157,17 @@ def test_the_schema_holds_every_registered_parameter():
         assert name in cal["free"]["items"]["enum"] and name in cal["bounds"]["properties"]
     assert cal["fixed"]["properties"]["fj_slit_frac"] == {"type": "number", "minimum": 0.0,
                                                           "maximum": 1.0}
+
+
+def test_lab_standard_errors_are_checked(tmp_path):
+    f = tmp_path / "rock.csv"
+    f.write_text("specimen,ucs_MPa,E_GPa,nu,bts_MPa,ucs_MPa_se,bts_MPa_se\n"
+                 "R1,150.5,50.0,0.22,9.0,3.0,\nR2,140.0,48.0,0.21,,0.0,\n")
+    lab = load_lab(f)
+    assert lab.loc[0, "ucs_MPa_se"] == 3.0 and lab.loc[1, "ucs_MPa_se"] == 0.0
+    f.write_text("specimen,ucs_MPa,E_GPa,nu,bts_MPa,ucs_MPa_se,bts_MPa_se\n"
+                 "R1,150.5,50.0,0.22,,-1.0,0.5\n")
+    with pytest.raises(ConfigError) as e:
+        load_lab(f)
+    assert "R1 ucs_MPa_se='-1.0': expected a standard error >= 0" in str(e.value)
+    assert "R1 bts_MPa_se='0.5': a standard error without its value bts_MPa" in str(e.value)

@@ -17,7 +17,8 @@ Format 1 (keys in this order; paper units)::
                         ratio sweep | config calibration.ratio | both strengths free
                         (the config key is calibration.strength_ratio now; the set_by
                         value keeps its card-format-1 spelling)
-    parameters          the 8 meso-parameters (the regression's answer)
+    parameters          the card's parameters (the regression's answer): the paper's 8
+                        for the parallel bond, the flat joint's for a flat-joint study
     roles               free | derived | fixed, per parameter
     ranges              the design space (the config's ranges)
     calibration_bounds  the config's calibration.bounds
@@ -25,6 +26,8 @@ Format 1 (keys in this order; paper units)::
     at_bound, widen, advice   what stops the fit and what to widen
     targets, lab        the lab values calibrated against (σc, E, ν, and σt = bts_MPa when the
                         lab row gives it), and the whole lab row
+    target_se           (when the lab row gives ``<target>_se``) the lab values' standard
+                        errors: the closed loop and the fresh-seed check compare two means
     predicted, residuals_pct  the regression's responses at ``parameters``
     missed              every target missed by more than the inversion's tolerance: target,
                         value, predicted, error_pct (empty when all are met)
@@ -47,7 +50,7 @@ Format 1 (keys in this order; paper units)::
     transfer            (transferred cards, ``bpmcal transfer``) status, rounds, scale,
                         tolerance_pct, at_transfer and final responses, parameters
 
-Keys added within format 1 (``strength_ratio``, ``missed``, ``reach``,
+Keys added within format 1 (``strength_ratio``, ``missed``, ``reach``, ``target_se``,
 ``verification.missed``, ``verification.bts_geometry``, ``verification.jacobian``,
 ``verification.max_seeds``, ``verification.seeds_per_round``) are optional for readers: cards
 written before them stay readable.

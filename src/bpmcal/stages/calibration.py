@@ -209,6 +209,7 @@ def calibration_card(spec: str, inv, rec: dict, targets: dict, *, ratio: float |
         "widen": inv.widen,
         "advice": inv.advice,
         "targets": targets,
+        **({"target_se": lab_target_se(rec, targets)} if lab_target_se(rec, targets) else {}),
         "lab": {k: (None if (isinstance(v, float) and not math.isfinite(v)) else v)
                 for k, v in rec.items() if k != "specimen"},
         "predicted": inv.predicted,
@@ -233,6 +234,17 @@ def lab_targets(rec: dict) -> dict:
         if v is not None and math.isfinite(float(v)):
             targets[r] = float(v)
     return targets
+
+
+def lab_target_se(rec: dict, targets: dict) -> dict:
+    """The standard errors the lab row gives for its targets (``<target>_se`` columns,
+    :data:`bpmcal.study.lab_data.LAB_SE`; empty = none): target -> value."""
+    out = {}
+    for r in targets:
+        v = rec.get(f"{r}_se")
+        if v is not None and math.isfinite(float(v)):
+            out[r] = float(v)
+    return out
 
 
 def note_is_fallback(note: str) -> bool:

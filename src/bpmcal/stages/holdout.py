@@ -175,13 +175,16 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
     return df
 
 
-def holdout_stats(values, lab: float, *, rtol: float, z: float = 2.0) -> dict:
+def holdout_stats(values, lab: float, *, rtol: float, z: float = 2.0,
+                  lab_se: float = 0.0) -> dict:
     """Mean, sample standard deviation, standard error of the mean of ``values`` (the
     fresh seeds' responses; NaN entries are failed runs and do not count), the error of
     the mean in % of ``lab``, its z-score (error / standard error) and the verdicts
     ``within_z_se`` (|mean - lab| <= z standard errors) and ``met`` (|error| <= max(rtol,
-    z standard errors), the closed loop's own acceptance). Fewer than two values: no
-    standard error, so neither verdict holds."""
+    z standard errors), the closed loop's own acceptance). ``lab_se``: the lab value's own
+    standard error (its lab row's ``<target>_se``; default 0, an exact target): the
+    z-score and both verdicts then use sqrt(se² + lab_se²), the error of a difference of
+    two means. Fewer than two values: no standard error, so neither verdict holds."""
     v = np.asarray(values, float)
     v = v[np.isfinite(v)]
     n = len(v)
@@ -189,10 +192,11 @@ def holdout_stats(values, lab: float, *, rtol: float, z: float = 2.0) -> dict:
     sd = float(v.std(ddof=1)) if n > 1 else math.nan
     se = sd / math.sqrt(n) if n > 1 else math.nan
     err = 100 * (mean / lab - 1) if n and lab else math.nan
-    zs = (mean - lab) / se if n > 1 and se > 0 else (0.0 if n > 1 and mean == lab else math.nan)
+    both = math.hypot(se, lab_se) if n > 1 else math.nan  # the difference's standard error
+    zs = (mean - lab) / both if n > 1 and both > 0 else (0.0 if n > 1 and mean == lab else math.nan)
     se_pct = 100 * se / abs(lab) if n > 1 and lab else math.nan
-    within = bool(n > 1 and abs(mean - lab) <= z * se)
-    tol = max(100 * rtol, z * se_pct) if n > 1 else math.nan
+    within = bool(n > 1 and abs(mean - lab) <= z * both)
+    tol = max(100 * rtol, z * 100 * both / abs(lab)) if n > 1 and lab else math.nan
     return {"n": n, "mean": mean, "sd": sd, "se": se, "err_pct": err, "se_pct": se_pct,
             "z_score": zs, "z": float(z), "within_z_se": within, "tol_pct": tol,
             "met": bool(n > 1 and abs(err) <= tol)}
@@ -250,7 +254,8 @@ def holdout_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataFrame
         for k in (*c["targets"], *predicted):
             lab = float(c["targets"][k]) if k in c["targets"] else math.nan
             vals = df.loc[ok, k].to_numpy(float)
-            st = holdout_stats(vals, lab, rtol=rtol, z=z)
+            st = holdout_stats(vals, lab, rtol=rtol, z=z,
+                               lab_se=float((c.get("target_se") or {}).get(k, 0.0)))
             fin = vals[np.isfinite(vals)]
             rows.append({"specimen": c["specimen"], "response": k,
                          "role": "target" if k in c["targets"] else "prediction",

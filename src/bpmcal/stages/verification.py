@@ -182,7 +182,8 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                           models=model_set if jac is None else None, jacobian=jac,
                           rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
                           bounds=c.get("calibration_bounds") or None, seeds=list(seeds),
-                          max_seeds=max_seeds, margin=range_margin, polish=polish)
+                          max_seeds=max_seeds, margin=range_margin, polish=polish,
+                          target_se=c.get("target_se") or None)
         res = loop.run(params)
         best = res.best_round  # converged, else the smallest max |error| of the seed mean
         os.replace(paths[best][0], run)  # the best round's first seed is the run file

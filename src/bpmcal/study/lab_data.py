@@ -24,7 +24,11 @@ LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
 #: optional columns: empty = not given for that specimen; ``bts_MPa`` (Brazilian tensile
 #: strength) or ``dtt_MPa`` (direct-tension strength, the alternative σt target; not both
 #: on one row) makes σt a calibration target of that specimen (``stages.calibration.calibrate``)
-LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa")
+#: optional standard errors of the lab values (``<column>_se``, the column's unit, >= 0;
+#: e.g. the standard deviation over the lab's n specimens / sqrt(n)): the closed loop and
+#: the fresh-seed check then compare two means, each with its error
+LAB_SE = tuple(f"{c}_se" for c in ("ucs_MPa", "E_GPa", "nu", "bts_MPa", "dtt_MPa"))
+LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa", *LAB_SE)
 
 
 def lab_problems(df, key: str) -> list[str]:
@@ -56,7 +60,15 @@ def lab_problems(df, key: str) -> list[str]:
                 v = float(pd.to_numeric(pd.Series([raw]), errors="coerce").iloc[0])
             except (TypeError, ValueError):
                 v = math.nan
-            if not (math.isfinite(v) and v > 0):
+            if c in LAB_SE:
+                value = df.loc[df["specimen"] == spec, c[:-3]]
+                if not (math.isfinite(v) and v >= 0):
+                    msgs.append(f"lab.csv: {key!r} specimen {spec} {c}={raw!r}: expected a "
+                                "standard error >= 0 (or empty)")
+                elif c[:-3] not in df.columns or not _given(value.iloc[0]):
+                    msgs.append(f"lab.csv: {key!r} specimen {spec} {c}={raw!r}: a standard "
+                                f"error without its value {c[:-3]}")
+            elif not (math.isfinite(v) and v > 0):
                 msgs.append(f"lab.csv: {key!r} specimen {spec} {c}={raw!r}: expected a "
                             f"positive number{' (or empty)' if optional else ''}")
             elif c == "nu" and v >= 0.5:

@@ -146,6 +146,13 @@ class ClosedLoop:
         round measures the simulator itself, so the loop can follow a target just outside
         the sampled space, e.g. a stiffness ratio that a smaller verification specimen
         needs for the rock's ν. :attr:`ClosedLoopResult.outside` lists what ended outside.
+    target_se:
+        Standard errors of the lab values, response -> value in the target's unit (e.g.
+        the lab's standard deviation over its n specimens / sqrt(n); default none: the
+        targets are exact). A target known only to its standard error is met when the
+        mean is within max(rtol, z · sqrt(SE² + SE_lab²)) of it: the comparison of two
+        means, each with its error. Without it, a lab mean that is itself off the rock's
+        by a few standard errors asks the loop to fit that error.
     polish:
         When a seed-averaged loop (k > 1 seeds) converges with some mean more than one
         standard error from its target, and a round is left, take one more full Newton
@@ -165,7 +172,8 @@ class ClosedLoop:
                  rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 6, damping: float = 0.8,
                  max_step: float = 0.25, broyden: bool = True, seeds_per_round: int | None = None,
                  seeds: Sequence[int] | None = None, z: float = 2.0, max_seeds: int | None = None,
-                 margin: float = 0.0, polish: bool = True):
+                 margin: float = 0.0, polish: bool = True,
+                 target_se: Mapping[str, float] | None = None):
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
@@ -182,6 +190,7 @@ class ClosedLoop:
             raise ValueError(f"z={z!r}: expected a number of standard errors >= 0")
         self.z = float(z)
         self.responses, self.t = _check_targets(targets, models)
+        self.target_se = _target_se(target_se, self.responses, self.t)
         if (models is None) == (jacobian is None):
             raise ValueError("give exactly one of models (analytic Jacobian) or jacobian")
         rt = {r: float(rtol[r] if isinstance(rtol, Mapping) else rtol) for r in self.responses}
@@ -364,14 +373,14 @@ class ClosedLoop:
         judged = None
         bad = failed(ys)
         if not bad:
-            judged = stats.judge(ys, self.rtol, self.z, self.t)
+            judged = stats.judge(ys, self.rtol, self.z, self.t, self.target_se)
             se, tol, e = judged[2], judged[3], judged[4]
             if np.all(np.abs(e) <= tol) and spare and np.any(self.z * se > self.rtol):
                 grown, seeds, spare = len(spare), seeds + spare, []
                 ys = np.vstack([ys, run_seeds(seeds[-grown:])])
                 bad = failed(ys)
                 if not bad:
-                    judged = stats.judge(ys, self.rtol, self.z, self.t)
+                    judged = stats.judge(ys, self.rtol, self.z, self.t, self.target_se)
         return _Round(ys, seeds, spare, grown, bad, *(judged if judged is not None else (None,) * 5))
 
     def _record(self, rec: dict, rd: _Round) -> None:
@@ -544,14 +553,18 @@ class _SeedStats:
     def __init__(self, n: int):
         self.pooled, self.dof = np.zeros(n), 0
 
-    def judge(self, ys: np.ndarray, rtol: np.ndarray, z: float, t: np.ndarray):
-        """mean, seed CV, SE (pooled with the earlier rounds), tolerance, error."""
+    def judge(self, ys: np.ndarray, rtol: np.ndarray, z: float, t: np.ndarray,
+              target_se: np.ndarray | None = None):
+        """mean, seed CV, SE (pooled with the earlier rounds), tolerance, error; with
+        ``target_se`` (relative standard errors of the targets) the tolerance is
+        max(rtol, z · sqrt(SE² + target_se²)): two means, each with its error."""
         k = len(ys)
         y = ys.mean(axis=0)
         cv = ys.std(axis=0, ddof=1) / np.abs(y) if k > 1 else np.full(len(y), np.nan)
         se = (np.sqrt((self.pooled + (k - 1) * cv ** 2) / (self.dof + k - 1)) / math.sqrt(k)
               if k > 1 else np.zeros(len(y)))
-        return y, cv, se, np.maximum(rtol, z * se), (y - t) / np.abs(t)
+        both = se if target_se is None else np.sqrt(se ** 2 + target_se ** 2)
+        return y, cv, se, np.maximum(rtol, z * both), (y - t) / np.abs(t)
 
     def add(self, k: int, cv: np.ndarray) -> None:
         """Pool a judged round of ``k`` seeds."""
@@ -590,6 +603,21 @@ class _TrustRegion:
         self.cap = cap
         self.base = None
         self.held_rounds = [0] * n
+
+
+def _target_se(target_se, responses, t: np.ndarray) -> np.ndarray | None:
+    """The targets' relative standard errors (None: none given); a missing response is 0."""
+    if target_se is None:
+        return None
+    out = np.zeros(len(responses))
+    for r, v in dict(target_se).items():
+        if r not in responses:
+            raise ValueError(f"target_se: {r!r} is not a target (targets: {list(responses)})")
+        x = float(v)
+        if not (math.isfinite(x) and x >= 0):
+            raise ValueError(f"target_se.{r}={v!r}: expected a standard error >= 0")
+        out[list(responses).index(r)] = x / abs(t[list(responses).index(r)])
+    return out
 
 
 def _lm_step(A: np.ndarray, b: np.ndarray, cap: float) -> np.ndarray:
