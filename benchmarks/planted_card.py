@@ -240,7 +240,9 @@ def markdown(rec: dict) -> str:
             lines.append(f"| {k} | {o['n']} | {o['mean']:.4g} | {o['err_pct']:+.2f} % | "
                          f"{o['tol_pct']:.2f} % | {abs(o['err_pct']) <= o['tol_pct']} |")
     lines += ["", "Fresh seeds (`bpmcal holdout`, the study's holdout seeds):", "",
-              "| target | n | mean | error | z-score | within 2 SE |", "|---|---|---|---|---|---|"]
+              "| target | n | mean | error | z-score | within "
+              + ("2 sqrt(SE² + SE_lab²)" if rec.get("lab_se") else "2 SE") + " |",
+              "|---|---|---|---|---|---|"]
     for h in rec["holdout"]:
         lines.append(f"| {h['response']} | {h['n']} | {h['mean']:.4g} | {h['err_pct']:+.2f} % | "
                      f"{h['z_score']:+.2f} | {h['within_z_se']} |")

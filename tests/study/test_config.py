@@ -104,8 +104,7 @@ def _fj_config():
     cfg["ranges"].update(FJ_RANGES)
     cfg["calibration"]["fixed"] = {"rmin_mm": 0.8, "porosity": 0.34, "fj_fa_deg": 20.0,
                                    "fj_fric": 0.6}
-    cfg["calibration"].pop("free", None)
-    cfg["calibration"]["strength_ratio"] = 0.1
+    cfg["calibration"]["strength_ratio"] = 0.1  # free: config.yaml's parallel-bond default
     return cfg
 
 
@@ -116,6 +115,7 @@ def test_a_flat_joint_config_takes_the_models_names_and_defaults():
     # the parallel-bond keys inherited from config.yaml are left out, with one line
     assert not [k for k in cfg["ranges"] if k.startswith("pb_") or k == "fric"]
     assert len(notes) == 1 and "pb_emod_GPa" in notes[0] and "ranges.fric" in notes[0]
+    assert "calibration.free" in notes[0]
     pb = validate_config(merged_config("config.yaml"), SCHEMA, base_dir=REPO)
     assert pb["contact_model"] == "linearpbond"
     assert pb["calibration"]["free"] == ["pb_emod_GPa", "pb_kratio", "pb_coh_MPa"]

@@ -338,6 +338,9 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
     if not specs:
         return ""
     rows, notes = [], []
+    model = P.contact_model(cfg.get("contact_model"))
+    ratio_name = ("bond-strength ratio" if model.name == P.DEFAULT_CONTACT_MODEL
+                  else f"strength ratio {model.ratio_symbol}")
     for spec in specs:
         card = read_card(lay.card(spec))
         p = card["parameters"]
@@ -366,7 +369,7 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
             if sr.get("set_by") == f"{resp} target":
                 notes.append(f"- {spec}: the lab tensile strength "
                              f"{P.RESPONSES[resp].unicode} = {_f(card['targets'][resp])} MPa "
-                             f"sets the bond-strength ratio: {_f(sr['value'])} (not the ratio "
+                             f"sets the {ratio_name}: {_f(sr['value'])} (not the ratio "
                              "in the title)")
         for m in card.get("missed") or []:
             notes.append(f"- {spec}: target {m['target']} missed by the calibration: lab "
@@ -382,12 +385,13 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
     if ref:
         header += ["paper", "difference"]
     header += ["inversion status"]
-    title = (f"## Calibrated meso-parameters (bond-strength ratio {ratio:g}; paper 1.4)\n\n" if ref
-             else f"## Calibrated meso-parameters (bond-strength ratio {ratio:g})\n\n")
+    title = (f"## Calibrated meso-parameters ({ratio_name} {ratio:g}; paper 1.4)\n\n" if ref
+             else f"## Calibrated meso-parameters ({ratio_name} {ratio:g})\n\n")
     out = title + markdown_table(rows, header) + "\n"
+    coh_sym, ten = P.ALL_PARAMS[model.coh].unicode, model.ten
     out += ("\nBounds: the configured ranges (the design space), narrowed by calibration.bounds "
-            "and, for τcp, by ranges.pb_ten_MPa / ratio; each card names where every bound comes "
-            "from.\n")
+            f"and, for {coh_sym}, by ranges.{ten} / ratio; each card names where every bound "
+            "comes from.\n")
     if notes:
         out += "\n" + "\n".join(notes) + "\n"
     return out

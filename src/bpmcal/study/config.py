@@ -169,7 +169,8 @@ def _apply_contact_model(config: dict, note=_stderr_line) -> None:
     ``calibration.free`` (the model's modulus, stiffness ratio and cohesion), and, for a
     model other than the parallel bond, the parallel bond's parameters that an overlay
     inherits from config/config.yaml (an overlay cannot delete keys) dropped from
-    ``ranges``, ``calibration.fixed`` and ``calibration.bounds``, with one line to
+    ``ranges``, ``calibration.fixed`` and ``calibration.bounds``, and a ``calibration.free``
+    that is the parallel bond's default replaced by the model's, with one line to
     ``note``. An unknown model is left to the schema; another model's names in a
     parallel-bond config are an error (:func:`_model_problems`)."""
     name = config.get("contact_model", P.DEFAULT_CONTACT_MODEL)
@@ -187,6 +188,9 @@ def _apply_contact_model(config: dict, note=_stderr_line) -> None:
                 for k in [k for k in node if k in base and k not in model.params]:
                     del node[k]
                     dropped.append(f"{key}.{k}")
+        if isinstance(cal, dict) and cal.get("free") == list(P.MODELS[P.DEFAULT_CONTACT_MODEL].free):
+            del cal["free"]  # config.yaml's parallel-bond default: the model's default instead
+            dropped.append("calibration.free")
         if dropped:
             note(f"config: contact_model {name}: {len(dropped)} parallel-bond key(s) of the base "
                  f"config left out ({', '.join(dropped)})")

@@ -424,8 +424,9 @@ class ClosedLoop:
                 [r for r, g in zip(self.responses, gain) if g > 0.5])
 
     def _met(self, k: int) -> str:
-        return (f"every mean of {k} seeds within max(rtol, {self.z:g} standard errors) of its "
-                "target" if k > 1 else "all relative errors within tolerance")
+        lab = " (with the lab value's)" if self.target_se is not None and k > 1 else ""
+        return (f"every mean of {k} seeds within max(rtol, {self.z:g} standard errors{lab}) of "
+                "its target" if k > 1 else "all relative errors within tolerance")
 
     def _failed(self, rnd: int, bad: list, polished_from: int | None) -> _Outcome:
         """A round with a non-finite response ends the loop: failed, unless it was the
