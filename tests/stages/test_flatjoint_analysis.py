@@ -52,26 +52,36 @@ def test_flat_joint_dataset_is_screened_and_regressed_on_its_own_names(dataset, 
     assert fit.groupby("response")["adj_r2"].max().min() > 0.9
 
 
-def test_a_flat_joint_card_is_calibrated_from_the_flat_joint_regression(dataset, tmp_path):
-    """The calibration stage on the flat-joint models: the card holds the flat joint's
-    names, its strength ratio is fj_ten/fj_coh, and its predicted responses are the lab's."""
+def _calibrated_card(dataset, o, lab_csv: str) -> dict:
+    """Screen, regress and calibrate ``dataset`` against the lab CSV text ``lab_csv``
+    (strength ratio 0.08), the files in ``o``: the card of specimen G1."""
     from bpmcal.io.card import read_card
     from bpmcal.stages.calibration import calibrate
 
-    o = tmp_path
+    _screen_and_regress(dataset, o)
+    lab = o / "lab.csv"
+    lab.write_text(lab_csv)
+    (o / "cards").mkdir()
+    fixed = {"rmin_mm": 0.8, "porosity": 0.3, "fj_fa_deg": 20.0, "fj_fric": 0.6, "fj_nal": 3.0}
+    calibrate(dataset, o / "models.json", lab, cards=[o / "cards" / "G1.yaml"], fixed=fixed,
+              ranges=dict(RANGES), ratio=0.08, n_boot=0)
+    return read_card(o / "cards" / "G1.yaml")
+
+
+def _screen_and_regress(dataset, o):
+    """The screening and regression stages on ``dataset``, their files in ``o``."""
     screen(dataset, selected=o / "sel.json", table3_csv=o / "t3.csv", figure=o / "imp.png",
            importance_table=o / "imp.csv", cv_table=o / "cv.csv", shadow_table=o / "sh.csv",
            summary=o / "s.txt", n_repeats=1)
     regress(dataset, o / "sel.json", models=o / "models.json", equations=o / "eq.md",
             summaries=o / "sum.txt", coefficients=o / "coef.csv", candidates=o / "cand.csv",
             table4=o / "t4.csv", fit_table=o / "fit.csv", figure=o / "fit.png", cv_repeats=1)
-    lab = o / "lab.csv"
-    lab.write_text("specimen,ucs_MPa,E_GPa,nu\nG1,180.0,55.0,0.22\n")
-    (o / "cards").mkdir()
-    fixed = {"rmin_mm": 0.8, "porosity": 0.3, "fj_fa_deg": 20.0, "fj_fric": 0.6, "fj_nal": 3.0}
-    calibrate(dataset, o / "models.json", lab, cards=[o / "cards" / "G1.yaml"], fixed=fixed,
-              ranges={k: v for k, v in RANGES.items()}, ratio=0.08, n_boot=0)
-    card = read_card(o / "cards" / "G1.yaml")
+
+
+def test_a_flat_joint_card_is_calibrated_from_the_flat_joint_regression(dataset, tmp_path):
+    """The calibration stage on the flat-joint models: the card holds the flat joint's
+    names, its strength ratio is fj_ten/fj_coh, and its predicted responses are the lab's."""
+    card = _calibrated_card(dataset, tmp_path, "specimen,ucs_MPa,E_GPa,nu\nG1,180.0,55.0,0.22\n")
     assert card["status"] == "ok", card["message"]
     p = card["parameters"]
     assert not [k for k in p if k.startswith("pb_")]
@@ -83,20 +93,6 @@ def test_a_flat_joint_card_is_calibrated_from_the_flat_joint_regression(dataset,
 def test_the_labs_standard_errors_reach_the_card(dataset, tmp_path):
     """A lab row with <target>_se columns: the card records them as target_se (the closed
     loop and the fresh-seed check read them there)."""
-    from bpmcal.io.card import read_card
-    from bpmcal.stages.calibration import calibrate
-
-    o = tmp_path
-    screen(dataset, selected=o / "sel.json", table3_csv=o / "t3.csv", figure=o / "imp.png",
-           importance_table=o / "imp.csv", cv_table=o / "cv.csv", shadow_table=o / "sh.csv",
-           summary=o / "s.txt", n_repeats=1)
-    regress(dataset, o / "sel.json", models=o / "models.json", equations=o / "eq.md",
-            summaries=o / "sum.txt", coefficients=o / "coef.csv", candidates=o / "cand.csv",
-            table4=o / "t4.csv", fit_table=o / "fit.csv", figure=o / "fit.png", cv_repeats=1)
-    lab = o / "lab.csv"
-    lab.write_text("specimen,ucs_MPa,E_GPa,nu,ucs_MPa_se,nu_se\nG1,180.0,55.0,0.22,4.0,\n")
-    (o / "cards").mkdir()
-    fixed = {"rmin_mm": 0.8, "porosity": 0.3, "fj_fa_deg": 20.0, "fj_fric": 0.6, "fj_nal": 3.0}
-    calibrate(dataset, o / "models.json", lab, cards=[o / "cards" / "G1.yaml"], fixed=fixed,
-              ranges=dict(RANGES), ratio=0.08, n_boot=0)
-    assert read_card(o / "cards" / "G1.yaml")["target_se"] == {"ucs_MPa": 4.0}
+    card = _calibrated_card(dataset, tmp_path, "specimen,ucs_MPa,E_GPa,nu,ucs_MPa_se,nu_se\n"
+                                               "G1,180.0,55.0,0.22,4.0,\n")
+    assert card["target_se"] == {"ucs_MPa": 4.0}
