@@ -384,7 +384,7 @@ def fit_terms(df: pd.DataFrame, response: str, terms: Sequence, *, stage: str = 
     cv = cv_r2(X, y, cv_folds, cv_repeats, seed) if cv_folds else np.array([])
     with warnings.catch_warnings():  # statsmodels warns about small n / kurtosis tests
         warnings.simplefilter("ignore")
-        text = res.summary(yname=response, xname=["Intercept"] + names).as_text()
+        text = _timeless(res.summary(yname=response, xname=["Intercept"] + names).as_text())
     return RegressionModel(response, terms, res.params[1:], res.params[0], stage=stage, table=table,
                            r2=float(res.rsquared), adj_r2=float(res.rsquared_adj),
                            cv_r2=tuple(float(v) for v in cv), n_obs=len(y), summary_text=text, ols=res)
@@ -694,3 +694,13 @@ def models_from_dict(d: Mapping) -> dict[str, RegressionModel]:
 __all__ = ["STAGES", "HIERARCHIES", "Term", "term_name", "parse_term", "term_label", "stage_pool",
            "design_matrix", "vif", "cv_r2", "RegressionModel", "fit_terms", "StepwiseRegression",
            "StepwiseResults", "models_from_dict", "combine"]
+
+
+def _timeless(summary: str) -> str:
+    """statsmodels' summary without the wall-clock date and time it stamps in its header
+    (``Date:``/``Time:``), so a model file depends on its data only (bit-for-bit reruns)."""
+    import re
+
+    return re.sub(r"(Date|Time):(\s+)\S.*?(?=\s{2,}|$)",
+                  lambda m: f"{m.group(1)}:{m.group(2)}" + "-" * len(m.group(0)[len(m.group(1)) + 1 + len(m.group(2)):]),
+                  summary, flags=re.M)
