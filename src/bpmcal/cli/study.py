@@ -171,10 +171,16 @@ def _add_calibrate(p):
     p.add_argument("--bounds", default=None,
                    help="JSON {name: [low, high]} narrowing --ranges for free parameters "
                         "(the config's calibration.bounds; wider than --ranges is an error)")
-    p.add_argument("--free", default=None, help="comma-separated free parameters")
+    from ..params import MODELS
+
+    free = "; ".join(f"{m.name}: {','.join(m.free)}" for m in MODELS.values())
+    pairs = ", ".join(f"{m.ten}/{m.coh} ({m.name})" for m in MODELS.values())
+    p.add_argument("--free", default=None,
+                   help=f"comma-separated free parameters (default, by the contact model the "
+                        f"names use: {free})")
     p.add_argument("--ratio", type=number("ratio", None, 100.0), default=d["ratio"],
-                   help=f"bond-strength ratio pb_ten/pb_coh (<= 0: both free; default "
-                        f"{d['ratio']:g})")
+                   help=f"strength ratio of the model's strength pair, {pairs} (<= 0: both "
+                        f"free; default {d['ratio']:g})")
     p.add_argument("--ratio-from", default=None,
                    help="JSON file with the chosen ratio (the ratio sweep's choice; when it "
                         "holds none, --ratio is used)")
