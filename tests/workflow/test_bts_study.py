@@ -14,7 +14,7 @@ from bpmcal import params as P
 from bpmcal.cli import main
 from bpmcal.io import h5
 from bpmcal.stages.analysis import regress, screen
-from bpmcal.stages.study import gather
+from bpmcal.stages.dataset import gather
 
 
 def _design(tmp_path, rows) -> str:

@@ -22,7 +22,7 @@ from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.stages import defaults_of
 from bpmcal.stages.analysis import calibrate, transfer, verify
-from bpmcal.stages.fracture import sweep_analyse, sweep_plan
+from bpmcal.stages.ratio_sweep import sweep_analyse, sweep_plan
 from bpmcal.stages.runs import impact_file
 from bpmcal.stages.screening import TENSILE_RULE
 from bpmcal.stages.triaxial import DEFAULT_SIGMA3_MPA

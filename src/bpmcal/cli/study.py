@@ -31,7 +31,7 @@ def _add_design(p):
 
 
 def cmd_design(args) -> int:
-    from ..stages.study import design
+    from ..stages.dataset import design
 
     ranges = parse_json(args.ranges, "--ranges")
     opt = None if args.optimization == "none" else args.optimization
@@ -55,7 +55,7 @@ def _add_gather(p):
 
 
 def cmd_gather(args) -> int:
-    from ..stages.study import gather
+    from ..stages.dataset import gather
 
     _, report = gather(args.design, args.runs, args.out, bts_runs=args.bts_runs,
                        dtt_runs=args.dtt_runs)
@@ -209,7 +209,7 @@ def cmd_calibrate(args) -> int:
 
 
 def _add_sweep_plan(p):
-    from ..stages.fracture import sweep_plan
+    from ..stages.ratio_sweep import sweep_plan
 
     d = defaults_of(sweep_plan)
     p.add_argument("--card", required=True, help="material card (the initial calibration)")
@@ -231,7 +231,7 @@ def _ratios(text) -> tuple[float, float, float]:
 
 
 def cmd_sweep_plan(args) -> int:
-    from ..stages.fracture import sweep_plan
+    from ..stages.ratio_sweep import sweep_plan
 
     plan = sweep_plan(args.card, args.models, ratios=_ratios(args.ratios), seed=args.seed,
                       out=args.out)
@@ -242,7 +242,7 @@ def cmd_sweep_plan(args) -> int:
 
 
 def _add_sweep_analyse(p):
-    from ..stages.fracture import sweep_analyse
+    from ..stages.ratio_sweep import sweep_analyse
 
     d = defaults_of(sweep_analyse)
     p.add_argument("--plan", required=True)
@@ -258,7 +258,7 @@ def _add_sweep_analyse(p):
 
 
 def cmd_sweep_analyse(args) -> int:
-    from ..stages.fracture import sweep_analyse
+    from ..stages.ratio_sweep import sweep_analyse
 
     df, chosen = sweep_analyse(args.plan, args.runs, criterion=args.criterion,
                                target=args.target, table=args.table, chosen=args.chosen,

@@ -331,7 +331,7 @@ def _add_impact_analyse(p):
 
 
 def cmd_impact_analyse(args) -> int:
-    from ..stages.fracture import impact_analyse
+    from ..stages.impact_energy import impact_analyse
 
     r = impact_analyse(args.main, args.runs, energy=args.energy, t10=args.t10, jk_fit=args.jk_fit,
                        fig7=args.fig7, fig_t10_png=args.fig_t10)

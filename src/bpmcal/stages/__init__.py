@@ -7,9 +7,10 @@ A stage reads the files it is given, checks them and its output paths before any
 
 - :mod:`.runs` — DEM run files (``ucs``, ``bts``, ``triaxial``, ``impact``) and failure
   records;
-- :mod:`.study` — the design and the gathered dataset (``study.smk``);
+- :mod:`.dataset` — the design and the gathered dataset (``study.smk``);
 - :mod:`.analysis` — screening, regression, calibration, verification (``analysis.smk``);
-- :mod:`.fracture` — the strength-ratio sweep and the impact analysis (``fracture.smk``);
+- :mod:`.ratio_sweep` — the strength-ratio sweep; :mod:`.impact_energy` — the impact
+  analysis (both ``fracture.smk``);
 - :mod:`.triaxial` — the cards' triaxial strength envelopes (``triaxial.smk``);
 - :mod:`.inputs`, :mod:`.progress` — reading checked inputs; progress on stderr.
 
