@@ -135,7 +135,7 @@ def main(argv=None) -> int:
               "--max-seeds", str(v["max_seeds"]), "--range-margin", str(v["range_margin"]),
               "--rtol", str(v["rtol"]), "--max-rounds", str(v["max_rounds"]), *common,
               *bts_opts, *cache], log)
-        seeds = [int(s) for s in v["holdout_seeds"]]
+        seeds = [int(s) for s in v["fresh_seeds"]]
         _run(["bpmcal", "holdout", "--card", str(verified), "--seeds",
               ",".join(map(str, seeds)), "--runs", *[str(tmp / f"h{s}.h5") for s in seeds],
               "--bts-runs", *[str(tmp / f"h{s}.bts.h5") for s in seeds], "--seed-runs",

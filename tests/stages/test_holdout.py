@@ -211,23 +211,23 @@ def test_a_sigma_t_target_needs_brazilian_run_files(verified):
 def test_config_refuses_holdout_seeds_of_the_loop_or_the_transfer():
     from bpmcal.study.config import _holdout_checks
 
-    cfg = {"verification": {"seed": 1, "seeds_per_round": 3, "holdout_seeds": [3, 9]},
+    cfg = {"verification": {"seed": 1, "seeds_per_round": 3, "fresh_seeds": [3, 9]},
            "transfer": {"enabled": False}}
     assert "[3]" in _holdout_checks(cfg)[0]
-    cfg["verification"]["holdout_seeds"] = [4, 9]
+    cfg["verification"]["fresh_seeds"] = [4, 9]
     assert _holdout_checks(cfg) == []
     cfg["transfer"]["enabled"] = True  # the transfer runs seed 1 + 3
     assert "[4]" in _holdout_checks(cfg)[0]
     # a seed set that may grow to 8 seeds uses 1-8, the transfer then 9
-    cfg["verification"].update(max_seeds=8, holdout_seeds=[8, 20])
+    cfg["verification"].update(max_seeds=8, fresh_seeds=[8, 20])
     assert "[8]" in _holdout_checks(cfg)[0]
-    cfg["verification"]["holdout_seeds"] = [9, 20]
+    cfg["verification"]["fresh_seeds"] = [9, 20]
     assert "[9]" in _holdout_checks(cfg)[0]
     cfg["transfer"]["enabled"] = False
     assert _holdout_checks(cfg) == []
-    cfg["verification"]["holdout_seeds"] = [9]
+    cfg["verification"]["fresh_seeds"] = [9]
     assert "at least 2" in _holdout_checks(cfg)[0]
-    cfg["verification"]["holdout_seeds"] = []
+    cfg["verification"]["fresh_seeds"] = []
     assert _holdout_checks(cfg) == []
 
 

@@ -475,14 +475,14 @@ def test_verify_averages_seeds_and_the_transfer_runs_at_its_scale(smoke):
 
 
 def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
-    """verification.holdout_seeds (11, 12 in the smoke config): every verified card is re-run
+    """verification.fresh_seeds (11, 12 in the smoke config): every verified card is re-run
     on those packing seeds, none of its closed loop's, with its closed-loop parameters, and
     the holdout table's statistics are those of the seed tables."""
     from bpmcal.io.h5 import read_inputs
     from bpmcal.io.study_files import HOLDOUT, StudyFiles
 
     cfg = yaml.safe_load((smoke / "config" / "smoke.yaml").read_text())
-    seeds = cfg["verification"]["holdout_seeds"]
+    seeds = cfg["verification"]["fresh_seeds"]
     lay = StudyFiles(str(smoke / OUTDIR))
     table = pd.read_csv(lay.table(HOLDOUT))
     # three targets and sigma_t's prediction (its Brazilian test on the same fresh seeds)
@@ -599,7 +599,7 @@ RERUN = {
     "verification.range_margin": (0.2, _VERIFY | {"transfer"}),
     "verification.from_unreachable": (False, _VERIFY),
     "verification.scatter_seeds": ([1, 2, 3], {"seed_scatter"}),
-    "verification.holdout_seeds": ([11, 12, 13], {"holdout": 3}),
+    "verification.fresh_seeds": ([11, 12, 13], {"holdout": 3}),
     "transfer.enabled": (False, {"impact": 2}),  # the impact takes the verified card instead
     "transfer.scale": (0.36, {"transfer"}),
     "transfer.max_rounds": (2, {"transfer"}),

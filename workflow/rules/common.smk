@@ -42,7 +42,7 @@ IMPACT_VS = L.impact_tags(
     config["impact"]["velocity"], config["impact"]["sweep_velocities"]
 )
 SCATTER_SEEDS = config["verification"]["scatter_seeds"]
-HOLDOUT_SEEDS = list(config["verification"]["holdout_seeds"])
+HOLDOUT_SEEDS = list(config["verification"]["fresh_seeds"])
 HOLDOUT_ON = bool(HOLDOUT_SEEDS)  # the verified cards on fresh packing seeds
 # a lab sigma_t target: the fresh-seed check runs each card's Brazilian test too
 LAB_BTS = "bts_MPa" in _lab.columns and bool(_lab["bts_MPa"].notna().any())

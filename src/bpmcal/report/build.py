@@ -136,7 +136,7 @@ def build(outdir, config: dict) -> Path:
     sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
     tx = cfg.get("triaxial") or {}
     triax, tlab = bool(tx.get("enabled", False)), bool(tx.get("lab_csv"))
-    hold = bool((cfg.get("verification") or {}).get("holdout_seeds"))
+    hold = bool((cfg.get("verification") or {}).get("fresh_seeds"))
     Path(lay.report_dir).mkdir(parents=True, exist_ok=True)
     found = copy_outputs(lay, sweep, triax, tlab, hold)
     S = []  # sections of index.md

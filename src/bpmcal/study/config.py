@@ -100,6 +100,7 @@ RENAMED_KEYS = {
     ("bts", "post_peak_min"): ("bts", "post_peak_strain"),  # a strain, not minutes
     ("dtt", "post_peak_min"): ("dtt", "post_peak_strain"),
     ("calibration", "ratio"): ("calibration", "strength_ratio"),
+    ("verification", "holdout_seeds"): ("verification", "fresh_seeds"),  # the fresh-seed check
 }
 assert all(old[:-1] == new[:-1] for old, new in RENAMED_KEYS.items())
 
@@ -348,21 +349,21 @@ def transfer_seed(verification: dict) -> int:
 
 
 def _holdout_checks(cfg: dict) -> list[str]:
-    """``verification.holdout_seeds``: none or at least two, all fresh (no seed of the
+    """``verification.fresh_seeds``: none or at least two, all fresh (no seed of the
     closed loop or of the transfer)."""
     v = cfg["verification"]
-    seeds = list(v.get("holdout_seeds") or [])
+    seeds = list(v.get("fresh_seeds") or [])
     if not seeds:
         return []
     if len(seeds) < 2:
-        return [f"verification.holdout_seeds: {seeds} has one seed; expected [] (no check) or "
+        return [f"verification.fresh_seeds: {seeds} has one seed; expected [] (no check) or "
                 "at least 2 (a standard error needs two)"]
     used = set(loop_seeds(v))
     if (cfg.get("transfer") or {}).get("enabled"):
         used.add(transfer_seed(v))
     seen = sorted(used & set(seeds))
     if seen:
-        return [f"verification.holdout_seeds: {seen} also seed(s) the closed loop or the "
+        return [f"verification.fresh_seeds: {seen} also seed(s) the closed loop or the "
                 f"transfer (seeds {sorted(used)}); expected fresh packing seeds"]
     return []
 
