@@ -36,10 +36,10 @@ MARK = re.compile(r"<!--fig:([a-z][a-z0-9_]*(?:\.[A-Za-z0-9_]+)+)-->(.*?)<!--/fi
 
 #: kind -> (file pattern of its JSON records, the Markdown record rendered from them)
 SOURCES = {
-    "default_study": ("results_default_study_*.json", "{date}-default-study.md"),
-    "study_outputs": ("results_study_outputs_*.json", "{date}-default-study-results.md"),
-    "bts_loadings": ("results_bts_loadings_*.json", "{date}-tensile-strength.md"),
-    "test_tiers": ("results_test_tiers_*.json", "{date}-test-tiers.md"),
+    "default_study": ("results_default_study_*.json", "{tag}-default-study.md"),
+    "study_outputs": ("results_study_outputs_*.json", "{tag}-default-study-results.md"),
+    "bts_loadings": ("results_bts_loadings_*.json", "{tag}-tensile-strength.md"),
+    "test_tiers": ("results_test_tiers_*.json", "{tag}-test-tiers.md"),
 }
 
 #: Table 3 columns: response -> (label, how many of the largest shares the pages quote)
@@ -137,7 +137,8 @@ def figures() -> dict:
     out = {}
     for kind, fn in EXTRACT.items():
         path, rec = newest(kind)
-        page = SOURCES[kind][1].format(date=rec["date"])
+        # the file name's tag: the record's date, a letter for a second record that day
+        page = SOURCES[kind][1].format(tag=path.stem.rsplit("_", 1)[-1])
         for key, (text, value, unit) in fn(rec).items():
             out[key] = {"text": text, "value": value, "unit": unit,
                         "source": f"benchmarks/{path.name}",
