@@ -94,3 +94,12 @@ def test_the_genesis_share_record_is_its_json_rendered():
         rec = json.loads(raw.read_text())
         md = REPO / "docs" / "measurements" / f"{rec['date']}-genesis-share.md"
         assert md.read_text() == genesis_share.markdown(rec), (md.name, "regenerate from", raw.name)
+
+
+def test_the_example_study_records_are_their_json_rendered():
+    import example_record
+
+    for raw in (REPO / "benchmarks").glob("results_example_*.json"):
+        rec = json.loads(raw.read_text())
+        md = REPO / "docs" / "measurements" / rec["page"]
+        assert md.read_text() == example_record.markdown(rec), (md.name, "regenerate from", raw.name)

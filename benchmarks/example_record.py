@@ -1,0 +1,182 @@
+"""A measurement record of one finished own-rock study (an example config run in a clone):
+what each lab specimen's card reached and at what cost, for either contact model.
+
+    python benchmarks/example_record.py CLONE --configfile config/examples/X.yaml \\
+        --time CLONE.time --load CLONE.load --commit COMMIT --note "..." \\
+        --out benchmarks/results_example_NAME_DATE.json \\
+        --markdown docs/measurements/DATE-NAME.md
+
+``CLONE`` holds the finished study (``snakemake --cores 2 --configfile ...`` run under
+``/usr/bin/time -v``, whose output is ``--time``; ``--load`` the ``uptime`` lines before
+and after). The record: the contact model, the regression card (status, parameters,
+predicted responses), the closed loop (status, rounds, runs, every target's mean, error
+and tolerance), the fresh-seed check (mean, error, z-score, verdict per target), the
+triaxial envelopes (Hoek-Brown mi of the verified card beside the lab points'), and the
+study's wall and CPU time. ``markdown`` renders the JSON (the docs test re-renders it).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import re
+import shlex
+import sys
+from pathlib import Path
+
+import pandas as pd
+import yaml
+from _study import REPO, cpu_model
+
+
+def _merged(clone: Path, overlays: list[str]) -> dict:
+    sys.path.insert(0, str(REPO / "tests"))
+    from support.repo import update_config
+
+    cfg = yaml.safe_load((clone / "config" / "config.yaml").read_text())
+    for o in overlays:
+        update_config(cfg, yaml.safe_load((clone / o).read_text()))
+    return cfg
+
+
+def _time(path: Path) -> dict:
+    text = path.read_text()
+
+    def grab(label):
+        m = re.search(rf"{re.escape(label)}: (.+)", text)
+        return m.group(1).strip() if m else None
+
+    wall = grab("Elapsed (wall clock) time (h:mm:ss or m:ss)")
+    parts = [float(x) for x in wall.split(":")] if wall else []
+    wall_s = sum(v * 60 ** i for i, v in enumerate(reversed(parts))) if parts else None
+    cpu = float(grab("User time (seconds)") or 0) + float(grab("System time (seconds)") or 0)
+    rss = int(grab("Maximum resident set size (kbytes)") or 0)
+    return {"wall_s": wall_s, "cpu_s": cpu, "max_rss_kb": rss}
+
+
+def collect(clone: Path, overlays: list[str]) -> dict:
+    cfg = _merged(clone, overlays)
+    out = clone / cfg["outdir"]
+    lab = pd.read_csv(clone / cfg["lab"]["csv"], comment="#")
+    rec = {"contact_model": cfg.get("contact_model", "linearpbond"), "outdir": cfg["outdir"],
+           "n_samples": cfg["study"]["n_samples"], "scale": cfg["specimen"]["scale"],
+           "specimens": {}}
+    hold = out / "tables" / "holdout_fresh_seeds.csv"
+    hold = pd.read_csv(hold) if hold.exists() else None
+    env = out / "tables" / "triaxial_envelopes.csv"
+    env = pd.read_csv(env) if env.exists() else None
+    for spec in lab["specimen"].astype(str):
+        card = yaml.safe_load((out / "calibration" / f"{spec}.yaml").read_text())
+        s = {"calibrated": {"status": card["status"], "parameters": card["parameters"],
+                            "predicted": card.get("predicted"), "targets": card["targets"],
+                            "strength_ratio": card.get("strength_ratio")}}
+        vpath = out / "verification" / spec / "card.yaml"
+        if vpath.exists():
+            v = yaml.safe_load(vpath.read_text())["verification"]
+            rounds = pd.read_csv(out / "verification" / spec / "rounds.csv")
+            best = rounds.iloc[v["best_round"] - 1]
+            s["verified"] = {
+                "status": v["status"], "message": v["message"], "rounds": v["rounds"],
+                "runs": v["runs"], "n_seeds": v["n_seeds"], "parameters": v["parameters"],
+                "targets": {k: {"mean": v["closed_loop"][k],
+                                "err_pct": v["closed_loop"]["errors_pct"][k],
+                                "tol_pct": 100 * float(best[f"tol_{k}"]),
+                                "seed_cv_pct": 100 * float(v["closed_loop"]["seed_cv"].get(k, float("nan")))}
+                            for k in card["targets"]}}
+        if hold is not None:
+            h = hold[(hold["specimen"].astype(str) == spec) & (hold["role"] == "target")]
+            s["fresh_seeds"] = [{k: r[k] for k in ("response", "n", "mean", "err_pct", "z_score",
+                                                    "within_z_se")} for r in h.to_dict("records")]
+        if env is not None:
+            e = env[env["specimen"].astype(str) == spec]
+            s["envelopes"] = [{k: r[k] for k in ("card", "status", "mi", "phi_deg", "c_MPa")}
+                              for r in e.to_dict("records")]
+        rec["specimens"][spec] = s
+    return rec
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("clone")
+    ap.add_argument("--configfile", nargs="+", required=True)
+    ap.add_argument("--time", required=True)
+    ap.add_argument("--load", required=True)
+    ap.add_argument("--commit", required=True)
+    ap.add_argument("--title", required=True)
+    ap.add_argument("--note", default="")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--markdown", required=True)
+    a = ap.parse_args(argv)
+    clone = Path(a.clone)
+    rec = {"title": a.title, "date": dt.date.today().isoformat(), "commit": a.commit,
+           "cpu_model": cpu_model(), "load": Path(a.load).read_text().strip().splitlines(),
+           "study_command": "snakemake --cores 2 --configfile " + " ".join(a.configfile),
+           "command": "python benchmarks/example_record.py " + shlex.join(argv),
+           "note": a.note, "page": Path(a.markdown).name, **_time(Path(a.time)),
+           **collect(clone, a.configfile)}
+    Path(a.out).write_text(json.dumps(rec, indent=1, default=float) + "\n")
+    Path(a.markdown).write_text(markdown(rec))
+    print(markdown(rec))
+    return 0
+
+
+def _f(x, fmt=".4g"):
+    try:
+        return format(float(x), fmt)
+    except (TypeError, ValueError):
+        return "–"
+
+
+def markdown(rec: dict) -> str:
+    load = " / ".join(x.split("load average:")[-1].strip() for x in rec["load"])
+    lines = [f"# {rec['title']} ({rec['date']})", "", "| | |", "|---|---|",
+             f"| date | {rec['date']} |", f"| commit | {rec['commit']} |",
+             f"| host | {rec['cpu_model']} |",
+             f"| load | {load} (before / after) |",
+             f"| study | `{rec['study_command']}` |", f"| recorded with | `{rec['command']}` |", "",
+             f"Contact model `{rec['contact_model']}`, {rec['n_samples']} samples at scale "
+             f"{rec['scale']:g}. Study wall time {rec['wall_s'] / 60:.1f} min, CPU "
+             f"{rec['cpu_s'] / 60:.1f} min, peak memory of one process "
+             f"{rec['max_rss_kb'] / 1024:.0f} MiB."]
+    if rec.get("note"):
+        lines += ["", rec["note"]]
+    for spec, s in rec["specimens"].items():
+        c = s["calibrated"]
+        lines += ["", f"## {spec}", "", f"Regression card: **{c['status']}**; strength ratio "
+                  f"{_f((c.get('strength_ratio') or {}).get('value'))} "
+                  f"(set by {(c.get('strength_ratio') or {}).get('set_by', '–')}).", "",
+                  "| parameter | regression card | verified card |", "|---|---|---|"]
+        vp = (s.get("verified") or {}).get("parameters") or {}
+        for k, x in c["parameters"].items():
+            lines.append(f"| {k} | {_f(x)} | {_f(vp.get(k))} |")
+        v = s.get("verified")
+        if v:
+            lines += ["", f"Closed loop: **{v['status']}** after {v['rounds']} round(s), "
+                          f"{v['runs']} runs ({v['n_seeds']} seeds in the card's round): "
+                          f"{v['message']}", "",
+                      "| target | lab | regression predicted | closed-loop mean | error | tolerance "
+                      "| seed CV |",
+                      "|---|---|---|---|---|---|---|"]
+            for k, t in v["targets"].items():
+                lines.append(f"| {k} | {_f(c['targets'][k])} | {_f((c.get('predicted') or {}).get(k))} | "
+                             f"{_f(t['mean'])} | {t['err_pct']:+.2f} % | {t['tol_pct']:.2f} % | "
+                             f"{_f(t['seed_cv_pct'], '.1f')} % |")
+        if s.get("fresh_seeds"):
+            lines += ["", "Fresh seeds:", "", "| target | n | mean | error | z-score | within 2 SE |",
+                      "|---|---|---|---|---|---|"]
+            for h in s["fresh_seeds"]:
+                lines.append(f"| {h['response']} | {h['n']} | {_f(h['mean'])} | "
+                             f"{float(h['err_pct']):+.2f} % | {float(h['z_score']):+.2f} | "
+                             f"{h['within_z_se']} |")
+        if s.get("envelopes"):
+            lines += ["", "Triaxial envelopes (Hoek-Brown mi, Mohr-Coulomb φ and c):", "",
+                      "| card | status | mi | φ (°) | c (MPa) |", "|---|---|---|---|---|"]
+            for e in s["envelopes"]:
+                lines.append(f"| {e['card']} | {e['status']} | {_f(e['mi'])} | {_f(e['phi_deg'])} | "
+                             f"{_f(e['c_MPa'])} |")
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
