@@ -10,6 +10,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 import os
+import re
 import shlex
 from pathlib import Path
 
@@ -88,3 +89,32 @@ def write_record(rec: dict, out, markdown_path, render, **json_kw) -> str:
         Path(markdown_path).write_text(text)
     print(text)
     return text
+
+
+def gnu_time(log: Path) -> dict:
+    """Wall, user and system time, CPU minutes, peak memory and exit status from the output of
+    ``/usr/bin/time -v``."""
+    text = log.read_text()
+
+    def grab(label):
+        m = re.search(rf"{re.escape(label)}: (.+)", text)
+        return m.group(1).strip() if m else None
+
+    wall = grab("Elapsed (wall clock) time (h:mm:ss or m:ss)")
+    parts = [float(x) for x in wall.split(":")] if wall else []
+    wall_s = sum(v * 60 ** i for i, v in enumerate(reversed(parts))) if parts else None
+    user, sys_ = float(grab("User time (seconds)")), float(grab("System time (seconds)"))
+    return {"wall_s": wall_s, "user_s": user, "system_s": sys_,
+            "cpu_min": (user + sys_) / 60, "max_rss_mb": float(grab(
+                "Maximum resident set size (kbytes)")) / 1024,
+            "exit_status": int(grab("Exit status") or -1)}
+
+
+def fresh_seed_lines(rows, within: str = "2 SE") -> list[str]:
+    """The fresh-seed table of a record: target, n, mean, error, z-score, verdict."""
+    lines = ["| target | n | mean | error | z-score | within " + within + " |",
+             "|---|---|---|---|---|---|"]
+    for h in rows:
+        lines.append(f"| {h['response']} | {h['n']} | {float(h['mean']):.4g} | "
+                     f"{float(h['err_pct']):+.2f} % | {float(h['z_score']):+.2f} | {h['within_z_se']} |")
+    return lines

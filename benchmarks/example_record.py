@@ -19,14 +19,13 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import json
-import re
 import shlex
 import sys
 from pathlib import Path
 
 import pandas as pd
 import yaml
-from _study import REPO, cpu_model
+from _study import REPO, cpu_model, fresh_seed_lines, gnu_time
 
 
 def _merged(clone: Path, overlays: list[str]) -> dict:
@@ -37,21 +36,6 @@ def _merged(clone: Path, overlays: list[str]) -> dict:
     for o in overlays:
         update_config(cfg, yaml.safe_load((clone / o).read_text()))
     return cfg
-
-
-def _time(path: Path) -> dict:
-    text = path.read_text()
-
-    def grab(label):
-        m = re.search(rf"{re.escape(label)}: (.+)", text)
-        return m.group(1).strip() if m else None
-
-    wall = grab("Elapsed (wall clock) time (h:mm:ss or m:ss)")
-    parts = [float(x) for x in wall.split(":")] if wall else []
-    wall_s = sum(v * 60 ** i for i, v in enumerate(reversed(parts))) if parts else None
-    cpu = float(grab("User time (seconds)") or 0) + float(grab("System time (seconds)") or 0)
-    rss = int(grab("Maximum resident set size (kbytes)") or 0)
-    return {"wall_s": wall_s, "cpu_s": cpu, "max_rss_kb": rss}
 
 
 def collect(clone: Path, overlays: list[str]) -> dict:
@@ -113,7 +97,7 @@ def main(argv=None) -> int:
            "cpu_model": cpu_model(), "load": Path(a.load).read_text().strip().splitlines(),
            "study_command": "snakemake --cores 2 --configfile " + " ".join(a.configfile),
            "command": "python benchmarks/example_record.py " + shlex.join(argv),
-           "note": a.note, "page": Path(a.markdown).name, **_time(Path(a.time)),
+           "note": a.note, "page": Path(a.markdown).name, **gnu_time(Path(a.time)),
            **collect(clone, a.configfile)}
     Path(a.out).write_text(json.dumps(rec, indent=1, default=float) + "\n")
     Path(a.markdown).write_text(markdown(rec))
@@ -137,8 +121,8 @@ def markdown(rec: dict) -> str:
              f"| study | `{rec['study_command']}` |", f"| recorded with | `{rec['command']}` |", "",
              f"Contact model `{rec['contact_model']}`, {rec['n_samples']} samples at scale "
              f"{rec['scale']:g}. Study wall time {rec['wall_s'] / 60:.1f} min, CPU "
-             f"{rec['cpu_s'] / 60:.1f} min, peak memory of one process "
-             f"{rec['max_rss_kb'] / 1024:.0f} MiB."]
+             f"{rec['cpu_min']:.1f} min, peak memory of one process "
+             f"{rec['max_rss_mb']:.0f} MiB."]
     if rec.get("note"):
         lines += ["", rec["note"]]
     for spec, s in rec["specimens"].items():
@@ -163,12 +147,7 @@ def markdown(rec: dict) -> str:
                              f"{_f(t['mean'])} | {t['err_pct']:+.2f} % | {t['tol_pct']:.2f} % | "
                              f"{_f(t['seed_cv_pct'], '.1f')} % |")
         if s.get("fresh_seeds"):
-            lines += ["", "Fresh seeds:", "", "| target | n | mean | error | z-score | within 2 SE |",
-                      "|---|---|---|---|---|---|"]
-            for h in s["fresh_seeds"]:
-                lines.append(f"| {h['response']} | {h['n']} | {_f(h['mean'])} | "
-                             f"{float(h['err_pct']):+.2f} % | {float(h['z_score']):+.2f} | "
-                             f"{h['within_z_se']} |")
+            lines += ["", "Fresh seeds:", "", *fresh_seed_lines(s["fresh_seeds"])]
         if s.get("envelopes"):
             lines += ["", "Triaxial envelopes (Hoek-Brown mi, Mohr-Coulomb φ and c):", "",
                       "| card | status | mi | φ (°) | c (MPa) |", "|---|---|---|---|---|"]

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import pandas as pd
 import yaml
-from _study import CONFIG, REPO, cpu_model
+from _study import CONFIG, REPO, cpu_model, fresh_seed_lines
 
 #: the planted card by default: Table 2 interior, strength ratio 0.8 (the study's 1.4-1.5)
 PLANTED = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=25.0, pb_kratio=2.5, pb_ten_MPa=30.0,
@@ -240,12 +240,8 @@ def markdown(rec: dict) -> str:
             lines.append(f"| {k} | {o['n']} | {o['mean']:.4g} | {o['err_pct']:+.2f} % | "
                          f"{o['tol_pct']:.2f} % | {abs(o['err_pct']) <= o['tol_pct']} |")
     lines += ["", "Fresh seeds (`bpmcal holdout`, the study's holdout seeds):", "",
-              "| target | n | mean | error | z-score | within "
-              + ("2 sqrt(SE² + SE_lab²)" if rec.get("lab_se") else "2 SE") + " |",
-              "|---|---|---|---|---|---|"]
-    for h in rec["holdout"]:
-        lines.append(f"| {h['response']} | {h['n']} | {h['mean']:.4g} | {h['err_pct']:+.2f} % | "
-                     f"{h['z_score']:+.2f} | {h['within_z_se']} |")
+              *fresh_seed_lines(rec["holdout"], "2 sqrt(SE² + SE_lab²)" if rec.get("lab_se")
+                                else "2 SE")]
     return "\n".join(lines) + "\n"
 
 

@@ -23,24 +23,8 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+from _study import gnu_time as _time
 from _study import record_header, write_record
-
-
-def _time(log: Path) -> dict:
-    text = log.read_text()
-
-    def grab(label):
-        m = re.search(rf"{re.escape(label)}: (.+)", text)
-        return m.group(1).strip() if m else None
-
-    wall = grab("Elapsed (wall clock) time (h:mm:ss or m:ss)")
-    parts = [float(x) for x in wall.split(":")] if wall else []
-    wall_s = sum(v * 60 ** i for i, v in enumerate(reversed(parts))) if parts else None
-    user, sys_ = float(grab("User time (seconds)")), float(grab("System time (seconds)"))
-    return {"wall_s": wall_s, "user_s": user, "system_s": sys_,
-            "cpu_min": (user + sys_) / 60, "max_rss_mb": float(grab(
-                "Maximum resident set size (kbytes)")) / 1024,
-            "exit_status": int(grab("Exit status") or -1)}
 
 
 def _results(clone: Path) -> dict:
