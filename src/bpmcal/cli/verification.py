@@ -211,7 +211,7 @@ def _add_holdout(p):
 
 
 def cmd_holdout(args) -> int:
-    from ..stages.holdout import holdout
+    from ..stages.fresh_seeds import holdout
 
     prog = Progress(f"holdout {Path(args.card).stem}", enabled=not args.quiet)
     df = holdout(args.card, seeds=_seeds(args.seeds), runs=args.runs, seed_runs=args.seed_runs,
@@ -227,7 +227,7 @@ def cmd_holdout(args) -> int:
 
 
 def _add_holdout_table(p):
-    from ..stages.holdout import holdout_table
+    from ..stages.fresh_seeds import holdout_table
 
     d = defaults_of(holdout_table)
     file_arg(p, "--cards", "verified cards", nargs="+")
@@ -243,7 +243,7 @@ def _add_holdout_table(p):
 
 
 def cmd_holdout_table(args) -> int:
-    from ..stages.holdout import holdout_table
+    from ..stages.fresh_seeds import holdout_table
 
     print(holdout_table(args.cards, args.seed_runs, table=args.table, rtol=args.rtol, z=args.z)
           .to_string(index=False))

@@ -26,7 +26,7 @@ from ..io.checks import BadInput, out_file, parse_json, read_json, read_yaml
 from ..io.h5 import read_summary
 from ..io.provenance import git_commit
 from ..io.tables import markdown_table, write_table
-from ..stages.holdout import false_alarm
+from ..stages.fresh_seeds import false_alarm
 from ..study import paper
 from ..study.config import translate_deprecated
 

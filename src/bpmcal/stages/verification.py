@@ -8,7 +8,7 @@
 - :func:`verification_tables`: Tables 5 and 6 and Fig. 6 from the verified cards.
 
 :func:`_dem_loop` runs the closed loop on the DEM (the UCS test, and the tensile test of
-a σt target: :func:`valid_tensile_run`); :mod:`.transfer` and :mod:`.holdout` reuse it and
+a σt target: :func:`valid_tensile_run`); :mod:`.transfer` and :mod:`.fresh_seeds` reuse it and
 the helpers here. The DEM runners (``run_ucs_file``, ``run_bts_file``, ``run_dtt_file``)
 are looked up in this module. Method: ``docs/methods/calibration.md`` ("Closed loop").
 """

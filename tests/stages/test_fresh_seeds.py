@@ -1,4 +1,4 @@
-"""The fresh-seed check of the verified cards (stages/holdout.py): statistics against
+"""The fresh-seed check of the verified cards (stages/fresh_seeds.py): statistics against
 values computed by hand, the verdicts, failed runs kept as rows, and the stage around a
 planted simulator (the DEM replaced by a known function of the parameters and the seed,
 as in test_verify_transfer_stages.py). The real DEM runs it in the smoke study."""
@@ -15,7 +15,7 @@ from test_verify_transfer_stages import (  # noqa: F401
     study,
 )
 
-import bpmcal.stages.holdout as H
+import bpmcal.stages.fresh_seeds as H
 import bpmcal.stages.verification as V
 from bpmcal.io.card import read_card, write_card
 from bpmcal.io.checks import BadInput
@@ -235,7 +235,7 @@ def test_false_alarm_rate_of_a_card_exactly_on_target():
     """Fresh seeds drawn around the lab value itself: the share of checks that fail is the
     Student-t tail false_alarm(n) (4000 draws; binomial standard error ~0.5 %), well above
     the normal tail of 4.6 %, and it shrinks towards that with more seeds."""
-    from bpmcal.stages.holdout import false_alarm, holdout_stats
+    from bpmcal.stages.fresh_seeds import false_alarm, holdout_stats
 
     rng = np.random.default_rng(7)
     for n in (3, 5, 12):
