@@ -186,10 +186,13 @@ def contact_model(name: str | None = None) -> ContactModel:
 
 
 def model_of(names) -> ContactModel:
-    """The contact model of a card, a design's columns or a list of names: the model
-    whose own parameter names they use (:func:`card_model`; a dict's ``contact_model``
-    key is honoured)."""
-    return MODELS[card_model(dict(names) if isinstance(names, dict) else dict.fromkeys(names, 0.0))]
+    """The contact model of a card, a table's columns or a list of names: the model whose
+    own parameter names they use (:func:`card_model`; a dict's ``contact_model`` key is
+    honoured; in a list, names that are no parameter - ``sample_id``, responses - are
+    ignored)."""
+    if isinstance(names, dict):
+        return MODELS[card_model(dict(names))]
+    return MODELS[card_model(dict.fromkeys((n for n in names if n in ALL_PARAMS), 0.0))]
 
 
 def card_model(values: dict) -> str:

@@ -49,7 +49,7 @@ def dataset_params(df: pd.DataFrame) -> tuple[str, ...]:
     (the one whose names its columns use) that vary over its samples, in the model's
     order. A parameter held at one value (a flat joint's element counts, a fixed
     parameter of one's own rock) carries no information for screening or regression."""
-    model = model_of([c for c in df.columns if c in ALL_PARAMS])
+    model = model_of(df.columns)
     return tuple(p for p in model.params if p in df.columns and df[p].nunique(dropna=True) > 1)
 
 

@@ -701,6 +701,7 @@ def _timeless(summary: str) -> str:
     (``Date:``/``Time:``), so a model file depends on its data only (bit-for-bit reruns)."""
     import re
 
-    return re.sub(r"(Date|Time):(\s+)\S.*?(?=\s{2,}|$)",
-                  lambda m: f"{m.group(1)}:{m.group(2)}" + "-" * len(m.group(0)[len(m.group(1)) + 1 + len(m.group(2)):]),
-                  summary, flags=re.M)
+    def blank(m):  # the stamp's characters as dashes, so the columns stay aligned
+        return f"{m.group(1)}:{m.group(2)}" + "-" * len(m.group(3))
+
+    return re.sub(r"(Date|Time):(\s+)(\S.*?)(?=\s{2,}|$)", blank, summary, flags=re.M)

@@ -105,6 +105,12 @@ def read_csv(path, flag: str, columns=(), *, min_rows: int = 1, dtype=None):
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as e:
         raise BadInput(f"{flag} {path}: not a readable CSV table "
                        f"({' '.join(str(e).split())[:200]})") from None
+    return require_columns(df, path, flag, columns, min_rows=min_rows)
+
+
+def require_columns(df, path, flag: str, columns=(), *, min_rows: int = 1):
+    """``df`` (read from ``path``) when it has the given ``columns`` and ``min_rows`` rows,
+    else BadInput naming what is missing (the checks of :func:`read_csv`)."""
     missing = [c for c in columns if c not in df.columns]
     if missing:
         raise BadInput(f"{flag} {path}: missing column(s) {missing}; has {list(df.columns)}")
@@ -112,6 +118,21 @@ def read_csv(path, flag: str, columns=(), *, min_rows: int = 1, dtype=None):
         raise BadInput(f"{flag} {path}: {len(df)} data row(s), expected at least {min_rows} "
                        "(only a header?)")
     return df
+
+
+def read_model_table(path, flag: str, columns, dtype=None):
+    """A CSV whose parameter columns are one contact model's (a design, a dataset, a sweep
+    plan), read once: the table and its model (:func:`bpmcal.params.model_of` of its
+    columns). ``columns(model)``: the columns it must have; BadInput names what is
+    missing, or the mix of two models' names."""
+    from .. import params as P
+
+    df = read_csv(path, flag, (), min_rows=0, dtype=dtype)
+    try:
+        model = P.model_of(df.columns)
+    except P.ParameterError as e:
+        raise BadInput(f"{flag} {path}: {e}") from None
+    return require_columns(df, path, flag, columns(model)), model
 
 
 # ------------------------------------------------------------------------ outputs

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from .. import params as P
-from ..io.checks import BadInput, out_file, read_csv
+from ..io.checks import BadInput, out_file, read_model_table
 from ..io.tables import write_csv
 from ..study.design import lhs_design, validate_ranges
 from ..study.gather import gather as gather_rows
@@ -32,13 +31,8 @@ def gather(design_csv, runs, out, bts_runs=None, dtt_runs=None) -> tuple[pd.Data
     "missing", an unreadable one "unreadable". ``bts_runs`` / ``dtt_runs``: the samples'
     Brazilian / direct-tension run files (named the same), which add sigma_t and its own
     status and error (``study.gather``). Returns the table and a status report."""
-    head = read_csv(design_csv, "--design", ["sample_id", "seed"], dtype={"sample_id": str})
-    try:
-        model = P.model_of([c for c in head.columns if c in P.ALL_PARAMS])
-    except P.ParameterError as e:
-        raise BadInput(f"--design {design_csv}: {e}") from None
-    d = read_csv(design_csv, "--design", ["sample_id", *model.params, "seed"],
-                 dtype={"sample_id": str})
+    d, _ = read_model_table(design_csv, "--design", lambda m: ["sample_id", *m.params, "seed"],
+                            dtype={"sample_id": str})
     check_ids(d["sample_id"], f"--design {design_csv}")
     files = runs_by_id(runs, "--runs", ids=list(d["sample_id"]))
     bts = None if bts_runs is None else runs_by_id(bts_runs, "--bts-runs",

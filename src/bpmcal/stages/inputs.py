@@ -8,9 +8,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from .. import params as P
 from ..analysis import models_from_dict
-from ..io.checks import BadInput, in_file, out_dir, out_file, read_csv, read_json
+from ..io.checks import BadInput, in_file, out_dir, out_file, read_json, read_model_table
 from ..io.safe_names import name_problem
 from ..study.lab_data import load_lab
 
@@ -36,12 +35,7 @@ def output_dirs(*dirs) -> None:
 
 def read_dataset(path, flag: str = "--dataset", min_ok: int = 1) -> pd.DataFrame:
     """A gathered dataset CSV with the columns the analyses need and enough ok samples."""
-    head = read_csv(path, flag, ["sample_id", "status"])
-    try:
-        model = P.model_of([c for c in head.columns if c in P.ALL_PARAMS])
-    except P.ParameterError as e:
-        raise BadInput(f"{flag} {path}: {e}") from None
-    df = read_csv(path, flag, ["sample_id", *model.params, "status"])
+    df, _ = read_model_table(path, flag, lambda m: ["sample_id", *m.params, "status"])
     n_ok = int((df["status"] == "ok").sum())
     if n_ok < min_ok:
         raise BadInput(f"{flag} {path}: {n_ok} of {len(df)} samples have status ok; this step "

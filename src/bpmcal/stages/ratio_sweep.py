@@ -15,7 +15,7 @@ import pandas as pd
 
 from .. import params as P
 from ..io.card import read_card
-from ..io.checks import BadInput, read_csv
+from ..io.checks import BadInput, read_model_table
 from ..io.figures import save_figure
 from ..io.h5 import read_cracks
 from ..io.study_files import ratio_grid
@@ -55,14 +55,9 @@ def sweep_analyse(plan, runs, *, criterion=_CHOICE["criterion"], target=_CHOICE[
     JSON), Fig. 4 and Fig. 5; ``vtk``: the folder of the ParaView files of the runs Fig. 5
     shows (the first and last usable ratio, 1.0 and the chosen one). ``runs``: the run
     file of every plan row (``<sample_id>.h5``)."""
-    head = read_csv(plan, "--plan", ["sample_id", "ratio", "extrapolated"],
-                    dtype={"sample_id": str})
-    try:
-        pair = P.model_of([c for c in head.columns if c in P.ALL_PARAMS]).strength
-    except P.ParameterError as e:
-        raise BadInput(f"--plan {plan}: {e}") from None
-    p = read_csv(plan, "--plan", ["sample_id", "ratio", *pair, "extrapolated"],
-                 dtype={"sample_id": str})
+    p, _ = read_model_table(plan, "--plan",
+                            lambda m: ["sample_id", "ratio", *m.strength, "extrapolated"],
+                            dtype={"sample_id": str})
     check_ids(p["sample_id"], f"--plan {plan}")
     files = runs_by_id(runs, "--runs", ids=list(p["sample_id"]))
     outputs((table, "--table", CSV), (chosen, "--chosen", JSON), (fig4, "--fig4", PNG),

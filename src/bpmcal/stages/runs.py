@@ -26,7 +26,7 @@ from pathlib import Path
 from .. import params as P
 from ..dem.errors import InputError
 from ..io.card import card_parameters, check_card, is_card
-from ..io.checks import BadInput, out_dir, out_file, read_csv, read_yaml
+from ..io.checks import BadInput, out_dir, out_file, read_model_table, read_yaml
 from ..io.h5 import RunFileError, check_run_file, write_run
 from ..lab.brazilian import BTSSettings
 from ..lab.budget import MAX_BALLS, check_budget
@@ -217,13 +217,9 @@ def params_from_design(path, sample_id) -> tuple[dict, int, str]:
     CSV; the contact model is the one whose names the design's columns use (the paper's
     8 parameters: the parallel bond). A sweep-plan row with status "unreachable" is not
     run: its reason is returned and its parameters (NaN strengths) are not validated."""
-    head = read_csv(path, "--design", [], dtype={"sample_id": str})
-    try:
-        model = P.model_of([c for c in head.columns if c in P.ALL_PARAMS])
-    except P.ParameterError as e:
-        raise BadInput(f"--design {path}: {e}") from None
+    d, model = read_model_table(path, "--design", lambda m: ["sample_id", *m.params, "seed"],
+                                dtype={"sample_id": str})
     names = list(model.params)
-    d = read_csv(path, "--design", ["sample_id", *names, "seed"], dtype={"sample_id": str})
     row = d[d["sample_id"] == sample_id]
     if len(row) != 1:
         raise BadInput(f"--sample {sample_id!r}: {'not in' if len(row) == 0 else 'repeated in'} "

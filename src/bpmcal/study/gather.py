@@ -118,7 +118,7 @@ def gather(design: pd.DataFrame, run_files: dict, bts_files: dict | None = None,
         for test, files in tensile.items():
             row.update(_tensile_outcome(sid, files.get(sid), test))
         rows.append(row)
-    model = P.model_of([c for c in design.columns if c in P.ALL_PARAMS])
+    model = P.model_of(design.columns)
     cols = ["sample_id", *model.params, "seed", *RESPONSE_COLUMNS, "status", "error",
             *(c for t in tensile for c in TENSILE_COLUMNS[t][1])]
     df = pd.DataFrame(rows)

@@ -102,7 +102,7 @@ def analyse_sweep(plan: pd.DataFrame, run_files, criterion="tensile_share", targ
     (unreachable ratio) is a row with its status and reason and no counts; when no run is
     usable, ``chosen_ratio`` is None and ``reason`` says why."""
     rows = []
-    TEN, COH = P.model_of([c for c in plan.columns if c in P.ALL_PARAMS]).strength
+    TEN, COH = P.model_of(plan.columns).strength
     for r in plan.to_dict("records"):
         f = run_files.get(r["sample_id"])
         try:

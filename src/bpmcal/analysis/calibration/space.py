@@ -19,7 +19,14 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from bpmcal.params import ALL_PARAMS, TENSILE_RESPONSES, ContactModel, ParameterError, model_of, validate_params
+from bpmcal.params import (
+    ALL_PARAMS,
+    TENSILE_RESPONSES,
+    ContactModel,
+    ParameterError,
+    model_of,
+    validate_params,
+)
 
 from .._common import check_params, check_responses
 from ..stepwise import RegressionModel
@@ -102,7 +109,8 @@ class CalibrationSpace:
             raise ParameterError(f"parameter(s) {both} are both free and fixed")
         if ratio is not None:
             if self.ten in self.free or self.ten in self.fixed:
-                raise ParameterError(f"{self.ten} is derived as ratio × {self.coh} (ratio={ratio:g}); remove it from "
+                raise ParameterError(f"{self.ten} is derived as ratio × {self.coh} (ratio={ratio:g}); "
+                                     "remove it from "
                                      "free/fixed or pass ratio=None")
             if self.coh not in self.free and self.coh not in self.fixed:
                 raise ParameterError(f"the strength ratio needs {self.coh} to be free or fixed")
@@ -125,7 +133,8 @@ class CalibrationSpace:
         missing = [p for p in needed if p not in self.ranges]
         if missing:
             raise ParameterError(f"ranges lacks {missing}: the sampled range (design space) of every free "
-                                 "parameter" + (f" and of the derived {self.ten}" if ratio is not None else "")
+                                 "parameter"
+                                 + (f" and of the derived {self.ten}" if ratio is not None else "")
                                  + " is needed; the regression is valid only there")
         for p in needed:
             lo, hi = self.ranges[p]
@@ -188,13 +197,15 @@ class CalibrationSpace:
                 hi[j] = box[self.ten][1] / ratio
                 self.origin[self.coh]["upper"] = (origin[self.ten]["upper"][0], box[self.ten][1])
             if not lo[j] < hi[j]:
-                raise ParameterError(f"no {self.coh} in {list(box[self.coh])} gives {self.ten} = {ratio:g} × {self.coh} "
-                                     f"inside {list(box[self.ten])} (ranges.{self.coh} and ranges.{self.ten} do not "
+                raise ParameterError(f"no {self.coh} in {list(box[self.coh])} gives {self.ten} = "
+                                     f"{ratio:g} × {self.coh} inside {list(box[self.ten])} "
+                                     f"(ranges.{self.coh} and ranges.{self.ten} do not "
                                      "overlap at this ratio): widen one of them and rerun the design")
         if ratio is not None and self.coh in self.fixed:
             ten = ratio * self.fixed[self.coh]
             if not _inside(ten, *box[self.ten]):
-                raise ParameterError(f"{self.ten} = {ratio:g} × {self.fixed[self.coh]:g} = {ten:g} is outside "
+                raise ParameterError(f"{self.ten} = {ratio:g} × {self.fixed[self.coh]:g} = {ten:g} "
+                                     "is outside "
                                      f"{origin[self.ten]['lower'][0]}={list(box[self.ten])}")
 
     @property
