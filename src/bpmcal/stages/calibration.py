@@ -209,7 +209,7 @@ def calibration_card(spec: str, inv, rec: dict, targets: dict, *, ratio: float |
         "widen": inv.widen,
         "advice": inv.advice,
         "targets": targets,
-        **({"target_se": lab_target_se(rec, targets)} if lab_target_se(rec, targets) else {}),
+        **({"target_se": se} if (se := lab_target_se(rec, targets)) else {}),
         "lab": {k: (None if (isinstance(v, float) and not math.isfinite(v)) else v)
                 for k, v in rec.items() if k != "specimen"},
         "predicted": inv.predicted,
