@@ -31,8 +31,12 @@ def install_msg(title: str, exe: str, package: str, script: str) -> str:
 
 
 def run_bpmcal(n: int, threads: int, steps: int, seed: int = 1,
-               timeout: float = 3600.0) -> dict:
+               timeout: float = 3600.0, src: str | None = None) -> dict:
+    """``dem_throughput.py`` in a fresh process; ``src``: another bpmcal source tree (its
+    ``src`` directory) to import instead of the installed one."""
     env = dict(os.environ, NUMBA_THREADING_LAYER="omp")
+    if src:
+        env["PYTHONPATH"] = str(src)
     cmd = [sys.executable, str(HERE / "dem_throughput.py"), "--n", str(n), "--threads",
            str(threads), "--steps", str(steps), "--seed", str(seed), "--json"]
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)

@@ -1,7 +1,8 @@
 """bpmcal side by side with its peers (LAMMPS frictional, YADE bonded): one table.
 
     python benchmarks/peers.py --n 10000 30000 --threads 1 2 --repeat 3 [--steps 1000]
-                               [--peers lammps yade] [--json results.json]
+                               [--peers lammps yade] [--src base=/tmp/base/src]
+                               [--json results.json]
 
 For every N and thread count, each repeat runs the peers and bpmcal one after the other
 (never at the same time; the order rotates from one repeat to the next, so a burst of
@@ -19,7 +20,10 @@ competed for cores; the ``cpu`` columns (N * steps / CPU seconds of the run, one
 are then the better figure, but only a quiet machine gives the real wall-clock numbers.
 
 The peers are ``peer_lammps.py`` and ``peer_yade.py`` (see their docstrings for what is
-equivalent); a peer that is not installed is skipped with a note.
+equivalent); a peer that is not installed is skipped with a note. ``--src NAME=PATH``
+adds another bpmcal source tree (its ``src`` directory, e.g. a worktree of an earlier
+commit) as one more code, run by this tree's ``dem_throughput.py`` in the same rotation:
+a before/after comparison of an engine change side by side with the peers.
 """
 from __future__ import annotations
 
@@ -100,11 +104,18 @@ def _median(xs):
     return statistics.median(xs) if xs else None
 
 
-def run_case(n, threads, steps, repeat, peers, seed, log):
+def _label(p: str) -> str:
+    return {"lammps": "LAMMPS frictional", "yade": "YADE bonded"}.get(p, f"bpmcal {p}")
+
+
+def run_case(n, threads, steps, repeat, peers, seed, log, srcs=None):
     import _peer
     import peer_lammps
     import peer_yade
     runners = {"bpmcal": lambda: _peer.run_bpmcal(n, threads, steps, seed)}
+    for name, path in (srcs or {}).items():
+        runners[name] = (lambda path=path: _peer.run_bpmcal(n, threads, steps, seed,
+                                                            src=path))
     if "lammps" in peers:
         runners["lammps"] = lambda: peer_lammps.run_lammps(n, threads, steps, seed,
                                                            shutil.which("lmp"))
@@ -150,7 +161,7 @@ def table(cases, peers) -> str:
         return "–" if x is None else f"{x / 1e6:.2f}"
 
     head = "| N | threads | bpmcal bonded | " + "".join(
-        f"{'LAMMPS frictional' if p == 'lammps' else 'YADE bonded'} | bpmcal / {p} | "
+        f"{_label(p)} | bpmcal / {p} | "
         for p in peers) + "bpmcal cpu (1 thread) | 1-min load |"
     sep = "|" + "---|" * (head.count("|") - 1)
     rows = [head, sep]
@@ -186,8 +197,18 @@ def main(argv=None):
     ap.add_argument("--peers", nargs="*", default=["lammps", "yade"],
                     choices=["lammps", "yade"])
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--src", action="append", default=[], metavar="NAME=PATH",
+                    help="another bpmcal source tree (its src directory) run as one more "
+                         "code, e.g. base=/tmp/base/src (repeatable)")
     ap.add_argument("--json", default=None, help="also write everything to this JSON file")
     a = ap.parse_args(argv)
+    srcs = {}
+    for item in a.src:
+        name, _, path = item.partition("=")
+        if not name or name in ("bpmcal", "lammps", "yade") or not Path(path, "bpmcal").is_dir():
+            ap.error(f"--src {item!r}: expected NAME=PATH with a new NAME and PATH a "
+                     "directory holding the bpmcal package")
+        srcs[name] = str(Path(path).resolve())
 
     def log(*x):
         print(*x, file=sys.stderr, flush=True)
@@ -208,17 +229,18 @@ def main(argv=None):
     cases = []
     for n in a.n:
         for th in a.threads:
-            cases.append(run_case(n, th, a.steps, a.repeat, peers, a.seed, log))
+            cases.append(run_case(n, th, a.steps, a.repeat, peers, a.seed, log, srcs))
     host["bandwidth_GBs_after"] = bandwidth_probe()
     res = {"date_start": t0, "date_end": time.strftime("%Y-%m-%dT%H:%M:%S"), "host": host,
-           "steps": a.steps, "repeat": a.repeat, "peers": peers, "cases": cases}
+           "steps": a.steps, "repeat": a.repeat, "peers": peers, "srcs": srcs,
+           "cases": cases}
     bw = host["bandwidth_GBs"]
     print(f"Host: {host['cpu_model']} (LLVM: {host['llvm_host_cpu']}, "
           f"{'AVX-512' if host['avx512f'] else 'AVX2' if host['avx2'] else 'no AVX2'}), "
           f"{host['cores']} cores, L2 {host['l2']}, L3 {host['l3']}; single-thread in-place "
           f"multiply: " + ", ".join(f"{v} GB/s at {k}" for k, v in bw.items())
           + f" (after the runs: {host['bandwidth_GBs_after']}).\n")
-    print(table(cases, peers))
+    print(table(cases, peers + list(srcs)))
     print()
     print(json.dumps(res))
     if a.json:

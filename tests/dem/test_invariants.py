@@ -76,6 +76,43 @@ def test_result_does_not_depend_on_thread_count():
     assert a[5] == b[5]
 
 
+def _lattice_after_one_step(partitions):
+    """A bonded lattice (no overlaps, so no force before the first step) with random
+    velocities and spins, weak bonds; the bond state after one step."""
+    g = rng(5)
+    R = 1e-3
+    idx = np.array([(i, j, k) for i in range(10) for j in range(8) for k in range(8)], float)
+    pos = idx * 2.02 * R
+    m = Model(pos, np.full(len(pos), R), 2294.0, material(pb_ten=3e5, pb_coh=3e5),
+              damping=0.0, partitions=partitions)
+    nb = m.bond(gap=0.05 * R)
+    m.set_timestep(None)
+    m.set_velocity(np.arange(m.n), vel=g.normal(0, 1.0, (m.n, 3)),
+                   angvel=g.normal(0, 300.0, (m.n, 3)))
+    m.cycle(1)
+    return m, nb
+
+
+def test_bond_state_does_not_depend_on_where_partitions_cut_the_bond_blocks():
+    # one step from a force-free start: each bond's new state depends only on its own
+    # balls, so it must be bitwise the same whether the bond pairs are run as one range
+    # or as partitions that begin inside a block of the bond state (a wrong lane offset
+    # would put states into other bonds' slots)
+    from bpmcal.dem.bondblock import BLK
+    a, nb = _lattice_after_one_step(1)
+    b, _ = _lattice_after_one_step(7)
+    cuts = [int(c) for c in b.P.part[1:-1] if 0 < c < nb]
+    assert nb > 3 * BLK and any(c % BLK for c in cuts), (nb, cuts)
+    assert 0 < a.n_broken < nb
+    sa, sb = a.bond_state(), b.bond_state()
+    for k in sa:
+        assert np.array_equal(sa[k], sb[k]), k
+    assert np.array_equal(a.linear_shear_forces(), b.linear_shear_forces())
+    ea, eb = a.breaks(), b.breaks()
+    for k in ea:  # the break events: bond, step, position, normal, energy, stresses
+        assert np.array_equal(ea[k], eb[k]), k
+
+
 @pytest.mark.parametrize("kw, needle", [
     (dict(emod=-1.0), "emod=-1"),
     (dict(pb_emod=0.0), "pb_emod=0"),

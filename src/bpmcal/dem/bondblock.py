@@ -36,7 +36,13 @@ from .laws import (
     rotate_shear,
 )
 
-BLK = 64  # lanes per block
+#: lanes per block. Within a block each field is a row of BLK values, so one pass over the
+#: bonds reads ~14 interleaved streams of BLK * 8 bytes each. With 64 lanes (512-byte rows)
+#: the hardware prefetcher could not follow them once the state no longer fit in cache:
+#: from 10k to 30k balls the law's pass over the state went from ~15 to ~25-30 ns per
+#: bond while the gathers and scatters stayed flat. 512 lanes (4 KiB rows) stream; the
+#: per-step scratch (NF rows) stays below 128 KiB. docs/measurements/2026-11-27-cache-fix.md
+BLK = 512
 #: row stride: not a power of two, so that rows do not fall on the same 4 KiB offsets
 STR = BLK + 4
 
@@ -317,16 +323,22 @@ def _record_break(T, blk, base, ll, k, i, pos, bstate, bstep, bpos, bnrm, be, bs
 def bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash, pestr, bstate,
                bstep, bpos, bnrm, be, bestr, bsig, fb, k0, k1, T, dt, emod, ikr, fric,
                pb_emod, pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf, betan, betas, step, record):
-    """Bond pairs k0..k1 (k0 a multiple of BLK) in blocks. Returns the bonds broken.
+    """Bond pairs k0..k1 in chunks of at most BLK lanes that never cross a block of the
+    state (a partition may start inside a block: ``neighbors.PART_ALIGN`` is finer than
+    BLK). Returns the bonds broken.
 
     Gather and scatter are written out here rather than called: a call that passes ~30
     arrays costs more than a block."""
     dp = betan > 0.0 or betas > 0.0
     nbroken = 0
     brk = np.empty(BLK, np.int64)
-    for b0 in range(k0, k1, BLK):
-        nl = min(BLK, k1 - b0)
-        base = (b0 // BLK) * BLOCK_SIZE
+    b0 = k0
+    while b0 < k1:
+        l0 = b0 % BLK  # first lane of the chunk in its block
+        nl = min(BLK - l0, k1 - b0)
+        # the chunk's view starts at its first lane: field f of lane ll is
+        # blk[base + f * STR + ll], the same affine form as for a whole block
+        base = (b0 // BLK) * BLOCK_SIZE + l0
         # ---- gather
         for ll in range(nl):
             k = b0 + ll
@@ -351,8 +363,8 @@ def bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash, pestr,
                 T[F_MI * STR + ll] = mass[pi[b0 + ll]]
                 T[F_MJ * STR + ll] = mass[pj[b0 + ll]]
         # ---- compute (vectorised)
-        _compute(T, blk[base:base + BLOCK_SIZE], nl, dt, emod, ikr, fric, pb_emod, pb_ikr,
-                 pb_ten, pb_coh, tanfa, rmul, mcf, betan, betas, dp, record)
+        _compute(T, blk[base:base + BLOCK_SIZE - l0], nl, dt, emod, ikr, fric, pb_emod,
+                 pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf, betan, betas, dp, record)
         # ---- scatter, in increasing pair order
         nbrk = 0
         for ll in range(nl):
@@ -396,4 +408,5 @@ def bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash, pestr,
             if record:
                 bestr[k] = 0.0
         nbroken += nbrk
+        b0 += nl
     return nbroken

@@ -102,8 +102,9 @@ def _cell_grid(pos, radius, skin, ncap):
     return cell, start, order, cp, dims
 
 
-#: partition boundaries inside the bond pairs are multiples of this (a multiple of
-#: bondblock.BLK); it fixes the summation order of the forces, so it must not change
+#: partition boundaries inside the bond pairs are multiples of this (bondblock.BLK need not
+#: be one: a partition may start inside a block of the bond state); it fixes the
+#: summation order of the forces, so it must not change
 PART_ALIGN = 64
 
 #: cost of an unbonded (Verlet) pair relative to a bond pair, for balancing partitions
