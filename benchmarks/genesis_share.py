@@ -55,11 +55,15 @@ STUDY_ARGS = [
     "--height", "100.0", "--sigma0", "0.1", "--genesis", "pfc", "--relax-ratio", "0.01",
     "--platen-velocity", "0.05", "--damping", "0.7", "--stop-drop", "0.7",
     "--max-strain", "0.03", "--platen-fric", "0.0", "--record-strain", "1e-05",
+    "--end-cap", "0.0", "--end-cap-factor", "1000.0",
     "--max-balls", "2000000", "--mem-budget-mb", "2000", "--genesis-max-steps", "50000",
-    "--bts-diameter", "50.0", "--bts-thickness", "25.0", "--bts-platen-velocity", "0.0125",
-    "--bts-approach-velocity", "0.05", "--bts-platen-fric", "0.3", "--bts-damping", "0.7",
-    "--bts-stop-drop", "0.2", "--bts-post-peak-min", "0.0003", "--bts-max-strain", "0.05",
-    "--bts-record-strain", "1e-05"]
+    "--bts-diameter", "50.0", "--bts-thickness", "25.0", "--bts-scale", "0.55",
+    "--bts-loading", "flat", "--bts-jaw-ratio", "1.5", "--bts-contact-cap", "1.5",
+    "--bts-contact-cap-factor", "1000.0", "--bts-central-zone", "0.5", "--bts-retests", "2",
+    "--bts-platen-velocity", "0.025", "--bts-approach-velocity", "0.05",
+    "--bts-platen-fric", "0.3", "--bts-damping", "0.7", "--bts-stop-drop", "0.5",
+    "--bts-post-peak-min", "0.0003", "--bts-max-strain", "0.05", "--bts-record-strain",
+    "1e-05"]
 
 #: the summary values compared and printed
 RESULTS = {"ucs": ("ucs_MPa", "E_GPa", "nu"), "bts": ("bts_MPa",)}
