@@ -123,7 +123,9 @@ class ContactModel:
     ``ratio_symbol``: that ratio as the tables write it; ``integers``: parameters that
     take integer values (element counts); ``defaults``: values of optional keys;
     ``free``: the parameters a calibration frees by default (the paper's method, with
-    the tensile strength derived through the ratio); ``title``: the model in words.
+    the tensile strength derived through the ratio); ``title``: the model in words;
+    ``ratio_advice``: what to try when a target σc/σt lies ``"above"`` or ``"below"``
+    what this model's cards reach (the calibration's ``no-exact-fit`` message adds it).
     """
 
     name: str
@@ -134,6 +136,7 @@ class ContactModel:
     free: tuple[str, ...]
     integers: tuple[str, ...] = ()
     defaults: dict[str, float] | None = None
+    ratio_advice: dict[str, str] | None = None
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -159,11 +162,22 @@ class ContactModel:
 
 LINEARPBOND = ContactModel(
     "linearpbond", "linear parallel bond", PARAMS, ("pb_ten_MPa", "pb_coh_MPa"), "σcp/τcp",
-    ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa"))
+    ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa"),
+    ratio_advice={
+        "above": "a σc/σt this high is beyond bonded spheres with parallel bonds (their "
+                 "known limit, for which PFC's flat joint was made): try "
+                 "`contact_model: flatjoint`",
+        "below": "a lower σc/σt needs a higher tensile strength against the cohesion: "
+                 "widen the range of pb_ten_MPa upwards (or of pb_coh_MPa downwards)"})
 FLATJOINT = ContactModel(
     "flatjoint", "flat joint", {**{k: PARAMS[k] for k in BALL_PARAMS}, **FJ_PARAMS},
     ("fj_ten_MPa", "fj_coh_MPa"), "σb/cb", ("fj_emod_GPa", "fj_kratio", "fj_coh_MPa"),
-    FJ_INTEGERS, FJ_DEFAULTS)
+    FJ_INTEGERS, FJ_DEFAULTS,
+    ratio_advice={
+        "above": "a higher σc/σt needs more interlocking: widen fj_coh_MPa upwards, "
+                 "fj_ten_MPa downwards, or free fj_slit_frac",
+        "below": "a σc/σt this low is what parallel bonds give more easily: try "
+                 "`contact_model: linearpbond`"})
 
 #: contact models by PFC name: their cards (:class:`ContactModel`)
 MODELS: dict[str, ContactModel] = {m.name: m for m in (LINEARPBOND, FLATJOINT)}

@@ -77,6 +77,10 @@ def test_unreachable_ucs_over_bts_is_a_no_exact_fit_with_the_missed_targets():
     q_lo, q_hi = res.reach["ucs_over_bts"]
     assert q_hi < 15 and q_hi == pytest.approx(targets["ucs_MPa"] / lo, rel=2e-3)
     assert "σc/σt = 15" in res.message and f"bts_MPa {m['error_pct']:+.2f} %" in res.message
+    # the target σc/σt is above the parallel bond's reach: the registry's advice names
+    # the other model
+    assert "linear parallel bond models reach" in res.message
+    assert "try `contact_model: flatjoint`" in res.message
     # the compromise is the least-squares one: no start does better
     best = sum(v ** 2 for v in res.residuals.values())
     assert best <= res.starts["sum_sq"].min() * (1 + 1e-9)
@@ -131,3 +135,16 @@ def test_closed_loop_with_an_unreachable_sigma_t_records_the_miss():
     assert not res.converged
     assert res.responses[BTS] / targets[BTS] - 1 > 0.05  # σt stays too high, and it is recorded
     assert (res.history[f"err_{BTS}"].abs() > 0.05).all()
+
+
+def test_a_sigma_c_over_sigma_t_below_the_reach_advises_a_wider_tensile_range():
+    ms = models()
+    truth = {**FIXED, **TRUTH, "pb_ten_MPa": 35.0}
+    targets = predict(ms, truth)
+    targets[BTS] = targets["ucs_MPa"] / 3.0  # σc/σt = 3: below what these models give
+    free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)
+    res = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3)
+    assert res.status == "no-exact-fit"
+    assert targets["ucs_MPa"] / targets[BTS] < res.reach["ucs_over_bts"][0]
+    assert "widen the range of pb_ten_MPa upwards" in res.message
+    assert "contact_model: flatjoint" not in res.message

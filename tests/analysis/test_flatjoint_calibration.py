@@ -1,11 +1,10 @@
 """Calibration in the flat joint's names: the calibration space takes the strength pair
 (fj_ten_MPa, fj_coh_MPa) and the default free set from the contact-model registry; the
 inversion and the closed loop solve a planted flat-joint card back."""
-import numpy as np
 import pytest
 
 from bpmcal import params as P
-from bpmcal.analysis.calibration import ClosedLoop, CalibrationSpace, bts_strengths, invert
+from bpmcal.analysis.calibration import CalibrationSpace, ClosedLoop, bts_strengths, invert
 from bpmcal.analysis.stepwise import RegressionModel
 
 RANGES = {"rmin_mm": (0.6, 1.0), "porosity": (0.2, 0.36), "fj_emod_GPa": (40.0, 100.0),
@@ -58,3 +57,16 @@ def test_a_planted_flat_joint_card_is_solved_back_and_the_loop_meets_it():
     assert set(res.params) == set(FIXED) | {"fj_emod_GPa", "fj_kratio", "fj_ten_MPa", "fj_coh_MPa"}
     got = dem(res.params, 1)
     assert all(abs(got[r] / t[r] - 1) <= 0.01 for r in t)
+
+
+@pytest.mark.parametrize("ratio, needle", [
+    (10.0, "try `contact_model: linearpbond`"),  # below the reach: the other model
+    (60.0, "widen fj_coh_MPa upwards"),  # above: more interlocking
+    (30.0, None),  # inside the reach: no advice
+])
+def test_a_sigma_c_over_sigma_t_out_of_reach_gets_the_registrys_advice(ratio, needle):
+    from bpmcal.analysis.calibration.inversion import _ratio_advice
+    sp = CalibrationSpace(None, FIXED, 0.1, RANGES, None)
+    msg = _ratio_advice(sp, {"ucs_MPa": 200.0, P.BTS: 200.0 / ratio}, 200.0 / ratio,
+                        {"ucs_over_bts": (20.0, 35.0)})
+    assert (needle in msg) if needle else msg == ""

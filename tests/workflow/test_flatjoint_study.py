@@ -9,7 +9,6 @@ import pytest
 import yaml
 from support.repo import copy_workflow, merged_config, run_snakemake
 
-from bpmcal import params as P
 from bpmcal.io.h5 import read_inputs
 
 ARGS = ("--configfile", "config/examples/lac_du_bonnet_fj.yaml",

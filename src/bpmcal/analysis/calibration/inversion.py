@@ -235,8 +235,22 @@ def _joint_bts_diagnosis(space: CalibrationSpace, models, targets: Mapping[str, 
             target_ratio = (f", σc/σt = {targets['ucs_MPa'] / t_bts:.3g}" if "ucs_MPa" in responses
                             else "")
             joint = (f"the target set cannot be met at once: σt = {t_bts:g} MPa{target_ratio} is "
-                     f"outside what the parallel-bond models reach ({span})")
+                     f"outside what the {space.model.title} models reach ({span})"
+                     + _ratio_advice(space, targets, t_bts, reach))
     return reach, joint
+
+
+def _ratio_advice(space: CalibrationSpace, targets: Mapping[str, float], t_bts: float,
+                  reach: dict) -> str:
+    """The registry's advice (:attr:`ContactModel.ratio_advice`) when the target σc/σt
+    lies above or below the σc/σt span the models reach; else ``""``."""
+    advice = space.model.ratio_advice or {}
+    if "ucs_over_bts" not in reach or "ucs_MPa" not in targets:
+        return ""
+    q = targets["ucs_MPa"] / t_bts
+    lo, hi = reach["ucs_over_bts"]
+    side = "above" if q > hi else "below" if q < lo else None
+    return f"; {advice[side]}" if side in advice else ""
 
 
 def _classify(space: CalibrationSpace, responses, best_r: np.ndarray, n_kept: int, reachable: bool,
