@@ -15,6 +15,10 @@ bonds: field ``f`` of bond ``k`` is ``blk[(k // BLK) * NSF * STR + f * STR + k %
    order (results do not depend on the block size); rare events (bond breaks) are
    handled in a separate scalar pass.
 
+A partition of the pairs may begin inside a block (its boundaries are multiples of
+``neighbors.PART_ALIGN``, finer than ``BLK``): ``bond_range`` then runs chunks that start
+at any lane and never cross a block, each with the same affine field offsets.
+
 A failing bond's lane is left holding its *trial* state; the break pass records the
 event (recomputing the state before the step from the increments) and zeroes it.
 """

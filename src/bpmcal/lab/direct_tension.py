@@ -48,7 +48,7 @@ from ..dem.slots import FIX_VZ
 from ..exact_math import lsq_slope
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen
-from .stepping import LoadingProgress, cycle, heartbeat, loading_bound
+from .stepping import cycle, load_to_failure, loading_bound
 from .validity import dtt_validity
 
 #: columns of the recorded time series
@@ -171,9 +171,6 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
     step0 = m.step
     t_start = m.time
     t0 = time.perf_counter()
-    peak = 0.0
-    peak_strain = 0.0
-    reason = "max_steps"
 
     def record():
         e = m.energies()
@@ -193,24 +190,10 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
         return ser["axial_stress"][-1], eps
 
     record()
-    tell = LoadingProgress(progress, m, step0, bound)
-    with heartbeat(lambda: tell(strain=2.0 * v * (m.time - t_start) / H0)):
-        while True:
-            if m.step - step0 >= st.max_steps:
-                reason = "max_steps"
-                break
-            cycle(m, n_rec)
-            s, eps = record()
-            if s > peak:
-                peak, peak_strain = s, eps
-            tell(strain=eps, stress_MPa=s / 1e6, peak_MPa=peak / 1e6,
-                 cracks=ser["cracks_tension"][-1] + ser["cracks_shear"][-1])
-            if peak > 0 and s < st.stop_drop * peak and eps - peak_strain >= st.post_peak_min:
-                reason = "post_peak_drop"
-                break
-            if eps >= st.max_strain:
-                reason = "max_strain"
-                break
+    reason = load_to_failure(
+        m, st, step0, bound, progress, lambda: cycle(m, n_rec), record, ser,
+        strain_now=lambda: 2.0 * v * (m.time - t_start) / H0,
+        post_peak=lambda eps_peak: st.post_peak_min)
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}
     summ = analyse(series, st)

@@ -65,7 +65,7 @@ from ..dem.errors import InputError
 from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
-from .stepping import LoadingProgress, heartbeat, loading_bound
+from .stepping import load_to_failure, loading_bound
 from .ucs import END_CAP_FACTOR, END_CAP_HEIGHT, check_end_cap, fit_slope, install_end_caps
 
 #: columns of the recorded time series
@@ -307,9 +307,6 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
     step0 = m.step
     t_start = m.time
     t0 = time.perf_counter()
-    peak = -math.inf
-    peak_strain = 0.0
-    reason = "max_steps"
 
     def record():
         e = m.energies()
@@ -340,26 +337,12 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
         return s1 - s3, ea
 
     record()
-    tell = LoadingProgress(progress, m, step0, bound)
-    with heartbeat(lambda: tell(strain=2 * v * (m.time - t_start) / H0)):
-        while True:
-            if m.step - step0 >= st.max_steps:
-                reason = "max_steps"
-                break
-            loop.run(n_rec)
-            q, ea = record()
-            if q > peak:
-                peak, peak_strain = q, ea
-            tell(strain=ea, stress_MPa=ser["axial_stress"][-1] / 1e6,
-                 peak_MPa=(peak + st.sigma3) / 1e6,
-                 cracks=ser["cracks_tension"][-1] + ser["cracks_shear"][-1])
-            if peak > 0 and q < st.stop_drop * peak and \
-                    ea - peak_strain >= min(st.post_peak_min, 0.5 * peak_strain):
-                reason = "post_peak_drop"
-                break
-            if ea >= st.max_strain:
-                reason = "max_strain"
-                break
+    reason = load_to_failure(
+        m, st, step0, bound, progress, lambda: loop.run(n_rec), record, ser,
+        strain_now=lambda: 2 * v * (m.time - t_start) / H0,
+        post_peak=lambda eps_peak: min(st.post_peak_min, 0.5 * eps_peak),
+        shown=lambda q, peak: (ser["axial_stress"][-1] / 1e6, (peak + st.sigma3) / 1e6),
+        peak0=-math.inf)
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}
     summ = analyse(series, st)

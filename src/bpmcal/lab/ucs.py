@@ -62,7 +62,7 @@ from ..dem.errors import InputError
 from ..exact_math import lsq_slope
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen, apply_end_caps
-from .stepping import LoadingProgress, cycle, heartbeat, loading_bound
+from .stepping import cycle, load_to_failure, loading_bound
 
 #: columns of the recorded time series
 SERIES = ("step", "time", "axial_strain", "lateral_strain", "volumetric_strain",
@@ -229,9 +229,6 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
     e0 = m.energies()
     step0 = m.step
     t0 = time.perf_counter()
-    peak = 0.0
-    peak_strain = 0.0
-    reason = "max_steps"
 
     def record():
         e = m.energies()
@@ -261,26 +258,11 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
 
     t_start = m.time
     e0_walls = e0["work_walls_each"][wb] + e0["work_walls_each"][wt]
-    tell = LoadingProgress(progress, m, step0, bound)
     record()
-    with heartbeat(lambda: tell(strain=2 * v * (m.time - t_start) / H0)):
-        while True:
-            if m.step - step0 >= st.max_steps:
-                reason = "max_steps"
-                break
-            cycle(m, n_rec)
-            s, ea = record()
-            if s > peak:
-                peak, peak_strain = s, ea
-            tell(strain=ea, stress_MPa=s / 1e6, peak_MPa=peak / 1e6,
-                 cracks=ser["cracks_tension"][-1] + ser["cracks_shear"][-1])
-            if peak > 0 and s < st.stop_drop * peak and \
-                    ea - peak_strain >= min(st.post_peak_min, 0.5 * peak_strain):
-                reason = "post_peak_drop"
-                break
-            if ea >= st.max_strain:
-                reason = "max_strain"
-                break
+    reason = load_to_failure(
+        m, st, step0, bound, progress, lambda: cycle(m, n_rec), record, ser,
+        strain_now=lambda: 2 * v * (m.time - t_start) / H0,
+        post_peak=lambda eps_peak: min(st.post_peak_min, 0.5 * eps_peak))
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}
     summ = analyse(series, st)
