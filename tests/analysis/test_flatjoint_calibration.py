@@ -1,11 +1,10 @@
 """Calibration in the flat joint's names: the calibration space takes the strength pair
 (fj_ten_MPa, fj_coh_MPa) and the default free set from the contact-model registry; the
 inversion and the closed loop solve a planted flat-joint card back."""
-import numpy as np
 import pytest
 
 from bpmcal import params as P
-from bpmcal.analysis.calibration import ClosedLoop, CalibrationSpace, bts_strengths, invert
+from bpmcal.analysis.calibration import CalibrationSpace, ClosedLoop, bts_strengths, invert
 from bpmcal.analysis.stepwise import RegressionModel
 
 RANGES = {"rmin_mm": (0.6, 1.0), "porosity": (0.2, 0.36), "fj_emod_GPa": (40.0, 100.0),
