@@ -33,7 +33,7 @@ localrules:
     calibrate_initial,
     verification_tables,
     transfer_table,
-    holdout_table,
+    fresh_seeds_table,
     sweep_plan,
     sweep_analyse,
     impact_analyse,
@@ -57,24 +57,25 @@ rule all:
         rules.calibrate.output,
         rules.verification_tables.output,
         rules.seed_scatter.output,
-        rules.holdout_table.output if HOLDOUT_ON else [],
-        # every fresh seed's run files: a seed added to verification.holdout_seeds makes
-        # its runs missing, which reruns the holdout jobs (the seed tables alone would not)
-        [FILES.holdout_run(s, seed) for s in SPECIMENS for seed in HOLDOUT_SEEDS],
+        rules.fresh_seeds_table.output if FRESH_SEEDS_ON else [],
+        # every fresh seed's run files: a seed added to verification.fresh_seeds makes
+        # its runs missing, which reruns its fresh_seeds job (the seed tables alone
+        # would not)
+        [FILES.fresh_seed_run(s, seed) for s in SPECIMENS for seed in FRESH_SEEDS],
         (
             [
-                FILES.holdout_bts_run(s, seed)
+                FILES.fresh_seed_bts_run(s, seed)
                 for s in SPECIMENS
-                for seed in HOLDOUT_SEEDS
+                for seed in FRESH_SEEDS
             ]
             if BTS_ON
             else []
         ),
         (
             [
-                FILES.holdout_dtt_run(s, seed)
+                FILES.fresh_seed_dtt_run(s, seed)
                 for s in SPECIMENS
-                for seed in HOLDOUT_SEEDS
+                for seed in FRESH_SEEDS
             ]
             if LAB_DTT
             else []

@@ -45,7 +45,7 @@ def collect(clone: Path, overlays: list[str]) -> dict:
     rec = {"contact_model": cfg.get("contact_model", "linearpbond"), "outdir": cfg["outdir"],
            "n_samples": cfg["study"]["n_samples"], "scale": cfg["specimen"]["scale"],
            "specimens": {}}
-    hold = out / "tables" / "holdout_fresh_seeds.csv"
+    hold = out / "tables" / "fresh_seeds.csv"
     hold = pd.read_csv(hold) if hold.exists() else None
     env = out / "tables" / "triaxial_envelopes.csv"
     env = pd.read_csv(env) if env.exists() else None

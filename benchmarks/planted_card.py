@@ -6,7 +6,7 @@ The planted card (a parameter set inside Table 2; its strength ratio is not the 
 is run on ``--lab-seeds`` packing seeds, none of which the loop or the fresh-seed check
 uses; the means of its UCS and Brazilian tests become a lab row. Then, as the study does:
 ``bpmcal calibrate`` (sigma_t sets the strength ratio), ``bpmcal verify`` (the closed
-loop, the study's verification settings) and ``bpmcal holdout`` (fresh seeds), all with
+loop, the study's verification settings) and ``bpmcal fresh-seeds`` (fresh seeds), all with
 the study's specimen, UCS and bts settings. The record: the planted and the returned
 parameters, every target's lab value, closed-loop mean, error and tolerance, the
 fresh-seed verdicts, the planted card itself judged on the loop's seeds (how far the lab
@@ -136,12 +136,12 @@ def main(argv=None) -> int:
               "--rtol", str(v["rtol"]), "--max-rounds", str(v["max_rounds"]), *common,
               *bts_opts, *cache], log)
         seeds = [int(s) for s in v["fresh_seeds"]]
-        _run(["bpmcal", "holdout", "--card", str(verified), "--seeds",
+        _run(["bpmcal", "fresh-seeds", "--card", str(verified), "--seeds",
               ",".join(map(str, seeds)), "--runs", *[str(tmp / f"h{s}.h5") for s in seeds],
               "--bts-runs", *[str(tmp / f"h{s}.bts.h5") for s in seeds], "--seed-runs",
-              str(tmp / "holdout.csv"), *common, *bts_opts, *cache], log)
-        _run(["bpmcal", "holdout-table", "--cards", str(verified), "--seed-runs",
-              str(tmp / "holdout.csv"), "--table", str(tmp / "holdout_table.csv"),
+              str(tmp / "fresh_seeds.csv"), *common, *bts_opts, *cache], log)
+        _run(["bpmcal", "fresh-seeds-table", "--cards", str(verified), "--seed-runs",
+              str(tmp / "fresh_seeds.csv"), "--table", str(tmp / "fresh_seeds_table.csv"),
               "--rtol", str(v["rtol"])], log)
         cal = yaml.safe_load(card.read_text())
         ver = yaml.safe_load(verified.read_text())["verification"]
@@ -149,7 +149,7 @@ def main(argv=None) -> int:
         # seeds' mean lies from the loop seeds' mean of the true card
         own = _judge(pd.DataFrame(run_planted([int(s) for s in ver["seeds"]], "own")), lab,
                      float(v["rtol"]), lab_se)
-        hold = pd.read_csv(tmp / "holdout_table.csv")
+        hold = pd.read_csv(tmp / "fresh_seeds_table.csv")
         rounds = pd.read_csv(tmp / "rounds.csv")
     c1 = os.times()
     rec = {
@@ -239,6 +239,8 @@ def markdown(rec: dict) -> str:
         for k, o in own.items():
             lines.append(f"| {k} | {o['n']} | {o['mean']:.4g} | {o['err_pct']:+.2f} % | "
                          f"{o['tol_pct']:.2f} % | {abs(o['err_pct']) <= o['tol_pct']} |")
+    # the record key and this line keep the old name (bpmcal holdout, now fresh-seeds): the
+    # dated pages in docs/measurements are rendered from their records with this text
     lines += ["", "Fresh seeds (`bpmcal holdout`, the study's holdout seeds):", "",
               *fresh_seed_lines(rec["holdout"], "2 sqrt(SE² + SE_lab²)" if rec.get("lab_se")
                                 else "2 SE")]

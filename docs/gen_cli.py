@@ -21,7 +21,7 @@ with mkdocs_gen_files.open("cli.md", "w") as f:
             "subcommand's `--help`. Exit codes and error messages: "
             "[troubleshooting](troubleshooting.md).\n\n")
     f.write("| command | what |\n|---|---|\n")
-    for name in sub.choices:
-        f.write(f"| [`{name}`](#bpmcal-{name}) | {helps.get(name) or ''} |\n")
-    for name, p in sub.choices.items():
-        f.write(f"\n## bpmcal {name}\n\n```text\n{p.format_help()}```\n")
+    for name in helps:  # the subcommands, not their deprecated aliases (bpmcal.cli.ALIASES)
+        f.write(f"| [`{name}`](#bpmcal-{name}) | {helps[name] or ''} |\n")
+    for name in helps:
+        f.write(f"\n## bpmcal {name}\n\n```text\n{sub.choices[name].format_help()}```\n")

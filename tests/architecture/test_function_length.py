@@ -33,8 +33,8 @@ ALLOWED = {
     "lab/specimen.py:build_specimen": "specimen genesis step by step (pack, relax, install, bond); "
                                       "review §2: a candidate for a split by step",
     "plots/fracture.py:fig_impact": "one figure of two panels and their annotations",
-    "stages/fresh_seeds.py:holdout": "the fresh-seed stage: checks, runs and table in one job; outside "
-                                 "the split of stages/analysis.py",
+    "stages/fresh_seeds.py:fresh_seeds": "the fresh-seed stage: checks, runs and table in one job; "
+                                         "outside the split of stages/analysis.py",
     "stages/triaxial.py:envelopes": "the envelope stage: tables, lab points and figure in one job",
 }
 

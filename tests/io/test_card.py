@@ -40,7 +40,7 @@ def test_another_format_is_refused_with_what_to_do(tmp_path, fmt, needle):
      "--rounds", "{o}/r.csv", "--run", "{o}/b.h5"],
     ["scatter", "--card", "{card}", "--seeds", "1,2", "--runs", "{o}/1.h5", "{o}/2.h5",
      "--seed-runs", "{o}/s.csv", "--table", "{o}/t.csv"],
-    ["holdout", "--card", "{card}", "--seeds", "101,102", "--runs", "{o}/1.h5", "{o}/2.h5",
+    ["fresh-seeds", "--card", "{card}", "--seeds", "101,102", "--runs", "{o}/1.h5", "{o}/2.h5",
      "--seed-runs", "{o}/s.csv"],
 ])
 def test_every_command_that_takes_a_card_refuses_an_unversioned_one(tmp_path, capsys, cmd):

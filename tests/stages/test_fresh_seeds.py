@@ -27,37 +27,37 @@ from bpmcal.stages.runs import RunOutcome
 def test_statistics_are_those_of_the_fresh_seeds():
     v = [1.0, 2.0, 3.0, 4.0, 5.0]
     sd, se = math.sqrt(2.5), math.sqrt(2.5) / math.sqrt(5)
-    s = H.holdout_stats(v, 3.0, rtol=0.01)
+    s = H.fresh_seed_stats(v, 3.0, rtol=0.01)
     assert (s["n"], s["mean"]) == (5, 3.0)
     assert s["sd"] == pytest.approx(sd) and s["se"] == pytest.approx(se)
     assert s["z_score"] == 0.0 and s["within_z_se"] and s["met"]
     # a lab value 1.5 away: z = -1.5 / 0.7071 = -2.12, outside 2 standard errors
-    s = H.holdout_stats(v, 4.5, rtol=0.01)
+    s = H.fresh_seed_stats(v, 4.5, rtol=0.01)
     assert s["z_score"] == pytest.approx(-1.5 / se)
     assert s["err_pct"] == pytest.approx(100 * (3.0 / 4.5 - 1))
     assert not s["within_z_se"] and not s["met"]
     # ... inside 3 standard errors; and "met" when the loop's rtol is wider than the miss
-    assert H.holdout_stats(v, 4.5, rtol=0.01, z=3.0)["within_z_se"]
-    assert H.holdout_stats(v, 4.5, rtol=0.5)["met"]
-    assert not H.holdout_stats(v, 4.5, rtol=0.5)["within_z_se"]
+    assert H.fresh_seed_stats(v, 4.5, rtol=0.01, z=3.0)["within_z_se"]
+    assert H.fresh_seed_stats(v, 4.5, rtol=0.5)["met"]
+    assert not H.fresh_seed_stats(v, 4.5, rtol=0.5)["within_z_se"]
 
 
 def test_a_lab_value_with_its_own_standard_error_is_a_difference_of_two_means():
     """lab_se: the z-score and both verdicts use sqrt(se^2 + lab_se^2)."""
     v = [1.0, 2.0, 3.0, 4.0, 5.0]
     se = math.sqrt(2.5) / math.sqrt(5)
-    s = H.holdout_stats(v, 4.5, rtol=0.01, lab_se=0.5)
+    s = H.fresh_seed_stats(v, 4.5, rtol=0.01, lab_se=0.5)
     both = math.hypot(se, 0.5)
     assert s["z_score"] == pytest.approx(-1.5 / both) and s["within_z_se"]  # -1.73
     assert s["tol_pct"] == pytest.approx(200 * both / 4.5) and s["met"]
     assert s["se"] == pytest.approx(se)  # the fresh seeds' own standard error is unchanged
-    assert H.holdout_stats(v, 4.5, rtol=0.01, lab_se=0.0) == H.holdout_stats(v, 4.5, rtol=0.01)
+    assert H.fresh_seed_stats(v, 4.5, rtol=0.01, lab_se=0.0) == H.fresh_seed_stats(v, 4.5, rtol=0.01)
 
 
 def test_failed_runs_do_not_count_and_one_seed_gives_no_verdict():
-    s = H.holdout_stats([10.0, math.nan, 12.0], 11.0, rtol=0.01)
+    s = H.fresh_seed_stats([10.0, math.nan, 12.0], 11.0, rtol=0.01)
     assert s["n"] == 2 and s["mean"] == 11.0 and s["sd"] == pytest.approx(math.sqrt(2))
-    one = H.holdout_stats([11.0, math.nan], 11.0, rtol=0.01)
+    one = H.fresh_seed_stats([11.0, math.nan], 11.0, rtol=0.01)
     assert one["n"] == 1 and math.isnan(one["se"])
     assert not one["within_z_se"] and not one["met"]
 
@@ -80,8 +80,8 @@ def test_table_per_card_and_target_keeps_failed_seeds(tmp_path):
     pd.DataFrame({"seed": [101, 102, 103], "status": ["ok"] * 3,
                   "ucs_MPa": [76.0, 77.0, 78.0], "E_GPa": [15.0, 15.2, 14.8],
                   "nu": [0.24, 0.23, 0.25], "bts_MPa": [7.5, 8.5, 8.0]}).to_csv(s2, index=False)
-    t = H.holdout_table([c1, c2], [s1, s2], table=tmp_path / "out" / "holdout.csv")
-    assert len(t) == 3 + 4 and (tmp_path / "out" / "holdout.md").is_file()
+    t = H.fresh_seeds_table([c1, c2], [s1, s2], table=tmp_path / "out" / "fresh_seeds.csv")
+    assert len(t) == 3 + 4 and (tmp_path / "out" / "fresh_seeds.md").is_file()
     r = t[(t.specimen == "B1") & (t.response == "ucs_MPa")].iloc[0]
     assert (r["n"], r["n_failed"], r["seeds"]) == (2, 1, "101,102,103")
     assert r["mean"] == 60.0 and r["within_z_se"]
@@ -101,7 +101,7 @@ def test_sigma_t_without_a_target_is_the_cards_prediction_with_its_scatter(tmp_p
     pd.DataFrame({"seed": [101, 102, 103, 104], "status": ["ok"] * 4,
                   "ucs_MPa": [59.0, 61.0, 60.0, 60.0], "E_GPa": [14.0] * 4,
                   "nu": [0.25] * 4, "bts_MPa": [9.0, 10.0, np.nan, 11.0]}).to_csv(s, index=False)
-    t = H.holdout_table([c], [s], table=tmp_path / "t.csv")
+    t = H.fresh_seeds_table([c], [s], table=tmp_path / "t.csv")
     assert list(t["role"]) == ["target"] * 3 + ["prediction"]
     r = t.iloc[-1]
     assert r["response"] == "bts_MPa" and math.isnan(r["lab"]) and r["n"] == 3
@@ -116,7 +116,7 @@ def test_table_refuses_a_seed_table_without_a_target_column(tmp_path):
     pd.DataFrame({"seed": [1, 2], "status": ["ok", "ok"], "ucs_MPa": [1, 2], "E_GPa": [1, 2],
                   "nu": [0.2, 0.2]}).to_csv(s, index=False)
     with pytest.raises(BadInput, match=r"missing column\(s\) \['bts_MPa'\]"):
-        H.holdout_table([c], [s], table=tmp_path / "t.csv")
+        H.fresh_seeds_table([c], [s], table=tmp_path / "t.csv")
     assert not (tmp_path / "t.csv").exists()
 
 
@@ -144,24 +144,24 @@ class FreshDEM(PlantedDEM):
         return RunOutcome("ok", {**y, "u_pre_MJm3": 0.1, "peak_strain": 0.005}, path=out)
 
 
-def run_holdout(tmp_path, card, seeds, **kw):
+def run_fresh_seeds(tmp_path, card, seeds, **kw):
     d = tmp_path / "h"
-    return H.holdout(card, seeds=seeds, runs=[d / f"seed{s}.h5" for s in seeds],
-                     seed_runs=d / "seeds.csv", geometry=Geometry(scale=0.25),
-                     settings=UCSSettings(), **kw)
+    return H.fresh_seeds(card, seeds=seeds, runs=[d / f"seed{s}.h5" for s in seeds],
+                         seed_runs=d / "seeds.csv", geometry=Geometry(scale=0.25),
+                         settings=UCSSettings(), **kw)
 
 
 def test_the_stage_runs_the_verified_parameters_on_every_fresh_seed(verified, monkeypatch):
     tmp_path, card, _ = verified
     dem = FreshDEM()
     monkeypatch.setattr(H, "run_ucs_file", dem)
-    df = run_holdout(tmp_path, card, [101, 102, 103, 9])
+    df = run_fresh_seeds(tmp_path, card, [101, 102, 103, 9])
     params = read_card(card)["verification"]["parameters"]
     assert [c[1] for c in dem.calls] == [101, 102, 103, 9]
     assert all(c[0] == pytest.approx(params) for c in dem.calls)
     assert list(df["status"]) == ["ok", "ok", "ok", "failed"]
     assert "planted" in df["error"].iloc[3]  # the failed seed is a row with its reason
-    t = H.holdout_table([card], [tmp_path / "h" / "seeds.csv"], table=tmp_path / "t.csv")
+    t = H.fresh_seeds_table([card], [tmp_path / "h" / "seeds.csv"], table=tmp_path / "t.csv")
     truth = dem.truth(params, 0.25)
     for _, r in t.iterrows():  # deviations of 101-103 cancel: the mean is the truth
         assert r["mean"] == pytest.approx(truth[r["response"]], rel=1e-12)
@@ -173,7 +173,7 @@ def test_seeds_of_the_closed_loop_are_refused(verified, monkeypatch):
     tmp_path, card, _ = verified
     monkeypatch.setattr(H, "run_ucs_file", FreshDEM())
     with pytest.raises(BadInput, match=r"--seeds: 2, 3 already used"):
-        run_holdout(tmp_path, card, [2, 3, 101])
+        run_fresh_seeds(tmp_path, card, [2, 3, 101])
     assert not (tmp_path / "h").exists()
 
 
@@ -188,13 +188,13 @@ def test_a_card_whose_loop_did_not_run_leaves_records_not_gaps(study, tmp_path, 
     c["verification"] = {"status": "not-run", "message": "unreachable: widen E",
                          "parameters": None, "seeds": [1, 2, 3]}
     write_card(tmp_path / "nr.yaml", c)
-    df = run_holdout(tmp_path, tmp_path / "nr.yaml", [101, 102])
+    df = run_fresh_seeds(tmp_path, tmp_path / "nr.yaml", [101, 102])
     assert not dem.calls and list(df["status"]) == ["not-run"] * 2
     for s in (101, 102):
         rec = check_run_file(tmp_path / "h" / f"seed{s}.h5")
         assert rec["status"] == "failed" and "widen E" in rec["error"]
-    t = H.holdout_table([tmp_path / "nr.yaml"], [tmp_path / "h" / "seeds.csv"],
-                        table=tmp_path / "t.csv")
+    t = H.fresh_seeds_table([tmp_path / "nr.yaml"], [tmp_path / "h" / "seeds.csv"],
+                            table=tmp_path / "t.csv")
     assert (t["n"] == 0).all() and (t["n_failed"] == 2).all()
     assert not t["within_z_se"].any() and t["note"].str.contains("widen E").all()
 
@@ -205,42 +205,42 @@ def test_a_sigma_t_target_needs_brazilian_run_files(verified):
     c["targets"] = dict(c["targets"], bts_MPa=8.0)
     write_card(tmp_path / "bts.yaml", c)
     with pytest.raises(BadInput, match="give --bts-runs"):
-        run_holdout(tmp_path, tmp_path / "bts.yaml", [101, 102])
+        run_fresh_seeds(tmp_path, tmp_path / "bts.yaml", [101, 102])
 
 
-def test_config_refuses_holdout_seeds_of_the_loop_or_the_transfer():
-    from bpmcal.study.config import _holdout_checks
+def test_config_refuses_fresh_seeds_of_the_loop_or_the_transfer():
+    from bpmcal.study.config import _fresh_seed_checks
 
     cfg = {"verification": {"seed": 1, "seeds_per_round": 3, "fresh_seeds": [3, 9]},
            "transfer": {"enabled": False}}
-    assert "[3]" in _holdout_checks(cfg)[0]
+    assert "[3]" in _fresh_seed_checks(cfg)[0]
     cfg["verification"]["fresh_seeds"] = [4, 9]
-    assert _holdout_checks(cfg) == []
+    assert _fresh_seed_checks(cfg) == []
     cfg["transfer"]["enabled"] = True  # the transfer runs seed 1 + 3
-    assert "[4]" in _holdout_checks(cfg)[0]
+    assert "[4]" in _fresh_seed_checks(cfg)[0]
     # a seed set that may grow to 8 seeds uses 1-8, the transfer then 9
     cfg["verification"].update(max_seeds=8, fresh_seeds=[8, 20])
-    assert "[8]" in _holdout_checks(cfg)[0]
+    assert "[8]" in _fresh_seed_checks(cfg)[0]
     cfg["verification"]["fresh_seeds"] = [9, 20]
-    assert "[9]" in _holdout_checks(cfg)[0]
+    assert "[9]" in _fresh_seed_checks(cfg)[0]
     cfg["transfer"]["enabled"] = False
-    assert _holdout_checks(cfg) == []
+    assert _fresh_seed_checks(cfg) == []
     cfg["verification"]["fresh_seeds"] = [9]
-    assert "at least 2" in _holdout_checks(cfg)[0]
+    assert "at least 2" in _fresh_seed_checks(cfg)[0]
     cfg["verification"]["fresh_seeds"] = []
-    assert _holdout_checks(cfg) == []
+    assert _fresh_seed_checks(cfg) == []
 
 
 def test_false_alarm_rate_of_a_card_exactly_on_target():
     """Fresh seeds drawn around the lab value itself: the share of checks that fail is the
     Student-t tail false_alarm(n) (4000 draws; binomial standard error ~0.5 %), well above
     the normal tail of 4.6 %, and it shrinks towards that with more seeds."""
-    from bpmcal.stages.fresh_seeds import false_alarm, holdout_stats
+    from bpmcal.stages.fresh_seeds import false_alarm, fresh_seed_stats
 
     rng = np.random.default_rng(7)
     for n in (3, 5, 12):
-        fails = [not holdout_stats(60.0 * (1 + 0.02 * rng.standard_normal(n)), 60.0,
-                                   rtol=1e-9)["within_z_se"] for _ in range(4000)]
+        fails = [not fresh_seed_stats(60.0 * (1 + 0.02 * rng.standard_normal(n)), 60.0,
+                                      rtol=1e-9)["within_z_se"] for _ in range(4000)]
         p = false_alarm(n)
         assert abs(np.mean(fails) - p) < 4 * np.sqrt(p * (1 - p) / 4000)
     assert false_alarm(5) == pytest.approx(0.1161, abs=1e-4)

@@ -125,7 +125,7 @@ STUDY_ONLY = {
     "resources.dem_threads", "resources.dem_runtime_min", "resources.dem_mem_mb",  # Slurm
     "calibration.bounds",  # {} = no narrowing; the stage's bounds=None means the same
     "verification.scatter_seeds",  # the seeds of the scatter job
-    "verification.fresh_seeds",  # the fresh seeds of the holdout jobs ([]: no such jobs)
+    "verification.fresh_seeds",  # the seeds of the fresh_seeds jobs ([]: no such jobs)
     "ratio_sweep.enabled",  # whether the DAG has the sweep
     "transfer.enabled",  # whether the DAG has the full-size transfer
     "bts", "bts.enabled",  # whether the DAG has the Brazilian jobs ({}: the defaults)

@@ -477,14 +477,14 @@ def test_verify_averages_seeds_and_the_transfer_runs_at_its_scale(smoke):
 def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
     """verification.fresh_seeds (11, 12 in the smoke config): every verified card is re-run
     on those packing seeds, none of its closed loop's, with its closed-loop parameters, and
-    the holdout table's statistics are those of the seed tables."""
+    the fresh-seed table's statistics are those of the seed tables."""
     from bpmcal.io.h5 import read_inputs
-    from bpmcal.io.study_files import HOLDOUT, StudyFiles
+    from bpmcal.io.study_files import FRESH_SEEDS, StudyFiles
 
     cfg = yaml.safe_load((smoke / "config" / "smoke.yaml").read_text())
     seeds = cfg["verification"]["fresh_seeds"]
     lay = StudyFiles(str(smoke / OUTDIR))
-    table = pd.read_csv(lay.table(HOLDOUT))
+    table = pd.read_csv(lay.table(FRESH_SEEDS))
     # three targets and sigma_t's prediction (its Brazilian test on the same fresh seeds)
     assert len(table) == 3 * 4 and set(table["seeds"]) == {",".join(map(str, seeds))}
     pred = table[table["role"] == "prediction"]
@@ -492,10 +492,10 @@ def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
     for spec in ("B1", "B2", "B3"):
         card = yaml.safe_load(Path(lay.verified_card(spec)).read_text())
         assert not set(seeds) & set(card["verification"]["seeds"])
-        runs = pd.read_csv(lay.holdout_seeds(spec))
+        runs = pd.read_csv(lay.fresh_seed_runs(spec))
         assert list(runs["seed"]) == seeds
         for s in seeds:
-            inputs = read_inputs(lay.holdout_run(spec, s))
+            inputs = read_inputs(lay.fresh_seed_run(spec, s))
             assert inputs["seed"] == s
             assert inputs["pb_emod_GPa"] == pytest.approx(
                 card["verification"]["parameters"]["pb_emod_GPa"])
@@ -513,7 +513,7 @@ def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
 
 # -- a changed config key reruns exactly the jobs that read it -------------------------------
 #: DEM rules and the config sections they read (their params: specimen_args, --bts-*)
-_DEM = {"ucs", "sweep_ucs", "verify", "transfer", "seed_scatter", "holdout", "impact",
+_DEM = {"ucs", "sweep_ucs", "verify", "transfer", "seed_scatter", "fresh_seeds", "impact",
         "triaxial"}
 _AXIAL = _DEM - {"impact"}  # the ucs section: the rules that load a cylinder axially
 _CAL = {"calibrate_initial", "calibrate"}
@@ -548,7 +548,7 @@ RERUN = {
         "platen_velocity": 0.21, "damping": 0.71, "stop_drop": 0.71, "max_strain": 0.031,
         "platen_fric": 0.01, "record_strain": 2.1e-5, "end_cap": 0.5,
         "end_cap_factor": 999.0}.items()},
-    **{f"bts.{k}": (v, {"ucs", "holdout"}) for k, v in {  # holdout: every card's σt
+    **{f"bts.{k}": (v, {"ucs", "fresh_seeds"}) for k, v in {  # fresh_seeds: every card's σt
         "enabled": False, "scale": 0.43, "diameter_mm": 51.0, "thickness_mm": 26.0,
         "loading": "jaws", "jaw_ratio": 1.4, "contact_cap": 1.4,
         "contact_cap_factor": 999.0, "central_zone": 0.45, "retests": 1, "platen_velocity": 0.051,
@@ -590,7 +590,7 @@ RERUN = {
     "calibration.bounds.pb_emod_GPa": ([11.0, 49.0], _CAL),
     "calibration.n_boot": (21, {"calibrate"}),  # the initial calibration bootstraps nothing
     "calibration.seed": (14, _CAL),
-    "verification.rtol": (0.011, {"verify", "transfer", "seed_scatter", "holdout_table"}),
+    "verification.rtol": (0.011, {"verify", "transfer", "seed_scatter", "fresh_seeds_table"}),
     "verification.max_rounds": (3, _VERIFY),
     "verification.seed": (2, _VERIFY | {"transfer"}),
     "verification.seeds_per_round": (3, _VERIFY | {"transfer"}),
@@ -599,7 +599,7 @@ RERUN = {
     "verification.range_margin": (0.2, _VERIFY | {"transfer"}),
     "verification.from_unreachable": (False, _VERIFY),
     "verification.scatter_seeds": ([1, 2, 3], {"seed_scatter"}),
-    "verification.fresh_seeds": ([11, 12, 13], {"holdout": 3}),
+    "verification.fresh_seeds": ([11, 12, 13], {"fresh_seeds": 3}),
     "transfer.enabled": (False, {"impact": 2}),  # the impact takes the verified card instead
     "transfer.scale": (0.36, {"transfer"}),
     "transfer.max_rounds": (2, {"transfer"}),

@@ -168,8 +168,8 @@ rule verify:
         * config["verification"]["max_seeds"],
         mem_mb=config["resources"]["dem_mem_mb"],
     params:
-        # only the keys verify reads: changing another verification key (the holdout
-        # or scatter seeds) must not rerun the closed loops
+        # only the keys verify reads: changing another verification key (fresh_seeds,
+        # scatter_seeds) must not rerun the closed loops
         v={
             k: config["verification"][k]
             for k in (
@@ -277,34 +277,34 @@ rule seed_scatter:
         "--threads {threads} {params.opts:q} > {log:q} 2>&1"
 
 
-rule holdout:
+rule fresh_seeds:
     input:
         card=FILES.verified_card("{spec}"),
     output:
-        beside(FILES.holdout_seeds("{spec}")),
-        runs=[FILES.holdout_run("{spec}", s) for s in HOLDOUT_SEEDS],
+        beside(FILES.fresh_seed_runs("{spec}")),
+        runs=[FILES.fresh_seed_run("{spec}", s) for s in FRESH_SEEDS],
         # every card's σt on the fresh seeds (a target, or the card's prediction)
         bts_runs=(
-            [FILES.holdout_bts_run("{spec}", s) for s in HOLDOUT_SEEDS]
+            [FILES.fresh_seed_bts_run("{spec}", s) for s in FRESH_SEEDS]
             if BTS_ON
             else []
         ),
         dtt_runs=(
-            [FILES.holdout_dtt_run("{spec}", s) for s in HOLDOUT_SEEDS]
+            [FILES.fresh_seed_dtt_run("{spec}", s) for s in FRESH_SEEDS]
             if LAB_DTT
             else []
         ),
-        seed_runs=FILES.holdout_seeds("{spec}"),
+        seed_runs=FILES.fresh_seed_runs("{spec}"),
     log:
-        FILES.log("holdout", "{spec}"),
+        FILES.log("fresh_seeds", "{spec}"),
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["dem_threads"]
     resources:
-        runtime=config["resources"]["dem_runtime_min"] * max(1, len(HOLDOUT_SEEDS)),
+        runtime=config["resources"]["dem_runtime_min"] * max(1, len(FRESH_SEEDS)),
         mem_mb=config["resources"]["dem_mem_mb"],
     params:
-        seeds=",".join(str(s) for s in HOLDOUT_SEEDS),
+        seeds=",".join(str(s) for s in FRESH_SEEDS),
         bts_runs=lambda wc, output: (
             ["--bts-runs", *output.bts_runs] if output.bts_runs else []
         ),
@@ -315,28 +315,29 @@ rule holdout:
         bts=bts_args() if BTS_ON else [],  # every card's σt on the fresh seeds
         dtt=dtt_args() if LAB_DTT else [],
     shell:
-        "bpmcal holdout --card {input.card:q} --seeds {params.seeds:q} --runs {output.runs:q} "
-        "{params.bts_runs:q} {params.dtt_runs:q} --seed-runs {output.seed_runs:q} "
-        "--threads {threads} "
+        "bpmcal fresh-seeds --card {input.card:q} --seeds {params.seeds:q} "
+        "--runs {output.runs:q} {params.bts_runs:q} {params.dtt_runs:q} "
+        "--seed-runs {output.seed_runs:q} --threads {threads} "
         "{params.opts:q} {params.bts:q} {params.dtt:q} > {log:q} 2>&1"
 
 
-rule holdout_table:
+rule fresh_seeds_table:
     input:
         cards=[FILES.verified_card(s) for s in SPECIMENS],
-        seed_runs=[FILES.holdout_seeds(s) for s in SPECIMENS],
+        seed_runs=[FILES.fresh_seed_runs(s) for s in SPECIMENS],
     output:
-        beside(FILES.table(L.HOLDOUT)),
-        table=FILES.table(L.HOLDOUT),
+        beside(FILES.table(L.FRESH_SEEDS)),
+        table=FILES.table(L.FRESH_SEEDS),
     log:
-        FILES.log("holdout_table"),
+        FILES.log("fresh_seeds_table"),
     conda:
         "../envs/bpmcal.yaml"
     params:
         rtol=config["verification"]["rtol"],
     shell:
-        "bpmcal holdout-table --cards {input.cards:q} --seed-runs {input.seed_runs:q} "
-        "--table {output.table:q} --rtol {params.rtol:q} > {log:q} 2>&1"
+        "bpmcal fresh-seeds-table --cards {input.cards:q} "
+        "--seed-runs {input.seed_runs:q} --table {output.table:q} --rtol {params.rtol:q} "
+        "> {log:q} 2>&1"
 
 
 rule verification_tables:

@@ -42,8 +42,8 @@ IMPACT_VS = L.impact_tags(
     config["impact"]["velocity"], config["impact"]["sweep_velocities"]
 )
 SCATTER_SEEDS = config["verification"]["scatter_seeds"]
-HOLDOUT_SEEDS = list(config["verification"]["fresh_seeds"])
-HOLDOUT_ON = bool(HOLDOUT_SEEDS)  # the verified cards on fresh packing seeds
+FRESH_SEEDS = list(config["verification"]["fresh_seeds"])
+FRESH_SEEDS_ON = bool(FRESH_SEEDS)  # the verified cards on fresh packing seeds
 # a lab sigma_t target: the fresh-seed check runs each card's Brazilian test too
 LAB_BTS = "bts_MPa" in _lab.columns and bool(_lab["bts_MPa"].notna().any())
 # a lab direct-tension strength: the closed loops and fresh seeds run that test
@@ -118,7 +118,7 @@ def bts_args(cfg=config):
 
 
 def dtt_args(cfg=config):
-    """The --dtt-* options of bpmcal ucs/verify/transfer/holdout from the dtt section: the
+    """The --dtt-* options of bpmcal ucs/verify/transfer/fresh-seeds from the dtt section: the
     direct-tension test of every sample and, for a card with a dtt_MPa target, of the
     closed loops (the UCS cylinder at dtt.scale)."""
     d = cfg["dtt"]

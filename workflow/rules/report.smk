@@ -2,14 +2,14 @@
 # study's files through bpmcal.io.study_files (the files declared here) and writes its own.
 
 _REPORT_OUT = FILES.report_outputs(
-    SWEEP_ON, REFERENCE, TRIAX_ON, bool(TRIAX_LAB), HOLDOUT_ON
+    SWEEP_ON, REFERENCE, TRIAX_ON, bool(TRIAX_LAB), FRESH_SEEDS_ON
 )
 
 
 rule report:
     input:
         **FILES.report_inputs(
-            SPECIMENS, IMPACT_V0, SWEEP_ON, TRIAX_ON, bool(TRIAX_LAB), HOLDOUT_ON
+            SPECIMENS, IMPACT_V0, SWEEP_ON, TRIAX_ON, bool(TRIAX_LAB), FRESH_SEEDS_ON
         ),
     output:
         [f for f in _REPORT_OUT if f not in (FILES.report_index, FILES.report_config)],

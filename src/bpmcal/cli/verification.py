@@ -1,10 +1,10 @@
 """Subcommands that run or tabulate the calibrated cards: the closed loop ``verify``,
 ``transfer`` to full size and ``transfer-table``, the seed ``scatter``, the fresh-seed
-check (``holdout``, ``holdout-table``), ``verification-tables`` (Tables 5 and 6), the
+check (``fresh-seeds``, ``fresh-seeds-table``), ``verification-tables`` (Tables 5 and 6), the
 triaxial ``envelopes`` and ``impact-analyse``.
 
 Each ``_add_<cmd>`` (its options) stands directly above its ``cmd_<cmd>`` (the handler).
-``verify``, ``transfer`` and ``holdout`` share the cylinder, the ``--bts-*`` disc and the
+``verify``, ``transfer`` and ``fresh-seeds`` share the cylinder, the ``--bts-*`` disc and the
 ``--dtt-*`` test (:func:`_add_card_run_args`).
 """
 from __future__ import annotations
@@ -33,7 +33,7 @@ from .options import (
 
 def _add_card_run_args(p, func):
     """The options every command that runs a card's UCS (and Brazilian) tests shares
-    (verify, transfer, holdout): --quiet, the cylinder and loading, the --bts-* disc, the
+    (verify, transfer, fresh-seeds): --quiet, the cylinder and loading, the --bts-* disc, the
     --dtt-* direct-tension test."""
     p.add_argument("--quiet", action="store_true")
     add_run_args(p)
@@ -194,7 +194,7 @@ def cmd_scatter(args) -> int:
     return 0
 
 
-def _add_holdout(p):
+def _add_fresh_seeds(p):
     p.add_argument("--card", required=True, help="a verified card (bpmcal verify)")
     p.add_argument("--seeds", required=True,
                    help="comma-separated fresh packing seeds (none of the card's closed loop "
@@ -207,31 +207,32 @@ def _add_holdout(p):
                    help="output direct-tension run files, one per seed (needed when the card "
                         "has a direct-tension target, dtt_MPa)")
     file_arg(p, "--seed-runs", "output table: the responses of every seed")
-    _add_card_run_args(p, cmd_holdout)
+    _add_card_run_args(p, cmd_fresh_seeds)
 
 
-def cmd_holdout(args) -> int:
-    from ..stages.fresh_seeds import holdout
+def cmd_fresh_seeds(args) -> int:
+    from ..stages.fresh_seeds import fresh_seeds
 
-    prog = Progress(f"holdout {Path(args.card).stem}", enabled=not args.quiet)
-    df = holdout(args.card, seeds=_seeds(args.seeds), runs=args.runs, seed_runs=args.seed_runs,
-                 bts_runs=args.bts_runs, geometry=run_geometry(args),
-                 settings=run_settings(args), bts_geometry=bts_disc_of(args, "bts_"),
-                 bts_settings=bts_settings_of(args, "bts_"),
-                 dtt_runs=args.dtt_runs, dtt_geometry=dtt_cylinder_of(args, "dtt_"),
-                 dtt_settings=dtt_settings_of(args, "dtt_"), cache=args.specimen_cache,
-                 threads=args.threads, progress=prog, **budget_of(args))
+    prog = Progress(f"fresh-seeds {Path(args.card).stem}", enabled=not args.quiet)
+    df = fresh_seeds(args.card, seeds=_seeds(args.seeds), runs=args.runs,
+                     seed_runs=args.seed_runs, bts_runs=args.bts_runs,
+                     geometry=run_geometry(args), settings=run_settings(args),
+                     bts_geometry=bts_disc_of(args, "bts_"),
+                     bts_settings=bts_settings_of(args, "bts_"),
+                     dtt_runs=args.dtt_runs, dtt_geometry=dtt_cylinder_of(args, "dtt_"),
+                     dtt_settings=dtt_settings_of(args, "dtt_"), cache=args.specimen_cache,
+                     threads=args.threads, progress=prog, **budget_of(args))
     prog.done(f"{int((df['status'] == 'ok').sum())} of {len(df)} seed(s) ok")
     print(df.to_string(index=False))
     return 0
 
 
-def _add_holdout_table(p):
-    from ..stages.fresh_seeds import holdout_table
+def _add_fresh_seeds_table(p):
+    from ..stages.fresh_seeds import fresh_seeds_table
 
-    d = defaults_of(holdout_table)
+    d = defaults_of(fresh_seeds_table)
     file_arg(p, "--cards", "verified cards", nargs="+")
-    file_arg(p, "--seed-runs", "their holdout seed tables, in the same order", nargs="+")
+    file_arg(p, "--seed-runs", "their seed tables (bpmcal fresh-seeds), in the same order", nargs="+")
     file_arg(p, "--table", "output table: fresh-seed mean, standard error and verdict per "
                            "card and target")
     p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True, hi_open=True),
@@ -239,14 +240,14 @@ def _add_holdout_table(p):
                    help=f"the closed loop's relative tolerance (default {d['rtol']:g})")
     p.add_argument("--z", type=number("z", 0.0, 10.0, lo_open=True), default=d["z"],
                    help=f"standard errors a target may lie from the mean (default {d['z']:g})")
-    p.set_defaults(func=cmd_holdout_table)
+    p.set_defaults(func=cmd_fresh_seeds_table)
 
 
-def cmd_holdout_table(args) -> int:
-    from ..stages.fresh_seeds import holdout_table
+def cmd_fresh_seeds_table(args) -> int:
+    from ..stages.fresh_seeds import fresh_seeds_table
 
-    print(holdout_table(args.cards, args.seed_runs, table=args.table, rtol=args.rtol, z=args.z)
-          .to_string(index=False))
+    print(fresh_seeds_table(args.cards, args.seed_runs, table=args.table, rtol=args.rtol,
+                            z=args.z).to_string(index=False))
     return 0
 
 

@@ -105,7 +105,7 @@ CALIBRATION = "calibration"  # calibrated parameters of every specimen (calibrat
 TABLE5 = "table5_verification"  # DEM vs lab, single pass and closed loop (verification_tables)
 TRANSFER = "transfer_full_size"  # verified vs full-size responses per card (transfer_table)
 TABLE6 = "table6_prepeak_energy"  # pre-peak energy density (verification_tables)
-HOLDOUT = "holdout_fresh_seeds"  # verified cards on fresh packing seeds vs lab (holdout_table)
+FRESH_SEEDS = "fresh_seeds"  # verified cards on fresh packing seeds vs lab (fresh_seeds_table)
 RATIO_SWEEP = "ratio_sweep"  # cracks per strength ratio (sweep_analyse)
 IMPACT_ENERGY = "impact_energy"  # energy budget of the reference impact (impact_analyse)
 T10_ECS = "t10_ecs"  # t10 vs specific energy (impact_analyse)
@@ -264,21 +264,21 @@ class StudyFiles:
         """The run file of the transfer's best round."""
         return self.path("transfer", specimen, "best_round.h5")
 
-    def holdout_run(self, specimen: str, seed) -> str:
+    def fresh_seed_run(self, specimen: str, seed) -> str:
         """The fresh-seed check's UCS run of a verified card with packing seed ``seed``."""
-        return self.path("verification", specimen, "holdout", f"seed{seed}.h5")
+        return self.path("verification", specimen, "fresh_seeds", f"seed{seed}.h5")
 
-    def holdout_bts_run(self, specimen: str, seed) -> str:
+    def fresh_seed_bts_run(self, specimen: str, seed) -> str:
         """... and its Brazilian run (a failure record "not run" without a σt target)."""
-        return self.path("verification", specimen, "holdout", f"seed{seed}.bts.h5")
+        return self.path("verification", specimen, "fresh_seeds", f"seed{seed}.bts.h5")
 
-    def holdout_dtt_run(self, specimen: str, seed) -> str:
+    def fresh_seed_dtt_run(self, specimen: str, seed) -> str:
         """... and its direct-tension run (with a direct-tension strength target)."""
-        return self.path("verification", specimen, "holdout", f"seed{seed}.dtt.h5")
+        return self.path("verification", specimen, "fresh_seeds", f"seed{seed}.dtt.h5")
 
-    def holdout_seeds(self, specimen: str) -> str:
+    def fresh_seed_runs(self, specimen: str) -> str:
         """The fresh-seed check's responses of every seed (table)."""
-        return self.path("verification", specimen, "holdout", "seeds.csv")
+        return self.path("verification", specimen, "fresh_seeds", "seeds.csv")
 
     def scatter_run(self, seed) -> str:
         """The UCS run of the first specimen's card with packing seed ``seed``."""
@@ -370,10 +370,10 @@ class StudyFiles:
                                         *([TRIAXIAL_LAB] if lab else []))]
 
     def report_tables(self, sweep: bool = True, triaxial: bool = False,
-                      triaxial_lab: bool = False, holdout: bool = False) -> list[str]:
+                      triaxial_lab: bool = False, fresh_seeds: bool = False) -> list[str]:
         """The tables the report shows (CSV paths), in its order."""
         stems = [TABLE3, TABLE4, REGRESSION_FIT, CALIBRATION, TABLE5, TABLE6,
-                 *([HOLDOUT] if holdout else []), *([RATIO_SWEEP] if sweep else []),
+                 *([FRESH_SEEDS] if fresh_seeds else []), *([RATIO_SWEEP] if sweep else []),
                  IMPACT_ENERGY, T10_ECS]
         tx = self.triaxial_tables(triaxial_lab) if triaxial else []
         return [self.table(s) for s in stems] + tx
@@ -386,9 +386,9 @@ class StudyFiles:
 
     def report_inputs(self, specimens, impact_tag: str, sweep: bool = True,
                       triaxial: bool = False, triaxial_lab: bool = False,
-                      holdout: bool = False) -> dict:
+                      fresh_seeds: bool = False) -> dict:
         """Every file the report reads, by role (the report rule's ``input:``)."""
-        tabs = [f for t in self.report_tables(sweep, triaxial, triaxial_lab, holdout)
+        tabs = [f for t in self.report_tables(sweep, triaxial, triaxial_lab, fresh_seeds)
                 for f in companions(t)]
         figs = [f for g in self.report_figures(sweep, triaxial) for f in companions(g)]
         return {
@@ -401,10 +401,10 @@ class StudyFiles:
 
     def report_outputs(self, sweep: bool = True, reference: bool = True,
                        triaxial: bool = False, triaxial_lab: bool = False,
-                       holdout: bool = False) -> list[str]:
+                       fresh_seeds: bool = False) -> list[str]:
         """Every file the report writes (the report rule's ``output:``)."""
         copies = [self.report_copy(f) for f in [
-            *(f for t in self.report_tables(sweep, triaxial, triaxial_lab, holdout)
+            *(f for t in self.report_tables(sweep, triaxial, triaxial_lab, fresh_seeds)
               for f in companions(t)),
             *(f for g in self.report_figures(sweep, triaxial) for f in companions(g)),
             self.equations]]

@@ -38,7 +38,7 @@ TABLES = {
     L.CALIBRATION: "Calibrated meso-parameters of the lab specimens",
     L.TABLE5: "Table 5: verification - DEM vs lab (single pass and closed loop)",
     L.TABLE6: "Table 6: pre-peak energy density, DEM vs lab",
-    L.HOLDOUT: "The verified cards on fresh packing seeds against the lab targets",
+    L.FRESH_SEEDS: "The verified cards on fresh packing seeds against the lab targets",
     L.RATIO_SWEEP: "Bond-strength-ratio sweep: cracks and proportions",
     L.IMPACT_ENERGY: "Drop-hammer impact: energy budget over time",
     L.T10_ECS: "t10 against specific energy (impact-velocity sweep)",
@@ -83,11 +83,11 @@ def _copy(lay: L.StudyFiles, src: str) -> bool:
 
 
 def copy_outputs(lay: L.StudyFiles, sweep: bool = True, triaxial: bool = False,
-                 triaxial_lab: bool = False, holdout: bool = False) -> dict:
+                 triaxial_lab: bool = False, fresh_seeds: bool = False) -> dict:
     """Copy the tables, figures and equations into the report folder; returns the stems
     of the tables and figures found."""
     found = {"tables": [], "figures": []}
-    for kind, files in (("tables", lay.report_tables(sweep, triaxial, triaxial_lab, holdout)),
+    for kind, files in (("tables", lay.report_tables(sweep, triaxial, triaxial_lab, fresh_seeds)),
                         ("figures", lay.report_figures(sweep, triaxial))):
         for f in files:
             copied = [_copy(lay, c) for c in L.companions(f)]
@@ -136,9 +136,9 @@ def build(outdir, config: dict) -> Path:
     sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
     tx = cfg.get("triaxial") or {}
     triax, tlab = bool(tx.get("enabled", False)), bool(tx.get("lab_csv"))
-    hold = bool((cfg.get("verification") or {}).get("fresh_seeds"))
+    fresh = bool((cfg.get("verification") or {}).get("fresh_seeds"))
     Path(lay.report_dir).mkdir(parents=True, exist_ok=True)
-    found = copy_outputs(lay, sweep, triax, tlab, hold)
+    found = copy_outputs(lay, sweep, triax, tlab, fresh)
     S = []  # sections of index.md
     ref = is_paper_study(cfg)
     if ref:
@@ -479,12 +479,12 @@ def _verification(lay, comp, ref=False) -> str:
         s += ("\n### Packing-seed scatter of one calibrated set\n\n"
               + markdown_table(rows, ["response", "CV of one run (%)", "noise floor 2 se (%)",
                            "1 % tolerance below the noise?"]) + "\n")
-    return s + _holdout(lay)
+    return s + _fresh_seeds(lay)
 
 
-def _holdout(lay) -> str:
-    """The verified cards on fresh packing seeds (``holdout_table``), if it ran."""
-    f = Path(lay.table(L.HOLDOUT))
+def _fresh_seeds(lay) -> str:
+    """The verified cards on fresh packing seeds (``fresh_seeds_table``), if it ran."""
+    f = Path(lay.table(L.FRESH_SEEDS))
     if not f.exists():
         return ""
     t = pd.read_csv(f)

@@ -1,10 +1,10 @@
-"""The fresh-seed check of the verified cards (rules ``holdout`` and ``holdout_table``).
+"""The fresh-seed check of the verified cards (rules ``fresh_seeds`` and ``fresh_seeds_table``).
 
 The closed loop steers the mean of its rounds' packing seeds onto the lab targets. Whether
 the card then describes the rock rather than those packings shows on packings the loop
-never saw: :func:`holdout` runs a verified card's parameters on fresh packing seeds (the
+never saw: :func:`fresh_seeds` runs a verified card's parameters on fresh packing seeds (the
 UCS test of every seed and, for a card with a tensile-strength target, its Brazilian test
-on the same seed), and :func:`holdout_table` judges every card and target: is the lab
+on the same seed), and :func:`fresh_seeds_table` judges every card and target: is the lab
 value within ``z`` standard errors of the fresh seeds' mean (``within_z_se``, z = 2 by
 default), and within the tolerance the loop itself used, max(rtol, z standard errors)
 (``met``)? A failed run is a row with its reason, counted in ``n_failed``, never dropped.
@@ -48,10 +48,10 @@ def used_seeds(card: dict) -> set[int]:
     return seeds
 
 
-def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
-            bts_geometry=None, bts_settings=None, cache=None, threads=None, progress=None,
-            max_balls=None, mem_budget_mb=None, genesis_max_steps=None, dtt_runs=None,
-            dtt_geometry=None, dtt_settings=None) -> pd.DataFrame:
+def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
+                bts_geometry=None, bts_settings=None, cache=None, threads=None, progress=None,
+                max_balls=None, mem_budget_mb=None, genesis_max_steps=None, dtt_runs=None,
+                dtt_geometry=None, dtt_settings=None) -> pd.DataFrame:
     """Run a verified card on fresh packing ``seeds`` (none of them one its closed loop or
     transfer used: BadInput naming them otherwise): the UCS test of every seed into
     ``runs[i]`` and, with ``bts_runs``, the Brazilian test of the same seed (the disc
@@ -175,8 +175,8 @@ def holdout(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
     return df
 
 
-def holdout_stats(values, lab: float, *, rtol: float, z: float = 2.0,
-                  lab_se: float = 0.0) -> dict:
+def fresh_seed_stats(values, lab: float, *, rtol: float, z: float = 2.0,
+                     lab_se: float = 0.0) -> dict:
     """Mean, sample standard deviation, standard error of the mean of ``values`` (the
     fresh seeds' responses; NaN entries are failed runs and do not count), the error of
     the mean in % of ``lab``, its z-score (error / standard error) and the verdicts
@@ -204,7 +204,7 @@ def holdout_stats(values, lab: float, *, rtol: float, z: float = 2.0,
 
 def false_alarm(n: int, z: float = 2.0, targets: int = 1) -> float:
     """The probability that a card exactly on its targets still fails the ``within_z_se``
-    check of :func:`holdout_stats` on ``n`` fresh seeds for at least one of ``targets``
+    check of :func:`fresh_seed_stats` on ``n`` fresh seeds for at least one of ``targets``
     independent targets: the standard error comes from the same ``n`` seeds, so the
     z-score is Student-t with n - 1 degrees of freedom (5 seeds, z = 2: 11.6 % per
     target, 67 % for one miss or more among 9)."""
@@ -216,11 +216,11 @@ def false_alarm(n: int, z: float = 2.0, targets: int = 1) -> float:
     return 1 - (1 - p_one) ** int(targets)
 
 
-def holdout_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataFrame:
+def fresh_seeds_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataFrame:
     """One row per card (``cards[i]`` with its seed table ``seed_runs[i]`` from
-    :func:`holdout`) and target: the lab value, the fresh seeds' n, mean, standard
+    :func:`fresh_seeds`) and target: the lab value, the fresh seeds' n, mean, standard
     deviation, standard error and CV, the error of the mean (%), its z-score and the
-    verdicts of :func:`holdout_stats`; ``seeds`` lists the seeds, ``n_failed`` the failed
+    verdicts of :func:`fresh_seed_stats`; ``seeds`` lists the seeds, ``n_failed`` the failed
     runs and ``note`` why none ran (a card whose closed loop did not run). A tensile
     strength measured on the fresh seeds but not a target of the card is a row too, its
     ``role`` "prediction" (no lab value, no verdict: σt of the card and its seed
@@ -245,7 +245,7 @@ def holdout_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataFrame
         missing = [k for k in ("seed", "status", *c["targets"]) if k not in df.columns]
         if missing:
             raise BadInput(f"--seed-runs {f}: missing column(s) {missing} for the targets of "
-                           f"card {c['specimen']} (expected a bpmcal holdout seed table)")
+                           f"card {c['specimen']} (expected a seed table of bpmcal fresh-seeds)")
         ok = df["status"] == "ok"
         not_run = (df["status"] == "not-run").all() and len(df)
         note = str(df["error"].iloc[0]) if not_run and "error" in df.columns else ""
@@ -254,8 +254,8 @@ def holdout_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataFrame
         for k in (*c["targets"], *predicted):
             lab = float(c["targets"][k]) if k in c["targets"] else math.nan
             vals = df.loc[ok, k].to_numpy(float)
-            st = holdout_stats(vals, lab, rtol=rtol, z=z,
-                               lab_se=float((c.get("target_se") or {}).get(k, 0.0)))
+            st = fresh_seed_stats(vals, lab, rtol=rtol, z=z,
+                                  lab_se=float((c.get("target_se") or {}).get(k, 0.0)))
             fin = vals[np.isfinite(vals)]
             rows.append({"specimen": c["specimen"], "response": k,
                          "role": "target" if k in c["targets"] else "prediction",

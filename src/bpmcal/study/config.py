@@ -274,7 +274,7 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
                         "bts.enabled: false")
     msgs.extend(_budget_checks(cfg))
     msgs.extend(_sweep_checks(cfg))
-    msgs.extend(_holdout_checks(cfg))
+    msgs.extend(_fresh_seed_checks(cfg))
     msgs.extend(_check_bts_disc(cfg, base))
     msgs.extend(_check_tensile_tests(cfg, base))
     if not path_problem(cfg["lab"]["csv"]):
@@ -348,7 +348,7 @@ def transfer_seed(verification: dict) -> int:
     return loop_seeds(verification)[-1] + 1
 
 
-def _holdout_checks(cfg: dict) -> list[str]:
+def _fresh_seed_checks(cfg: dict) -> list[str]:
     """``verification.fresh_seeds``: none or at least two, all fresh (no seed of the
     closed loop or of the transfer)."""
     v = cfg["verification"]
