@@ -7,6 +7,11 @@ as the bare value::
 
     the default study takes <!--fig:study.wall_min-->26.4<!--/fig--> min
 
+A link to the record a figure comes from is marked the same way and refreshed with it
+(the path relative to the page), so a newer record changes no page by hand::
+
+    the <!--rec:study.wall_min-->[record](docs/measurements/DATE-default-study.md)<!--/rec-->
+
 ``tests/docs/test_figures.py`` checks that every marked value equals the generated one,
 that ``figures.json`` is this script's output for the records in the repository, and that
 the README and the docs (outside ``docs/measurements/``) hold no unmarked measured figure.
@@ -24,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import sys
 from pathlib import Path
@@ -33,6 +39,10 @@ BENCH = REPO / "benchmarks"
 OUT = REPO / "docs" / "measurements" / "figures.json"
 #: a marked figure: <!--fig:KEY-->VALUE<!--/fig-->
 MARK = re.compile(r"<!--fig:([a-z][a-z0-9_]*(?:\.[A-Za-z0-9_]+)+)-->(.*?)<!--/fig-->")
+#: a link to the record a figure comes from: <!--rec:KEY-->[text](path)<!--/rec-->; the
+#: path is refreshed like a figure (relative to the page), so a newer record needs no edit
+REC = re.compile(r"<!--rec:([a-z][a-z0-9_]*(?:\.[A-Za-z0-9_]+)+)-->\[(.*?)\]\((.*?)\)<!--/rec-->",
+                 re.S)
 
 #: kind -> (file pattern of its JSON records, the Markdown record rendered from them)
 SOURCES = {
@@ -157,13 +167,24 @@ def pages() -> list[Path]:
     return [REPO / "README.md", REPO / "config" / "README.md", *docs]
 
 
-def refresh(text: str, figs: dict) -> str:
+def record_link(key: str, figs: dict, page: Path) -> str:
+    """The path of figure ``key``'s record, relative to ``page``'s folder."""
+    if key not in figs:
+        raise KeyError(f"unknown figure {key!r}")
+    return os.path.relpath(REPO / figs[key]["record"], page.parent)
+
+
+def refresh(text: str, figs: dict, page: Path = REPO / "README.md") -> str:
     def sub(m):
         key = m.group(1)
         if key not in figs:
             raise KeyError(f"unknown figure {key!r}")
         return f"<!--fig:{key}-->{figs[key]['text']}<!--/fig-->"
-    return MARK.sub(sub, text)
+
+    def rec(m):
+        key, label = m.group(1), m.group(2)
+        return f"<!--rec:{key}-->[{label}]({record_link(key, figs, page)})<!--/rec-->"
+    return REC.sub(rec, MARK.sub(sub, text))
 
 
 def main(argv=None) -> int:
@@ -180,7 +201,7 @@ def main(argv=None) -> int:
             OUT.write_text(text)
     for page in pages():
         old = page.read_text()
-        new = refresh(old, figs)
+        new = refresh(old, figs, page)
         if new != old:
             stale.append(page)
             if not a.check:

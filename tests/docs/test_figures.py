@@ -104,6 +104,23 @@ def test_every_marked_figure_is_the_generated_value(page):
 
 
 @pytest.mark.parametrize("page", figures.pages(), ids=lambda p: str(p.relative_to(REPO)))
+def test_every_record_link_is_the_figures_record(page):
+    for key, _, path in figures.REC.findall(page.read_text()):
+        assert key in FIGS, f"{page.name}: unknown figure {key}"
+        want = figures.record_link(key, FIGS, page)
+        assert path == want, (f"{page.name}: the record of {key} is {want}, the page links "
+                              f"{path} (python benchmarks/figures.py refreshes it)")
+        assert (page.parent / path).is_file(), f"{page.name}: {path} does not exist"
+
+
+def test_a_stale_record_link_is_refreshed():
+    text = "<!--rec:study.wall_min-->[record](docs/measurements/old.md)<!--/rec-->"
+    out = figures.refresh(text, FIGS, REPO / "README.md")
+    assert out == (f"<!--rec:study.wall_min-->[record]({FIGS['study.wall_min']['record']})"
+                   "<!--/rec-->")
+
+
+@pytest.mark.parametrize("page", figures.pages(), ids=lambda p: str(p.relative_to(REPO)))
 def test_no_unmarked_measured_figure(page):
     found = unmarked(page.read_text())
     assert not found, (f"{page.relative_to(REPO)}: measured figures not taken from "
