@@ -39,7 +39,7 @@ def _params(tmp_path, **kw):
 def test_a_failed_run_exits_3_or_0_with_failed_ok_and_quiet_shows_it(tmp_path, capsys, cache,
                                                                       failed_ok, code):
     out = tmp_path / "k.h5"
-    argv = ["ucs", "--params", _params(tmp_path, pb_kratio=1e-9), "--out", str(out), *SMALL,
+    argv = ["ucs", "--params", _params(tmp_path, pb_kratio=1e-5), "--out", str(out), *SMALL,
             "--genesis-max-steps", "1000", "--specimen-cache", cache, "--quiet"]
     assert main(argv + (["--failed-ok"] if failed_ok else [])) == code
     err = capsys.readouterr().err.strip().splitlines()
@@ -54,7 +54,7 @@ def test_a_good_output_is_kept_when_the_new_run_fails(tmp_path, capsys, cache):
     assert main(["ucs", "--params", _params(tmp_path), "--out", str(out), *SMALL,
                  "--specimen-cache", cache, "--quiet"]) == 0
     good = out.read_bytes()
-    rc = main(["ucs", "--params", _params(tmp_path, pb_kratio=1e-9), "--out", str(out),
+    rc = main(["ucs", "--params", _params(tmp_path, pb_kratio=1e-5), "--out", str(out),
                *SMALL, "--genesis-max-steps", "1000", "--specimen-cache", cache, "--quiet",
                "--failed-ok"])
     assert rc == 3  # --out was not updated: a failure even with --failed-ok
@@ -65,16 +65,17 @@ def test_a_good_output_is_kept_when_the_new_run_fails(tmp_path, capsys, cache):
 
 
 def test_ctrl_c_stops_a_run_quickly_and_leaves_no_file(tmp_path):
-    """SIGINT during a long genesis (pb_kratio = 1e-9 never settles under the bpmcal
-    genesis): exit 130 within a few seconds (the benchmark benchmarks/sigint_latency.py
-    measures the latency), no output file, no temporary file. The signal is sent once the
-    run reports its genesis on stderr (not after a fixed sleep: on a loaded machine the
-    interpreter may still be importing, before the command's handler exists)."""
+    """SIGINT during a long genesis (pb_kratio = 1e-5: a timestep ~100 x shorter, so the
+    bpmcal genesis takes ~100 x its steps): exit 130 within a few seconds (the benchmark
+    benchmarks/sigint_latency.py measures the latency), no output file, no temporary
+    file. The signal is sent once the run reports its genesis on stderr (not after a fixed
+    sleep: on a loaded machine the interpreter may still be importing, before the
+    command's handler exists)."""
     import selectors
 
     out = tmp_path / "run" / "k.h5"
     cmd = [sys.executable, "-m", "bpmcal.cli", "ucs", "--params",
-           _params(tmp_path, pb_kratio=1e-9), "--out", str(out), "--scale", "0.4",
+           _params(tmp_path, pb_kratio=1e-5), "--out", str(out), "--scale", "0.4",
            "--threads", "1", "--genesis-max-steps", "10000000", "--genesis", "bpmcal",
            "--specimen-cache", str(tmp_path / "cache")]
     # a user's Ctrl-C reaches a process whose SIGINT is at its default; a test suite run

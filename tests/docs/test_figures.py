@@ -48,6 +48,8 @@ ALLOWED = [
     (r"0\.8 × the minimum", "PFC's timestep safety factor"),
     (r"95 % intervals|default 2\.5-97\.5 %", "the bootstrap intervals' level (a method choice)"),
     (r"\(default 2 %\) of a range", "the inversion's distinct-solution distance (a default)"),
+    (r"would take more than 10 s|longer than 10 s if", "the loading screen's limit "
+     "(lab.budget.HOPELESS_S, a method constant)"),
 ]
 ALLOWED_RE = re.compile("|".join(f"(?:{p})" for p, _ in ALLOWED))
 

@@ -29,24 +29,71 @@ def test_loading_steps_runs_to_the_smaller_of_max_strain_and_the_failure_scale()
     assert B.loading_steps(1e-7, 0.03) == pytest.approx(0.03 / 1e-7)
 
 
+#: a loading of 1e-9 strain per step: platens at 10 m/s on a 20 mm body at dt 1e-12 s
+SLOW = B.Loading("UCS", 10.0, 0.02, "platen_velocity", 10.0)
+
+
 def test_check_refuses_a_loading_cut_off_long_before_it_is_done(monkeypatch):
     monkeypatch.delenv("BPMCAL_LOADING_BUDGET_S", raising=False)
-    kw = dict(strain_per_step=1e-9, max_strain=0.03, dt=1e-12, loading="platens",
-              spring="pb_kratio = 1e-09 (...)", failure_strain=1e-3, n_balls=1000,
-              ball_steps_per_s=1e6)
+    kw = dict(dt=1e-12, max_strain=0.03, spring="pb_kratio = 1e-09 (...)",
+              failure_strain=1e-3, n_balls=1000, ball_steps_per_s=1e6)
     # done within max_steps: runs, whatever it costs
-    assert B.check_loading_steps("UCS", max_steps=10_000_000, **kw) == 10_000_000
+    assert B.check_loading_steps(SLOW, max_steps=10_000_001, **kw) == pytest.approx(1e7, abs=1)
     # cut off after 9,999,999 steps x 1000 balls / 1e6 per s = 10,000 s > 600 s: refused
     with pytest.raises(B.StepBudgetError) as e:
-        B.check_loading_steps("UCS", max_steps=9_999_999, **kw)
+        B.check_loading_steps(SLOW, max_steps=9_999_999, **kw)
     msg = str(e.value)
     assert "1e+07 steps" in msg and "max_steps = 9999999" in msg and "167 min" in msg
-    assert "pb_kratio = 1e-09" in msg
-    # cut off after 500 s <= 600 s: runs to its cut-off (a test may cut a loading short)
-    assert B.check_loading_steps("UCS", max_steps=500_000, **kw) == 10_000_000
+    assert "pb_kratio = 1e-09" in msg  # the default velocity would not fit either
+    # cut off after 500 s <= 600 s at 0.5 x the failure strain: runs to its cut-off
+    assert B.check_loading_steps(SLOW, max_steps=500_000, **kw) == pytest.approx(1e7, abs=1)
     monkeypatch.setenv("BPMCAL_LOADING_BUDGET_S", "0")
     with pytest.raises(B.StepBudgetError):
-        B.check_loading_steps("UCS", max_steps=500_000, **kw)
+        B.check_loading_steps(SLOW, max_steps=500_000, **kw)
+
+
+def test_check_refuses_a_hopeless_loading_after_ten_seconds(monkeypatch):
+    """A cut-off before REACH_FRACTION of the failure strain cannot give a peak: refused
+    once its steps take longer than HOPELESS_S (not only the loading budget)."""
+    monkeypatch.delenv("BPMCAL_LOADING_BUDGET_S", raising=False)
+    kw = dict(dt=1e-12, max_strain=0.03, spring="pb_emod = 1e10 Pa", failure_strain=1e-3,
+              ball_steps_per_s=1e6)
+    hopeless = int(B.REACH_FRACTION * 1e-3 / 1e-9) - 1  # reaches just below the fraction
+    # 100 balls: the cut-off takes ~25 s (> 10 s, < 600 s): refused, the reach named
+    with pytest.raises(B.StepBudgetError, match=r"would reach 0\.00025, before the card"):
+        B.check_loading_steps(SLOW, max_steps=hopeless, n_balls=100, **kw)
+    # 10 balls: ~2.5 s, a short cut on purpose: runs
+    assert B.check_loading_steps(SLOW, max_steps=hopeless, n_balls=10, **kw) > hopeless
+    # just reaching the fraction: not hopeless, the 600 s budget applies
+    assert B.check_loading_steps(SLOW, max_steps=hopeless + 2, n_balls=100, **kw)
+
+
+def test_a_slow_velocity_is_named_as_the_cause():
+    """With the default velocity the loading would fit max_steps: the message names the
+    velocity setting, not the spring."""
+    slow = B.Loading("UCS", 1e-6, 0.04, "platen_velocity", 0.05)
+    with pytest.raises(B.StepBudgetError) as e:
+        B.check_loading_steps(slow, dt=1.3e-7, max_strain=0.03, max_steps=3_000_000,
+                              spring="pb_emod = 1e10 Pa", n_balls=1500,
+                              ball_steps_per_s=1e7, failure_strain=2.7e-3)
+    msg = str(e.value)
+    assert "platen_velocity gives 1e-06 m/s, against the default 0.05 m/s" in msg
+    assert "pb_emod" not in msg
+
+
+def test_platen_loading_follows_the_strain_rate_setting():
+    from bpmcal.lab.brazilian import BTSSettings
+    from bpmcal.lab.direct_tension import DTTSettings
+    from bpmcal.lab.ucs import UCSSettings
+
+    lo = UCSSettings(strain_rate=2.0).loading_at(0.1)
+    assert lo.velocity == pytest.approx(0.1) and lo.setting.startswith("strain_rate")
+    assert lo.default == UCSSettings().platen_velocity
+    d = DTTSettings(grip_velocity=0.002).loading_at(0.05)
+    assert (d.velocity, d.setting, d.loaders, d.default, d.tension) == (
+        0.002, "grip_velocity", "grips", DTTSettings().grip_velocity, True)
+    assert not lo.tension
+    assert BTSSettings().loading_at(0.02).body == "disc"
 
 
 def test_budget_seconds_from_the_environment(monkeypatch):
@@ -72,6 +119,24 @@ def test_a_cut_off_loading_runs_or_is_refused_by_the_budget(cache, monkeypatch):
         ucs_test(A1, 1, SMALL, st, cache=cache)
 
 
+@pytest.mark.parametrize("card", [A1, {**A1, "pb_kratio": 0.05}, {**A1, "rmin_mm": 1.2}, FJ1,
+                                  {**FJ1, "fj_kratio": 0.1}],
+                         ids=["A1", "pb_kratio", "rmin", "FJ1", "fj_kratio"])
+def test_the_timestep_bound_is_above_the_built_specimens_timestep(cache, card):
+    """budget.timestep_bound, known before genesis, is above the timestep the built
+    specimen gets (so the screen never refuses a loading that could finish), and within
+    a factor 10 of it (so it screens at all)."""
+    from bpmcal.lab.runner import make_specimen
+    from bpmcal.lab.specimen import card_material
+    from bpmcal.params import to_si, validate_params
+
+    p = validate_params(card)
+    sp = make_specimen(p, 1, SMALL, cache=cache)
+    dt = sp.model.set_timestep(None)
+    bound = B.timestep_bound(card_material(p)[0], to_si("rmin_mm", p["rmin_mm"]))
+    assert dt < bound < 10 * dt
+
+
 def test_stiffest_spring_names_the_property():
     assert stiffest_spring(Material(**PB)).startswith("pb_emod = 1.2e+10")
     assert stiffest_spring(Material(**{**PB, "pb_kratio": 1e-9})).startswith("pb_kratio = 1e-09")
@@ -83,6 +148,9 @@ def test_stiffest_spring_names_the_property():
     assert stiffest_spring(fj).startswith("fj_kratio = 1e-06")
     assert expected_failure_strain(fj) == pytest.approx(100e6 / 60e9)
     assert expected_failure_strain(Material(**PB)) == pytest.approx(30e6 / 12e9)
+    # a direct-tension test fails by the tensile strength
+    assert expected_failure_strain(fj, tension=True) == pytest.approx(10e6 / 60e9)
+    assert expected_failure_strain(Material(**PB), tension=True) == pytest.approx(20e6 / 12e9)
 
 
 def test_a_collapsed_timestep_is_refused_before_loading(cache, monkeypatch):

@@ -31,10 +31,11 @@ def _ucs_ok(path, ucs):
 
 def test_a_failed_brazilian_test_is_recorded_and_the_sample_keeps_its_ucs(tmp_path, capsys,
                                                                           packing_cache):
-    # s001 cannot be built (pb_kratio 1e-9 never settles under the bpmcal genesis):
+    # s001 cannot be built (pb_kratio 1e-5: the timestep 100 x shorter, the bpmcal genesis
+    # does not settle within 1,000 steps):
     # `bpmcal bts --failed-ok`, as the study's sample job runs it, writes a failure record
     # and exits 0
-    design = _design(tmp_path, [A1, {**A1, "pb_kratio": 1e-9}, A1])
+    design = _design(tmp_path, [A1, {**A1, "pb_kratio": 1e-5}, A1])
     bts = tmp_path / "bts"
     rc = main(["bts", "--design", design, "--sample", "s001", "--out", str(bts / "s001.h5"),
                "--scale", "0.4", "--threads", "1", "--genesis-max-steps", "1000",

@@ -197,10 +197,13 @@ def stiffest_spring(material) -> str:
     return max(enumerate(cands), key=lambda c: (c[1][0], c[0]))[1][1]
 
 
-def expected_failure_strain(material) -> float:
+def expected_failure_strain(material, tension: bool = False) -> float:
     """A scale of the strain at which a bonded specimen of this material fails: its
-    bonds' (flat joints') larger strength over their modulus. Lab tests run to a few times
+    bonds' (flat joints') larger strength over their modulus, or with ``tension`` (a
+    direct-tension test) their tensile strength over it. Lab tests run to a few times
     this (``lab.budget.check_loading_steps``); only a step estimate uses it."""
     if isinstance(material, FlatJointMaterial):
-        return max(float(material.fj_ten), float(material.fj_coh)) / float(material.fj_emod)
-    return max(float(material.pb_ten), float(material.pb_coh)) / float(material.pb_emod)
+        ten, coh, emod = material.fj_ten, material.fj_coh, material.fj_emod
+    else:
+        ten, coh, emod = material.pb_ten, material.pb_coh, material.pb_emod
+    return (float(ten) if tension else max(float(ten), float(coh))) / float(emod)

@@ -89,6 +89,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
+from .budget import Loading, platen_loading
 from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
@@ -129,6 +130,11 @@ class BTSSettings:
     loading: str = "flat"  # "flat": two planar platens | "jaws": ISRM curved jaws
     jaw_ratio: float = 1.5  # jaw radius / disc radius (ISRM: 1.5)
     retests: int = 2  # discs tested after an invalid one (runner.bts_test; ISRM practice)
+
+    def loading_at(self, length: float) -> Loading:
+        """The loading of a disc of diameter ``length`` [m] (strain: the platens' approach
+        over the diameter)."""
+        return platen_loading("Brazilian", self, length, body="disc")
 
     def __post_init__(self):
         if not (self.platen_velocity > 0 and math.isfinite(self.platen_velocity)):
@@ -452,7 +458,8 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
     D = sp.spec.diameter
     t = sp.spec.height
     R = 0.5 * D
-    v = st.platen_velocity
+    loading = st.loading_at(D)
+    v = loading.velocity
     dbar = 2.0 * float(m.radii.mean())
     half_band = max(0.25 * R, 1.5 * dbar)
     wb, wt = add_loaders(sp, st)
@@ -460,7 +467,7 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
-    bound = loading_bound("Brazilian", m, st, v, D, body="disc")
+    bound = loading_bound(m, st, loading)
     seated = seat(sp, (wb, wt), st)
 
     def platens(speed):

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 
 from .. import params as P
 
@@ -123,6 +124,107 @@ LOADING_BUDGET_S = 600.0
 DEFAULT_BALL_STEPS_PER_S = 1.0e6
 
 
+#: a loading is hopeless when its cut-off at ``max_steps`` comes before this fraction of
+#: the card's failure-strain scale (``dem.material.expected_failure_strain``): no UCS of the
+#: default study's 150 cards peaked before 0.55 x its scale, no Brazilian test before
+#: 1.27 x (the platens' approach over D), no UCS of a flat-joint study's 40 before 1.86 x
+#: and no direct-tension test before 0.52 x its tensile scale; record
+#: ``docs/measurements/2026-11-27d-peak-reach.md``
+REACH_FRACTION = 0.25
+#: a hopeless loading is refused when its steps to the cut-off would take longer than this
+#: [s] (or ``BPMCAL_LOADING_BUDGET_S`` if that is shorter); shorter ones run, as a test
+#: that cuts a loading short on purpose does
+HOPELESS_S = 10.0
+
+
+@dataclass(frozen=True)
+class Loading:
+    """How a lab test loads its body: each of two ``loaders`` moves at ``velocity`` [m/s]
+    along a body of ``length`` [m] (strain per step 2 v dt / L). ``setting`` names the
+    setting that gives the velocity and ``default`` that setting's default velocity [m/s]
+    (a refusal names the velocity when it, not the timestep, makes the loading long)."""
+    test: str
+    velocity: float
+    length: float
+    setting: str
+    default: float
+    loaders: str = "platens"
+    body: str = "specimen"
+    tension: bool = False  # pulled apart: the card's tensile failure strain applies
+
+    def describe(self) -> str:
+        return (f"{self.loaders} at {self.velocity:g} m/s each on a {self.length * 1e3:.3g} mm "
+                f"{self.body}")
+
+
+def _parts(material):
+    """(modulus [Pa], stiffness ratio, radius multiplier, name of the modulus, name of the
+    ratio) of each spring set of a material (duck-typed: no numba import here)."""
+    if hasattr(material, "fj_emod"):
+        return ((material.emod, material.kratio, 1.0, "emod", "kratio"),
+                (material.fj_emod, material.fj_kratio, material.fj_rmul, "fj_emod",
+                 "fj_kratio"))
+    return ((material.emod, material.kratio, 1.0, "emod", "kratio"),
+            (material.pb_emod, material.pb_kratio, material.pb_rmul, "pb_emod", "pb_kratio"))
+
+
+def timestep_bound(material, rmin: float, density: float = P.DENSITY,
+                   ratio: float = P.RADIUS_RATIO) -> float:
+    """An upper bound [s] of the timestep a specimen of ``material`` with radii in
+    [``rmin``, ``ratio`` x ``rmin``] [m] gets, known before it is built: sqrt(m/k) of a
+    ball of radius ``rmin`` whose only spring is the stiffest single spring of one contact
+    with the largest neighbour (k = E pi (lambda rmin)^2 / ((1 + ratio) rmin), E the
+    largest of each spring set's E* and E*/kappa*). A packed ball has several contacts,
+    each with a linear spring and a bond (or flat joint), and rotation; the timestep is
+    0.8 x the smallest ball's: the real one is several times smaller (a test compares
+    the two on built specimens)."""
+    k_per_m = max(float(e) * max(1.0, 1.0 / float(kr)) * float(lam) ** 2
+                  for e, kr, lam, *_ in _parts(material))
+    r = float(rmin)
+    mass = density * 4.0 / 3.0 * math.pi * r ** 3
+    k = k_per_m * math.pi * r * r / ((1.0 + ratio) * r)
+    return math.sqrt(mass / k)
+
+
+def _cause(loading: Loading, est: float, max_steps: int, spring: str) -> str:
+    """What makes a loading long: its velocity when the default one would fit
+    ``max_steps``, else the spring that sets the timestep."""
+    v, d = loading.velocity, loading.default
+    if d and v < d and est * v / d <= max_steps:
+        return (f"the loading is slow: {loading.setting} gives {v:g} m/s, against the "
+                f"default {d:g} m/s (which would need about {est * v / d:.3g} steps); "
+                "load faster or raise max_steps")
+    return (f"the timestep is set by {spring}; change that property, load faster, or "
+            "raise max_steps")
+
+
+def screen_loading(loading: Loading, material, rmin: float, *, max_strain: float,
+                   max_steps: int, n_balls: float, spring: str,
+                   failure_strain: float | None, density: float = P.DENSITY) -> None:
+    """Refuse, before the specimen is built, a loading that cannot reach the card's
+    failure: a :class:`BudgetError` (bad input) when even at :func:`timestep_bound` the
+    cut-off at ``max_steps`` comes before :data:`REACH_FRACTION` of ``failure_strain``
+    and the steps to it (``n_balls`` balls at :data:`DEFAULT_BALL_STEPS_PER_S`) would
+    take longer than :data:`HOPELESS_S`. The message names the cause: the velocity, or
+    ``spring`` (``dem.material.stiffest_spring``: the property that sets the timestep)."""
+    if not failure_strain or failure_strain <= 0:
+        return
+    dt = timestep_bound(material, rmin, density)
+    per_step = 2.0 * loading.velocity * dt / loading.length
+    reach = per_step * max_steps
+    need = REACH_FRACTION * float(failure_strain)
+    cut_s = max_steps * max(float(n_balls), 1.0) / DEFAULT_BALL_STEPS_PER_S
+    if reach >= need or cut_s <= min(HOPELESS_S, budget_seconds()):
+        return
+    est = loading_steps(per_step, max_strain, failure_strain)
+    raise BudgetError(
+        f"{loading.test}: the loading cannot reach the card's failure: at most "
+        f"{reach:.3g} strain within max_steps = {int(max_steps)} ({loading.describe()}, "
+        f"timestep at most {dt:.3g} s), where the card fails at about {failure_strain:.3g}"
+        f" (its bonds' strength over modulus); {_cause(loading, est, max_steps, spring)}."
+        " Refused before building the specimen")
+
+
 class StepBudgetError(RuntimeError):
     """A lab test's loading would be cut off by ``max_steps`` long before it is done:
     refused before the loading starts (a run failure: the run file records it with this
@@ -154,25 +256,52 @@ def budget_seconds() -> float:
     return v
 
 
-def check_loading_steps(test: str, *, strain_per_step: float, max_strain: float,
-                        max_steps: int, dt: float, loading: str, spring: str, n_balls: int,
-                        ball_steps_per_s: float | None,
+def platen_loading(test: str, settings, length: float, *, field: str = "platen_velocity",
+                   loaders: str = "platens", body: str = "specimen",
+                   tension: bool = False) -> Loading:
+    """The :class:`Loading` of a test whose ``settings`` give each loader's velocity in
+    ``field`` (or, if they have one that is set, a ``strain_rate``: each loader then
+    moves at rate x ``length`` / 2) on a body of ``length`` [m]."""
+    default = type(settings).__dataclass_fields__[field].default
+    rate = getattr(settings, "strain_rate", None)
+    if rate is not None:
+        return Loading(test, 0.5 * float(rate) * length, length,
+                       f"strain_rate = {float(rate):g} /s", default, loaders, body, tension)
+    return Loading(test, float(getattr(settings, field)), length, field, default, loaders,
+                   body, tension)
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min"
+
+
+def check_loading_steps(loading: Loading, *, dt: float, max_strain: float, max_steps: int,
+                        spring: str, n_balls: int, ball_steps_per_s: float | None,
                         failure_strain: float | None = None) -> int:
-    """The loading's estimated steps (:func:`loading_steps`, rounded up). When they exceed
-    ``max_steps`` (the loading would be cut off before it is done) and the steps up to the
-    cut-off take longer than :func:`budget_seconds` at ``ball_steps_per_s`` (default
-    :data:`DEFAULT_BALL_STEPS_PER_S`), a :class:`StepBudgetError` naming the timestep's
-    cause (``spring``, the card's property that makes the stiffest spring) and the loading
-    (``loading``, e.g. the platen velocity)."""
-    est = loading_steps(strain_per_step, max_strain, failure_strain)
+    """The estimated steps of ``loading`` at timestep ``dt`` (:func:`loading_steps`,
+    rounded up). When they exceed ``max_steps`` (the loading would be cut off before it is
+    done), a :class:`StepBudgetError` if the steps up to the cut-off take longer than
+    :func:`budget_seconds` at ``ball_steps_per_s`` (default
+    :data:`DEFAULT_BALL_STEPS_PER_S`), or longer than :data:`HOPELESS_S` when the cut-off
+    comes before :data:`REACH_FRACTION` of ``failure_strain`` (no peak is possible). The
+    message names the cause: the velocity, or ``spring`` (the card's property that makes
+    the stiffest spring)."""
+    per_step = 2.0 * loading.velocity * dt / loading.length
+    est = loading_steps(per_step, max_strain, failure_strain)
+    if est <= max_steps:
+        return int(math.ceil(est))
     rate = ball_steps_per_s or DEFAULT_BALL_STEPS_PER_S
-    cut_s = min(est, max_steps) * max(n_balls, 1) / rate
-    if not est <= max_steps and not cut_s <= budget_seconds():
-        target = est * strain_per_step
+    cut_s = max_steps * max(n_balls, 1) / rate
+    budget = budget_seconds()
+    hopeless = bool(failure_strain) and per_step * max_steps < REACH_FRACTION * failure_strain
+    if cut_s > budget or (hopeless and cut_s > min(HOPELESS_S, budget)):
+        target = est * per_step
+        reach = (f"; it would reach {per_step * max_steps:.3g}, before the card fails (about "
+                 f"{failure_strain:.3g})" if hopeless else "")
         raise StepBudgetError(
-            f"{test}: the loading would need about {est:.3g} steps (strain {target:.3g} at "
-            f"{strain_per_step:.3g} per step: {loading}, timestep {dt:.3g} s), more than "
-            f"max_steps = {int(max_steps)}, and would be cut off after about "
-            f"{cut_s / 60:.0f} min; the timestep is set by {spring}. Refused before "
-            "loading: change that property, load faster, or raise max_steps")
+            f"{loading.test}: the loading would need about {est:.3g} steps (strain "
+            f"{target:.3g} at {per_step:.3g} per step: {loading.describe()}, timestep "
+            f"{dt:.3g} s), more than max_steps = {int(max_steps)}, and would be cut off "
+            f"after about {_duration(cut_s)}{reach}; {_cause(loading, est, max_steps, spring)}"
+            ". Refused before loading")
     return int(math.ceil(est))

@@ -46,6 +46,7 @@ import numpy as np
 from ..dem.errors import InputError
 from ..dem.slots import FIX_VZ
 from ..exact_math import lsq_slope
+from .budget import Loading, platen_loading
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen
 from .stepping import cycle, load_to_failure, loading_bound
@@ -69,6 +70,11 @@ class DTTSettings:
     record_strain: float = 2e-6  # axial strain between records
     fit_window: tuple = (0.2, 0.5)  # E_t over this range of the peak stress
     grip_clearance: float = 1.0  # mean ball diameters: a fracture closer to a grip is invalid
+
+    def loading_at(self, length: float) -> Loading:
+        """The loading of a cylinder of ``length`` [m] (the height between the grips' ends)."""
+        return platen_loading("direct tension", self, length, field="grip_velocity",
+                              loaders="grips", tension=True)
 
     def __post_init__(self):
         def positive(name, v):
@@ -151,7 +157,8 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
     H0 = sp.z_top - sp.z_bottom
     R0 = sp.radius0
     area = math.pi * R0 * R0
-    v = st.grip_velocity
+    loading = st.loading_at(H0)
+    v = loading.velocity
     bot, top, zb, zt = grips(sp, st.grip_length)
     m.fix(bot, FIX_VZ)
     m.fix(top, FIX_VZ)
@@ -164,7 +171,7 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
-    bound = loading_bound("direct tension", m, st, v, H0, loaders="grips")
+    bound = loading_bound(m, st, loading)
     n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
     ser = {k: [] for k in DTT_SERIES}
     e0 = m.energies()

@@ -18,7 +18,7 @@ import time
 from contextlib import contextmanager
 
 from ..dem.material import expected_failure_strain, stiffest_spring
-from .budget import check_loading_steps
+from .budget import Loading, check_loading_steps
 
 #: target duration of one numba call [s]
 CALL_S = 0.2
@@ -78,18 +78,14 @@ def cycle(m, nsteps: int, record: bool = True) -> None:
                 _beat[0]()
 
 
-def loading_bound(test: str, m, settings, velocity: float, length: float,
-                  loaders: str = "platens", body: str = "specimen") -> int:
-    """``budget.check_loading_steps`` for a loading whose two ``loaders`` move apart or
-    together at ``velocity`` each along a ``body`` of ``length`` (strain per step
-    2 v dt / L), on model ``m`` with the test's ``settings`` (``max_strain``,
-    ``max_steps``): the loading's step bound, or a ``StepBudgetError``."""
+def loading_bound(m, settings, loading: Loading) -> int:
+    """``budget.check_loading_steps`` for ``loading`` (``budget.Loading``) on model ``m``
+    with the test's ``settings`` (``max_strain``, ``max_steps``): the loading's step
+    bound, or a ``StepBudgetError``."""
     return check_loading_steps(
-        test, strain_per_step=2.0 * velocity * m.dt / length, max_strain=settings.max_strain,
-        max_steps=settings.max_steps, dt=m.dt, n_balls=m.n, ball_steps_per_s=_rate,
-        spring=stiffest_spring(m.material),
-        loading=f"{loaders} at {velocity:g} m/s each on a {length * 1e3:.3g} mm {body}",
-        failure_strain=expected_failure_strain(m.material))
+        loading, dt=m.dt, max_strain=settings.max_strain, max_steps=settings.max_steps,
+        n_balls=m.n, ball_steps_per_s=_rate, spring=stiffest_spring(m.material),
+        failure_strain=expected_failure_strain(m.material, loading.tension))
 
 
 class LoadingProgress:

@@ -62,6 +62,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..dem.errors import InputError
+from .budget import Loading, platen_loading
 from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
@@ -104,6 +105,10 @@ class TriaxialSettings:
     ci_fraction: float = 0.01
     end_cap: float = END_CAP_HEIGHT  # end caps as in the UCS test (lab.ucs) [mean ball diameters]
     end_cap_factor: float = END_CAP_FACTOR
+
+    def loading_at(self, length: float) -> Loading:
+        """The axial loading of a cylinder of ``length`` [m] (the consolidated height)."""
+        return platen_loading("triaxial", self, length)
 
     def __post_init__(self):
         check_end_cap(self.end_cap, self.end_cap_factor)
@@ -275,9 +280,7 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
-    vh = st.platen_velocity if st.strain_rate is None else 0.5 * st.strain_rate * (
-        sp.z_top - sp.z_bottom)
-    bound = loading_bound("triaxial", m, st, vh, sp.z_top - sp.z_bottom)
+    bound = loading_bound(m, st, st.loading_at(sp.z_top - sp.z_bottom))
     t_c = time.perf_counter()
     con = consolidate(sp, st)
     lateral = con.pop("servo")
@@ -285,7 +288,7 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
     H0 = cell.height()
     Rc0 = cell.radius()
     A0 = math.pi * Rc0 ** 2
-    v = st.platen_velocity if st.strain_rate is None else 0.5 * st.strain_rate * H0
+    v = st.loading_at(H0).velocity
     m.set_wall_velocity(wb, velocity=(0.0, 0.0, v))
     m.set_wall_velocity(wt, velocity=(0.0, 0.0, -v))
     loop = ServoLoop(m, [lateral], interval=st.servo_interval, gain_update=st.gain_update)

@@ -60,6 +60,7 @@ import numpy as np
 
 from ..dem.errors import InputError
 from ..exact_math import lsq_slope
+from .budget import Loading, platen_loading
 from .records import append_cracks, append_energies, loading_cracks
 from .specimen import Specimen, apply_end_caps
 from .stepping import cycle, load_to_failure, loading_bound
@@ -125,6 +126,10 @@ class UCSSettings:
     post_peak_min: float = 0.002  # also require this much strain past the peak to stop
     end_cap: float = END_CAP_HEIGHT  # end caps [mean ball diameters], 0: none (module docstring)
     end_cap_factor: float = END_CAP_FACTOR  # strength factor of the end caps' bonds
+
+    def loading_at(self, length: float) -> Loading:
+        """The loading of a cylinder of ``length`` [m] (the loaded height)."""
+        return platen_loading("UCS", self, length)
 
     def __post_init__(self):
         check_end_cap(self.end_cap, self.end_cap_factor)
@@ -202,7 +207,8 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
     H0 = sp.z_top - sp.z_bottom
     R0 = sp.radius0
     area = math.pi * R0 * R0
-    v = st.platen_velocity if st.strain_rate is None else 0.5 * st.strain_rate * H0
+    loading = st.loading_at(H0)
+    v = loading.velocity
     caps = install_end_caps(sp, st.end_cap, st.end_cap_factor)  # before anything moves
     wb, wt = sp.platens
     m.set_wall_velocity(wb, velocity=(0.0, 0.0, v))
@@ -211,7 +217,7 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
-    bound = loading_bound("UCS", m, st, v, H0)
+    bound = loading_bound(m, st, loading)
     n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
     pos0 = m.positions.copy()
     z0 = pos0[sp.surface, 2]

@@ -29,7 +29,7 @@ from ..io.card import card_parameters, check_card, is_card
 from ..io.checks import BadInput, out_dir, out_file, read_model_table, read_yaml
 from ..io.h5 import RunFileError, check_run_file, write_run
 from ..lab.brazilian import BTSSettings
-from ..lab.budget import MAX_BALLS, check_budget
+from ..lab.budget import MAX_BALLS, BudgetError, check_budget, estimate_balls, screen_loading
 from ..lab.direct_tension import DTTSettings
 from ..lab.impact import ImpactSettings
 from ..lab.runner import (
@@ -286,6 +286,25 @@ _TESTS = {"ucs": (ucs_inputs, run_ucs_file), "bts": (bts_inputs, run_bts_file),
           "triaxial": (triaxial_inputs, run_triaxial_file), "dtt": (dtt_inputs, run_dtt_file)}
 
 
+def screen_test_loading(test: str, params: dict, geometry, settings) -> None:
+    """``budget.screen_loading`` of lab test ``test`` (``_TESTS``' keys) of the validated
+    card ``params`` on ``geometry`` with ``settings``, before the specimen is built: a
+    ``BudgetError`` naming the cause if the loading cannot reach the card's failure."""
+    from ..dem.material import expected_failure_strain, stiffest_spring
+    from ..lab.specimen import card_material
+
+    material, _ = card_material(params)
+    g = geometry
+    loading = settings.loading_at(g.scale * (g.diameter_mm if test == "bts" else g.height_mm)
+                                  * 1e-3)
+    n = estimate_balls(params["rmin_mm"], params["porosity"], scale=g.scale,
+                       diameter_mm=g.diameter_mm, height_mm=g.height_mm)
+    screen_loading(loading, material, P.to_si("rmin_mm", params["rmin_mm"]),
+                   max_strain=settings.max_strain, max_steps=settings.max_steps, n_balls=n,
+                   spring=stiffest_spring(material),
+                   failure_strain=expected_failure_strain(material, loading.tension))
+
+
 def lab_test_file(test: str, out, *, geometry, settings, params_file=None, sets=(),
                   design=None, sample=None, seed=None, max_balls=MAX_BALLS,
                   mem_budget_mb=None, cache=None, threads=None, progress=None,
@@ -318,13 +337,20 @@ def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None
     params, seed, skip = run_source(params_file=params_file, sets=sets, design=design,
                                     sample=sample, seed=seed, contact_model=contact_model)
     flags = flags or ["--out"] * len(tests)
+    skips = [skip] * len(tests)
     if not skip:
-        for test, _, geometry, _ in tests:
+        for i, (test, _, geometry, settings) in enumerate(tests):
             check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
             try:  # buildable at all (e.g. 3 ball diameters across)
                 specimen_spec(P.validate_params(params), seed, geometry)
             except InputError as e:
                 raise InputError(f"the {_WHAT[test]}: {e}") from None
+            try:
+                screen_test_loading(test, P.validate_params(params), geometry, settings)
+            except BudgetError as e:
+                if design is None:
+                    raise
+                skips[i] = str(e)  # a design row: recorded as failed, the study goes on
     seen = {}
     for (_, out, _, _), flag in zip(tests, flags):
         key = Path(out).resolve()
@@ -337,7 +363,7 @@ def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None
         out_dir(cache, "--specimen-cache")
     progs = progress if isinstance(progress, (list, tuple)) else [progress] * len(tests)
     done = []
-    for (test, out, geometry, settings), prog in zip(tests, progs):
+    for (test, out, geometry, settings), prog, skip in zip(tests, progs, skips):
         inputs_of, run_file = _TESTS[test]
         if skip:
             inp = inputs_of({k: _float_or_nan(v) for k, v in params.items()}, seed, geometry,
