@@ -67,11 +67,10 @@ def _bts_settings(cfg: dict, **over):
     """BTSSettings of a config's ``bts`` section (every key that is a settings field)."""
     from dataclasses import fields
 
-    from bpmcal.cli import config_key
     from bpmcal.lab.brazilian import BTSSettings
 
-    b = cfg["bts"]  # a field's config key may differ (post_peak_min: post_peak_strain)
-    kw = {f.name: b[config_key(f.name)] for f in fields(BTSSettings) if config_key(f.name) in b}
+    b = cfg["bts"]  # a field's config key is its name
+    kw = {f.name: b[f.name] for f in fields(BTSSettings) if f.name in b}
     kw.update(over)
     return BTSSettings(**kw)
 
@@ -110,13 +109,11 @@ def _run_dtt(job):
     params, seed, scale, cfg, cache = job
     from dataclasses import fields
 
-    from bpmcal.cli import config_key
     from bpmcal.lab.direct_tension import DTTSettings
     from bpmcal.lab.runner import Geometry, dtt_test
 
     sp, d = cfg["specimen"], cfg["dtt"]
-    st = DTTSettings(**{f.name: d[config_key(f.name)] for f in fields(DTTSettings)
-                        if config_key(f.name) in d})
+    st = DTTSettings(**{f.name: d[f.name] for f in fields(DTTSettings) if f.name in d})
     geo = Geometry(scale=scale, diameter_mm=sp["diameter_mm"], height_mm=sp["height_mm"],
                    sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
                    relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])

@@ -75,10 +75,7 @@ def main(argv=None) -> int:
     ucs_st = ucs_settings(cfg)
     from dataclasses import fields
 
-    from bpmcal.cli import config_key
-
-    study = BTSSettings(**{f.name: b[config_key(f.name)] for f in fields(BTSSettings)
-                           if config_key(f.name) in b})
+    study = BTSSettings(**{f.name: b[f.name] for f in fields(BTSSettings) if f.name in b})
     ref = BTSSettings()
     half = replace(study, platen_velocity=study.platen_velocity / 2)
     set_threads(a.threads)
@@ -130,7 +127,7 @@ def main(argv=None) -> int:
         "scale": sp["scale"], "disc_scale": disc.scale,
         "study_bts_settings": {k: getattr(study, k) for k in (
             "loading", "contact_cap", "platen_velocity", "approach_velocity", "stop_drop",
-            "post_peak_min")},
+            "post_peak_strain")},
         "samples": rows,
         "median_cpu_s": {k: med(f"{k}_cpu_s") for k in ("ucs", "bts", "ref", "half")},
         "median_wall_s": {k: med(f"{k}_wall_s") for k in ("ucs", "bts", "ref", "half")},

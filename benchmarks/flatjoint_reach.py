@@ -152,7 +152,7 @@ def _settings(cfg: dict, scale: float, bts_scale: float, bts_over: dict):
                 platen_fric=u["platen_fric"], record_strain=u["record_strain"],
                 end_cap=u["end_cap"], end_cap_factor=u["end_cap_factor"])
     ucs = UCSSettings(**load)
-    tx = {s3: TriaxialSettings(sigma3=s3 * 1e6, servo_alpha=cfg["triaxial"]["servo_gain"],
+    tx = {s3: TriaxialSettings(sigma3=s3 * 1e6, servo_alpha=cfg["triaxial"]["servo_alpha"],
                                **load) for s3 in SIGMA3}
     return (geo, ucs, _disc(cfg, bts_scale), _bts_settings(cfg, **bts_over), tx,
             _dtt_settings(cfg))
@@ -168,9 +168,7 @@ def _dtt_settings(cfg: dict):
     d = cfg.get("dtt")
     if not d:
         return DTTSettings()
-    from bpmcal.cli import config_key  # a field's config key may differ (post_peak_strain)
-    return DTTSettings(**{f.name: d[config_key(f.name)] for f in fields(DTTSettings)
-                          if config_key(f.name) in d})
+    return DTTSettings(**{f.name: d[f.name] for f in fields(DTTSettings) if f.name in d})
 
 
 def _dtt_dict(st) -> dict:
@@ -304,9 +302,17 @@ def _same_setup(old: dict, rec: dict) -> bool:
 
     def other(s):  # config keys renamed since the old record (RENAMED_KEYS) under new names
         s = translate_deprecated(copy.deepcopy(s or {}), note=lambda line: None)
+        if "servo_gain" in s:  # records before the rename of triaxial.servo_gain
+            s["servo_alpha"] = s.pop("servo_gain")
         return {k: v for k, v in s.items() if k != "dtt"}
     return (all(old.get(k) == rec.get(k) for k in ("scale", "bts_scale", "seeds"))
             and other(old.get("settings")) == other(rec.get("settings")))
+
+
+def _servo_alpha(settings: dict) -> float:
+    """The triaxial servo's relaxation factor of a record's settings (``servo_gain`` in
+    the records before the config key was renamed ``servo_alpha``)."""
+    return settings["servo_alpha"] if "servo_alpha" in settings else settings["servo_gain"]
 
 
 def _needs_dtt(card: dict, dtt_settings: dict) -> bool:
@@ -334,7 +340,7 @@ def run(a, argv) -> dict:
            "sigma3_MPa": list(SIGMA3), "threads": 1, "nice": os.nice(0),
            "settings": {"specimen": cfg["specimen"], "ucs": cfg["compression"],
                         "bts": {**cfg["bts"], **bts_over}, "bts_overrides": bts_over,
-                        "servo_gain": cfg["triaxial"]["servo_gain"],
+                        "servo_alpha": cfg["triaxial"]["servo_alpha"],
                         "dtt": _dtt_dict(setup[5])},
            "base": BASE, "sweeps": {k: [v[0], v[1]] for k, v in SWEEPS.items()},
            "pb_span": pb_span(), "requested": names, "cards": {}, "not_run": [],
@@ -459,8 +465,8 @@ def markdown(rec: dict, figure: str | None = None,
              f"at scale {rec['scale']:g} ({50 * rec['scale']:g} × {100 * rec['scale']:g} mm), "
              f"Brazilian disc at scale {rec['bts_scale']:g}, packing seeds "
              f"{', '.join(map(str, rec['seeds']))}; the study's settings "
-             f"(`{Path(rec['config']).name}`: specimen, ucs, bts, triaxial servo gain "
-             f"{rec['settings']['servo_gain']:g}"
+             f"(`{Path(rec['config']).name}`: specimen, ucs, bts, triaxial servo alpha "
+             f"{_servo_alpha(rec['settings']):g}"
              + (", dtt: " + ", ".join(f"{k} {v}" for k, v in dtt.items()) if dtt else "")
              + "). Per card: a UCS test (σc, E, ν), a "
              "Brazilian test (σt: the mean of the valid discs; an invalid disc gives no σt, "

@@ -62,7 +62,7 @@ STUDY_ARGS = [
     "--bts-contact-cap-factor", "1000.0", "--bts-central-zone", "0.5", "--bts-retests", "2",
     "--bts-platen-velocity", "0.025", "--bts-approach-velocity", "0.05",
     "--bts-platen-fric", "0.3", "--bts-damping", "0.7", "--bts-stop-drop", "0.5",
-    "--bts-post-peak-min", "0.0003", "--bts-max-strain", "0.05", "--bts-record-strain",
+    "--bts-post-peak-strain", "0.0003", "--bts-max-strain", "0.05", "--bts-record-strain",
     "1e-05"]
 
 #: the summary values compared and printed

@@ -79,7 +79,7 @@ def main(argv=None) -> int:
                 "--bts-platen-velocity", str(b["platen_velocity"]),
                 "--bts-approach-velocity", str(b["approach_velocity"]),
                 "--bts-stop-drop", str(b["stop_drop"]),
-                "--bts-post-peak-min", str(b["post_peak_strain"])]
+                "--bts-post-peak-strain", str(b["post_peak_strain"])]
     log: list[dict] = []
     cpu0 = time.process_time()
     c0 = os.times()

@@ -99,8 +99,8 @@ def test_deterministic_given_seed(planted):
 
 
 def test_bad_settings_name_the_value():
-    with pytest.raises(ValueError, match="select_by='weight'"):
-        XGBScreening(select_by="weight")
+    with pytest.raises(ValueError, match="importance='weight'"):
+        XGBScreening(importance="weight")
     with pytest.raises(ValueError, match="unknown parameter"):
         XGBScreening(params=["pb_coh"])
     with pytest.raises(ValueError, match="seed"):

@@ -281,7 +281,7 @@ def test_screening_adapts_its_folds_to_the_samples_left(models, tmp_path, capsys
              "--figure": out / "importance.png", "--importance-table": out / "imp.csv",
              "--cv-table": out / "cv.csv", "--shadow-table": out / "shadow.csv",
              "--summary": out / "summary.txt"}
-    rc = main(["screen", "--dataset", str(tmp_path / "dataset.csv"), "--repeats", "1",
+    rc = main(["screen", "--dataset", str(tmp_path / "dataset.csv"), "--n-repeats", "1",
                *[str(x) for kv in files.items() for x in kv]])
     cap = capsys.readouterr()
     if folds is None:

@@ -13,7 +13,7 @@ from bpmcal.cli import main
 #: the paper's A1 set at the smoke study's size: 15 x 30 mm cylinder, 21 x 10.5 mm disc
 UCS = ["--scale", "0.3", "--platen-velocity", "0.2", "--record-strain", "2e-5", "--threads", "1"]
 DISC = {"diameter": "70", "thickness": "35", "platen-velocity": "0.025",
-        "approach-velocity": "0.1", "stop-drop": "0.2", "post-peak-min": "0.0003"}
+        "approach-velocity": "0.1", "stop-drop": "0.2", "post-peak-strain": "0.0003"}
 
 
 def _same_run(a, b):

@@ -149,12 +149,10 @@ def test_the_study_settings_give_the_sigma_t_of_the_default_settings(base, cache
     switch to the loading speed at the first crack."""
     import yaml
 
-    from bpmcal.cli import config_key
-
     b = yaml.safe_load((REPO / "config" / "config.yaml").read_text())["bts"]
-    keys = ("platen_velocity", "approach_velocity", "post_peak_min", "stop_drop", "loading",
+    keys = ("platen_velocity", "approach_velocity", "post_peak_strain", "stop_drop", "loading",
             "contact_cap")
-    r, _ = bts(A1, cache, **{k: b[config_key(k)] for k in keys})
+    r, _ = bts(A1, cache, **{k: b[k] for k in keys})
     s = r.summary
     assert s["bts_valid"] and base.summary["bts_valid"]
     assert s["bts_MPa"] == pytest.approx(base.summary["bts_MPa"], rel=0.02)
@@ -249,7 +247,7 @@ def test_cli_defaults_are_the_settings_defaults():
         assert b[k] == getattr(DEFAULT, k), k
     t = {a.dest: a.default for a in sub["triaxial"]._actions}
     tx = TriaxialSettings()
-    assert t["servo_gain"] == tx.servo_alpha and t["servo_interval"] == tx.servo_interval
+    assert t["servo_alpha"] == tx.servo_alpha and t["servo_interval"] == tx.servo_interval
     for k in ("platen_velocity", "damping", "stop_drop", "max_strain", "platen_fric",
               "record_strain"):
         assert t[k] == getattr(tx, k), k
@@ -293,7 +291,7 @@ def test_contact_caps_change_strength_not_stiffness(cache):
         sp = make_specimen(A1, SEED, DISC, cache=cache, boundary="free")
         runs[cap] = run_bts(sp, BTSSettings(contact_cap=cap, platen_velocity=0.025,
                                             approach_velocity=0.05, stop_drop=0.5,
-                                            post_peak_min=3e-4))
+                                            post_peak_strain=3e-4))
     a, b = runs[0.0], runs[1.5]
     assert a.summary["contact_cap_bonds"] == 0 < b.summary["contact_cap_bonds"]
     assert b.summary["contact_cap_broken"] == 0
@@ -321,7 +319,7 @@ def test_curved_jaws_touch_the_disc_without_overlap_and_split_it(cache):
     sp = make_specimen(A1, SEED, DISC, cache=cache, boundary="free")
     s = run_bts(sp, BTSSettings(loading="jaws", platen_velocity=0.025,
                                 approach_velocity=0.05, stop_drop=0.5,
-                                post_peak_min=3e-4)).summary
+                                post_peak_strain=3e-4)).summary
     assert s["loading"] == "jaws"
     assert s["stop_reason"] == "post_peak_drop" and s["bts_peak_MPa"] > 0
     assert 0 < s["arc_deg_peak"] < 30  # the jaw bears on an arc around the loaded diameter

@@ -113,7 +113,7 @@ def test_an_early_seating_drop_is_not_taken_as_the_peak():
     """The issue's seed 1: a seating event at 246 N with four cracks next to the bottom
     platen dropped the load to 20 N at 0.06 % strain and ended the test. The tracker
     records it as a contact event and the split that follows sets the peak."""
-    tr = PeakTracker(stop_drop=0.2, post_peak_min=0.0003)
+    tr = PeakTracker(stop_drop=0.2, post_peak_strain=0.0003)
     seating = [(50, 1e-4), (150, 3e-4), (246, 6e-4), (20, 8e-4), (18, 1.0e-3), (16, 1.2e-3)]
     loading = [(p, 1.2e-3 + 1e-4 * i) for i, p in enumerate(range(100, 3001, 100), 1)]
     after = [(400, 5e-3), (300, 5.1e-3)]
@@ -133,7 +133,7 @@ def test_an_early_seating_drop_is_not_taken_as_the_peak():
 
 
 def test_the_tracker_waits_for_post_peak_strain():
-    tr = PeakTracker(stop_drop=0.5, post_peak_min=1e-3)
+    tr = PeakTracker(stop_drop=0.5, post_peak_strain=1e-3)
     assert not tr.add(100.0, 1e-3)
     assert not tr.add(10.0, 1.5e-3)  # dropped, but only 0.5e-3 past the peak
     assert tr.add(10.0, 2.0e-3)

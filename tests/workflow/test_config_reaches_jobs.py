@@ -36,8 +36,7 @@ OVERLAY = {
 }
 #: config key -> option destination where the names differ
 DEST = {"diameter_mm": "diameter", "height_mm": "height", "thickness_mm": "thickness",
-        "sigma0_MPa": "sigma0", "install_gap_mm": "install_gap", "scale": "scale",
-        "post_peak_strain": "post_peak_min"}
+        "sigma0_MPa": "sigma0", "install_gap_mm": "install_gap", "scale": "scale"}
 
 
 @pytest.fixture(scope="module")

@@ -616,7 +616,7 @@ RERUN = {
     "triaxial.enabled": (False, set()),
     "triaxial.cards": (["verified", "calibrated"], {"triaxial": 6}),
     "triaxial.sigma3_MPa": ([0.0, 10.0, 20.0], {"triaxial": 3}),
-    "triaxial.servo_gain": (0.7, {"triaxial"}),
+    "triaxial.servo_alpha": (0.7, {"triaxial"}),
     "triaxial.seed": (2, {"triaxial"}),
     "triaxial.lab_csv": ("config/lab/gs_triaxial.csv", {"triaxial_envelopes"}),
 }

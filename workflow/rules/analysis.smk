@@ -36,7 +36,7 @@ rule screen:
         "--importance-table {output.importance:q} --cv-table {output.cv:q} "
         "--shadow-table {output.shadow:q} --summary {output.summary:q} "
         "--threshold {params.s[threshold_pct]:q} --importance {params.s[importance]:q} "
-        "--splits {params.s[n_splits]:q} --repeats {params.s[n_repeats]:q} "
+        "--n-splits {params.s[n_splits]:q} --n-repeats {params.s[n_repeats]:q} "
         "--rule {params.s[rule]:q} --tensile-rule {params.s[tensile_rule]:q} "
         "--seed {params.s[seed]:q} > {log:q} 2>&1"
 

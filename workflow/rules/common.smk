@@ -11,7 +11,7 @@
 # patterns at validation (bpmcal.io.safe_names).
 import json
 
-from bpmcal.cli import BTS_OPTIONS, DTT_OPTIONS, config_key
+from bpmcal.cli import BTS_OPTIONS, DTT_OPTIONS
 from bpmcal.io import study_files as L
 from bpmcal.study.config import ConfigError, load_lab, transfer_seed, validate_config
 
@@ -111,9 +111,9 @@ def bts_args(cfg=config):
     opts = {"--bts-diameter": b["diameter_mm"], "--bts-thickness": b["thickness_mm"]}
     if b["scale"] is not None:  # null: the disc at the cylinder's scale
         opts["--bts-scale"] = b["scale"]
-    # the BTSSettings fields that are options (bpmcal.cli.options), by their config keys
+    # the BTSSettings fields that are options (bpmcal.cli.options), each its config key
     for f in BTS_OPTIONS:
-        opts[f"--bts-{f.replace('_', '-')}"] = b[config_key(f)]
+        opts[f"--bts-{f.replace('_', '-')}"] = b[f]
     return [str(x) for k, v in opts.items() for x in (k, v)]
 
 
@@ -125,7 +125,7 @@ def dtt_args(cfg=config):
     opts = {}
     if d["scale"] is not None:  # null: the cylinder's scale
         opts["--dtt-scale"] = d["scale"]
-    # the DTTSettings fields that are options (bpmcal.cli.options), by their config keys
+    # the DTTSettings fields that are options (bpmcal.cli.options), each its config key
     for f in DTT_OPTIONS:
-        opts[f"--dtt-{f.replace('_', '-')}"] = d[config_key(f)]
+        opts[f"--dtt-{f.replace('_', '-')}"] = d[f]
     return [str(x) for k, v in opts.items() for x in (k, v)]

@@ -19,11 +19,11 @@ rule triaxial:
         runtime=config["resources"]["dem_runtime_min"],
         mem_mb=config["resources"]["dem_mem_mb"],
     params:
-        t={k: config["triaxial"][k] for k in ("seed", "servo_gain")},
+        t={k: config["triaxial"][k] for k in ("seed", "servo_alpha")},
         opts=specimen_args(),
     shell:
         "bpmcal triaxial --params {input.card:q} --sigma3 {wildcards.s3:q} "
-        "--seed {params.t[seed]:q} --servo-gain {params.t[servo_gain]:q} "
+        "--seed {params.t[seed]:q} --servo-alpha {params.t[servo_alpha]:q} "
         "--out {output:q} --threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
 
 

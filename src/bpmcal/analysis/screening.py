@@ -33,8 +33,8 @@ over all 16 features; :attr:`ScreeningResults.shadow_max` is the largest fold-av
 shadow share per response and importance type, i.e. the share pure noise can obtain. A
 parameter whose share is not clearly above it should not be called influential.
 
-Selection (``rule``), per response, on the fold-mean shares of the ``select_by``
-importance (default ``gain``); candidates are listed in decreasing share:
+Selection (``rule``), per response, on the fold-mean shares of one importance type,
+``importance`` (default ``gain``); candidates are listed in decreasing share:
 
 ``threshold`` (the paper's rule, the default)
     a parameter whose share exceeds ``threshold`` percent (default 10).
@@ -42,7 +42,7 @@ importance (default ``gain``); candidates are listed in decreasing share:
     a parameter whose mean-|SHAP| share *in the shadow model* exceeds the largest shadow
     share of that model (the all-relevant rule of Boruta, Kursa & Rudnicki 2010, in one
     iteration: a parameter the trees use more than any column of pure noise carries
-    signal), or whose ``select_by`` share exceeds ``threshold``. SHAP, not gain: the
+    signal), or whose share of ``importance`` exceeds ``threshold``. SHAP, not gain: the
     average gain favours a column split on rarely, so a shadow can out-gain a real weak
     parameter (:data:`NOISE_IMPORTANCE`). Meant for a response whose importance spreads over more
     parameters than a fixed share admits (σt of a parallel-bonded material: the bond
@@ -135,7 +135,7 @@ class XGBScreening:
     rule:
         Selection rule, one of :data:`RULES` (default ``threshold``, the paper's);
         ``above_noise`` needs ``shadow``.
-    select_by:
+    importance:
         Importance type that drives the selection, one of :data:`IMPORTANCE_TYPES`.
     n_repeats:
         Permutations per column for the permutation importance (default 10).
@@ -148,7 +148,7 @@ class XGBScreening:
     """
 
     def __init__(self, params: Sequence[str] = PARAM_NAMES, responses: Sequence[str] = TARGETS, *,
-                 n_splits: int = 5, threshold: float = 10.0, select_by: str = "gain",
+                 n_splits: int = 5, threshold: float = 10.0, importance: str = "gain",
                  n_repeats: int = 10, shadow: bool = True, rule: str = "threshold",
                  xgb_params: Mapping[str, object] | None = None, seed: int = 0):
         self.params = check_params(params)
@@ -159,8 +159,8 @@ class XGBScreening:
             raise ValueError(f"n_splits={n_splits!r}: expected an integer >= 2")
         if not 0.0 <= float(threshold) < 100.0:
             raise ValueError(f"threshold={threshold!r}: expected a percentage in [0, 100)")
-        if select_by not in IMPORTANCE_TYPES:
-            raise ValueError(f"select_by={select_by!r}: expected one of {IMPORTANCE_TYPES}")
+        if importance not in IMPORTANCE_TYPES:
+            raise ValueError(f"importance={importance!r}: expected one of {IMPORTANCE_TYPES}")
         if rule not in RULES:
             raise ValueError(f"rule={rule!r}: expected one of {RULES}")
         if rule == "above_noise" and not shadow:
@@ -174,7 +174,7 @@ class XGBScreening:
         self.xgb_params = {**DEFAULT_XGB_PARAMS, **overrides}
         self.n_splits = int(n_splits)
         self.threshold = float(threshold)
-        self.select_by = select_by
+        self.importance = importance
         self.n_repeats = int(n_repeats)
         self.shadow = bool(shadow)
         self.rule = rule
@@ -244,7 +244,7 @@ class XGBScreening:
                                             "importance": kind, "feature": feat, "share": share})
         return ScreeningResults(
             params=self.params, responses=self.responses, threshold=self.threshold,
-            select_by=self.select_by, importances=pd.DataFrame.from_records(records),
+            importance=self.importance, importances=pd.DataFrame.from_records(records),
             cv=pd.DataFrame.from_records(cv), rows=rows.describe(),
             rules={r: self.rule for r in self.responses},
             settings={"n_splits": self.n_splits, "n_repeats": self.n_repeats, "shadow": self.shadow,
@@ -263,7 +263,7 @@ class ScreeningResults:
     params: tuple[str, ...]
     responses: tuple[str, ...]
     threshold: float
-    select_by: str
+    importance: str
     importances: pd.DataFrame
     cv: pd.DataFrame
     rows: dict[str, int]
@@ -317,7 +317,7 @@ class ScreeningResults:
     def selected_by(self, importance: str | None = None, threshold: float | None = None
                     ) -> dict[str, tuple[str, ...]]:
         """Parameters whose fold-mean share exceeds ``threshold`` %, per response, largest first."""
-        importance = importance or self.select_by
+        importance = importance or self.importance
         threshold = self.threshold if threshold is None else float(threshold)
         tab = self.share(importance)
         return {r: tuple(tab[r][tab[r] > threshold].sort_values(ascending=False).index)
@@ -326,7 +326,7 @@ class ScreeningResults:
     def shadow_model_share(self, importance: str | None = None) -> pd.DataFrame:
         """Fold-mean share (%) of each parameter in the shadow model (rows: parameters,
         columns: responses; normalised over parameters and shadows together)."""
-        importance = importance or self.select_by
+        importance = importance or self.importance
         imp = self.importances
         sh = imp[(imp["model"] == "shadow") & (imp["importance"] == importance)
                  & ~imp["feature"].str.startswith(SHADOW_PREFIX)]
@@ -357,7 +357,7 @@ class ScreeningResults:
         if set(self.rules.values()) <= {"threshold"}:
             return by_share
         noisy = self.above_noise() if "above_noise" in self.rules.values() else {}
-        share = self.share(self.select_by)
+        share = self.share(self.importance)
         out = {}
         for r in self.responses:
             rule = self.rule_of(r)
@@ -403,7 +403,7 @@ class ScreeningResults:
         if "above_noise" in self.rules.values():
             lines += [f"Share (%) of {NOISE_IMPORTANCE} in the shadow model (beside the shadows):",
                       self.shadow_model_share(NOISE_IMPORTANCE).round(2).to_string(), ""]
-        lines += [f"Selected (share of {self.select_by} > {self.threshold:g} %; "
+        lines += [f"Selected (share of {self.importance} > {self.threshold:g} %; "
                   "'above noise': also above the largest shadow share of shap in the shadow model; "
                   "'all': every parameter):"]
         lines += [f"  {r} ({self.rule_of(r).replace('_', ' ')}): {', '.join(s) if s else '(none)'}"
@@ -422,7 +422,7 @@ def combine(first: ScreeningResults, *others: ScreeningResults) -> ScreeningResu
     rules = {r: first.rule_of(r) for r in first.responses}
     for o in others:
         if o.params != first.params or o.threshold != first.threshold or \
-                o.select_by != first.select_by:
+                o.importance != first.importance:
             raise ValueError("combine: the screenings differ in parameters, threshold or "
                              "importance type")
         dup = set(o.responses) & set(resp)
@@ -433,7 +433,7 @@ def combine(first: ScreeningResults, *others: ScreeningResults) -> ScreeningResu
         rules.update({r: o.rule_of(r) for r in o.responses})
     return ScreeningResults(
         params=first.params, responses=tuple(resp), threshold=first.threshold,
-        select_by=first.select_by,
+        importance=first.importance,
         importances=pd.concat([first.importances, *(o.importances for o in others)],
                               ignore_index=True),
         cv=pd.concat([first.cv, *(o.cv for o in others)], ignore_index=True),

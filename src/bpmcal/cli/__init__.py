@@ -54,7 +54,7 @@ from .options import (
     BTS_OPTIONS,
     DTT_OPTIONS,
     GENESES,
-    OPTION_CONFIG_KEYS,
+    OLD_OPTION_NAMES,
     add_bts_args,
     add_budget_args,
     add_dtt_args,
@@ -64,7 +64,6 @@ from .options import (
     add_specimen_args,
     bts_disc_of,
     bts_settings_of,
-    config_key,
     dtt_cylinder_of,
     dtt_settings_of,
     run_geometry,
@@ -94,10 +93,10 @@ from .verification import (
 )
 
 #: ``bpmcal.cli``'s own names and the shared options re-exported from ``cli.options`` (the
-#: workflow's ``common.smk`` reads ``BTS_OPTIONS``/``DTT_OPTIONS`` and ``config_key``; tests
-#: read ``GENESES``)
+#: workflow's ``common.smk`` reads ``BTS_OPTIONS``/``DTT_OPTIONS``, whose names are the
+#: bts/dtt config keys; tests read ``GENESES``)
 __all__ = ["ALIASES", "COMMANDS", "build_parser", "main", "BTS_OPTIONS", "DTT_OPTIONS",
-           "GENESES", "OPTION_CONFIG_KEYS", "config_key",
+           "GENESES", "OLD_OPTION_NAMES",
            "add_bts_args", "add_budget_args", "add_dtt_args", "add_outcome_args", "add_run_args",
            "add_source_args", "add_specimen_args", "bts_disc_of", "bts_settings_of",
            "dtt_cylinder_of", "dtt_settings_of", "run_geometry", "run_settings"]

@@ -7,14 +7,15 @@ into the settings object a stage takes. Every default is the settings' own (the 
 settings dataclasses, ``Geometry``, the resource budget), never a literal here. The lab
 modules are imported inside the functions, so that importing this module loads no engine.
 
-``BTS_OPTIONS`` and ``DTT_OPTIONS`` name the settings fields that are options; the workflow
+``BTS_OPTIONS`` and ``DTT_OPTIONS`` name the settings fields that are options, under the
+same names as the keys of the study config's ``bts`` and ``dtt`` sections; the workflow
 (``workflow/rules/common.smk``) builds its ``--bts-*`` and ``--dtt-*`` options from them.
 """
 from __future__ import annotations
 
 from ..lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
 from ..params import CONTACT_MODELS
-from .args import SEED, THREADS, choice, fraction, integer, number, positive
+from .args import SEED, THREADS, choice, fraction, integer, number, old_spelling, positive
 
 
 def add_source_args(p):
@@ -182,19 +183,21 @@ def file_arg(p, flag, help_, nargs=None):
 #: passes its `bts` section to all three, so σt is measured as for the regression's model)
 BTS_OPTIONS = ("loading", "jaw_ratio", "contact_cap", "contact_cap_factor", "central_zone",
                "retests", "platen_velocity", "approach_velocity", "platen_fric", "damping",
-               "stop_drop", "post_peak_min", "max_strain", "record_strain")
+               "stop_drop", "post_peak_strain", "max_strain", "record_strain")
+
+#: renamed BTS_OPTIONS/DTT_OPTIONS fields, new -> old: ``--OLD`` (``--bts-OLD``,
+#: ``--dtt-OLD``) is still accepted for one release (:func:`~bpmcal.cli.args.old_spelling`)
+OLD_OPTION_NAMES = {"post_peak_strain": "post_peak_min"}  # a strain, not minutes
 
 
-#: the study config's key (in the bts and dtt sections) of a BTS_OPTIONS/DTT_OPTIONS field
-#: whose config name differs: post_peak_min is a strain (the config's old name, like the
-#: field's, read as minutes); the field and its option keep their name (it is written into
-#: every run file's settings)
-OPTION_CONFIG_KEYS = {"post_peak_min": "post_peak_strain"}
-
-
-def config_key(field: str) -> str:
-    """The bts/dtt config key of the settings field ``field`` (:data:`OPTION_CONFIG_KEYS`)."""
-    return OPTION_CONFIG_KEYS.get(field, field)
+def _add_options(g, spec: dict, defaults, lab) -> None:
+    """The options of ``spec`` (field -> (type, help with ``{d}`` for the default)) on
+    ``g``, named ``--lab(field)``, with the old spellings of :data:`OLD_OPTION_NAMES`."""
+    for f, (kind, text) in spec.items():
+        d = getattr(defaults, f)
+        a = g.add_argument("--" + lab(f), type=kind, default=d, help=text.format(d=d))
+        if f in OLD_OPTION_NAMES:
+            old_spelling(g, "--" + lab(OLD_OPTION_NAMES[f]), a)
 
 
 def _stop_spec(lab) -> dict:
@@ -272,18 +275,16 @@ def add_bts_args(p, prefix: str = ""):
                         "platen friction coefficient (default {d:g}; with 0 the free disc "
                         "spins on the platens before it seats, and sigma_t is ~15 %% lower)"),
         **_stop_spec(lab),
-        "post_peak_min": (number(lab("post_peak_min"), 0.0, 0.5),
-                          "stop only this much platen approach / D past the peak (default "
-                          "{d:g}; 0 stops at the load drop, enough for sigma_t)"),
+        "post_peak_strain": (number(lab("post_peak_strain"), 0.0, 0.5),
+                             "stop only this much platen approach / D (a strain) past the peak "
+                             "(default {d:g}; 0 stops at the load drop, enough for sigma_t)"),
         "max_strain": (number(lab("max_strain"), 0.0, 0.5, lo_open=True),
                        "stop at this platen approach / D (default {d:g})"),
         "record_strain": (number(lab("record_strain"), 0.0, 0.01, lo_open=True),
                           "platen approach / D between records (default {d:g})"),
     }
     assert tuple(spec) == BTS_OPTIONS
-    for f, (kind, text) in spec.items():
-        d = getattr(bd, f)
-        g.add_argument(opt(f), type=kind, default=d, help=text.format(d=d))
+    _add_options(g, spec, bd, lab)
 
 
 def bts_settings_of(args, prefix: str = ""):
@@ -308,7 +309,7 @@ def bts_disc_of(args, prefix: str = ""):
 
 #: DTTSettings fields that are command options (``bpmcal dtt --FIELD``)
 DTT_OPTIONS = ("grip_velocity", "grip_length", "grip_clearance", "damping", "stop_drop",
-               "post_peak_min", "max_strain", "record_strain")
+               "post_peak_strain", "max_strain", "record_strain")
 
 
 def add_dtt_args(p, prefix: str = ""):
@@ -345,17 +346,15 @@ def add_dtt_args(p, prefix: str = ""):
                            "a fracture closer than this many mean ball diameters to a grip's "
                            "face is next to the grip: the run is invalid (default {d:g})"),
         **_stop_spec(lab),
-        "post_peak_min": (number(lab("post_peak_min"), 0.0, 0.5),
-                          "... at least this axial strain past the peak (default {d:g})"),
+        "post_peak_strain": (number(lab("post_peak_strain"), 0.0, 0.5),
+                             "... at least this axial strain past the peak (default {d:g})"),
         "max_strain": (number(lab("max_strain"), 0.0, 0.5, lo_open=True),
                        "stop at this axial strain (default {d:g})"),
         "record_strain": (number(lab("record_strain"), 0.0, 0.01, lo_open=True),
                           "axial strain between records (default {d:g})"),
     }
     assert tuple(spec) == DTT_OPTIONS
-    for f, (kind, text) in spec.items():
-        d = getattr(dd, f)
-        g.add_argument("--" + lab(f), type=kind, default=d, help=text.format(d=d))
+    _add_options(g, spec, dd, lab)
 
 
 def dtt_settings_of(args, prefix: str = ""):

@@ -13,7 +13,7 @@ from pathlib import Path
 from ..io.checks import BadInput
 from ..stages import defaults_of
 from ..stages.progress import Progress
-from .args import EXIT_OK, EXIT_RUN_FAILED, SEED, integer, number, positive
+from .args import EXIT_OK, EXIT_RUN_FAILED, SEED, integer, number, old_spelling, positive
 from .options import (
     add_bts_args,
     add_dtt_args,
@@ -167,10 +167,11 @@ def _add_triaxial(p):
                    type=number("sigma3", 0.0, 1000.0, unit="MPa"),
                    help="confining stress [MPa] in [0, 1000], held by a servo-controlled "
                         "lateral wall")
-    p.add_argument("--servo-gain", type=number("servo-gain", 0.0, 1.0, lo_open=True),
-                   default=td.servo_alpha,
-                   help=f"servo relaxation factor alpha in (0, 1] (default {td.servo_alpha:g}, "
-                        "as PFC)")
+    alpha = p.add_argument("--servo-alpha", type=number("servo-alpha", 0.0, 1.0, lo_open=True),
+                           default=td.servo_alpha,
+                           help="servo relaxation factor alpha in (0, 1] (default "
+                                f"{td.servo_alpha:g}, as PFC)")
+    old_spelling(p, "--servo-gain", alpha)
     p.add_argument("--servo-interval", type=integer("servo-interval", 1, 1000),
                    default=td.servo_interval,
                    help=f"steps between servo updates (default {td.servo_interval})")
@@ -183,7 +184,7 @@ def cmd_triaxial(args) -> int:
     from ..lab.triaxial import TriaxialSettings
 
     st = run_settings(args, TriaxialSettings, sigma3=args.sigma3 * 1e6,
-                      servo_alpha=args.servo_gain, servo_interval=args.servo_interval)
+                      servo_alpha=args.servo_alpha, servo_interval=args.servo_interval)
 
     def line(s):
         dev = (f"{100 * s['sigma3_maxdev_rel']:.2f} %" if args.sigma3 > 0
@@ -215,9 +216,8 @@ def _add_impact(p):
     p.add_argument("--dp-ratio", type=number("dp-ratio", 0.0, 1.0), default=im.dp_ratio,
                    help="contact dashpot critical-damping ratio in [0, 1] "
                         f"(default {im.dp_ratio:g})")
-    p.add_argument("--anvil-fric", dest="anvil_fric", type=number("anvil-fric", 0.0, 10.0),
-                   default=im.platen_fric,
-                   help=f"friction of anvil and hammer (default {im.platen_fric:g})")
+    p.add_argument("--anvil-fric", type=number("anvil-fric", 0.0, 10.0), default=im.anvil_fric,
+                   help=f"friction of anvil and hammer (default {im.anvil_fric:g})")
     p.add_argument("--duration-ms", type=positive("duration-ms", "ms"),
                    default=im.duration * 1e3,
                    help=f"run at most this long [ms] (default {im.duration * 1e3:g})")
@@ -235,7 +235,7 @@ def cmd_impact(args) -> int:
     from ..stages.runs import impact_file
 
     st = ImpactSettings(velocity=args.velocity, hammer_mass=args.hammer_mass * args.scale ** 3,
-                        dp_ratio=args.dp_ratio, platen_fric=args.anvil_fric,
+                        dp_ratio=args.dp_ratio, anvil_fric=args.anvil_fric,
                         duration=args.duration_ms * 1e-3, record_dt=args.record_us * 1e-6)
     prog = Progress(f"impact {Path(args.out).name}", enabled=not args.quiet)
     out = impact_file(args.card, args.out, geometry=run_geometry(args), settings=st,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from ..io.checks import BadInput, parse_json
 from ..stages import defaults_of
-from .args import SEED, integer, number
+from .args import SEED, integer, number, old_spelling
 from .options import file_arg
 
 
@@ -78,9 +78,9 @@ def _add_screen(p):
         file_arg(p, flag, h)
     p.add_argument("--threshold", type=number("threshold", 0.0, 100.0), default=d["threshold"],
                    help=f"selection threshold [%%] (default {d['threshold']:g})")
-    p.add_argument("--importance", default=d["select_by"],
+    p.add_argument("--importance", default=d["importance"],
                    choices=["gain", "total_gain", "permutation", "shap"],
-                   help=f"importance type that drives the selection (default {d['select_by']})")
+                   help=f"importance type that drives the selection (default {d['importance']})")
     from ..analysis.screening import RULES
     from ..stages.screening import TENSILE_RULE
 
@@ -90,10 +90,12 @@ def _add_screen(p):
                         f"shadow share) (default {d['rule']})")
     p.add_argument("--tensile-rule", default=TENSILE_RULE, choices=RULES,
                    help=f"selection rule of σt (default {TENSILE_RULE})")
-    p.add_argument("--splits", type=integer("splits", 2, 100), default=d["n_splits"],
-                   help=f"CV folds (default {d['n_splits']})")
-    p.add_argument("--repeats", type=integer("repeats", 1, 1000), default=d["n_repeats"],
-                   help=f"permutation repeats (default {d['n_repeats']})")
+    old_spelling(p, "--splits", p.add_argument(
+        "--n-splits", type=integer("n-splits", 2, 100), default=d["n_splits"],
+        help=f"CV folds (default {d['n_splits']})"))
+    old_spelling(p, "--repeats", p.add_argument(
+        "--n-repeats", type=integer("n-repeats", 1, 1000), default=d["n_repeats"],
+        help=f"permutation repeats (default {d['n_repeats']})"))
     p.add_argument("--seed", type=SEED, default=d["seed"])
     p.set_defaults(func=cmd_screen)
 
@@ -104,8 +106,8 @@ def cmd_screen(args) -> int:
     r = screen(args.dataset, selected=args.selected, table3_csv=args.table3,
                figure=args.figure, importance_table=args.importance_table,
                cv_table=args.cv_table, shadow_table=args.shadow_table, summary=args.summary,
-               threshold=args.threshold, importance=args.importance, n_splits=args.splits,
-               n_repeats=args.repeats, seed=args.seed, rule=args.rule,
+               threshold=args.threshold, importance=args.importance, n_splits=args.n_splits,
+               n_repeats=args.n_repeats, seed=args.seed, rule=args.rule,
                tensile_rule=args.tensile_rule)
     print(r["note"])
     for k, v in r["selected"].items():

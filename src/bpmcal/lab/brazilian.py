@@ -61,7 +61,7 @@ discarded disc's seed and reason); if every disc was invalid, the last one is re
 invalid, and gives no σt. ``wall_s`` is the time of all of them.
 
 The peak (``PeakTracker``) is the load at which the disc splits: when the load falls
-below ``stop_drop`` of the peak (at least ``post_peak_min`` diametral strain past it), the
+below ``stop_drop`` of the peak (at least ``post_peak_strain`` diametral strain past it), the
 cracks formed since the peak must reach the central zone (``_split_started``); a drop
 without them is a contact event (a seating or crushing event at a loader, recorded in
 ``contact_events``), and the test loads on with the peak restarted. The test stops at the
@@ -115,7 +115,7 @@ class BTSSettings:
     max_strain: float = 0.05  # platen approach / D
     max_steps: int = 3_000_000
     record_strain: float = 1e-5  # diametral strain (approach / D) between records
-    post_peak_min: float = 0.002  # also require this much diametral strain past the peak
+    post_peak_strain: float = 0.002  # also require this much diametral strain past the peak
     central_band: float = 0.25  # cracks within central_band * D of the centre are central
     central_zone: float = 0.5  # a valid fracture starts within this * R of the centre (y)
     contact_cap: float = 1.5  # bonds within this many mean ball diameters of a loading contact
@@ -155,8 +155,8 @@ class BTSSettings:
         if not (math.isfinite(self.approach_velocity) and self.approach_velocity >= 0):
             raise InputError(f"approach_velocity={self.approach_velocity!r}: expected a speed "
                              ">= 0 in m/s (0: no fast approach)")
-        if not (self.post_peak_min >= 0):
-            raise InputError(f"post_peak_min={self.post_peak_min!r}: expected >= 0")
+        if not (self.post_peak_strain >= 0):
+            raise InputError(f"post_peak_strain={self.post_peak_strain!r}: expected >= 0")
         if not (0.0 < self.central_band <= 0.5):
             raise InputError(f"central_band={self.central_band!r}: expected a fraction of D "
                              "in (0, 0.5]")
@@ -377,7 +377,7 @@ class PeakTracker:
     seating or contact-crushing event.
 
     ``add(P, strain)`` takes every record (P the load) and returns True when the load has
-    dropped below ``stop_drop`` x the peak at least ``post_peak_min`` strain after it; the
+    dropped below ``stop_drop`` x the peak at least ``post_peak_strain`` strain after it; the
     caller then says whether the disc split (``judge``: cracks formed since the peak reach
     the central zone). A split ends the test at this peak. A drop without a split is a
     contact event: it is recorded in ``events`` (its peak load and strain, the load it
@@ -385,8 +385,8 @@ class PeakTracker:
     and the split that follows sets the peak. ``peak_record`` is the index of the record
     of the peak."""
 
-    def __init__(self, stop_drop: float, post_peak_min: float):
-        self.stop_drop, self.post_peak_min = float(stop_drop), float(post_peak_min)
+    def __init__(self, stop_drop: float, post_peak_strain: float):
+        self.stop_drop, self.post_peak_strain = float(stop_drop), float(post_peak_strain)
         self.peak, self.peak_strain, self.peak_record = 0.0, 0.0, 0
         self.events: list[dict] = []
         self._n = 0  # records seen (the first, at zero load, is record 0)
@@ -399,7 +399,7 @@ class PeakTracker:
         if load > self.peak:
             self.peak, self.peak_strain, self.peak_record = float(load), float(strain), k
         return (self.peak > 0 and load < self.stop_drop * self.peak
-                and strain - self.peak_strain >= self.post_peak_min)
+                and strain - self.peak_strain >= self.post_peak_strain)
 
     def judge(self, split: bool) -> bool:
         """After a drop: True (stop) if the disc split, else record a contact event and
@@ -512,7 +512,7 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
         return P, delta / D
 
     record()
-    track = PeakTracker(st.stop_drop, st.post_peak_min)
+    track = PeakTracker(st.stop_drop, st.post_peak_strain)
     tell = LoadingProgress(progress, m, step0, bound)
     with heartbeat(lambda: tell(strain=ser["diametral_strain"][-1])):
         while True:

@@ -24,7 +24,7 @@ stress P / (pi R0^2) with R0 the specimen's radius at the start of the test. The
 strain is the grips' separation change over the initial height H0.
 
 Result: ``dtt_MPa`` = the peak axial stress. The test stops when the load falls below
-``stop_drop`` (20 %) of the peak at least ``post_peak_min`` axial strain after it, at
+``stop_drop`` (20 %) of the peak at least ``post_peak_strain`` axial strain after it, at
 ``max_strain``, or after ``max_steps``. E_t: the slope of stress vs axial strain over
 ``fit_window`` (20-50 %) of the peak (a tensile modulus, reported only).
 
@@ -64,7 +64,7 @@ class DTTSettings:
     grip_length: float = 0.2  # fraction of the height held by each grip
     damping: float = 0.7
     stop_drop: float = 0.2  # stop when the load < stop_drop * peak after the peak ...
-    post_peak_min: float = 1e-4  # ... at least this axial strain past it
+    post_peak_strain: float = 1e-4  # ... at least this axial strain past it
     max_strain: float = 0.02
     max_steps: int = 3_000_000
     record_strain: float = 2e-6  # axial strain between records
@@ -90,8 +90,8 @@ class DTTSettings:
             raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
         if not (0.0 < self.stop_drop < 1.0):
             raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
-        if not (self.post_peak_min >= 0):
-            raise InputError(f"post_peak_min={self.post_peak_min!r}: expected an axial "
+        if not (self.post_peak_strain >= 0):
+            raise InputError(f"post_peak_strain={self.post_peak_strain!r}: expected an axial "
                              "strain >= 0")
         if not (0.0 < self.max_strain <= 0.5):
             raise InputError(f"max_strain={self.max_strain!r}: expected a strain in (0, 0.5]")
@@ -200,7 +200,7 @@ def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) 
     reason = load_to_failure(
         m, st, step0, bound, progress, lambda: cycle(m, n_rec), record, ser,
         strain_now=lambda: 2.0 * v * (m.time - t_start) / H0,
-        post_peak=lambda eps_peak: st.post_peak_min)
+        post_peak=lambda eps_peak: st.post_peak_strain)
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}
     summ = analyse(series, st)

@@ -1,9 +1,9 @@
 """Drop-hammer impact on a bonded specimen: energy budget, crack stages, fragments.
 
-Set-up: the specimen stands on its fixed bottom platen (friction ``platen_fric``); its top
-platen is removed; a rigid hammer (a plane of mass ``hammer_mass``, wider than anything
-it can hit, so no ball can slip under its edge) starts just above the top face moving
-down at ``velocity``; gravity on;
+Set-up: the specimen stands on its fixed bottom platen, the anvil (friction
+``anvil_fric``, the hammer's too); its top platen is removed; a rigid hammer (a plane of
+mass ``hammer_mass``, wider than anything it can hit, so no ball can slip under its edge)
+starts just above the top face moving down at ``velocity``; gravity on;
 no local damping (dynamic run); contact dashpots with critical-damping ratios
 ``dp_ratio`` (normal and shear).
 
@@ -54,7 +54,7 @@ class ImpactSettings:
     velocity: float = 6.0  # m/s, downwards
     hammer_mass: float = 4.383  # kg (2 x 78.9 J / (6 m/s)^2 at full scale)
     dp_ratio: float = 0.1  # contact dashpot critical-damping ratio (normal and shear)
-    platen_fric: float = 0.3
+    anvil_fric: float = 0.3  # friction coefficient of the anvil and the hammer
     gravity: float = 9.81
     duration: float = 40e-3  # s, at most (the study: impact.duration_ms); the rebound
     # ends it first: 8 / 15 / 20 ms at scale 0.25 / 0.5 / 0.75 for the A1 card
@@ -70,8 +70,8 @@ class ImpactSettings:
                 raise InputError(f"{k}={v!r}: expected a positive number")
         if not (0.0 <= self.dp_ratio <= 1.0):
             raise InputError(f"dp_ratio={self.dp_ratio!r}: expected in [0, 1]")
-        if not (0.0 <= self.platen_fric <= 10.0):  # NaN fails too
-            raise InputError(f"platen_fric={self.platen_fric!r}: expected a friction "
+        if not (0.0 <= self.anvil_fric <= 10.0):  # NaN fails too
+            raise InputError(f"anvil_fric={self.anvil_fric!r}: expected a friction "
                              "coefficient in [0, 10]")
 
 
@@ -132,13 +132,13 @@ def run_impact(sp: Specimen, st: ImpactSettings = ImpactSettings(), progress=Non
     m = sp.model
     wb, wt = sp.platens
     m.remove_wall(wt)  # the top platen goes; the bottom one stays, fixed
-    m.set_wall_friction(wb, st.platen_fric)
+    m.set_wall_friction(wb, st.anvil_fric)
     m.set_damping(0.0)
     m.set_material(sp.material.replace(dp_nratio=st.dp_ratio, dp_sratio=st.dp_ratio))
     m.set_gravity((0.0, 0.0, -st.gravity))
     z_top = float((m.positions[:, 2] + m.radii).max())
     hammer = m.add_plane_wall((0.0, 0.0, z_top + st.gap), (0.0, 0.0, -1.0),
-                              velocity=(0.0, 0.0, -st.velocity), fric=st.platen_fric,
+                              velocity=(0.0, 0.0, -st.velocity), fric=st.anvil_fric,
                               mass=st.hammer_mass)
     m.set_timestep(None)
     dt = m.dt

@@ -101,7 +101,7 @@ class TriaxialSettings:
     record_strain: float = 1e-5  # axial strain between records
     fit_window: tuple = (0.4, 0.6)
     lateral_band: tuple = (0.1, 0.9)
-    post_peak_min: float = 0.002  # also require this much strain past the peak to stop
+    post_peak_strain: float = 0.002  # also require this much strain past the peak to stop
     ci_fraction: float = 0.01
     end_cap: float = END_CAP_HEIGHT  # end caps as in the UCS test (lab.ucs) [mean ball diameters]
     end_cap_factor: float = END_CAP_FACTOR
@@ -343,7 +343,7 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
     reason = load_to_failure(
         m, st, step0, bound, progress, lambda: loop.run(n_rec), record, ser,
         strain_now=lambda: 2 * v * (m.time - t_start) / H0,
-        post_peak=lambda eps_peak: min(st.post_peak_min, 0.5 * eps_peak),
+        post_peak=lambda eps_peak: min(st.post_peak_strain, 0.5 * eps_peak),
         shown=lambda q, peak: (ser["axial_stress"][-1] / 1e6, (peak + st.sigma3) / 1e6),
         peak0=-math.inf)
     wall = time.perf_counter() - t0

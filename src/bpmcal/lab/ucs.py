@@ -123,7 +123,7 @@ class UCSSettings:
     fit_window: tuple = (0.4, 0.6)
     ci_fraction: float = 0.01
     lateral_band: tuple = (0.1, 0.9)
-    post_peak_min: float = 0.002  # also require this much strain past the peak to stop
+    post_peak_strain: float = 0.002  # also require this much strain past the peak to stop
     end_cap: float = END_CAP_HEIGHT  # end caps [mean ball diameters], 0: none (module docstring)
     end_cap_factor: float = END_CAP_FACTOR  # strength factor of the end caps' bonds
 
@@ -268,7 +268,7 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
     reason = load_to_failure(
         m, st, step0, bound, progress, lambda: cycle(m, n_rec), record, ser,
         strain_now=lambda: 2 * v * (m.time - t_start) / H0,
-        post_peak=lambda eps_peak: min(st.post_peak_min, 0.5 * eps_peak))
+        post_peak=lambda eps_peak: min(st.post_peak_strain, 0.5 * eps_peak))
     wall = time.perf_counter() - t0
     series = {k: np.asarray(vv) for k, vv in ser.items()}
     summ = analyse(series, st)

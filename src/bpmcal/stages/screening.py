@@ -33,7 +33,7 @@ TENSILE_RULE = "all"
 
 def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
            shadow_table, summary, threshold=_SCREEN["threshold"],
-           importance=_SCREEN["select_by"], n_splits=_SCREEN["n_splits"],
+           importance=_SCREEN["importance"], n_splits=_SCREEN["n_splits"],
            n_repeats=_SCREEN["n_repeats"], seed=_SCREEN["seed"], rule=_SCREEN["rule"],
            tensile_rule=TENSILE_RULE) -> dict:
     """XGBoost screening of ``dataset`` -> ``selected`` (JSON), Table 3, the importance
@@ -57,7 +57,7 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
                            "dataset's status and error columns")
         note += f"; {n_splits}-fold CV needs {2 * n_splits} usable samples, so {k}-fold CV was used"
         n_splits = k
-    res = XGBScreening(designed, n_splits=n_splits, threshold=threshold, select_by=importance,
+    res = XGBScreening(designed, n_splits=n_splits, threshold=threshold, importance=importance,
                        n_repeats=n_repeats, seed=seed, rule=rule).fit(df)
     for resp in tensile_responses(df):  # sigma_t: on the samples whose test is valid
         tv = tensile_view(df, resp)
@@ -71,7 +71,7 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
         else:
             note += f"; {_RESP_NAME[resp]}: {tensile_note(tv, test)}"
             res = combine_screenings(res, XGBScreening(
-                designed, responses=(resp,), n_splits=k, threshold=threshold, select_by=importance,
+                designed, responses=(resp,), n_splits=k, threshold=threshold, importance=importance,
                 n_repeats=n_repeats, seed=seed, rule=tensile_rule).fit(tv))
     write_table(table3(res, importance=importance), table3_csv,
                 markdown=table3_markdown(res, importance=importance))

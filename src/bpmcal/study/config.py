@@ -101,6 +101,7 @@ RENAMED_KEYS = {
     ("dtt", "post_peak_min"): ("dtt", "post_peak_strain"),
     ("calibration", "ratio"): ("calibration", "strength_ratio"),
     ("verification", "holdout_seeds"): ("verification", "fresh_seeds"),  # the fresh-seed check
+    ("triaxial", "servo_gain"): ("triaxial", "servo_alpha"),  # PFC's relaxation factor alpha
 }
 assert all(old[:-1] == new[:-1] for old, new in RENAMED_KEYS.items())
 
