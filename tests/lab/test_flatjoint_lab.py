@@ -163,12 +163,13 @@ def test_every_lab_test_runs_a_flat_jointed_card_from_the_cli(tmp_path, test, ex
     assert '"element"' in txt and '"mode"' in txt
 
 
-def test_set_built_card_needs_no_other_flag_than_contact_model(tmp_path):
+def test_set_built_card_needs_no_other_flag_than_contact_model(tmp_path, cache):
     sets = [x for k, v in FJ1.items() if k != "contact_model"
             for x in ("--set", f"{k}={v}")]
     out = tmp_path / "u.h5"
     rc = main(["ucs", "--contact-model", "flatjoint", *sets, "--out", str(out), "--quiet",
-               "--scale", "0.24", "--threads", "1"])
+               "--scale", "0.24", "--threads", "1", "--specimen-cache", str(cache),
+               "--platen-velocity", "0.1", "--record-strain", "4e-5", "--max-strain", "2e-3"])
     assert rc == 0
     with h5py.File(out) as f:
         assert f["inputs"].attrs["contact_model"] == "flatjoint"
