@@ -38,7 +38,10 @@ def bts(params, cache, seed=SEED, **kw):
 
 @pytest.fixture(scope="module")
 def base(cache, tmp_path_factory):
-    """The A1 disc at the default settings, through the command line (one HDF5 file)."""
+    """The A1 disc at the default settings, through the command line (one HDF5 file): a
+    ~10 s run at the careful default speed, so the tests that read it are in the slow
+    tier (CI runs them; the fast tier keeps the Brazilian tests of tests/cli and the
+    cheap ones below)."""
     d = tmp_path_factory.mktemp("bts")
     pf = d / "a1.yaml"
     pf.write_text("\n".join(f"{k}: {v}" for k, v in A1.items()))
@@ -50,6 +53,7 @@ def base(cache, tmp_path_factory):
                            series={k: ser[k].to_numpy() for k in ser})
 
 
+@pytest.mark.slow
 def test_disc_geometry_is_the_isrm_disc_scaled_like_the_cylinder(base):
     inp = h5.read_inputs(base.path)
     assert inp["diameter_mm"] == pytest.approx(50 * 0.4)
@@ -65,6 +69,7 @@ def test_disc_geometry_is_the_isrm_disc_scaled_like_the_cylinder(base):
     assert 9 < s["balls_across"] < 10
 
 
+@pytest.mark.slow
 def test_sigma_t_is_2P_over_pi_D_t_of_the_peak_mean_platen_load(base):
     s, ser = base.summary, base.series
     P = 0.5 * (ser["load_bottom"] + ser["load_top"])
@@ -81,6 +86,7 @@ def test_sigma_t_is_2P_over_pi_D_t_of_the_peak_mean_platen_load(base):
     assert ser["load"][-1] < DEFAULT.stop_drop * P[ip]
 
 
+@pytest.mark.slow
 def test_the_two_platen_forces_agree(base):
     """Quasi-static loading: the two platens carry the same load (no net force on the
     disc) at the peak and along the pre-peak curve once the load is established; only
@@ -95,6 +101,7 @@ def test_the_two_platen_forces_agree(base):
     assert rel.mean() < 0.005 and np.percentile(rel, 95) < 0.01, (rel.mean(), rel.max())
 
 
+@pytest.mark.slow
 def test_the_disc_splits_along_the_loaded_diameter(base):
     """The cracks of a Brazilian test line up with the loading axis (y): most lie in the
     strip |x| < D/6 around the loaded diameter."""
@@ -105,6 +112,7 @@ def test_the_disc_splits_along_the_loaded_diameter(base):
     assert np.mean(np.abs(cr["x"] - xc) < 20e-3 / 6) > 0.6
 
 
+@pytest.mark.slow
 def test_sigma_t_is_positive_and_below_sigma_c_for_the_a1_set(base, cache):
     u = run_ucs(make_specimen(A1, SEED, SMALL, cache=cache), FAST).summary
     st = base.summary["bts_MPa"]
@@ -184,6 +192,7 @@ def test_analyse_against_a_closed_form_load_curve():
     assert float(tensile_strength(1.0, 2.0, 1.0 / math.pi)) == pytest.approx(1.0)
 
 
+@pytest.mark.slow
 def test_summary_json_and_vtk_of_a_run_file(base, tmp_path, capsys):
     assert main(["summary", str(base.path), "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
@@ -325,6 +334,7 @@ def test_curved_jaws_touch_the_disc_without_overlap_and_split_it(cache):
     assert 0 < s["arc_deg_peak"] < 30  # the jaw bears on an arc around the loaded diameter
 
 
+@pytest.mark.slow
 def test_the_run_of_a_valid_first_disc_records_one_disc(base):
     s = base.summary
     assert s["bts_valid"] and s["discs"] == 1 and s["disc_seed"] == SEED

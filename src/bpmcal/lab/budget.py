@@ -129,7 +129,7 @@ DEFAULT_BALL_STEPS_PER_S = 1.0e6
 #: default study's 150 cards peaked before 0.55 x its scale, no Brazilian test before
 #: 1.27 x (the platens' approach over D), no UCS of a flat-joint study's 40 before 1.86 x
 #: and no direct-tension test before 0.52 x its tensile scale; record
-#: ``docs/measurements/2026-11-27d-peak-reach.md``
+#: ``docs/measurements/2026-11-27d-extreme-inputs.md``
 REACH_FRACTION = 0.25
 #: a hopeless loading is refused when its steps to the cut-off would take longer than this
 #: [s] (or ``BPMCAL_LOADING_BUDGET_S`` if that is shorter); shorter ones run, as a test
@@ -158,14 +158,13 @@ class Loading:
 
 
 def _parts(material):
-    """(modulus [Pa], stiffness ratio, radius multiplier, name of the modulus, name of the
-    ratio) of each spring set of a material (duck-typed: no numba import here)."""
+    """(modulus [Pa], stiffness ratio, radius multiplier) of each spring set of a material
+    (duck-typed: no numba import here)."""
     if hasattr(material, "fj_emod"):
-        return ((material.emod, material.kratio, 1.0, "emod", "kratio"),
-                (material.fj_emod, material.fj_kratio, material.fj_rmul, "fj_emod",
-                 "fj_kratio"))
-    return ((material.emod, material.kratio, 1.0, "emod", "kratio"),
-            (material.pb_emod, material.pb_kratio, material.pb_rmul, "pb_emod", "pb_kratio"))
+        return ((material.emod, material.kratio, 1.0),
+                (material.fj_emod, material.fj_kratio, material.fj_rmul))
+    return ((material.emod, material.kratio, 1.0),
+            (material.pb_emod, material.pb_kratio, material.pb_rmul))
 
 
 def timestep_bound(material, rmin: float, density: float = P.DENSITY,
@@ -179,7 +178,7 @@ def timestep_bound(material, rmin: float, density: float = P.DENSITY,
     0.8 x the smallest ball's: the real one is several times smaller (a test compares
     the two on built specimens)."""
     k_per_m = max(float(e) * max(1.0, 1.0 / float(kr)) * float(lam) ** 2
-                  for e, kr, lam, *_ in _parts(material))
+                  for e, kr, lam in _parts(material))
     r = float(rmin)
     mass = density * 4.0 / 3.0 * math.pi * r ** 3
     k = k_per_m * math.pi * r * r / ((1.0 + ratio) * r)
@@ -221,7 +220,8 @@ def screen_loading(loading: Loading, material, rmin: float, *, max_strain: float
         f"{loading.test}: the loading cannot reach the card's failure: at most "
         f"{reach:.3g} strain within max_steps = {int(max_steps)} ({loading.describe()}, "
         f"timestep at most {dt:.3g} s), where the card fails at about {failure_strain:.3g}"
-        f" (its bonds' strength over modulus); {_cause(loading, est, max_steps, spring)}."
+        f" (its bonds' {'tensile ' if loading.tension else ''}strength over modulus); "
+        f"{_cause(loading, est, max_steps, spring)}."
         " Refused before building the specimen")
 
 
