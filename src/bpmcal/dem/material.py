@@ -81,6 +81,12 @@ class Material:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def springs(self) -> tuple:
+        """(modulus name, ratio name, what, radius multiplier) of each spring set: the
+        linear contacts and the parallel bonds."""
+        return (("emod", "kratio", "linear contacts", 1.0),
+                ("pb_emod", "pb_kratio", "parallel bonds", self.pb_rmul))
+
 
 def _count(name: str, value, lo: int, hi: int, what: str) -> int:
     """An element count: an integer in [lo, hi] (a float with an integer value is
@@ -162,6 +168,12 @@ class FlatJointMaterial:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def springs(self) -> tuple:
+        """(modulus name, ratio name, what, radius multiplier) of each spring set: the
+        linear contacts and the flat joints."""
+        return (("emod", "kratio", "linear contacts", 1.0),
+                ("fj_emod", "fj_kratio", "flat joints", self.fj_rmul))
+
 
 #: either contact model's material
 MATERIALS = (Material, FlatJointMaterial)
@@ -179,13 +191,8 @@ def stiffest_spring(material) -> str:
     by the property that makes it so: the normal springs are E* of each part, the shear
     springs E*/kappa* (PFC's deformability method; the same contact area and length scale
     every spring of a contact alike)."""
-    if isinstance(material, FlatJointMaterial):
-        parts = (("emod", "kratio", "linear contacts"), ("fj_emod", "fj_kratio", "flat joints"))
-    else:
-        parts = (("emod", "kratio", "linear contacts"), ("pb_emod", "pb_kratio",
-                                                         "parallel bonds"))
     cands = []
-    for e, k, what in parts:
+    for e, k, what, _ in material.springs():
         E = float(getattr(material, e))
         kr = float(getattr(material, k))
         cands.append((E, f"{e} = {E:.4g} Pa (the normal stiffness of the {what})"))

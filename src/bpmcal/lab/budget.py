@@ -157,16 +157,6 @@ class Loading:
                 f"{self.body}")
 
 
-def _parts(material):
-    """(modulus [Pa], stiffness ratio, radius multiplier) of each spring set of a material
-    (duck-typed: no numba import here)."""
-    if hasattr(material, "fj_emod"):
-        return ((material.emod, material.kratio, 1.0),
-                (material.fj_emod, material.fj_kratio, material.fj_rmul))
-    return ((material.emod, material.kratio, 1.0),
-            (material.pb_emod, material.pb_kratio, material.pb_rmul))
-
-
 def timestep_bound(material, rmin: float, density: float = P.DENSITY,
                    ratio: float = P.RADIUS_RATIO) -> float:
     """An upper bound [s] of the timestep a specimen of ``material`` with radii in
@@ -177,8 +167,8 @@ def timestep_bound(material, rmin: float, density: float = P.DENSITY,
     each with a linear spring and a bond (or flat joint), and rotation; the timestep is
     0.8 x the smallest ball's: the real one is several times smaller (a test compares
     the two on built specimens)."""
-    k_per_m = max(float(e) * max(1.0, 1.0 / float(kr)) * float(lam) ** 2
-                  for e, kr, lam in _parts(material))
+    k_per_m = max(float(getattr(material, e)) * max(1.0, 1.0 / float(getattr(material, k)))
+                  * float(lam) ** 2 for e, k, _, lam in material.springs())
     r = float(rmin)
     mass = density * 4.0 / 3.0 * math.pi * r ** 3
     k = k_per_m * math.pi * r * r / ((1.0 + ratio) * r)
