@@ -258,6 +258,9 @@ RESPONSES: dict[str, Response] = {r.name: r for r in [
              "Brazilian tensile strength 2 P_peak / (pi D t)", "σt"),
     Response("dtt_MPa", "sigma_t,d", r"$\sigma_{t,d}$", "MPa", 1e6,
              "direct-tension strength: peak grip force / cross-section", "σt,d"),
+    Response("tri_MPa", "sigma_1,d", r"$\sigma_{1,d}$", "MPa", 1e6,
+             "triaxial strength: peak sigma1 at the study's design confinement "
+             "(triaxial.design_sigma3_MPa)", "σ1(σ3,d)"),
 ]}
 
 #: Responses the paper calibrates against.
@@ -276,9 +279,21 @@ TENSILE_TESTS: dict[str, str] = {"bts_MPa": "bts", "dtt_MPa": "dtt"}
 #: the order a card's target is looked for.
 TENSILE_RESPONSES: tuple[str, ...] = tuple(TENSILE_TESTS)
 
+#: The triaxial strength of every design sample: the peak axial stress sigma1 of one
+#: triaxial test at the study's design confinement (``triaxial.design_sigma3_MPa``), a
+#: column of the dataset when the study sets that confinement. With the UCS sigma_c it
+#: fixes the curvature of the strength envelope (Hoek-Brown mi), which a card's
+#: microstructure (a flat joint's slit fraction) sets.
+TRI = "tri_MPa"
+
+#: Every test a study can run on each design sample besides the UCS test: response ->
+#: test (the dataset's ``<test>_status``, ``<test>_error``, ...). Each is screened and
+#: regressed on its own rows and is a calibration target where the lab gives it.
+SAMPLE_TESTS: dict[str, str] = {**TENSILE_TESTS, TRI: "tri"}
+
 #: Responses the study screens (Table 3) and regresses (Table 4, models.json): the
-#: calibration targets, and the tensile strengths the dataset has.
-ANALYSED: tuple[str, ...] = (*TARGETS, *TENSILE_TESTS)
+#: calibration targets, and the per-sample tests' strengths the dataset has.
+ANALYSED: tuple[str, ...] = (*TARGETS, *SAMPLE_TESTS)
 
 #: Fixed by the paper (section 2.2).
 RADIUS_RATIO = 1.66  # Rmax / Rmin

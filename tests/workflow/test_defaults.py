@@ -119,6 +119,7 @@ DEFAULTS = {
     "triaxial.sigma3_MPa": (list(DEFAULT_SIGMA3_MPA), ("envelopes", "sigma3", None)),
     "triaxial.servo_alpha": (TriaxialSettings().servo_alpha,
                              ("triaxial", "servo_alpha", None)),
+    "triaxial.design_sigma3_MPa": (None, ("ucs", "design_sigma3", None)),
 }
 
 #: unit suffixes of config keys that their options drop (``diameter_mm``: ``--diameter``)

@@ -185,6 +185,7 @@ rule verify:
         opts=specimen_args(),
         bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
         dtt=dtt_args() if LAB_DTT else [],
+        tri=tri_args() if LAB_TRI else [],
         polish="--polish" if config["verification"]["polish"] else "--no-polish",
         unreachable=(
             ["--from-unreachable"]
@@ -198,7 +199,7 @@ rule verify:
         "--max-seeds {params.v[max_seeds]:q} --range-margin {params.v[range_margin]:q} "
         "{params.polish:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
-        "{params.opts:q} {params.bts:q} {params.dtt:q} > {log:q} 2>&1"
+        "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
 
 
 rule transfer:
@@ -228,12 +229,13 @@ rule transfer:
         opts=specimen_args(scale=config["transfer"]["scale"]),
         bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
         dtt=dtt_args() if LAB_DTT else [],
+        tri=tri_args() if LAB_TRI else [],
     shell:
         "bpmcal transfer --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
         "--seed {params.seed:q} --rtol {params.rtol:q} --range-margin {params.margin:q} "
         "--max-rounds {params.t[max_rounds]:q} --threads {threads} "
-        "{params.opts:q} {params.bts:q} {params.dtt:q} > {log:q} 2>&1"
+        "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
 
 
 rule transfer_table:
@@ -294,6 +296,11 @@ rule fresh_seeds:
             if LAB_DTT
             else []
         ),
+        tri_runs=(
+            [FILES.fresh_seed_tri_run("{spec}", s) for s in FRESH_SEEDS]
+            if LAB_TRI
+            else []
+        ),
         seed_runs=FILES.fresh_seed_runs("{spec}"),
     log:
         FILES.log("fresh_seeds", "{spec}"),
@@ -311,14 +318,18 @@ rule fresh_seeds:
         dtt_runs=lambda wc, output: (
             ["--dtt-runs", *output.dtt_runs] if output.dtt_runs else []
         ),
+        tri_runs=lambda wc, output: (
+            ["--tri-runs", *output.tri_runs] if output.tri_runs else []
+        ),
         opts=specimen_args(),
         bts=bts_args() if BTS_ON else [],  # every card's σt on the fresh seeds
         dtt=dtt_args() if LAB_DTT else [],
+        tri=tri_args() if LAB_TRI else [],
     shell:
         "bpmcal fresh-seeds --card {input.card:q} --seeds {params.seeds:q} "
         "--runs {output.runs:q} {params.bts_runs:q} {params.dtt_runs:q} "
-        "--seed-runs {output.seed_runs:q} --threads {threads} "
-        "{params.opts:q} {params.bts:q} {params.dtt:q} > {log:q} 2>&1"
+        "{params.tri_runs:q} --seed-runs {output.seed_runs:q} --threads {threads} "
+        "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
 
 
 rule fresh_seeds_table:

@@ -54,6 +54,10 @@ TRIAX_KINDS = list(config["triaxial"]["cards"])
 TRIAX_S3 = [float(x) for x in config["triaxial"]["sigma3_MPa"]]
 TRIAX_TAGS = [L.sigma3_tag(x) for x in TRIAX_S3]
 TRIAX_LAB = config["triaxial"]["lab_csv"]  # None: no lab triaxial points
+# a triaxial test of every design sample at this confinement (None: none)
+TRI_ON = config["triaxial"]["design_sigma3_MPa"] is not None
+# a lab triaxial strength at that confinement: the closed loops and fresh seeds run it
+LAB_TRI = "tri_MPa" in _lab.columns and bool(_lab["tri_MPa"].notna().any())
 
 
 def beside(*files):
@@ -115,6 +119,18 @@ def bts_args(cfg=config):
     for f in BTS_OPTIONS:
         opts[f"--bts-{f.replace('_', '-')}"] = b[f]
     return [str(x) for k, v in opts.items() for x in (k, v)]
+
+
+def tri_args(cfg=config):
+    """The --tri-* options of bpmcal ucs/verify/transfer/fresh-seeds: the triaxial test at
+    the design confinement (triaxial.design_sigma3_MPa) on the UCS cylinder and loading."""
+    t = cfg["triaxial"]
+    return [
+        "--design-sigma3",
+        str(t["design_sigma3_MPa"]),
+        "--tri-servo-alpha",
+        str(t["servo_alpha"]),
+    ]
 
 
 def dtt_args(cfg=config):

@@ -1,5 +1,6 @@
 # The spine of the study: design -> one job per sample (its UCS test and, with
-# bts.enabled / dtt.enabled, its Brazilian / direct-tension test) -> gathered dataset.
+# bts.enabled / dtt.enabled, its Brazilian / direct-tension test, with
+# triaxial.design_sigma3_MPa its triaxial test at that confinement) -> gathered dataset.
 # A sample whose DEM run fails writes a failure record (--failed-ok: exit 0), so the DAG
 # goes on and the dataset carries the sample with its status and reason.
 
@@ -30,6 +31,7 @@ rule ucs:
         # start-up for both; `bpmcal ucs --bts-out`): a sample job writes both run files
         bts=FILES.bts_run("{sample}") if BTS_ON else [],
         dtt=FILES.dtt_run("{sample}") if DTT_ON else [],
+        tri=FILES.tri_run("{sample}") if TRI_ON else [],
     log:
         FILES.log("ucs", "{sample}"),
     wildcard_constraints:
@@ -48,10 +50,13 @@ rule ucs:
         bts_out=lambda wc, output: ["--bts-out", output.bts] if BTS_ON else [],
         dtt_opts=dtt_args() if DTT_ON else [],
         dtt_out=lambda wc, output: ["--dtt-out", output.dtt] if DTT_ON else [],
+        tri_opts=tri_args() if TRI_ON else [],
+        tri_out=lambda wc, output: ["--tri-out", output.tri] if TRI_ON else [],
     shell:
         "bpmcal ucs --design {input:q} --sample {wildcards.sample:q} --out {output.ucs:q} "
         "--threads {threads} --failed-ok {params.opts:q} {params.bts_out:q} "
-        "{params.bts_opts:q} {params.dtt_out:q} {params.dtt_opts:q} > {log:q} 2>&1"
+        "{params.bts_opts:q} {params.dtt_out:q} {params.dtt_opts:q} "
+        "{params.tri_out:q} {params.tri_opts:q} > {log:q} 2>&1"
 
 
 rule gather:
@@ -60,6 +65,7 @@ rule gather:
         runs=[FILES.ucs_run(s) for s in SAMPLES],
         bts=[FILES.bts_run(s) for s in SAMPLES] if BTS_ON else [],
         dtt=[FILES.dtt_run(s) for s in SAMPLES] if DTT_ON else [],
+        tri=[FILES.tri_run(s) for s in SAMPLES] if TRI_ON else [],
     output:
         FILES.dataset,
     log:
@@ -69,6 +75,7 @@ rule gather:
     params:
         bts=lambda wc, input: ["--bts-runs", *input.bts] if input.bts else [],
         dtt=lambda wc, input: ["--dtt-runs", *input.dtt] if input.dtt else [],
+        tri=lambda wc, input: ["--tri-runs", *input.tri] if input.tri else [],
     shell:
         "bpmcal gather --design {input.design:q} --runs {input.runs:q} {params.bts:q} "
-        "{params.dtt:q} --out {output:q} > {log:q} 2>&1"
+        "{params.dtt:q} {params.tri:q} --out {output:q} > {log:q} 2>&1"

@@ -374,3 +374,34 @@ def dtt_cylinder_of(args, prefix: str = ""):
                     height_mm=args.height, sigma0_MPa=args.sigma0,
                     install_gap_mm=args.install_gap, relax_ratio=args.relax_ratio,
                     genesis=args.genesis)
+
+
+def add_tri_args(p):
+    """The triaxial test at the study's design confinement (``triaxial.design_sigma3_MPa``):
+    ``--design-sigma3`` and ``--tri-servo-alpha``. The cylinder and its axial loading are the
+    UCS test's options (as the cards' triaxial runs take them from the compression
+    section); read back by :func:`tri_settings_of`."""
+    from ..lab.triaxial import TriaxialSettings
+
+    td = TriaxialSettings()
+    g = p.add_argument_group("triaxial test at the design confinement")
+    g.add_argument("--design-sigma3", type=number("design-sigma3", 0.0, 1000.0, lo_open=True,
+                                               unit="MPa"),
+                   default=None, metavar="MPA",
+                   help="confining stress [MPa] of the triaxial test of each packing seed, "
+                        "on the UCS cylinder with the UCS loading (the study's "
+                        "triaxial.design_sigma3_MPa; default none)")
+    g.add_argument("--tri-servo-alpha", type=number("tri-servo-alpha", 0.0, 1.0, lo_open=True),
+                   default=td.servo_alpha,
+                   help=f"servo relaxation factor alpha in (0, 1] (default {td.servo_alpha:g})")
+
+
+def tri_settings_of(args):
+    """``TriaxialSettings`` of the options of :func:`add_tri_args` and the UCS loading
+    options, or None without ``--design-sigma3``."""
+    from ..lab.triaxial import TriaxialSettings
+
+    if args.design_sigma3 is None:
+        return None
+    return run_settings(args, TriaxialSettings, sigma3=args.design_sigma3 * 1e6,
+                        servo_alpha=args.tri_servo_alpha)

@@ -21,6 +21,7 @@ from .options import (
     add_run_args,
     add_source_args,
     add_specimen_args,
+    add_tri_args,
     bts_disc_of,
     bts_settings_of,
     budget_of,
@@ -28,6 +29,7 @@ from .options import (
     dtt_settings_of,
     run_geometry,
     run_settings,
+    tri_settings_of,
 )
 
 
@@ -85,6 +87,12 @@ def _add_ucs(p):
                         "seed (the --dtt-* options below; the cylinder of --diameter x "
                         "--height at --dtt-scale) into this HDF5 file, after the other tests")
     add_dtt_args(p, "dtt_")
+    p.add_argument("--tri-out", default=None,
+                   help="also run a triaxial test of the same parameters and packing seed at "
+                        "--design-sigma3 (the UCS cylinder and loading) into this HDF5 file, "
+                        "after the other tests: the study's triaxial strength of every "
+                        "sample (triaxial.design_sigma3_MPa)")
+    add_tri_args(p)
     add_outcome_args(p)
     p.set_defaults(func=cmd_ucs)
 
@@ -107,6 +115,13 @@ def cmd_ucs(args) -> int:
         tests.append(("dtt", args.dtt_out, dtt_cylinder_of(args, "dtt_"),
                       dtt_settings_of(args, "dtt_"), _dtt_line))
         flags.append("--dtt-out")
+    if args.tri_out is not None:  # ... and the triaxial test at the design confinement
+        if args.design_sigma3 is None:
+            raise BadInput(f"--tri-out {args.tri_out}: needs --design-sigma3 MPA (the confining "
+                           "stress of that triaxial test)")
+        tests.append(("triaxial", args.tri_out, run_geometry(args), tri_settings_of(args),
+                      _tri_line))
+        flags.append("--tri-out")
     return _lab_tests(args, tests, flags=flags)
 
 
@@ -180,21 +195,21 @@ def _add_triaxial(p):
     p.set_defaults(func=cmd_triaxial)
 
 
+def _tri_line(s):
+    dev = (f"{100 * s['sigma3_maxdev_rel']:.2f} %" if s["sigma3_MPa"] > 0
+           else f"{s['sigma3_maxdev_MPa']:.3f} MPa")
+    return (f"sigma3 = {s['sigma3_MPa']:g} MPa, sigma1 = {s['sigma1_MPa']:.3f} MPa, "
+            f"E = {s['E_GPa']:.3f} GPa, nu = {s['nu']:.3f}, sigma3 held within {dev} "
+            f"up to the peak, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
+            f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+
+
 def cmd_triaxial(args) -> int:
     from ..lab.triaxial import TriaxialSettings
 
     st = run_settings(args, TriaxialSettings, sigma3=args.sigma3 * 1e6,
                       servo_alpha=args.servo_alpha, servo_interval=args.servo_interval)
-
-    def line(s):
-        dev = (f"{100 * s['sigma3_maxdev_rel']:.2f} %" if args.sigma3 > 0
-               else f"{s['sigma3_maxdev_MPa']:.3f} MPa")
-        return (f"sigma3 = {args.sigma3:g} MPa, sigma1 = {s['sigma1_MPa']:.3f} MPa, "
-                f"E = {s['E_GPa']:.3f} GPa, nu = {s['nu']:.3f}, sigma3 held within {dev} "
-                f"up to the peak, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
-                f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
-
-    return _lab_test(args, "triaxial", run_geometry(args), st, line)
+    return _lab_test(args, "triaxial", run_geometry(args), st, _tri_line)
 
 
 def _add_impact(p):

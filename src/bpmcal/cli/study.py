@@ -50,6 +50,9 @@ def _add_gather(p):
     p.add_argument("--dtt-runs", nargs="+", default=None,
                    help="the direct-tension run files, one per sample: <sample_id>.h5 (adds "
                         "dtt_MPa, dtt_status, dtt_error)")
+    p.add_argument("--tri-runs", nargs="+", default=None,
+                   help="the triaxial run files at the design confinement, one per sample: "
+                        "<sample_id>.h5 (adds tri_MPa, tri_status, tri_error)")
     p.add_argument("--out", required=True, help="output CSV")
     p.set_defaults(func=cmd_gather)
 
@@ -58,7 +61,7 @@ def cmd_gather(args) -> int:
     from ..stages.dataset import gather
 
     _, report = gather(args.design, args.runs, args.out, bts_runs=args.bts_runs,
-                       dtt_runs=args.dtt_runs)
+                       dtt_runs=args.dtt_runs, tri_runs=args.tri_runs)
     print(report)
     return 0
 

@@ -4,8 +4,8 @@ check (``fresh-seeds``, ``fresh-seeds-table``), ``verification-tables`` (Tables 
 triaxial ``envelopes`` and ``impact-analyse``.
 
 Each ``_add_<cmd>`` (its options) stands directly above its ``cmd_<cmd>`` (the handler).
-``verify``, ``transfer`` and ``fresh-seeds`` share the cylinder, the ``--bts-*`` disc and the
-``--dtt-*`` test (:func:`_add_card_run_args`).
+``verify``, ``transfer`` and ``fresh-seeds`` share the cylinder, the ``--bts-*`` disc, the
+``--dtt-*`` test and the ``--tri-*`` triaxial test (:func:`_add_card_run_args`).
 """
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ from .options import (
     add_bts_args,
     add_dtt_args,
     add_run_args,
+    add_tri_args,
     bts_disc_of,
     bts_settings_of,
     budget_of,
@@ -28,17 +29,19 @@ from .options import (
     file_arg,
     run_geometry,
     run_settings,
+    tri_settings_of,
 )
 
 
 def _add_card_run_args(p, func):
     """The options every command that runs a card's UCS (and Brazilian) tests shares
     (verify, transfer, fresh-seeds): --quiet, the cylinder and loading, the --bts-* disc, the
-    --dtt-* direct-tension test."""
+    --dtt-* direct-tension test, the --tri-* triaxial test at the design confinement."""
     p.add_argument("--quiet", action="store_true")
     add_run_args(p)
     add_bts_args(p, "bts_")
     add_dtt_args(p, "dtt_")
+    add_tri_args(p)
     p.set_defaults(func=func)
 
 
@@ -115,7 +118,8 @@ def cmd_verify(args) -> int:
                bts_run=args.bts_run, bts_geometry=bts_disc_of(args, "bts_"),
                bts_settings=bts_settings_of(args, "bts_"), range_margin=args.range_margin,
                polish=args.polish, dtt_geometry=dtt_cylinder_of(args, "dtt_"),
-               dtt_settings=dtt_settings_of(args, "dtt_"), **budget_of(args))["verification"]
+               dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
+               **budget_of(args))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
 
@@ -150,7 +154,8 @@ def cmd_transfer(args) -> int:
                  max_rounds=args.max_rounds, rtol=args.rtol, cache=args.specimen_cache,
                  threads=args.threads, progress=prog, bts_geometry=bts_disc_of(args, "bts_"),
                  bts_settings=bts_settings_of(args, "bts_"), range_margin=args.range_margin,
-                 dtt_settings=dtt_settings_of(args, "dtt_"), **budget_of(args))["transfer"]
+                 dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
+                 **budget_of(args))["transfer"]
     prog.done(f"{t['status']} after {t['rounds']} round(s) at scale {t['scale']:g}: "
               f"{t['message']}")
     return 0
@@ -206,6 +211,9 @@ def _add_fresh_seeds(p):
     p.add_argument("--dtt-runs", nargs="+", default=None,
                    help="output direct-tension run files, one per seed (needed when the card "
                         "has a direct-tension target, dtt_MPa)")
+    p.add_argument("--tri-runs", nargs="+", default=None,
+                   help="output triaxial run files at --design-sigma3, one per seed (needed when "
+                        "the card has a triaxial-strength target, tri_MPa)")
     file_arg(p, "--seed-runs", "output table: the responses of every seed")
     _add_card_run_args(p, cmd_fresh_seeds)
 
@@ -220,7 +228,8 @@ def cmd_fresh_seeds(args) -> int:
                      bts_geometry=bts_disc_of(args, "bts_"),
                      bts_settings=bts_settings_of(args, "bts_"),
                      dtt_runs=args.dtt_runs, dtt_geometry=dtt_cylinder_of(args, "dtt_"),
-                     dtt_settings=dtt_settings_of(args, "dtt_"), cache=args.specimen_cache,
+                     dtt_settings=dtt_settings_of(args, "dtt_"), tri_runs=args.tri_runs,
+                     tri_settings=tri_settings_of(args), cache=args.specimen_cache,
                      threads=args.threads, progress=prog, **budget_of(args))
     prog.done(f"{int((df['status'] == 'ok').sum())} of {len(df)} seed(s) ok")
     print(df.to_string(index=False))

@@ -157,6 +157,11 @@ class StudyFiles:
         """The direct-tension run file of one design sample (or its failure record)."""
         return self.path("dtt", f"{sample}.h5")
 
+    def tri_run(self, sample: str) -> str:
+        """The triaxial run file of one design sample at the design confinement (or its
+        failure record)."""
+        return self.path("tri", f"{sample}.h5")
+
     @property
     def dataset(self) -> str:
         """One row per sample: design, responses, status, error (and, when the study runs
@@ -275,6 +280,10 @@ class StudyFiles:
     def fresh_seed_dtt_run(self, specimen: str, seed) -> str:
         """... and its direct-tension run (with a direct-tension strength target)."""
         return self.path("verification", specimen, "fresh_seeds", f"seed{seed}.dtt.h5")
+
+    def fresh_seed_tri_run(self, specimen: str, seed) -> str:
+        """... and its triaxial run at the design confinement (with a tri_MPa target)."""
+        return self.path("verification", specimen, "fresh_seeds", f"seed{seed}.tri.h5")
 
     def fresh_seed_runs(self, specimen: str) -> str:
         """The fresh-seed check's responses of every seed (table)."""

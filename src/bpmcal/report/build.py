@@ -284,16 +284,19 @@ def _table3(lay, comp, ref=False) -> str:
                 r.append(f"{_f(ours, '.1f')} ({theirs:.1f})")
             else:
                 r.append(_f(ours, ".1f"))
-        for resp in P.TENSILE_TESTS:  # a tensile test of every sample (the paper has none)
+        for resp in P.SAMPLE_TESTS:  # a tensile or triaxial test of every sample (none in the paper)
             if resp in t3.columns:
                 r.append(_f(t3.loc[p, resp], ".1f") + (" (–)" if ref else ""))
         rows.append(r)
     head = ("## Table 3: XGBoost screening (ours, paper in brackets, % of gain)\n\n" if ref
             else "## Table 3: XGBoost screening (% of gain)\n\n")
-    tens = [resp for resp in P.TENSILE_TESTS if resp in t3.columns]
+    tens = [resp for resp in P.SAMPLE_TESTS if resp in t3.columns]
     cols = ["parameter", "σc", "E", "ν", *(P.RESPONSES[resp].unicode for resp in tens)]
     note = ("\nσt: the Brazilian test of every sample (σt,d: the direct-tension test); the "
             "paper publishes no tensile data.\n" if ref and tens else "")
+    if P.TRI in tens:
+        note += ("\nσ1(σ3,d): σ1 at failure of one triaxial test of every sample at the "
+                 "design confinement (triaxial.design_sigma3_MPa).\n")
     return head + markdown_table(rows, cols) + "\n" + note
 
 
@@ -415,7 +418,7 @@ def _verification(lay, comp, ref=False) -> str:
         ran = r.get("status") != "not-run"
         if not ran:
             notes.append(f"- **{spec}: closed loop not run** — {r.get('note', '')}")
-        tens = [resp for resp in P.TENSILE_TESTS  # σt a target
+        tens = [resp for resp in P.SAMPLE_TESTS  # σt (σ1 at the design σ3) a target
                 if f"lab_{resp}" in t5.columns and pd.notna(r.get(f"lab_{resp}"))]
         if ran and isinstance(r.get("note"), str) and r["note"]:
             notes.append(f"- **{spec}: outside the design space** — {r['note']} (the closed "

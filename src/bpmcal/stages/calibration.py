@@ -164,20 +164,22 @@ def _check_calibrate_inputs(lab_df: pd.DataFrame, cards, fixed, ranges, bounds, 
 
 
 def _check_tensile_models(jobs: list, model_set, df: pd.DataFrame, dataset, models, lab, n_boot) -> None:
-    """A specimen with a tensile-strength target needs its model (and, for the bootstrap,
-    its dataset column)."""
-    for resp in TENSILE_RESPONSES:
+    """A specimen with a tensile-strength (or design-confinement triaxial strength) target
+    needs its model (and, for the bootstrap, its dataset column)."""
+    for resp in P.SAMPLE_TESTS:
         having = [str(rec["specimen"]) for rec, t in jobs if resp in t]
         if not having:
             continue
-        test = "a Brazilian" if resp == BTS else "a direct-tension"
+        test = {BTS: "a Brazilian", "dtt_MPa": "a direct-tension"}.get(
+            resp, "a triaxial (triaxial.design_sigma3_MPa)")
+        what = "a triaxial strength" if resp == P.TRI else "a tensile strength"
         if resp not in model_set:
-            raise BadInput(f"--lab {lab}: specimen(s) {having} have a tensile strength "
+            raise BadInput(f"--lab {lab}: specimen(s) {having} have {what} "
                            f"({resp}) but --models {models} has no model of {resp}: run the "
                            f"study with {test} test per sample, or leave {resp} empty")
         if n_boot and resp not in df.columns:
             raise BadInput(f"--dataset {dataset}: no {resp} column, which the bootstrap of "
-                           f"the tensile-strength target of {having} refits")
+                           f"the {resp} target of {having} refits")
 
 
 def calibration_card(spec: str, inv, rec: dict, targets: dict, *, ratio: float | None, set_by: str,
@@ -226,10 +228,11 @@ def calibration_card(spec: str, inv, rec: dict, targets: dict, *, ratio: float |
 def lab_targets(rec: dict) -> dict:
     """The calibration targets of one lab row: σc, E, ν, and σt when the row gives it:
     the Brazilian tensile strength (``bts_MPa``) or the direct-tension strength
-    (``dtt_MPa``), an alternative (``study.config.read_lab`` refuses a row with both); an
-    empty optional value is not a target."""
+    (``dtt_MPa``), an alternative (``study.config.read_lab`` refuses a row with both);
+    and σ1 at the design confinement (``tri_MPa``) when the row gives it. An empty
+    optional value is not a target."""
     targets = {k: float(rec[k]) for k in P.TARGETS}
-    for r in TENSILE_RESPONSES:
+    for r in P.SAMPLE_TESTS:
         v = rec.get(r)
         if v is not None and math.isfinite(float(v)):
             targets[r] = float(v)

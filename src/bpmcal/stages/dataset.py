@@ -25,12 +25,14 @@ def design(ranges: dict, n: int, seed: int, out, *, optimization: str | None = "
     return df
 
 
-def gather(design_csv, runs, out, bts_runs=None, dtt_runs=None) -> tuple[pd.DataFrame, str]:
+def gather(design_csv, runs, out, bts_runs=None, dtt_runs=None,
+           tri_runs=None) -> tuple[pd.DataFrame, str]:
     """One row per design sample from its run file (``runs``: the files, named
     ``<sample_id>.h5``) -> ``out`` (the dataset CSV); a sample without a run file is
-    "missing", an unreadable one "unreadable". ``bts_runs`` / ``dtt_runs``: the samples'
-    Brazilian / direct-tension run files (named the same), which add sigma_t and its own
-    status and error (``study.gather``). Returns the table and a status report."""
+    "missing", an unreadable one "unreadable". ``bts_runs`` / ``dtt_runs`` / ``tri_runs``: the
+    samples' Brazilian / direct-tension / design-confinement triaxial run files (named the
+    same), which add sigma_t or the triaxial strength and its own status and error
+    (``study.gather``). Returns the table and a status report."""
     d, _ = read_model_table(design_csv, "--design", lambda m: ["sample_id", *m.params, "seed"],
                             dtype={"sample_id": str})
     check_ids(d["sample_id"], f"--design {design_csv}")
@@ -39,7 +41,9 @@ def gather(design_csv, runs, out, bts_runs=None, dtt_runs=None) -> tuple[pd.Data
                                                    ids=list(d["sample_id"]))
     dtt = None if dtt_runs is None else runs_by_id(dtt_runs, "--dtt-runs",
                                                    ids=list(d["sample_id"]))
+    tri = None if tri_runs is None else runs_by_id(tri_runs, "--tri-runs",
+                                                   ids=list(d["sample_id"]))
     out_file(out, suffixes=(".csv",))
-    df = gather_rows(d, files, bts, dtt)
+    df = gather_rows(d, files, bts, dtt, tri)
     write_csv(df, out)
     return df, status_report(df)

@@ -24,12 +24,13 @@ from ..io.tables import write_table
 from ..lab.brazilian import BTSSettings
 from ..lab.budget import check_budget
 from ..lab.direct_tension import DTTSettings
-from ..lab.runner import bts_inputs, dtt_inputs, ucs_inputs
+from ..lab.runner import bts_inputs, dtt_inputs, triaxial_inputs, ucs_inputs
+from ..lab.triaxial import TriaxialSettings
 from ..params import BTS
 from . import defaults_of
 from .inputs import CSV, H5, output_dirs, outputs
 from .runs import run_ucs_file, write_failure
-from .verification import disc_geometry, valid_bts_run, valid_tensile_run
+from .verification import check_tri_target, disc_geometry, test_strength, valid_tensile_run
 
 #: per-seed columns of the seed table besides the targets
 _EXTRA = ("u_pre_MJm3", "peak_strain")
@@ -51,7 +52,8 @@ def used_seeds(card: dict) -> set[int]:
 def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
                 bts_geometry=None, bts_settings=None, cache=None, threads=None, progress=None,
                 max_balls=None, mem_budget_mb=None, genesis_max_steps=None, dtt_runs=None,
-                dtt_geometry=None, dtt_settings=None) -> pd.DataFrame:
+                dtt_geometry=None, dtt_settings=None, tri_runs=None,
+                tri_settings=None) -> pd.DataFrame:
     """Run a verified card on fresh packing ``seeds`` (none of them one its closed loop or
     transfer used: BadInput naming them otherwise): the UCS test of every seed into
     ``runs[i]`` and, with ``bts_runs``, the Brazilian test of the same seed (the disc
@@ -60,7 +62,9 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
     target (``bts_runs`` is then required), else the card's prediction and its seed
     scatter. A card with a direct-tension target (``dtt_MPa``) runs the direct-tension
     test of every seed into ``dtt_runs[i]`` (the cylinder ``dtt_geometry``, default the
-    UCS cylinder, with ``dtt_settings``). An invalid tensile test is run again on
+    UCS cylinder, with ``dtt_settings``); a card with a triaxial-strength target
+    (``tri_MPa``) the triaxial test of ``tri_settings`` (its design confinement) on the UCS
+    cylinder into ``tri_runs[i]``. An invalid tensile test is run again on
     replacement seeds (``valid_tensile_run``); when none is valid the seed has no σt (NaN,
     the reasons in ``error``) and keeps its UCS responses. ``seed_runs``: one row per seed
     with its status, failure reason and responses. The parameters are the card's
@@ -91,9 +95,16 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
     if with_dtt and dtt_runs is None and ran:
         raise BadInput(f"--card {card} has a direct-tension target (dtt_MPa): give "
                        "--dtt-runs, one direct-tension run file per seed")
-    if dtt_runs is not None and len(dtt_runs) != len(seeds):
-        raise BadInput(f"--dtt-runs: {len(dtt_runs)} run file(s) for {len(seeds)} seed(s); "
-                       "expected one per seed, in the order of --seeds")
+    with_tri = P.TRI in c["targets"]
+    if with_tri and tri_runs is None and ran:
+        raise BadInput(f"--card {card} has a triaxial-strength target (tri_MPa): give "
+                       "--tri-runs, one triaxial run file per seed")
+    if ran:
+        check_tri_target(card, c["targets"], tri_settings)
+    for flag, files in (("--dtt-runs", dtt_runs), ("--tri-runs", tri_runs)):
+        if files is not None and len(files) != len(seeds):
+            raise BadInput(f"{flag}: {len(files)} run file(s) for {len(seeds)} seed(s); "
+                           "expected one per seed, in the order of --seeds")
     cylinder = dtt_geometry or geometry
     dtt_settings = dtt_settings or DTTSettings()
     params = card_parameters(c)
@@ -104,7 +115,8 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
                   *([cylinder] if with_dtt else [])):
             check_budget(params, g, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
     outputs(*((r, "--runs", H5) for r in runs), *((r, "--bts-runs", H5) for r in bts_runs or ()),
-            *((r, "--dtt-runs", H5) for r in dtt_runs or ()), (seed_runs, "--seed-runs", CSV))
+            *((r, "--dtt-runs", H5) for r in dtt_runs or ()),
+            *((r, "--tri-runs", H5) for r in tri_runs or ()), (seed_runs, "--seed-runs", CSV))
     if not ran:
         # no verified parameters: every run is a failure record saying why, every seed a row
         reason = f"not run: the card's closed loop did not run ({v.get('message', '')})"
@@ -117,6 +129,10 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
             if dtt_runs is not None:
                 write_failure(dtt_runs[i], test="dtt",
                               inputs=dtt_inputs(params, s, cylinder, dtt_settings),
+                              error=reason)
+            if tri_runs is not None:
+                write_failure(tri_runs[i], test="triaxial",
+                              inputs=_tri_inputs(params, s, geometry, tri_settings),
                               error=reason)
         df = pd.DataFrame([{"specimen": c["specimen"], "seed": s, "status": "not-run",
                             "error": reason, **{k: math.nan for k in (*c["targets"], *_EXTRA)}}
@@ -133,46 +149,55 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
                "error": u.error}
         for k in (*P.TARGETS, *_EXTRA):
             row[k] = float(u.summary.get(k, math.nan)) if u.status == "ok" else math.nan
-        if bts_runs is not None:  # σt: a target, or the card's prediction on fresh seeds
-            # an invalid disc is run again on a replacement seed (valid_bts_run)
-            b, used, invalid = valid_bts_run(lambda _s, _k: bts_runs[i], params, s, disc,
-                                             bts_settings, cache=cache, threads=threads,
-                                             progress=progress, keep_particles=False,
-                                             genesis_max_steps=genesis_max_steps)
-            row[BTS] = float(b.summary[BTS]) if b.status == "ok" else math.nan
-            row["bts_seed"], row["bts_invalid"] = used, len(invalid)
-            if b.status != "ok":
-                row["status"] = "failed"
-                row["error"] = "; ".join(x for x in (row["error"], "Brazilian test: "
-                                                     + b.error) if x)
-            elif not math.isfinite(row[BTS]):  # no valid disc: no σt, the UCS seed counts
-                row["error"] = "; ".join(x for x in (row["error"], "Brazilian test invalid "
-                                                     "on every replacement seed: "
-                                                     + "; ".join(invalid)) if x)
-        if with_dtt:
-            b, used, invalid = valid_tensile_run("dtt", lambda _s, _k: dtt_runs[i], params, s,
-                                                 cylinder, dtt_settings, cache=cache,
-                                                 threads=threads, progress=progress,
-                                                 keep_particles=False,
-                                                 genesis_max_steps=genesis_max_steps)
-            row["dtt_MPa"] = float(b.summary["dtt_MPa"]) if b.status == "ok" else math.nan
-            row["dtt_seed"], row["dtt_invalid"] = used, len(invalid)
-            if b.status != "ok":
-                row["status"] = "failed"
-                row["error"] = "; ".join(x for x in (row["error"], "direct-tension test: "
-                                                     + b.error) if x)
-            elif not math.isfinite(row["dtt_MPa"]):
-                row["error"] = "; ".join(x for x in (row["error"], "direct-tension test "
-                                                     "invalid on every replacement seed: "
-                                                     + "; ".join(invalid)) if x)
-        elif dtt_runs is not None:
+        # σt (a target, or the card's prediction on fresh seeds) and σ1 at the design
+        # confinement: an invalid tensile test is run again on a replacement seed
+        for resp, files, geo, st, what in (
+                (BTS, bts_runs, disc, bts_settings, "Brazilian test"),
+                ("dtt_MPa", dtt_runs if with_dtt else None, cylinder, dtt_settings,
+                 "direct-tension test"),
+                (P.TRI, tri_runs if with_tri else None, geometry, tri_settings,
+                 "triaxial test")):
+            if files is not None:
+                _fresh_test(row, resp, what, files[i], params, s, geo, st, cache=cache,
+                            threads=threads, progress=progress,
+                            genesis_max_steps=genesis_max_steps)
+        if dtt_runs is not None and not with_dtt:
             write_failure(dtt_runs[i], test="dtt",
                           inputs=dtt_inputs(params, s, cylinder, dtt_settings),
                           error="not run: the card has no direct-tension target (dtt_MPa)")
+        if tri_runs is not None and not with_tri:
+            write_failure(tri_runs[i], test="triaxial",
+                          inputs=_tri_inputs(params, s, geometry, tri_settings),
+                          error="not run: the card has no triaxial-strength target (tri_MPa)")
         rows.append(row)
     df = pd.DataFrame(rows)
     write_table(df, seed_runs, index=False)
     return df
+
+
+def _tri_inputs(params: dict, seed: int, geometry, settings) -> dict:
+    """The inputs record of a triaxial run file that is not run (``settings`` None: the
+    default settings)."""
+    return triaxial_inputs(params, seed, geometry, settings or TriaxialSettings())
+
+
+def _fresh_test(row: dict, resp: str, what: str, path, params: dict, seed: int, geometry,
+                settings, **kw) -> None:
+    """One fresh seed's per-sample test of strength ``resp`` (``P.SAMPLE_TESTS``) into
+    ``path`` and ``row``: the strength (NaN for a failed run, or when no replacement seed
+    gave a valid test: the seed keeps its UCS responses), the packing seed used, the
+    invalid attempts, and the status and error of a failure."""
+    test = P.SAMPLE_TESTS[resp]
+    b, used, invalid = valid_tensile_run(test, lambda _s, _k: path, params, seed, geometry,
+                                         settings, keep_particles=False, **kw)
+    row[resp] = test_strength(resp, b)
+    row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
+    if b.status != "ok":
+        row["status"] = "failed"
+        row["error"] = "; ".join(x for x in (row["error"], f"{what}: {b.error}") if x)
+    elif not math.isfinite(row[resp]):
+        row["error"] = "; ".join(x for x in (row["error"], f"{what} invalid on every "
+                                             "replacement seed: " + "; ".join(invalid)) if x)
 
 
 def fresh_seed_stats(values, lab: float, *, rtol: float, z: float = 2.0,
@@ -249,7 +274,7 @@ def fresh_seeds_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataF
         ok = df["status"] == "ok"
         not_run = (df["status"] == "not-run").all() and len(df)
         note = str(df["error"].iloc[0]) if not_run and "error" in df.columns else ""
-        predicted = [k for k in P.TENSILE_TESTS if k in df.columns
+        predicted = [k for k in P.SAMPLE_TESTS if k in df.columns
                      and k not in c["targets"]]  # measured on the fresh seeds, no lab value
         for k in (*c["targets"], *predicted):
             lab = float(c["targets"][k]) if k in c["targets"] else math.nan

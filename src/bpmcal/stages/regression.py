@@ -52,10 +52,10 @@ def regress(dataset, selected, *, models, equations, summaries, coefficients, ca
                              hierarchy=hierarchy, cv_folds=cv_folds, cv_repeats=cv_repeats,
                              seed=seed)
     chosen = dict(sel["selected"])
-    tensile = {r: chosen.pop(r) for r in P.TENSILE_TESTS if r in chosen}  # own rows each
+    tensile = {r: chosen.pop(r) for r in P.SAMPLE_TESTS if r in chosen}  # own rows each
     res = reg.fit(df, chosen)
     for resp, terms in tensile.items():
-        test = P.TENSILE_TESTS[resp]
+        test = P.SAMPLE_TESTS[resp]
         if not has_tensile(df, resp):
             raise BadInput(f"--selected {selected} screens {resp}, but --dataset "
                            f"{dataset} has no {_TEST_NAME[test]} columns ({resp}, "
@@ -89,14 +89,14 @@ def regress(dataset, selected, *, models, equations, summaries, coefficients, ca
     write_text(equations, text)
     write_text(summaries, res.summary() + "\n")
     ok = df[df["status"] == "ok"]
-    fitted = [r for r in P.TENSILE_TESTS if r in res.models]
-    if fitted:  # sigma_t over the samples whose tensile test is valid
+    fitted = [r for r in P.SAMPLE_TESTS if r in res.models]
+    if fitted:  # sigma_t (sigma1) over the samples whose tensile (triaxial) test is valid
         keep = df["status"] == "ok"
         for r in fitted:
-            keep |= df[f"{P.TENSILE_TESTS[r]}_status"] == "ok"
+            keep |= df[f"{P.SAMPLE_TESTS[r]}_status"] == "ok"
         ok = df[keep].copy()
         ok.loc[ok["status"] != "ok", list(chosen)] = np.nan
         for r in fitted:  # an invalid or failed test's value is not shown either
-            ok.loc[ok[f"{P.TENSILE_TESTS[r]}_status"] != "ok", r] = np.nan
+            ok.loc[ok[f"{P.SAMPLE_TESTS[r]}_status"] != "ok", r] = np.nan
     save_figure(fig_pred_vs_sim(ok, res.predict(ok), res.fit_table()), figure)
     return {"note": note, "equations": text}

@@ -59,9 +59,9 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
         n_splits = k
     res = XGBScreening(designed, n_splits=n_splits, threshold=threshold, importance=importance,
                        n_repeats=n_repeats, seed=seed, rule=rule).fit(df)
-    for resp in tensile_responses(df):  # sigma_t: on the samples whose test is valid
+    for resp in tensile_responses(df):  # sigma_t, sigma1(sigma3): on the samples whose test is valid
         tv = tensile_view(df, resp)
-        test = P.TENSILE_TESTS[resp]
+        test = P.SAMPLE_TESTS[resp]
         n_t = usable_rows(tv, [*designed, resp]).n_used
         k = min(n_splits, n_t // 2)
         if k < 2:
@@ -72,7 +72,8 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
             note += f"; {_RESP_NAME[resp]}: {tensile_note(tv, test)}"
             res = combine_screenings(res, XGBScreening(
                 designed, responses=(resp,), n_splits=k, threshold=threshold, importance=importance,
-                n_repeats=n_repeats, seed=seed, rule=tensile_rule).fit(tv))
+                n_repeats=n_repeats, seed=seed,
+                rule=tensile_rule if resp in P.TENSILE_TESTS else rule).fit(tv))
     write_table(table3(res, importance=importance), table3_csv,
                 markdown=table3_markdown(res, importance=importance))
     write_table(res.to_frame(), importance_table)
@@ -88,8 +89,9 @@ def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
 
 
 #: the tensile tests by name, for notes
-_TEST_NAME = {"bts": "Brazilian", "dtt": "direct-tension"}
-_RESP_NAME = {"bts_MPa": "sigma_t", "dtt_MPa": "sigma_t (direct tension)"}
+_TEST_NAME = {"bts": "Brazilian", "dtt": "direct-tension", "tri": "triaxial"}
+_RESP_NAME = {"bts_MPa": "sigma_t", "dtt_MPa": "sigma_t (direct tension)",
+              "tri_MPa": "sigma1 at the design sigma3"}
 
 
 def tensile_note(tv: pd.DataFrame, test: str = "bts") -> str:

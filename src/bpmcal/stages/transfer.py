@@ -28,6 +28,7 @@ from .verification import (
     _not_run,
     _outside_text,
     _responses,
+    check_tri_target,
     disc_geometry,
 )
 
@@ -35,7 +36,8 @@ from .verification import (
 def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
              max_rounds=2, rtol=_LOOP["rtol"], z=2.0, cache=None, threads=None, progress=None,
              max_balls=None, mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None,
-             bts_settings=None, range_margin=0.25, dtt_settings=None) -> dict:
+             bts_settings=None, range_margin=0.25, dtt_settings=None,
+             tri_settings=None) -> dict:
     """Full-size transfer of a verified card: run its parameters once (packing ``seed``)
     on the specimen of ``geometry`` (the study's ``transfer.scale``, 1.0 = the lab's
     50 x 100 mm) and, when a response misses its lab target by more than the seed scatter
@@ -59,7 +61,8 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     ``bts_geometry`` (default the ISRM disc at the transfer's scale, :func:`disc_geometry`)
     loaded with ``bts_settings`` (default ``BTSSettings()``; the study passes its `bts`
     section, as to the verification); a direct-tension target runs its test on the
-    transfer's cylinder with ``dtt_settings``. The loop's bounds are the verification's:
+    transfer's cylinder with ``dtt_settings``, a triaxial-strength target (``tri_MPa``) the
+    triaxial test of ``tri_settings`` on it. The loop's bounds are the verification's:
     the design ranges widened by ``range_margin`` of their width
     (``verification.range_margin``)."""
     c = read_card(card, "--card", need=("parameters", "targets", "roles", "ranges",
@@ -69,6 +72,7 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     range_margin = _check_margin(range_margin)
     model_set = read_models(models)
     params = card_parameters(c)
+    check_tri_target(card, c["targets"], tri_settings)
     if max_balls is not None:
         check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
     outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5))
@@ -93,7 +97,7 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         genesis_max_steps=genesis_max_steps, disc=bts_geometry or disc_geometry(geometry),
         bts_settings=bts_settings or BTSSettings(), jacobian=v.get("jacobian"),
         range_margin=range_margin, cylinder=geometry,
-        dtt_settings=dtt_settings or DTTSettings())
+        dtt_settings=dtt_settings or DTTSettings(), tri_settings=tri_settings)
     write_table(res.history, rounds, index=False)
     out = dict(c)
     section = _transfer_section(res, by_round, best, targets, base=base, tol=tol, shrink=shrink,

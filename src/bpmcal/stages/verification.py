@@ -34,11 +34,11 @@ from ..lab.budget import check_budget
 from ..lab.direct_tension import DTTSettings
 from ..lab.runner import bts_geometry as _isrm_disc
 from ..lab.runner import bts_inputs, ucs_inputs
-from ..params import BTS, TENSILE_RESPONSES
+from ..params import BTS, SAMPLE_TESTS
 from ..plots.calibration import fig_stress_strain
 from . import defaults_of
 from .inputs import CSV, H5, PNG, YAML, output_dirs, outputs, read_lab, read_models
-from .runs import run_bts_file, run_dtt_file, run_ucs_file, write_failure
+from .runs import run_bts_file, run_dtt_file, run_triaxial_file, run_ucs_file, write_failure
 
 #: the defaults of the stages are those of the analysis they run
 _LOOP = defaults_of(ClosedLoop)
@@ -53,11 +53,11 @@ def _responses(rows: list[dict], targets: dict) -> dict:
     coefficient of variation, NaN with one seed), ``n_seeds`` and the errors of the mean
     in % of the lab value. σt (``bts_MPa``) is among them when it is a target."""
     ok = [r for r in rows if r.get("status") == "ok"]
-    scattered = [*P.TARGETS, *(r for r in TENSILE_RESPONSES if r in targets)]
+    scattered = [*P.TARGETS, *(r for r in SAMPLE_TESTS if r in targets)]
     d, sd, cv = {}, {}, {}
     for k in [*scattered, *_EXTRA]:
         v = np.array([float(r.get(k, math.nan)) for r in ok], float)
-        v = v[np.isfinite(v)] if k in TENSILE_RESPONSES else v  # an invalid test is no measurement
+        v = v[np.isfinite(v)] if k in SAMPLE_TESTS else v  # an invalid test is no measurement
         d[k] = float(v.mean()) if len(v) else math.nan
         if k in scattered:
             sd[k] = float(v.std(ddof=1)) if len(v) > 1 else math.nan
@@ -93,17 +93,32 @@ BTS_REPLACEMENT_STRIDE = 100_000
 BTS_MAX_REPLACEMENTS = 3
 
 
+#: the runner of each per-sample test (``P.SAMPLE_TESTS``' tests; looked up in this module
+#: at the call, so tests can replace it) and the summary key of its strength
+_TEST_RUN = {"bts": ("run_bts_file", BTS), "dtt": ("run_dtt_file", "dtt_MPa"),
+             "tri": ("run_triaxial_file", "sigma1_MPa")}
+
+
+def test_strength(resp: str, outcome) -> float:
+    """The strength ``resp`` (``P.SAMPLE_TESTS``' responses: ``bts_MPa``, ``dtt_MPa``,
+    ``tri_MPa``) of a finished run's outcome, NaN for a failed one."""
+    key = _TEST_RUN[SAMPLE_TESTS[resp]][1]
+    return float(outcome.summary[key]) if outcome.status == "ok" else math.nan
+
+
 def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, settings, *,
                       max_replacements: int = BTS_MAX_REPLACEMENTS, **kw):
-    """A tensile test (``test``: "bts", the Brazilian disc ``geometry``; "dtt", the
-    direct-tension cylinder) of ``params`` on packing ``seed`` that measures σt: an
-    invalid run (``<test>_valid`` false) is replaced by the specimen of the next
-    replacement seed (``seed + k x BTS_REPLACEMENT_STRIDE``), up to ``max_replacements``
-    times; a failed run (instability, genesis) is not replaced (it is a failure, not a
-    measurement of the wrong thing). ``path_of(seed, k)`` names the run file of attempt
-    k. Returns (the outcome used, the packing seed it ran on, the reasons of the invalid
-    attempts); the outcome has ``<test>_MPa`` NaN when every attempt was invalid."""
-    run_file = run_bts_file if test == "bts" else run_dtt_file
+    """A per-sample test (``test``: "bts", the Brazilian disc ``geometry``; "dtt", the
+    direct-tension cylinder; "tri", the triaxial test at the design confinement, whose
+    runs have no validity check) of ``params`` on packing ``seed`` that measures its
+    strength: an invalid run (``<test>_valid`` false) is replaced by the specimen of the
+    next replacement seed (``seed + k x BTS_REPLACEMENT_STRIDE``), up to
+    ``max_replacements`` times; a failed run (instability, genesis) is not replaced (it is
+    a failure, not a measurement of the wrong thing). ``path_of(seed, k)`` names the run
+    file of attempt k. Returns (the outcome used, the packing seed it ran on, the reasons
+    of the invalid attempts); the outcome has ``<test>_MPa`` NaN when every attempt was
+    invalid."""
+    run_file = globals()[_TEST_RUN[test][0]]
     invalid = []
     for k in range(max_replacements + 1):
         s = int(seed) + k * BTS_REPLACEMENT_STRIDE
@@ -123,10 +138,12 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
               settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
               free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
               jacobian=None, range_margin=0.0, polish=True, cylinder=None,
-              dtt_settings=None):
+              dtt_settings=None, tri_settings=None):
     """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
     into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
-    ``disc`` with the same seed; the first seed's run files of the best round become
+    ``disc`` (or the direct-tension test on ``cylinder``) with the same seed, and when
+    ``tri_MPa`` is one, the triaxial test with ``tri_settings`` on the UCS cylinder; the
+    first seed's run files of the best round become
     ``run`` and ``bts_run``). The first step follows the regression models' Jacobian, or
     ``jacobian`` (responses x free parameters, physical units) when given.
     Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
@@ -152,19 +169,20 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                                progress=progress, genesis_max_steps=genesis_max_steps)
             row = dict(res.summary, status=res.status, seed=seed)
             paths[-1].append(res.path)
-            out = ({r: float(res.summary[r]) for r in targets if r not in TENSILE_RESPONSES}
+            out = ({r: float(res.summary[r]) for r in targets if r not in SAMPLE_TESTS}
                    if res.status == "ok" else
-                   {r: math.nan for r in targets if r not in TENSILE_RESPONSES})
-            for resp in (r for r in TENSILE_RESPONSES if r in targets):  # σt: a valid test, or NaN
-                test = P.TENSILE_TESTS[resp]
-                geo, st = (disc, bts_settings) if test == "bts" else (cylinder, dtt_settings)
+                   {r: math.nan for r in targets if r not in SAMPLE_TESTS})
+            for resp in (r for r in SAMPLE_TESTS if r in targets):  # σt, σ1: a valid test, or NaN
+                test = SAMPLE_TESTS[resp]
+                geo, st = {"bts": (disc, bts_settings), "dtt": (cylinder, dtt_settings),
+                           "tri": (geometry, tri_settings)}[test]
                 b, used, invalid = valid_tensile_run(
                     test, lambda s, j, t=test: Path(tmpdir) / f"round{k}_seed{seed}.{t}{j}.h5",
                     params, seed, geo, st, cache=cache, threads=threads, progress=progress,
                     genesis_max_steps=genesis_max_steps)
                 if test == "bts":
                     bts_paths[-1].append(b.path)
-                row[resp] = float(b.summary[resp]) if b.status == "ok" else math.nan
+                row[resp] = test_strength(resp, b)
                 row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
                 if b.status != "ok" or not math.isfinite(row[resp]):
                     row["status"] = "failed"
@@ -202,7 +220,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
            mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
            bts_run=None, max_seeds=10, range_margin=0.25, polish=True, dtt_geometry=None,
-           dtt_settings=None) -> dict:
+           dtt_settings=None, tri_settings=None) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -253,7 +271,10 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     direct-tension test instead, on the cylinder ``dtt_geometry`` (default the UCS
     cylinder) with ``dtt_settings``. An invalid tensile test (its fracture at a contact
     or a grip) is no measurement: that seed's test is run again on replacement seeds
-    (:func:`valid_tensile_run`), and the round fails only when none is valid. The verified
+    (:func:`valid_tensile_run`), and the round fails only when none is valid. A card with
+    a triaxial-strength target (``tri_MPa``, σ1 at the study's design confinement) runs
+    the triaxial test of ``tri_settings`` (its ``sigma3``) on the UCS cylinder in every
+    round (required then: BadInput without it). The verified
     card lists every target the best round misses by more than ``rtol``
     (``verification.missed``: target, lab value, DEM value, error in %); it is empty only
     when all are met."""
@@ -271,7 +292,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     cylinder = dtt_geometry or geometry
     dtt_settings = dtt_settings or DTTSettings()
     _check_verify_inputs(card, models, c, model_set, targets, geometry, disc, cylinder,
-                         max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+                         max_balls=max_balls, mem_budget_mb=mem_budget_mb,
+                         tri_settings=tri_settings)
     outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5),
             (bts_run, "--bts-run", H5))
     output_dirs((cache, "--specimen-cache"))
@@ -298,7 +320,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
         disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
         range_margin=range_margin, polish=bool(polish), cylinder=cylinder,
-        dtt_settings=dtt_settings)
+        dtt_settings=dtt_settings, tri_settings=tri_settings)
     write_table(res.history, rounds, index=False)
     verified = dict(c)
     verified.update({
@@ -306,7 +328,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         "verification": _verification_section(
             c, res, by_round, best, targets, rtol=rtol, seed=seed, seeds=seeds,
             seeds_per_round=seeds_per_round, max_seeds=max_seeds, polish=polish,
-            geometry=geometry, range_margin=range_margin, disc=disc, cylinder=cylinder)})
+            geometry=geometry, range_margin=range_margin, disc=disc, cylinder=cylinder,
+            tri_settings=tri_settings)})
     write_card(out_card, verified)
     if bts_run is not None and BTS not in targets:
         write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
@@ -316,11 +339,13 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
 
 
 def _check_verify_inputs(card, models, c: dict, model_set, targets: dict, geometry, disc, cylinder, *,
-                         max_balls, mem_budget_mb) -> None:
-    """The checks :func:`verify` makes before any output: a model of every tensile target,
-    a Brazilian disc 3 of the largest balls across, and every specimen within the budget."""
+                         max_balls, mem_budget_mb, tri_settings=None) -> None:
+    """The checks :func:`verify` makes before any output: a model of every tensile and
+    triaxial target, the triaxial test's settings for a ``tri_MPa`` target, a Brazilian
+    disc 3 of the largest balls across, and every specimen within the budget."""
     with_bts = BTS in targets
     with_dtt = "dtt_MPa" in targets
+    check_tri_target(card, targets, tri_settings, model_set, models)
     if with_dtt and "dtt_MPa" not in model_set:
         raise BadInput(f"--card {card}: a direct-tension target (dtt_MPa) but --models "
                        f"{models} has no model of dtt_MPa")
@@ -367,7 +392,7 @@ def _not_run(c: dict, out_card, key: str, section: dict, *, rounds, run, error: 
 
 def _verification_section(c: dict, res, by_round: list, best: int, targets: dict, *, rtol, seed, seeds,
                           seeds_per_round, max_seeds, polish, geometry, range_margin, disc,
-                          cylinder) -> dict:
+                          cylinder, tri_settings=None) -> dict:
     """The verified card's ``verification`` section from the closed loop's result ``res``
     and its rounds' seed summaries ``by_round`` (``best``: the card's round)."""
     message = res.message + _outside_text(res.outside, range_margin)
@@ -392,7 +417,26 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
         v["bts_geometry"] = disc.to_dict()
     if "dtt_MPa" in targets:
         v["dtt_geometry"] = cylinder.to_dict()
+    if P.TRI in targets:
+        v["tri_sigma3_MPa"] = tri_settings.sigma3 / 1e6
     return v
+
+
+def check_tri_target(card, targets: dict, tri_settings, model_set=None, models=None) -> None:
+    """A card with a triaxial-strength target (``tri_MPa``: σ1 at the study's design
+    confinement) needs the triaxial test's settings (``--design-sigma3``) and, for the
+    loop's first step, a regression model of ``tri_MPa``: BadInput naming what is
+    missing."""
+    if P.TRI not in targets:
+        return
+    if tri_settings is None:
+        raise BadInput(f"--card {card}: a triaxial-strength target (tri_MPa = "
+                       f"{targets[P.TRI]:g} MPa) needs --design-sigma3 MPA, the design "
+                       "confinement that lab value was measured at "
+                       "(triaxial.design_sigma3_MPa)")
+    if model_set is not None and P.TRI not in model_set:
+        raise BadInput(f"--card {card}: a triaxial-strength target (tri_MPa) but --models "
+                       f"{models} has no model of tri_MPa")
 
 
 def _check_margin(margin) -> float:
@@ -475,7 +519,7 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
     lab_df = read_lab(lab)
     outputs((table5, "--table5", CSV), (table6, "--table6", CSV), (figure, "--figure", PNG))
     t5, t6, curves = [], [], {}
-    tensile = [r for r in TENSILE_RESPONSES if any(r in c["targets"] for c in loaded)]
+    tensile = [r for r in SAMPLE_TESTS if any(r in c["targets"] for c in loaded)]
     for c, run in zip(loaded, runs):
         spec = str(c["specimen"])
         v = c["verification"]

@@ -526,7 +526,33 @@ def _check_tensile_tests(cfg: dict, base: Path) -> list[str]:
             out.append(f"lab.csv: specimen(s) {given} give {col}, a calibration target that "
                        f"needs {what} test of every sample: set {sec}.enabled: true, or "
                        f"leave {col} empty")
+    out.extend(_check_triaxial_target(cfg, df))
     return out
+
+
+def _check_triaxial_target(cfg: dict, df) -> list[str]:
+    """A lab triaxial strength (``tri_MPa``) is sigma1 at failure at the study's design
+    confinement: ``triaxial.design_sigma3_MPa`` must be set (every sample then runs that
+    triaxial test) and the strength must exceed it."""
+    import pandas as pd
+
+    if "tri_MPa" not in df.columns:
+        return []
+    s3 = (cfg.get("triaxial") or {}).get("design_sigma3_MPa")
+    vals = [(str(sp), v) for sp, v in zip(df["specimen"],
+                                          pd.to_numeric(df["tri_MPa"], errors="coerce"))
+            if math.isfinite(v)]
+    if vals and s3 is None:
+        return [f"lab.csv: specimen(s) {[sp for sp, _ in vals]} give tri_MPa (sigma1 at "
+                "failure at the design confinement), a calibration target that needs a "
+                "triaxial test of every sample: set triaxial.design_sigma3_MPa to the "
+                "confining stress [MPa] of those lab values, or leave tri_MPa empty"]
+    low = [f"{sp} ({v:g})" for sp, v in vals if s3 is not None and not v > s3]
+    if low:
+        return [f"lab.csv: tri_MPa of specimen(s) {low} is not above "
+                f"triaxial.design_sigma3_MPa = {s3:g} MPa: expected sigma1 > sigma3 at "
+                "failure"]
+    return []
 
 
 def _check_lab(path: Path, key: str) -> list[str]:

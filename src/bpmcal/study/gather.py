@@ -30,6 +30,11 @@ The two tests are independent: a sample whose Brazilian test failed keeps its UC
 responses and its ``status`` (and the other way round); ``bts_MPa`` is NaN unless
 ``bts_status`` is "ok". The sigma_t analyses use the rows whose ``bts_status`` is "ok"
 (:func:`tensile_view`) and say how many they left out, and why.
+
+The direct-tension test (``dtt``) gives the same columns under ``dtt_``; the triaxial
+test at the design confinement (``tri``, ``triaxial.design_sigma3_MPa``) gives
+:data:`TRI_COLUMNS` (``tri_MPa``: sigma1 at failure, ``tri_sigma3_MPa``, ``tri_wall_s``,
+``tri_status``, ``tri_error``; no validity check: a run is ok or failed).
 """
 from __future__ import annotations
 
@@ -60,13 +65,21 @@ DTT_RESPONSES = {"dtt_MPa": "dtt_MPa", "wall_s": "dtt_wall_s", "dtt_valid": "dtt
                  "dtt_peak_MPa": "dtt_peak_MPa", "balls_across": "dtt_balls_across"}
 DTT_COLUMNS = ("dtt_MPa", "dtt_wall_s", "dtt_status", "dtt_error", "dtt_valid",
                "dtt_peak_MPa", "dtt_balls_across")
-#: test -> (summary key -> column, the columns in order)
-TENSILE_COLUMNS = {"bts": (BTS_RESPONSES, BTS_COLUMNS), "dtt": (DTT_RESPONSES, DTT_COLUMNS)}
+#: the triaxial test at the design confinement (``tri``, ``triaxial.design_sigma3_MPa``),
+#: when the study runs it: its sigma1 at failure is ``tri_MPa``
+TRI_RESPONSES = {"sigma1_MPa": "tri_MPa", "sigma3_MPa": "tri_sigma3_MPa", "wall_s": "tri_wall_s"}
+TRI_COLUMNS = ("tri_MPa", "tri_sigma3_MPa", "tri_wall_s", "tri_status", "tri_error")
+#: test -> (summary key -> column, the columns in order): every per-sample test besides
+#: the UCS test (``P.SAMPLE_TESTS``)
+TEST_COLUMNS = {"bts": (BTS_RESPONSES, BTS_COLUMNS), "dtt": (DTT_RESPONSES, DTT_COLUMNS),
+                "tri": (TRI_RESPONSES, TRI_COLUMNS)}
 #: ``<test>_status`` of a finished run that is no valid test
 INVALID = "invalid"
-#: what an invalid run of each test is
+#: what an invalid run of each test is (the tests with a validity check)
 _INVALID_WHAT = {"bts": "the fracture did not start in the disc's central zone or did not "
                         "split it", "dtt": "the specimen broke next to a grip"}
+#: the tests by name, for the status report
+_TEST_TITLE = {"bts": "Brazilian", "dtt": "Direct-tension", "tri": "Triaxial (design sigma3)"}
 
 
 def _outcome(sid: str, path, keys) -> tuple[dict, str, str]:
@@ -82,66 +95,74 @@ def _outcome(sid: str, path, keys) -> tuple[dict, str, str]:
     return vals, status, s.get("error", "")
 
 
-def _tensile_outcome(sid: str, path, test: str) -> dict:
-    """The dataset columns of one sample's tensile run file (``test``: "bts", "dtt"):
-    its responses, and its status, with "invalid" for a finished run that failed the
-    test's validity check (no strength value; the reason in ``<test>_error``)."""
-    keys, _ = TENSILE_COLUMNS[test]
-    vals, status, error = _outcome(sid, path, [*keys, f"{test}_invalid_reason"])
-    reason = vals.pop(f"{test}_invalid_reason")
-    valid = vals.get(f"{test}_valid")
-    if status == "ok" and isinstance(valid, (bool, np.bool_)) and not valid:
-        status = INVALID  # finished, but not a valid test: no strength
-        error = str(reason) if isinstance(reason, str) and reason else \
-            f"not a valid {'Brazilian' if test == 'bts' else 'direct-tension'} test"
+def _test_outcome(sid: str, path, test: str) -> dict:
+    """The dataset columns of one sample's run file of a per-sample test (``test``:
+    "bts", "dtt", "tri"): its responses, and its status, with "invalid" for a finished
+    run that failed the test's validity check (the tensile tests; no strength value, the
+    reason in ``<test>_error``)."""
+    keys, _ = TEST_COLUMNS[test]
+    checked = test in _INVALID_WHAT
+    vals, status, error = _outcome(sid, path, [*keys, *([f"{test}_invalid_reason"]
+                                                        if checked else [])])
+    if checked:
+        reason = vals.pop(f"{test}_invalid_reason")
+        valid = vals.get(f"{test}_valid")
+        if status == "ok" and isinstance(valid, (bool, np.bool_)) and not valid:
+            status = INVALID  # finished, but not a valid test: no strength
+            error = str(reason) if isinstance(reason, str) and reason else \
+                f"not a valid {'Brazilian' if test == 'bts' else 'direct-tension'} test"
+        if not isinstance(valid, (bool, np.bool_)):
+            vals[f"{test}_valid"] = np.nan
+    strength = next(k for k, c in keys.items() if c == f"{test}_MPa")
     if status != "ok":  # a failure record's or an invalid run's value is no measurement
-        vals[f"{test}_MPa"] = np.nan
-    if not isinstance(valid, (bool, np.bool_)):
-        vals[f"{test}_valid"] = np.nan
+        vals[strength] = np.nan
     row = {c: vals[k] for k, c in keys.items()}
     row.update({f"{test}_status": status, f"{test}_error": error})
     return row
 
 
 def gather(design: pd.DataFrame, run_files: dict, bts_files: dict | None = None,
-           dtt_files: dict | None = None) -> pd.DataFrame:
-    """``run_files``: sample_id -> path of its HDF5 UCS run file; ``bts_files`` and
-    ``dtt_files`` (optional): sample_id -> path of its Brazilian / direct-tension run
-    file."""
-    tensile = {t: f for t, f in (("bts", bts_files), ("dtt", dtt_files)) if f is not None}
+           dtt_files: dict | None = None, tri_files: dict | None = None) -> pd.DataFrame:
+    """``run_files``: sample_id -> path of its HDF5 UCS run file; ``bts_files``,
+    ``dtt_files`` and ``tri_files`` (optional): sample_id -> path of its Brazilian /
+    direct-tension / design-confinement triaxial run file."""
+    tests = {t: f for t, f in (("bts", bts_files), ("dtt", dtt_files), ("tri", tri_files))
+             if f is not None}
     rows = []
     for rec in design.to_dict("records"):
         sid = rec["sample_id"]
         row = dict(rec)
         vals, row["status"], row["error"] = _outcome(sid, run_files.get(sid), RESPONSE_COLUMNS)
         row.update(vals)
-        for test, files in tensile.items():
-            row.update(_tensile_outcome(sid, files.get(sid), test))
+        for test, files in tests.items():
+            row.update(_test_outcome(sid, files.get(sid), test))
         rows.append(row)
     model = P.model_of(design.columns)
     cols = ["sample_id", *model.params, "seed", *RESPONSE_COLUMNS, "status", "error",
-            *(c for t in tensile for c in TENSILE_COLUMNS[t][1])]
+            *(c for t in tests for c in TEST_COLUMNS[t][1])]
     df = pd.DataFrame(rows)
     return df[[c for c in cols if c in df.columns]]
 
 
 def has_tensile(df: pd.DataFrame, response: str = P.BTS) -> bool:
-    """Whether a dataset has the columns of a tensile response (``bts_MPa`` by default;
-    older datasets and studies without that test do not)."""
-    test = P.TENSILE_TESTS[response]
+    """Whether a dataset has the columns of a per-sample test's response (``P.SAMPLE_TESTS``:
+    ``bts_MPa`` by default, ``dtt_MPa``, ``tri_MPa``; older datasets and studies without
+    that test do not)."""
+    test = P.SAMPLE_TESTS[response]
     return response in df.columns and f"{test}_status" in df.columns
 
 
 def tensile_responses(df: pd.DataFrame) -> list[str]:
-    """The tensile responses a dataset has (``P.TENSILE_TESTS`` order)."""
-    return [r for r in P.TENSILE_TESTS if has_tensile(df, r)]
+    """The responses of the per-sample tests a dataset has (``P.SAMPLE_TESTS`` order: the
+    tensile strengths, then the design-confinement triaxial strength)."""
+    return [r for r in P.SAMPLE_TESTS if has_tensile(df, r)]
 
 
 def tensile_view(df: pd.DataFrame, response: str = P.BTS) -> pd.DataFrame:
-    """The dataset as the analyses of a tensile response see it: ``status``/``error`` are
-    its test's (a sample whose UCS run failed but whose tensile run is ok has a usable
-    strength; an invalid or failed tensile run leaves the row out)."""
-    test = P.TENSILE_TESTS[response]
+    """The dataset as the analyses of a per-sample test's response see it: ``status``/
+    ``error`` are its test's (a sample whose UCS run failed but whose tensile or triaxial
+    run is ok has a usable strength; an invalid or failed run leaves the row out)."""
+    test = P.SAMPLE_TESTS[response]
     return df.assign(status=df[f"{test}_status"], error=df[f"{test}_error"].fillna(""))
 
 
@@ -162,8 +183,8 @@ def status_report(df: pd.DataFrame) -> str:
         lines.append(f"  run time per sample: median {w.median():.1f} s, range "
                      f"{w.min():.1f}-{w.max():.1f} s, total {w.sum() / 60:.1f} core-min")
     for resp in tensile_responses(df):
-        test = P.TENSILE_TESTS[resp]
-        name = "Brazilian" if test == "bts" else "Direct-tension"
+        test = P.SAMPLE_TESTS[resp]
+        name = _TEST_TITLE[test]
         counts = df[f"{test}_status"].value_counts().to_dict()
         lines.append(f"{name} tests: " + ", ".join(f"{v} {k}"
                                                    for k, v in sorted(counts.items()))

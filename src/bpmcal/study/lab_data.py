@@ -23,12 +23,14 @@ from .errors import ConfigError
 LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
 #: optional columns: empty = not given for that specimen; ``bts_MPa`` (Brazilian tensile
 #: strength) or ``dtt_MPa`` (direct-tension strength, the alternative σt target; not both
-#: on one row) makes σt a calibration target of that specimen (``stages.calibration.calibrate``)
+#: on one row) makes σt a calibration target of that specimen (``stages.calibration.calibrate``);
+#: ``tri_MPa`` (sigma1 at failure in a triaxial test at the study's design confinement,
+#: ``triaxial.design_sigma3_MPa``) makes the triaxial strength a target
 #: optional standard errors of the lab values (``<column>_se``, the column's unit, >= 0;
 #: e.g. the standard deviation over the lab's n specimens / sqrt(n)): the closed loop and
 #: the fresh-seed check then compare two means, each with its error
-LAB_SE = tuple(f"{c}_se" for c in ("ucs_MPa", "E_GPa", "nu", "bts_MPa", "dtt_MPa"))
-LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa", *LAB_SE)
+LAB_SE = tuple(f"{c}_se" for c in ("ucs_MPa", "E_GPa", "nu", "bts_MPa", "dtt_MPa", "tri_MPa"))
+LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa", "tri_MPa", *LAB_SE)
 
 
 def lab_problems(df, key: str) -> list[str]:

@@ -1,0 +1,252 @@
+"""A triaxial strength at the study's design confinement (``tri_MPa``, σ1 at failure at
+``triaxial.design_sigma3_MPa``) as a fifth target: validated in the lab CSV and the config,
+gathered from the samples' triaxial run files, inverted with one more free parameter, and
+verified by the closed loop and the fresh-seed check with a triaxial test per seed. No
+DEM: the synthetic models of tests/_synthetic.py plus a triaxial model, and a synthetic
+'DEM' in place of the run functions."""
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from _synthetic import FIXED, TRUTH, dem_response, models, predict
+from support.repo import REPO, SCHEMA, merged_config
+
+from bpmcal.analysis.stepwise import FORMAT, RegressionModel
+from bpmcal.cli import main
+from bpmcal.io.h5 import write_run
+from bpmcal.lab.runner import Geometry
+from bpmcal.lab.triaxial import TriaxialSettings
+from bpmcal.lab.ucs import UCSSettings
+from bpmcal.params import BTS, TRI
+from bpmcal.stages import fresh_seeds as F
+from bpmcal.stages import verification as V
+from bpmcal.stages.runs import RunOutcome
+from bpmcal.study.config import ConfigError, validate_config
+from bpmcal.study.gather import gather
+
+R = {"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "pb_emod_GPa": [10, 50], "pb_kratio": [1, 5],
+     "pb_ten_MPa": [10, 50], "pb_coh_MPa": [10, 50], "pb_fa_deg": [15, 55], "fric": [0.15, 0.55]}
+HEAD = "specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3,bts_MPa,tri_MPa\n"
+S3 = 10.0  # MPa, the design confinement
+#: the friction angle is free: σ1 at the design σ3 depends on it, σc, E, ν and σt do not
+FIXED_TRI = {k: v for k, v in FIXED.items() if k != "pb_fa_deg"}
+FREE = "pb_emod_GPa,pb_kratio,pb_coh_MPa,pb_fa_deg"
+
+
+def tri_models():
+    """The synthetic models plus σ1 at the design σ3: σc's terms and a friction-angle term
+    (the envelope's slope), so that σ1 - σc measures φp."""
+    ms = models()
+    u = ms["ucs_MPa"]
+    ms[TRI] = RegressionModel(TRI, [*u.terms, ("pb_fa_deg",)], [*u.coef, 2.0],
+                              u.intercept + S3)
+    return ms
+
+
+PLANTED = {**FIXED_TRI, **TRUTH, "pb_fa_deg": 38.0, "pb_ten_MPa": 1.5 * TRUTH["pb_coh_MPa"]}
+T = predict(tri_models(), PLANTED)
+
+
+@pytest.fixture(scope="module")
+def d(tmp_path_factory):
+    d = tmp_path_factory.mktemp("tri_inputs")
+    rng = np.random.default_rng(2)
+    rows = []
+    for i in range(40):
+        p = {k: lo + (hi - lo) * rng.random() for k, (lo, hi) in R.items()}
+        rows.append({"sample_id": f"s{i:03d}", **p, **predict(tri_models(), p), "seed": i,
+                     "status": "ok", "error": "", "bts_status": "ok", "bts_error": "",
+                     "tri_status": "ok", "tri_error": ""})
+    pd.DataFrame(rows).to_csv(d / "dataset.csv", index=False)
+    ms = tri_models()
+    (d / "models.json").write_text(json.dumps({
+        "format": FORMAT, "settings": {}, "rows": {}, "steps": [],
+        "candidates": {r: [] for r in ms},
+        "models": {r: {"interaction": m.to_dict()} for r, m in ms.items()}}))
+    no_tri = {r: m for r, m in ms.items() if r != TRI}
+    (d / "models_no_tri.json").write_text(json.dumps({
+        "format": FORMAT, "settings": {}, "rows": {}, "steps": [],
+        "candidates": {r: [] for r in no_tri},
+        "models": {r: {"interaction": m.to_dict()} for r, m in no_tri.items()}}))
+    (d / "lab.csv").write_text(HEAD + f"B1,{T['ucs_MPa']!r},{T['E_GPa']!r},{T['nu']!r},,"
+                               f"{T[BTS]!r},{T[TRI]!r}\n")
+    return d
+
+
+def calibrate(d, o, models="models.json"):
+    return main(["calibrate", "--dataset", str(d / "dataset.csv"), "--models",
+                 str(d / models), "--lab", str(d / "lab.csv"), "--cards", str(o / "B1.yaml"),
+                 "--ranges", json.dumps(R), "--fixed", json.dumps(FIXED_TRI), "--free", FREE,
+                 "--n-boot", "0", "--seed", "0"])
+
+
+@pytest.fixture(scope="module")
+def card(d, tmp_path_factory):
+    o = tmp_path_factory.mktemp("cards")
+    assert calibrate(d, o) == 0
+    return o / "B1.yaml"
+
+
+def test_the_triaxial_strength_is_a_target_and_recovers_the_planted_card(card):
+    c = yaml.safe_load(card.read_text())
+    assert c["status"] == "ok", c["message"]
+    assert c["targets"][TRI] == pytest.approx(T[TRI]) and BTS in c["targets"]
+    for k in ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa", "pb_fa_deg", "pb_ten_MPa"):
+        assert c["parameters"][k] == pytest.approx(PLANTED[k], rel=1e-3), k
+    assert c["roles"]["pb_fa_deg"] == "free"
+
+
+def test_a_triaxial_target_without_its_model_is_one_line_exit_2(d, tmp_path, capsys):
+    rc = calibrate(d, tmp_path / "o", models="models_no_tri.json")
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert "a triaxial strength (tri_MPa)" in err[0] and "no model of tri_MPa" in err[0]
+    assert not (tmp_path / "o" / "B1.yaml").exists()
+
+
+class FakeDEM:
+    """UCS, Brazilian and triaxial 'runs': the models' responses off by a few %."""
+
+    def __init__(self):
+        self.calls = []
+        self.sigma3 = []
+
+    def ucs(self, out, params, seed, geometry, settings, **kw):
+        self.calls.append(("ucs", seed))
+        y = dem_response(predict(tri_models(), params))
+        s = {k: y[k] for k in ("ucs_MPa", "E_GPa", "nu")} | {
+            "u_pre_MJm3": 0.1, "peak_strain": 0.01, "cracks_tension": 1, "cracks_shear": 1}
+        write_run(out, test="ucs", inputs={"seed": seed}, summary=s)
+        return RunOutcome(status="ok", summary=s, path=out)
+
+    def bts(self, out, params, seed, geometry, settings, **kw):
+        self.calls.append(("bts", seed))
+        v = dem_response(predict(tri_models(), params))[BTS]
+        s = {BTS: v, "bts_valid": True, "bts_peak_MPa": v}
+        write_run(out, test="bts", inputs={"seed": seed}, summary=s)
+        return RunOutcome(status="ok", summary=s, path=out)
+
+    def tri(self, out, params, seed, geometry, settings, **kw):
+        self.calls.append(("tri", seed))
+        self.sigma3.append(settings.sigma3)
+        v = predict(tri_models(), params)[TRI] * 0.95
+        s = {"sigma1_MPa": v, "sigma3_MPa": settings.sigma3 / 1e6}
+        write_run(out, test="triaxial", inputs={"seed": seed}, summary=s)
+        return RunOutcome(status="ok", summary=s, path=out)
+
+    def install(self, monkeypatch, module):
+        monkeypatch.setattr(module, "run_ucs_file", self.ucs)
+        monkeypatch.setattr(V, "run_bts_file", self.bts)
+        monkeypatch.setattr(V, "run_triaxial_file", self.tri)
+
+
+def test_verify_runs_the_triaxial_test_every_seed_and_steers_sigma1(card, d, tmp_path,
+                                                                      monkeypatch):
+    dem = FakeDEM()
+    dem.install(monkeypatch, V)
+    v = V.verify(card, d / "models.json", out_card=tmp_path / "B1.yaml",
+                 rounds=tmp_path / "B1.csv", run=tmp_path / "B1.h5",
+                 geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
+                 seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
+                 tri_settings=TriaxialSettings(sigma3=S3 * 1e6))["verification"]
+    assert dem.calls[:6] == [("ucs", 7), ("bts", 7), ("tri", 7), ("ucs", 8), ("bts", 8),
+                             ("tri", 8)]
+    assert set(dem.sigma3) == {S3 * 1e6}
+    # round 1 is off by the 'DEM's -5 % on σ1; the loop steers it within the tolerance
+    assert v["single_pass"]["errors_pct"][TRI] == pytest.approx(-5.0, abs=0.5)
+    assert v["status"] == "converged", v["message"]
+    assert abs(v["closed_loop"]["errors_pct"][TRI]) <= 1.0
+    assert v["tri_sigma3_MPa"] == S3
+    assert f"err_{TRI}" in pd.read_csv(tmp_path / "B1.csv").columns
+
+
+def test_verify_of_a_triaxial_target_needs_the_design_confinement(card, d, tmp_path, capsys):
+    rc = main(["verify", "--card", str(card), "--models", str(d / "models.json"),
+               "--out-card", str(tmp_path / "v.yaml"), "--rounds", str(tmp_path / "r.csv"),
+               "--run", str(tmp_path / "r.h5"), "--scale", "0.4", "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert "tri_MPa" in err[0] and "--design-sigma3" in err[0]
+    assert not any(tmp_path.iterdir())
+
+
+def test_fresh_seeds_run_the_triaxial_test_of_a_triaxial_target(card, d, tmp_path, monkeypatch):
+    dem = FakeDEM()
+    dem.install(monkeypatch, V)
+    v = V.verify(card, d / "models.json", out_card=tmp_path / "V.yaml",
+                 rounds=tmp_path / "V.csv", run=tmp_path / "V.h5",
+                 geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
+                 seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
+                 tri_settings=TriaxialSettings(sigma3=S3 * 1e6))
+    assert v["verification"]["status"] == "converged"
+    monkeypatch.setattr(F, "run_ucs_file", dem.ucs)
+    dem.calls.clear()
+    seeds = [101, 102]
+    runs = [tmp_path / f"f{s}.h5" for s in seeds]
+    bts = [tmp_path / f"f{s}.bts.h5" for s in seeds]
+    tri = [tmp_path / f"f{s}.tri.h5" for s in seeds]
+    with pytest.raises(Exception, match="--tri-runs"):
+        F.fresh_seeds(tmp_path / "V.yaml", seeds=seeds, runs=runs, bts_runs=bts,
+                      seed_runs=tmp_path / "fs.csv", geometry=Geometry(scale=0.4),
+                      settings=UCSSettings(), tri_settings=TriaxialSettings(sigma3=S3 * 1e6))
+    df = F.fresh_seeds(tmp_path / "V.yaml", seeds=seeds, runs=runs, bts_runs=bts,
+                       tri_runs=tri, seed_runs=tmp_path / "fs.csv",
+                       geometry=Geometry(scale=0.4), settings=UCSSettings(),
+                       tri_settings=TriaxialSettings(sigma3=S3 * 1e6))
+    assert [c for c in dem.calls if c[0] == "tri"] == [("tri", 101), ("tri", 102)]
+    assert (df["status"] == "ok").all() and df[TRI].notna().all()
+    table = F.fresh_seeds_table([tmp_path / "V.yaml"], [tmp_path / "fs.csv"],
+                                table=tmp_path / "t.csv")
+    assert TRI in set(table["response"])
+
+
+# ------------------------------------------------------------ the sample jobs and the dataset
+def test_gather_reads_the_triaxial_run_files(tmp_path):
+    design = pd.DataFrame([{"sample_id": f"s{i:03d}", **{k: v[0] for k, v in R.items()},
+                            "seed": i} for i in range(3)])
+    ucs, tri = {}, {}
+    for i, sid in enumerate(design["sample_id"]):
+        ucs[sid] = tmp_path / f"{sid}.h5"
+        write_run(ucs[sid], test="ucs", inputs={}, summary={"ucs_MPa": 100.0 + i})
+        tri[sid] = tmp_path / f"{sid}.tri.h5"
+    write_run(tri["s000"], test="triaxial", inputs={},
+              summary={"sigma1_MPa": 150.0, "sigma3_MPa": S3, "wall_s": 2.0})
+    write_run(tri["s001"], test="triaxial", inputs={}, status="failed",
+              error="ServoError: planted", summary={"wall_s": 1.0})
+    df = gather(design, ucs, tri_files=tri)  # s002: no triaxial run file
+    assert df["tri_MPa"].iloc[0] == 150.0 and df["tri_sigma3_MPa"].iloc[0] == S3
+    assert list(df["tri_status"]) == ["ok", "failed", "missing"]
+    assert np.isnan(df["tri_MPa"].iloc[1]) and "planted" in df["tri_error"].iloc[1]
+    assert (df["status"] == "ok").all()  # the UCS tests keep their own status
+
+
+def test_the_sample_job_refuses_a_triaxial_output_without_its_confinement(tmp_path, capsys):
+    p = tmp_path / "p.yaml"
+    p.write_text(yaml.safe_dump({**FIXED, **TRUTH, "pb_ten_MPa": 30.0}))
+    rc = main(["ucs", "--params", str(p), "--out", str(tmp_path / "u.h5"),
+               "--tri-out", str(tmp_path / "t.h5"), "--scale", "0.2", "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "--design-sigma3" in err[0], err
+    assert not (tmp_path / "u.h5").exists() and not (tmp_path / "t.h5").exists()
+
+
+@pytest.mark.parametrize("s3, tri, needle", [
+    (None, "300", "set triaxial.design_sigma3_MPa"),
+    (10.0, "8", "is not above triaxial.design_sigma3_MPa = 10 MPa"),
+    (10.0, "strong", "tri_MPa='strong': expected a positive number (or empty)"),
+])
+def test_a_lab_triaxial_strength_needs_its_confinement(tmp_path, s3, tri, needle):
+    lab = tmp_path / "lab.csv"
+    lab.write_text("specimen,ucs_MPa,E_GPa,nu,tri_MPa\nR1,150,50,0.25," + tri + "\n")
+    cfg = merged_config("config.yaml", "examples/lac_du_bonnet.yaml")
+    cfg["lab"]["csv"] = str(lab)
+    cfg["triaxial"]["lab_csv"] = None
+    cfg["triaxial"]["design_sigma3_MPa"] = s3
+    with pytest.raises(ConfigError, match="tri_MPa") as e:
+        validate_config(cfg, SCHEMA, base_dir=REPO)
+    assert needle in str(e.value)
+    cfg["triaxial"]["design_sigma3_MPa"] = 10.0
+    if tri == "300":
+        validate_config(cfg, SCHEMA, base_dir=REPO)  # with its confinement: accepted
