@@ -38,7 +38,13 @@ from ..params import BTS, SAMPLE_TESTS
 from ..plots.calibration import fig_stress_strain
 from . import defaults_of
 from .inputs import CSV, H5, PNG, YAML, output_dirs, outputs, read_lab, read_models
-from .runs import run_ucs_file, write_failure
+from .runs import (  # noqa: F401 (the per-sample tests' runners: _TEST_RUN names them)
+    run_bts_file,
+    run_dtt_file,
+    run_triaxial_file,
+    run_ucs_file,
+    write_failure,
+)
 
 #: the defaults of the stages are those of the analysis they run
 _LOOP = defaults_of(ClosedLoop)
