@@ -2,9 +2,15 @@
 tests (no DEM): the inversion is checked against a planted σt. Shared by
 tests/analysis/test_bts_calibration.py and tests/cli/test_bts_targets.py (tests/ is on the
 pytest pythonpath, see pyproject.toml)."""
-from bpmcal.analysis.stepwise import RegressionModel
+import json
+
+from bpmcal.analysis.stepwise import FORMAT, RegressionModel
 from bpmcal.params import BTS
 
+#: the design space of the synthetic datasets: Table 2
+RANGES = {"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "pb_emod_GPa": [10, 50],
+          "pb_kratio": [1, 5], "pb_ten_MPa": [10, 50], "pb_coh_MPa": [10, 50],
+          "pb_fa_deg": [15, 55], "fric": [0.15, 0.55]}
 FIXED = {"porosity": 0.34, "rmin_mm": 0.8, "pb_fa_deg": 30.0, "fric": 0.4}
 TRUTH = {"pb_emod_GPa": 20.0, "pb_kratio": 2.5, "pb_coh_MPa": 25.0}
 
@@ -31,3 +37,13 @@ def dem_response(y, offset=0.03):
     ``offset``, σt by twice that, ν as predicted."""
     return {"ucs_MPa": y["ucs_MPa"] * (1 + offset), "E_GPa": y["E_GPa"] * (1 - offset),
             "nu": y["nu"], BTS: y[BTS] * (1 + 2 * offset)}
+
+
+def write_models(path, ms):
+    """``ms`` (response -> RegressionModel) as a models.json of ``bpmcal regress`` (the
+    interaction stage) at ``path``; returns ``path``."""
+    path.write_text(json.dumps({"format": FORMAT, "settings": {}, "rows": {}, "steps": [],
+                                "candidates": {r: [] for r in ms},
+                                "models": {r: {"interaction": m.to_dict()}
+                                           for r, m in ms.items()}}))
+    return path

@@ -12,10 +12,9 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from _synthetic import FIXED, TRUTH, dem_response, models, predict
+from _synthetic import FIXED, RANGES, TRUTH, dem_response, models, predict, write_models
 
 from bpmcal.analysis.calibration import invert
-from bpmcal.analysis.stepwise import FORMAT
 from bpmcal.cli import main
 from bpmcal.io.h5 import check_run_file, write_run
 from bpmcal.lab.runner import Geometry
@@ -25,8 +24,7 @@ from bpmcal.stages import analysis as A
 from bpmcal.stages import verification as V
 from bpmcal.stages.runs import RunOutcome
 
-R = {"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "pb_emod_GPa": [10, 50], "pb_kratio": [1, 5],
-     "pb_ten_MPa": [10, 50], "pb_coh_MPa": [10, 50], "pb_fa_deg": [15, 55], "fric": [0.15, 0.55]}
+R = RANGES
 HEAD = "specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3"
 
 
@@ -35,11 +33,7 @@ def at(params):
 
 
 def models_json(path, with_bts=True):
-    ms = {r: m for r, m in models().items() if with_bts or r != BTS}
-    path.write_text(json.dumps({"format": FORMAT, "settings": {}, "rows": {}, "steps": [],
-                                "candidates": {r: [] for r in ms},
-                                "models": {r: {"interaction": m.to_dict()} for r, m in ms.items()}}))
-    return path
+    return write_models(path, {r: m for r, m in models().items() if with_bts or r != BTS})
 
 
 PLANTED = {**FIXED, **TRUTH, "pb_ten_MPa": 1.6 * TRUTH["pb_coh_MPa"]}  # ratio 1.6, not 1.4

@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from _synthetic import FIXED, TRUTH, dem_response, models, predict
+from _synthetic import FIXED, RANGES, TRUTH, dem_response, models, predict, write_models
 
-from bpmcal.analysis.stepwise import FORMAT, RegressionModel
+from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.cli import main
 from bpmcal.io.h5 import write_run
 from bpmcal.lab.runner import Geometry
@@ -24,8 +24,7 @@ from bpmcal.stages.analysis import BTS_REPLACEMENT_STRIDE
 from bpmcal.stages.runs import RunOutcome
 
 DTT = "dtt_MPa"
-R = {"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "pb_emod_GPa": [10, 50], "pb_kratio": [1, 5],
-     "pb_ten_MPa": [10, 50], "pb_coh_MPa": [10, 50], "pb_fa_deg": [15, 55], "fric": [0.15, 0.55]}
+R = RANGES
 HEAD = "specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3"
 
 
@@ -55,11 +54,7 @@ def d(tmp_path_factory):
         rows.append({"sample_id": f"s{i:03d}", **p, **predict(dtt_models(), p), "seed": i,
                      "status": "ok", "error": ""})
     pd.DataFrame(rows).to_csv(d / "dataset.csv", index=False)
-    ms = dtt_models()
-    (d / "models.json").write_text(json.dumps({
-        "format": FORMAT, "settings": {}, "rows": {}, "steps": [],
-        "candidates": {r: [] for r in ms},
-        "models": {r: {"interaction": m.to_dict()} for r, m in ms.items()}}))
+    write_models(d / "models.json", dtt_models())
     (d / "lab.csv").write_text(HEAD + ",dtt_MPa\n" + lab_row("B1", T, repr(T[DTT])))
     (d / "lab_text.csv").write_text(HEAD + ",dtt_MPa\n" + lab_row("B1", T, "strong"))
     (d / "lab_both.csv").write_text(HEAD + ",bts_MPa,dtt_MPa\n"

@@ -10,10 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from _synthetic import FIXED, TRUTH, dem_response, models, predict
+from _synthetic import FIXED, RANGES, TRUTH, dem_response, models, predict, write_models
 from support.repo import REPO, SCHEMA, merged_config
 
-from bpmcal.analysis.stepwise import FORMAT, RegressionModel
+from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.cli import main
 from bpmcal.io.h5 import write_run
 from bpmcal.lab.runner import Geometry
@@ -26,8 +26,7 @@ from bpmcal.stages.runs import RunOutcome
 from bpmcal.study.config import ConfigError, validate_config
 from bpmcal.study.gather import gather
 
-R = {"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "pb_emod_GPa": [10, 50], "pb_kratio": [1, 5],
-     "pb_ten_MPa": [10, 50], "pb_coh_MPa": [10, 50], "pb_fa_deg": [15, 55], "fric": [0.15, 0.55]}
+R = RANGES
 HEAD = "specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3,bts_MPa,tri_MPa\n"
 S3 = 10.0  # MPa, the design confinement
 #: the friction angle is free: σ1 at the design σ3 depends on it, σc, E, ν and σt do not
@@ -61,15 +60,8 @@ def d(tmp_path_factory):
                      "tri_status": "ok", "tri_error": ""})
     pd.DataFrame(rows).to_csv(d / "dataset.csv", index=False)
     ms = tri_models()
-    (d / "models.json").write_text(json.dumps({
-        "format": FORMAT, "settings": {}, "rows": {}, "steps": [],
-        "candidates": {r: [] for r in ms},
-        "models": {r: {"interaction": m.to_dict()} for r, m in ms.items()}}))
-    no_tri = {r: m for r, m in ms.items() if r != TRI}
-    (d / "models_no_tri.json").write_text(json.dumps({
-        "format": FORMAT, "settings": {}, "rows": {}, "steps": [],
-        "candidates": {r: [] for r in no_tri},
-        "models": {r: {"interaction": m.to_dict()} for r, m in no_tri.items()}}))
+    write_models(d / "models.json", ms)
+    write_models(d / "models_no_tri.json", {r: m for r, m in ms.items() if r != TRI})
     (d / "lab.csv").write_text(HEAD + f"B1,{T['ucs_MPa']!r},{T['E_GPa']!r},{T['nu']!r},,"
                                f"{T[BTS]!r},{T[TRI]!r}\n")
     return d
@@ -142,15 +134,20 @@ class FakeDEM:
         monkeypatch.setattr(V, "run_triaxial_file", self.tri)
 
 
+def _verify(card, d, tmp_path, name):
+    """The closed loop of ``card`` on seeds 7 and 8 with the design confinement S3."""
+    return V.verify(card, d / "models.json", out_card=tmp_path / f"{name}.yaml",
+                    rounds=tmp_path / f"{name}.csv", run=tmp_path / f"{name}.h5",
+                    geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
+                    seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
+                    tri_settings=TriaxialSettings(sigma3=S3 * 1e6))
+
+
 def test_verify_runs_the_triaxial_test_every_seed_and_steers_sigma1(card, d, tmp_path,
                                                                       monkeypatch):
     dem = FakeDEM()
     dem.install(monkeypatch, V)
-    v = V.verify(card, d / "models.json", out_card=tmp_path / "B1.yaml",
-                 rounds=tmp_path / "B1.csv", run=tmp_path / "B1.h5",
-                 geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
-                 seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
-                 tri_settings=TriaxialSettings(sigma3=S3 * 1e6))["verification"]
+    v = _verify(card, d, tmp_path, "B1")["verification"]
     assert dem.calls[:6] == [("ucs", 7), ("bts", 7), ("tri", 7), ("ucs", 8), ("bts", 8),
                              ("tri", 8)]
     assert set(dem.sigma3) == {S3 * 1e6}
@@ -175,11 +172,7 @@ def test_verify_of_a_triaxial_target_needs_the_design_confinement(card, d, tmp_p
 def test_fresh_seeds_run_the_triaxial_test_of_a_triaxial_target(card, d, tmp_path, monkeypatch):
     dem = FakeDEM()
     dem.install(monkeypatch, V)
-    v = V.verify(card, d / "models.json", out_card=tmp_path / "V.yaml",
-                 rounds=tmp_path / "V.csv", run=tmp_path / "V.h5",
-                 geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
-                 seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
-                 tri_settings=TriaxialSettings(sigma3=S3 * 1e6))
+    v = _verify(card, d, tmp_path, "V")
     assert v["verification"]["status"] == "converged"
     monkeypatch.setattr(F, "run_ucs_file", dem.ucs)
     dem.calls.clear()
