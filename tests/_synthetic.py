@@ -47,3 +47,15 @@ def write_models(path, ms):
                                 "models": {r: {"interaction": m.to_dict()}
                                            for r, m in ms.items()}}))
     return path
+
+
+def calibrate_b1(d, out, *, lab="lab.csv", models="models.json", fixed=None, options=()):
+    """``bpmcal calibrate`` of the one-specimen lab table ``d/lab`` against ``d``'s
+    dataset.csv and ``models`` over :data:`RANGES`, no bootstrap: the card ``out/B1.yaml``;
+    returns the exit code. ``options``: more command options (``--ratio``, ``--free``)."""
+    from bpmcal.cli import main
+
+    return main(["calibrate", "--dataset", str(d / "dataset.csv"), "--models",
+                 str(d / models), "--lab", str(d / lab), "--cards", str(out / "B1.yaml"),
+                 "--ranges", json.dumps(RANGES), "--fixed", json.dumps(fixed or FIXED),
+                 *options, "--n-boot", "0", "--seed", "0"])

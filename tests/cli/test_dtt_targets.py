@@ -3,17 +3,15 @@ the lab CSV, sets the bond-strength ratio, verified by the closed loop with a
 direct-tension test per seed; an invalid test (broken at a grip) is run again on a
 replacement seed, never averaged. No DEM: the synthetic models of tests/_synthetic.py
 (σt's model renamed dtt_MPa) and a synthetic 'DEM' in place of the run functions."""
-import json
 import math
 
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from _synthetic import FIXED, RANGES, TRUTH, dem_response, models, predict, write_models
+from _synthetic import FIXED, RANGES, TRUTH, calibrate_b1, dem_response, models, predict, write_models
 
 from bpmcal.analysis.stepwise import RegressionModel
-from bpmcal.cli import main
 from bpmcal.io.h5 import write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
@@ -63,10 +61,7 @@ def d(tmp_path_factory):
 
 
 def calibrate(d, o, lab="lab.csv"):
-    return main(["calibrate", "--dataset", str(d / "dataset.csv"), "--models",
-                 str(d / "models.json"), "--lab", str(d / lab), "--cards", str(o / "B1.yaml"),
-                 "--ranges", json.dumps(R), "--fixed", json.dumps(FIXED), "--ratio", "1.4",
-                 "--n-boot", "0", "--seed", "0"])
+    return calibrate_b1(d, o, lab=lab, options=("--ratio", "1.4"))
 
 
 @pytest.fixture(scope="module")

@@ -4,13 +4,12 @@ gathered from the samples' triaxial run files, inverted with one more free param
 verified by the closed loop and the fresh-seed check with a triaxial test per seed. No
 DEM: the synthetic models of tests/_synthetic.py plus a triaxial model, and a synthetic
 'DEM' in place of the run functions."""
-import json
 
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from _synthetic import FIXED, RANGES, TRUTH, dem_response, models, predict, write_models
+from _synthetic import FIXED, RANGES, TRUTH, calibrate_b1, dem_response, models, predict, write_models
 from support.repo import REPO, SCHEMA, merged_config
 
 from bpmcal.analysis.stepwise import RegressionModel
@@ -68,10 +67,7 @@ def d(tmp_path_factory):
 
 
 def calibrate(d, o, models="models.json"):
-    return main(["calibrate", "--dataset", str(d / "dataset.csv"), "--models",
-                 str(d / models), "--lab", str(d / "lab.csv"), "--cards", str(o / "B1.yaml"),
-                 "--ranges", json.dumps(R), "--fixed", json.dumps(FIXED_TRI), "--free", FREE,
-                 "--n-boot", "0", "--seed", "0"])
+    return calibrate_b1(d, o, models=models, fixed=FIXED_TRI, options=("--free", FREE))
 
 
 @pytest.fixture(scope="module")
