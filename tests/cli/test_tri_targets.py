@@ -239,3 +239,11 @@ def test_a_lab_triaxial_strength_needs_its_confinement(tmp_path, s3, tri, needle
     cfg["triaxial"]["design_sigma3_MPa"] = 10.0
     if tri == "300":
         validate_config(cfg, SCHEMA, base_dir=REPO)  # with its confinement: accepted
+
+
+@pytest.mark.parametrize("s3", [0.0, -5.0, "ten"])
+def test_the_design_confinement_is_a_positive_stress(s3):
+    cfg = merged_config("config.yaml")
+    cfg["triaxial"]["design_sigma3_MPa"] = s3
+    with pytest.raises(ConfigError, match="design_sigma3_MPa"):
+        validate_config(cfg, SCHEMA, base_dir=REPO)
