@@ -247,3 +247,26 @@ def test_the_design_confinement_is_a_positive_stress(s3):
     cfg["triaxial"]["design_sigma3_MPa"] = s3
     with pytest.raises(ConfigError, match="design_sigma3_MPa"):
         validate_config(cfg, SCHEMA, base_dir=REPO)
+
+
+def test_the_sample_job_runs_the_triaxial_test_on_the_dem(tmp_path):
+    """``bpmcal ucs --tri-out --design-sigma3`` on a real (tiny) specimen: the triaxial run
+    file holds σ1 at the confinement asked, above the same packing's σc, and the dataset
+    reads it."""
+    from bpmcal.io.h5 import read_inputs, read_summary
+
+    p = tmp_path / "p.yaml"
+    p.write_text(yaml.safe_dump({**FIXED, **TRUTH, "pb_ten_MPa": 30.0}))
+    u, t = tmp_path / "s000.h5", tmp_path / "tri" / "s000.h5"
+    t.parent.mkdir()
+    assert main(["ucs", "--params", str(p), "--out", str(u), "--tri-out", str(t),
+                 "--design-sigma3", "5", "--scale", "0.2", "--platen-velocity", "0.2",
+                 "--threads", "1", "--quiet"]) == 0
+    su, st = read_summary(u), read_summary(t)
+    assert st["status"] == "ok" and st["sigma3_MPa"] == 5.0
+    assert st["sigma1_MPa"] > su["ucs_MPa"] + 5.0
+    assert read_inputs(t)["seed"] == read_inputs(u)["seed"]  # the same packing seed
+    design = pd.DataFrame([{"sample_id": "s000", **{**FIXED, **TRUTH, "pb_ten_MPa": 30.0},
+                            "seed": 1}])
+    df = gather(design, {"s000": u}, tri_files={"s000": t})
+    assert df.loc[0, "tri_MPa"] == pytest.approx(st["sigma1_MPa"])

@@ -171,3 +171,19 @@ def test_lab_standard_errors_are_checked(tmp_path):
         load_lab(f)
     assert "R1 ucs_MPa_se='-1.0': expected a standard error >= 0" in str(e.value)
     assert "R1 bts_MPa_se='0.5': a standard error without its value bts_MPa" in str(e.value)
+
+
+def test_the_triaxial_overlay_adds_sigma1_at_10_mpa_and_frees_the_slit_fraction():
+    cfg = validate_config(merged_config("config.yaml", "examples/lac_du_bonnet_fj.yaml",
+                                        "examples/lac_du_bonnet_fj_triaxial.yaml"),
+                          SCHEMA, base_dir=REPO)
+    assert cfg["triaxial"]["design_sigma3_MPa"] == 10.0
+    assert "fj_slit_frac" in cfg["calibration"]["free"] and "fj_slit_frac" in cfg["ranges"]
+    lab = load_lab(REPO / cfg["lab"]["csv"])
+    assert lab.loc[0, "tri_MPa"] == 322.7 and lab.loc[0, "dtt_MPa"] == 9.3
+    assert cfg["outdir"] not in ("results", "results/lac_du_bonnet_fj")
+    # the four-target example itself has no triaxial target
+    base = validate_config(merged_config("config.yaml", "examples/lac_du_bonnet_fj.yaml"),
+                           SCHEMA, base_dir=REPO)
+    assert base["triaxial"]["design_sigma3_MPa"] is None
+    assert "tri_MPa" not in load_lab(REPO / base["lab"]["csv"]).columns
