@@ -123,7 +123,8 @@ def bts_args(cfg=config):
 
 def tri_args(cfg=config):
     """The --tri-* options of bpmcal ucs/verify/transfer/fresh-seeds: the triaxial test at
-    the design confinement (triaxial.design_sigma3_MPa) on the UCS cylinder and loading."""
+    the design confinement (triaxial.design_sigma3_MPa) on the UCS cylinder and loading.
+    """
     t = cfg["triaxial"]
     return [
         "--design-sigma3",
