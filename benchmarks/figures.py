@@ -50,6 +50,10 @@ SOURCES = {
     "study_outputs": ("results_study_outputs_*.json", "{tag}-default-study-results.md"),
     "bts_loadings": ("results_bts_loadings_*.json", "{tag}-tensile-strength.md"),
     "test_tiers": ("results_test_tiers_*.json", "{tag}-test-tiers.md"),
+    # the flat-joint Lac du Bonnet example (example_record.py) and its triaxial overlay
+    "ldb_fj": ("results_example_lac_du_bonnet_fj_2*.json", "{tag}-lac-du-bonnet-flatjoint.md"),
+    "ldb_fj_tri": ("results_example_lac_du_bonnet_fj_tri_*.json",
+                   "{tag}-lac-du-bonnet-flatjoint-triaxial.md"),
 }
 
 #: Table 3 columns: response -> (label, how many of the largest shares the pages quote)
@@ -138,8 +142,30 @@ def _test_tiers(rec: dict) -> dict:
     return f
 
 
+def _example(prefix: str, spec: str = "LdB"):
+    """The figures of an own-rock example record (``example_record.py``) under ``prefix``:
+    the closed loop's status and rounds, the fresh seeds within 2 SE, the verified card's
+    mi against the lab envelope's, and the study's time."""
+    def extract(rec: dict) -> dict:
+        s = rec["specimens"][spec]
+        v, fresh = s["verified"], s.get("fresh_seeds") or []
+        mi = {e["card"]: e["mi"] for e in s.get("envelopes") or []}
+        n_ok = sum(bool(x["within_z_se"]) for x in fresh)
+        return {
+            f"{prefix}.targets": (", ".join(v["targets"]), list(v["targets"]), ""),
+            f"{prefix}.loop": (f"{v['status']} after {v['rounds']} rounds", v["status"], ""),
+            f"{prefix}.fresh": (f"{n_ok} of {len(fresh)}", n_ok, ""),
+            f"{prefix}.mi": (f"{mi['verified']:.1f}", mi["verified"], ""),
+            f"{prefix}.mi_lab": (f"{mi['lab']:.1f}", mi["lab"], ""),
+            f"{prefix}.wall_min": (f"{rec['wall_s'] / 60:.1f}", rec["wall_s"] / 60, "min"),
+            f"{prefix}.cpu_min": (f"{rec['cpu_min']:.1f}", rec["cpu_min"], "CPU-min"),
+        }
+    return extract
+
+
 EXTRACT = {"default_study": _default_study, "study_outputs": _study_outputs,
-           "bts_loadings": _bts_loadings, "test_tiers": _test_tiers}
+           "bts_loadings": _bts_loadings, "test_tiers": _test_tiers,
+           "ldb_fj": _example("ldb_fj"), "ldb_fj_tri": _example("ldb_fj_tri")}
 
 
 def figures() -> dict:
