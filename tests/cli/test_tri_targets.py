@@ -270,3 +270,22 @@ def test_the_sample_job_runs_the_triaxial_test_on_the_dem(tmp_path):
                             "seed": 1}])
     df = gather(design, {"s000": u}, tri_files={"s000": t})
     assert df.loc[0, "tri_MPa"] == pytest.approx(st["sigma1_MPa"])
+
+
+def test_the_design_triaxial_test_stops_at_its_own_drop(capsys):
+    """Only its peak is used: it stops at --design-stop-drop (default 0.9 of the peak),
+    while the UCS test of the same job keeps --stop-drop."""
+    from bpmcal.cli import build_parser
+    from bpmcal.cli.options import DESIGN_STOP_DROP, run_settings, tri_settings_of
+
+    base = ["ucs", "--params", "p.yaml", "--out", "u.h5", "--stop-drop", "0.7"]
+    a = build_parser().parse_args([*base, "--design-sigma3", "10"])
+    st = tri_settings_of(a)
+    assert st.stop_drop == DESIGN_STOP_DROP == 0.9 and st.sigma3 == 10e6
+    assert run_settings(a).stop_drop == 0.7
+    assert tri_settings_of(build_parser().parse_args(
+        [*base, "--design-sigma3", "10", "--design-stop-drop", "0.8"])).stop_drop == 0.8
+    assert tri_settings_of(build_parser().parse_args(base)) is None
+    with pytest.raises(SystemExit) as e:
+        build_parser().parse_args([*base, "--design-stop-drop", "1.0"])
+    assert e.value.code == 2 and "design-stop-drop" in capsys.readouterr().err

@@ -13,6 +13,7 @@ from support.repo import SCHEMA as SCHEMA_FILE
 from bpmcal import params as P
 from bpmcal.analysis import PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
 from bpmcal.cli import build_parser
+from bpmcal.cli.options import DESIGN_STOP_DROP
 from bpmcal.lab.brazilian import BTSSettings
 from bpmcal.lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
 from bpmcal.lab.direct_tension import DTTSettings
@@ -120,6 +121,7 @@ DEFAULTS = {
     "triaxial.servo_alpha": (TriaxialSettings().servo_alpha,
                              ("triaxial", "servo_alpha", None)),
     "triaxial.design_sigma3_MPa": (None, ("ucs", "design_sigma3", None)),
+    "triaxial.design_stop_drop": (DESIGN_STOP_DROP, ("ucs", "design_stop_drop", None)),
 }
 
 #: unit suffixes of config keys that their options drop (``diameter_mm``: ``--diameter``)

@@ -620,6 +620,7 @@ RERUN = {
     "triaxial.seed": (2, {"triaxial"}),
     "triaxial.lab_csv": ("config/lab/gs_triaxial.csv", {"triaxial_envelopes"}),
     "triaxial.design_sigma3_MPa": (10.0, {"ucs"}),  # the sample jobs gain the test
+    "triaxial.design_stop_drop": (0.85, set()),  # no design triaxial test in the smoke study
 }
 #: keys the map leaves out, and why
 NOT_MAPPED = {"outdir": "moves every file: everything reruns, by construction",

@@ -131,6 +131,8 @@ def tri_args(cfg=config):
         str(t["design_sigma3_MPa"]),
         "--tri-servo-alpha",
         str(t["servo_alpha"]),
+        "--design-stop-drop",
+        str(t["design_stop_drop"]),
     ]
 
 

@@ -13,6 +13,8 @@ same names as the keys of the study config's ``bts`` and ``dtt`` sections; the w
 """
 from __future__ import annotations
 
+import dataclasses
+
 from ..lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
 from ..params import CONTACT_MODELS
 from .args import SEED, THREADS, choice, fraction, integer, number, old_spelling, positive
@@ -376,6 +378,12 @@ def dtt_cylinder_of(args, prefix: str = ""):
                     genesis=args.genesis)
 
 
+#: the design triaxial test's stop: its peak alone is used, and replayed on 40 recorded
+#: runs a drop to 0.9 of the peak (0.2 % strain past it) kept every peak at 63 % of the
+#: loading steps (docs/measurements/2026-11-27j-tri-stop-replay.md)
+DESIGN_STOP_DROP = 0.9
+
+
 def add_tri_args(p):
     """The triaxial test at the study's design confinement (``triaxial.design_sigma3_MPa``):
     ``--design-sigma3`` and ``--tri-servo-alpha``. The cylinder and its axial loading are the
@@ -394,14 +402,22 @@ def add_tri_args(p):
     g.add_argument("--tri-servo-alpha", type=number("tri-servo-alpha", 0.0, 1.0, lo_open=True),
                    default=td.servo_alpha,
                    help=f"servo relaxation factor alpha in (0, 1] (default {td.servo_alpha:g})")
+    g.add_argument("--design-stop-drop", type=number("design-stop-drop", 0.0, 1.0, lo_open=True,
+                                                     hi_open=True),
+                   default=DESIGN_STOP_DROP,
+                   help="stop that triaxial test once sigma1 - sigma3 has fallen below this "
+                        "fraction of its peak (and post_peak_strain past it): only its peak "
+                        f"is used (default {DESIGN_STOP_DROP:g}; the cards' triaxial runs "
+                        "keep the compression section's stop_drop)")
 
 
 def tri_settings_of(args):
     """``TriaxialSettings`` of the options of :func:`add_tri_args` and the UCS loading
-    options, or None without ``--design-sigma3``."""
+    options (the stop drop: ``--design-stop-drop``), or None without ``--design-sigma3``."""
     from ..lab.triaxial import TriaxialSettings
 
     if args.design_sigma3 is None:
         return None
-    return run_settings(args, TriaxialSettings, sigma3=args.design_sigma3 * 1e6,
-                        servo_alpha=args.tri_servo_alpha)
+    st = run_settings(args, TriaxialSettings, sigma3=args.design_sigma3 * 1e6,
+                      servo_alpha=args.tri_servo_alpha)
+    return dataclasses.replace(st, stop_drop=args.design_stop_drop)
