@@ -117,23 +117,24 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
     outputs(*((r, "--runs", H5) for r in runs), *((r, "--bts-runs", H5) for r in bts_runs or ()),
             *((r, "--dtt-runs", H5) for r in dtt_runs or ()),
             *((r, "--tri-runs", H5) for r in tri_runs or ()), (seed_runs, "--seed-runs", CSV))
+    # the per-sample tests besides the UCS test: (strength, run files, measured for this
+    # card - σt always, as a target or the card's prediction -, run test, specimen,
+    # settings, inputs of its record, what it is, the target it needs)
+    extra = [(BTS, bts_runs, True, "bts", disc, bts_settings, bts_inputs, "Brazilian test", ""),
+             ("dtt_MPa", dtt_runs, with_dtt, "dtt", cylinder, dtt_settings, dtt_inputs,
+              "direct-tension test", "direct-tension target"),
+             (P.TRI, tri_runs, with_tri, "triaxial", geometry, tri_settings, _tri_inputs,
+              "triaxial test", "triaxial-strength target")]
     if not ran:
         # no verified parameters: every run is a failure record saying why, every seed a row
         reason = f"not run: the card's closed loop did not run ({v.get('message', '')})"
         for i, s in enumerate(seeds):
             write_failure(runs[i], test="ucs", inputs=ucs_inputs(params, s, geometry, settings),
                           error=reason)
-            if bts_runs is not None:
-                write_failure(bts_runs[i], test="bts",
-                              inputs=bts_inputs(params, s, disc, bts_settings), error=reason)
-            if dtt_runs is not None:
-                write_failure(dtt_runs[i], test="dtt",
-                              inputs=dtt_inputs(params, s, cylinder, dtt_settings),
-                              error=reason)
-            if tri_runs is not None:
-                write_failure(tri_runs[i], test="triaxial",
-                              inputs=_tri_inputs(params, s, geometry, tri_settings),
-                              error=reason)
+            for _, files, _, test, geo, st, inputs_of, _, _ in extra:
+                if files is not None:
+                    write_failure(files[i], test=test, inputs=inputs_of(params, s, geo, st),
+                                  error=reason)
         df = pd.DataFrame([{"specimen": c["specimen"], "seed": s, "status": "not-run",
                             "error": reason, **{k: math.nan for k in (*c["targets"], *_EXTRA)}}
                            for s in seeds])
@@ -151,24 +152,16 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
             row[k] = float(u.summary.get(k, math.nan)) if u.status == "ok" else math.nan
         # σt (a target, or the card's prediction on fresh seeds) and σ1 at the design
         # confinement: an invalid tensile test is run again on a replacement seed
-        for resp, files, geo, st, what in (
-                (BTS, bts_runs, disc, bts_settings, "Brazilian test"),
-                ("dtt_MPa", dtt_runs if with_dtt else None, cylinder, dtt_settings,
-                 "direct-tension test"),
-                (P.TRI, tri_runs if with_tri else None, geometry, tri_settings,
-                 "triaxial test")):
-            if files is not None:
+        for resp, files, measured, test, geo, st, inputs_of, what, target in extra:
+            if files is None:
+                continue
+            if measured:
                 _fresh_test(row, resp, what, files[i], params, s, geo, st, cache=cache,
                             threads=threads, progress=progress,
                             genesis_max_steps=genesis_max_steps)
-        if dtt_runs is not None and not with_dtt:
-            write_failure(dtt_runs[i], test="dtt",
-                          inputs=dtt_inputs(params, s, cylinder, dtt_settings),
-                          error="not run: the card has no direct-tension target (dtt_MPa)")
-        if tri_runs is not None and not with_tri:
-            write_failure(tri_runs[i], test="triaxial",
-                          inputs=_tri_inputs(params, s, geometry, tri_settings),
-                          error="not run: the card has no triaxial-strength target (tri_MPa)")
+            else:
+                write_failure(files[i], test=test, inputs=inputs_of(params, s, geo, st),
+                              error=f"not run: the card has no {target} ({resp})")
         rows.append(row)
     df = pd.DataFrame(rows)
     write_table(df, seed_runs, index=False)

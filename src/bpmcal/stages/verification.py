@@ -99,16 +99,19 @@ BTS_REPLACEMENT_STRIDE = 100_000
 BTS_MAX_REPLACEMENTS = 3
 
 
-#: the runner of each per-sample test (``P.SAMPLE_TESTS``' tests; looked up in this module
-#: at the call, so tests can replace it) and the summary key of its strength
-_TEST_RUN = {"bts": ("run_bts_file", BTS), "dtt": ("run_dtt_file", "dtt_MPa"),
-             "tri": ("run_triaxial_file", "sigma1_MPa")}
+#: the runner of each per-sample test (``P.SAMPLE_TESTS``' tests), looked up in this
+#: module at the call, so tests can replace it
+_TEST_RUN = {"bts": "run_bts_file", "dtt": "run_dtt_file", "tri": "run_triaxial_file"}
 
 
 def test_strength(resp: str, outcome) -> float:
     """The strength ``resp`` (``P.SAMPLE_TESTS``' responses: ``bts_MPa``, ``dtt_MPa``,
-    ``tri_MPa``) of a finished run's outcome, NaN for a failed one."""
-    key = _TEST_RUN[SAMPLE_TESTS[resp]][1]
+    ``tri_MPa``) of a finished run's outcome, NaN for a failed one: the summary key the
+    dataset reads it from (``study.gather.TEST_COLUMNS``)."""
+    from ..study.gather import TEST_COLUMNS
+
+    keys = TEST_COLUMNS[SAMPLE_TESTS[resp]][0]
+    key = next(k for k, col in keys.items() if col == resp)
     return float(outcome.summary[key]) if outcome.status == "ok" else math.nan
 
 
@@ -124,7 +127,7 @@ def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, set
     file of attempt k. Returns (the outcome used, the packing seed it ran on, the reasons
     of the invalid attempts); the outcome has ``<test>_MPa`` NaN when every attempt was
     invalid."""
-    run_file = globals()[_TEST_RUN[test][0]]
+    run_file = globals()[_TEST_RUN[test]]
     invalid = []
     for k in range(max_replacements + 1):
         s = int(seed) + k * BTS_REPLACEMENT_STRIDE
