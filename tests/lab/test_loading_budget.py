@@ -192,3 +192,24 @@ def test_flat_jointed_card_has_a_bound_too(cache):
     ucs_test(FJ1, 1, SMALL, dataclasses.replace(FAST, max_strain=2e-3), cache=cache,
              progress=seen.append)
     assert any(d.get("bound_steps") for d in seen)
+
+
+def test_progress_line_past_the_step_estimate_counts_against_the_max_strain():
+    """A confined card fails later than its bonds' strength over modulus says: once the
+    steps pass the estimate, the line no longer claims 100 % of an 'at most' that was
+    exceeded, but gives the share of the max strain (where the loading stops at the
+    latest) and the time to it at the measured rate."""
+    import io
+
+    from bpmcal.stages.progress import Progress
+
+    out = io.StringIO()
+    p = Progress("tri", stream=out, every=0.0)
+    base = {"stress_MPa": 300.0, "peak_MPa": 320.0, "cracks": 10, "max_strain": 0.03}
+    p({**base, "strain": 0.005, "steps": 50_000, "wall_s": 50.0, "bound_steps": 100_000})
+    p({**base, "strain": 0.02, "steps": 150_000, "wall_s": 150.0, "bound_steps": 100_000})
+    first, second = out.getvalue().splitlines()
+    assert "50.0 % of at most 100000 steps, ETA <= 50 s" in first
+    # 2 % of 3 %; the last 1 % at 7,500 steps per 0.1 %: 75,000 steps at 1,000 steps/s
+    assert "past the estimate of 100000 steps;  66.7 % of the max strain 3 %" in second
+    assert "ETA <= 75 s" in second and "of at most" not in second

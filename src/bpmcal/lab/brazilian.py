@@ -513,7 +513,7 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
 
     record()
     track = PeakTracker(st.stop_drop, st.post_peak_strain)
-    tell = LoadingProgress(progress, m, step0, bound)
+    tell = LoadingProgress(progress, m, step0, bound, st.max_strain)
     with heartbeat(lambda: tell(strain=ser["diametral_strain"][-1])):
         while True:
             if m.step - step0 >= st.max_steps:

@@ -91,14 +91,18 @@ def loading_bound(m, settings, loading: Loading) -> int:
 class LoadingProgress:
     """Progress of a lab test's loading: ``tell(**values)`` passes the latest values (kept
     between calls: a heartbeat may update only the strain) to ``progress`` with the steps
-    so far, the wall time and the loading's step bound (``bound_steps``,
-    ``budget.check_loading_steps``), from which a progress line shows percent and ETA."""
+    so far, the wall time, the loading's step estimate (``bound_steps``,
+    ``budget.check_loading_steps``: a bound unless the card fails later than its bonds'
+    strength over modulus says, as a confined one does) and the test's ``max_strain``
+    (where the loading stops at the latest), from which a progress line shows percent and
+    ETA."""
 
-    def __init__(self, progress, m, step0: int, bound: int):
+    def __init__(self, progress, m, step0: int, bound: int, max_strain: float | None = None):
         self.progress = progress
         self.m = m
         self.step0 = step0
         self.bound = int(bound)
+        self.max_strain = max_strain
         self.last = {}
         self.t0 = time.perf_counter()
 
@@ -108,7 +112,7 @@ class LoadingProgress:
         if self.progress is not None:
             self.progress({**self.last, "steps": self.m.step - self.step0,
                            "wall_s": time.perf_counter() - self.t0,
-                           "bound_steps": self.bound})
+                           "bound_steps": self.bound, "max_strain": self.max_strain})
 
 
 def load_to_failure(m, settings, step0: int, bound: int, progress, advance, record, ser,
@@ -124,7 +128,7 @@ def load_to_failure(m, settings, step0: int, bound: int, progress, advance, reco
     ``post_peak_drop``, ``max_strain`` or ``max_steps``."""
     st = settings
     peak, peak_strain = peak0, 0.0
-    tell = LoadingProgress(progress, m, step0, bound)
+    tell = LoadingProgress(progress, m, step0, bound, st.max_strain)
     with heartbeat(lambda: tell(strain=strain_now())):
         while True:
             if m.step - step0 >= st.max_steps:

@@ -51,11 +51,15 @@ class Progress:
         line = (f"{self.label}: strain {d.get('strain', 0) * 100:6.3f} %  stress "
                 f"{d.get('stress_MPa', 0):7.2f} MPa (peak {d.get('peak_MPa', 0):7.2f})  cracks "
                 f"{d.get('cracks', 0):6d}  {d.get('steps', 0):8d} steps  {rate:8.0f} steps/s")
-        if d.get("bound_steps"):  # the loading's step estimate: an upper bound
-            b = d["bound_steps"]
-            left = max(b - d.get("steps", 0), 0) / max(rate, 1e-9)
-            line += (f"  {min(100.0 * d.get('steps', 0) / b, 100.0):5.1f} % of at most {b} "
-                     f"steps, ETA <= {_duration(left)}")
+        b, n, eps, top = (d.get("bound_steps"), d.get("steps", 0), d.get("strain", 0.0),
+                          d.get("max_strain"))
+        if b and n <= b:  # the loading's step estimate: an upper bound so far
+            left = (b - n) / max(rate, 1e-9)
+            line += f"  {100.0 * n / b:5.1f} % of at most {b} steps, ETA <= {_duration(left)}"
+        elif b and top and 0 < eps < top:  # past the estimate (a confined card fails later):
+            left = (top - eps) / eps * n / max(rate, 1e-9)  # the max strain is the bound
+            line += (f"  past the estimate of {b} steps; {100.0 * eps / top:5.1f} % of the "
+                     f"max strain {100.0 * top:g} %, ETA <= {_duration(left)}")
         self._write(line)
 
     def _write(self, line: str):
