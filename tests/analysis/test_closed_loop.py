@@ -664,3 +664,81 @@ def test_a_target_with_its_own_standard_error_is_met_within_both_errors(start):
     with pytest.raises(ValueError, match="'bts_MPa' is not a target"):
         ClosedLoop(TinyScatterDEM(), targets, models=MODELS, ranges=T2,
                    target_se={"bts_MPa": 1.0})
+
+
+# -- the history update: every judged round at once -----------------------------------------
+def _judged(e, se):
+    """A judged round with relative errors ``e`` and standard errors ``se`` (tolerance 2 SE,
+    at least 1 %), as :meth:`ClosedLoop._run_round` returns it."""
+    from bpmcal.analysis.calibration.closed_loop import _Round
+
+    e, se = np.asarray(e, float), np.asarray(se, float)
+    return _Round(np.zeros((3, len(e))), [1, 2, 3], [], 0, [], e, np.zeros(len(e)), se,
+                  np.maximum(0.01, 2 * se), e)
+
+
+def test_history_update_recovers_a_linear_response_once_the_steps_span_the_space():
+    """A linear simulator without noise (SE 1e-6), n + 1 rounds whose steps span the n parameters: the
+    fit is the true Jacobian, whatever the (wrong) starting estimate; Broyden, from the same
+    rounds taken in turn, is not (it knows the last step's secant only)."""
+    loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=3,
+                      update="history")
+    rng = np.random.default_rng(5)
+    J_true = rng.normal(size=(3, 3))
+    J0 = J_true + rng.normal(scale=0.8, size=(3, 3))
+    us = [np.array([0.4, 0.5, 0.5]), np.array([0.5, 0.5, 0.5]), np.array([0.45, 0.6, 0.5]),
+          np.array([0.45, 0.55, 0.42])]
+    memory = [(u, _judged(J_true @ (u - 0.5) + 0.02, np.full(3, 1e-6))) for u in us]
+    J, moved = loop._history_jacobian(J0, memory)
+    np.testing.assert_allclose(J, J_true, atol=2e-3)
+    assert set(moved) <= set(loop.responses)
+    Jb = J0
+    for (u0, r0), (u1, r1) in zip(memory, memory[1:]):
+        Jb, _ = loop._broyden(Jb, (u0, r0.e, r0.ys), u1, r1.e, r1.ys)
+    assert np.abs(Jb - J_true).max() > 0.1
+
+
+def test_history_update_of_two_rounds_is_broydens_least_change_update():
+    """Two rounds, no noise (SE 1e-6): the secant condition holds and the change of each row lies
+    along the step (Broyden's least-change update from the starting estimate)."""
+    loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=3,
+                      update="history")
+    J0 = np.array([[1.0, 0.2, 0.0], [0.0, 1.0, 0.3], [0.1, 0.0, 1.0]])
+    u0, u1 = np.array([0.5, 0.5, 0.5]), np.array([0.55, 0.47, 0.5])
+    e0, e1 = np.array([0.1, -0.05, 0.08]), np.array([0.02, 0.01, 0.2])
+    J, _ = loop._history_jacobian(J0, [(u0, _judged(e0, np.full(3, 1e-6))),
+                                       (u1, _judged(e1, np.full(3, 1e-6)))])
+    s = u1 - u0
+    np.testing.assert_allclose(J @ s, e1 - e0, atol=1e-4)
+    broyden = J0 + np.outer((e1 - e0) - J0 @ s, s) / (s @ s)
+    np.testing.assert_allclose(J, broyden, atol=1e-3)
+
+
+def test_history_update_weighs_each_round_by_its_noise():
+    """A change within its response's scatter barely moves the row; the same change
+    measured precisely moves it fully."""
+    loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=3,
+                      update="history")
+    J0 = np.eye(3)
+    u0, u1 = np.array([0.5, 0.5, 0.5]), np.array([0.5, 0.5, 0.52])
+    e0, e1 = np.zeros(3), np.array([0.0, 0.0, 0.05])  # the third: 2.5 per unit, not 1
+    quiet = loop._history_jacobian(J0, [(u0, _judged(e0, np.full(3, 1e-4))),
+                                        (u1, _judged(e1, np.full(3, 1e-4)))])[0]
+    noisy = loop._history_jacobian(J0, [(u0, _judged(e0, np.full(3, 0.05))),
+                                        (u1, _judged(e1, np.full(3, 0.05)))])[0]
+    assert quiet[2, 2] == pytest.approx(2.5, rel=1e-3)
+    # the secant's slope 2.5 has variance 2 · 0.05² / 0.02² = 12.5 against the prior's 1²:
+    # the posterior moves 1 / 13.5 of the way
+    assert noisy[2, 2] == pytest.approx(1.0 + 1.5 / 13.5, rel=1e-3)
+
+
+def test_history_loop_converges_on_the_biased_dem(start):
+    res = ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2,
+                     update="history").run(start)
+    assert res.converged and res.n_rounds <= 4
+    assert res.history.loc[0, "max_abs_err"] > 0.05
+
+
+def test_unknown_update_rule_is_refused():
+    with pytest.raises(ValueError, match="update='secant'"):
+        ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, update="secant")

@@ -98,6 +98,7 @@ DEFAULTS = {
     "verification.max_seeds": (VER["max_seeds"], ("verify", "max_seeds", None)),
     "verification.range_margin": (VER["range_margin"], ("verify", "range_margin", None)),
     "verification.polish": (VER["polish"], ("verify", "polish", None)),
+    "verification.jacobian_update": (VER["jacobian_update"], ("verify", "jacobian_update", None)),
     "verification.from_unreachable": (VER["from_unreachable"],
                                       ("verify", "from_unreachable", None)),
     "transfer.scale": (GEO.scale, ("transfer", "scale", None)),

@@ -596,6 +596,7 @@ RERUN = {
     "verification.seeds_per_round": (3, _VERIFY | {"transfer"}),
     "verification.max_seeds": (4, _VERIFY | {"transfer"}),
     "verification.polish": (False, _VERIFY),
+    "verification.jacobian_update": ("history", _VERIFY | {"transfer"}),
     "verification.range_margin": (0.2, _VERIFY | {"transfer"}),
     "verification.from_unreachable": (False, _VERIFY),
     "verification.scatter_seeds": ([1, 2, 3], {"seed_scatter"}),

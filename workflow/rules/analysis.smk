@@ -180,6 +180,7 @@ rule verify:
                 "max_rounds",
                 "range_margin",
                 "polish",
+                "jacobian_update",
             )
         },
         opts=specimen_args(),
@@ -197,7 +198,7 @@ rule verify:
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
         "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
         "--max-seeds {params.v[max_seeds]:q} --range-margin {params.v[range_margin]:q} "
-        "{params.polish:q} "
+        "--jacobian-update {params.v[jacobian_update]:q} {params.polish:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
         "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
 
@@ -226,6 +227,7 @@ rule transfer:
         seed=transfer_seed(config["verification"]),
         rtol=config["verification"]["rtol"],
         margin=config["verification"]["range_margin"],
+        jac=config["verification"]["jacobian_update"],
         opts=specimen_args(scale=config["transfer"]["scale"]),
         bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
         dtt=dtt_args() if LAB_DTT else [],
@@ -234,7 +236,8 @@ rule transfer:
         "bpmcal transfer --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
         "--seed {params.seed:q} --rtol {params.rtol:q} --range-margin {params.margin:q} "
-        "--max-rounds {params.t[max_rounds]:q} --threads {threads} "
+        "--jacobian-update {params.jac:q} --max-rounds {params.t[max_rounds]:q} "
+        "--threads {threads} "
         "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
 
 

@@ -46,12 +46,20 @@ def _add_card_run_args(p, func):
 
 
 def _add_range_margin(p, d):
+    from ..analysis.calibration import UPDATES
+
     p.add_argument("--range-margin", type=number("range-margin", 0.0, 1.0),
                    default=d["range_margin"],
                    help="the closed loop may leave each design range (the card's ranges) by "
                         "this fraction of its width, inside the parameter's physical domain "
                         "and never past the card's calibration bounds; the card lists what "
                         f"ends outside (default {d['range_margin']:g}; 0: stay inside)")
+    p.add_argument("--jacobian-update", choices=UPDATES, default=d["jacobian_update"],
+                   help="how the measured rounds correct the closed loop's Jacobian: "
+                        "broyden (the secant between consecutive rounds) or history (a local "
+                        "linear fit to every round, the regression's Jacobian its prior; "
+                        "docs/methods/calibration.md) (default "
+                        f"{d['jacobian_update']})")
 
 
 def _seeds(text) -> list[int]:
@@ -118,6 +126,7 @@ def cmd_verify(args) -> int:
                bts_run=args.bts_run, bts_geometry=bts_disc_of(args, "bts_"),
                bts_settings=bts_settings_of(args, "bts_"), range_margin=args.range_margin,
                polish=args.polish, dtt_geometry=dtt_cylinder_of(args, "dtt_"),
+               jacobian_update=args.jacobian_update,
                dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
                **budget_of(args))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
@@ -155,7 +164,7 @@ def cmd_transfer(args) -> int:
                  threads=args.threads, progress=prog, bts_geometry=bts_disc_of(args, "bts_"),
                  bts_settings=bts_settings_of(args, "bts_"), range_margin=args.range_margin,
                  dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
-                 **budget_of(args))["transfer"]
+                 jacobian_update=args.jacobian_update, **budget_of(args))["transfer"]
     prog.done(f"{t['status']} after {t['rounds']} round(s) at scale {t['scale']:g}: "
               f"{t['message']}")
     return 0

@@ -23,6 +23,7 @@ from .inputs import CSV, H5, YAML, output_dirs, outputs, read_models
 from .verification import (
     _LOOP,
     _check_margin,
+    _check_update,
     _dem_loop,
     _loop_box,
     _not_run,
@@ -37,7 +38,7 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
              max_rounds=2, rtol=_LOOP["rtol"], z=2.0, cache=None, threads=None, progress=None,
              max_balls=None, mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None,
              bts_settings=None, range_margin=0.25, dtt_settings=None,
-             tri_settings=None) -> dict:
+             tri_settings=None, jacobian_update="broyden") -> dict:
     """Full-size transfer of a verified card: run its parameters once (packing ``seed``)
     on the specimen of ``geometry`` (the study's ``transfer.scale``, 1.0 = the lab's
     50 x 100 mm) and, when a response misses its lab target by more than the seed scatter
@@ -64,12 +65,14 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     transfer's cylinder with ``dtt_settings``, a triaxial-strength target (``tri_MPa``) the
     triaxial test of ``tri_settings`` on it. The loop's bounds are the verification's:
     the design ranges widened by ``range_margin`` of their width
-    (``verification.range_margin``)."""
+    (``verification.range_margin``); ``jacobian_update`` its Jacobian update rule
+    (``verification.jacobian_update``, as :func:`verify`)."""
     c = read_card(card, "--card", need=("parameters", "targets", "roles", "ranges",
                                         "verification"))
     if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) or max_rounds < 0:
         raise BadInput(f"--max-rounds {max_rounds!r}: expected an integer >= 0")
     range_margin = _check_margin(range_margin)
+    jacobian_update = _check_update(jacobian_update)
     model_set = read_models(models)
     params = card_parameters(c)
     check_tri_target(card, c["targets"], tri_settings)
@@ -97,7 +100,8 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         genesis_max_steps=genesis_max_steps, disc=bts_geometry or disc_geometry(geometry),
         bts_settings=bts_settings or BTSSettings(), jacobian=v.get("jacobian"),
         range_margin=range_margin, cylinder=geometry,
-        dtt_settings=dtt_settings or DTTSettings(), tri_settings=tri_settings)
+        dtt_settings=dtt_settings or DTTSettings(), tri_settings=tri_settings,
+        jacobian_update=jacobian_update)
     write_table(res.history, rounds, index=False)
     out = dict(c)
     section = _transfer_section(res, by_round, best, targets, base=base, tol=tol, shrink=shrink,

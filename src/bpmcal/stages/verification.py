@@ -24,6 +24,7 @@ import pandas as pd
 
 from .. import params as P
 from ..analysis import ClosedLoop, scatter_table
+from ..analysis.calibration import UPDATES
 from ..io.card import card_parameters, read_card, write_card
 from ..io.checks import BadInput
 from ..io.figures import save_figure
@@ -147,14 +148,15 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
               settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
               free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
               jacobian=None, range_margin=0.0, polish=True, cylinder=None,
-              dtt_settings=None, tri_settings=None):
+              dtt_settings=None, tri_settings=None, jacobian_update="broyden"):
     """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
     into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
     ``disc`` (or the direct-tension test on ``cylinder``) with the same seed, and when
     ``tri_MPa`` is one, the triaxial test with ``tri_settings`` on the UCS cylinder; the
     first seed's run files of the best round become
     ``run`` and ``bts_run``). The first step follows the regression models' Jacobian, or
-    ``jacobian`` (responses x free parameters, physical units) when given.
+    ``jacobian`` (responses x free parameters, physical units) when given; the measured
+    rounds correct it by ``jacobian_update`` (:class:`ClosedLoop`'s ``update``).
     Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
     ratio = c.get("ratio_ten_coh")
     with_bts = BTS in targets
@@ -210,7 +212,8 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                           rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
                           bounds=c.get("calibration_bounds") or None, seeds=list(seeds),
                           max_seeds=max_seeds, margin=range_margin, polish=polish,
-                          target_se=c.get("target_se") or None)
+                          target_se=c.get("target_se") or None,
+                          update=_check_update(jacobian_update))
         res = loop.run(params)
         best = res.best_round  # converged, else the smallest max |error| of the seed mean
         os.replace(paths[best][0], run)  # the best round's first seed is the run file
@@ -229,7 +232,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
            mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
            bts_run=None, max_seeds=10, range_margin=0.25, polish=True, dtt_geometry=None,
-           dtt_settings=None, tri_settings=None) -> dict:
+           dtt_settings=None, tri_settings=None, jacobian_update="broyden") -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -262,7 +265,10 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     (config ``verification.polish``) a loop that converges with some mean more than one
     standard error from its target takes one more full Newton step towards the targets on
     the same seeds, if a round is left; that round is the card's when it is within
-    tolerance too (:class:`~bpmcal.analysis.ClosedLoop`).
+    tolerance too (:class:`~bpmcal.analysis.ClosedLoop`). ``jacobian_update`` (config
+    ``verification.jacobian_update``) is how the measured rounds correct the loop's
+    Jacobian: ``broyden`` (the secant between consecutive rounds) or ``history`` (a local
+    linear fit to every round, the regression's Jacobian its prior); the card records it.
 
     A card whose inversion is ``unreachable`` is not a calibration: unless
     ``from_unreachable`` (config ``verification.from_unreachable``) the DEM is not run, the
@@ -310,6 +316,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         raise BadInput(f"--max-seeds {max_seeds!r}: expected an integer >= 1")
     max_seeds = max(max_seeds, seeds_per_round)
     range_margin = _check_margin(range_margin)
+    jacobian_update = _check_update(jacobian_update)
     seeds = [int(seed) + i for i in range(seeds_per_round)]
     if c.get("status") == "unreachable" and not from_unreachable:
         reason = ("the calibration is unreachable, so the closed loop did not start from it "
@@ -329,7 +336,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
         disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
         range_margin=range_margin, polish=bool(polish), cylinder=cylinder,
-        dtt_settings=dtt_settings, tri_settings=tri_settings)
+        dtt_settings=dtt_settings, tri_settings=tri_settings, jacobian_update=jacobian_update)
     write_table(res.history, rounds, index=False)
     verified = dict(c)
     verified.update({
@@ -338,7 +345,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             c, res, by_round, best, targets, rtol=rtol, seed=seed, seeds=seeds,
             seeds_per_round=seeds_per_round, max_seeds=max_seeds, polish=polish,
             geometry=geometry, range_margin=range_margin, disc=disc, cylinder=cylinder,
-            tri_settings=tri_settings)})
+            tri_settings=tri_settings, jacobian_update=jacobian_update)})
     write_card(out_card, verified)
     if bts_run is not None and BTS not in targets:
         write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
@@ -401,7 +408,7 @@ def _not_run(c: dict, out_card, key: str, section: dict, *, rounds, run, error: 
 
 def _verification_section(c: dict, res, by_round: list, best: int, targets: dict, *, rtol, seed, seeds,
                           seeds_per_round, max_seeds, polish, geometry, range_margin, disc,
-                          cylinder, tri_settings=None) -> dict:
+                          cylinder, tri_settings=None, jacobian_update="broyden") -> dict:
     """The verified card's ``verification`` section from the closed loop's result ``res``
     and its rounds' seed summaries ``by_round`` (``best``: the card's round)."""
     message = res.message + _outside_text(res.outside, range_margin)
@@ -413,7 +420,7 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
         "runs": sum(len(r) for r in by_round), "rtol": rtol, "seed": seed,
         "seeds": [int(x) for x in res.seeds], "n_seeds": int(res.n_seeds),
         "seeds_per_round": seeds_per_round, "max_seeds": max_seeds, "polish": bool(polish),
-        "best_round": best + 1, "run_seed": seeds[0],
+        "jacobian_update": jacobian_update, "best_round": best + 1, "run_seed": seeds[0],
         "jacobian": {r: {p: float(x) for p, x in row.items()}
                      for r, row in res.jacobian.iterrows()},
         "single_pass": _responses(by_round[0], targets),
@@ -446,6 +453,13 @@ def check_tri_target(card, targets: dict, tri_settings, model_set=None, models=N
     if model_set is not None and P.TRI not in model_set:
         raise BadInput(f"--card {card}: a triaxial-strength target (tri_MPa) but --models "
                        f"{models} has no model of tri_MPa")
+
+
+def _check_update(rule) -> str:
+    """The closed loop's Jacobian update rule, or BadInput naming the bad value."""
+    if rule not in UPDATES:
+        raise BadInput(f"--jacobian-update {rule!r}: expected one of {', '.join(UPDATES)}")
+    return rule
 
 
 def _check_margin(margin) -> float:

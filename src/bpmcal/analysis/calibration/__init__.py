@@ -19,7 +19,7 @@ Every name importers used from the former single module ``calibration.py`` is
 re-exported here (``_Space`` is the former name of :class:`CalibrationSpace`).
 """
 from .bootstrap import BootstrapResults, bootstrap_intervals
-from .closed_loop import ClosedLoop, ClosedLoopResult
+from .closed_loop import UPDATES, ClosedLoop, ClosedLoopResult
 from .closed_loop import _lm_step as _lm_step
 from .closed_loop import _outside as _outside
 from .closed_loop import _round_seeds as _round_seeds
@@ -52,6 +52,6 @@ from .widen import _what_to_widen as _what_to_widen
 #: the former name of :class:`CalibrationSpace`
 _Space = CalibrationSpace
 
-__all__ = ["PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "tensile_target", "bts_strengths",
+__all__ = ["UPDATES", "PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "tensile_target", "bts_strengths",
            "CalibrationSpace", "check_calibration_space", "InversionResult", "invert", "BootstrapResults",
            "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "scatter_table", "seed_scatter"]

@@ -137,7 +137,25 @@ class ClosedLoop:
         step at the cap reached it doubles, up to ``max_step`` (the trust region, module
         docstring).
     broyden:
-        Update the Jacobian by Broyden's secant rule (default True).
+        Correct the Jacobian with the measured rounds (default True); False keeps the
+        starting estimate throughout.
+    update:
+        How the measured rounds correct it: ``"broyden"`` (default), Broyden's secant
+        rule between consecutive rounds on the same seeds, each row shrunk by its
+        signal-to-noise ratio; ``"history"``, every judged round at once: each row is the
+        posterior mean of a local linear model fitted to all rounds' means (each weighted
+        by its standard error and by its distance from the best round so far), with the
+        starting Jacobian as its prior (:meth:`_history_jacobian`). Broyden remembers the
+        last step exactly and the earlier ones only through its rank-one updates; the
+        history fit keeps them all, so a response that depends on several parameters at
+        once is resolved once the steps span them. The step then starts from the fitted
+        errors at the best round, not from its own: the rounds near it average its scatter.
+    min_step:
+        The trust region's smallest cap (fraction of a range; default 0 with
+        ``"broyden"``, ``max_step`` / 8 with ``"history"``). A round is judged worse than
+        the best on a merit that carries the seeds' scatter: several worse rounds in a row
+        (one real overshoot, then noise) would otherwise halve the cap each time until the
+        loop can no longer move.
     margin:
         How far the loop may leave the design space: every bound that is a design range
         (``ranges``) moves out by ``margin`` times the range's width, never past the
@@ -173,7 +191,8 @@ class ClosedLoop:
                  max_step: float = 0.25, broyden: bool = True, seeds_per_round: int | None = None,
                  seeds: Sequence[int] | None = None, z: float = 2.0, max_seeds: int | None = None,
                  margin: float = 0.0, polish: bool = True,
-                 target_se: Mapping[str, float] | None = None):
+                 target_se: Mapping[str, float] | None = None, update: str = "broyden",
+                 min_step: float | None = None):
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
@@ -208,6 +227,16 @@ class ClosedLoop:
         self.rtol = np.array([rt[r] for r in self.responses])
         self.max_rounds, self.damping, self.max_step = int(max_rounds), float(damping), float(max_step)
         self.broyden = bool(broyden)
+        if update not in UPDATES:
+            raise ValueError(f"update={update!r}: expected one of {list(UPDATES)}")
+        self.update = update
+        if min_step is None:
+            min_step = HISTORY_MIN_STEP * max_step if update == "history" else 0.0
+        if not (isinstance(min_step, (int, float, np.integer, np.floating))
+                and not isinstance(min_step, bool) and 0 <= min_step <= max_step):
+            raise ValueError(f"min_step={min_step!r}: expected a fraction of the range in "
+                             f"[0, max_step = {max_step!r}]")
+        self.min_step = float(min_step)
         if isinstance(margin, bool) or not isinstance(margin, (int, float, np.integer, np.floating)) \
                 or not (math.isfinite(float(margin)) and 0 <= float(margin) <= 1):
             raise ValueError(f"margin={margin!r}: expected a fraction of the range width in [0, 1]")
@@ -295,7 +324,8 @@ class ClosedLoop:
         space = self._space(initial)
         box = space.loop_box(self.margin)
         u = self._start(space, box, initial)
-        J = self._initial_jacobian(space, space.x(u))
+        J = J0 = self._initial_jacobian(space, space.x(u))
+        memory: list[tuple[np.ndarray, _Round]] = []  # every judged round (update="history")
         seeds, spare = list(self.seeds), list(self.growth_seeds)
         history, samples, prev = [], [], None
         polished_from = None  # the converged round a polishing step left
@@ -315,7 +345,11 @@ class ClosedLoop:
             stats.add(rd.k, rd.cv)
             e, tol = rd.e, rd.tol
             self._record(rec, rd)
-            J, rows = self._broyden(J, prev, u, e, rd.ys)
+            memory.append((u.copy(), rd))
+            if self.update == "history":
+                J, rows = self._history_jacobian(J0, memory) if self.broyden else (J, [])
+            else:
+                J, rows = self._broyden(J, prev, u, e, rd.ys)
             rec["broyden_update"], rec["broyden_rows"] = bool(rows), ",".join(rows)
             within = bool(np.all(np.abs(e) <= tol))
             polishing = (polished_from is None and within and self.polish and rd.k > 1
@@ -423,6 +457,52 @@ class ClosedLoop:
         return (J + np.outer(gain * resid, s) / (s @ s),
                 [r for r, g in zip(self.responses, gain) if g > 0.5])
 
+    def _history_jacobian(self, J0: np.ndarray, memory: list) -> tuple[np.ndarray, list[str]]:
+        """The Jacobian from every judged round at once (``update="history"``), in the
+        loop's unit coordinates and relative errors; returns it and the responses whose
+        row moved from the starting estimate ``J0`` by more than half that row's norm.
+
+        Each response ``i`` gets a local linear model ``e_i(u) = a_i + J_i (u - u_b)``
+        about ``u_b``, the best round so far by the trust region's merit (this round
+        included), fitted by weighted least squares to the means of all rounds with a
+        Gaussian prior ``J_i ~ N(J0_i, |J0_i|² I)`` (the starting estimate, uncertain by
+        its own size) and a free intercept ``a_i``. A round's weight is
+        1 / (SE² · (1 + (d / cap)²)): its standard error of the mean (relative; the
+        tolerance's rtol / z where one seed gives none) and its distance ``d`` from
+        ``u_b`` in the max norm against the loop's largest step (the response is only
+        locally linear, so far rounds count less). With two rounds on one seed and no
+        noise this is Broyden's least-change secant update from ``J0``; with more rounds
+        than parameters the data decide every direction they span."""
+        us = np.array([m[0] for m in memory])
+        es = np.array([m[1].e for m in memory])
+        tols = np.array([m[1].tol for m in memory])
+        ses = np.array([np.where(m[1].se > 0, m[1].se, self.rtol / max(self.z, 1.0))
+                        for m in memory])
+        merit = np.sum((es / tols) ** 2, axis=1)
+        ub = us[int(np.argmin(merit))]
+        d = np.max(np.abs(us - ub), axis=1)
+        dist_w = 1.0 / (1.0 + (d / self.max_step) ** 2)
+        X = np.hstack([np.ones((len(us), 1)), us - ub])
+        n = us.shape[1]
+        J = J0.copy()
+        a = es[int(np.argmin(merit))].copy()
+        moved = []
+        for i, r in enumerate(self.responses):
+            w = dist_w / np.maximum(ses[:, i], 1e-12) ** 2
+            prior_sd = max(float(np.linalg.norm(J0[i])), 1e-6)
+            P = np.zeros((n + 1, n + 1))
+            P[1:, 1:] = np.eye(n) / prior_sd ** 2
+            b = np.zeros(n + 1)
+            b[1:] = J0[i] / prior_sd ** 2
+            A = X.T @ (w[:, None] * X) + P
+            A[0, 0] += 1e-12 * max(float(A[0, 0]), 1.0)  # one round: the intercept alone
+            coef = np.linalg.solve(A, X.T @ (w * es[:, i]) + b)
+            a[i], J[i] = coef[0], coef[1:]
+            if np.linalg.norm(J[i] - J0[i]) > 0.5 * prior_sd:
+                moved.append(r)
+        self._fit = (ub, a, J)
+        return J, moved
+
     def _met(self, k: int) -> str:
         lab = " (with the lab value's)" if self.target_se is not None and k > 1 else ""
         return (f"every mean of {k} seeds within max(rtol, {self.z:g} standard errors{lab}) of "
@@ -476,9 +556,12 @@ class ClosedLoop:
                 trust.cap = min(2.0 * trust.cap, self.max_step)
             trust.base = (u.copy(), e.copy(), merit, k)
         else:  # half the step that led here (the cap may not have bound it)
-            trust.cap = 0.5 * float(np.max(np.abs(u - base[0])))
+            trust.cap = max(0.5 * float(np.max(np.abs(u - base[0]))), self.min_step)
         rec["accepted"], rec["step_cap"] = accepted, trust.cap
         u_from, e_from = trust.base[0], trust.base[1]
+        if self.update == "history" and getattr(self, "_fit", None) is not None and not polishing:
+            ub, a, Jf = self._fit  # the fitted errors at the base: the rounds' scatter averaged
+            e_from = a + Jf @ (u_from - ub)
         held_rounds = trust.held_rounds
         # a parameter held at a bound two rounds running while the loop misses: its
         # column of J was never measured (Broyden learns along the steps taken), so the
@@ -537,6 +620,11 @@ class _Outcome:
     status: str
     message: str
     best_idx: int | None = None
+
+
+UPDATES = ("broyden", "history")  # how the measured rounds correct the Jacobian
+#: the trust region's smallest cap with update="history", as a fraction of max_step
+HISTORY_MIN_STEP = 0.125
 
 
 def _best_round(hist: pd.DataFrame, out: _Outcome) -> pd.Series:
