@@ -742,3 +742,17 @@ def test_history_loop_converges_on_the_biased_dem(start):
 def test_unknown_update_rule_is_refused():
     with pytest.raises(ValueError, match="update='secant'"):
         ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, update="secant")
+
+
+def test_every_judged_round_is_reported(start):
+    """A loop whose rounds take minutes tells its progress: one line per round with every
+    response's error and tolerance."""
+    lines = []
+    res = ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2,
+                     report=lines.append).run(start)
+    assert len(lines) == res.n_rounds
+    h = res.history
+    for i, ln in enumerate(lines):
+        assert ln.startswith(f"closed loop round {i + 1} (1 seed): ")
+        assert f"ucs_MPa {100 * h['err_ucs_MPa'].iloc[i]:+.1f} %" in ln
+    assert lines[-1].endswith("3 of 3 within tolerance")

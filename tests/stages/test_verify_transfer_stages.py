@@ -387,3 +387,26 @@ def test_verify_polishes_a_converged_card_and_records_it(study, monkeypatch):
     assert e1 < 0.2 * e0 and e0 < 0.01
     h = pd.read_csv(tmp_path / "pTrue" / "rounds.csv")
     assert bool(h["polish"].iloc[-2]) and "polishing step" in pol["message"]
+
+
+def test_verify_reports_every_round_and_records_its_update_rule(study, monkeypatch):
+    """The history rule reaches the loop and the card; every judged round is a progress
+    note (a loop of many rounds runs for an hour); a rule it does not know is refused."""
+    tmp_path, card, models = study
+    monkeypatch.setattr(V, "run_ucs_file", PlantedDEM())
+    seen = []
+    v = A.verify(card, models, out_card=tmp_path / "h" / "card.yaml",
+                 rounds=tmp_path / "h" / "rounds.csv", run=tmp_path / "h" / "best.h5",
+                 geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
+                 seeds_per_round=3, max_rounds=4, max_seeds=3, jacobian_update="history",
+                 progress=seen.append)["verification"]
+    assert v["jacobian_update"] == "history" and v["status"] == "converged"
+    notes = [d["note"] for d in seen if "note" in d and d["note"].startswith("closed loop")]
+    assert len(notes) == v["rounds"]
+    assert notes[0].startswith("closed loop round 1 (3 seeds): ucs_MPa ")
+    with pytest.raises(A.BadInput, match="--jacobian-update 'newton': expected one of broyden, "
+                                         "history"):
+        A.verify(card, models, out_card=tmp_path / "x" / "card.yaml",
+                 rounds=tmp_path / "x" / "rounds.csv", run=tmp_path / "x" / "best.h5",
+                 geometry=Geometry(scale=0.25), settings=UCSSettings(), jacobian_update="newton")
+    assert not (tmp_path / "x" / "card.yaml").exists()

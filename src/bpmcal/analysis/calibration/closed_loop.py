@@ -150,6 +150,10 @@ class ClosedLoop:
         history fit keeps them all, so a response that depends on several parameters at
         once is resolved once the steps span them. The step then starts from the fitted
         errors at the best round, not from its own: the rounds near it average its scatter.
+    report:
+        Called after every judged round with a one-line summary (the round, its seeds,
+        each response's error and tolerance in %): the progress of a loop whose rounds
+        take minutes each.
     min_step:
         The trust region's smallest cap (fraction of a range; default 0 with
         ``"broyden"``, ``max_step`` / 8 with ``"history"``). A round is judged worse than
@@ -192,7 +196,7 @@ class ClosedLoop:
                  seeds: Sequence[int] | None = None, z: float = 2.0, max_seeds: int | None = None,
                  margin: float = 0.0, polish: bool = True,
                  target_se: Mapping[str, float] | None = None, update: str = "broyden",
-                 min_step: float | None = None):
+                 min_step: float | None = None, report: Callable[[str], None] | None = None):
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
@@ -237,6 +241,7 @@ class ClosedLoop:
             raise ValueError(f"min_step={min_step!r}: expected a fraction of the range in "
                              f"[0, max_step = {max_step!r}]")
         self.min_step = float(min_step)
+        self.report = report
         if isinstance(margin, bool) or not isinstance(margin, (int, float, np.integer, np.floating)) \
                 or not (math.isfinite(float(margin)) and 0 <= float(margin) <= 1):
             raise ValueError(f"margin={margin!r}: expected a fraction of the range width in [0, 1]")
@@ -345,6 +350,8 @@ class ClosedLoop:
             stats.add(rd.k, rd.cv)
             e, tol = rd.e, rd.tol
             self._record(rec, rd)
+            if self.report is not None:
+                self.report(_round_line(rnd, rd, self.responses))
             memory.append((u.copy(), rd))
             if self.update == "history":
                 J, rows = self._history_jacobian(J0, memory) if self.broyden else (J, [])
@@ -625,6 +632,16 @@ class _Outcome:
 UPDATES = ("broyden", "history")  # how the measured rounds correct the Jacobian
 #: the trust region's smallest cap with update="history", as a fraction of max_step
 HISTORY_MIN_STEP = 0.125
+
+
+def _round_line(rnd: int, rd: _Round, responses) -> str:
+    """``round 3 (3 seeds): ucs_MPa +5.3 % (tol 6.7 %), ...; N within tolerance``."""
+    parts = ", ".join(f"{r} {100 * x:+.1f} % (tol {100 * t:.1f} %)"
+                      for r, x, t in zip(responses, rd.e, rd.tol))
+    n_in = int(np.sum(np.abs(rd.e) <= rd.tol))
+    return (f"closed loop round {rnd + 1} ({rd.k} seed{'s' * (rd.k != 1)}): {parts}; "
+            f"{n_in} of {len(rd.e)} "
+            "within tolerance")
 
 
 def _best_round(hist: pd.DataFrame, out: _Outcome) -> pd.Series:
