@@ -213,9 +213,7 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                           bounds=c.get("calibration_bounds") or None, seeds=list(seeds),
                           max_seeds=max_seeds, margin=range_margin, polish=polish,
                           target_se=c.get("target_se") or None,
-                          update=_check_update(jacobian_update),
-                          report=None if progress is None else
-                          (lambda line: progress({"note": line})))
+                          update=_check_update(jacobian_update), report=_notes(progress))
         res = loop.run(params)
         best = res.best_round  # converged, else the smallest max |error| of the seed mean
         os.replace(paths[best][0], run)  # the best round's first seed is the run file
@@ -455,6 +453,11 @@ def check_tri_target(card, targets: dict, tri_settings, model_set=None, models=N
     if model_set is not None and P.TRI not in model_set:
         raise BadInput(f"--card {card}: a triaxial-strength target (tri_MPa) but --models "
                        f"{models} has no model of tri_MPa")
+
+
+def _notes(progress):
+    """A line reporter that passes each line to ``progress`` as a note (None: none)."""
+    return None if progress is None else (lambda line: progress({"note": line}))
 
 
 def _check_update(rule) -> str:
