@@ -1,6 +1,9 @@
 """The study config (bpmcal.study.config): the shipped configs validate and the overlays
 change what they say they change; the example of another rock (Lac du Bonnet) validates and
 is not the paper; lab CSVs with source comments; the rules for the calibration bounds."""
+import math
+
+import pandas as pd
 import pytest
 from support.repo import REPO, SCHEMA, merged_config, update_config
 
@@ -173,14 +176,32 @@ def test_lab_standard_errors_are_checked(tmp_path):
     assert "R1 bts_MPa_se='0.5': a standard error without its value bts_MPa" in str(e.value)
 
 
-def test_the_triaxial_overlay_adds_sigma1_at_10_mpa_and_frees_the_slit_fraction():
+def test_the_triaxial_overlay_adds_sigma1_on_the_lab_envelope_and_frees_the_slit_fraction():
+    """The overlay's target is the lab envelope's sigma1 at the design confinement (the
+    same point as the triaxial stage's lab CSV), and its stated tolerance (2 x tri_MPa_se)
+    is the sigma1 band in which the two-point Hoek-Brown mi stays within +-25 % of the
+    envelope's 28.9, as the lab CSV says."""
     cfg = validate_config(merged_config("config.yaml", "examples/lac_du_bonnet_fj.yaml",
                                         "examples/lac_du_bonnet_fj_triaxial.yaml"),
                           SCHEMA, base_dir=REPO)
-    assert cfg["triaxial"]["design_sigma3_MPa"] == 10.0
+    s3 = cfg["triaxial"]["design_sigma3_MPa"]
     assert "fj_slit_frac" in cfg["calibration"]["free"] and "fj_slit_frac" in cfg["ranges"]
     lab = load_lab(REPO / cfg["lab"]["csv"])
-    assert lab.loc[0, "tri_MPa"] == 322.7 and lab.loc[0, "dtt_MPa"] == 9.3
+    env = pd.read_csv(REPO / cfg["triaxial"]["lab_csv"], comment="#")
+    assert s3 in env["sigma3_MPa"].tolist()
+    assert lab.loc[0, "tri_MPa"] == env.loc[env["sigma3_MPa"] == s3, "sigma1_MPa"].item()
+    assert lab.loc[0, "dtt_MPa"] == 9.3
+    sc, mi = lab.loc[0, "ucs_MPa"], 28.9
+
+    def two_point_mi(s1):
+        return ((s1 - s3) ** 2 / sc ** 2 - 1) * sc / s3
+
+    assert two_point_mi(lab.loc[0, "tri_MPa"]) == pytest.approx(mi, rel=2e-3)
+    # sigma1 where the two-point mi is 0.75 and 1.25 x 28.9: 2 SE is that band's half-width
+    lo, hi = (s3 + sc * math.sqrt(f * mi * s3 / sc + 1) for f in (0.75, 1.25))
+    assert two_point_mi(lo) == pytest.approx(0.75 * mi) and two_point_mi(hi) == pytest.approx(
+        1.25 * mi)
+    assert 2 * lab.loc[0, "tri_MPa_se"] == pytest.approx((hi - lo) / 2, rel=0.02)
     assert cfg["outdir"] not in ("results", "results/lac_du_bonnet_fj")
     # the four-target example itself has no triaxial target
     base = validate_config(merged_config("config.yaml", "examples/lac_du_bonnet_fj.yaml"),
