@@ -8,7 +8,9 @@ what each lab specimen's card reached and at what cost, for either contact model
 
 ``CLONE`` holds the finished study (``snakemake --cores 2 --configfile ...`` run under
 ``/usr/bin/time -v``, whose output is ``--time``; ``--load`` the ``uptime`` lines before
-and after). The record: the contact model, the regression card (status, parameters,
+and after). A study run in parts (e.g. ``--until calibrate``, then the rest) gives one
+``--time`` and one ``--load`` file per part: the record sums the times (peak memory: the
+largest) and keeps every part's. The record: the contact model, the regression card (status, parameters,
 predicted responses), the closed loop (status, rounds, runs, every target's mean, error
 and tolerance), the fresh-seed check (mean, error, z-score, verdict per target), the
 triaxial envelopes (Hoek-Brown mi of the verified card beside the lab points'), and the
@@ -44,6 +46,7 @@ def collect(clone: Path, overlays: list[str]) -> dict:
     lab = pd.read_csv(clone / cfg["lab"]["csv"], comment="#")
     rec = {"contact_model": cfg.get("contact_model", "linearpbond"), "outdir": cfg["outdir"],
            "n_samples": cfg["study"]["n_samples"], "scale": cfg["specimen"]["scale"],
+           "design_sigma3_MPa": (cfg.get("triaxial") or {}).get("design_sigma3_MPa"),
            "specimens": {}}
     hold = out / "tables" / "fresh_seeds.csv"
     hold = pd.read_csv(hold) if hold.exists() else None
@@ -84,8 +87,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("clone")
     ap.add_argument("--configfile", nargs="+", required=True)
-    ap.add_argument("--time", required=True)
-    ap.add_argument("--load", required=True)
+    ap.add_argument("--time", nargs="+", required=True)
+    ap.add_argument("--load", nargs="+", required=True)
     ap.add_argument("--commit", required=True)
     ap.add_argument("--title", required=True)
     ap.add_argument("--note", default="")
@@ -94,15 +97,28 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     clone = Path(a.clone)
     rec = {"title": a.title, "date": dt.date.today().isoformat(), "commit": a.commit,
-           "cpu_model": cpu_model(), "load": Path(a.load).read_text().strip().splitlines(),
+           "cpu_model": cpu_model(),
+           "load": [ln for f in a.load for ln in Path(f).read_text().strip().splitlines()],
            "study_command": "snakemake --cores 2 --configfile " + " ".join(a.configfile),
            "command": "python benchmarks/example_record.py " + shlex.join(argv),
-           "note": a.note, "page": Path(a.markdown).name, **gnu_time(Path(a.time)),
+           "note": a.note, "page": Path(a.markdown).name, **_times(a.time),
            **collect(clone, a.configfile)}
     Path(a.out).write_text(json.dumps(rec, indent=1, default=float) + "\n")
     Path(a.markdown).write_text(markdown(rec))
     print(markdown(rec))
     return 0
+
+
+def _times(files: list[str]) -> dict:
+    """The summed ``gnu_time`` of the study's parts (peak memory and exit status: the
+    largest), with every part's own under ``parts`` when there are several."""
+    parts = [gnu_time(Path(f)) for f in files]
+    out = {k: sum(p[k] for p in parts) for k in ("wall_s", "user_s", "system_s", "cpu_min")}
+    out.update(max_rss_mb=max(p["max_rss_mb"] for p in parts),
+               exit_status=max(p["exit_status"] for p in parts))
+    if len(parts) > 1:
+        out["parts"] = parts
+    return out
 
 
 def _f(x, fmt=".4g"):
@@ -122,7 +138,10 @@ def markdown(rec: dict) -> str:
              f"Contact model `{rec['contact_model']}`, {rec['n_samples']} samples at scale "
              f"{rec['scale']:g}. Study wall time {rec['wall_s'] / 60:.1f} min, CPU "
              f"{rec['cpu_min']:.1f} min, peak memory of one process "
-             f"{rec['max_rss_mb']:.0f} MiB."]
+             f"{rec['max_rss_mb']:.0f} MiB."
+             + (" The study ran in " + str(len(rec["parts"])) + " parts (wall / CPU min: "
+                + ", ".join(f"{p['wall_s'] / 60:.1f} / {p['cpu_min']:.1f}" for p in rec["parts"])
+                + ")." if rec.get("parts") else "")]
     if rec.get("note"):
         lines += ["", rec["note"]]
     for spec, s in rec["specimens"].items():

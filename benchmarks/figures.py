@@ -159,6 +159,8 @@ def _example(prefix: str, spec: str = "LdB"):
             f"{prefix}.mi_lab": (f"{mi['lab']:.1f}", mi["lab"], ""),
             f"{prefix}.wall_min": (f"{rec['wall_s'] / 60:.1f}", rec["wall_s"] / 60, "min"),
             f"{prefix}.cpu_min": (f"{rec['cpu_min']:.1f}", rec["cpu_min"], "CPU-min"),
+            **({f"{prefix}.sigma3": (f"{rec['design_sigma3_MPa']:g}", rec["design_sigma3_MPa"],
+                                     "MPa")} if rec.get("design_sigma3_MPa") else {}),
         }
     return extract
 
