@@ -689,7 +689,7 @@ def test_history_update_recovers_a_linear_response_once_the_steps_span_the_space
     us = [np.array([0.4, 0.5, 0.5]), np.array([0.5, 0.5, 0.5]), np.array([0.45, 0.6, 0.5]),
           np.array([0.45, 0.55, 0.42])]
     memory = [(u, _judged(J_true @ (u - 0.5) + 0.02, np.full(3, 1e-6))) for u in us]
-    J, moved = loop._history_jacobian(J0, memory)
+    (_, _, J), moved = loop._history_jacobian(J0, memory)
     np.testing.assert_allclose(J, J_true, atol=2e-3)
     assert set(moved) <= set(loop.responses)
     Jb = J0
@@ -706,7 +706,7 @@ def test_history_update_of_two_rounds_is_broydens_least_change_update():
     J0 = np.array([[1.0, 0.2, 0.0], [0.0, 1.0, 0.3], [0.1, 0.0, 1.0]])
     u0, u1 = np.array([0.5, 0.5, 0.5]), np.array([0.55, 0.47, 0.5])
     e0, e1 = np.array([0.1, -0.05, 0.08]), np.array([0.02, 0.01, 0.2])
-    J, _ = loop._history_jacobian(J0, [(u0, _judged(e0, np.full(3, 1e-6))),
+    (_, _, J), _ = loop._history_jacobian(J0, [(u0, _judged(e0, np.full(3, 1e-6))),
                                        (u1, _judged(e1, np.full(3, 1e-6)))])
     s = u1 - u0
     np.testing.assert_allclose(J @ s, e1 - e0, atol=1e-4)
@@ -723,9 +723,9 @@ def test_history_update_weighs_each_round_by_its_noise():
     u0, u1 = np.array([0.5, 0.5, 0.5]), np.array([0.5, 0.5, 0.52])
     e0, e1 = np.zeros(3), np.array([0.0, 0.0, 0.05])  # the third: 2.5 per unit, not 1
     quiet = loop._history_jacobian(J0, [(u0, _judged(e0, np.full(3, 1e-4))),
-                                        (u1, _judged(e1, np.full(3, 1e-4)))])[0]
+                                        (u1, _judged(e1, np.full(3, 1e-4)))])[0][2]
     noisy = loop._history_jacobian(J0, [(u0, _judged(e0, np.full(3, 0.05))),
-                                        (u1, _judged(e1, np.full(3, 0.05)))])[0]
+                                        (u1, _judged(e1, np.full(3, 0.05)))])[0][2]
     assert quiet[2, 2] == pytest.approx(2.5, rel=1e-3)
     # the secant's slope 2.5 has variance 2 · 0.05² / 0.02² = 12.5 against the prior's 1²:
     # the posterior moves 1 / 13.5 of the way

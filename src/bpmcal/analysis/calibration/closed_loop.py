@@ -331,6 +331,7 @@ class ClosedLoop:
         u = self._start(space, box, initial)
         J = J0 = self._initial_jacobian(space, space.x(u))
         memory: list[tuple[np.ndarray, _Round]] = []  # every judged round (update="history")
+        fit = None  # the history fit (u_b, a, J) the next step starts from
         seeds, spare = list(self.seeds), list(self.growth_seeds)
         history, samples, prev = [], [], None
         polished_from = None  # the converged round a polishing step left
@@ -352,9 +353,13 @@ class ClosedLoop:
             self._record(rec, rd)
             if self.report is not None:
                 self.report(_round_line(rnd, rd, self.responses))
-            memory.append((u.copy(), rd))
             if self.update == "history":
-                J, rows = self._history_jacobian(J0, memory) if self.broyden else (J, [])
+                memory.append((u.copy(), rd))
+                if self.broyden:
+                    fit, rows = self._history_jacobian(J0, memory)
+                    J = fit[2]
+                else:
+                    rows = []
             else:
                 J, rows = self._broyden(J, prev, u, e, rd.ys)
             rec["broyden_update"], rec["broyden_rows"] = bool(rows), ",".join(rows)
@@ -366,7 +371,7 @@ class ClosedLoop:
                 history.append(rec)
                 out = decided or out
                 break
-            u_from, u_new = self._next_point(space, box, J, u, rd, polishing, trust, rec)
+            u_from, u_new = self._next_point(space, box, J, u, rd, polishing, trust, rec, fit)
             history.append(rec)
             if np.max(np.abs(u_new - u_from)) < 1e-9:
                 out = self._stalled(space, box, rnd, rd, polishing, u_from)
@@ -464,9 +469,10 @@ class ClosedLoop:
         return (J + np.outer(gain * resid, s) / (s @ s),
                 [r for r, g in zip(self.responses, gain) if g > 0.5])
 
-    def _history_jacobian(self, J0: np.ndarray, memory: list) -> tuple[np.ndarray, list[str]]:
+    def _history_jacobian(self, J0: np.ndarray, memory: list) -> tuple[tuple, list[str]]:
         """The Jacobian from every judged round at once (``update="history"``), in the
-        loop's unit coordinates and relative errors; returns it and the responses whose
+        loop's unit coordinates and relative errors; returns the fit ``(u_b, a, J)`` (the
+        next step starts from the fitted errors ``a + J (u - u_b)``) and the responses whose
         row moved from the starting estimate ``J0`` by more than half that row's norm.
 
         Each response ``i`` gets a local linear model ``e_i(u) = a_i + J_i (u - u_b)``
@@ -485,14 +491,14 @@ class ClosedLoop:
         tols = np.array([m[1].tol for m in memory])
         ses = np.array([np.where(m[1].se > 0, m[1].se, self.rtol / max(self.z, 1.0))
                         for m in memory])
-        merit = np.sum((es / tols) ** 2, axis=1)
-        ub = us[int(np.argmin(merit))]
+        best = int(np.argmin(np.sum((es / tols) ** 2, axis=1)))
+        ub = us[best]
         d = np.max(np.abs(us - ub), axis=1)
         dist_w = 1.0 / (1.0 + (d / self.max_step) ** 2)
         X = np.hstack([np.ones((len(us), 1)), us - ub])
         n = us.shape[1]
         J = J0.copy()
-        a = es[int(np.argmin(merit))].copy()
+        a = es[best].copy()
         moved = []
         for i, r in enumerate(self.responses):
             w = dist_w / np.maximum(ses[:, i], 1e-12) ** 2
@@ -507,8 +513,7 @@ class ClosedLoop:
             a[i], J[i] = coef[0], coef[1:]
             if np.linalg.norm(J[i] - J0[i]) > 0.5 * prior_sd:
                 moved.append(r)
-        self._fit = (ub, a, J)
-        return J, moved
+        return (ub, a, J), moved
 
     def _met(self, k: int) -> str:
         lab = " (with the lab value's)" if self.target_se is not None and k > 1 else ""
@@ -545,7 +550,8 @@ class ClosedLoop:
         return None
 
     def _next_point(self, space: CalibrationSpace, box, J: np.ndarray, u: np.ndarray, rd: _Round,
-                    polishing: bool, trust: _TrustRegion, rec: dict) -> tuple[np.ndarray, np.ndarray]:
+                    polishing: bool, trust: _TrustRegion, rec: dict,
+                    fit: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The step of a round that goes on: from the best round so far (the trust region),
         probing parameters held at a bound, clipped to the box; records it in ``rec``.
         Returns the point stepped from and the new point."""
@@ -566,8 +572,8 @@ class ClosedLoop:
             trust.cap = max(0.5 * float(np.max(np.abs(u - base[0]))), self.min_step)
         rec["accepted"], rec["step_cap"] = accepted, trust.cap
         u_from, e_from = trust.base[0], trust.base[1]
-        if self.update == "history" and getattr(self, "_fit", None) is not None and not polishing:
-            ub, a, Jf = self._fit  # the fitted errors at the base: the rounds' scatter averaged
+        if fit is not None and not polishing:
+            ub, a, Jf = fit  # the fitted errors at the base: the rounds' scatter averaged
             e_from = a + Jf @ (u_from - ub)
         held_rounds = trust.held_rounds
         # a parameter held at a bound two rounds running while the loop misses: its
@@ -640,8 +646,7 @@ def _round_line(rnd: int, rd: _Round, responses) -> str:
                       for r, x, t in zip(responses, rd.e, rd.tol))
     n_in = int(np.sum(np.abs(rd.e) <= rd.tol))
     return (f"closed loop round {rnd + 1} ({rd.k} seed{'s' * (rd.k != 1)}): {parts}; "
-            f"{n_in} of {len(rd.e)} "
-            "within tolerance")
+            f"{n_in} of {len(rd.e)} within tolerance")
 
 
 def _best_round(hist: pd.DataFrame, out: _Outcome) -> pd.Series:
