@@ -14,7 +14,8 @@ A link to the record a figure comes from is marked the same way and refreshed wi
 
 ``tests/docs/test_figures.py`` checks that every marked value equals the generated one,
 that ``figures.json`` is this script's output for the records in the repository, and that
-the README and the docs (outside ``docs/measurements/``) hold no unmarked measured figure.
+the README and the docs (outside ``docs/measurements/``, but with its undated summary
+pages) hold no unmarked measured figure.
 
     python benchmarks/figures.py            # write figures.json and refresh every marker
     python benchmarks/figures.py --check    # exit 1 if figures.json or a marker is stale
@@ -189,10 +190,15 @@ def render() -> str:
 
 
 def pages() -> list[Path]:
-    """The pages that quote figures: the README and every docs page outside the records."""
+    """The pages that quote figures: the README, every docs page outside the records, and
+    the undated summaries among them (``docs/measurements/<name>.md`` not starting with a
+    date, its README index aside), which quote several records side by side."""
+    meas = REPO / "docs" / "measurements"
     docs = [p for p in sorted((REPO / "docs").rglob("*.md"))
             if "measurements" not in p.relative_to(REPO / "docs").parts]
-    return [REPO / "README.md", REPO / "config" / "README.md", *docs]
+    summaries = [p for p in sorted(meas.glob("*.md"))
+                 if not p.name[:1].isdigit() and p.name != "README.md"]
+    return [REPO / "README.md", REPO / "config" / "README.md", *docs, *summaries]
 
 
 def record_link(key: str, figs: dict, page: Path) -> str:
