@@ -176,7 +176,27 @@ def test_lab_standard_errors_are_checked(tmp_path):
     assert "R1 bts_MPa_se='0.5': a standard error without its value bts_MPa" in str(e.value)
 
 
-def test_the_triaxial_overlay_adds_sigma1_on_the_lab_envelope_and_frees_the_slit_fraction():
+def test_null_in_an_overlay_unsets_an_inherited_fixed_value_or_bound():
+    cfg = _fj_config()
+    cfg["calibration"]["free"] = ["fj_emod_GPa", "fj_kratio", "fj_coh_MPa", "fj_fa_deg"]
+    with pytest.raises(ConfigError, match=r"calibration.free and calibration.fixed both name fj_fa_deg.*"
+                                          r"calibration.fixed.fj_fa_deg: null"):
+        validate_config(cfg, SCHEMA, base_dir=REPO, note=lambda _: None)
+    cfg = update_config(cfg, {"calibration": {"fixed": {"fj_fa_deg": None},
+                                              "bounds": {"fj_kratio": None}}})
+    notes = []
+    out = validate_config(cfg, SCHEMA, base_dir=REPO, note=notes.append)
+    assert "fj_fa_deg" not in out["calibration"]["fixed"] and out["calibration"]["fixed"]["fj_fric"]
+    assert "fj_fa_deg" in out["calibration"]["free"] and "fj_kratio" not in out["calibration"]["bounds"]
+    assert notes[0] == ("config: calibration.fixed.fj_fa_deg, calibration.bounds.fj_kratio unset "
+                        "(null: the base config's value removed)")
+    # null stays an error where it unsets nothing the schema allows
+    cfg = update_config(_fj_config(), {"ranges": {"fj_fa_deg": None}})
+    with pytest.raises(ConfigError, match="ranges.fj_fa_deg: None is not of type 'array'"):
+        validate_config(cfg, SCHEMA, base_dir=REPO, note=lambda _: None)
+
+
+def test_the_triaxial_overlay_adds_sigma1_on_the_lab_envelope_and_frees_the_friction_angle():
     """The overlay's target is the lab envelope's sigma1 at the design confinement (the
     same point as the triaxial stage's lab CSV), and its stated tolerance (2 x tri_MPa_se)
     is the sigma1 band in which the two-point Hoek-Brown mi stays within +-25 % of the
@@ -185,7 +205,9 @@ def test_the_triaxial_overlay_adds_sigma1_on_the_lab_envelope_and_frees_the_slit
                                         "examples/lac_du_bonnet_fj_triaxial.yaml"),
                           SCHEMA, base_dir=REPO)
     s3 = cfg["triaxial"]["design_sigma3_MPa"]
-    assert "fj_slit_frac" in cfg["calibration"]["free"] and "fj_slit_frac" in cfg["ranges"]
+    assert "fj_fa_deg" in cfg["calibration"]["free"] and "fj_fa_deg" not in cfg["calibration"]["fixed"]
+    lo_fa, hi_fa = cfg["ranges"]["fj_fa_deg"]
+    assert lo_fa < 30.0 < 50.0 < hi_fa  # the probed 30-50 deg (record 27l) inside the design
     lab = load_lab(REPO / cfg["lab"]["csv"])
     env = pd.read_csv(REPO / cfg["triaxial"]["lab_csv"], comment="#")
     assert s3 in env["sigma3_MPa"].tolist()
@@ -207,4 +229,5 @@ def test_the_triaxial_overlay_adds_sigma1_on_the_lab_envelope_and_frees_the_slit
     base = validate_config(merged_config("config.yaml", "examples/lac_du_bonnet_fj.yaml"),
                            SCHEMA, base_dir=REPO)
     assert base["triaxial"]["design_sigma3_MPa"] is None
+    assert base["calibration"]["fixed"]["fj_fa_deg"] == 30.0
     assert "tri_MPa" not in load_lab(REPO / base["lab"]["csv"]).columns

@@ -147,6 +147,7 @@ def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line) 
     import jsonschema
 
     translate_deprecated(config, note)
+    _drop_unset(config, note)
     _apply_contact_model(config, note)
     schema = load_schema(schema_path)
     Validator = _fill_defaults(jsonschema.Draft7Validator)
@@ -164,6 +165,28 @@ def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line) 
     if msgs:
         raise ConfigError("invalid configuration:\n  " + "\n  ".join(msgs))
     return config
+
+
+#: the mappings of parameter names in which an overlay may unset an inherited entry (null)
+UNSETTABLE = ("calibration.fixed", "calibration.bounds")
+
+
+def _drop_unset(config: dict, note=_stderr_line) -> None:
+    """``null`` for a parameter in :data:`UNSETTABLE` removes the entry: the way an overlay
+    frees a parameter the base config holds fixed (a config merged over another cannot
+    delete its keys; e.g. ``calibration.fixed.fj_fa_deg: null`` beside ``fj_fa_deg`` in
+    ``calibration.free``). One line to ``note`` names what was removed."""
+    dropped = []
+    for key in UNSETTABLE:
+        node = config
+        for k in key.split("."):
+            node = node.get(k) if isinstance(node, dict) else None
+        if isinstance(node, dict):
+            for k in [k for k, v in node.items() if v is None]:
+                del node[k]
+                dropped.append(f"{key}.{k}")
+    if dropped:
+        note(f"config: {', '.join(dropped)} unset (null: the base config's value removed)")
 
 
 def _apply_contact_model(config: dict, note=_stderr_line) -> None:
@@ -397,6 +420,10 @@ def _check_calibration_space(cfg: dict) -> list[str]:
     model = P.MODELS[cfg["contact_model"]]
     ten, coh = model.strength
     derived = [ten] if ratio and ten not in free else []
+    for name in [f for f in free if f in cal["fixed"]]:
+        msgs.append(f"calibration.free and calibration.fixed both name {name}: a parameter is "
+                    f"either free or fixed (an overlay frees one its base config fixes with "
+                    f"calibration.fixed.{name}: null)")
     for name, v in cal["fixed"].items():
         if name not in rng:  # an optional key of the model: designed at its default
             d = (model.defaults or {})[name]
