@@ -104,9 +104,9 @@ def gnu_time(log: Path) -> dict:
     parts = [float(x) for x in wall.split(":")] if wall else []
     wall_s = sum(v * 60 ** i for i, v in enumerate(reversed(parts))) if parts else None
     user, sys_ = float(grab("User time (seconds)")), float(grab("System time (seconds)"))
+    rss = grab("Maximum resident set size (kbytes)")  # absent: not measured (time -f)
     return {"wall_s": wall_s, "user_s": user, "system_s": sys_,
-            "cpu_min": (user + sys_) / 60, "max_rss_mb": float(grab(
-                "Maximum resident set size (kbytes)")) / 1024,
+            "cpu_min": (user + sys_) / 60, "max_rss_mb": float(rss) / 1024 if rss else None,
             "exit_status": int(grab("Exit status") or -1)}
 
 

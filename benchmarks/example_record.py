@@ -114,7 +114,8 @@ def _times(files: list[str]) -> dict:
     largest), with every part's own under ``parts`` when there are several."""
     parts = [gnu_time(Path(f)) for f in files]
     out = {k: sum(p[k] for p in parts) for k in ("wall_s", "user_s", "system_s", "cpu_min")}
-    out.update(max_rss_mb=max(p["max_rss_mb"] for p in parts),
+    rss = [p["max_rss_mb"] for p in parts if p["max_rss_mb"] is not None]
+    out.update(max_rss_mb=max(rss) if len(rss) == len(parts) else None,
                exit_status=max(p["exit_status"] for p in parts))
     if len(parts) > 1:
         out["parts"] = parts
@@ -138,7 +139,8 @@ def markdown(rec: dict) -> str:
              f"Contact model `{rec['contact_model']}`, {rec['n_samples']} samples at scale "
              f"{rec['scale']:g}. Study wall time {rec['wall_s'] / 60:.1f} min, CPU "
              f"{rec['cpu_min']:.1f} min, peak memory of one process "
-             f"{rec['max_rss_mb']:.0f} MiB."
+             + (f"{rec['max_rss_mb']:.0f} MiB." if rec.get("max_rss_mb") is not None
+                else "not measured.")
              + (" The study ran in " + str(len(rec["parts"])) + " parts (wall / CPU min: "
                 + ", ".join(f"{p['wall_s'] / 60:.1f} / {p['cpu_min']:.1f}" for p in rec["parts"])
                 + ")." if rec.get("parts") else "")]
