@@ -17,6 +17,7 @@ from pathlib import Path
 
 from _study import record_header, write_record
 
+from bpmcal import params as P
 from bpmcal.io.h5 import read_inputs, read_summary
 
 LINE = re.compile(r"closed loop round (\d+) \((\d+) seeds?\): (.*); (\d+) of (\d+) within tolerance")
@@ -40,9 +41,7 @@ def run_rows(files: list[str]) -> list[dict]:
     for f in files:
         s, i = read_summary(f), read_inputs(f)
         rows.append({"file": Path(f).name, "seed": i.get("seed"),
-                     "params": {k: v for k, v in i.items()
-                                if k.startswith(("fj_", "pb_")) or k in ("fric", "rmin_mm",
-                                                                           "porosity")},
+                     "params": {k: v for k, v in i.items() if k in P.ALL_PARAMS},
                      **{k: s.get(k) for k in KEYS if s.get(k) is not None}})
     return rows
 

@@ -167,6 +167,18 @@ def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line) 
     return config
 
 
+def _param_maps(config: dict, keys):
+    """``(key, mapping)`` for each dotted ``key`` of ``config`` that holds a mapping (of
+    parameter names: ``ranges``, ``calibration.fixed``, ...); absent or other keys are
+    left to the schema."""
+    for key in keys:
+        node = config
+        for k in key.split("."):
+            node = node.get(k) if isinstance(node, dict) else None
+        if isinstance(node, dict):
+            yield key, node
+
+
 #: the mappings of parameter names in which an overlay may unset an inherited entry (null)
 UNSETTABLE = ("calibration.fixed", "calibration.bounds")
 
@@ -177,14 +189,10 @@ def _drop_unset(config: dict, note=_stderr_line) -> None:
     delete its keys; e.g. ``calibration.fixed.fj_fa_deg: null`` beside ``fj_fa_deg`` in
     ``calibration.free``). One line to ``note`` names what was removed."""
     dropped = []
-    for key in UNSETTABLE:
-        node = config
-        for k in key.split("."):
-            node = node.get(k) if isinstance(node, dict) else None
-        if isinstance(node, dict):
-            for k in [k for k, v in node.items() if v is None]:
-                del node[k]
-                dropped.append(f"{key}.{k}")
+    for key, node in _param_maps(config, UNSETTABLE):
+        for k in [k for k, v in node.items() if v is None]:
+            del node[k]
+            dropped.append(f"{key}.{k}")
     if dropped:
         note(f"config: {', '.join(dropped)} unset (null: the base config's value removed)")
 
@@ -206,13 +214,10 @@ def _apply_contact_model(config: dict, note=_stderr_line) -> None:
     if name != P.DEFAULT_CONTACT_MODEL:
         base = P.MODELS[P.DEFAULT_CONTACT_MODEL].params
         dropped = []
-        for key, node in (("ranges", config.get("ranges")),
-                          ("calibration.fixed", (cal or {}).get("fixed")),
-                          ("calibration.bounds", (cal or {}).get("bounds"))):
-            if isinstance(node, dict):
-                for k in [k for k in node if k in base and k not in model.params]:
-                    del node[k]
-                    dropped.append(f"{key}.{k}")
+        for key, node in _param_maps(config, ("ranges", *UNSETTABLE)):
+            for k in [k for k in node if k in base and k not in model.params]:
+                del node[k]
+                dropped.append(f"{key}.{k}")
         if isinstance(cal, dict) and cal.get("free") == list(P.MODELS[P.DEFAULT_CONTACT_MODEL].free):
             del cal["free"]  # config.yaml's parallel-bond default: the model's default instead
             dropped.append("calibration.free")
