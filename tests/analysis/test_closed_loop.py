@@ -756,3 +756,25 @@ def test_every_judged_round_is_reported(start):
         assert ln.startswith(f"closed loop round {i + 1} (1 seed): ")
         assert f"ucs_MPa {100 * h['err_ucs_MPa'].iloc[i]:+.1f} %" in ln
     assert lines[-1].endswith("3 of 3 within tolerance")
+
+
+def test_a_rounds_seeds_run_at_once_take_the_same_path(start):
+    """simulate_seeds (a round's seeds in one call, e.g. side by side on several CPUs)
+    gives the loop the same rounds, steps, seed growth and card as one seed at a time."""
+    kw = dict(models=MODELS, rtol=0.01, max_rounds=8, ranges=T2, seeds_per_round=3, max_seeds=10)
+    one = ClosedLoop(SeedDEM(2), TARGETS, **kw).run(start)
+    dem, batches = SeedDEM(2), []
+
+    def at_once(params, seeds):
+        batches.append(list(seeds))
+        return [dem(params, s) for s in seeds]
+
+    many = ClosedLoop(lambda p, seed: pytest.fail("one seed asked for"), TARGETS,
+                      simulate_seeds=at_once, **kw).run(start)
+    pd.testing.assert_frame_equal(many.history, one.history)
+    assert many.params == one.params and many.seeds == one.seeds
+    assert batches[0] == [1, 2, 3] and len(batches) == len(one.history) + (one.seeds != (1, 2, 3))
+    assert one.seeds == tuple(range(1, 11))  # the seed set grew: its new seeds in one call too
+    assert [4, 5, 6, 7, 8, 9, 10] in batches
+    with pytest.raises(ValueError, match="returned 1 result.s. for 3 seed"):
+        ClosedLoop(SeedDEM(2), TARGETS, simulate_seeds=lambda p, s: [{}], **kw).run(start)

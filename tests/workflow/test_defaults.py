@@ -140,7 +140,8 @@ OTHER_NAMES = {
 #: schema defaults that only the study has (no command option or dataclass sets them)
 STUDY_ONLY = {
     "study.reference",  # which published study the report compares with
-    "resources.dem_threads", "resources.dem_runtime_min", "resources.dem_mem_mb",  # Slurm
+    "resources.dem_threads", "resources.loop_threads", "resources.dem_runtime_min",  # Slurm
+    "resources.dem_mem_mb",
     "calibration.bounds",  # {} = no narrowing; the stage's bounds=None means the same
     "verification.scatter_seeds",  # the seeds of the scatter job
     "verification.fresh_seeds",  # the seeds of the fresh_seeds jobs ([]: no such jobs)

@@ -563,6 +563,7 @@ RERUN = {
                 {"calibrate_initial", "calibrate", "verification_tables",
                  "triaxial_envelopes"}),
     "resources.dem_threads": (2, set()),  # a job's threads and Slurm time: no rerun
+    "resources.loop_threads": (3, set()),
     "resources.dem_runtime_min": (31, set()),
     "resources.dem_mem_mb": (2100, _DEM),  # the jobs' memory budget (--mem-budget-mb)
     "resources.max_balls": (1_999_999, _DEM),

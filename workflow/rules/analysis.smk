@@ -161,12 +161,12 @@ rule verify:
         FILES.log("verify", "{spec}"),
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["dem_threads"]
+    threads: config["resources"]["loop_threads"]  # its seeds side by side
     resources:
         runtime=config["resources"]["dem_runtime_min"]
         * config["verification"]["max_rounds"]
         * config["verification"]["max_seeds"],
-        mem_mb=config["resources"]["dem_mem_mb"],
+        mem_mb=config["resources"]["dem_mem_mb"] * config["resources"]["loop_threads"],
     params:
         # only the keys verify reads: changing another verification key (fresh_seeds,
         # scatter_seeds) must not rerun the closed loops
@@ -268,10 +268,10 @@ rule seed_scatter:
         FILES.log("seed_scatter"),
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["dem_threads"]
+    threads: config["resources"]["loop_threads"]  # its seeds side by side
     resources:
         runtime=config["resources"]["dem_runtime_min"] * len(SCATTER_SEEDS),
-        mem_mb=config["resources"]["dem_mem_mb"],
+        mem_mb=config["resources"]["dem_mem_mb"] * config["resources"]["loop_threads"],
     params:
         seeds=",".join(str(s) for s in SCATTER_SEEDS),
         rtol=config["verification"]["rtol"],
@@ -309,10 +309,10 @@ rule fresh_seeds:
         FILES.log("fresh_seeds", "{spec}"),
     conda:
         "../envs/bpmcal.yaml"
-    threads: config["resources"]["dem_threads"]
+    threads: config["resources"]["loop_threads"]  # its seeds side by side
     resources:
         runtime=config["resources"]["dem_runtime_min"] * max(1, len(FRESH_SEEDS)),
-        mem_mb=config["resources"]["dem_mem_mb"],
+        mem_mb=config["resources"]["dem_mem_mb"] * config["resources"]["loop_threads"],
     params:
         seeds=",".join(str(s) for s in FRESH_SEEDS),
         bts_runs=lambda wc, output: (

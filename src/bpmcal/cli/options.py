@@ -99,7 +99,9 @@ def add_specimen_args(p, geo=None, what: str = "the 50 x 100 mm cylinder"):
     p.add_argument("--threads", type=THREADS, default=None,
                    help="numba threads (>= 1); default: chosen by the run from its ball "
                         "count and the CPUs free, again every half second "
-                        "(bpmcal.dem.threads)")
+                        "(bpmcal.dem.threads). Commands that run several seeds (verify, "
+                        "fresh-seeds, scatter) take it as CPUs: up to this many seeds run "
+                        "side by side, one process each")
     p.add_argument("--specimen-cache", default=None,
                    help="directory of cached packings (default ~/.cache/bpmcal/packings or "
                         "$BPMCAL_SPECIMEN_CACHE)")

@@ -29,6 +29,7 @@ from ..lab.triaxial import TriaxialSettings
 from ..params import BTS
 from . import defaults_of
 from .inputs import CSV, H5, output_dirs, outputs
+from .pool import SeedPool
 from .runs import run_ucs_file, write_failure
 from .verification import check_tri_target, disc_geometry, test_strength, valid_tensile_run
 
@@ -71,7 +72,8 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
     (:func:`card_parameters`: the closed loop's, or the transfer's when it ran). A card
     whose closed loop did not run (``not-run``: an unreachable calibration) is not run on
     any seed: every run file is a failure record with the reason and every seed a row with
-    status ``not-run``."""
+    status ``not-run``. The seeds run side by side on up to ``threads`` processes
+    (:class:`SeedPool`; the rows do not depend on how many)."""
     c = read_card(card, "--card", need=("parameters", "specimen", "targets", "verification"))
     seeds = [int(s) for s in seeds]
     if len(runs) != len(seeds):
@@ -141,31 +143,42 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
         write_table(df, seed_runs, index=False)
         return df
     output_dirs((cache, "--specimen-cache"))
-    rows = []
-    for i, s in enumerate(seeds):
-        u = run_ucs_file(runs[i], params, s, geometry, settings, cache=cache, threads=threads,
-                         progress=progress, keep_particles=False,
-                         genesis_max_steps=genesis_max_steps)
-        row = {"specimen": c["specimen"], "seed": s, "status": u.status,
-               "error": u.error}
-        for k in (*P.TARGETS, *_EXTRA):
-            row[k] = float(u.summary.get(k, math.nan)) if u.status == "ok" else math.nan
-        # σt (a target, or the card's prediction on fresh seeds) and σ1 at the design
-        # confinement: an invalid tensile test is run again on a replacement seed
-        for resp, files, measured, test, geo, st, inputs_of, what, target in extra:
-            if files is None:
-                continue
-            if measured:
-                _fresh_test(row, resp, what, files[i], params, s, geo, st, cache=cache,
-                            threads=threads, progress=progress,
-                            genesis_max_steps=genesis_max_steps)
-            else:
-                write_failure(files[i], test=test, inputs=inputs_of(params, s, geo, st),
-                              error=f"not run: the card has no {target} ({resp})")
-        rows.append(row)
+    with SeedPool(threads, progress) as pool:  # the seeds side by side on `threads` CPUs
+        rows = pool.map(_fresh_seed, [dict(
+            specimen=c["specimen"], params=params, seed=s, run=runs[i], geometry=geometry,
+            settings=settings, extra=[(e[0], None if e[1] is None else e[1][i], *e[2:])
+                                      for e in extra],
+            cache=cache, genesis_max_steps=genesis_max_steps)
+            for i, s in enumerate(seeds)], tags=[f"seed {s}" for s in seeds])
     df = pd.DataFrame(rows)
     write_table(df, seed_runs, index=False)
     return df
+
+
+def _fresh_seed(*, specimen, params: dict, seed: int, run, geometry, settings, extra: list,
+                cache, genesis_max_steps, threads, progress) -> dict:
+    """One fresh seed (run in a :class:`SeedPool` worker or in this process): its UCS test
+    into ``run`` and, for every per-sample test of ``extra`` (:func:`fresh_seeds`' list,
+    each with this seed's run file in place of the list of all), the test when it is measured
+    for this card (an invalid one run again on a replacement seed), else a failure record
+    saying why not. Returns the seed's row."""
+    kw = dict(cache=cache, threads=threads, progress=progress,
+              genesis_max_steps=genesis_max_steps)
+    u = run_ucs_file(run, params, seed, geometry, settings, keep_particles=False, **kw)
+    row = {"specimen": specimen, "seed": seed, "status": u.status, "error": u.error}
+    for k in (*P.TARGETS, *_EXTRA):
+        row[k] = float(u.summary.get(k, math.nan)) if u.status == "ok" else math.nan
+    # σt (a target, or the card's prediction on fresh seeds) and σ1 at the design
+    # confinement: an invalid tensile test is run again on a replacement seed
+    for resp, path, measured, test, geo, st, inputs_of, what, target in extra:
+        if path is None:
+            continue
+        if measured:
+            _fresh_test(row, resp, what, path, params, seed, geo, st, **kw)
+        else:
+            write_failure(path, test=test, inputs=inputs_of(params, seed, geo, st),
+                          error=f"not run: the card has no {target} ({resp})")
+    return row
 
 
 def _tri_inputs(params: dict, seed: int, geometry, settings) -> dict:

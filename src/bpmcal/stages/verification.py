@@ -39,6 +39,7 @@ from ..params import BTS, SAMPLE_TESTS
 from ..plots.calibration import fig_stress_strain
 from . import defaults_of
 from .inputs import CSV, H5, PNG, YAML, output_dirs, outputs, read_lab, read_models
+from .pool import SeedPool
 from .runs import (  # noqa: F401 (the per-sample tests' runners: _TEST_RUN names them)
     run_bts_file,
     run_dtt_file,
@@ -154,7 +155,8 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
     ``disc`` (or the direct-tension test on ``cylinder``) with the same seed, and when
     ``tri_MPa`` is one, the triaxial test with ``tri_settings`` on the UCS cylinder; the
     first seed's run files of the best round become
-    ``run`` and ``bts_run``). The first step follows the regression models' Jacobian, or
+    ``run`` and ``bts_run``). A round's seeds run side by side on up to ``threads``
+    processes (:class:`SeedPool`). The first step follows the regression models' Jacobian, or
     ``jacobian`` (responses x free parameters, physical units) when given; the measured
     rounds correct it by ``jacobian_update`` (:class:`ClosedLoop`'s ``update``).
     Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
@@ -165,41 +167,33 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
     bts_paths: list[list[Path]] = []
     folder = Path(run).parent
     tmpdir = tempfile.mkdtemp(prefix=f".{Path(run).stem}.rounds.", dir=folder)
+    specimens = {"bts": (disc, bts_settings), "dtt": (cylinder, dtt_settings),
+                 "tri": (geometry, tri_settings)}
+    pool = SeedPool(threads, progress)
     try:
         last: list[dict] = []
 
-        def simulate(params: dict, seed: int) -> dict:
+        def simulate_seeds(params: dict, seeds: list) -> list[dict]:
             if not last or params != last[0]:  # a new point: a new round (grown seeds join theirs)
                 last[:] = [dict(params)]
                 by_round.append([])
                 paths.append([])
                 bts_paths.append([])
             k = len(by_round)
-            res = run_ucs_file(Path(tmpdir) / f"round{k}_seed{seed}.h5", params, seed,
-                               geometry, settings, cache=cache, threads=threads,
-                               progress=progress, genesis_max_steps=genesis_max_steps)
-            row = dict(res.summary, status=res.status, seed=seed)
-            paths[-1].append(res.path)
-            out = ({r: float(res.summary[r]) for r in targets if r not in SAMPLE_TESTS}
-                   if res.status == "ok" else
-                   {r: math.nan for r in targets if r not in SAMPLE_TESTS})
-            for resp in (r for r in SAMPLE_TESTS if r in targets):  # σt, σ1: a valid test, or NaN
-                test = SAMPLE_TESTS[resp]
-                geo, st = {"bts": (disc, bts_settings), "dtt": (cylinder, dtt_settings),
-                           "tri": (geometry, tri_settings)}[test]
-                b, used, invalid = valid_tensile_run(
-                    test, lambda s, j, t=test: Path(tmpdir) / f"round{k}_seed{seed}.{t}{j}.h5",
-                    params, seed, geo, st, cache=cache, threads=threads, progress=progress,
-                    genesis_max_steps=genesis_max_steps)
-                if test == "bts":
-                    bts_paths[-1].append(b.path)
-                row[resp] = test_strength(resp, b)
-                row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
-                if b.status != "ok" or not math.isfinite(row[resp]):
-                    row["status"] = "failed"
-                out[resp] = row[resp]
-            by_round[-1].append(row)
-            return out
+            done = pool.map(_loop_seed, [dict(
+                params=params, seed=seed, stem=Path(tmpdir) / f"round{k}_seed{seed}",
+                targets=list(targets), geometry=geometry, settings=settings,
+                specimens=specimens, cache=cache, genesis_max_steps=genesis_max_steps)
+                for seed in seeds], tags=[f"round {k} seed {sd}" for sd in seeds])
+            for row, out, ucs_path, bts_path in done:
+                paths[-1].append(ucs_path)
+                if bts_path is not None:
+                    bts_paths[-1].append(bts_path)
+                by_round[-1].append(row)
+            return [out for _, out, _, _ in done]
+
+        def simulate(params: dict, seed: int) -> dict:
+            return simulate_seeds(params, [seed])[0]
 
         free = free or [k for k, v in c["roles"].items() if v == "free"]
         jac = None if jacobian is None else pd.DataFrame.from_dict(jacobian, orient="index")
@@ -213,17 +207,48 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                           bounds=c.get("calibration_bounds") or None, seeds=list(seeds),
                           max_seeds=max_seeds, margin=range_margin, polish=polish,
                           target_se=c.get("target_se") or None,
-                          update=jacobian_update, report=_notes(progress))
+                          update=jacobian_update, report=_notes(progress),
+                          simulate_seeds=simulate_seeds)
         res = loop.run(params)
         best = res.best_round  # converged, else the smallest max |error| of the seed mean
         os.replace(paths[best][0], run)  # the best round's first seed is the run file
         if bts_run is not None and with_bts:
             os.replace(bts_paths[best][0], bts_run)
     finally:
+        pool.close()
         for f in Path(tmpdir).glob("*"):
             f.unlink()
         os.rmdir(tmpdir)
     return res, by_round, best
+
+
+def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, settings,
+               specimens: dict, cache, genesis_max_steps, threads, progress):
+    """One seed of a closed-loop round (:func:`_dem_loop`; run in a :class:`SeedPool`
+    worker or in this process): the UCS test into ``<stem>.h5`` and every per-sample test
+    of the ``targets`` (``specimens``: test -> (specimen, settings)), an invalid one
+    replaced (:func:`valid_tensile_run`). Returns (the seed's row, its responses, the UCS
+    run file, the Brazilian run file or None)."""
+    kw = dict(cache=cache, threads=threads, progress=progress,
+              genesis_max_steps=genesis_max_steps)
+    res = run_ucs_file(Path(f"{stem}.h5"), params, seed, geometry, settings, **kw)
+    row = dict(res.summary, status=res.status, seed=seed)
+    out = ({r: float(res.summary[r]) for r in targets if r not in SAMPLE_TESTS}
+           if res.status == "ok" else {r: math.nan for r in targets if r not in SAMPLE_TESTS})
+    bts_path = None
+    for resp in (r for r in SAMPLE_TESTS if r in targets):  # σt, σ1: a valid test, or NaN
+        test = SAMPLE_TESTS[resp]
+        geo, st = specimens[test]
+        b, used, invalid = valid_tensile_run(test, lambda s, j, t=test: Path(f"{stem}.{t}{j}.h5"),
+                                             params, seed, geo, st, **kw)
+        if test == "bts":
+            bts_path = b.path
+        row[resp] = test_strength(resp, b)
+        row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
+        if b.status != "ok" or not math.isfinite(row[resp]):
+            row["status"] = "failed"
+        out[resp] = row[resp]
+    return row, out, res.path, bts_path
 
 
 # long: the stage's reference docstring (54 lines, the card's verification section); the code is ~60 lines
@@ -240,7 +265,9 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     ``seeds_per_round`` packing seeds (``seed``, ``seed + 1``, ...) and steers their mean;
     a target is met when the mean lies within max(``rtol``, 2 standard errors of the
     mean) of it (:class:`~bpmcal.analysis.ClosedLoop`), so the loop fits the rock, not
-    one packing. A round costs ``seeds_per_round`` DEM runs. The seed set grows to
+    one packing. A round costs ``seeds_per_round`` DEM runs, side by side on up to
+    ``threads`` processes (:mod:`bpmcal.stages.pool`; the card does not depend on how
+    many). The seed set grows to
     ``max_seeds`` seeds (``seed + seeds_per_round``, ...; at most ``seeds_per_round``:
     no growth) once the means are within tolerance but their standard errors are too
     large to state them to ``rtol``, so the card is judged, and steered, on the mean of
@@ -502,7 +529,8 @@ def seed_scatter(card, *, runs, seeds, seed_runs, table, geometry, settings, rto
     verified card, the transfer's of a transferred one), several packing seeds
     (``runs[i]`` is the run file of ``seeds[i]``): the scatter of the DEM responses
     (``seed_runs``: one row per seed; ``table``: coefficient of variation and noise floor
-    per response), and whether the closed-loop tolerance is below it."""
+    per response), and whether the closed-loop tolerance is below it. The seeds run side
+    by side on up to ``threads`` processes (:class:`SeedPool`)."""
     c = read_card(card, "--card", need=("parameters", "specimen"))
     params = card_parameters(c)
     if len(runs) != len(seeds):
@@ -513,20 +541,30 @@ def seed_scatter(card, *, runs, seeds, seed_runs, table, geometry, settings, rto
     outputs(*((r, "--runs", H5) for r in runs), (seed_runs, "--seed-runs", CSV),
             (table, "--table", CSV))
     output_dirs((cache, "--specimen-cache"))
-    rows = []
-    for s, f in zip(seeds, runs):
-        out = run_ucs_file(f, params, int(s), geometry, settings, cache=cache,
-                           threads=threads, keep_particles=False,
-                           genesis_max_steps=genesis_max_steps)
-        r = dict(out.summary, status=out.status)
-        rows.append({"seed": s, "status": r["status"],
-                     **{k: r.get(k, math.nan) for k in (*P.TARGETS, "u_pre_MJm3")}})
+    with SeedPool(threads) as pool:  # the seeds side by side on `threads` CPUs
+        rows = pool.map(_scatter_seed, [dict(params=params, seed=int(s), run=f,
+                                             geometry=geometry, settings=settings, cache=cache,
+                                             genesis_max_steps=genesis_max_steps)
+                                        for s, f in zip(seeds, runs)],
+                        tags=[f"seed {s}" for s in seeds])
     done = pd.DataFrame(rows)
     write_table(done, seed_runs, index=False)
     sc = scatter_table(done[done["status"] == "ok"], rtol=rtol)
     sc.insert(0, "specimen", c["specimen"])
     write_table(sc, table)
     return sc
+
+
+def _scatter_seed(*, params: dict, seed: int, run, geometry, settings, cache,
+                  genesis_max_steps, threads, progress) -> dict:
+    """One seed of :func:`seed_scatter` (a :class:`SeedPool` job): its UCS test into
+    ``run``; returns the seed's row."""
+    out = run_ucs_file(run, params, seed, geometry, settings, cache=cache, threads=threads,
+                       progress=progress, keep_particles=False,
+                       genesis_max_steps=genesis_max_steps)
+    r = dict(out.summary, status=out.status)
+    return {"seed": seed, "status": r["status"],
+            **{k: r.get(k, math.nan) for k in (*P.TARGETS, "u_pre_MJm3")}}
 
 
 def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:

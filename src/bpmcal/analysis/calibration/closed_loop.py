@@ -150,6 +150,13 @@ class ClosedLoop:
         history fit keeps them all, so a response that depends on several parameters at
         once is resolved once the steps span them. The step then starts from the fitted
         errors at the best round, not from its own: the rounds near it average its scatter.
+    simulate_seeds:
+        Optional ``simulate_seeds(params, seeds)`` -> one responses mapping per seed, in
+        the order of ``seeds``: runs a round's seeds (and a grown set's new seeds) at
+        once, e.g. side by side on several CPUs (``stages.pool.SeedPool``); ``simulate``
+        is then used only where a single run is asked for. Its results must be those
+        ``simulate(params, seed=s)`` gives for each seed: the loop's path does not depend
+        on it.
     report:
         Called after every judged round with a one-line summary (the round, its seeds,
         each response's error and tolerance in %): the progress of a loop whose rounds
@@ -196,7 +203,8 @@ class ClosedLoop:
                  seeds: Sequence[int] | None = None, z: float = 2.0, max_seeds: int | None = None,
                  margin: float = 0.0, polish: bool = True,
                  target_se: Mapping[str, float] | None = None, update: str = "broyden",
-                 min_step: float | None = None, report: Callable[[str], None] | None = None):
+                 min_step: float | None = None, report: Callable[[str], None] | None = None,
+                 simulate_seeds: Callable[[dict, list], Sequence[Mapping[str, float]]] | None = None):
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
@@ -225,7 +233,10 @@ class ClosedLoop:
             raise ValueError(f"damping={damping!r}: expected a factor in (0, 1]")
         if not 0 < max_step <= 1:
             raise ValueError(f"max_step={max_step!r}: expected a fraction of the range in (0, 1]")
-        self.simulate = simulate
+        if simulate_seeds is not None and not callable(simulate_seeds):
+            raise TypeError(f"simulate_seeds={simulate_seeds!r}: expected a callable "
+                            "(params, seeds) -> one responses mapping per seed")
+        self.simulate, self.simulate_seeds = simulate, simulate_seeds
         self.free, self.ratio, self.ranges, self.bounds = free, ratio, _check_ranges(ranges), bounds
         self.models, self.jacobian = models, jacobian
         self.rtol = np.array([rt[r] for r in self.responses])
@@ -284,6 +295,9 @@ class ClosedLoop:
 
     def _simulate(self, params: dict[str, float], seed: int | None) -> np.ndarray:
         out = self.simulate(dict(params)) if seed is None else self.simulate(dict(params), seed=seed)
+        return self._responses(out)
+
+    def _responses(self, out: Mapping[str, float] | None) -> np.ndarray:
         return np.array([float(out.get(r, np.nan)) if out is not None else np.nan for r in self.responses])
 
     def _step(self, J: np.ndarray, e: np.ndarray, u: np.ndarray,
@@ -404,8 +418,15 @@ class ClosedLoop:
         set by the ``spare`` seeds and judge again (module docs, "Closed loop")."""
         def run_seeds(which) -> np.ndarray:
             ys = np.empty((len(which), len(self.responses)))
+            if self.simulate_seeds is not None and None not in which:  # the seeds at once
+                outs = list(self.simulate_seeds(dict(params), list(which)))
+                if len(outs) != len(which):
+                    raise ValueError(f"simulate_seeds returned {len(outs)} result(s) for "
+                                     f"{len(which)} seed(s); expected one per seed")
+                ys[:] = [self._responses(o) for o in outs]
+            else:
+                ys[:] = [self._simulate(params, sd) for sd in which]
             for i, sd in enumerate(which):
-                ys[i] = self._simulate(params, sd)
                 samples.append({"round": rnd, "seed": sd, **dict(zip(self.responses, ys[i]))})
             return ys
 

@@ -1,0 +1,19 @@
+"""Jobs for tests/stages/test_pool.py: module-level functions, importable by name in the
+spawned worker processes of a SeedPool (a test module's own functions may not be)."""
+import os
+
+
+def whoami(*, x, threads, progress):
+    """x squared, with the process and the thread count and progress label it got."""
+    if progress is not None:
+        progress({"note": f"job {x}"})
+    return {"x2": x * x, "pid": os.getpid(), "threads": threads,
+            "label": None if progress is None else progress.label}
+
+
+def fails(*, x, threads, progress):
+    raise ValueError(f"planted failure of job {x}")
+
+
+def dies(*, x, threads, progress):
+    os._exit(9)  # a worker killed mid-run (out of memory, a signal)
