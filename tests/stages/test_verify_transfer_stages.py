@@ -114,7 +114,7 @@ def test_verify_runs_k_seeds_per_round_and_records_mean_cv_and_n(study, monkeypa
     # the kept run file is the best round's first seed
     kept = json.loads((tmp_path / "v" / "best.h5").read_text())
     assert kept == {"call": 3 * best + 1, "seed": 1}
-    assert not list((tmp_path / "v").glob(".best.rounds.*"))  # temporaries removed
+    assert not list((tmp_path / "v").glob(".best.rounds*"))  # the loop's journal removed
     h = pd.read_csv(tmp_path / "v" / "rounds.csv")
     assert (h["n_seeds"] == 3).all() and h["cv_ucs_MPa"].to_numpy() == pytest.approx(0.02)
     assert read_card(tmp_path / "v" / "card.yaml")["calibrated_at_scale"] == 0.25
@@ -410,3 +410,68 @@ def test_verify_reports_every_round_and_records_its_update_rule(study, monkeypat
                  rounds=tmp_path / "x" / "rounds.csv", run=tmp_path / "x" / "best.h5",
                  geometry=Geometry(scale=0.25), settings=UCSSettings(), jacobian_update="newton")
     assert not (tmp_path / "x" / "card.yaml").exists()
+
+
+class StoppedDEM(PlantedDEM):
+    """The planted DEM, stopped (as by a kill or a Slurm time limit) at its ``stop``-th run."""
+
+    def __init__(self, stop):
+        super().__init__()
+        self.stop = stop
+
+    def __call__(self, out, params, seed, geometry, settings, **kw):
+        if len(self.calls) + 1 == self.stop:
+            raise KeyboardInterrupt("planted stop")
+        return super().__call__(out, params, seed, geometry, settings, **kw)
+
+
+def _verify_into(d, card, models, **kw):
+    return A.verify(card, models, out_card=d / "card.yaml", rounds=d / "rounds.csv",
+                    run=d / "best.h5", geometry=Geometry(scale=0.25), settings=UCSSettings(),
+                    seed=1, seeds_per_round=3, max_seeds=3, max_rounds=4, **kw)
+
+
+def test_a_loop_stopped_part_way_resumes_from_its_journal(study, monkeypatch):
+    tmp_path, card, models = study
+    whole = PlantedDEM()
+    monkeypatch.setattr(V, "run_ucs_file", whole)
+    ref = _verify_into(tmp_path / "ref", card, models)["verification"]
+    n = len(whole.calls)
+    assert n >= 6  # at least two rounds of three seeds: the stop falls inside the loop
+    d = tmp_path / "v"
+    monkeypatch.setattr(V, "run_ucs_file", StoppedDEM(stop=5))  # round 2, its second seed
+    with pytest.raises(KeyboardInterrupt):
+        _verify_into(d, card, models)
+    journal = d / ".best.rounds" / "journal.jsonl"
+    assert len(journal.read_text().splitlines()) == 4  # the four finished runs, on disk
+    assert not (d / "card.yaml").exists() and not (d / "rounds.csv").exists()
+    with open(journal, "a") as fh:
+        fh.write('{"key": "cut short by the ki')  # a line a kill cut short is skipped
+    again = PlantedDEM()
+    monkeypatch.setattr(V, "run_ucs_file", again)
+    notes = []
+    v = _verify_into(d, card, models, progress=lambda e: notes.append(e.get("note", "")))
+    assert len(again.calls) == n - 4  # only the runs the stopped attempt had not finished
+    assert again.calls == whole.calls[4:]
+    assert any("4 finished run(s) of an earlier attempt" in x for x in notes)
+    assert any("4 run(s) read from the journal" in x for x in notes)
+    for k in ("parameters", "closed_loop", "single_pass", "status", "rounds", "best_round"):
+        assert v["verification"][k] == ref[k], k
+    pd.testing.assert_frame_equal(pd.read_csv(d / "rounds.csv"),
+                                  pd.read_csv(tmp_path / "ref" / "rounds.csv"))
+    assert not (d / ".best.rounds").exists()  # written: the journal is gone
+
+
+def test_a_journal_of_other_inputs_is_not_read(study, monkeypatch):
+    tmp_path, card, models = study
+    d = tmp_path / "v"
+    monkeypatch.setattr(V, "run_ucs_file", StoppedDEM(stop=5))
+    with pytest.raises(KeyboardInterrupt):
+        _verify_into(d, card, models)
+    again = PlantedDEM()
+    monkeypatch.setattr(V, "run_ucs_file", again)
+    _verify_into(d, card, models, genesis_max_steps=40_000)  # another setting: every run anew
+    whole = PlantedDEM()
+    monkeypatch.setattr(V, "run_ucs_file", whole)
+    _verify_into(tmp_path / "ref", card, models, genesis_max_steps=40_000)
+    assert len(again.calls) == len(whole.calls)  # nothing read from the other inputs' journal

@@ -13,7 +13,8 @@ A stage reads the files it is given, checks them and its output paths before any
   analysis (both ``fracture.smk``);
 - :mod:`.triaxial` — the cards' triaxial strength envelopes (``triaxial.smk``);
 - :mod:`.inputs`, :mod:`.progress` — reading checked inputs; progress on stderr.
-- :mod:`.pool` — a stage's independent runs (a round's seeds) side by side on its CPUs.
+- :mod:`.pool` — a stage's independent runs (a round's seeds) side by side on its CPUs;
+  :mod:`.journal` — the finished runs of a closed loop, read again when it resumes.
 
 ``docs/architecture.md`` shows how to add a stage.
 """

@@ -20,7 +20,7 @@ worker that dies (killed, out of memory) is a :class:`WorkerLost` naming the run
 from __future__ import annotations
 
 import multiprocessing as mp
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Sequence
 
@@ -78,32 +78,46 @@ class SeedPool:
         """Processes that run ``n_jobs`` jobs: min(threads, n_jobs), at least 1."""
         return max(1, min(self.threads or 1, int(n_jobs)))
 
-    def map(self, fn: Callable, jobs: Sequence[dict], tags: Sequence[str] | None = None) -> list:
+    def map(self, fn: Callable, jobs: Sequence[dict], tags: Sequence[str] | None = None,
+            done: Callable[[int, object], None] | None = None) -> list:
         """``[fn(**job, threads=t, progress=p) for job in jobs]``, the jobs side by side
         when there are CPUs for it; ``tags`` name each job in progress lines and errors
-        (default its index)."""
+        (default its index). ``done(i, result)``, when given, is called as soon as job i
+        has finished (in the order they finish; a journal of finished runs)."""
         jobs = list(jobs)
         tags = [str(t) for t in tags] if tags is not None else [str(i) for i in range(len(jobs))]
         n = self.workers_for(len(jobs))
         if n <= 1:
-            return [fn(**job, threads=self.threads, progress=self.progress) for job in jobs]
+            out = []
+            for i, job in enumerate(jobs):
+                out.append(fn(**job, threads=self.threads, progress=self.progress))
+                if done is not None:
+                    done(i, out[-1])
+            return out
         each = max(1, self.threads // n)
         if self._ex is None:
             self._ex = ProcessPoolExecutor(self.threads, mp_context=mp.get_context("spawn"))
         spec = _progress_spec(self.progress)
         futures = [self._ex.submit(_call, fn, job, each, spec, tag) for job, tag in zip(jobs, tags)]
-        out = []
+        index = {f: i for i, f in enumerate(futures)}
+        results: dict[int, object] = {}
         try:
-            for f, tag in zip(futures, tags):
-                try:
-                    out.append(f.result())
-                except BrokenProcessPool as e:
-                    raise WorkerLost(f"the worker process running {fn.__name__} [{tag}] died "
-                                     "(killed, or out of memory: each of the "
-                                     f"{n} runs at once needs its own memory)") from e
+            pending = set(futures)
+            while pending:
+                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for f in sorted(finished, key=index.get):
+                    i = index[f]
+                    try:
+                        results[i] = f.result()
+                    except BrokenProcessPool as e:
+                        raise WorkerLost(f"the worker process running {fn.__name__} [{tags[i]}] "
+                                         "died (killed, or out of memory: each of the "
+                                         f"{n} runs at once needs its own memory)") from e
+                    if done is not None:
+                        done(i, results[i])
         except BaseException:
             for f in futures:
                 f.cancel()
             self.close()
             raise
-        return out
+        return [results[i] for i in range(len(jobs))]

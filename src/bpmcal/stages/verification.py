@@ -14,9 +14,9 @@ are looked up in this module. Method: ``docs/methods/calibration.md`` ("Closed l
 """
 from __future__ import annotations
 
+import json
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +39,7 @@ from ..params import BTS, SAMPLE_TESTS
 from ..plots.calibration import fig_stress_strain
 from . import defaults_of
 from .inputs import CSV, H5, PNG, YAML, output_dirs, outputs, read_lab, read_models
+from .journal import RunJournal, plain
 from .pool import SeedPool
 from .runs import (  # noqa: F401 (the per-sample tests' runners: _TEST_RUN names them)
     run_bts_file,
@@ -162,64 +163,109 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
     Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
     ratio = c.get("ratio_ten_coh")
     with_bts = BTS in targets
-    by_round: list[list[dict]] = []
-    paths: list[list[Path]] = []
-    bts_paths: list[list[Path]] = []
-    folder = Path(run).parent
-    tmpdir = tempfile.mkdtemp(prefix=f".{Path(run).stem}.rounds.", dir=folder)
-    specimens = {"bts": (disc, bts_settings), "dtt": (cylinder, dtt_settings),
-                 "tri": (geometry, tri_settings)}
-    pool = SeedPool(threads, progress)
+    runs = _LoopRuns(Path(run).parent / f".{Path(run).stem}.rounds", list(targets),
+                     geometry=geometry, settings=settings, genesis_max_steps=genesis_max_steps,
+                     specimens={"bts": (disc, bts_settings), "dtt": (cylinder, dtt_settings),
+                                "tri": (geometry, tri_settings)},
+                     cache=cache, threads=threads, progress=progress)
+    ok = False
     try:
-        last: list[dict] = []
-
-        def simulate_seeds(params: dict, seeds: list) -> list[dict]:
-            if not last or params != last[0]:  # a new point: a new round (grown seeds join theirs)
-                last[:] = [dict(params)]
-                by_round.append([])
-                paths.append([])
-                bts_paths.append([])
-            k = len(by_round)
-            done = pool.map(_loop_seed, [dict(
-                params=params, seed=seed, stem=Path(tmpdir) / f"round{k}_seed{seed}",
-                targets=list(targets), geometry=geometry, settings=settings,
-                specimens=specimens, cache=cache, genesis_max_steps=genesis_max_steps)
-                for seed in seeds], tags=[f"round {k} seed {sd}" for sd in seeds])
-            for row, out, ucs_path, bts_path in done:
-                paths[-1].append(ucs_path)
-                if bts_path is not None:
-                    bts_paths[-1].append(bts_path)
-                by_round[-1].append(row)
-            return [out for _, out, _, _ in done]
-
-        def simulate(params: dict, seed: int) -> dict:
-            return simulate_seeds(params, [seed])[0]
-
         free = free or [k for k, v in c["roles"].items() if v == "free"]
         jac = None if jacobian is None else pd.DataFrame.from_dict(jacobian, orient="index")
         if jac is not None and not (set(targets) <= set(jac.index) and set(free) <= set(jac.columns)
                                     and np.isfinite(jac.loc[list(targets), list(free)]
                                                     .to_numpy(float)).all()):
             jac = None  # learned for other targets or parameters: start from the models
-        loop = ClosedLoop(simulate, targets, free=free, ratio=ratio,
+        loop = ClosedLoop(runs.simulate, targets, free=free, ratio=ratio,
                           models=model_set if jac is None else None, jacobian=jac,
                           rtol=rtol, max_rounds=max_rounds, ranges=c["ranges"],
                           bounds=c.get("calibration_bounds") or None, seeds=list(seeds),
                           max_seeds=max_seeds, margin=range_margin, polish=polish,
                           target_se=c.get("target_se") or None,
                           update=jacobian_update, report=_notes(progress),
-                          simulate_seeds=simulate_seeds)
+                          simulate_seeds=runs.simulate_seeds)
         res = loop.run(params)
         best = res.best_round  # converged, else the smallest max |error| of the seed mean
-        os.replace(paths[best][0], run)  # the best round's first seed is the run file
+        os.replace(runs.paths[best][0], run)  # the best round's first seed is the run file
         if bts_run is not None and with_bts:
-            os.replace(bts_paths[best][0], bts_run)
+            os.replace(runs.bts_paths[best][0], bts_run)
+        ok = True
     finally:
-        pool.close()
-        for f in Path(tmpdir).glob("*"):
-            f.unlink()
-        os.rmdir(tmpdir)
-    return res, by_round, best
+        runs.close(ok)
+    return res, runs.by_round, best
+
+
+class _LoopRuns:
+    """The DEM runs of a closed loop (:func:`_dem_loop`): every round's seeds side by side
+    on up to ``threads`` processes (:class:`SeedPool`), each finished run journaled in
+    ``folder`` (:class:`RunJournal`: a loop stopped part way and started again with the
+    same inputs reads the runs it had finished); per round the seeds' rows (``by_round``),
+    UCS run files (``paths``) and Brazilian run files (``bts_paths``)."""
+
+    def __init__(self, folder: Path, targets: list, *, geometry, settings, specimens: dict,
+                 genesis_max_steps, cache, threads, progress):
+        self.journal = RunJournal(folder)
+        self.inputs = dict(targets=targets, geometry=geometry, settings=settings,
+                           specimens=specimens, genesis_max_steps=genesis_max_steps)
+        self.cache, self.progress = cache, progress
+        self.pool = SeedPool(threads, progress)
+        self.by_round: list[list[dict]] = []
+        self.paths: list[list[Path]] = []
+        self.bts_paths: list[list[Path]] = []
+        self._last: dict | None = None
+        if self.journal.resumable:
+            self._note(f"{self.journal.resumable} finished run(s) of an earlier attempt in "
+                       f"{folder}: a run with the same inputs is read, not run again")
+
+    def _note(self, text: str) -> None:
+        if self.progress is not None:
+            self.progress({"note": text})
+
+    def simulate_seeds(self, params: dict, seeds: list) -> list[dict]:
+        """:class:`ClosedLoop`'s ``simulate_seeds``: the responses of ``params`` on each seed."""
+        if params != self._last:  # a new point: a new round (grown seeds join theirs)
+            self._last = dict(params)
+            self.by_round.append([])
+            self.paths.append([])
+            self.bts_paths.append([])
+        jobs = [dict(self.inputs, params=params, seed=seed) for seed in seeds]
+        keys = [RunJournal.key(**job) for job in jobs]
+        done = {i: self.journal.get(key) for i, key in enumerate(keys)}
+        todo = [i for i, rec in done.items() if rec is None]
+
+        def finished(j, res):  # journal each run as soon as it ends
+            row, out, ucs_path, bts_path, files = res
+            rec = {"row": row, "out": out, "ucs": Path(ucs_path).name,
+                   "bts": None if bts_path is None else Path(bts_path).name}
+            self.journal.add(keys[todo[j]], rec, files)
+            done[todo[j]] = json.loads(json.dumps(rec, default=plain))  # as a reused run reads
+
+        k = len(self.by_round)
+        self.pool.map(_loop_seed, [dict(jobs[i], cache=self.cache,
+                                        stem=self.journal.stem(keys[i])) for i in todo],
+                      tags=[f"round {k} seed {seeds[i]}" for i in todo], done=finished)
+        for i in range(len(seeds)):
+            self.paths[-1].append(self.journal.folder / done[i]["ucs"])
+            if done[i]["bts"] is not None:
+                self.bts_paths[-1].append(self.journal.folder / done[i]["bts"])
+            self.by_round[-1].append(done[i]["row"])
+        return [done[i]["out"] for i in range(len(seeds))]
+
+    def simulate(self, params: dict, seed: int) -> dict:
+        """:class:`ClosedLoop`'s ``simulate``: one seed."""
+        return self.simulate_seeds(params, [seed])[0]
+
+    def close(self, ok: bool) -> None:
+        """Stop the workers; remove the journal when the loop's outputs are written (``ok``),
+        else keep its finished runs for the next attempt."""
+        self.pool.close()
+        if ok:
+            self.journal.remove()
+        else:
+            self.journal.keep_or_remove()
+        if self.journal.reused:
+            self._note(f"{self.journal.reused} run(s) read from the journal of an earlier "
+                       "attempt, not run again")
 
 
 def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, settings,
@@ -228,7 +274,7 @@ def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, 
     worker or in this process): the UCS test into ``<stem>.h5`` and every per-sample test
     of the ``targets`` (``specimens``: test -> (specimen, settings)), an invalid one
     replaced (:func:`valid_tensile_run`). Returns (the seed's row, its responses, the UCS
-    run file, the Brazilian run file or None)."""
+    run file, the Brazilian run file or None, every run file it wrote)."""
     kw = dict(cache=cache, threads=threads, progress=progress,
               genesis_max_steps=genesis_max_steps)
     res = run_ucs_file(Path(f"{stem}.h5"), params, seed, geometry, settings, **kw)
@@ -248,7 +294,8 @@ def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, 
         if b.status != "ok" or not math.isfinite(row[resp]):
             row["status"] = "failed"
         out[resp] = row[resp]
-    return row, out, res.path, bts_path
+    files = [Path(f) for f in Path(stem).parent.glob(f"{Path(stem).name}*.h5")]
+    return row, out, res.path, bts_path, files
 
 
 # long: the stage's reference docstring (54 lines, the card's verification section); the code is ~60 lines

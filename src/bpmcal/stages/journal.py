@@ -1,0 +1,99 @@
+"""A journal of a long stage's finished runs: a closed loop stopped part way (killed, a
+Slurm time limit, a power loss) and started again with the same inputs reads the runs
+it had finished instead of running them again.
+
+Every finished run is one line of ``journal.jsonl`` in the stage's working folder
+(appended and flushed to disk as soon as the run ends), under a key that hashes
+everything its result depends on: the run's own inputs (parameters, packing seed,
+specimens, loading settings, responses asked for) and the bpmcal version and source
+commit (``io.provenance``). The run files it wrote stay beside it under names derived
+from the key. A run is reused only when its key matches and its files are there, so a
+changed setting or another bpmcal runs again; since every run is deterministic, a reused
+run is the run that would have been made. A line cut short by a kill is skipped.
+The stage removes the folder once its outputs are written; after a failure the folder
+stays for the next attempt.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..io.provenance import git_commit
+
+FILE = "journal.jsonl"
+
+
+def plain(x):
+    """A JSON-able form of what a run's row may hold (numpy scalars and arrays, paths)."""
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return str(x)
+
+
+class RunJournal:
+    """The finished runs of one stage's working ``folder`` (module docs)."""
+
+    def __init__(self, folder: str | os.PathLike):
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.path = self.folder / FILE
+        self.entries: dict[str, dict] = {}
+        self.reused = 0
+        if self.path.exists():
+            for line in self.path.read_text().splitlines():
+                try:
+                    e = json.loads(line)
+                    key, files = e["key"], e["files"]
+                except (ValueError, KeyError, TypeError):
+                    continue  # cut short by a kill, or not ours
+                if all((self.folder / f).exists() for f in files):
+                    self.entries[key] = e
+        self.resumable = len(self.entries)
+
+    @staticmethod
+    def key(**inputs) -> str:
+        """The hash of a run's ``inputs`` (dataclasses by their repr: every field) and of
+        the bpmcal that runs it."""
+        text = json.dumps({"inputs": inputs, "bpmcal": __version__, "commit": git_commit()},
+                          sort_keys=True, default=repr)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def stem(self, key: str) -> Path:
+        """Where the run of ``key`` writes its files (``<stem>.h5``, ``<stem>.<test>.h5``)."""
+        return self.folder / key[:24]
+
+    def get(self, key: str) -> dict | None:
+        """The record of the finished run of ``key`` (counted as reused), or None."""
+        e = self.entries.get(key)
+        if e is not None:
+            self.reused += 1
+        return None if e is None else e["record"]
+
+    def add(self, key: str, record: dict, files: list[Path]) -> None:
+        """Journal a finished run: its ``record`` (JSON-able, NaN allowed) and the files
+        it wrote (in the folder), flushed to disk before the stage goes on."""
+        e = {"key": key, "files": [Path(f).name for f in files], "record": record}
+        line = json.dumps(e, default=plain, allow_nan=True)
+        with open(self.path, "a") as fh:
+            fh.write(line + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        self.entries[key] = json.loads(line)
+
+    def remove(self) -> None:
+        """Remove the folder and everything in it (the stage's outputs are written)."""
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+    def keep_or_remove(self) -> None:
+        """After a failure: keep the folder when it holds a finished run, else remove it."""
+        if not self.entries:
+            self.remove()
+
