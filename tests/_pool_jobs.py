@@ -17,3 +17,18 @@ def fails(*, x, threads, progress):
 
 def dies(*, x, threads, progress):
     os._exit(9)  # a worker killed mid-run (out of memory, a signal)
+
+
+def sleepy(*, x, marker, threads, progress):
+    """Write this worker's pid to ``marker`` and sleep ``x`` seconds (a long run)."""
+    import time
+    from pathlib import Path
+    Path(marker).write_text(str(os.getpid()))
+    time.sleep(x)
+    return x
+
+
+def fails_soon(*, x, marker, threads, progress):
+    import time
+    time.sleep(1.0)
+    raise ValueError("planted failure beside a long run")

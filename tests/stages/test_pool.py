@@ -2,9 +2,15 @@
 closed loop's use of it: tests/analysis/test_closed_loop.py; the stages with the real DEM
 on two CPUs against one: tests/stages/test_pool_dem.py.)"""
 import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
+import _pool_jobs
 import pytest
-from _pool_jobs import dies, fails, whoami
+from _pool_jobs import dies, whoami
 
 from bpmcal.stages.pool import SeedPool, WorkerLost
 from bpmcal.stages.progress import Progress
@@ -35,7 +41,7 @@ def test_without_cpus_to_share_the_runs_stay_in_this_process():
 def test_a_run_that_raises_raises_here_and_a_dead_worker_is_named():
     with SeedPool(2) as pool:
         with pytest.raises(ValueError, match="planted failure of job 1"):
-            pool.map(fails, [{"x": 1}, {"x": 2}])
+            pool.map(_pick, [{"fn": "fails", "x": 1}, {"fn": "whoami", "x": 2}])
     with SeedPool(2) as pool:
         with pytest.raises(WorkerLost, match=r"dies \[seed 5\] died"):
             pool.map(dies, [{"x": 5}, {"x": 6}], tags=["seed 5", "seed 6"])
@@ -45,3 +51,72 @@ def test_a_run_that_raises_raises_here_and_a_dead_worker_is_named():
 def test_a_pool_of_no_cpus_is_refused(bad):
     with pytest.raises(ValueError, match=f"threads={bad!r}: expected an integer >= 1"):
         SeedPool(bad)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    stat = open(f"/proc/{pid}/stat").read()  # a zombie (dead, not yet reaped) is gone too
+    return stat[stat.rfind(")") + 2] != "Z"
+
+
+def _gone_within(pids, seconds) -> bool:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        if not any(_alive(p) for p in pids):
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def _pick(*, fn, **kw):
+    """A job naming its function: the pool runs one function for all its jobs."""
+    return getattr(_pool_jobs, fn)(**kw)
+
+
+def test_a_failed_run_stops_the_others_at_once(tmp_path):
+    jobs = [{"x": 1, "marker": str(tmp_path / "a")}, {"x": 120, "marker": str(tmp_path / "b")}]
+    t0 = time.monotonic()
+    with SeedPool(2) as pool:
+        with pytest.raises(ValueError, match="planted failure"):
+            pool.map(_pick, [dict(j, fn=f) for j, f in zip(jobs, ("fails_soon", "sleepy"))])
+    assert time.monotonic() - t0 < 30  # not the 120 s of the other run
+    assert _gone_within([int((tmp_path / "b").read_text())], 5)
+
+
+SCRIPT = """
+import signal, sys
+if {ignore_int}:  # started as `cmd &` by a shell without job control: SIGINT ignored
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+sys.path.insert(0, {tests!r})
+from _pool_jobs import sleepy
+from bpmcal.stages.pool import SeedPool
+with SeedPool(2) as pool:
+    pool.map(sleepy, [dict(x=120, marker={d!r} + f"/w{{i}}") for i in range(4)])
+"""
+
+
+@pytest.mark.parametrize("how", ["ctrl-c", "sigkill", "sigterm, SIGINT ignored"])
+def test_an_interrupted_or_killed_stage_leaves_no_worker_running(tmp_path, how):
+    tests = str(Path(__file__).resolve().parents[1])
+    script = SCRIPT.format(tests=tests, d=str(tmp_path), ignore_int="ignored" in how)
+    p = subprocess.Popen([sys.executable, "-c", script],
+                         start_new_session=True, stderr=subprocess.PIPE)
+    end = time.monotonic() + 60
+    while len(list(tmp_path.glob("w*"))) < 2 and time.monotonic() < end:
+        time.sleep(0.1)
+    pids = [int(f.read_text()) for f in tmp_path.glob("w*")]
+    assert len(pids) == 2  # two runs started side by side
+    t0 = time.monotonic()
+    if how == "ctrl-c":  # the terminal's SIGINT reaches the whole process group
+        os.killpg(p.pid, signal.SIGINT)
+    elif how == "sigkill":  # the stage's own process killed: nothing of it can react
+        os.kill(p.pid, signal.SIGKILL)
+    else:  # `kill PID` of the stage only (its default action ends it at once)
+        os.kill(p.pid, signal.SIGTERM)
+    p.wait(timeout=30)
+    assert _gone_within(pids, 10), "a worker ran on after its stage ended"
+    assert time.monotonic() - t0 < 15  # not the 120 s of the runs
+    assert len(list(tmp_path.glob("w*"))) == 2  # no queued run started after the stop

@@ -15,11 +15,16 @@ and neither the thread count nor the process a run ran in changes its numbers
 with ``spawn`` (a fork of a process whose numba threads already ran is not safe), once
 per pool, and import the run function by name: it must be a module-level function, its
 arguments picklable. An exception raised by a run is raised here, as in a serial run; a
-worker that dies (killed, out of memory) is a :class:`WorkerLost` naming the run.
+worker that dies (killed, out of memory) is a :class:`WorkerLost` naming the run. When a
+run fails or this process is interrupted, the other runs are stopped at once (not run
+to their end), each discarding the file it was writing, as a run stopped by Ctrl-C does.
 """
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
+import signal
+import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Sequence
@@ -40,14 +45,47 @@ def _progress_spec(progress) -> tuple | None:
     return None
 
 
+#: seconds a stopped pool's workers get to end their runs (an interrupted run discards
+#: the file it was writing) before they are terminated
+STOP_GRACE_S = 10.0
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def _worker_init() -> None:
+    """In each worker at its start: SIGTERM interrupts its run as Ctrl-C does (the run
+    discards the file it was writing, then the worker ends: :func:`_call`), and the worker
+    dies with its parent: when the process that started it ends (killed by SIGTERM or
+    SIGKILL, which no Python code of its may catch), the kernel sends the worker SIGTERM
+    (Linux ``PR_SET_PDEATHSIG``) instead of leaving it to run on, orphaned, to its end.
+    Elsewhere only the handler is set."""
+    signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM, 0, 0, 0)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() == 1:  # the parent ended before the request was made
+        os._exit(130)
+
+
 def _call(fn: Callable, job: dict, threads: int, spec: tuple | None, tag: str):
     """One run in a worker: ``fn(**job, threads=threads, progress=...)``, its progress
-    lines labelled with ``tag`` (the run's seed)."""
+    lines labelled with ``tag`` (the run's seed). An interrupted run (Ctrl-C reaches the
+    whole process group; a stopped pool or a dead parent sends SIGTERM) ends the worker:
+    it must not go on to the next queued run."""
     progress = None
     if spec is not None:
         label, every, enabled = spec
         progress = Progress(f"{label} [{tag}]", every=every, enabled=enabled)
-    return fn(**job, threads=threads, progress=progress)
+    try:
+        return fn(**job, threads=threads, progress=progress)
+    except KeyboardInterrupt:
+        os._exit(130)
 
 
 class SeedPool:
@@ -70,9 +108,35 @@ class SeedPool:
         self.close()
 
     def close(self) -> None:
+        """Shut the workers down once their runs are done (nothing is running after a
+        completed ``map``)."""
         if self._ex is not None:
             self._ex.shutdown(wait=True, cancel_futures=True)
             self._ex = None
+
+    def stop(self) -> None:
+        """Stop the workers now (a run failed, or this process was interrupted): queued
+        runs are dropped, running ones are interrupted (SIGTERM, which a worker takes as
+        Ctrl-C: each discards the file it was writing) and, after :data:`STOP_GRACE_S`,
+        killed."""
+        ex, self._ex = self._ex, None
+        if ex is None:
+            return
+        procs = list((getattr(ex, "_processes", None) or {}).values())
+        for p in procs:
+            if p.is_alive():
+                try:
+                    os.kill(p.pid, signal.SIGTERM)
+                except OSError:
+                    pass
+        end = time.monotonic() + STOP_GRACE_S
+        for p in procs:
+            p.join(max(0.0, end - time.monotonic()))
+        for p in procs:
+            if p.is_alive():
+                p.kill()
+                p.join(1.0)
+        ex.shutdown(wait=False, cancel_futures=True)
 
     def workers_for(self, n_jobs: int) -> int:
         """Processes that run ``n_jobs`` jobs: min(threads, n_jobs), at least 1."""
@@ -96,7 +160,8 @@ class SeedPool:
             return out
         each = max(1, self.threads // n)
         if self._ex is None:
-            self._ex = ProcessPoolExecutor(self.threads, mp_context=mp.get_context("spawn"))
+            self._ex = ProcessPoolExecutor(self.threads, mp_context=mp.get_context("spawn"),
+                                           initializer=_worker_init)
         spec = _progress_spec(self.progress)
         futures = [self._ex.submit(_call, fn, job, each, spec, tag) for job, tag in zip(jobs, tags)]
         index = {f: i for i, f in enumerate(futures)}
@@ -116,8 +181,6 @@ class SeedPool:
                     if done is not None:
                         done(i, results[i])
         except BaseException:
-            for f in futures:
-                f.cancel()
-            self.close()
+            self.stop()
             raise
         return [results[i] for i in range(len(jobs))]
