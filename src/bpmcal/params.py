@@ -70,6 +70,8 @@ PARAM_NAMES: tuple[str, ...] = tuple(PARAMS)
 
 #: The ball parameters every contact model shares.
 BALL_PARAMS: tuple[str, ...] = ("rmin_mm", "porosity")
+#: ... by name: the smallest ball radius and the porosity of the packing
+RMIN, POROSITY = BALL_PARAMS
 
 #: The flat-joint card (PFC ``flatjoint``, docs/contact_laws.md): the interface's
 #: deformability and strength, its discretisation, and the flat-jointed material's
@@ -110,6 +112,8 @@ FJ_DEFAULTS: dict[str, float] = {"fj_rmul": 1.0, "fj_nr": 1.0, "fj_nal": 3.0,
                                  "fj_gap0_ratio": 0.0}
 #: integer-valued flat-joint parameters (element counts)
 FJ_INTEGERS: tuple[str, ...] = ("fj_nr", "fj_nal")
+#: the parallel bond's radius multiplier, fixed by the paper (section 2.2: lambda_p = 1)
+PB_RMUL = 1.0
 
 @dataclass(frozen=True)
 class ContactModel:
@@ -126,6 +130,12 @@ class ContactModel:
     the tensile strength derived through the ratio); ``title``: the model in words;
     ``ratio_advice``: what to try when a target σc/σt lies ``"above"`` or ``"below"``
     what this model's cards reach (the calibration's ``no-exact-fit`` message adds it).
+
+    How a card builds its material (``lab.specimen.card_material``): ``material``, card
+    parameter -> the engine material fields it sets (``dem.material``: SI units, through
+    :func:`to_si`; an integer parameter as an integer); ``material_fixed``, engine fields
+    the model fixes; ``microstructure``, card parameter -> field of the flat-jointed
+    microstructure (``lab.specimen.Microstructure``), empty for a model without one.
     """
 
     name: str
@@ -137,6 +147,9 @@ class ContactModel:
     integers: tuple[str, ...] = ()
     defaults: dict[str, float] | None = None
     ratio_advice: dict[str, str] | None = None
+    material: dict[str, tuple[str, ...]] | None = None
+    material_fixed: dict[str, float] | None = None
+    microstructure: dict[str, str] | None = None
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -168,7 +181,12 @@ LINEARPBOND = ContactModel(
                  "known limit, for which PFC's flat joint was made): try "
                  "`contact_model: flatjoint`",
         "below": "a lower σc/σt needs a higher tensile strength against the cohesion: "
-                 "widen the range of pb_ten_MPa upwards (or of pb_coh_MPa downwards)"})
+                 "widen the range of pb_ten_MPa upwards (or of pb_coh_MPa downwards)"},
+    # the paper's set: the linear part shares the bond's modulus and stiffness ratio
+    material={"pb_emod_GPa": ("emod", "pb_emod"), "pb_kratio": ("kratio", "pb_kratio"),
+              "pb_ten_MPa": ("pb_ten",), "pb_coh_MPa": ("pb_coh",), "pb_fa_deg": ("pb_fa",),
+              "fric": ("fric",)},
+    material_fixed={"pb_rmul": PB_RMUL})
 FLATJOINT = ContactModel(
     "flatjoint", "flat joint", {**{k: PARAMS[k] for k in BALL_PARAMS}, **FJ_PARAMS},
     ("fj_ten_MPa", "fj_coh_MPa"), "σb/cb", ("fj_emod_GPa", "fj_kratio", "fj_coh_MPa"),
@@ -177,7 +195,13 @@ FLATJOINT = ContactModel(
         "above": "a higher σc/σt needs more interlocking: widen fj_coh_MPa upwards, "
                  "fj_ten_MPa downwards, or free fj_slit_frac",
         "below": "a σc/σt this low is what parallel bonds give more easily: try "
-                 "`contact_model: linearpbond`"})
+                 "`contact_model: linearpbond`"},
+    material={"fj_emod_GPa": ("fj_emod",), "fj_kratio": ("fj_kratio",),
+              "fj_ten_MPa": ("fj_ten",), "fj_coh_MPa": ("fj_coh",), "fj_fa_deg": ("fj_fa",),
+              "fj_fric": ("fj_fric",), "fj_rmul": ("fj_rmul",), "fj_nr": ("fj_nr",),
+              "fj_nal": ("fj_nal",)},
+    microstructure={"fj_gi_ratio": "gi_ratio", "fj_slit_frac": "slit_frac",
+                    "fj_gap_frac": "gap_frac", "fj_gap0_ratio": "gap0_ratio"})
 
 #: contact models by PFC name: their cards (:class:`ContactModel`)
 MODELS: dict[str, ContactModel] = {m.name: m for m in (LINEARPBOND, FLATJOINT)}
@@ -298,7 +322,6 @@ ANALYSED: tuple[str, ...] = (*TARGETS, *SAMPLE_TESTS)
 #: Fixed by the paper (section 2.2).
 RADIUS_RATIO = 1.66  # Rmax / Rmin
 DENSITY = 2294.0  # kg/m^3
-PB_RMUL = 1.0  # lambda_p
 
 
 class ParameterError(ValueError):

@@ -99,7 +99,7 @@ def check_budget(params: dict, geometry, *, max_balls=MAX_BALLS, mem_budget_mb=N
     :func:`default_mem_budget_mb`."""
     if mem_budget_mb is None:
         mem_budget_mb = default_mem_budget_mb()
-    msg = budget_problem(params["rmin_mm"], params["porosity"], scale=geometry.scale,
+    msg = budget_problem(params[P.RMIN], params[P.POROSITY], scale=geometry.scale,
                          diameter_mm=geometry.diameter_mm, height_mm=geometry.height_mm,
                          max_balls=max_balls, mem_budget_mb=mem_budget_mb)
     if msg:

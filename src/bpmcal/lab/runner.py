@@ -117,7 +117,7 @@ def specimen_spec(params: dict, seed: int, geometry: Geometry) -> SpecimenSpec:
     """The specimen of validated ``params`` (paper units) and ``geometry``; an InputError
     when it cannot be built (e.g. fewer than 3 ball diameters across): a check that
     needs no work."""
-    return SpecimenSpec.from_paper_units(params["rmin_mm"], params["porosity"], seed,
+    return SpecimenSpec.from_paper_units(params[P.RMIN], params[P.POROSITY], seed,
                                          scale=geometry.scale,
                                          diameter_mm=geometry.diameter_mm,
                                          height_mm=geometry.height_mm,
@@ -135,7 +135,7 @@ def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, c
     spec = specimen_spec(p, seed, geometry)
     pk = get_packing(spec, cache=cache, progress=progress, threads=threads)
     mat, micro = card_material(p)
-    gap = None if micro is not None else geometry.install_gap(p["rmin_mm"]) * 1e-3
+    gap = None if micro is not None else geometry.install_gap(p[P.RMIN]) * 1e-3
     return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6, install_gap=gap,
                           threads=threads, progress=progress, max_steps=genesis_max_steps,
                           boundary=boundary, genesis=geometry.genesis, microstructure=micro)
@@ -156,7 +156,7 @@ def bts_geometry(scale: float = 1.0, diameter_mm: float = BTS_DIAMETER_MM,
 def _base_inputs(params: dict, seed: int, geometry: Geometry) -> dict:
     model = params.get("contact_model", P.DEFAULT_CONTACT_MODEL)
     d = {k: float(params[k]) for k in P.CONTACT_MODELS[model] if k in params}
-    d.update(geometry.to_dict(params.get("rmin_mm")))
+    d.update(geometry.to_dict(params.get(P.RMIN)))
     if model != P.DEFAULT_CONTACT_MODEL:  # parallel-bond run files are as before
         d["contact_model"] = model
         d["install_gap_mm"] = math.nan  # the card's fj_gi_ratio applies

@@ -695,34 +695,34 @@ def apply_end_caps(sp: Specimen, height_d: float, factor: float) -> dict:
     return {"end_cap_bonds": int(idx.size), "end_cap_index": idx}
 
 
-def flatjoint_material(p: dict, dp_nratio=0.0, dp_sratio=0.0) -> FlatJointMaterial:
-    """A validated flat-joint card (paper units, ``params.FJ_PARAMS``) as a material."""
-    return FlatJointMaterial(
-        fj_emod=P.to_si("fj_emod_GPa", p["fj_emod_GPa"]), fj_kratio=float(p["fj_kratio"]),
-        fj_ten=P.to_si("fj_ten_MPa", p["fj_ten_MPa"]),
-        fj_coh=P.to_si("fj_coh_MPa", p["fj_coh_MPa"]), fj_fa=float(p["fj_fa_deg"]),
-        fj_fric=float(p["fj_fric"]), fj_rmul=float(p["fj_rmul"]), fj_nr=int(p["fj_nr"]),
-        fj_nal=int(p["fj_nal"]), dp_nratio=dp_nratio, dp_sratio=dp_sratio)
+#: the engine's material of each contact model (``params.ContactModel.material``)
+_MATERIAL_CLASS = {"linearpbond": Material, "flatjoint": FlatJointMaterial}
 
 
 def card_material(p: dict, dp_nratio=0.0, dp_sratio=0.0):
     """The material of a validated card (``params.validate_params``) of either contact
-    model, and its flat-jointed microstructure (None for the parallel bond)."""
-    if p.get("contact_model", P.DEFAULT_CONTACT_MODEL) == "flatjoint":
-        micro = Microstructure(gi_ratio=float(p["fj_gi_ratio"]),
-                               slit_frac=float(p["fj_slit_frac"]),
-                               gap_frac=float(p["fj_gap_frac"]),
-                               gap0_ratio=float(p["fj_gap0_ratio"]))
-        return flatjoint_material(p, dp_nratio, dp_sratio), micro
-    return paper_material(p["pb_emod_GPa"], p["pb_kratio"], p["pb_ten_MPa"], p["pb_coh_MPa"],
-                          p["pb_fa_deg"], p["fric"], dp_nratio, dp_sratio), None
+    model, and its flat-jointed microstructure (None for the parallel bond), as the
+    model's registry entry declares them (``params.ContactModel``: ``material``,
+    ``material_fixed``, ``microstructure``)."""
+    model = P.contact_model(p.get("contact_model", P.DEFAULT_CONTACT_MODEL))
+    fields = dict(model.material_fixed or {})
+    for name, engine_fields in model.material.items():
+        v = int(p[name]) if model.is_integer(name) else P.to_si(name, p[name])
+        fields.update(dict.fromkeys(engine_fields, v))
+    mat = _MATERIAL_CLASS[model.name](**fields, dp_nratio=dp_nratio, dp_sratio=dp_sratio)
+    micro = (Microstructure(**{f: float(p[name]) for name, f in model.microstructure.items()})
+             if model.microstructure else None)
+    return mat, micro
+
+
+def flatjoint_material(p: dict, dp_nratio=0.0, dp_sratio=0.0) -> FlatJointMaterial:
+    """A validated flat-joint card (paper units, ``params.FJ_PARAMS``) as a material."""
+    return card_material({**p, "contact_model": "flatjoint"}, dp_nratio, dp_sratio)[0]
 
 
 def paper_material(pb_emod_GPa, pb_kratio, pb_ten_MPa, pb_coh_MPa, pb_fa_deg, fric,
                    dp_nratio=0.0, dp_sratio=0.0) -> Material:
     """The paper's parameter set as a Material (Ec = Ecp, k* = kp*, mu = mu_p, lambda = 1)."""
-    E = P.to_si("pb_emod_GPa", pb_emod_GPa)
-    return Material(emod=E, kratio=float(pb_kratio), fric=float(fric), pb_emod=E,
-                    pb_kratio=float(pb_kratio), pb_ten=P.to_si("pb_ten_MPa", pb_ten_MPa),
-                    pb_coh=P.to_si("pb_coh_MPa", pb_coh_MPa), pb_fa=float(pb_fa_deg),
-                    pb_rmul=P.PB_RMUL, dp_nratio=dp_nratio, dp_sratio=dp_sratio)
+    card = dict(pb_emod_GPa=pb_emod_GPa, pb_kratio=pb_kratio, pb_ten_MPa=pb_ten_MPa,
+                pb_coh_MPa=pb_coh_MPa, pb_fa_deg=pb_fa_deg, fric=fric)
+    return card_material(card, dp_nratio, dp_sratio)[0]

@@ -297,9 +297,9 @@ def screen_test_loading(test: str, params: dict, geometry, settings) -> None:
     g = geometry
     loading = settings.loading_at(g.scale * (g.diameter_mm if test == "bts" else g.height_mm)
                                   * 1e-3)
-    n = estimate_balls(params["rmin_mm"], params["porosity"], scale=g.scale,
+    n = estimate_balls(params[P.RMIN], params[P.POROSITY], scale=g.scale,
                        diameter_mm=g.diameter_mm, height_mm=g.height_mm)
-    screen_loading(loading, material, P.to_si("rmin_mm", params["rmin_mm"]),
+    screen_loading(loading, material, P.to_si(P.RMIN, params[P.RMIN]),
                    max_strain=settings.max_strain, max_steps=settings.max_steps, n_balls=n,
                    spring=stiffest_spring(material),
                    failure_strain=expected_failure_strain(material, loading.tension))

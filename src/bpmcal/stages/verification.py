@@ -443,8 +443,8 @@ def _check_verify_inputs(card, models, c: dict, model_set, targets: dict, geomet
         raise BadInput(f"--card {card}: a tensile-strength target (bts_MPa) but --models "
                        f"{models} has no model of bts_MPa")
     if with_bts:  # the disc must hold 3 of the largest balls across, for every round
-        rmin = (max(c["ranges"]["rmin_mm"]) if c["roles"].get("rmin_mm") == "free"
-                else float(c["parameters"]["rmin_mm"]))
+        rmin = (max(c["ranges"][P.RMIN]) if c["roles"].get(P.RMIN) == "free"
+                else float(c["parameters"][P.RMIN]))
         rmax = P.RADIUS_RATIO * rmin
         dd, tt = disc.diameter_mm * disc.scale, disc.height_mm * disc.scale
         if min(dd, tt) < 6 * rmax:

@@ -284,13 +284,13 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
         if lo > hi:
             msgs.append(f"ranges.{name}: low {lo:g} exceeds high {hi:g}")
     sp = cfg["specimen"]
-    rmax = P.RADIUS_RATIO * max(cfg["ranges"]["rmin_mm"])
+    rmax = P.RADIUS_RATIO * max(cfg["ranges"][P.RMIN])
     d = sp["scale"] * sp.get("diameter_mm", 50.0)
     h = sp["scale"] * sp.get("height_mm", 100.0)
     if d < 6 * rmax or h < 6 * rmax:
         msgs.append(f"specimen.scale: {sp['scale']:g} gives a {d:g} x {h:g} mm specimen, less "
                     f"than 3 ball diameters across for Rmax = {rmax:g} mm "
-                    f"(ranges.rmin_mm up to {max(cfg['ranges']['rmin_mm']):g} mm)")
+                    f"(ranges.{P.RMIN} up to {max(cfg['ranges'][P.RMIN]):g} mm)")
     b = cfg.get("bts", {})
     if b.get("enabled"):  # the Brazilian disc of every sample must fit its balls too
         sc, which = disc_scale(cfg)
@@ -298,7 +298,7 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
         if bd < 6 * rmax or bt < 6 * rmax:
             msgs.append(f"bts: {which} {sc:g} gives a {bd:g} x {bt:g} mm disc, "
                         f"less than 3 ball diameters across for Rmax = {rmax:g} mm "
-                        f"(ranges.rmin_mm up to {max(cfg['ranges']['rmin_mm']):g} mm); "
+                        f"(ranges.{P.RMIN} up to {max(cfg['ranges'][P.RMIN]):g} mm); "
                         "raise bts.scale (or bts.diameter_mm and bts.thickness_mm) or set "
                         "bts.enabled: false")
     msgs.extend(_budget_checks(cfg))
@@ -345,8 +345,8 @@ def _budget_checks(cfg: dict) -> list[str]:
     ``resources.max_balls`` and ``resources.dem_mem_mb``."""
     res = cfg["resources"]
     rg, fx = cfg["ranges"], cfg["calibration"]["fixed"]
-    rmin = min([min(rg["rmin_mm"])] + ([fx["rmin_mm"]] if "rmin_mm" in fx else []))
-    por = min([min(rg["porosity"])] + ([fx["porosity"]] if "porosity" in fx else []))
+    rmin = min([min(rg[P.RMIN])] + ([fx[P.RMIN]] if P.RMIN in fx else []))
+    por = min([min(rg[P.POROSITY])] + ([fx[P.POROSITY]] if P.POROSITY in fx else []))
     sp = cfg["specimen"]
     out = []
     shapes = [("specimen.scale", sp["scale"], sp["diameter_mm"], sp["height_mm"]),
@@ -517,10 +517,10 @@ def _check_bts_disc(cfg: dict, base: Path) -> list[str]:
     thick = float(disc.get("thickness_mm", BTS_THICKNESS_MM))
     scale, which = disc_scale(cfg)
     fixed = (cfg.get("calibration") or {}).get("fixed") or {}
-    if "rmin_mm" in fixed:  # the cards' Rmin (verify's check uses the card's)
-        rmin, where = float(fixed["rmin_mm"]), f"calibration.fixed.rmin_mm {fixed['rmin_mm']:g} mm"
+    if P.RMIN in fixed:  # the cards' Rmin (verify's check uses the card's)
+        rmin, where = float(fixed[P.RMIN]), f"calibration.fixed.{P.RMIN} {fixed[P.RMIN]:g} mm"
     else:
-        rmin = max(cfg["ranges"]["rmin_mm"])
+        rmin = max(cfg["ranges"][P.RMIN])
         where = f"ranges.rmin_mm up to {rmin:g} mm"
     rmax = P.RADIUS_RATIO * rmin
     t = scale * thick

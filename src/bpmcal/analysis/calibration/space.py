@@ -19,6 +19,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from bpmcal import params as P
 from bpmcal.params import (
     ALL_PARAMS,
     TENSILE_RESPONSES,
@@ -32,9 +33,9 @@ from .._common import check_params, check_responses
 from ..stepwise import RegressionModel
 
 PAPER_RATIO = 1.4
-PAPER_FIXED: dict[str, float] = {"porosity": 0.34, "rmin_mm": 0.8}
-DEFAULT_FREE: tuple[str, ...] = ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa")
-_TEN, _COH = "pb_ten_MPa", "pb_coh_MPa"
+PAPER_FIXED: dict[str, float] = {P.POROSITY: 0.34, P.RMIN: 0.8}
+DEFAULT_FREE: tuple[str, ...] = P.LINEARPBOND.free
+_TEN, _COH = P.LINEARPBOND.strength
 
 
 def tensile_target(targets) -> str | None:
