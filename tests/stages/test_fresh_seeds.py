@@ -247,3 +247,23 @@ def test_false_alarm_rate_of_a_card_exactly_on_target():
     assert false_alarm(3) > false_alarm(5) > false_alarm(12) > 0.0455
     assert false_alarm(5, targets=9) == pytest.approx(1 - (1 - false_alarm(5)) ** 9)
     assert np.isnan(false_alarm(1))
+
+
+def test_false_alarm_of_a_card_fitted_to_its_loop_seeds():
+    """A card exactly on its targets over its closed loop's k packings (the lab value is
+    the mean of k seeds, the rock's mean another): the fresh check fails more often than
+    Student's t alone says, as false_alarm(n, loop_seeds=k) computes (4000 draws)."""
+    from bpmcal.stages.fresh_seeds import false_alarm, fresh_seed_stats
+
+    rng = np.random.default_rng(11)
+    for n, k in ((5, 10), (5, 3), (10, 10)):
+        fails = []
+        for _ in range(4000):
+            lab = float((60.0 * (1 + 0.02 * rng.standard_normal(k))).mean())  # the loop's fit
+            fresh = 60.0 * (1 + 0.02 * rng.standard_normal(n))
+            fails.append(not fresh_seed_stats(fresh, lab, rtol=1e-9)["within_z_se"])
+        p = false_alarm(n, loop_seeds=k)
+        assert abs(np.mean(fails) - p) < 4 * np.sqrt(p * (1 - p) / 4000), (n, k, np.mean(fails), p)
+    assert false_alarm(5, loop_seeds=10) == pytest.approx(0.1778, abs=1e-4)
+    assert false_alarm(5, loop_seeds=3) > false_alarm(5, loop_seeds=10) > false_alarm(5)
+    assert false_alarm(5, loop_seeds=10 ** 9) == pytest.approx(false_alarm(5), abs=1e-9)

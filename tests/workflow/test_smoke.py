@@ -509,6 +509,11 @@ def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
     index = (smoke / OUTDIR / "report" / "index.md").read_text()
     assert "The verified cards on fresh packing seeds" in index
     assert "σt of each card on the same fresh seeds" in index
+    loops = [yaml.safe_load(Path(lay.verified_card(sp)).read_text())["verification"]
+             .get("n_seeds") for sp in ("B1", "B2", "B3")]
+    # the false-alarm rate of a card fitted to its loop's seeds, when they were several
+    assert ("fitted exactly to the mean of its closed loop's" in index) == any(
+        isinstance(k, int) and k > 1 for k in loops)
 
 
 # -- a changed config key reruns exactly the jobs that read it -------------------------------

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
+import statistics
 from pathlib import Path
 
 import pandas as pd
@@ -485,6 +486,19 @@ def _verification(lay, comp, ref=False) -> str:
     return s + _fresh_seeds(lay)
 
 
+def _loop_seeds(lay, specs) -> int | None:
+    """The median number of packing seeds the verified cards of ``specs`` were judged on
+    (their closed loops' ``n_seeds``), None when no card says."""
+    ks = []
+    for spec in specs:
+        f = Path(lay.verified_card(spec))
+        if f.exists():
+            k = (read_card(f).get("verification") or {}).get("n_seeds")
+            if isinstance(k, int) and k > 1:
+                ks.append(k)
+    return int(statistics.median_low(ks)) if ks else None
+
+
 def _fresh_seeds(lay) -> str:
     """The verified cards on fresh packing seeds (``fresh_seeds_table``), if it ran."""
     f = Path(lay.table(L.FRESH_SEEDS))
@@ -523,6 +537,14 @@ def _fresh_seeds(lay) -> str:
                     f"{n - 1} degrees of freedom), so one miss or more among these "
                     f"{len(judged)} targets has probability "
                     f"{100 * false_alarm(n, z, len(judged)):.0f} % even then.")
+        k = _loop_seeds(lay, sorted(set(judged["specimen"])))
+        if k:
+            verdict += (f" A card fitted exactly to the mean of its closed loop's {k} seeds "
+                        "carries that mean's own error onto the fresh seeds, which their "
+                        "standard error does not count: "
+                        f"{100 * false_alarm(n, z, loop_seeds=k):.1f} % per target, "
+                        f"{100 * false_alarm(n, z, len(judged), loop_seeds=k):.0f} % for one "
+                        "miss or more.")
     return ("\n### The verified cards on fresh packing seeds\n\n"
             f"Each verified card re-run on packing seeds its closed loop never saw ({seeds}): "
             "the mean ± its standard error, the error of the mean, its z-score (error / "

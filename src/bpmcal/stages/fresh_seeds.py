@@ -233,17 +233,25 @@ def fresh_seed_stats(values, lab: float, *, rtol: float, z: float = 2.0,
             "met": bool(n > 1 and abs(err) <= tol)}
 
 
-def false_alarm(n: int, z: float = 2.0, targets: int = 1) -> float:
+def false_alarm(n: int, z: float = 2.0, targets: int = 1, loop_seeds: int | None = None) -> float:
     """The probability that a card exactly on its targets still fails the ``within_z_se``
     check of :func:`fresh_seed_stats` on ``n`` fresh seeds for at least one of ``targets``
     independent targets: the standard error comes from the same ``n`` seeds, so the
     z-score is Student-t with n - 1 degrees of freedom (5 seeds, z = 2: 11.6 % per
-    target, 67 % for one miss or more among 9)."""
+    target, 67 % for one miss or more among 9).
+
+    With ``loop_seeds`` = k, the card is instead exactly on its targets over the mean of
+    its closed loop's k packings, which is itself off the rock's mean by that mean's error
+    (SD sigma / sqrt(k)); the fresh mean's error then has variance sigma² (1/n + 1/k), of
+    which the check's standard error counts only the first part: z = sqrt(1 + n/k) T with
+    T Student-t (n - 1), exactly. (5 fresh and 10 loop seeds, z = 2: 17.8 % per target,
+    62 % for one miss or more among 5.)"""
     from scipy import stats
 
     if n < 2:
         return math.nan
-    p_one = float(2 * stats.t.sf(z, n - 1))
+    inflate = 1.0 if loop_seeds is None else math.sqrt(1.0 + n / float(loop_seeds))
+    p_one = float(2 * stats.t.sf(z / inflate, n - 1))
     return 1 - (1 - p_one) ** int(targets)
 
 
