@@ -1,20 +1,21 @@
 """A journal of a long stage's finished runs: a closed loop stopped part way (killed, a
-Slurm time limit, a power loss) and started again with the same inputs reads the runs
-it had finished instead of running them again.
+Slurm time limit, a power loss) and started again with the same inputs reads the runs it
+had finished instead of running them again.
 
 Every finished run is one line of ``journal.jsonl`` in the stage's working folder
 (appended and flushed to disk as soon as the run ends), under a key that hashes
 everything its result depends on: the run's own inputs (parameters, packing seed,
-specimens, loading settings, responses asked for) and the bpmcal version and source
-commit (``io.provenance``). The run files it wrote stay beside it under names derived
-from the key. A run is reused only when its key matches and its files are there, so a
-changed setting or another bpmcal runs again; since every run is deterministic, a reused
-run is the run that would have been made. A line cut short by a kill is skipped.
-The stage removes the folder once its outputs are written; after a failure the folder
-stays for the next attempt.
+specimens, loading settings, responses asked for) and the bpmcal that runs it (its
+version and a hash of its source files, so an edited checkout is another bpmcal). The
+run files it wrote stay beside it under names derived from the key. A run is reused only
+when its key matches and its files are there, so a changed setting or another bpmcal
+runs again; since every run is deterministic, a reused run is the run that would have
+been made. A line cut short by a kill is skipped. The stage removes the folder once its
+outputs are written; after a failure the folder stays for the next attempt.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -24,9 +25,19 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..io.provenance import git_commit
 
 FILE = "journal.jsonl"
+
+
+@functools.lru_cache(maxsize=1)
+def source_hash() -> str:
+    """A hash of every Python source file of the installed bpmcal package (its path
+    inside the package and its bytes)."""
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for f in sorted(root.rglob("*.py")):
+        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
 
 
 def plain(x):
@@ -62,7 +73,7 @@ class RunJournal:
     def key(**inputs) -> str:
         """The hash of a run's ``inputs`` (dataclasses by their repr: every field) and of
         the bpmcal that runs it."""
-        text = json.dumps({"inputs": inputs, "bpmcal": __version__, "commit": git_commit()},
+        text = json.dumps({"inputs": inputs, "bpmcal": __version__, "source": source_hash()},
                           sort_keys=True, default=repr)
         return hashlib.sha256(text.encode()).hexdigest()
 
