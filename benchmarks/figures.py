@@ -51,7 +51,9 @@ SOURCES = {
     "study_outputs": ("results_study_outputs_*.json", "{tag}-default-study-results.md"),
     "bts_loadings": ("results_bts_loadings_*.json", "{tag}-tensile-strength.md"),
     "test_tiers": ("results_test_tiers_*.json", "{tag}-test-tiers.md"),
-    # the flat-joint Lac du Bonnet example (example_record.py) and its triaxial overlay
+    # the Lac du Bonnet examples (example_record.py): parallel bond, flat joint, and the
+    # flat joint's triaxial overlay
+    "ldb_pb": ("results_example_lac_du_bonnet_pb_*.json", "{tag}-lac-du-bonnet-parallel-bond.md"),
     "ldb_fj": ("results_example_lac_du_bonnet_fj_2*.json", "{tag}-lac-du-bonnet-flatjoint.md"),
     "ldb_fj_tri": ("results_example_lac_du_bonnet_fj_tri_*.json",
                    "{tag}-lac-du-bonnet-flatjoint-triaxial.md"),
@@ -168,7 +170,8 @@ def _example(prefix: str, spec: str = "LdB"):
 
 EXTRACT = {"default_study": _default_study, "study_outputs": _study_outputs,
            "bts_loadings": _bts_loadings, "test_tiers": _test_tiers,
-           "ldb_fj": _example("ldb_fj"), "ldb_fj_tri": _example("ldb_fj_tri")}
+           "ldb_pb": _example("ldb_pb"), "ldb_fj": _example("ldb_fj"),
+           "ldb_fj_tri": _example("ldb_fj_tri")}
 
 
 def figures() -> dict:
