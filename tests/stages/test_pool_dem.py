@@ -49,10 +49,10 @@ def _run_all(d, card, models, threads):
     out = d / f"t{threads}"
     A.verify(card, models, out_card=out / "card.yaml", rounds=out / "rounds.csv",
              run=out / "best.h5", geometry=GEO, settings=UCSSettings(), seed=1,
-             seeds_per_round=3, max_seeds=3, max_rounds=2, threads=threads)
-    fresh_seeds(out / "card.yaml", seeds=[101, 102, 103],
-                runs=[out / f"fresh{s}.h5" for s in (101, 102, 103)], bts_geometry=DISC,
-                bts_runs=[out / f"fresh{s}.bts.h5" for s in (101, 102, 103)],
+             seeds_per_round=2, max_seeds=2, max_rounds=2, threads=threads)
+    fresh_seeds(out / "card.yaml", seeds=[101, 102],
+                runs=[out / f"fresh{s}.h5" for s in (101, 102)], bts_geometry=DISC,
+                bts_runs=[out / f"fresh{s}.bts.h5" for s in (101, 102)],
                 seed_runs=out / "fresh.csv", geometry=GEO, settings=UCSSettings(),
                 threads=threads)
     A.seed_scatter(out / "card.yaml", runs=[out / f"sc{s}.h5" for s in (201, 202)],
@@ -66,12 +66,12 @@ def test_two_cpus_give_the_outputs_of_one(study):
     one, two = (_run_all(d, card, models, t) for t in (1, 2))
     pd.testing.assert_frame_equal(pd.read_csv(two / "rounds.csv"), pd.read_csv(one / "rounds.csv"))
     v1, v2 = (read_card(o / "card.yaml")["verification"] for o in (one, two))
-    assert v1["rounds"] >= 1 and v1["n_seeds"] == 3
+    assert v1["rounds"] >= 1 and v1["n_seeds"] == 2
     for k in ("parameters", "closed_loop", "single_pass", "status", "seeds"):
         assert v2[k] == v1[k], k
     for f in ("fresh.csv", "sc_runs.csv", "sc.csv"):
         pd.testing.assert_frame_equal(pd.read_csv(two / f), pd.read_csv(one / f))
     fresh = pd.read_csv(one / "fresh.csv")
-    assert list(fresh["seed"]) == [101, 102, 103] and (fresh["status"] == "ok").all()
-    assert fresh["ucs_MPa"].nunique() == 3  # three packings, three answers: really run
+    assert list(fresh["seed"]) == [101, 102] and (fresh["status"] == "ok").all()
+    assert fresh["ucs_MPa"].nunique() == 2  # two packings, two answers: really run
     assert fresh["bts_MPa"].notna().any()  # the Brazilian tests ran in the workers too

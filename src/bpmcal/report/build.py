@@ -488,14 +488,15 @@ def _verification(lay, comp, ref=False) -> str:
 
 def _loop_seeds(lay, specs) -> int | None:
     """The median number of packing seeds the verified cards of ``specs`` were judged on
-    (their closed loops' ``n_seeds``), None when no card says."""
-    ks = []
-    for spec in specs:
-        f = Path(lay.verified_card(spec))
-        if f.exists():
-            k = (read_card(f).get("verification") or {}).get("n_seeds")
-            if isinstance(k, int) and k > 1:
-                ks.append(k)
+    (their closed loops' ``n_seeds``, Table 5), None when Table 5 does not say."""
+    f = Path(lay.table(L.TABLE5))
+    if not f.exists():
+        return None
+    t = pd.read_csv(f)
+    if "n_seeds" not in t.columns or "specimen" not in t.columns:
+        return None
+    ks = [int(k) for k in t.loc[t["specimen"].astype(str).isin(specs), "n_seeds"].dropna()
+          if int(k) > 1]
     return int(statistics.median_low(ks)) if ks else None
 
 

@@ -19,7 +19,6 @@ import functools
 import hashlib
 import json
 import os
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -100,8 +99,13 @@ class RunJournal:
         self.entries[key] = json.loads(line)
 
     def remove(self) -> None:
-        """Remove the folder and everything in it (the stage's outputs are written)."""
-        shutil.rmtree(self.folder, ignore_errors=True)
+        """Remove the folder and the files in it (the stage's outputs are written; the
+        folder holds files only)."""
+        if not self.folder.is_dir():
+            return
+        for f in self.folder.iterdir():
+            f.unlink(missing_ok=True)
+        self.folder.rmdir()
 
     def keep_or_remove(self) -> None:
         """After a failure: keep the folder when it holds a finished run, else remove it."""
