@@ -87,9 +87,10 @@ class RunJournal:
             self.reused += 1
         return None if e is None else e["record"]
 
-    def add(self, key: str, record: dict, files: list[Path]) -> None:
+    def add(self, key: str, record: dict, files: list[Path]) -> dict:
         """Journal a finished run: its ``record`` (JSON-able, NaN allowed) and the files
-        it wrote (in the folder), flushed to disk before the stage goes on."""
+        it wrote (in the folder), flushed to disk before the stage goes on. Returns the
+        record as a later attempt reads it back (JSON's types)."""
         e = {"key": key, "files": [Path(f).name for f in files], "record": record}
         line = json.dumps(e, default=plain, allow_nan=True)
         with open(self.path, "a") as fh:
@@ -97,6 +98,7 @@ class RunJournal:
             fh.flush()
             os.fsync(fh.fileno())
         self.entries[key] = json.loads(line)
+        return self.entries[key]["record"]
 
     def remove(self) -> None:
         """Remove the folder and the files in it (the stage's outputs are written; the

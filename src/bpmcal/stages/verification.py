@@ -14,7 +14,6 @@ are looked up in this module. Method: ``docs/methods/calibration.md`` ("Closed l
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
@@ -39,7 +38,7 @@ from ..params import BTS, SAMPLE_TESTS
 from ..plots.calibration import fig_stress_strain
 from . import defaults_of
 from .inputs import CSV, H5, PNG, YAML, output_dirs, outputs, read_lab, read_models
-from .journal import RunJournal, plain
+from .journal import RunJournal
 from .pool import SeedPool
 from .runs import (  # noqa: F401 (the per-sample tests' runners: _TEST_RUN names them)
     run_bts_file,
@@ -237,8 +236,7 @@ class _LoopRuns:
             row, out, ucs_path, bts_path, files = res
             rec = {"row": row, "out": out, "ucs": Path(ucs_path).name,
                    "bts": None if bts_path is None else Path(bts_path).name}
-            self.journal.add(keys[todo[j]], rec, files)
-            done[todo[j]] = json.loads(json.dumps(rec, default=plain))  # as a reused run reads
+            done[todo[j]] = self.journal.add(keys[todo[j]], rec, files)  # as a reused run reads
 
         k = len(self.by_round)
         self.pool.map(_loop_seed, [dict(jobs[i], cache=self.cache,
