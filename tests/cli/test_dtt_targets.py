@@ -138,3 +138,89 @@ def test_verify_steers_the_direct_tension_strength_and_replaces_invalid_tests(
     assert v["dtt_geometry"]["scale"] == 0.4 and "bts_geometry" not in v
     rounds = pd.read_csv(tmp_path / "B1.csv")
     assert f"err_{DTT}" in rounds.columns
+
+
+class SpecimenDEM(FakeDEM):
+    """FakeDEM whose direct-tension 'specimen' j of a seed (packing seed + j x the
+    replicate stride) reads 4 + 2 j % above the models' σt: one specimen per seed is 4 %
+    high, the mean of three 6 %."""
+
+    def dtt(self, out, params, seed, geometry, settings, **kw):
+        self.calls.append(("dtt", seed))
+        j = seed // V.TENSILE_REPLICATE_STRIDE
+        v = predict(dtt_models(), params)[DTT] * (1.04 + 0.02 * j)
+        s = {"dtt_peak_MPa": v, "dtt_MPa": v, "dtt_valid": True, "dtt_invalid_reason": ""}
+        write_run(out, test="dtt", inputs={"seed": seed}, summary=s)
+        return RunOutcome(status="ok", summary=s, path=out)
+
+
+def _verify_specimens(card, d, out, monkeypatch, n):
+    dem = SpecimenDEM()
+    monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
+    monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
+    v = A.verify(card, d / "models.json", out_card=out / "B1.yaml", rounds=out / "B1.csv",
+                 run=out / "B1.h5", geometry=Geometry(scale=0.4), settings=UCSSettings(),
+                 seed=7, seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
+                 tensile_specimens=n)["verification"]
+    return dem, v
+
+
+@pytest.mark.parametrize("n, first_error", [(1, 4.0), (3, 6.0)])
+def test_a_seeds_tensile_strength_is_the_mean_of_its_specimens(card, d, tmp_path, monkeypatch,
+                                                                n, first_error):
+    dem, v = _verify_specimens(card, d, tmp_path, monkeypatch, n)
+    stride = V.TENSILE_REPLICATE_STRIDE
+    # every seed of a round: its UCS test, then specimens seed, seed + stride, ...
+    assert dem.calls[:2 + n] == [("ucs", 7), *[("dtt", 7 + j * stride) for j in range(n)],
+                                 ("ucs", 8)]
+    assert v["single_pass"]["errors_pct"][DTT] == pytest.approx(first_error, abs=0.5)
+    assert v["status"] == "converged" and abs(v["closed_loop"]["errors_pct"][DTT]) <= 1.0
+    assert v.get("tensile_specimens", 1) == n
+    assert ("tensile_specimens" in v) == (n > 1)  # a card of one specimen reads as before
+
+
+def test_fresh_seeds_measure_sigma_t_as_the_loop_did(card, d, tmp_path, monkeypatch):
+    from bpmcal.stages import fresh_seeds as H
+
+    _verify_specimens(card, d, tmp_path, monkeypatch, 3)
+    dem = SpecimenDEM()
+    monkeypatch.setattr(H, "run_ucs_file", dem.ucs)
+    monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
+    runs = [tmp_path / f"f{s}.h5" for s in (101, 102)]
+    dtt = [tmp_path / f"f{s}.dtt.h5" for s in (101, 102)]
+    df = H.fresh_seeds(tmp_path / "B1.yaml", seeds=[101, 102], runs=runs, dtt_runs=dtt,
+                       seed_runs=tmp_path / "seeds.csv", geometry=Geometry(scale=0.4),
+                       settings=UCSSettings())
+    stride = V.TENSILE_REPLICATE_STRIDE
+    assert [c for c in dem.calls if c[0] == "dtt"] == [
+        ("dtt", s + j * stride) for s in (101, 102) for j in range(3)]
+    assert (df["dtt_specimens"] == 3).all()
+    for _, r in df.iterrows():  # the seed's σt: the mean of its specimens' values
+        vals = [float(x) for x in r["dtt_specimen_MPa"].split(";")]
+        assert r[DTT] == pytest.approx(np.mean(vals), rel=1e-5)
+        assert vals[2] / vals[0] == pytest.approx(1.08 / 1.04, rel=1e-5)
+    for p in dtt:  # specimen 0 in the declared file, the others beside it
+        assert p.exists() and p.with_suffix(".r1.h5").exists() and p.with_suffix(".r2.h5").exists()
+
+
+@pytest.mark.parametrize("n", [0, 51, 1.5, True, "3"])
+def test_a_bad_tensile_specimen_count_names_the_value(n):
+    with pytest.raises(V.BadInput, match=r"--tensile-specimens .*expected an integer in 1 \.\. 50"):
+        V.check_tensile_specimens(n)
+
+
+def test_a_triaxial_strength_is_not_measured_on_several_specimens(tmp_path):
+    with pytest.raises(V.BadInput, match="only a tensile strength"):
+        V.seed_strength("tri_MPa", lambda j, s, k: tmp_path / "x.h5", {}, 1, None, None,
+                        specimens=2)
+
+
+def test_the_cli_refuses_a_bad_specimen_count_in_one_line(card, d, tmp_path, capsys):
+    from bpmcal.cli import main
+
+    rc = main(["verify", "--card", str(card), "--models", str(d / "models.json"),
+               "--out-card", str(tmp_path / "v.yaml"), "--rounds", str(tmp_path / "r.csv"),
+               "--run", str(tmp_path / "r.h5"), "--tensile-specimens", "0"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "--tensile-specimens" in err[0], err
+    assert not any(tmp_path.iterdir())

@@ -28,7 +28,8 @@ OVERLAY = {
             "post_peak_strain": 0.000437, "platen_fric": 0.337, "damping": 0.637,
             "max_strain": 0.0437, "record_strain": 1.37e-5},
     "transfer": {"enabled": True},
-    "verification": {"range_margin": 0.137, "polish": False, "jacobian_update": "history"},
+    "verification": {"range_margin": 0.137, "polish": False, "jacobian_update": "history",
+                     "tensile_specimens": 3},
     # a lab with a sigma_t target: the closed loops run Brazilian tests too (without one
     # they get no --bts-* options, so that a bts key does not rerun them)
     "lab": {"csv": "config/lab/lac_du_bonnet.csv"},
@@ -93,6 +94,11 @@ def test_both_closed_loops_search_the_same_widened_box(commands, cmd):
 
 def test_the_verification_gets_its_polish_switch(commands):
     _expect(commands["verify"], "verification", ["polish"])
+
+
+def test_the_closed_loop_gets_its_tensile_specimen_count(commands):
+    # the transfer and the fresh-seed check read it from the verified card
+    _expect(commands["verify"], "verification", ["tensile_specimens"])
 
 
 @pytest.mark.parametrize("cmd", ["verify", "transfer"])

@@ -99,6 +99,8 @@ DEFAULTS = {
     "verification.range_margin": (VER["range_margin"], ("verify", "range_margin", None)),
     "verification.polish": (VER["polish"], ("verify", "polish", None)),
     "verification.jacobian_update": (VER["jacobian_update"], ("verify", "jacobian_update", None)),
+    "verification.tensile_specimens": (VER["tensile_specimens"],
+                                       ("verify", "tensile_specimens", None)),
     "verification.from_unreachable": (VER["from_unreachable"],
                                       ("verify", "from_unreachable", None)),
     "transfer.scale": (GEO.scale, ("transfer", "scale", None)),

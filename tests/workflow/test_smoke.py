@@ -602,6 +602,7 @@ RERUN = {
     "verification.seeds_per_round": (3, _VERIFY | {"transfer"}),
     "verification.max_seeds": (4, _VERIFY | {"transfer"}),
     "verification.polish": (False, _VERIFY),
+    "verification.tensile_specimens": (2, _VERIFY),  # transfer, fresh seeds: from the card
     "verification.jacobian_update": ("history", _VERIFY | {"transfer"}),
     "verification.range_margin": (0.2, _VERIFY | {"transfer"}),
     "verification.from_unreachable": (False, _VERIFY),

@@ -181,6 +181,7 @@ rule verify:
                 "range_margin",
                 "polish",
                 "jacobian_update",
+                "tensile_specimens",
             )
         },
         opts=specimen_args(),
@@ -199,6 +200,7 @@ rule verify:
         "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
         "--max-seeds {params.v[max_seeds]:q} --range-margin {params.v[range_margin]:q} "
         "--jacobian-update {params.v[jacobian_update]:q} {params.polish:q} "
+        "--tensile-specimens {params.v[tensile_specimens]:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
         "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
 

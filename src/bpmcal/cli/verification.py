@@ -97,6 +97,12 @@ def _add_verify(p):
                         "tolerance but their standard errors are too large to state them to "
                         f"--rtol (default {d['max_seeds']}; at most --seeds-per-round: no "
                         "growth)")
+    p.add_argument("--tensile-specimens", type=integer("tensile-specimens", 1, 50),
+                   default=d["tensile_specimens"],
+                   help="a seed's sigma_t (Brazilian or direct tension) is the mean of this "
+                        "many valid specimens, packed with seed + j x 1,000,000; the card "
+                        "records it and the transfer and the fresh-seed check measure sigma_t "
+                        f"the same way (default {d['tensile_specimens']})")
     p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
                    help=f"relative tolerance (default {d['rtol']:g})")
     p.add_argument("--max-rounds", type=integer("max-rounds", 1, 50), default=d["max_rounds"],
@@ -126,7 +132,7 @@ def cmd_verify(args) -> int:
                bts_run=args.bts_run, bts_geometry=bts_disc_of(args, "bts_"),
                bts_settings=bts_settings_of(args, "bts_"), range_margin=args.range_margin,
                polish=args.polish, dtt_geometry=dtt_cylinder_of(args, "dtt_"),
-               jacobian_update=args.jacobian_update,
+               jacobian_update=args.jacobian_update, tensile_specimens=args.tensile_specimens,
                dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
                **budget_of(args))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")

@@ -12,6 +12,7 @@ default), and within the tolerance the loop itself used, max(rtol, z standard er
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -31,7 +32,13 @@ from . import defaults_of
 from .inputs import CSV, H5, output_dirs, outputs
 from .pool import SeedPool
 from .runs import run_ucs_file, write_failure
-from .verification import check_tri_target, disc_geometry, test_strength, valid_tensile_run
+from .verification import (
+    TENSILE_TESTS,
+    _specimen_columns,
+    check_tri_target,
+    disc_geometry,
+    seed_strength,
+)
 
 #: per-seed columns of the seed table besides the targets
 _EXTRA = ("u_pre_MJm3", "peak_strain")
@@ -67,7 +74,10 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
     (``tri_MPa``) the triaxial test of ``tri_settings`` (its design confinement) on the UCS
     cylinder into ``tri_runs[i]``. An invalid tensile test is run again on
     replacement seeds (``valid_tensile_run``); when none is valid the seed has no σt (NaN,
-    the reasons in ``error``) and keeps its UCS responses. ``seed_runs``: one row per seed
+    the reasons in ``error``) and keeps its UCS responses. σt is measured as the card's
+    closed loop measured it: the mean of ``verification.tensile_specimens`` specimens per
+    seed (default 1; :func:`~bpmcal.stages.verification.seed_strength`), specimen j > 0
+    written beside the seed's run file as ``<run>.r<j>.h5``. ``seed_runs``: one row per seed
     with its status, failure reason and responses. The parameters are the card's
     (:func:`card_parameters`: the closed loop's, or the transfer's when it ran). A card
     whose closed loop did not run (``not-run``: an unreachable calibration) is not run on
@@ -148,7 +158,8 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
             specimen=c["specimen"], params=params, seed=s, run=runs[i], geometry=geometry,
             settings=settings, extra=[(e[0], None if e[1] is None else e[1][i], *e[2:])
                                       for e in extra],
-            cache=cache, genesis_max_steps=genesis_max_steps)
+            cache=cache, genesis_max_steps=genesis_max_steps,
+            tensile_specimens=int(v.get("tensile_specimens", 1)))
             for i, s in enumerate(seeds)], tags=[f"seed {s}" for s in seeds])
     df = pd.DataFrame(rows)
     write_table(df, seed_runs, index=False)
@@ -156,7 +167,7 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
 
 
 def _fresh_seed(*, specimen, params: dict, seed: int, run, geometry, settings, extra: list,
-                cache, genesis_max_steps, threads, progress) -> dict:
+                cache, genesis_max_steps, threads, progress, tensile_specimens=1) -> dict:
     """One fresh seed (run in a :class:`SeedPool` worker or in this process): its UCS test
     into ``run`` and, for every per-sample test of ``extra`` (:func:`fresh_seeds`' list,
     each with this seed's run file in place of the list of all), the test when it is measured
@@ -174,7 +185,8 @@ def _fresh_seed(*, specimen, params: dict, seed: int, run, geometry, settings, e
         if path is None:
             continue
         if measured:
-            _fresh_test(row, resp, what, path, params, seed, geo, st, **kw)
+            n = tensile_specimens if test in TENSILE_TESTS else 1
+            _fresh_test(row, resp, what, path, params, seed, geo, st, specimens=n, **kw)
         else:
             write_failure(path, test=test, inputs=inputs_of(params, seed, geo, st),
                           error=f"not run: the card has no {target} ({resp})")
@@ -188,16 +200,19 @@ def _tri_inputs(params: dict, seed: int, geometry, settings) -> dict:
 
 
 def _fresh_test(row: dict, resp: str, what: str, path, params: dict, seed: int, geometry,
-                settings, **kw) -> None:
+                settings, *, specimens=1, **kw) -> None:
     """One fresh seed's per-sample test of strength ``resp`` (``P.SAMPLE_TESTS``) into
     ``path`` and ``row``: the strength (NaN for a failed run, or when no replacement seed
     gave a valid test: the seed keeps its UCS responses), the packing seed used, the
-    invalid attempts, and the status and error of a failure."""
+    invalid attempts, and the status and error of a failure; σt the mean of ``specimens``
+    specimens (:func:`seed_strength`; specimen j > 0 into ``<path stem>.r<j>.h5``)."""
     test = P.SAMPLE_TESTS[resp]
-    b, used, invalid = valid_tensile_run(test, lambda _s, _k: path, params, seed, geometry,
-                                         settings, keep_particles=False, **kw)
-    row[resp] = test_strength(resp, b)
+    b, used, invalid, row[resp], values = seed_strength(
+        resp, lambda j, _s, _k: path if j == 0 else Path(path).with_suffix(f".r{j}.h5"),
+        params, seed, geometry, settings, specimens=specimens, keep_particles=False, **kw)
     row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
+    if specimens > 1:
+        _specimen_columns(row, test, values)
     if b.status != "ok":
         row["status"] = "failed"
         row["error"] = "; ".join(x for x in (row["error"], f"{what}: {b.error}") if x)

@@ -63,7 +63,9 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     loaded with ``bts_settings`` (default ``BTSSettings()``; the study passes its `bts`
     section, as to the verification); a direct-tension target runs its test on the
     transfer's cylinder with ``dtt_settings``, a triaxial-strength target (``tri_MPa``) the
-    triaxial test of ``tri_settings`` on it. The loop's bounds are the verification's:
+    triaxial test of ``tri_settings`` on it; σt is the mean of as many specimens per
+    seed as the verification's (``verification.tensile_specimens``, default 1). The loop's
+    bounds are the verification's:
     the design ranges widened by ``range_margin`` of their width
     (``verification.range_margin``); ``jacobian_update`` its Jacobian update rule
     (``verification.jacobian_update``, as :func:`verify`)."""
@@ -101,7 +103,8 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         bts_settings=bts_settings or BTSSettings(), jacobian=v.get("jacobian"),
         range_margin=range_margin, cylinder=geometry,
         dtt_settings=dtt_settings or DTTSettings(), tri_settings=tri_settings,
-        jacobian_update=jacobian_update)
+        jacobian_update=jacobian_update,
+        tensile_specimens=int(v.get("tensile_specimens", 1)))  # σt measured as the loop did
     write_table(res.history, rounds, index=False)
     out = dict(c)
     section = _transfer_section(res, by_round, best, targets, base=base, tol=tol, shrink=shrink,

@@ -140,6 +140,65 @@ def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, set
     return b, s, invalid
 
 
+#: the tensile tests (``P.SAMPLE_TESTS``) whose strength a seed may measure on several
+#: specimens (``tensile_specimens``): specimen j of packing seed s is packed with
+#: ``replicate_seed(s, j)`` = s + j x TENSILE_REPLICATE_STRIDE (j = 0: s itself, the UCS
+#: test's packing); an invalid one is replaced as above, so for seeds below 100,000 and at
+#: most 9 replacements no two specimens, or a specimen and a loop seed, share a packing
+TENSILE_TESTS = ("bts", "dtt")
+TENSILE_REPLICATE_STRIDE = 1_000_000
+MAX_TENSILE_SPECIMENS = 50
+
+
+def replicate_seed(seed: int, j: int) -> int:
+    """The packing seed of specimen ``j`` (0, 1, ...) of packing ``seed``'s tensile test."""
+    return int(seed) + int(j) * TENSILE_REPLICATE_STRIDE
+
+
+def check_tensile_specimens(n, flag: str = "--tensile-specimens") -> int:
+    """``n`` as the number of tensile specimens per seed: an integer in 1 ..
+    MAX_TENSILE_SPECIMENS, else BadInput naming ``flag`` and the value."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) \
+            or not 1 <= int(n) <= MAX_TENSILE_SPECIMENS:
+        raise BadInput(f"{flag} {n!r}: expected an integer in 1 .. {MAX_TENSILE_SPECIMENS} "
+                       "(tensile specimens per packing seed)")
+    return int(n)
+
+
+def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, settings, *,
+                  specimens: int = 1, **kw):
+    """The strength ``resp`` (``P.SAMPLE_TESTS``) of packing ``seed``: with ``specimens``
+    = 1 its test's (:func:`valid_tensile_run`); a tensile strength (σt: Brazilian or
+    direct tension, ``TENSILE_TESTS``) with ``specimens`` = n > 1 the mean of n specimens,
+    packed with ``replicate_seed(seed, j)``, j = 0 .. n-1, each valid or replaced as one
+    test is, as a laboratory states σt as the mean of several specimens: the seed's σt
+    then scatters sqrt(n) times less from packing to packing, at n tests' cost.
+    ``path_of(j, s, k)`` names the run file of specimen j's attempt k on packing s. The
+    mean is NaN when a specimen failed or had no valid test (a seed is measured on all n,
+    or it has no σt). Returns (the first specimen's outcome, or the failed one's, the
+    packing seed the first ran on, the invalid attempts' reasons of every specimen, the
+    seed's strength, the specimens' strengths)."""
+    test = SAMPLE_TESTS[resp]
+    if specimens > 1 and test not in TENSILE_TESTS:
+        raise BadInput(f"tensile specimens {specimens}: only a tensile strength "
+                       f"({', '.join(TENSILE_TESTS)}) is measured on several specimens, "
+                       f"not {resp}")
+    first, used, invalid, values = None, None, [], []
+    for j in range(specimens):
+        b, s, bad = valid_tensile_run(test, lambda s, k, j=j: path_of(j, s, k), params,
+                                      replicate_seed(seed, j), geometry, settings, **kw)
+        invalid += bad
+        values.append(test_strength(resp, b))
+        if first is None:
+            first, used = b, s
+        if b.status != "ok":
+            first = b  # a failed specimen: the seed has no σt; the others need not run
+            break
+    v = np.array(values, float)
+    mean = float(v.mean()) if len(v) == specimens and np.isfinite(v).all() else math.nan
+    return first, used, invalid, mean, values
+
+
 def valid_bts_run(path_of, params: dict, seed: int, disc, settings, **kw):
     """:func:`valid_tensile_run` of the Brazilian test."""
     return valid_tensile_run("bts", path_of, params, seed, disc, settings, **kw)
@@ -149,14 +208,16 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
               settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
               free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
               jacobian=None, range_margin=0.0, polish=True, cylinder=None,
-              dtt_settings=None, tri_settings=None, jacobian_update="broyden"):
+              dtt_settings=None, tri_settings=None, jacobian_update="broyden",
+              tensile_specimens=1):
     """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
     into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
     ``disc`` (or the direct-tension test on ``cylinder``) with the same seed, and when
     ``tri_MPa`` is one, the triaxial test with ``tri_settings`` on the UCS cylinder; the
     first seed's run files of the best round become
     ``run`` and ``bts_run``). A round's seeds run side by side on up to ``threads``
-    processes (:class:`SeedPool`). The first step follows the regression models' Jacobian, or
+    processes (:class:`SeedPool`); a seed's σt is the mean of ``tensile_specimens``
+    specimens (:func:`seed_strength`). The first step follows the regression models' Jacobian, or
     ``jacobian`` (responses x free parameters, physical units) when given; the measured
     rounds correct it by ``jacobian_update`` (:class:`ClosedLoop`'s ``update``).
     Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
@@ -166,7 +227,8 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                      geometry=geometry, settings=settings, genesis_max_steps=genesis_max_steps,
                      specimens={"bts": (disc, bts_settings), "dtt": (cylinder, dtt_settings),
                                 "tri": (geometry, tri_settings)},
-                     cache=cache, threads=threads, progress=progress)
+                     cache=cache, threads=threads, progress=progress,
+                     tensile_specimens=tensile_specimens)
     ok = False
     try:
         free = free or [k for k, v in c["roles"].items() if v == "free"]
@@ -202,10 +264,11 @@ class _LoopRuns:
     UCS run files (``paths``) and Brazilian run files (``bts_paths``)."""
 
     def __init__(self, folder: Path, targets: list, *, geometry, settings, specimens: dict,
-                 genesis_max_steps, cache, threads, progress):
+                 genesis_max_steps, cache, threads, progress, tensile_specimens=1):
         self.journal = RunJournal(folder)
         self.inputs = dict(targets=targets, geometry=geometry, settings=settings,
-                           specimens=specimens, genesis_max_steps=genesis_max_steps)
+                           specimens=specimens, genesis_max_steps=genesis_max_steps,
+                           tensile_specimens=tensile_specimens)
         self.cache, self.progress = cache, progress
         self.pool = SeedPool(threads, progress)
         self.by_round: list[list[dict]] = []
@@ -267,12 +330,14 @@ class _LoopRuns:
 
 
 def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, settings,
-               specimens: dict, cache, genesis_max_steps, threads, progress):
+               specimens: dict, cache, genesis_max_steps, threads, progress,
+               tensile_specimens: int = 1):
     """One seed of a closed-loop round (:func:`_dem_loop`; run in a :class:`SeedPool`
     worker or in this process): the UCS test into ``<stem>.h5`` and every per-sample test
     of the ``targets`` (``specimens``: test -> (specimen, settings)), an invalid one
-    replaced (:func:`valid_tensile_run`). Returns (the seed's row, its responses, the UCS
-    run file, the Brazilian run file or None, every run file it wrote)."""
+    replaced, σt the mean of ``tensile_specimens`` specimens (:func:`seed_strength`).
+    Returns (the seed's row, its responses, the UCS run file, the Brazilian run file or
+    None, every run file it wrote)."""
     kw = dict(cache=cache, threads=threads, progress=progress,
               genesis_max_steps=genesis_max_steps)
     res = run_ucs_file(Path(f"{stem}.h5"), params, seed, geometry, settings, **kw)
@@ -283,17 +348,27 @@ def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, 
     for resp in (r for r in SAMPLE_TESTS if r in targets):  # σt, σ1: a valid test, or NaN
         test = SAMPLE_TESTS[resp]
         geo, st = specimens[test]
-        b, used, invalid = valid_tensile_run(test, lambda s, j, t=test: Path(f"{stem}.{t}{j}.h5"),
-                                             params, seed, geo, st, **kw)
+        n = tensile_specimens if test in TENSILE_TESTS else 1
+        b, used, invalid, row[resp], values = seed_strength(
+            resp, lambda j, s, k, t=test: Path(f"{stem}.{t}{k}{f'.r{j}' if j else ''}.h5"),
+            params, seed, geo, st, specimens=n, **kw)
         if test == "bts":
             bts_path = b.path
-        row[resp] = test_strength(resp, b)
         row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
+        if n > 1:
+            _specimen_columns(row, test, values)
         if b.status != "ok" or not math.isfinite(row[resp]):
             row["status"] = "failed"
         out[resp] = row[resp]
     files = [Path(f) for f in Path(stem).parent.glob(f"{Path(stem).name}*.h5")]
     return row, out, res.path, bts_path, files
+
+
+def _specimen_columns(row: dict, test: str, values: list) -> None:
+    """A seed row's record of its tensile specimens (``tensile_specimens`` > 1): how many,
+    and each one's strength (``;``-separated, MPa; NaN: failed or no valid test)."""
+    row[f"{test}_specimens"] = len(values)
+    row[f"{test}_specimen_MPa"] = ";".join(f"{v:.6g}" for v in values)
 
 
 # long: the stage's reference docstring (54 lines, the card's verification section); the code is ~60 lines
@@ -302,7 +377,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            threads=None, free=None, progress=None, from_unreachable=False, max_balls=None,
            mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
            bts_run=None, max_seeds=10, range_margin=0.25, polish=True, dtt_geometry=None,
-           dtt_settings=None, tri_settings=None, jacobian_update="broyden") -> dict:
+           dtt_settings=None, tri_settings=None, jacobian_update="broyden",
+           tensile_specimens=1) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -358,7 +434,10 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     direct-tension test instead, on the cylinder ``dtt_geometry`` (default the UCS
     cylinder) with ``dtt_settings``. An invalid tensile test (its fracture at a contact
     or a grip) is no measurement: that seed's test is run again on replacement seeds
-    (:func:`valid_tensile_run`), and the round fails only when none is valid. A card with
+    (:func:`valid_tensile_run`), and the round fails only when none is valid. With
+    ``tensile_specimens`` = n > 1 (config ``verification.tensile_specimens``) a seed's σt
+    is the mean of n specimens (:func:`seed_strength`; the card records n, and the
+    transfer and the fresh-seed check measure σt the same way). A card with
     a triaxial-strength target (``tri_MPa``, σ1 at the study's design confinement) runs
     the triaxial test of ``tri_settings`` (its ``sigma3``) on the UCS cylinder in every
     round (required then: BadInput without it). The verified
@@ -389,6 +468,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     max_seeds = max(max_seeds, seeds_per_round)
     range_margin = _check_margin(range_margin)
     jacobian_update = _check_update(jacobian_update)
+    tensile_specimens = check_tensile_specimens(tensile_specimens)
     seeds = [int(seed) + i for i in range(seeds_per_round)]
     if c.get("status") == "unreachable" and not from_unreachable:
         reason = ("the calibration is unreachable, so the closed loop did not start from it "
@@ -408,7 +488,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
         disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
         range_margin=range_margin, polish=bool(polish), cylinder=cylinder,
-        dtt_settings=dtt_settings, tri_settings=tri_settings, jacobian_update=jacobian_update)
+        dtt_settings=dtt_settings, tri_settings=tri_settings, jacobian_update=jacobian_update,
+        tensile_specimens=tensile_specimens)
     write_table(res.history, rounds, index=False)
     verified = dict(c)
     verified.update({
@@ -417,7 +498,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             c, res, by_round, best, targets, rtol=rtol, seed=seed, seeds=seeds,
             seeds_per_round=seeds_per_round, max_seeds=max_seeds, polish=polish,
             geometry=geometry, range_margin=range_margin, disc=disc, cylinder=cylinder,
-            tri_settings=tri_settings, jacobian_update=jacobian_update)})
+            tri_settings=tri_settings, jacobian_update=jacobian_update,
+            tensile_specimens=tensile_specimens)})
     write_card(out_card, verified)
     if bts_run is not None and BTS not in targets:
         write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
@@ -480,7 +562,8 @@ def _not_run(c: dict, out_card, key: str, section: dict, *, rounds, run, error: 
 
 def _verification_section(c: dict, res, by_round: list, best: int, targets: dict, *, rtol, seed, seeds,
                           seeds_per_round, max_seeds, polish, geometry, range_margin, disc,
-                          cylinder, tri_settings=None, jacobian_update="broyden") -> dict:
+                          cylinder, tri_settings=None, jacobian_update="broyden",
+                          tensile_specimens=1) -> dict:
     """The verified card's ``verification`` section from the closed loop's result ``res``
     and its rounds' seed summaries ``by_round`` (``best``: the card's round)."""
     message = res.message + _outside_text(res.outside, range_margin)
@@ -505,6 +588,8 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
         v["bts_geometry"] = disc.to_dict()
     if "dtt_MPa" in targets:
         v["dtt_geometry"] = cylinder.to_dict()
+    if tensile_specimens > 1:  # σt of a seed: the mean of this many specimens
+        v["tensile_specimens"] = int(tensile_specimens)
     if P.TRI in targets:
         v["tri_sigma3_MPa"] = tri_settings.sigma3 / 1e6
     return v
