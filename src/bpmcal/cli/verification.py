@@ -74,7 +74,7 @@ def _seeds(text) -> list[int]:
 
 
 def _add_verify(p):
-    from ..stages.verification import verify
+    from ..stages.verification import MAX_TENSILE_SPECIMENS, TENSILE_REPLICATE_STRIDE, verify
 
     d = defaults_of(verify)
     p.add_argument("--card", required=True)
@@ -97,11 +97,13 @@ def _add_verify(p):
                         "tolerance but their standard errors are too large to state them to "
                         f"--rtol (default {d['max_seeds']}; at most --seeds-per-round: no "
                         "growth)")
-    p.add_argument("--tensile-specimens", type=integer("tensile-specimens", 1, 50),
+    p.add_argument("--tensile-specimens",
+                   type=integer("tensile-specimens", 1, MAX_TENSILE_SPECIMENS),
                    default=d["tensile_specimens"],
                    help="a seed's sigma_t (Brazilian or direct tension) is the mean of this "
-                        "many valid specimens, packed with seed + j x 1,000,000; the card "
-                        "records it and the transfer and the fresh-seed check measure sigma_t "
+                        "many valid specimens, packed with seed + j x "
+                        f"{TENSILE_REPLICATE_STRIDE:,}; the card records it and the transfer "
+                        "and the fresh-seed check measure sigma_t "
                         f"the same way (default {d['tensile_specimens']})")
     p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
                    help=f"relative tolerance (default {d['rtol']:g})")
