@@ -32,13 +32,7 @@ from . import defaults_of
 from .inputs import CSV, H5, output_dirs, outputs
 from .pool import SeedPool
 from .runs import run_ucs_file, write_failure
-from .verification import (
-    TENSILE_TESTS,
-    _specimen_columns,
-    check_tri_target,
-    disc_geometry,
-    seed_strength,
-)
+from .verification import check_tri_target, disc_geometry, row_strength
 
 #: per-seed columns of the seed table besides the targets
 _EXTRA = ("u_pre_MJm3", "peak_strain")
@@ -185,8 +179,8 @@ def _fresh_seed(*, specimen, params: dict, seed: int, run, geometry, settings, e
         if path is None:
             continue
         if measured:
-            n = tensile_specimens if test in TENSILE_TESTS else 1
-            _fresh_test(row, resp, what, path, params, seed, geo, st, specimens=n, **kw)
+            _fresh_test(row, resp, what, path, params, seed, geo, st,
+                        tensile_specimens=tensile_specimens, **kw)
         else:
             write_failure(path, test=test, inputs=inputs_of(params, seed, geo, st),
                           error=f"not run: the card has no {target} ({resp})")
@@ -200,19 +194,17 @@ def _tri_inputs(params: dict, seed: int, geometry, settings) -> dict:
 
 
 def _fresh_test(row: dict, resp: str, what: str, path, params: dict, seed: int, geometry,
-                settings, *, specimens=1, **kw) -> None:
+                settings, *, tensile_specimens=1, **kw) -> None:
     """One fresh seed's per-sample test of strength ``resp`` (``P.SAMPLE_TESTS``) into
     ``path`` and ``row``: the strength (NaN for a failed run, or when no replacement seed
     gave a valid test: the seed keeps its UCS responses), the packing seed used, the
-    invalid attempts, and the status and error of a failure; σt the mean of ``specimens``
-    specimens (:func:`seed_strength`; specimen j > 0 into ``<path stem>.r<j>.h5``)."""
-    test = P.SAMPLE_TESTS[resp]
-    b, used, invalid, row[resp], values = seed_strength(
-        resp, lambda j, _s, _k: path if j == 0 else Path(path).with_suffix(f".r{j}.h5"),
-        params, seed, geometry, settings, specimens=specimens, keep_particles=False, **kw)
-    row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
-    if specimens > 1:
-        _specimen_columns(row, test, values)
+    invalid attempts, and the status and error of a failure; σt the mean of
+    ``tensile_specimens`` specimens (:func:`row_strength`; specimen j > 0 into
+    ``<path stem>.r<j>.h5``)."""
+    b, invalid = row_strength(
+        row, resp, lambda j, _s, _k: path if j == 0 else Path(path).with_suffix(f".r{j}.h5"),
+        params, seed, geometry, settings, tensile_specimens=tensile_specimens,
+        keep_particles=False, **kw)
     if b.status != "ok":
         row["status"] = "failed"
         row["error"] = "; ".join(x for x in (row["error"], f"{what}: {b.error}") if x)

@@ -348,15 +348,11 @@ def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, 
     for resp in (r for r in SAMPLE_TESTS if r in targets):  # σt, σ1: a valid test, or NaN
         test = SAMPLE_TESTS[resp]
         geo, st = specimens[test]
-        n = tensile_specimens if test in TENSILE_TESTS else 1
-        b, used, invalid, row[resp], values = seed_strength(
-            resp, lambda j, s, k, t=test: Path(f"{stem}.{t}{k}{f'.r{j}' if j else ''}.h5"),
-            params, seed, geo, st, specimens=n, **kw)
+        b, _ = row_strength(
+            row, resp, lambda j, s, k, t=test: Path(f"{stem}.{t}{k}{f'.r{j}' if j else ''}.h5"),
+            params, seed, geo, st, tensile_specimens=tensile_specimens, **kw)
         if test == "bts":
             bts_path = b.path
-        row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
-        if n > 1:
-            _specimen_columns(row, test, values)
         if b.status != "ok" or not math.isfinite(row[resp]):
             row["status"] = "failed"
         out[resp] = row[resp]
@@ -364,11 +360,24 @@ def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, 
     return row, out, res.path, bts_path, files
 
 
-def _specimen_columns(row: dict, test: str, values: list) -> None:
-    """A seed row's record of its tensile specimens (``tensile_specimens`` > 1): how many,
-    and each one's strength (``;``-separated, MPa; NaN: failed or no valid test)."""
-    row[f"{test}_specimens"] = len(values)
-    row[f"{test}_specimen_MPa"] = ";".join(f"{v:.6g}" for v in values)
+def row_strength(row: dict, resp: str, path_of, params: dict, seed: int, geometry, settings,
+                 *, tensile_specimens: int = 1, **kw):
+    """:func:`seed_strength` of ``resp`` into a seed's ``row`` (the closed loop's and the
+    fresh-seed check's): the strength, the packing seed used (``<test>_seed``), the count
+    of invalid attempts (``<test>_invalid``) and, when σt is measured on
+    ``tensile_specimens`` > 1 specimens (a tensile test's count; any other test has one),
+    how many ran and each one's strength (``<test>_specimens``, ``<test>_specimen_MPa``:
+    ``;``-separated, MPa; NaN: failed or no valid test). Returns (the outcome
+    :func:`seed_strength` returns, the invalid attempts' reasons)."""
+    test = SAMPLE_TESTS[resp]
+    n = tensile_specimens if test in TENSILE_TESTS else 1
+    b, used, invalid, row[resp], values = seed_strength(resp, path_of, params, seed, geometry,
+                                                        settings, specimens=n, **kw)
+    row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
+    if n > 1:
+        row[f"{test}_specimens"] = len(values)
+        row[f"{test}_specimen_MPa"] = ";".join(f"{v:.6g}" for v in values)
+    return b, invalid
 
 
 # long: the stage's reference docstring (54 lines, the card's verification section); the code is ~60 lines
