@@ -778,3 +778,78 @@ def test_a_rounds_seeds_run_at_once_take_the_same_path(start):
     assert [4, 5, 6, 7, 8, 9, 10] in batches
     with pytest.raises(ValueError, match="returned 1 result.s. for 3 seed"):
         ClosedLoop(SeedDEM(2), TARGETS, simulate_seeds=lambda p, s: [{}], **kw).run(start)
+
+
+class CappedDEM(SeedDEM):
+    """SeedDEM that, like the stage's loop, does not run the costly test of ``resp`` past
+    the first ``cap`` seeds of the set (returns NaN there) and records what it was asked."""
+
+    def __init__(self, realisation=0, resp="ucs_MPa", cap=4, first=1):
+        super().__init__(realisation)
+        self.resp, self.cap, self.first = resp, cap, first
+
+    def __call__(self, params, seed):
+        out = super().__call__(params, seed)
+        if seed - self.first >= self.cap:
+            out[self.resp] = np.nan
+        return out
+
+
+def test_a_seed_cap_judges_that_response_on_its_first_seeds_only(start):
+    """With max_seeds 10 and ucs_MPa capped at 4: a grown round's ucs_MPa mean, CV and
+    standard error are those of its first four seeds (the NaN the simulator returns past
+    the cap is no failure), every other response is judged on all ten, and the history
+    records the capped response's seed count."""
+    dem = CappedDEM(5)
+    res = ClosedLoop(dem, TARGETS, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2,
+                     max_seeds=10, seed_caps={"ucs_MPa": 4}).run(start)
+    assert res.status != "failed"
+    h, smp = res.history, res.samples
+    grown = h[h["n_seeds"] == 10]
+    assert len(grown), "the seed set grew"
+    assert (h["n_ucs_MPa"] == np.minimum(h["n_seeds"], 4)).all()
+    pooled, dof = np.zeros(len(TARGETS)), np.zeros(len(TARGETS))
+    for _, row in h.iterrows():
+        ys = smp[smp["round"] == row["round"]]
+        for j, r in enumerate(TARGETS):
+            v = ys[r].to_numpy(float)[: (4 if r == "ucs_MPa" else len(ys))]
+            assert np.isfinite(v).all()
+            assert row[r] == pytest.approx(v.mean(), rel=1e-12)
+            cv = v.std(ddof=1) / v.mean()
+            assert row[f"cv_{r}"] == pytest.approx(cv, rel=1e-9)
+            pooled[j] += (len(v) - 1) * cv ** 2
+            dof[j] += len(v) - 1
+            se = np.sqrt(pooled[j] / dof[j]) / np.sqrt(len(v))
+            assert row[f"se_{r}"] == pytest.approx(se, rel=1e-9)
+        # past the cap the samples hold NaN for the capped response, never a value
+        assert ys["ucs_MPa"].iloc[4:].isna().all() and ys["E_GPa"].notna().all()
+
+
+def test_a_seed_cap_does_not_grow_the_set_for_the_capped_response(start):
+    """A seed set grows only for a response a grown set measures on more seeds: when only
+    the capped response's standard error is too large, the set stays; without the cap the
+    same loop grows it."""
+    def dem(params, seed):  # ucs scatters 6 %, E and nu do not at all
+        t = planted_truth(params)
+        g = np.random.default_rng([11, seed]).standard_normal()
+        return {**t, "ucs_MPa": t["ucs_MPa"] * (1 + 0.06 * g)}
+
+    kw = dict(models=MODELS, rtol=0.02, max_rounds=8, ranges=T2, max_seeds=10)
+    free = ClosedLoop(dem, TARGETS, **kw).run(start)
+    capped = ClosedLoop(dem, TARGETS, seed_caps={"ucs_MPa": 3}, **kw).run(start)
+    assert free.history["grown"].sum() > 0
+    assert capped.history["grown"].sum() == 0 and (capped.history["n_seeds"] == 3).all()
+
+
+def test_a_failed_run_within_the_cap_still_fails_the_round(start):
+    def dem(params, seed):
+        out = planted_truth(params)
+        return {**out, "ucs_MPa": np.nan} if seed == 2 else out
+    res = ClosedLoop(dem, TARGETS, models=MODELS, ranges=T2, seed_caps={"ucs_MPa": 2}).run(start)
+    assert res.status == "failed" and "seed 2" in res.message
+
+
+def test_bad_seed_caps_are_refused(start):
+    for bad in ({"sigma_t": 3}, {"ucs_MPa": 0}, {"ucs_MPa": 2.5}, {"ucs_MPa": True}, [3]):
+        with pytest.raises(ValueError, match="seed_caps"):
+            ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seed_caps=bad)

@@ -155,6 +155,45 @@ def test_verify_runs_the_triaxial_test_every_seed_and_steers_sigma1(card, d, tmp
     assert f"err_{TRI}" in pd.read_csv(tmp_path / "B1.csv").columns
 
 
+def test_verify_runs_the_triaxial_test_on_the_first_seeds_only(card, d, tmp_path, monkeypatch):
+    """verification.triaxial_seeds = 2 of 3 seeds: every round runs the triaxial test on
+    seeds 7 and 8, never 9; the loop still steers σ1 (on those two), the rounds table
+    counts them and the card records the cap."""
+    dem = FakeDEM()
+    dem.install(monkeypatch, V)
+    v = V.verify(card, d / "models.json", out_card=tmp_path / "C.yaml",
+                 rounds=tmp_path / "C.csv", run=tmp_path / "C.h5",
+                 geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
+                 seeds_per_round=3, max_seeds=3, rtol=0.01, max_rounds=8,
+                 tri_settings=TriaxialSettings(sigma3=S3 * 1e6),
+                 triaxial_seeds=2)["verification"]
+    tri = [s for t, s in dem.calls if t == "tri"]
+    ucs = [s for t, s in dem.calls if t == "ucs"]
+    assert set(tri) == {7, 8} and set(ucs) == {7, 8, 9}
+    assert len(tri) == 2 * v["rounds"] and len(ucs) == 3 * v["rounds"]
+    assert v["status"] == "converged", v["message"]
+    assert abs(v["closed_loop"]["errors_pct"][TRI]) <= 1.0
+    assert v["triaxial_seeds"] == 2
+    rounds = pd.read_csv(tmp_path / "C.csv")
+    assert (rounds[f"n_{TRI}"] == 2).all() and (rounds["n_seeds"] == 3).all()
+
+
+@pytest.mark.parametrize("bad", ["1", "2.5", "x"])
+def test_a_bad_triaxial_seed_count_is_one_line_exit_2(card, d, tmp_path, capsys, bad):
+    rc = main(["verify", "--card", str(card), "--models", str(d / "models.json"),
+               "--out-card", str(tmp_path / "v.yaml"), "--rounds", str(tmp_path / "r.csv"),
+               "--run", str(tmp_path / "r.h5"), "--triaxial-seeds", bad, "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "triaxial-seeds" in err[0] and bad in err[0]
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("n", [1, 0, 2.0, True])
+def test_the_stage_refuses_a_bad_triaxial_seed_count(n):
+    with pytest.raises(V.BadInput, match="--triaxial-seeds"):
+        V.check_triaxial_seeds(n)
+
+
 def test_verify_of_a_triaxial_target_needs_the_design_confinement(card, d, tmp_path, capsys):
     rc = main(["verify", "--card", str(card), "--models", str(d / "models.json"),
                "--out-card", str(tmp_path / "v.yaml"), "--rounds", str(tmp_path / "r.csv"),

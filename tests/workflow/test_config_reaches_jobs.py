@@ -104,3 +104,26 @@ def test_the_closed_loop_gets_its_tensile_specimen_count(commands):
 @pytest.mark.parametrize("cmd", ["verify", "transfer"])
 def test_both_closed_loops_get_the_jacobian_update_rule(commands, cmd):
     _expect(commands[cmd], "verification", ["jacobian_update"])
+
+
+def test_the_closed_loop_of_a_triaxial_target_gets_its_seed_cap(tmp_path):
+    """verification.triaxial_seeds reaches `bpmcal verify` when σ1 is a target (the
+    flat-joint Lac du Bonnet study with its triaxial overlay); without one it is no option
+    (the smoke study's verify command above has none)."""
+    wf = copy_workflow(tmp_path)
+    (wf / "config" / "cap.yaml").write_text(yaml.safe_dump(
+        {"verification": {"triaxial_seeds": 7, "max_seeds": 13}}))
+    r = run_snakemake(wf, "-n", "-p", "--configfile", "config/examples/lac_du_bonnet_fj.yaml",
+                      "config/examples/lac_du_bonnet_fj_triaxial.yaml", "config/cap.yaml",
+                      timeout=300)
+    assert r.returncode == 0, r.stderr[-3000:]
+    verify = [shlex.split(ln.split("Shell command: ", 1)[1]) for ln in
+              (r.stdout + r.stderr).splitlines() if "Shell command: bpmcal verify" in ln]
+    assert verify
+    for argv in verify:
+        a = build_parser(only="verify").parse_args(argv[1:argv.index(">")])
+        assert a.triaxial_seeds == 7 and a.max_seeds == 13
+
+
+def test_no_triaxial_target_no_seed_cap(commands):
+    assert commands["verify"].triaxial_seeds is None

@@ -101,6 +101,7 @@ DEFAULTS = {
     "verification.jacobian_update": (VER["jacobian_update"], ("verify", "jacobian_update", None)),
     "verification.tensile_specimens": (VER["tensile_specimens"],
                                        ("verify", "tensile_specimens", None)),
+    "verification.triaxial_seeds": (VER["triaxial_seeds"], None),  # null: no option
     "verification.from_unreachable": (VER["from_unreachable"],
                                       ("verify", "from_unreachable", None)),
     "transfer.scale": (GEO.scale, ("transfer", "scale", None)),

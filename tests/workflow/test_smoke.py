@@ -603,6 +603,7 @@ RERUN = {
     "verification.max_seeds": (4, _VERIFY | {"transfer"}),
     "verification.polish": (False, _VERIFY),
     "verification.tensile_specimens": (2, _VERIFY),  # transfer, fresh seeds: from the card
+    "verification.triaxial_seeds": (3, set()),  # no triaxial target in the smoke study
     "verification.jacobian_update": ("history", _VERIFY | {"transfer"}),
     "verification.range_margin": (0.2, _VERIFY | {"transfer"}),
     "verification.from_unreachable": (False, _VERIFY),

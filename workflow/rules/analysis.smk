@@ -189,6 +189,12 @@ rule verify:
         dtt=dtt_args() if LAB_DTT else [],
         tri=tri_args() if LAB_TRI else [],
         polish="--polish" if config["verification"]["polish"] else "--no-polish",
+        # the triaxial seed cap only for a σ1 target: otherwise it reruns nothing
+        tseeds=(
+            ["--triaxial-seeds", config["verification"]["triaxial_seeds"]]
+            if LAB_TRI and config["verification"]["triaxial_seeds"]
+            else []
+        ),
         unreachable=(
             ["--from-unreachable"]
             if config["verification"]["from_unreachable"]
@@ -200,7 +206,7 @@ rule verify:
         "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
         "--max-seeds {params.v[max_seeds]:q} --range-margin {params.v[range_margin]:q} "
         "--jacobian-update {params.v[jacobian_update]:q} {params.polish:q} "
-        "--tensile-specimens {params.v[tensile_specimens]:q} "
+        "--tensile-specimens {params.v[tensile_specimens]:q} {params.tseeds:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
         "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
 

@@ -105,6 +105,12 @@ def _add_verify(p):
                         f"{TENSILE_REPLICATE_STRIDE:,}; the card records it and the transfer "
                         "and the fresh-seed check measure sigma_t "
                         f"the same way (default {d['tensile_specimens']})")
+    p.add_argument("--triaxial-seeds", type=integer("triaxial-seeds", 2, 200),
+                   default=d["triaxial_seeds"],
+                   help="with a triaxial-strength target (tri_MPa), only the first N seeds of "
+                        "the loop's seed set run the triaxial test, so a set grown to "
+                        "--max-seeds judges the other targets on more packings (default: "
+                        "every seed)")
     p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
                    help=f"relative tolerance (default {d['rtol']:g})")
     p.add_argument("--max-rounds", type=integer("max-rounds", 1, 50), default=d["max_rounds"],
@@ -135,6 +141,7 @@ def cmd_verify(args) -> int:
                bts_settings=bts_settings_of(args, "bts_"), range_margin=args.range_margin,
                polish=args.polish, dtt_geometry=dtt_cylinder_of(args, "dtt_"),
                jacobian_update=args.jacobian_update, tensile_specimens=args.tensile_specimens,
+               triaxial_seeds=args.triaxial_seeds,
                dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
                **budget_of(args))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")

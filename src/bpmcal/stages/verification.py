@@ -155,6 +155,17 @@ def replicate_seed(seed: int, j: int) -> int:
     return int(seed) + int(j) * TENSILE_REPLICATE_STRIDE
 
 
+def check_triaxial_seeds(n, flag: str = "--triaxial-seeds"):
+    """The closed loop's triaxial seed cap: None (every seed) or an integer >= 2 (a
+    standard error needs two), else BadInput naming the value."""
+    if n is None:
+        return None
+    if isinstance(n, bool) or not isinstance(n, int) or n < 2:
+        raise BadInput(f"{flag} {n!r}: expected an integer >= 2 (how many of the closed "
+                       "loop's seeds run the triaxial test), or none for every seed")
+    return n
+
+
 def check_tensile_specimens(n, flag: str = "--tensile-specimens") -> int:
     """``n`` as the number of tensile specimens per seed: an integer in 1 ..
     MAX_TENSILE_SPECIMENS, else BadInput naming ``flag`` and the value."""
@@ -209,7 +220,7 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
               free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
               jacobian=None, range_margin=0.0, polish=True, cylinder=None,
               dtt_settings=None, tri_settings=None, jacobian_update="broyden",
-              tensile_specimens=1):
+              tensile_specimens=1, triaxial_seeds=None):
     """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
     into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
     ``disc`` (or the direct-tension test on ``cylinder``) with the same seed, and when
@@ -217,18 +228,21 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
     first seed's run files of the best round become
     ``run`` and ``bts_run``). A round's seeds run side by side on up to ``threads``
     processes (:class:`SeedPool`); a seed's σt is the mean of ``tensile_specimens``
-    specimens (:func:`seed_strength`). The first step follows the regression models' Jacobian, or
-    ``jacobian`` (responses x free parameters, physical units) when given; the measured
+    specimens (:func:`seed_strength`); with ``triaxial_seeds`` = m only a round's first m
+    seeds run the triaxial test (:class:`ClosedLoop`'s ``seed_caps``). The first step
+    follows the regression models' Jacobian, or ``jacobian`` (responses x free
+    parameters, physical units) when given; the measured
     rounds correct it by ``jacobian_update`` (:class:`ClosedLoop`'s ``update``).
     Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
     ratio = c.get("ratio_ten_coh")
     with_bts = BTS in targets
+    caps = {P.TRI: int(triaxial_seeds)} if triaxial_seeds and P.TRI in targets else {}
     runs = _LoopRuns(Path(run).parent / f".{Path(run).stem}.rounds", list(targets),
                      geometry=geometry, settings=settings, genesis_max_steps=genesis_max_steps,
                      specimens={"bts": (disc, bts_settings), "dtt": (cylinder, dtt_settings),
                                 "tri": (geometry, tri_settings)},
                      cache=cache, threads=threads, progress=progress,
-                     tensile_specimens=tensile_specimens)
+                     tensile_specimens=tensile_specimens, caps=caps, first_seed=int(seeds[0]))
     ok = False
     try:
         free = free or [k for k, v in c["roles"].items() if v == "free"]
@@ -244,7 +258,7 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                           max_seeds=max_seeds, margin=range_margin, polish=polish,
                           target_se=c.get("target_se") or None,
                           update=jacobian_update, report=_notes(progress),
-                          simulate_seeds=runs.simulate_seeds)
+                          simulate_seeds=runs.simulate_seeds, seed_caps=caps or None)
         res = loop.run(params)
         best = res.best_round  # converged, else the smallest max |error| of the seed mean
         os.replace(runs.paths[best][0], run)  # the best round's first seed is the run file
@@ -261,10 +275,13 @@ class _LoopRuns:
     on up to ``threads`` processes (:class:`SeedPool`), each finished run journaled in
     ``folder`` (:class:`RunJournal`: a loop stopped part way and started again with the
     same inputs reads the runs it had finished); per round the seeds' rows (``by_round``),
-    UCS run files (``paths``) and Brazilian run files (``bts_paths``)."""
+    UCS run files (``paths``) and Brazilian run files (``bts_paths``). ``caps``: target ->
+    how many of the seed set's first seeds (from ``first_seed`` on) measure it; a seed
+    past a target's cap does not run its test."""
 
     def __init__(self, folder: Path, targets: list, *, geometry, settings, specimens: dict,
-                 genesis_max_steps, cache, threads, progress, tensile_specimens=1):
+                 genesis_max_steps, cache, threads, progress, tensile_specimens=1,
+                 caps=None, first_seed=1):
         self.journal = RunJournal(folder)
         self.inputs = dict(targets=targets, geometry=geometry, settings=settings,
                            specimens=specimens, genesis_max_steps=genesis_max_steps,
@@ -275,6 +292,7 @@ class _LoopRuns:
         self.paths: list[list[Path]] = []
         self.bts_paths: list[list[Path]] = []
         self._last: dict | None = None
+        self.caps, self.first_seed = dict(caps or {}), int(first_seed)
         if self.journal.resumable:
             self._note(f"{self.journal.resumable} finished run(s) of an earlier attempt in "
                        f"{folder}: a run with the same inputs is read, not run again")
@@ -290,7 +308,10 @@ class _LoopRuns:
             self.by_round.append([])
             self.paths.append([])
             self.bts_paths.append([])
-        jobs = [dict(self.inputs, params=params, seed=seed) for seed in seeds]
+        jobs = [dict(self.inputs, params=params, seed=seed,
+                     targets=[r for r in self.inputs["targets"]
+                              if seed - self.first_seed < self.caps.get(r, math.inf)])
+                for seed in seeds]
         keys = [RunJournal.key(**job) for job in jobs]
         done = {i: self.journal.get(key) for i, key in enumerate(keys)}
         todo = [i for i, rec in done.items() if rec is None]
@@ -387,7 +408,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
            bts_run=None, max_seeds=10, range_margin=0.25, polish=True, dtt_geometry=None,
            dtt_settings=None, tri_settings=None, jacobian_update="broyden",
-           tensile_specimens=1) -> dict:
+           tensile_specimens=1, triaxial_seeds=None) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -449,7 +470,10 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     transfer and the fresh-seed check measure σt the same way). A card with
     a triaxial-strength target (``tri_MPa``, σ1 at the study's design confinement) runs
     the triaxial test of ``tri_settings`` (its ``sigma3``) on the UCS cylinder in every
-    round (required then: BadInput without it). The verified
+    round (required then: BadInput without it); with ``triaxial_seeds`` = m (config
+    ``verification.triaxial_seeds``; default: every seed) only the first m seeds of the
+    set run it, so a grown set judges the cheap targets on more packings than the costly
+    triaxial one (the card records m). The verified
     card lists every target the best round misses by more than ``rtol``
     (``verification.missed``: target, lab value, DEM value, error in %); it is empty only
     when all are met."""
@@ -478,6 +502,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     range_margin = _check_margin(range_margin)
     jacobian_update = _check_update(jacobian_update)
     tensile_specimens = check_tensile_specimens(tensile_specimens)
+    triaxial_seeds = check_triaxial_seeds(triaxial_seeds)
     seeds = [int(seed) + i for i in range(seeds_per_round)]
     if c.get("status") == "unreachable" and not from_unreachable:
         reason = ("the calibration is unreachable, so the closed loop did not start from it "
@@ -498,7 +523,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
         range_margin=range_margin, polish=bool(polish), cylinder=cylinder,
         dtt_settings=dtt_settings, tri_settings=tri_settings, jacobian_update=jacobian_update,
-        tensile_specimens=tensile_specimens)
+        tensile_specimens=tensile_specimens, triaxial_seeds=triaxial_seeds)
     write_table(res.history, rounds, index=False)
     verified = dict(c)
     verified.update({
@@ -508,7 +533,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             seeds_per_round=seeds_per_round, max_seeds=max_seeds, polish=polish,
             geometry=geometry, range_margin=range_margin, disc=disc, cylinder=cylinder,
             tri_settings=tri_settings, jacobian_update=jacobian_update,
-            tensile_specimens=tensile_specimens)})
+            tensile_specimens=tensile_specimens, triaxial_seeds=triaxial_seeds)})
     write_card(out_card, verified)
     if bts_run is not None and BTS not in targets:
         write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
@@ -572,7 +597,7 @@ def _not_run(c: dict, out_card, key: str, section: dict, *, rounds, run, error: 
 def _verification_section(c: dict, res, by_round: list, best: int, targets: dict, *, rtol, seed, seeds,
                           seeds_per_round, max_seeds, polish, geometry, range_margin, disc,
                           cylinder, tri_settings=None, jacobian_update="broyden",
-                          tensile_specimens=1) -> dict:
+                          tensile_specimens=1, triaxial_seeds=None) -> dict:
     """The verified card's ``verification`` section from the closed loop's result ``res``
     and its rounds' seed summaries ``by_round`` (``best``: the card's round)."""
     message = res.message + _outside_text(res.outside, range_margin)
@@ -601,6 +626,8 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
         v["tensile_specimens"] = int(tensile_specimens)
     if P.TRI in targets:
         v["tri_sigma3_MPa"] = tri_settings.sigma3 / 1e6
+        if triaxial_seeds and triaxial_seeds < max_seeds:  # σ1 judged on the first m seeds
+            v["triaxial_seeds"] = int(triaxial_seeds)
     return v
 
 

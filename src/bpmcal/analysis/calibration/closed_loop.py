@@ -128,6 +128,15 @@ class ClosedLoop:
         ``seeds``) once the means are within tolerance but a standard error is too large
         to state them to ``rtol`` (module docstring); default (or at most the seeds of a
         round): no growth.
+    seed_caps:
+        Response -> the number of a round's seeds that measure it (the first ones of the
+        seed set; default: every seed measures every response). A costly test is judged
+        on fewer packings than the cheap ones: with ``max_seeds`` 20 and
+        ``{"tri_MPa": 10}`` the triaxial strength is measured on the first 10 seeds and
+        every other response on all 20. Whatever the simulator returns for a response on a
+        seed past its cap is ignored (it need not run that test there); the response's
+        mean, seed CV, standard error and secant use its own seeds only, and the seed set
+        grows only for a response whose cap lets it take more.
     z:
         Standard errors of the mean within which a target counts as met (default 2).
     damping, max_step:
@@ -204,7 +213,8 @@ class ClosedLoop:
                  margin: float = 0.0, polish: bool = True,
                  target_se: Mapping[str, float] | None = None, update: str = "broyden",
                  min_step: float | None = None, report: Callable[[str], None] | None = None,
-                 simulate_seeds: Callable[[dict, list], Sequence[Mapping[str, float]]] | None = None):
+                 simulate_seeds: Callable[[dict, list], Sequence[Mapping[str, float]]] | None = None,
+                 seed_caps: Mapping[str, int] | None = None):
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
@@ -222,6 +232,7 @@ class ClosedLoop:
         self.z = float(z)
         self.responses, self.t = _check_targets(targets, models)
         self.target_se = _target_se(target_se, self.responses, self.t)
+        self.seed_caps = _seed_caps(seed_caps, self.responses)
         if (models is None) == (jacobian is None):
             raise ValueError("give exactly one of models (analytic Jacobian) or jacobian")
         rt = {r: float(rtol[r] if isinstance(rtol, Mapping) else rtol) for r in self.responses}
@@ -357,12 +368,15 @@ class ClosedLoop:
             rd = self._run_round(rnd, params, seeds, spare, stats, samples)
             seeds, spare = rd.seeds, rd.spare
             rec = {"round": rnd, **{p: params[p] for p in space.calibrated}}
-            rec.update({**dict(zip(self.responses, rd.ys.mean(axis=0))), "n_seeds": rd.k, "grown": rd.grown})
+            rec.update({**dict(zip(self.responses, _means(rd.ys, rd.ks))), "n_seeds": rd.k,
+                        "grown": rd.grown})
+            rec.update({f"n_{r}": int(rd.ks[i]) for i, r in enumerate(self.responses)
+                        if r in self.seed_caps})
             if rd.bad:
                 history.append(rec)
                 out = self._failed(rnd, rd.bad, polished_from)
                 break
-            stats.add(rd.k, rd.cv)
+            stats.add(rd.ks, rd.cv)
             e, tol = rd.e, rd.tol
             self._record(rec, rd)
             if self.report is not None:
@@ -375,7 +389,7 @@ class ClosedLoop:
                 else:
                     rows = []
             else:
-                J, rows = self._broyden(J, prev, u, e, rd.ys)
+                J, rows = self._broyden(J, prev, u, e, rd.ys, rd.ks)
             rec["broyden_update"], rec["broyden_rows"] = bool(rows), ",".join(rows)
             within = bool(np.all(np.abs(e) <= tol))
             polishing = (polished_from is None and within and self.polish and rd.k > 1
@@ -416,7 +430,9 @@ class ClosedLoop:
         """Run ``params`` on every seed of the round and judge the mean; when it is within
         tolerance but a standard error is too large to state it to ``rtol``, grow the seed
         set by the ``spare`` seeds and judge again (module docs, "Closed loop")."""
-        def run_seeds(which) -> np.ndarray:
+        def run_seeds(which, first: int = 0) -> np.ndarray:
+            """The runs of the seeds ``which``, the first of them the round's ``first``-th
+            seed: a response past its seed cap is NaN (not measured)."""
             ys = np.empty((len(which), len(self.responses)))
             if self.simulate_seeds is not None and None not in which:  # the seeds at once
                 outs = list(self.simulate_seeds(dict(params), list(which)))
@@ -426,29 +442,48 @@ class ClosedLoop:
                 ys[:] = [self._responses(o) for o in outs]
             else:
                 ys[:] = [self._simulate(params, sd) for sd in which]
+            ys[~self._measured(first + len(which))[first:]] = np.nan
             for i, sd in enumerate(which):
                 samples.append({"round": rnd, "seed": sd, **dict(zip(self.responses, ys[i]))})
             return ys
 
         def failed(ys) -> list:
             """(seed, responses) of every run of the round with a non-finite response."""
-            return [(sd, dict(zip(self.responses, row))) for sd, row in zip(seeds, ys)
-                    if not np.all(np.isfinite(row))]
+            measured = self._measured(len(ys))
+            return [(sd, dict(zip(self.responses, row))) for sd, row, m in zip(seeds, ys, measured)
+                    if not np.all(np.isfinite(row[m]))]
 
         ys = run_seeds(seeds)
         grown = 0
         judged = None
         bad = failed(ys)
         if not bad:
-            judged = stats.judge(ys, self.rtol, self.z, self.t, self.target_se)
+            judged = stats.judge(ys, self._counts(len(ys)), self.rtol, self.z, self.t,
+                                 self.target_se)
             se, tol, e = judged[2], judged[3], judged[4]
-            if np.all(np.abs(e) <= tol) and spare and np.any(self.z * se > self.rtol):
+            can_grow = self._caps > len(seeds)  # a response a grown set measures on more seeds
+            if np.all(np.abs(e) <= tol) and spare and np.any((self.z * se > self.rtol) & can_grow):
                 grown, seeds, spare = len(spare), seeds + spare, []
-                ys = np.vstack([ys, run_seeds(seeds[-grown:])])
+                ys = np.vstack([ys, run_seeds(seeds[-grown:], len(ys))])
                 bad = failed(ys)
                 if not bad:
-                    judged = stats.judge(ys, self.rtol, self.z, self.t, self.target_se)
-        return _Round(ys, seeds, spare, grown, bad, *(judged if judged is not None else (None,) * 5))
+                    judged = stats.judge(ys, self._counts(len(ys)), self.rtol, self.z, self.t,
+                                         self.target_se)
+        return _Round(ys, seeds, spare, grown, bad,
+                      *(judged if judged is not None else (None,) * 5), counts=self._counts(len(ys)))
+
+    @property
+    def _caps(self) -> np.ndarray:
+        """Each response's seed cap (inf: every seed)."""
+        return np.array([self.seed_caps.get(r, np.inf) for r in self.responses], float)
+
+    def _counts(self, k: int) -> np.ndarray:
+        """How many of a round's first ``k`` seeds measure each response."""
+        return np.minimum(k, self._caps).astype(int)
+
+    def _measured(self, k: int) -> np.ndarray:
+        """seeds x responses: does the i-th of a round's ``k`` seeds measure the response?"""
+        return np.arange(k)[:, None] < self._counts(k)[None, :]
 
     def _record(self, rec: dict, rd: _Round) -> None:
         """The round's seed CV, standard error, tolerance and error of every response."""
@@ -459,7 +494,7 @@ class ClosedLoop:
         rec["max_abs_err"] = float(np.max(np.abs(rd.e)))
 
     def _broyden(self, J: np.ndarray, prev, u: np.ndarray, e: np.ndarray,
-                 ys: np.ndarray) -> tuple[np.ndarray, list[str]]:
+                 ys: np.ndarray, ks: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
         """Broyden's ("good") secant update of ``J`` from the previous round ``prev`` =
         (u, e, ys), when it ran the same seeds (``ys``: this round's runs, seeds x
         responses); returns J and the responses whose rows moved by more than half the
@@ -474,7 +509,7 @@ class ClosedLoop:
         lies within its noise (a sigma_t over a small step) barely moves its row, and a
         secant through scatter cannot replace the estimate; a change well beyond the
         noise updates it fully. With one seed (no standard error) every row is updated
-        fully."""
+        fully. ``ks``: the seeds measuring each response (a seed cap), default all."""
         if prev is None or not self.broyden or len(prev[2]) != len(ys):  # other seeds: no secant
             return J, []
         s, de = u - prev[0], e - prev[1]
@@ -483,8 +518,14 @@ class ClosedLoop:
         resid = de - J @ s
         k = len(ys)
         gain = np.ones(len(resid))
-        if k > 1:
-            d = (ys - prev[2]) / np.abs(self.t)
+        d = (ys - prev[2]) / np.abs(self.t)
+        if ks is not None and np.any(ks != k):  # a capped response: its own seeds' changes
+            for i, kr in enumerate(ks):
+                if kr > 1:
+                    var = d[:kr, i].var(ddof=1) / kr
+                    r2 = resid[i] ** 2
+                    gain[i] = r2 / max(r2 + var, 1e-300) if r2 + var > 0 else 0.0
+        elif k > 1:
             var = d.var(axis=0, ddof=1) / k
             gain = np.where(resid ** 2 + var > 0, resid ** 2 / np.maximum(resid ** 2 + var, 1e-300), 0.0)
         return (J + np.outer(gain * resid, s) / (s @ s),
@@ -666,7 +707,8 @@ def _round_line(rnd: int, rd: _Round, responses) -> str:
     parts = ", ".join(f"{r} {100 * x:+.1f} % (tol {100 * t:.1f} %)"
                       for r, x, t in zip(responses, rd.e, rd.tol))
     n_in = int(np.sum(np.abs(rd.e) <= rd.tol))
-    return (f"closed loop round {rnd + 1} ({rd.k} seed{'s' * (rd.k != 1)}): {parts}; "
+    fewer = "".join(f"; {r} on {kr}" for r, kr in zip(responses, rd.ks) if kr != rd.k)
+    return (f"closed loop round {rnd + 1} ({rd.k} seed{'s' * (rd.k != 1)}{fewer}): {parts}; "
             f"{n_in} of {len(rd.e)} within tolerance")
 
 
@@ -683,32 +725,49 @@ class _SeedStats:
     """The seed CV pooled over the rounds so far: Σ (k-1) cv² and Σ (k-1)."""
 
     def __init__(self, n: int):
-        self.pooled, self.dof = np.zeros(n), 0
+        self.pooled, self.dof = np.zeros(n), np.zeros(n)
 
-    def judge(self, ys: np.ndarray, rtol: np.ndarray, z: float, t: np.ndarray,
+    def judge(self, ys: np.ndarray, ks: np.ndarray, rtol: np.ndarray, z: float, t: np.ndarray,
               target_se: np.ndarray | None = None):
         """mean, seed CV, SE (pooled with the earlier rounds), tolerance, error; with
         ``target_se`` (relative standard errors of the targets) the tolerance is
-        max(rtol, z · sqrt(SE² + target_se²)): two means, each with its error."""
+        max(rtol, z · sqrt(SE² + target_se²)): two means, each with its error. ``ks``: how
+        many of the seeds (the first ones) measure each response."""
         k = len(ys)
-        y = ys.mean(axis=0)
-        cv = ys.std(axis=0, ddof=1) / np.abs(y) if k > 1 else np.full(len(y), np.nan)
-        se = (np.sqrt((self.pooled + (k - 1) * cv ** 2) / (self.dof + k - 1)) / math.sqrt(k)
-              if k > 1 else np.zeros(len(y)))
+        if np.any(ks != k):  # a seed cap: every response over its own seeds
+            y = _means(ys, ks)
+            cv = np.array([ys[:kr, i].std(ddof=1) / abs(y[i]) if kr > 1 else np.nan
+                           for i, kr in enumerate(ks)])
+            se = np.array([math.sqrt((self.pooled[i] + (kr - 1) * cv[i] ** 2)
+                                     / (self.dof[i] + kr - 1)) / math.sqrt(kr) if kr > 1 else 0.0
+                           for i, kr in enumerate(ks)])
+        else:
+            y = ys.mean(axis=0)
+            cv = ys.std(axis=0, ddof=1) / np.abs(y) if k > 1 else np.full(len(y), np.nan)
+            se = (np.sqrt((self.pooled + (k - 1) * cv ** 2) / (self.dof + k - 1)) / math.sqrt(k)
+                  if k > 1 else np.zeros(len(y)))
         both = se if target_se is None else np.sqrt(se ** 2 + target_se ** 2)
         return y, cv, se, np.maximum(rtol, z * both), (y - t) / np.abs(t)
 
-    def add(self, k: int, cv: np.ndarray) -> None:
-        """Pool a judged round of ``k`` seeds."""
-        if k > 1:
-            self.pooled += (k - 1) * cv ** 2
-            self.dof += k - 1
+    def add(self, ks: np.ndarray, cv: np.ndarray) -> None:
+        """Pool a judged round (``ks``: the seeds measuring each response)."""
+        many = np.asarray(ks) > 1
+        self.pooled[many] += (np.asarray(ks)[many] - 1) * cv[many] ** 2
+        self.dof[many] += np.asarray(ks)[many] - 1
+
+
+def _means(ys: np.ndarray, ks: np.ndarray) -> np.ndarray:
+    """Each response's mean over the seeds measuring it (the first ``ks[i]`` rows)."""
+    if np.all(ks == len(ys)):
+        return ys.mean(axis=0)
+    return np.array([ys[:kr, i].mean() for i, kr in enumerate(ks)])
 
 
 @dataclass
 class _Round:
-    """One round's runs (``ys``: seeds x responses), its seed set afterwards, the spare
-    seeds left, how many it grew by, the failed runs and (when none failed) its judgement."""
+    """One round's runs (``ys``: seeds x responses, NaN past a response's seed cap), its
+    seed set afterwards, the spare seeds left, how many it grew by, the failed runs, the
+    seeds measuring each response and (when none failed) its judgement."""
 
     ys: np.ndarray
     seeds: list
@@ -720,10 +779,16 @@ class _Round:
     se: np.ndarray | None
     tol: np.ndarray | None
     e: np.ndarray | None
+    counts: np.ndarray | None = None  # the seeds measuring each response (None: every seed)
 
     @property
     def k(self) -> int:
         return len(self.ys)
+
+    @property
+    def ks(self) -> np.ndarray:
+        """How many of the round's seeds measure each response (a seed cap: fewer)."""
+        return np.full(self.ys.shape[1], self.k) if self.counts is None else self.counts
 
 
 class _TrustRegion:
@@ -735,6 +800,22 @@ class _TrustRegion:
         self.cap = cap
         self.base = None
         self.held_rounds = [0] * n
+
+
+def _seed_caps(caps, responses) -> dict:
+    """The seed caps checked: response -> integer >= 1, every response a target."""
+    if caps is None:
+        return {}
+    if not isinstance(caps, Mapping):
+        raise ValueError(f"seed_caps={caps!r}: expected a mapping response -> number of seeds")
+    out = {}
+    for r, n in caps.items():
+        if r not in responses:
+            raise ValueError(f"seed_caps: {r!r} is not a target; expected one of {list(responses)}")
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"seed_caps[{r!r}]={n!r}: expected an integer >= 1")
+        out[r] = int(n)
+    return out
 
 
 def _target_se(target_se, responses, t: np.ndarray) -> np.ndarray | None:
