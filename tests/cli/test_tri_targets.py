@@ -174,6 +174,7 @@ def test_verify_runs_the_triaxial_test_on_the_first_seeds_only(card, d, tmp_path
     assert v["status"] == "converged", v["message"]
     assert abs(v["closed_loop"]["errors_pct"][TRI]) <= 1.0
     assert v["triaxial_seeds"] == 2
+    assert v["closed_loop"]["n_measured"] == {TRI: 2} and v["closed_loop"]["n_seeds"] == 3
     rounds = pd.read_csv(tmp_path / "C.csv")
     assert (rounds[f"n_{TRI}"] == 2).all() and (rounds["n_seeds"] == 3).all()
 

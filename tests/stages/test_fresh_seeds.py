@@ -267,3 +267,48 @@ def test_false_alarm_of_a_card_fitted_to_its_loop_seeds():
     assert false_alarm(5, loop_seeds=10) == pytest.approx(0.1778, abs=1e-4)
     assert false_alarm(5, loop_seeds=3) > false_alarm(5, loop_seeds=10) > false_alarm(5)
     assert false_alarm(5, loop_seeds=10 ** 9) == pytest.approx(false_alarm(5), abs=1e-9)
+
+
+def test_the_report_counts_the_triaxial_targets_own_loop_seeds(tmp_path):
+    """A loop of 20 seeds whose triaxial test ran on its first 10 (the card's
+    verification.triaxial_seeds): the report's false-alarm odds take k = 10 for σ1 and
+    k = 20 for the other targets; without the cap every target takes k = 20."""
+    from pathlib import Path
+
+    import yaml
+
+    from bpmcal.io import study_files as L
+    from _synthetic import FIXED, TRUTH
+
+    from bpmcal.io.card import CARD_FORMAT
+    from bpmcal.report.build import _fresh_seeds
+    from bpmcal.stages.fresh_seeds import false_alarm
+
+    lay = L.StudyFiles(tmp_path)
+    targets = ["ucs_MPa", "E_GPa", "nu", "dtt_MPa", "tri_MPa"]
+    Path(lay.table(L.FRESH_SEEDS)).parent.mkdir(parents=True)
+    pd.DataFrame([{"specimen": "LdB", "response": r, "role": "target", "lab": 1.0, "n": 5,
+                   "mean": 1.0, "sd": 0.01, "se": 0.005, "err_pct": 0.0, "se_pct": 0.5,
+                   "z_score": 0.0, "z": 2.0, "within_z_se": True, "tol_pct": 1.0,
+                   "met": True, "cv_pct": 1.0, "n_failed": 0, "seeds": "101,102,103,104,105",
+                   "note": ""} for r in targets]).to_csv(lay.table(L.FRESH_SEEDS), index=False)
+    pd.DataFrame([{"specimen": "LdB", "n_seeds": 20}]).to_csv(lay.table(L.TABLE5), index=False)
+    card = Path(lay.verified_card("LdB"))
+    card.parent.mkdir(parents=True)
+
+    def text(verification):
+        card.write_text(yaml.safe_dump({"card_format": CARD_FORMAT, "specimen": "LdB",
+                                        "parameters": {**FIXED, **TRUTH,
+                                                       "pb_ten_MPa": 1.4 * TRUTH["pb_coh_MPa"]},
+                                        "verification": verification}))
+        return _fresh_seeds(lay)
+
+    p20, p10 = false_alarm(5, loop_seeds=20), false_alarm(5, loop_seeds=10)
+    capped = text({"n_seeds": 20, "triaxial_seeds": 10})
+    assert f"on the first 10 of them: {100 * p10:.1f} %" in capped
+    both = 1 - (1 - p20) ** 4 * (1 - p10)
+    assert f"{100 * p20:.1f} % per target (" in capped and f"{100 * both:.0f} % for one" in capped
+    plain = text({"n_seeds": 20})
+    assert "first 10" not in plain
+    assert f"{100 * false_alarm(5, targets=5, loop_seeds=20):.0f} % for one" in plain
+    assert not math.isclose(both, false_alarm(5, targets=5, loop_seeds=20))

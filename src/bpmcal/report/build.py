@@ -500,6 +500,19 @@ def _loop_seeds(lay, specs) -> int | None:
     return int(statistics.median_low(ks)) if ks else None
 
 
+def _triaxial_seeds(lay, specs, k: int) -> int | None:
+    """The seeds of a closed loop that ran the triaxial test (its cards'
+    ``verification.triaxial_seeds``, below ``k``), None when every seed did."""
+    ms = []
+    for sp in specs:
+        f = Path(lay.verified_card(sp))
+        v = (read_card(f).get("verification") or {}) if f.exists() else {}
+        if v.get("triaxial_seeds"):
+            ms.append(int(v["triaxial_seeds"]))
+    m = int(statistics.median_low(ms)) if ms else None
+    return m if m and m < k else None
+
+
 def _fresh_seeds(lay) -> str:
     """The verified cards on fresh packing seeds (``fresh_seeds_table``), if it ran."""
     f = Path(lay.table(L.FRESH_SEEDS))
@@ -540,12 +553,18 @@ def _fresh_seeds(lay) -> str:
                     f"{100 * false_alarm(n, z, len(judged)):.0f} % even then.")
         k = _loop_seeds(lay, sorted(set(judged["specimen"])))
         if k:
+            m = _triaxial_seeds(lay, sorted(set(judged["specimen"])), k)
+            ks = [m if r == P.TRI and m else k for r in judged["response"]]
+            p_any = (1 - math.prod(1 - false_alarm(n, z, loop_seeds=kr) for kr in ks) if m
+                     else false_alarm(n, z, len(judged), loop_seeds=k))
+            fewer = (f" ({P.RESPONSES[P.TRI].symbol} on the first {m} of them: "
+                     f"{100 * false_alarm(n, z, loop_seeds=m):.1f} %)"
+                     if m and P.TRI in set(judged["response"]) else "")
             verdict += (f" A card fitted exactly to the mean of its closed loop's {k} seeds "
                         "carries that mean's own error onto the fresh seeds, which their "
                         "standard error does not count: "
-                        f"{100 * false_alarm(n, z, loop_seeds=k):.1f} % per target, "
-                        f"{100 * false_alarm(n, z, len(judged), loop_seeds=k):.0f} % for one "
-                        "miss or more.")
+                        f"{100 * false_alarm(n, z, loop_seeds=k):.1f} % per target{fewer}, "
+                        f"{100 * p_any:.0f} % for one miss or more.")
     return ("\n### The verified cards on fresh packing seeds\n\n"
             f"Each verified card re-run on packing seeds its closed loop never saw ({seeds}): "
             "the mean ± its standard error, the error of the mean, its z-score (error / "

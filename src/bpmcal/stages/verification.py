@@ -59,13 +59,16 @@ def _responses(rows: list[dict], targets: dict) -> dict:
     """The seed mean of every response over the runs of one round (``rows``: one summary
     per seed), its seed spread (``seed_sd``, ``seed_cv``: sample standard deviation and
     coefficient of variation, NaN with one seed), ``n_seeds`` and the errors of the mean
-    in % of the lab value. σt (``bts_MPa``) is among them when it is a target."""
+    in % of the lab value. σt (``bts_MPa``) is among them when it is a target; a target
+    measured on fewer of the seeds (a seed cap, or a failed test) is listed with its
+    count in ``n_measured``."""
     ok = [r for r in rows if r.get("status") == "ok"]
     scattered = [*P.TARGETS, *(r for r in SAMPLE_TESTS if r in targets)]
-    d, sd, cv = {}, {}, {}
+    d, sd, cv, n = {}, {}, {}, {}
     for k in [*scattered, *_EXTRA]:
         v = np.array([float(r.get(k, math.nan)) for r in ok], float)
         v = v[np.isfinite(v)] if k in SAMPLE_TESTS else v  # an invalid test is no measurement
+        n[k] = len(v)
         d[k] = float(v.mean()) if len(v) else math.nan
         if k in scattered:
             sd[k] = float(v.std(ddof=1)) if len(v) > 1 else math.nan
@@ -73,6 +76,9 @@ def _responses(rows: list[dict], targets: dict) -> dict:
     d["errors_pct"] = {k: 100 * (d[k] / v - 1) for k, v in targets.items()}
     d["seed_sd"], d["seed_cv"] = sd, cv
     d["n_seeds"] = len(ok)
+    fewer = {k: n[k] for k in targets if k in n and n[k] != len(ok)}
+    if fewer:  # a target measured on fewer seeds (the triaxial seed cap)
+        d["n_measured"] = fewer
     d["seeds"] = [int(r["seed"]) for r in rows]
     d["run_status"] = "ok" if ok and len(ok) == len(rows) else "failed"
     return d
