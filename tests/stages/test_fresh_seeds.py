@@ -276,10 +276,9 @@ def test_the_report_counts_the_triaxial_targets_own_loop_seeds(tmp_path):
     from pathlib import Path
 
     import yaml
-
-    from bpmcal.io import study_files as L
     from _synthetic import FIXED, TRUTH
 
+    from bpmcal.io import study_files as L
     from bpmcal.io.card import CARD_FORMAT
     from bpmcal.report.build import _fresh_seeds
     from bpmcal.stages.fresh_seeds import false_alarm
