@@ -500,16 +500,14 @@ def _loop_seeds(lay, specs) -> int | None:
     return int(statistics.median_low(ks)) if ks else None
 
 
-def _triaxial_seeds(lay, specs, k: int) -> int | None:
-    """The seeds of a closed loop that ran the triaxial test (its cards'
-    ``verification.triaxial_seeds``, below ``k``), None when every seed did."""
-    ms = []
-    for sp in specs:
-        f = Path(lay.verified_card(sp))
-        v = (read_card(f).get("verification") or {}) if f.exists() else {}
-        if v.get("triaxial_seeds"):
-            ms.append(int(v["triaxial_seeds"]))
-    m = int(statistics.median_low(ms)) if ms else None
+def _triaxial_seeds(lay, spec: str, k: int) -> int | None:
+    """The seeds of a closed loop that ran the triaxial test (``verification.triaxial_seeds``
+    of the verified card of ``spec``, below ``k``; a study-wide setting, so one card
+    says it for all: the first judged specimen's, read only for a σ1 target), None when
+    every seed did."""
+    f = Path(lay.verified_card(spec))
+    v = (read_card(f).get("verification") or {}) if f.exists() else {}
+    m = int(v["triaxial_seeds"]) if v.get("triaxial_seeds") else None
     return m if m and m < k else None
 
 
@@ -553,7 +551,8 @@ def _fresh_seeds(lay) -> str:
                     f"{100 * false_alarm(n, z, len(judged)):.0f} % even then.")
         k = _loop_seeds(lay, sorted(set(judged["specimen"])))
         if k:
-            m = _triaxial_seeds(lay, sorted(set(judged["specimen"])), k)
+            m = (_triaxial_seeds(lay, sorted(set(judged["specimen"]))[0], k)
+                 if P.TRI in set(judged["response"]) else None)
             ks = [m if r == P.TRI and m else k for r in judged["response"]]
             p_any = (1 - math.prod(1 - false_alarm(n, z, loop_seeds=kr) for kr in ks) if m
                      else false_alarm(n, z, len(judged), loop_seeds=k))
