@@ -549,16 +549,16 @@ def _fresh_seeds(lay) -> str:
                     f"{n - 1} degrees of freedom), so one miss or more among these "
                     f"{len(judged)} targets has probability "
                     f"{100 * false_alarm(n, z, len(judged)):.0f} % even then.")
-        k = _loop_seeds(lay, sorted(set(judged["specimen"])))
+        specs = sorted(set(judged["specimen"]))
+        k = _loop_seeds(lay, specs)
         if k:
-            m = (_triaxial_seeds(lay, sorted(set(judged["specimen"]))[0], k)
+            m = (_triaxial_seeds(lay, specs[0], k)
                  if P.TRI in set(judged["response"]) else None)
             ks = [m if r == P.TRI and m else k for r in judged["response"]]
             p_any = (1 - math.prod(1 - false_alarm(n, z, loop_seeds=kr) for kr in ks) if m
                      else false_alarm(n, z, len(judged), loop_seeds=k))
             fewer = (f" ({P.RESPONSES[P.TRI].symbol} on the first {m} of them: "
-                     f"{100 * false_alarm(n, z, loop_seeds=m):.1f} %)"
-                     if m and P.TRI in set(judged["response"]) else "")
+                     f"{100 * false_alarm(n, z, loop_seeds=m):.1f} %)" if m else "")
             verdict += (f" A card fitted exactly to the mean of its closed loop's {k} seeds "
                         "carries that mean's own error onto the fresh seeds, which their "
                         "standard error does not count: "

@@ -233,6 +233,8 @@ class ClosedLoop:
         self.responses, self.t = _check_targets(targets, models)
         self.target_se = _target_se(target_se, self.responses, self.t)
         self.seed_caps = _seed_caps(seed_caps, self.responses)
+        # each response's seed cap (inf: every seed)
+        self._caps = np.array([self.seed_caps.get(r, np.inf) for r in self.responses], float)
         if (models is None) == (jacobian is None):
             raise ValueError("give exactly one of models (analytic Jacobian) or jacobian")
         rt = {r: float(rtol[r] if isinstance(rtol, Mapping) else rtol) for r in self.responses}
@@ -471,11 +473,6 @@ class ClosedLoop:
                                          self.target_se)
         return _Round(ys, seeds, spare, grown, bad,
                       *(judged if judged is not None else (None,) * 5), counts=self._counts(len(ys)))
-
-    @property
-    def _caps(self) -> np.ndarray:
-        """Each response's seed cap (inf: every seed)."""
-        return np.array([self.seed_caps.get(r, np.inf) for r in self.responses], float)
 
     def _counts(self, k: int) -> np.ndarray:
         """How many of a round's first ``k`` seeds measure each response."""
