@@ -88,8 +88,11 @@ def test_a_failed_run_stops_the_others_at_once(tmp_path):
 
 SCRIPT = """
 import signal, sys
-if {ignore_int}:  # started as `cmd &` by a shell without job control: SIGINT ignored
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+# {ignore_int}: started as `cmd &` by a shell without job control (SIGINT ignored); else
+# as from a terminal, whose Ctrl-C reaches a process with Python's own SIGINT handler, even
+# when this test suite itself runs as such a background job (and its children would
+# inherit SIGINT ignored)
+signal.signal(signal.SIGINT, signal.SIG_IGN if {ignore_int} else signal.default_int_handler)
 sys.path.insert(0, {tests!r})
 from _pool_jobs import sleepy
 from bpmcal.stages.pool import SeedPool
