@@ -45,9 +45,96 @@ def copy_workflow(dst: Path) -> Path:
     return dst
 
 
+#: Snakemake options after which it runs no job (a dry run, the linter, graphs):
+#: :func:`run_snakemake` runs these in a fork of a process that has imported Snakemake
+#: (its import is most of a dry run's time; the test suite makes a few hundred of them)
+NO_JOBS = {"-n", "--dry-run", "--dryrun", "--lint", "--rulegraph", "--dag"}
+
+
+def _snakemake_main(cwd: str, args: list, env: dict, out: str, err: str) -> None:
+    """In a fork of the fork server (Snakemake imported): ``snakemake <args>`` in ``cwd``
+    with the environment ``env`` (the caller's now, not the server's at its start), its
+    standard output and error into the files ``out`` and ``err``; ends the process with
+    Snakemake's exit status."""
+    code = 1
+    try:
+        os.chdir(cwd)
+        os.environ.clear()
+        os.environ.update(env, NUMBA_THREADING_LAYER="omp")
+        for fd, path in ((1, out), (2, err)):
+            f = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+            os.dup2(f, fd)
+            os.close(f)
+        sys.stdout = open(1, "w", closefd=False)
+        sys.stderr = open(2, "w", closefd=False)
+        sys.argv = ["snakemake", *args]
+        from snakemake.cli import main
+        from snakemake.workflow import Workflow
+
+        Workflow._rundir = str(Path.cwd().absolute())  # taken at its import, in the server
+        try:
+            main(list(args))
+            code = 0
+        except SystemExit as e:  # as the interpreter ends on it: a message goes to stderr
+            code = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+            if e.code is not None and not isinstance(e.code, int):
+                print(e.code, file=sys.stderr)
+    except BaseException:  # noqa: BLE001 - reported on stderr, as the command line would
+        import traceback
+
+        traceback.print_exc()
+    finally:
+        import logging
+
+        logging.shutdown()  # flushes every handler: os._exit does not
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+
+_FORKS = None
+
+
+def _forks():
+    """The fork server, with Snakemake imported once (multiprocessing's forkserver)."""
+    global _FORKS
+    if _FORKS is None:
+        import multiprocessing as mp
+
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(["snakemake.cli", "support.repo"])
+        _FORKS = ctx
+    return _FORKS
+
+
+def _run_forked(cwd, args, timeout) -> subprocess.CompletedProcess:
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        out, err = os.path.join(d, "out"), os.path.join(d, "err")
+        p = _forks().Process(target=_snakemake_main, args=(str(Path(cwd).resolve()),
+                                                           [str(a) for a in args],
+                                                           dict(os.environ), out, err))
+        p.start()
+        p.join(timeout)
+        if p.is_alive():
+            p.kill()
+            p.join()
+            raise subprocess.TimeoutExpired(["snakemake", *args], timeout)
+        read = lambda f: Path(f).read_text() if os.path.exists(f) else ""  # noqa: E731
+        stderr = read(err)
+        if p.exitcode and not stderr:  # ended before its output went to the files
+            stderr = f"the forked snakemake ended with exit code {p.exitcode} and no output"
+        return subprocess.CompletedProcess(["snakemake", *args], p.exitcode, read(out), stderr)
+
+
 def run_snakemake(cwd, *args, timeout=1200, env=None, pythonpath=()):
     """Run Snakemake in ``cwd`` with this interpreter; ``env`` adds variables, and
-    ``pythonpath`` folders go first on PYTHONPATH. The completed process (output captured)."""
+    ``pythonpath`` folders go first on PYTHONPATH. The completed process (output captured).
+    A command that runs no job (:data:`NO_JOBS`) and needs no environment of its own runs
+    in a fork of a process that has Snakemake imported, not in a new interpreter."""
+    if not env and not pythonpath and NO_JOBS & set(map(str, args)):
+        return _run_forked(cwd, args, timeout)
     e = dict(os.environ, NUMBA_THREADING_LAYER="omp", **(env or {}))
     if pythonpath:
         e["PYTHONPATH"] = os.pathsep.join([*map(str, pythonpath),
