@@ -18,7 +18,6 @@ import argparse
 import datetime as dt
 import json
 import os
-import re
 import subprocess
 import sys
 import time
@@ -27,7 +26,7 @@ from concurrent.futures import ThreadPoolExecutor
 from _study import REPO, cpu_model
 
 sys.path.insert(0, str(REPO / "tests"))
-from support.repo import run_snakemake  # noqa: E402
+from support.repo import run_snakemake, scheduled_jobs  # noqa: E402
 
 ARGS = ["-n", "--nolock", "--configfile", "config/smoke.yaml"]
 
@@ -46,11 +45,6 @@ def _busy_s() -> float:
     with open("/proc/stat") as fh:
         f = [int(x) for x in fh.readline().split()[1:]]
     return (sum(f) - f[3] - f[4]) / os.sysconf("SC_CLK_TCK")
-
-
-def _jobs(text: str) -> str:
-    m = re.search(r"Job stats:\njob\s+count\n[-\s]+\n(.*?)\ntotal", text, re.S)
-    return m.group(1) if m else ""
 
 
 def main() -> None:
@@ -73,7 +67,7 @@ def main() -> None:
                 wall[name] += time.perf_counter() - t0
                 cpu[name] += _busy_s() - c0
                 codes += [r.returncode for r in rs]
-                tables |= {_jobs(r.stdout + r.stderr) for r in rs}
+                tables |= {tuple(sorted(scheduled_jobs(r.stdout + r.stderr).items())) for r in rs}
     rec = {"date": dt.date.today().isoformat(), "cpu_model": cpu_model(),
            "cpus": os.cpu_count(), "load_average_start": load0,
            "load_average_end": os.getloadavg(), "command": " ".join(sys.argv),

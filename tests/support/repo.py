@@ -45,6 +45,16 @@ def copy_workflow(dst: Path) -> Path:
     return dst
 
 
+def scheduled_jobs(text: str) -> dict:
+    """rule -> jobs of a dry run's job stats ({} for "Nothing to be done")."""
+    import re
+
+    m = re.search(r"Job stats:\njob\s+count\n[-\s]+\n(.*?)\ntotal", text, re.S)
+    if not m:
+        return {}
+    return {ln.split()[0]: int(ln.split()[1]) for ln in m.group(1).splitlines() if ln.strip()}
+
+
 #: Snakemake options after which it runs no job (a dry run, the linter, graphs):
 #: :func:`run_snakemake` runs these in a fork of a process that has imported Snakemake
 #: (its import is most of a dry run's time; the test suite makes a few hundred of them)

@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from support.repo import REPO, copy_workflow, run_snakemake
+from support.repo import REPO, copy_workflow, run_snakemake, scheduled_jobs
 
 pytestmark = pytest.mark.slow  # the smoke study and further Snakemake runs: minutes
 
@@ -637,16 +637,6 @@ NOT_MAPPED = {"outdir": "moves every file: everything reruns, by construction",
                                "study from the design on (tests/workflow/test_flatjoint_study.py)"}
 
 
-def _scheduled(text: str) -> dict:
-    """rule -> jobs of a dry run's job stats ({} for "Nothing to be done")."""
-    import re
-
-    m = re.search(r"Job stats:\njob\s+count\n[-\s]+\n(.*?)\ntotal", text, re.S)
-    if not m:
-        return {}
-    return {ln.split()[0]: int(ln.split()[1]) for ln in m.group(1).splitlines() if ln.strip()}
-
-
 def _downstream(wf) -> dict:
     """rule -> the rules that depend on it, directly or not (``snakemake --rulegraph``)."""
     import re
@@ -712,7 +702,7 @@ def test_a_changed_config_key_reruns_exactly_the_jobs_that_read_it(smoke):
                 smoke / "config" / "lab" / "green_sandstone_copy.csv")
     (smoke / "config" / "lab" / "gs_triaxial.csv").write_text(
         "specimen,sigma3_MPa,sigma1_MPa\nB1,0,60\nB1,10,95\n")
-    base = _scheduled((r := snakemake(smoke, "-n", *SMOKE)).stdout + r.stderr)
+    base = scheduled_jobs((r := snakemake(smoke, "-n", *SMOKE)).stdout + r.stderr)
     assert base == {}, f"the finished study is not up to date: {base}"
     down = _downstream(smoke)
 
@@ -731,7 +721,7 @@ def test_a_changed_config_key_reruns_exactly_the_jobs_that_read_it(smoke):
         if r.returncode != 0:
             wrong.append(f"{key}={value!r}: the dry run failed: {r.stderr[-400:]}")
             continue
-        got = _scheduled(r.stdout + r.stderr)
+        got = scheduled_jobs(r.stdout + r.stderr)
         if isinstance(readers, dict):  # a structural change: these new jobs
             want = {**readers}
             for rule in readers:
