@@ -60,7 +60,7 @@ STUDY_ARGS = [
     "--bts-diameter", "50.0", "--bts-thickness", "25.0", "--bts-scale", "0.55",
     "--bts-loading", "flat", "--bts-jaw-ratio", "1.5", "--bts-contact-cap", "1.5",
     "--bts-contact-cap-factor", "1000.0", "--bts-central-zone", "0.5", "--bts-retests", "2",
-    "--bts-platen-velocity", "0.025", "--bts-approach-velocity", "0.05",
+    "--bts-platen-velocity", "0.025", "--bts-approach-velocity", "0.1",
     "--bts-platen-fric", "0.3", "--bts-damping", "0.7", "--bts-stop-drop", "0.5",
     "--bts-post-peak-strain", "0.0003", "--bts-max-strain", "0.05", "--bts-record-strain",
     "1e-05"]

@@ -78,7 +78,8 @@ loader forces, crack counts, ``cracks_central_frac_peak`` (cracks up to the peak
 
 Loading rate: with the caps, sigma_t changed by < 1 % when 0.0125 m/s was halved or
 doubled (A1, 27.5 mm discs, 5 seeds; docs/measurements), so the study loads at
-0.025 m/s after a 0.05 m/s approach.
+0.025 m/s after a 0.1 m/s approach (the approach's speed moves sigma_t by a median 0.02 %
+between 0.05 and 0.1 m/s on 40 design samples; docs/measurements).
 """
 from __future__ import annotations
 
