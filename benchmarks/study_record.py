@@ -85,6 +85,34 @@ def _threshold_rule_r2(clone: Path, ds: pd.DataFrame, sel: dict) -> dict:
                                     for k, m in res.models["bts_MPa"].items()}}
 
 
+_STAMP = r"\[(\w{3} \w{3} +\d+ \d\d:\d\d:\d\d \d{4})\]\n"
+
+
+def job_times(log: Path) -> dict:
+    """Each rule's jobs and the sum of their wall seconds, from Snakemake's log (its
+    stderr, which the ``/usr/bin/time`` log also holds): a job runs from its start stamp
+    (``[date]`` then ``rule NAME:``) to its ``Finished jobid`` stamp. With ``--cores 1`` one
+    job runs at a time, so a rule's sum is its share of the run's wall time."""
+    import datetime as dt
+
+    text = log.read_text()
+
+    def when(stamp):
+        return dt.datetime.strptime(" ".join(stamp.split()), "%a %b %d %H:%M:%S %Y")
+
+    start = {}
+    for m in re.finditer(_STAMP + r"(?:local)?rule (\S+):\n(?:    .*\n)*?    jobid: (\d+)", text):
+        start[m.group(3)] = (m.group(2), when(m.group(1)))
+    out = {}
+    for m in re.finditer(_STAMP + r"Finished jobid: (\d+)", text):
+        if m.group(2) in start:
+            rule, t0 = start[m.group(2)]
+            r = out.setdefault(rule, {"jobs": 0, "wall_s": 0.0})
+            r["jobs"] += 1
+            r["wall_s"] += (when(m.group(1)) - t0).total_seconds()
+    return out
+
+
 def _load(path: Path) -> list[list[float]]:
     """The load averages (1, 5, 15 min) of each ``uptime`` line of a file: taken before
     and after a run, they say whether the machine was quiet while it ran."""
@@ -162,6 +190,19 @@ def markdown(rec: dict) -> str:
         b = r["time"]
         lines += ["", f"{label} / {first}: CPU time {b['cpu_min'] / a['time']['cpu_min']:.2f}, "
                       f"wall time {b['wall_s'] / a['time']['wall_s']:.2f}."]
+    jobs = {label: r["jobs"] for label, r in rec["runs"].items() if r.get("jobs")}
+    if jobs:
+        rules = sorted({k for j in jobs.values() for k in j},
+                       key=lambda k: -max(j.get(k, {}).get("wall_s", 0) for j in jobs.values()))
+        lines += ["", "Job time by rule (the sum of its jobs' wall time, min, and its jobs, "
+                      "from Snakemake's log; with `--cores 1` one job runs at a time):", "",
+                  "| rule | " + " | ".join(jobs) + " |", "|---|" + "---|" * len(jobs)]
+        for k in rules:
+            lines.append(f"| {k} | " + " | ".join(
+                f"{j[k]['wall_s'] / 60:.1f} ({j[k]['jobs']})" if k in j else "–"
+                for j in jobs.values()) + " |")
+        lines.append("| all jobs | " + " | ".join(
+            f"{sum(v['wall_s'] for v in j.values()) / 60:.1f}" for j in jobs.values()) + " |")
     for label, r in rec["runs"].items():
         if r.get("note"):
             lines += ["", f"{label}: {r['note']}"]
@@ -217,7 +258,7 @@ def main(argv=None) -> int:
         label, rest = item.split("=", 1)
         clone, tlog, commit, *load = rest.split(",")
         runs[label] = {"commit": commit, "clone": clone, "time": _time(Path(tlog)),
-                       "results": _results(Path(clone))}
+                       "results": _results(Path(clone)), "jobs": job_times(Path(tlog))}
         if load:
             runs[label]["load"] = _load(Path(load[0]))
         if label in notes:

@@ -103,3 +103,21 @@ def test_the_example_study_records_are_their_json_rendered():
         rec = json.loads(raw.read_text())
         md = REPO / "docs" / "measurements" / rec["page"]
         assert md.read_text() == example_record.markdown(rec), (md.name, "regenerate from", raw.name)
+
+
+def test_job_times_sums_each_rule_from_snakemakes_log(tmp_path):
+    """The study record's time by rule: each job from its start stamp to its Finished
+    stamp, summed per rule (a job that never finished is not counted)."""
+    import study_record
+
+    log = tmp_path / "time.log"
+    log.write_text(
+        "[Sat Nov 28 11:41:56 2026]\nlocalrule design:\n    output: a\n    jobid: 2\n"
+        "    reason: x\n[Sat Nov 28 11:41:59 2026]\nFinished jobid: 2 (Rule: design)\n"
+        "[Sat Nov 28 11:42:00 2026]\nrule ucs:\n    input: a\n    jobid: 7\n"
+        "    wildcards: sample=s000\n[Sat Nov 28 11:42:00 2026]\nrule ucs:\n    jobid: 8\n"
+        "[Sat Nov 28 11:43:40 2026]\nFinished jobid: 7 (Rule: ucs)\n"
+        "[Sat Nov 28 11:44:10 2026]\nFinished jobid: 8 (Rule: ucs)\n"
+        "[Sat Nov 28 11:44:11 2026]\nrule verify:\n    jobid: 9\nError in rule verify\n")
+    assert study_record.job_times(log) == {"design": {"jobs": 1, "wall_s": 3.0},
+                                           "ucs": {"jobs": 2, "wall_s": 100.0 + 130.0}}
