@@ -168,7 +168,9 @@ def markdown(rec: dict) -> str:
              f"Host: {rec['cpu_model']} ({rec['cpus']} CPUs); load average when recorded "
              f"{', '.join(f'{x:.2f}' for x in rec['load_average'])}.", "",
              f"Recorded with: `{rec['command']}`", "",
-             "| run | commit | load (1 min) at start / end | wall | CPU (user + system) | "
+             "| run | commit | load (1 min) at start / end | wall"
+             + (" (Snakemake's cores)" if any("cores" in r for r in rec["runs"].values()) else "")
+             + " | CPU (user + system) | "
              "peak RSS | samples: Brazilian valid / invalid / failed | σt adj. R² (main → "
              "quadratic → interaction) | σc/σt of the samples |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -180,7 +182,9 @@ def markdown(rec: dict) -> str:
         lines.append(
             f"| {label} | {r['commit']} | "
             + (" / ".join(f"{x[0]:.2f}" for x in r["load"]) if r.get("load") else "not recorded")
-            + f" | {t['wall_s'] / 60:.1f} min | {t['cpu_min']:.1f} min | "
+            + f" | {t['wall_s'] / 60:.1f} min"
+            + (f" ({r['cores']})" if "cores" in r else "")
+            + f" | {t['cpu_min']:.1f} min | "
             f"{t['max_rss_mb']:.0f} MB | {st.get('ok', 0)} / {st.get('invalid', 0)} / "
             f"{st.get('failed', 0)} | "
             + " → ".join(f"{x:.3f}" for x in r2 if x is not None)
@@ -188,8 +192,11 @@ def markdown(rec: dict) -> str:
     (first, a), *rest = rec["runs"].items()
     for label, r in rest:
         b = r["time"]
-        lines += ["", f"{label} / {first}: CPU time {b['cpu_min'] / a['time']['cpu_min']:.2f}, "
-                      f"wall time {b['wall_s'] / a['time']['wall_s']:.2f}."]
+        same = r.get("cores") == a.get("cores")  # wall times compare on the same cores only
+        lines += ["", f"{label} / {first}: CPU time {b['cpu_min'] / a['time']['cpu_min']:.2f}"
+                      + (f", wall time {b['wall_s'] / a['time']['wall_s']:.2f}." if same else
+                         f" (wall times not compared: {r.get('cores')} cores against "
+                         f"{a.get('cores')}).")]
     jobs = {label: r["jobs"] for label, r in rec["runs"].items() if r.get("jobs")}
     if jobs:
         rules = sorted({k for j in jobs.values() for k in j},
@@ -259,6 +266,9 @@ def main(argv=None) -> int:
         clone, tlog, commit, *load = rest.split(",")
         runs[label] = {"commit": commit, "clone": clone, "time": _time(Path(tlog)),
                        "results": _results(Path(clone)), "jobs": job_times(Path(tlog))}
+        cores = re.search(r"Provided cores: (\d+)", Path(tlog).read_text())
+        if cores:  # Snakemake's --cores, from its log
+            runs[label]["cores"] = int(cores.group(1))
         if load:
             runs[label]["load"] = _load(Path(load[0]))
         if label in notes:
