@@ -143,3 +143,36 @@ def test_model_is_its_module_and_four_mixins_without_overlap():
     assert {"cycle", "set_timestep", "positions"} <= set(vars(Model))
     # the check sees an overlap
     assert _defined_twice((type("A", (), {"f": 1}), type("B", (), {"f": 2, "g": 3}))) == {"f"}
+
+
+def test_wall_contact_balls_of_a_pack_in_a_box_match_the_slots():
+    """The balls touching each wall of a pack in a box of six walls: the sorted, unique
+    balls of the slots on that wall with a non-zero force (the definition, in numpy)."""
+    from dem_util import box_pack
+
+    m, _ = box_pack(120, seed=3)
+    S, ns = m.S, m.n_wall_slots
+    for w in range(m.n_walls):
+        on = (S.w[:ns] == w) & np.any(S.f[:ns] != 0.0, axis=1)
+        want = np.unique(S.b[:ns][on])
+        got = m.wall_contact_balls(w)
+        assert got.dtype == np.int32 and got.tolist() == want.tolist()
+    assert sum(m.wall_contact_balls(w).size for w in range(m.n_walls)) > 0
+
+
+def test_unbalanced_ratio_follows_a_settings_change_between_measurements():
+    """The unbalanced-force ratio reuses the measure pass of ``energies`` only while the
+    state and the settings are those measured: after a gravity change without a step it
+    equals that of a model measured afresh with that gravity."""
+    from dem_util import box_pack
+
+    a, _ = box_pack(60, seed=4)
+    b, _ = box_pack(60, seed=4)
+    a.energies()
+    r0 = a.unbalanced_ratio()
+    assert r0 == b.unbalanced_ratio()
+    a.set_gravity((0.0, 0.0, -9.81e3))
+    b.set_gravity((0.0, 0.0, -9.81e3))
+    b.energies()
+    r1 = a.unbalanced_ratio()
+    assert r1 != r0 and r1 == b.unbalanced_ratio()

@@ -302,3 +302,26 @@ def coordination(pos, radius, pi, pj, npairs, nb, bstate, blk):
             z[i] += 1
             z[j] += 1
     return z
+
+
+@jit
+def wall_contact_balls(sw, sb, sf, ns, w, n):
+    """The balls (sorted, unique, int32) with a slot on wall ``w`` among the first ``ns``
+    slots whose contact force is not zero; ``n`` balls in the model."""
+    on = np.zeros(n, np.bool_)
+    cnt = 0
+    for k in range(ns):
+        if sw[k] != w or on[sb[k]]:
+            continue
+        for c in range(sf.shape[1]):
+            if sf[k, c] != 0.0:
+                on[sb[k]] = True
+                cnt += 1
+                break
+    out = np.empty(cnt, np.int32)
+    j = 0
+    for i in range(n):
+        if on[i]:
+            out[j] = i
+            j += 1
+    return out

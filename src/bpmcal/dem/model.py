@@ -30,7 +30,7 @@ from . import diagnostics as D
 from . import flatjoint as FJ
 from . import kernels as K
 from . import neighbors as NB
-from ._jit import numba, set_threads
+from ._jit import set_threads
 from .errors import InputError, InstabilityError
 from .material import MATERIALS, FlatJointMaterial, Material
 from .model_arrays import IDX, Balls, Pairs, Slots, aligned_zeros, readonly, vec3
@@ -173,6 +173,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         self.iprm[I_REBUILD] = 1
         self.iprm[I_FORCES] = 1
         self._recorded = False
+        self._measured = False  # the measure pass (energies) is of the current state
         self._removed_work = 0.0
         self._removed_grav = 0.0
 
@@ -503,6 +504,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         if self.iprm[I_FORCES] == 0:
             self.iprm[I_FORCES] = 1
         self._recorded = False
+        self._measured = False
 
     def cycle(self, nsteps: int, record: bool = True):
         """Run ``nsteps`` steps (numba runs them; this loop only handles overflow and
@@ -513,12 +515,12 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         if self.prm[P_DT] <= 0:
             raise InputError("timestep not set: call set_timestep() first")
         self._check_spin()
-        self._threads.apply(self.n)
+        serial = self._threads.apply(self.n) == 1  # numba's thread count for these steps
+        self._measured = False
         done = 0
         while True:
             st, k = K.run_steps(self.B, self.P, self.Bd, self.S, self.W, self.Fj, self.prm,
-                                self.iprm, self.eacc, nsteps - done, record,
-                                numba.get_num_threads() == 1)
+                                self.iprm, self.eacc, nsteps - done, record, serial)
             done += int(k)
             if st == 0 and done >= nsteps:
                 break

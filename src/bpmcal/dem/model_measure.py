@@ -61,6 +61,10 @@ class MeasureMixin:
              + self._removed_grav,
              "work_constraints": fixw + cst2, "work_walls_each": ww.tolist(),
              "work_gravity_walls": float((W.grav + wout[:, 2]).sum()) + self._removed_grav}
+        # B.force and B.moment are the resultants of this state and these settings (prm:
+        # gravity, damping, dt), until a cycle or a change from Python (_touch)
+        self._measured = True
+        self._measured_prm = self.prm.copy()
         return e
 
     @staticmethod
@@ -84,7 +88,8 @@ class MeasureMixin:
         free = self.B.fix == 0
         if not free.any():
             return 0.0
-        self.energies()  # current resultant forces (measure pass)
+        if not (self._measured and np.array_equal(self.prm, self._measured_prm)):
+            self.energies()  # current resultant forces (measure pass)
         fu = np.linalg.norm(self.B.force[free], axis=1).mean()
         fc, cnt = D.contact_force_mean(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                                        self.P.fs, int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]),

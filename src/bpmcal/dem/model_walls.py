@@ -187,10 +187,8 @@ class WallsMixin:
 
     def wall_contact_balls(self, w) -> np.ndarray:
         """Balls (sorted, unique) that touch wall ``w`` with a non-zero force now."""
-        ns = int(self.iprm[I_NSLOTS])
         S = self.S
-        on = (S.w[:ns] == w) & np.any(S.f[:ns] != 0.0, axis=1)
-        return np.unique(S.b[:ns][on]).astype(np.int32)
+        return D.wall_contact_balls(S.w, S.b, S.f, int(self.iprm[I_NSLOTS]), int(w), self.n)
 
     @property
     def n_wall_slots(self) -> int:

@@ -145,8 +145,9 @@ class AutoThreads:
         balls (a count forced by ``set_threads`` wins); returns it."""
         f = forced_threads()
         if f is not None:
-            self.used.add(numba.get_num_threads())
-            return numba.get_num_threads()
+            n = numba.get_num_threads()
+            self.used.add(n)
+            return n
         now = time.monotonic()
         if self.current is None or now - self.last >= RECHECK_S:
             self.last = now
