@@ -82,7 +82,14 @@ def _default_study(rec: dict) -> dict:
     # records did not record the cores; all of theirs were on 2)
     label, run = [(k, r) for k, r in rec["runs"].items() if r.get("cores", 2) == 2][-1]
     t = run["time"]
+    # the record's first run is its baseline; the newest run on the same cores is the one
+    # compared with it (side by side when the record says so)
+    (_, base), *rest = rec["runs"].items()
+    same = [r for _, r in rest if r.get("cores") == base.get("cores")]
+    ratio = same[-1]["time"]["cpu_min"] / base["time"]["cpu_min"] if same else None
     return {
+        **({"study.cpu_vs_baseline": (f"{ratio:.2f}", ratio, "")} if ratio else {}),
+        "study.baseline_commit": (base["commit"], base["commit"], ""),
         "study.wall_min": (f"{t['wall_s'] / 60:.1f}", t["wall_s"] / 60, "min"),
         "study.cpu_min": (f"{t['cpu_min']:.1f}", t["cpu_min"], "CPU-min"),
         "study.max_rss_mb": (f"{t['max_rss_mb']:.0f}", t["max_rss_mb"], "MB"),

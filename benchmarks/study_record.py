@@ -199,8 +199,8 @@ def markdown(rec: dict) -> str:
                          f"{a.get('cores')}).")]
     jobs = {label: r["jobs"] for label, r in rec["runs"].items() if r.get("jobs")}
     if jobs:
-        rules = sorted({k for j in jobs.values() for k in j},
-                       key=lambda k: -max(j.get(k, {}).get("wall_s", 0) for j in jobs.values()))
+        rules = sorted({k for j in jobs.values() for k in j},  # largest first, then by name
+                       key=lambda k: (-max(j.get(k, {}).get("wall_s", 0) for j in jobs.values()), k))
         lines += ["", "Job time by rule (the sum of its jobs' wall time, min, and its jobs, "
                       "from Snakemake's log; with `--cores 1` one job runs at a time):", "",
                   "| rule | " + " | ".join(jobs) + " |", "|---|" + "---|" * len(jobs)]
