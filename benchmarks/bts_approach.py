@@ -18,11 +18,11 @@ import json
 import statistics
 import sys
 import tempfile
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
 
 import yaml
-from _study import CONFIG, REPO, record_header, study_design
+from _study import CONFIG, REPO, bts_disc_and_settings, record_header, study_design
 
 
 def _ids(spec: str) -> list[str]:
@@ -42,19 +42,13 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="write the rows and the summary here")
     a = ap.parse_args(argv)
 
-    from bpmcal.lab.brazilian import BTSSettings
-    from bpmcal.lab.runner import bts_geometry, bts_test, set_threads
+    from bpmcal.lab.runner import bts_test, set_threads
     from bpmcal.stages.runs import params_from_design
     from bpmcal.study.config import validate_config
 
     cfg = yaml.safe_load(Path(a.config).read_text())
     validate_config(cfg, REPO / "workflow" / "schemas" / "config.schema.yaml", base_dir=REPO)
-    sp, b = cfg["specimen"], cfg["bts"]
-    disc = bts_geometry(scale=b["scale"] if b.get("scale") is not None else sp["scale"],
-                        diameter_mm=b["diameter_mm"], thickness_mm=b["thickness_mm"],
-                        sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
-                        relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
-    study = BTSSettings(**{f.name: b[f.name] for f in fields(BTSSettings) if f.name in b})
+    disc, study = bts_disc_and_settings(cfg)
     set_threads(1)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -33,7 +33,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import yaml
-from _study import CONFIG, REPO, cpu_model, study_design, ucs_settings
+from _study import CONFIG, REPO, bts_disc_and_settings, cpu_model, study_design, ucs_settings
 
 
 def _timed(f):
@@ -69,13 +69,8 @@ def main(argv=None) -> int:
                   relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
     geo = Geometry(scale=sp["scale"], diameter_mm=sp["diameter_mm"],
                    height_mm=sp["height_mm"], **common)
-    disc = bts_geometry(scale=b["scale"] if b.get("scale") is not None else sp["scale"],
-                        diameter_mm=b["diameter_mm"], thickness_mm=b["thickness_mm"],
-                        **common)
+    disc, study = bts_disc_and_settings(cfg)  # after the --set overrides of cfg["bts"]
     ucs_st = ucs_settings(cfg)
-    from dataclasses import fields
-
-    study = BTSSettings(**{f.name: b[f.name] for f in fields(BTSSettings) if f.name in b})
     ref = BTSSettings()
     half = replace(study, platen_velocity=study.platen_velocity / 2)
     set_threads(a.threads)
