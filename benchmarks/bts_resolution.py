@@ -16,7 +16,11 @@ Three parts, each a JSON record (date, commit, CPU model, load average, the comm
   settings), its sigma_t, seed CV and cost, for comparison.
 - ``cards``: sigma_t of each card file of ``--cards`` (a study's calibrated or verified
   cards: the parameters the card stands for) and of A1, on packing ``--seeds``, with the
-  config's ``bts`` settings: valid fraction, mean and seed CV per card.
+  config's ``bts`` settings: valid fraction, mean and seed CV per card. With
+  ``--specimens N`` each seed is measured as the study's closed loop and fresh-seed check
+  measure it (``verification.seed_strength``: N discs on packings seed + j x 1,000,000,
+  an invalid disc replaced), and the seed CV is given for a seed's sigma_t as the mean of
+  its first k = 1 .. N discs (``verification.tensile_specimens`` = k).
 
     python benchmarks/bts_resolution.py curve --scales 0.4,0.55,0.7,0.85,1.0 \\
         --seeds 1,2,3,4,5 --out benchmarks/results_bts_resolution_DATE.json
@@ -47,7 +51,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import yaml
-from _study import A1, CONFIG, REPO, cpu_model, study_design
+from _study import A1, CONFIG, REPO, bts_disc_and_settings, cpu_model, study_design
 
 #: loading variants of the ``loadings`` part: name -> BTSSettings overrides
 VARIANTS = {
@@ -102,6 +106,39 @@ def _run(job):
             "bts_peak_MPa": s["bts_peak_MPa"], "bts_MPa": s["bts_MPa"],
             "init_offset": s["init_offset"], "reason": s["bts_invalid_reason"],
             "steps": s["steps"], "contact_events": s["contact_events"]}
+
+
+def _run_seed(job):
+    """One packing seed measured as the study measures it: (label, params, seed, N,
+    cache, cfg) -> its N discs' sigma_t (each valid, or replaced as the study replaces an
+    invalid disc; NaN when no replacement was valid) and the CPU time of them all."""
+    label, params, seed, n, cache, cfg = job
+    from bpmcal.stages.verification import seed_strength
+
+    disc, st = bts_disc_and_settings(cfg)
+    c0 = time.process_time()
+    with tempfile.TemporaryDirectory() as tmp:
+        b, _, invalid, _, values = seed_strength(
+            "bts_MPa", lambda j, s, k: Path(tmp) / f"{j}_{s}_{k}.h5", params, seed, disc, st,
+            specimens=n, cache=cache, threads=1, keep_particles=False)
+    return {"label": label, "seed": seed, "specimens": n, "status": b.status,
+            "values_MPa": [float(v) for v in values], "invalid": invalid,
+            "cpu_s": time.process_time() - c0}
+
+
+def _stats_k(rows, n):
+    """Per k = 1 .. n: a seed's sigma_t as the mean of its first k discs, its mean and
+    seed CV over the seeds where all k were measured."""
+    out = {}
+    for k in range(1, n + 1):
+        v = [statistics.fmean(r["values_MPa"][:k]) for r in rows
+             if len(r["values_MPa"]) >= k and all(x == x for x in r["values_MPa"][:k])]
+        mean = statistics.fmean(v) if v else float("nan")
+        out[str(k)] = {"seeds": len(v), "sigma_t_mean_MPa": mean,
+                       "seed_cv": statistics.stdev(v) / mean if len(v) > 1 else float("nan")}
+    return {"k": out, "n_seeds": len(rows),
+            "invalid_discs": sum(len(r["invalid"]) for r in rows),
+            "cpu_s_per_seed_median": statistics.median(r["cpu_s"] for r in rows)}
 
 
 def _run_dtt(job):
@@ -254,13 +291,26 @@ def cards(a, argv) -> dict:
         prm = card_parameters(card)
         named[f"{card['specimen']} ({Path(f).parent.name}/{Path(f).name})"] = {
             k: float(prm[k]) for k in P.PARAMS}
+    rec = {**meta, "part": "cards", "config": str(a.config), "bts": cfg["bts"],
+           "scale": scale, "seeds": seeds, "parameters": named}
     with tempfile.TemporaryDirectory() as tmp:
+        if a.specimens > 1:  # each seed as the study measures it, N discs
+            jobs = [(name, prm, s, a.specimens, str(Path(tmp) / f"c{i}"), cfg)
+                    for i, (name, prm) in enumerate(named.items()) for s in seeds]
+            with ProcessPoolExecutor(max_workers=a.jobs) as ex:
+                rows = []
+                for r in ex.map(_run_seed, jobs):
+                    print(f"{r['label']} seed {r['seed']}: "
+                          f"{', '.join(f'{v:.3f}' for v in r['values_MPa'])} MPa, "
+                          f"{len(r['invalid'])} invalid, CPU {r['cpu_s']:.1f} s", flush=True)
+                    rows.append(r)
+            return {**rec, "specimens": a.specimens, "load_average_end": os.getloadavg(),
+                    "cards": {n: _stats_k([r for r in rows if r["label"] == n], a.specimens)
+                              for n in named}, "seed_runs": rows}
         jobs = [(name, prm, s, scale, {}, str(Path(tmp) / f"c{i}"), cfg)
                 for i, (name, prm) in enumerate(named.items()) for s in seeds]
         rows = _pool(jobs, a.jobs)
-    return {**meta, "part": "cards", "config": str(a.config), "bts": cfg["bts"],
-            "scale": scale, "seeds": seeds, "parameters": named,
-            "load_average_end": os.getloadavg(),
+    return {**rec, "load_average_end": os.getloadavg(),
             "cards": {n: _stats([r for r in rows if r["label"] == n]) for n in named},
             "runs": rows}
 
@@ -301,6 +351,24 @@ def markdown(records: list[dict], title: str | None = None) -> str:
                       f"| {rec['scale']:g} | {st['balls_across']:.1f} | {st['n_balls']:.0f} | "
                       f"{st['n']} | {st['n_valid']} | {st['sigma_t_mean_MPa']:.2f} | "
                       f"{100 * st['seed_cv']:.1f} % | {st['cpu_s_median']:.1f} |"]
+        elif rec["part"] == "cards" and rec.get("specimens", 1) > 1:
+            n = rec["specimens"]
+            lines += [f"σt of each card at the study's Brazilian settings (disc scale "
+                      f"{rec['scale']:g}), packing seeds {_seed_span(rec['seeds'])}, each seed "
+                      f"measured on {n} discs as the closed loop and the fresh-seed check "
+                      "measure it (an invalid disc replaced by another packing). A seed's σt "
+                      "is the mean of its first k discs (`verification.tensile_specimens` = "
+                      "k); its mean and seed CV over the seeds:", "",
+                      "| card | seeds | invalid discs replaced | "
+                      + " | ".join(f"k = {k}: σt (MPa), seed CV" for k in range(1, n + 1))
+                      + " | CPU s per seed of N discs (median) |",
+                      "|---|---|---|" + "---|" * n + "---|"]
+            for name, st in rec["cards"].items():
+                ks = " | ".join(f"{st['k'][str(k)]['sigma_t_mean_MPa']:.2f}, "
+                                f"{100 * st['k'][str(k)]['seed_cv']:.1f} %"
+                                for k in range(1, n + 1))
+                lines.append(f"| {name} | {st['n_seeds']} | {st['invalid_discs']} | {ks} | "
+                             f"{st['cpu_s_per_seed_median']:.1f} |")
         elif rec["part"] == "cards":
             lines += [f"σt of each card at the study's Brazilian settings (disc scale "
                       f"{rec['scale']:g}), packing seeds {', '.join(map(str, rec['seeds']))}.",
@@ -328,6 +396,13 @@ def markdown(records: list[dict], title: str | None = None) -> str:
     return "\n".join(lines)
 
 
+def _seed_span(seeds) -> str:
+    """``1–30`` for a run of consecutive seeds, else the list."""
+    if len(seeds) > 2 and seeds == list(range(seeds[0], seeds[-1] + 1)):
+        return f"{seeds[0]}–{seeds[-1]}"
+    return ", ".join(map(str, seeds))
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -346,6 +421,8 @@ def main(argv=None) -> int:
     ca = sub.add_parser("cards")
     ca.add_argument("--cards", required=True, help="card files, separated by ','")
     ca.add_argument("--seeds", default="1,2,3,4,5")
+    ca.add_argument("--specimens", type=int, default=1,
+                    help="discs per seed, measured as the study's loop measures a seed")
     for p in (c, lo, dd, ca):
         p.add_argument("--config", default=str(CONFIG))
         p.add_argument("--jobs", type=int, default=2)
