@@ -50,6 +50,8 @@ SOURCES = {
     "default_study": ("results_default_study_*.json", "{tag}-default-study.md"),
     "study_outputs": ("results_study_outputs_*.json", "{tag}-default-study-results.md"),
     "bts_loadings": ("results_bts_loadings_*.json", "{tag}-tensile-strength.md"),
+    # σt of a seed as the mean of k discs (bts_resolution.py cards --specimens)
+    "bts_specimens": ("results_bts_specimens_*.json", "{tag}-tensile-strength.md"),
     "test_tiers": ("results_test_tiers_*.json", "{tag}-test-tiers.md"),
     # the Lac du Bonnet examples (example_record.py): parallel bond, flat joint, and the
     # flat joint's triaxial overlay
@@ -141,8 +143,30 @@ def _study_outputs(rec: dict) -> dict:
 
 def _bts_loadings(rec: dict) -> dict:
     a1 = rec["variants"]["flat, caps"]["a1"]
-    return {"bts.one_disc_cv": (f"{100 * a1['seed_cv']:.1f} %", 100 * a1["seed_cv"], "%"),
-            "bts.cpu_s_per_test": (f"{a1['cpu_s_median']:.1f}", a1["cpu_s_median"], "CPU-s")}
+    return {"bts.cpu_s_per_test": (f"{a1['cpu_s_median']:.1f}", a1["cpu_s_median"], "CPU-s")}
+
+
+def _bts_specimens(rec: dict) -> dict:
+    """A1's seed CV of one disc and of a seed's σt at the default config's
+    ``verification.tensile_specimens`` (k discs), and each card's at k."""
+    import yaml
+    from bts_resolution import disc_cv
+
+    k = str(yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+            ["verification"]["tensile_specimens"])
+    cards = rec["cards"]
+    a1 = cards["A1"]["k"]
+    others = {n.split(" ")[0]: c["k"][k]["seed_cv"] * 100 for n, c in cards.items() if n != "A1"}
+    one = 100 * disc_cv(rec)["A1"][0]  # from every disc of A1, not only each seed's first
+    return {
+        "bts.one_disc_cv": (f"{one:.1f} %", one, "%"),
+        "bts.seeds": (str(cards["A1"]["n_seeds"]), cards["A1"]["n_seeds"], ""),
+        "bts.specimens": (k, int(k), ""),
+        "bts.seed_cv": (f"{100 * a1[k]['seed_cv']:.1f} %", 100 * a1[k]["seed_cv"], "%"),
+        "bts.cards_seed_cv": (" / ".join(f"{v:.1f}" for v in others.values()) + " %",
+                              others, "%"),
+        "bts.cards": (" / ".join(others), list(others), ""),
+    }
 
 
 def _test_tiers(rec: dict) -> dict:
@@ -178,7 +202,8 @@ def _example(prefix: str, spec: str = "LdB"):
 
 
 EXTRACT = {"default_study": _default_study, "study_outputs": _study_outputs,
-           "bts_loadings": _bts_loadings, "test_tiers": _test_tiers,
+           "bts_loadings": _bts_loadings, "bts_specimens": _bts_specimens,
+           "test_tiers": _test_tiers,
            "ldb_pb": _example("ldb_pb"), "ldb_fj": _example("ldb_fj"),
            "ldb_fj_tri": _example("ldb_fj_tri")}
 

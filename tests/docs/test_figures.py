@@ -47,6 +47,7 @@ ALLOWED = [
     (r"2 × the seed CV", "the transfer's tolerance (its formula)"),
     (r"0\.8 × the minimum", "PFC's timestep safety factor"),
     (r"95 % intervals|default 2\.5-97\.5 %", "the bootstrap intervals' level (a method choice)"),
+    (r"seed CV above 5 %", "issue 24's σt precision target (bts_resolution.CV_TARGET)"),
     (r"\(default 2 %\) of a range", "the inversion's distinct-solution distance (a default)"),
     (r"would take more than 10 s|longer than 10 s if", "the loading screen's limit "
      "(lab.budget.HOPELESS_S, a method constant)"),

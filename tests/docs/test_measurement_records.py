@@ -14,7 +14,7 @@ import bts_resolution  # noqa: E402
 
 def test_the_tensile_strength_records_are_their_json_rendered():
     for date, stems in (("2026-11-26", ("loadings", "resolution", "dtt")),
-                        ("2026-11-27", ("loadings", "cards"))):
+                        ("2026-11-27", ("loadings", "cards")), ("2026-11-28", ("specimens",))):
         page = REPO / "docs" / "measurements" / f"{date}-tensile-strength.md"
         recs = [json.loads((REPO / "benchmarks" / f"results_bts_{s}_{date}.json").read_text())
                 for s in stems]
