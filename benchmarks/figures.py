@@ -51,7 +51,8 @@ SOURCES = {
     "study_outputs": ("results_study_outputs_*.json", "{tag}-default-study-results.md"),
     "bts_loadings": ("results_bts_loadings_*.json", "{tag}-tensile-strength.md"),
     # σt of a seed as the mean of k discs (bts_resolution.py cards --specimens)
-    "bts_specimens": ("results_bts_specimens_*.json", "{tag}-tensile-strength.md"),
+    # (the newest dated one; its page pools the day's others, e.g. ..._a1-seeds31-90_DATE)
+    "bts_specimens": ("results_bts_specimens_2*.json", "{tag}-tensile-strength.md"),
     "test_tiers": ("results_test_tiers_*.json", "{tag}-test-tiers.md"),
     # the Lac du Bonnet examples (example_record.py): parallel bond, flat joint, and the
     # flat joint's triaxial overlay
@@ -157,7 +158,10 @@ def _bts_specimens(rec: dict) -> dict:
     cards = rec["cards"]
     a1 = cards["A1"]["k"]
     others = {n.split(" ")[0]: c["k"][k]["seed_cv"] * 100 for n, c in cards.items() if n != "A1"}
-    one = 100 * disc_cv(rec)["A1"][0]  # from every disc of A1, not only each seed's first
+    # one disc's CV from every disc of A1 in the day's specimens records (the page pools them)
+    day = [json.loads(f.read_text())
+           for f in sorted(BENCH.glob(f"results_bts_specimens_*{rec['date']}.json"))]
+    one = 100 * disc_cv(day)["A1"][0]
     return {
         "bts.one_disc_cv": (f"{one:.1f} %", one, "%"),
         "bts.seeds": (str(cards["A1"]["n_seeds"]), cards["A1"]["n_seeds"], ""),
