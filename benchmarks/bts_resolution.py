@@ -379,7 +379,7 @@ def markdown(records: list[dict], title: str | None = None, names=None) -> str:
                                 for k in range(1, n + 1))
                 lines.append(f"| {name} | {st['n_seeds']} | {st['invalid_discs']} | {ks} | "
                              f"{st['cpu_s_per_seed_median']:.1f} |")
-            lines += _specimens_expected(rec)
+            lines += _specimens_expected(rec) + _block_cvs(rec)
         elif rec["part"] == "cards":
             lines += [f"σt of each card at the study's Brazilian settings (disc scale "
                       f"{rec['scale']:g}), packing seeds {', '.join(map(str, rec['seeds']))}.",
@@ -467,6 +467,31 @@ def _expected_table(cvs: dict, what: str, n: int = 4) -> list[str]:
     ok = [k for k in worst if worst[k] < MISS_ACCEPTED]
     return lines + ["", f"The smallest k whose chance is below {100 * MISS_ACCEPTED:g} % for "
                     f"every card: **{ok[0] if ok else 'none of 1–' + str(n)}**."]
+
+
+def _block_cvs(rec: dict) -> list[str]:
+    """The seed CV of a k-disc mean measured over each block of N_CHECK consecutive seeds
+    (the target's own sample size): per card and k, the largest over the blocks."""
+    n, seeds = rec["specimens"], rec["seeds"]
+    blocks = [seeds[i:i + N_CHECK] for i in range(0, len(seeds) - N_CHECK + 1, N_CHECK)]
+    lines = ["", f"Measured over each of the {len(blocks)} blocks of {N_CHECK} consecutive "
+             f"seeds ({_seed_span(blocks[0])}, {_seed_span(blocks[1])}, …): the largest seed "
+             "CV of a k-disc mean over the blocks:" if len(blocks) > 1 else "", "",
+             "| card | " + " | ".join(f"k = {k}" for k in range(1, n + 1)) + " |",
+             "|---|" + "---|" * n]
+    for name in rec["cards"]:
+        by_seed = {r["seed"]: r["values_MPa"] for r in rec["seed_runs"] if r["label"] == name}
+        cells = []
+        for k in range(1, n + 1):
+            cvs = []
+            for b in blocks:
+                v = [statistics.fmean(by_seed[s][:k]) for s in b
+                     if len(by_seed[s]) >= k and all(x == x for x in by_seed[s][:k])]
+                if len(v) > 1:
+                    cvs.append(statistics.stdev(v) / statistics.fmean(v))
+            cells.append(f"{100 * max(cvs):.1f} %" if cvs else "–")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines if len(blocks) > 1 else []
 
 
 def _specimens_expected(rec: dict) -> list[str]:
