@@ -179,13 +179,24 @@ def dtt(a, argv) -> dict:
             "load_average_end": os.getloadavg(), "stats": _stats(rows), "runs": rows}
 
 
-def _pool(jobs, n):
+def _disc_line(r) -> str:
+    return (f"{r['label']} scale {r['scale']:g} seed {r['seed']} {r['variant']}: "
+            f"{r['bts_peak_MPa']:.3f} MPa, valid {r['bts_valid']}, "
+            f"{r['balls_across']:.1f} across, CPU {r['cpu_s']:.1f} s")
+
+
+def _seed_line(r) -> str:
+    return (f"{r['label']} seed {r['seed']}: "
+            f"{', '.join(f'{v:.3f}' for v in r['values_MPa'])} MPa, "
+            f"{len(r['invalid'])} invalid, CPU {r['cpu_s']:.1f} s")
+
+
+def _pool(jobs, n, run=_run, line=_disc_line):
+    """``run`` over ``jobs`` on ``n`` processes, printing ``line`` of each result."""
     with ProcessPoolExecutor(max_workers=n) as ex:
         out = []
-        for r in ex.map(_run, jobs):
-            print(f"{r['label']} scale {r['scale']:g} seed {r['seed']} {r['variant']}: "
-                  f"{r['bts_peak_MPa']:.3f} MPa, valid {r['bts_valid']}, "
-                  f"{r['balls_across']:.1f} across, CPU {r['cpu_s']:.1f} s", flush=True)
+        for r in ex.map(run, jobs):
+            print(line(r), flush=True)
             out.append(r)
         return out
 
@@ -297,13 +308,7 @@ def cards(a, argv) -> dict:
         if a.specimens > 1:  # each seed as the study measures it, N discs
             jobs = [(name, prm, s, a.specimens, str(Path(tmp) / f"c{i}"), cfg)
                     for i, (name, prm) in enumerate(named.items()) for s in seeds]
-            with ProcessPoolExecutor(max_workers=a.jobs) as ex:
-                rows = []
-                for r in ex.map(_run_seed, jobs):
-                    print(f"{r['label']} seed {r['seed']}: "
-                          f"{', '.join(f'{v:.3f}' for v in r['values_MPa'])} MPa, "
-                          f"{len(r['invalid'])} invalid, CPU {r['cpu_s']:.1f} s", flush=True)
-                    rows.append(r)
+            rows = _pool(jobs, a.jobs, _run_seed, _seed_line)
             return {**rec, "specimens": a.specimens, "load_average_end": os.getloadavg(),
                     "cards": {n: _stats_k([r for r in rows if r["label"] == n], a.specimens)
                               for n in named}, "seed_runs": rows}

@@ -91,7 +91,9 @@ def _default_study(rec: dict) -> dict:
     same = [r for _, r in rest if r.get("cores") == base.get("cores")]
     ratio = same[-1]["time"]["cpu_min"] / base["time"]["cpu_min"] if same else None
     return {
-        **({"study.cpu_vs_baseline": (f"{ratio:.2f}", ratio, "")} if ratio else {}),
+        **({"study.cpu_vs_baseline": (f"{ratio:.2f}", ratio, ""),
+            "study.compared_commit": (same[-1]["commit"], same[-1]["commit"], "")}
+           if ratio else {}),
         "study.baseline_commit": (base["commit"], base["commit"], ""),
         "study.wall_min": (f"{t['wall_s'] / 60:.1f}", t["wall_s"] / 60, "min"),
         "study.cpu_min": (f"{t['cpu_min']:.1f}", t["cpu_min"], "CPU-min"),

@@ -25,6 +25,7 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+import yaml
 from _study import record_header, write_record
 
 #: responses of Table 3 and their names in the record
@@ -82,6 +83,15 @@ def outputs(results: Path) -> dict:
     out["holdout"] = {"seeds": str(ho["seeds"].iloc[0]), "targets": len(ho),
                       "within_2se": int(ho["within_z_se"].sum()),
                       "met": int(ho["met"].sum())}
+    # σt of each verified card on the fresh seeds: its seed CV, and the discs per seed
+    bt = ho[ho["response"] == "bts_MPa"]
+    if len(bt):
+        out["holdout"]["sigma_t"] = {
+            r.specimen: {"n": int(r.n), "mean_MPa": float(r.mean), "cv_pct": float(r.cv_pct),
+                         "discs_per_seed": int((yaml.safe_load((
+                             results / "verification" / r.specimen / "card.yaml").read_text())
+                             .get("verification") or {}).get("tensile_specimens", 1))}
+            for r in bt.itertuples()}
     comp = pd.read_csv(results / "report" / "tables" / "comparison.csv")
     imp = comp[comp["section"] == "Impact"].set_index("quantity")
     w = imp.loc["W_in at 6 m/s, full-size equivalent"]
@@ -144,7 +154,11 @@ def markdown(rec: dict) -> str:
               + ", ".join(f"{RESPONSES[k]} {_pct(v['cv_pct'])} ({v['specimen']}, {v['n']} seeds)"
                           for k, v in o["seed_scatter"].items()) + ".", "",
               f"Fresh-seed check (seeds {h['seeds']}): {h['within_2se']} of {h['targets']} targets "
-              f"within 2 standard errors; {h['met']} of {h['targets']} met.", "",
+              f"within 2 standard errors; {h['met']} of {h['targets']} met."
+              + ("" if "sigma_t" not in h else " σt on the fresh seeds (mean, seed CV, discs "
+                 "per seed): " + "; ".join(
+                     f"{k} {v['mean_MPa']:.2f} MPa, {_pct(v['cv_pct'])}, {v['discs_per_seed']}"
+                     for k, v in h["sigma_t"].items()) + "."), "",
               f"Impact at 6 m/s: W_in (full-size equivalent) {i['W_in_full_size_J']:.1f} J "
               f"(paper {i['W_in_paper_J']:.1f} J), η_f {_pct(100 * i['eta_f'])} (paper "
               f"{_pct(100 * i['eta_f_paper'])}); run ended at {i['end_time_ms']:.1f} ms; "
