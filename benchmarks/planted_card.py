@@ -74,6 +74,9 @@ def main(argv=None) -> int:
     sp, u, b, v = cfg["specimen"], cfg["compression"], cfg["bts"], cfg["verification"]
     common = ["--scale", str(sp["scale"]), "--platen-velocity", str(u["platen_velocity"]),
               "--record-strain", str(u["record_strain"]), "--threads", "1", "--quiet"]
+    # the loop's and the fresh seeds' seeds side by side, as the study runs them (the
+    # rows do not depend on it; the last --threads wins over common's)
+    loop_threads = ["--threads", str(cfg["resources"]["loop_threads"])]
     bts_opts = ["--bts-scale", str(b["scale"]), "--bts-loading", b["loading"],
                 "--bts-contact-cap", str(b["contact_cap"]),
                 "--bts-platen-velocity", str(b["platen_velocity"]),
@@ -133,13 +136,14 @@ def main(argv=None) -> int:
               "--rounds", str(tmp / "rounds.csv"), "--run", str(tmp / "best.h5"),
               "--seed", str(v["seed"]), "--seeds-per-round", str(v["seeds_per_round"]),
               "--max-seeds", str(v["max_seeds"]), "--range-margin", str(v["range_margin"]),
-              "--rtol", str(v["rtol"]), "--max-rounds", str(v["max_rounds"]), *common,
-              *bts_opts, *cache], log)
+              "--rtol", str(v["rtol"]), "--max-rounds", str(v["max_rounds"]),
+              "--tensile-specimens", str(v["tensile_specimens"]), *common, *bts_opts, *cache,
+              *loop_threads], log)  # the fresh-seed check measures σt as the card's loop did
         seeds = [int(s) for s in v["fresh_seeds"]]
         _run(["bpmcal", "fresh-seeds", "--card", str(verified), "--seeds",
               ",".join(map(str, seeds)), "--runs", *[str(tmp / f"h{s}.h5") for s in seeds],
               "--bts-runs", *[str(tmp / f"h{s}.bts.h5") for s in seeds], "--seed-runs",
-              str(tmp / "fresh_seeds.csv"), *common, *bts_opts, *cache], log)
+              str(tmp / "fresh_seeds.csv"), *common, *bts_opts, *cache, *loop_threads], log)
         _run(["bpmcal", "fresh-seeds-table", "--cards", str(verified), "--seed-runs",
               str(tmp / "fresh_seeds.csv"), "--table", str(tmp / "fresh_seeds_table.csv"),
               "--rtol", str(v["rtol"])], log)
