@@ -72,20 +72,24 @@ def ucs_settings(cfg: dict):
                        platen_fric=u["platen_fric"], record_strain=u["record_strain"])
 
 
-def bts_disc_and_settings(cfg: dict):
+def bts_disc_and_settings(cfg: dict, scale: float | None = None, **over):
     """The study's Brazilian disc (``bts_geometry`` from a config's ``bts`` and
-    ``specimen`` sections) and its ``BTSSettings`` (the ``bts`` keys it has)."""
+    ``specimen`` sections; ``scale`` instead of the config's) and its ``BTSSettings``
+    (the ``bts`` keys it has, a field's config key being its name; ``over`` replaces some)."""
     from dataclasses import fields
 
     from bpmcal.lab.brazilian import BTSSettings
     from bpmcal.lab.runner import bts_geometry
 
     sp, b = cfg["specimen"], cfg["bts"]
-    disc = bts_geometry(scale=b["scale"] if b.get("scale") is not None else sp["scale"],
-                        diameter_mm=b["diameter_mm"], thickness_mm=b["thickness_mm"],
-                        sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
-                        relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
-    return disc, BTSSettings(**{f.name: b[f.name] for f in fields(BTSSettings) if f.name in b})
+    if scale is None:
+        scale = b["scale"] if b.get("scale") is not None else sp["scale"]
+    disc = bts_geometry(scale=scale, diameter_mm=b["diameter_mm"],
+                        thickness_mm=b["thickness_mm"], sigma0_MPa=sp["sigma0_MPa"],
+                        install_gap_mm=sp["install_gap_mm"], relax_ratio=sp["relax_ratio"],
+                        genesis=sp["genesis"])
+    kw = {f.name: b[f.name] for f in fields(BTSSettings) if f.name in b}
+    return disc, BTSSettings(**{**kw, **over})
 
 
 def record_header(script: str, argv) -> dict:

@@ -67,37 +67,14 @@ VARIANTS = {
 DEFAULT_VARIANTS = ("flat, caps", "flat, no caps", "jaws, caps", "jaws, no caps")
 
 
-def _bts_settings(cfg: dict, **over):
-    """BTSSettings of a config's ``bts`` section (every key that is a settings field)."""
-    from dataclasses import fields
-
-    from bpmcal.lab.brazilian import BTSSettings
-
-    b = cfg["bts"]  # a field's config key is its name
-    kw = {f.name: b[f.name] for f in fields(BTSSettings) if f.name in b}
-    kw.update(over)
-    return BTSSettings(**kw)
-
-
-def _disc(cfg: dict, scale: float):
-    from bpmcal.lab.runner import bts_geometry
-
-    sp, b = cfg["specimen"], cfg["bts"]
-    return bts_geometry(scale=scale, diameter_mm=b["diameter_mm"],
-                        thickness_mm=b["thickness_mm"], sigma0_MPa=sp["sigma0_MPa"],
-                        install_gap_mm=sp["install_gap_mm"], relax_ratio=sp["relax_ratio"],
-                        genesis=sp["genesis"])
-
-
 def _run(job):
     """One disc: (label, params, seed, scale, overrides, cache) -> its summary numbers."""
     label, params, seed, scale, over, cache, cfg = job
     from bpmcal.lab.runner import bts_test
 
-    st = _bts_settings(cfg, **over)
+    disc, st = bts_disc_and_settings(cfg, scale, **over)
     c0 = time.process_time()
-    r = bts_test(params, seed, _disc(cfg, scale), st, cache=cache, threads=1,
-                 keep_particles=False)
+    r = bts_test(params, seed, disc, st, cache=cache, threads=1, keep_particles=False)
     s = r.summary
     return {"label": label, "seed": seed, "scale": scale, "variant": over,
             "cpu_s": time.process_time() - c0, "genesis_s": s["genesis_s"],
@@ -126,13 +103,19 @@ def _run_seed(job):
             "cpu_s": time.process_time() - c0}
 
 
+def _k_means(values, k: int) -> list[float]:
+    """A seed's sigma_t as the mean of its first k discs, for each seed's disc values in
+    ``values`` whose first k were all measured (NaN: a disc with no valid test)."""
+    return [statistics.fmean(v[:k]) for v in values
+            if len(v) >= k and all(x == x for x in v[:k])]
+
+
 def _stats_k(rows, n):
     """Per k = 1 .. n: a seed's sigma_t as the mean of its first k discs, its mean and
     seed CV over the seeds where all k were measured."""
     out = {}
     for k in range(1, n + 1):
-        v = [statistics.fmean(r["values_MPa"][:k]) for r in rows
-             if len(r["values_MPa"]) >= k and all(x == x for x in r["values_MPa"][:k])]
+        v = _k_means([r["values_MPa"] for r in rows], k)
         mean = statistics.fmean(v) if v else float("nan")
         out[str(k)] = {"seeds": len(v), "sigma_t_mean_MPa": mean,
                        "seed_cv": statistics.stdev(v) / mean if len(v) > 1 else float("nan")}
@@ -490,8 +473,7 @@ def _block_cvs(rec: dict) -> list[str]:
         for k in range(1, n + 1):
             cvs = []
             for b in blocks:
-                v = [statistics.fmean(by_seed[s][:k]) for s in b
-                     if len(by_seed[s]) >= k and all(x == x for x in by_seed[s][:k])]
+                v = _k_means([by_seed[s] for s in b], k)
                 if len(v) > 1:
                     cvs.append(statistics.stdev(v) / statistics.fmean(v))
             cells.append(f"{100 * max(cvs):.1f} %" if cvs else "–")

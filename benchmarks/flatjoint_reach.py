@@ -61,8 +61,8 @@ import sys
 import time
 from pathlib import Path
 
-from _study import CONFIG, REPO
-from bts_resolution import _bts_settings, _config, _disc, _meta
+from _study import CONFIG, REPO, bts_disc_and_settings
+from bts_resolution import _config, _meta
 
 #: the base card (Lac du Bonnet-like granite; /tmp/fjcard.yaml of the brief)
 BASE = dict(contact_model="flatjoint", rmin_mm=0.8, porosity=0.30, fj_emod_GPa=60.0,
@@ -154,7 +154,7 @@ def _settings(cfg: dict, scale: float, bts_scale: float, bts_over: dict):
     ucs = UCSSettings(**load)
     tx = {s3: TriaxialSettings(sigma3=s3 * 1e6, servo_alpha=cfg["triaxial"]["servo_alpha"],
                                **load) for s3 in SIGMA3}
-    return (geo, ucs, _disc(cfg, bts_scale), _bts_settings(cfg, **bts_over), tx,
+    return (geo, ucs, *bts_disc_and_settings(cfg, bts_scale, **bts_over), tx,
             _dtt_settings(cfg))
 
 
