@@ -131,10 +131,20 @@ def gnu_time(log: Path) -> dict:
 
 
 def fresh_seed_lines(rows, within: str = "2 SE") -> list[str]:
-    """The fresh-seed table of a record: target, n, mean, error, z-score, verdict."""
-    lines = ["| target | n | mean | error | z-score | within " + within + " |",
-             "|---|---|---|---|---|---|"]
+    """The fresh-seed table of a record: target, n, mean, error, z-score, verdict against
+    the lab; with the check against the closed loop when the rows carry it (records from
+    before it render as they did)."""
+    loop = any("judged_by" in h for h in rows)
+    extra = " fresh − loop | t (limit) | passed |" if loop else ""
+    lines = ["| target | n | mean | error | z-score | within " + within + " |" + extra,
+             "|---|---|---|---|---|---|" + "---|" * (3 if loop else 0)]
     for h in rows:
-        lines.append(f"| {h['response']} | {h['n']} | {float(h['mean']):.4g} | "
-                     f"{float(h['err_pct']):+.2f} % | {float(h['z_score']):+.2f} | {h['within_z_se']} |")
+        line = (f"| {h['response']} | {h['n']} | {float(h['mean']):.4g} | "
+                f"{float(h['err_pct']):+.2f} % | {float(h['z_score']):+.2f} | {h['within_z_se']} |")
+        if loop and h.get("judged_by") == "closed loop":
+            line += (f" {float(h['diff_pct']):+.2f} % | {float(h['t_loop']):+.2f} "
+                     f"({float(h['t_crit']):.2f}) | {h['passed']} |")
+        elif loop:
+            line += f" – | – | {h.get('passed')} (against the lab) |"
+        lines.append(line)
     return lines

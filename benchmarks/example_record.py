@@ -72,8 +72,10 @@ def collect(clone: Path, overlays: list[str]) -> dict:
                             for k in card["targets"]}}
         if hold is not None:
             h = hold[(hold["specimen"].astype(str) == spec) & (hold["role"] == "target")]
-            s["fresh_seeds"] = [{k: r[k] for k in ("response", "n", "mean", "err_pct", "z_score",
-                                                    "within_z_se")} for r in h.to_dict("records")]
+            keys = ("response", "n", "mean", "err_pct", "z_score", "within_z_se",
+                    # the check against the closed loop (tables from before it lack them)
+                    "judged_by", "diff_pct", "t_loop", "t_crit", "passed")
+            s["fresh_seeds"] = [{k: r[k] for k in keys if k in r} for r in h.to_dict("records")]
         if env is not None:
             e = env[env["specimen"].astype(str) == spec]
             s["envelopes"] = [{k: r[k] for k in ("card", "status", "mi", "phi_deg", "c_MPa")}

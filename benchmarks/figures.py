@@ -141,6 +141,8 @@ def _study_outputs(rec: dict) -> dict:
         f"ν {sc['nu']['cv_pct']:.1f} %", {k: v["cv_pct"] for k, v in sc.items()}, "%")
     h = o["holdout"]
     f["results.holdout"] = (f"{h['within_2se']} of {h['targets']}", h["within_2se"], "")
+    if "passed" in h:  # the check against the closed loop (records since 2026-11-28p)
+        f["results.holdout_passed"] = (f"{h['passed']} of {h['judged']}", h["passed"], "")
     return f
 
 
@@ -193,10 +195,13 @@ def _example(prefix: str, spec: str = "LdB"):
         v, fresh = s["verified"], s.get("fresh_seeds") or []
         mi = {e["card"]: e["mi"] for e in s.get("envelopes") or []}
         n_ok = sum(bool(x["within_z_se"]) for x in fresh)
+        passed = [bool(x["passed"]) for x in fresh if "passed" in x]  # since 2026-11-28p
         return {
             f"{prefix}.targets": (", ".join(v["targets"]), list(v["targets"]), ""),
             f"{prefix}.loop": (f"{v['status']} after {v['rounds']} rounds", v["status"], ""),
             f"{prefix}.fresh": (f"{n_ok} of {len(fresh)}", n_ok, ""),
+            **({f"{prefix}.fresh_passed": (f"{sum(passed)} of {len(passed)}", sum(passed), "")}
+               if passed else {}),
             f"{prefix}.mi": (f"{mi['verified']:.1f}", mi["verified"], ""),
             f"{prefix}.mi_lab": (f"{mi['lab']:.1f}", mi["lab"], ""),
             f"{prefix}.wall_min": (f"{rec['wall_s'] / 60:.1f}", rec["wall_s"] / 60, "min"),

@@ -50,11 +50,14 @@ def _run(cmd, log):
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--study", required=True, help="the finished study's results folder")
+    ap.add_argument("--study", help="the finished study's results folder (required to run)")
+    ap.add_argument("--rejudge", nargs="+", metavar="RECORD",
+                    help="print the fresh-seed check of these planted-card records (JSON) "
+                         "that predate it, from what they kept; runs nothing")
     ap.add_argument("--config", default=str(CONFIG))
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
     ap.add_argument("--lab-seeds", default="1001,1002,1003,1004,1005,1006,1007,1008,1009,1010")
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--out", help="the record (JSON; required to run)")
     ap.add_argument("--markdown", default=None)
     ap.add_argument("--exact-lab", action="store_true",
                     help="write the lab values without their standard errors (the loop and "
@@ -62,6 +65,11 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", default=None, metavar="DIR",
                     help="work in DIR and keep it (the cards, rounds.csv, the run files)")
     a = ap.parse_args(argv)
+    if a.rejudge:  # no runs: the check applied to records that predate it
+        print(rejudge_markdown(a.rejudge))
+        return 0
+    if not (a.study and a.out):
+        ap.error("--study and --out are required to run a planted card")
     from bpmcal.study.config import validate_config
 
     cfg = yaml.safe_load(Path(a.config).read_text())
@@ -248,6 +256,54 @@ def markdown(rec: dict) -> str:
     lines += ["", "Fresh seeds (`bpmcal holdout`, the study's holdout seeds):", "",
               *fresh_seed_lines(rec["holdout"], "2 sqrt(SE² + SE_lab²)" if rec.get("lab_se")
                                 else "2 SE")]
+    if any("passed" in h for h in rec["holdout"]):
+        missed = [h["response"] for h in rec["holdout"] if not h["passed"]]
+        ok = v["status"] == "converged" and not missed
+        lines += ["", "The fresh-seed check (the fresh seeds against the closed loop's mean, "
+                      "at 2 normal standard errors shared among the 4 targets): "
+                  + ("passed on every target" if not missed else "not passed on " + ", ".join(
+                      missed)) + f". The planted-card target (the loop converges and the "
+                  f"check passes): **{'met' if ok else 'not met'}**."]
+    return "\n".join(lines) + "\n"
+
+
+def rejudge(rec: dict, z: float = 2.0) -> list[dict]:
+    """The fresh-seed check of ``bpmcal fresh-seeds-table`` (the fresh seeds against the
+    card's closed-loop mean: :func:`~bpmcal.stages.fresh_seeds.two_sample_check`, its
+    targets sharing the level) applied to a planted-card record from before the check,
+    from what it kept: each target's fresh mean, SD and count (``holdout``), the closed
+    loop's mean and seed CV over its ``n_seeds`` (every seed gave σt in these loops:
+    an invalid disc is replaced). One row per target, with the record's lab verdict."""
+    from bpmcal.stages.fresh_seeds import two_sample_check
+
+    n_loop, loop, out = rec["verification"]["n_seeds"], rec["closed_loop"], []
+    for h in rec["holdout"]:
+        k = h["response"]
+        c = two_sample_check(float(h["mean"]), float(h["sd"]), int(h["n"]),
+                             loop_mean=loop[k]["mean"], loop_sd=loop[k]["seed_cv"] * loop[k]["mean"],
+                             loop_n=n_loop, lab=rec["lab"][k], z=z, targets=len(rec["holdout"]))
+        out.append({"response": k, "loop_n": n_loop, "loop_mean": loop[k]["mean"], "n": h["n"],
+                    "mean": h["mean"], "err_pct": h["err_pct"], "z_score": h["z_score"],
+                    "within_z_se": h["within_z_se"], **c})
+    return out
+
+
+def rejudge_markdown(paths: list[str]) -> str:
+    """The table of :func:`rejudge` over the records ``paths``: record, loop status,
+    target, the closed loop's and the fresh seeds' means, their difference, t and its
+    limit, the check's verdict beside the record's verdict against the lab."""
+    lines = ["| record | closed loop | target | loop mean (seeds) | fresh mean (seeds) | "
+             "fresh − loop | t (limit) | passed | against the lab: error, z, within 2 SE |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for f in paths:
+        rec = json.loads(Path(f).read_text())
+        for r in rejudge(rec):
+            lines.append(
+                f"| {Path(f).name} | {rec['verification']['status']} | {r['response']} | "
+                f"{r['loop_mean']:.4g} ({r['loop_n']}) | {float(r['mean']):.4g} ({r['n']}) | "
+                f"{r['diff_pct']:+.2f} % | {r['t_loop']:+.2f} ({r['t_crit']:.2f}) | "
+                f"{r['reproduces_loop']} | {float(r['err_pct']):+.2f} %, "
+                f"{float(r['z_score']):+.2f}, {r['within_z_se']} |")
     return "\n".join(lines) + "\n"
 
 

@@ -83,6 +83,10 @@ def outputs(results: Path) -> dict:
     out["holdout"] = {"seeds": str(ho["seeds"].iloc[0]), "targets": len(ho),
                       "within_2se": int(ho["within_z_se"].sum()),
                       "met": int(ho["met"].sum())}
+    if "passed" in ho.columns:  # the check against the closed loop (tables since 2026-11-28)
+        tg = ho[ho["role"] == "target"]
+        out["holdout"]["passed"] = int(tg["passed"].astype(bool).sum())
+        out["holdout"]["judged"] = len(tg)
     # σt of each verified card on the fresh seeds: its seed CV, and the discs per seed
     bt = ho[ho["response"] == "bts_MPa"]
     if len(bt):
@@ -153,7 +157,10 @@ def markdown(rec: dict) -> str:
               "Packing-seed scatter of one calibrated set (CV of one run): "
               + ", ".join(f"{RESPONSES[k]} {_pct(v['cv_pct'])} ({v['specimen']}, {v['n']} seeds)"
                           for k, v in o["seed_scatter"].items()) + ".", "",
-              f"Fresh-seed check (seeds {h['seeds']}): {h['within_2se']} of {h['targets']} targets "
+              (f"Fresh-seed check (seeds {h['seeds']}, against each card's closed loop): "
+               f"{h['passed']} of {h['judged']} targets passed. Against the lab: "
+               if "passed" in h else f"Fresh-seed check (seeds {h['seeds']}): ")
+              + f"{h['within_2se']} of {h['targets']} targets "
               f"within 2 standard errors; {h['met']} of {h['targets']} met."
               + ("" if "sigma_t" not in h else " σt on the fresh seeds (mean, seed CV, discs "
                  "per seed): " + "; ".join(

@@ -4,6 +4,7 @@ planted simulator (the DEM replaced by a known function of the parameters and th
 as in test_verify_transfer_stages.py). The real DEM runs it in the smoke study."""
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -311,3 +312,153 @@ def test_the_report_counts_the_triaxial_targets_own_loop_seeds(tmp_path):
     assert "first 10" not in plain
     assert f"{100 * false_alarm(5, targets=5, loop_seeds=20):.0f} % for one" in plain
     assert not math.isclose(both, false_alarm(5, targets=5, loop_seeds=20))
+
+
+def test_loop_reference_is_students_two_sample_t_of_the_fresh_and_the_loop_means():
+    """t_loop and its degrees of freedom are the pooled two-sample t-test's (scipy's on
+    the same numbers, from the loop's mean, SD and n alone); t_crit is the Student-t
+    quantile of the two-sided level of z = 2 normal standard errors (4.55 %), shared among
+    the targets by Šidák."""
+    from scipy import stats
+
+    fresh = np.array([10.3, 9.7, 11.0, 10.2, 9.5])
+    loop = np.array([10.8, 11.1, 10.2, 10.9, 11.4, 10.6, 10.3, 11.0, 10.7, 11.2])
+    r = H.loop_reference_stats(fresh, loop_mean=loop.mean(), loop_sd=loop.std(ddof=1),
+                               loop_n=len(loop), lab=10.5, z=2.0, targets=1)
+    w = stats.ttest_ind(fresh, loop, equal_var=True)
+    assert r["t_loop"] == pytest.approx(w.statistic, rel=1e-12)
+    assert r["dof"] == pytest.approx(w.df, rel=1e-12)
+    assert r["loop_se"] == pytest.approx(loop.std(ddof=1) / math.sqrt(10))
+    assert r["diff_pct"] == pytest.approx(100 * (fresh.mean() - loop.mean()) / 10.5)
+    alpha = 2 * stats.norm.sf(2.0)
+    assert r["t_crit"] == pytest.approx(stats.t.isf(alpha / 2, w.df))
+    assert r["reproduces_loop"] == (abs(w.statistic) <= r["t_crit"])
+    four = H.loop_reference_stats(fresh, loop_mean=loop.mean(), loop_sd=loop.std(ddof=1),
+                                  loop_n=10, lab=10.5, targets=4)
+    each = 1 - (1 - alpha) ** 0.25
+    assert four["t_crit"] == pytest.approx(stats.t.isf(each / 2, w.df))
+    assert four["t_crit"] > r["t_crit"]
+    # these numbers: t = -2.73, outside t_crit 2.21 of one target, inside 2.94 of four
+    assert not r["reproduces_loop"] and four["reproduces_loop"]
+    # failed runs do not count; one fresh or one loop seed: no verdict
+    assert H.loop_reference_stats([*fresh, math.nan], loop_mean=loop.mean(),
+                                  loop_sd=loop.std(ddof=1), loop_n=10, lab=10.5)["t_loop"] == \
+        pytest.approx(w.statistic)
+    for kw in (dict(values=[10.0]), dict(values=fresh, loop_n=1)):
+        x = H.loop_reference_stats(**{"values": fresh, "loop_mean": 10.5, "loop_sd": 0.4,
+                                      "loop_n": 10, "lab": 10.5, **kw})
+        assert math.isnan(x["t_loop"]) and not x["reproduces_loop"]
+
+
+def _loop_and_fresh(rng, k, n, m, cv, accepted):
+    """One simulated calibration with m independent targets, each with seed CV ``cv``: the
+    loop's card reads the lab value on its own k seeds up to a residual uniform in
+    +-``accepted`` of the lab (what its tolerance let through); its rock mean is then off
+    by the loop seeds' sampling error; n fresh seeds are drawn around that rock mean."""
+    lab = 100.0
+    out = []
+    for _ in range(m):
+        loop_mean = lab * (1 + accepted * rng.uniform(-1, 1))
+        e_loop = cv * lab * rng.standard_normal(k)
+        mu = loop_mean - e_loop.mean()  # the card's mean over every packing
+        loop_sd = float((mu + e_loop).std(ddof=1))
+        out.append((lab, loop_mean, loop_sd, mu + cv * lab * rng.standard_normal(n)))
+    return out
+
+
+def test_a_card_that_generalises_fails_the_check_at_the_stated_rate():
+    """A card whose fresh seeds are another draw of the packings its loop saw fails the
+    check with probability alpha (4.55 % for z = 2) on one or more of its 4 targets,
+    whatever residual the loop accepted (here up to 4 %, more than the 2 % seed CV); the
+    lab-referenced verdict within_z_se fails the same cards far more often (3000 cards;
+    binomial standard error ~0.4 %)."""
+    from scipy import stats
+
+    rng = np.random.default_rng(5)
+    alpha = 2 * stats.norm.sf(2.0)
+    for k, n in ((10, 5), (20, 5), (3, 3)):
+        fails, lab_fails = [], []
+        for _ in range(3000):
+            rows = _loop_and_fresh(rng, k, n, 4, 0.02, 0.04)
+            fails.append(not all(H.loop_reference_stats(
+                f, loop_mean=lm, loop_sd=sd, loop_n=k, lab=lab, targets=4)["reproduces_loop"]
+                for lab, lm, sd, f in rows))
+            lab_fails.append(not all(H.fresh_seed_stats(f, lab, rtol=1e-9)["within_z_se"]
+                                     for lab, lm, sd, f in rows))
+        p = float(np.mean(fails))
+        assert abs(p - alpha) < 4 * math.sqrt(alpha * (1 - alpha) / 3000), (k, n, p)
+        assert np.mean(lab_fails) > 0.4, (k, n, np.mean(lab_fails))
+
+
+def test_the_check_finds_a_card_that_does_not_generalise():
+    """Fresh seeds whose mean lies mdd_pct off the loop's (a card whose loop seeds read
+    differently from the rock) fail about half the time, and twice that offset nearly
+    always: the check has the power it reports (2000 draws)."""
+    rng = np.random.default_rng(9)
+    k, n, cv, lab = 10, 5, 0.03, 100.0
+    base = H.loop_reference_stats(lab * (1 + cv * rng.standard_normal(n)), loop_mean=lab,
+                                  loop_sd=cv * lab, loop_n=k, lab=lab, targets=4)
+    mdd = base["mdd_pct"]
+    assert 4.0 < mdd < 6.0  # t_crit 2.94 x 3 % x sqrt(1/5 + 1/10) = 4.8 %, the SD as drawn
+    for shift, lo, hi in ((mdd, 0.35, 0.65), (2 * mdd, 0.95, 1.0)):
+        found = []
+        for _ in range(2000):
+            e = cv * lab * rng.standard_normal(k)
+            loop = lab + e - e.mean()  # the loop's seeds read exactly the lab's mean
+            fresh = lab * (1 + shift / 100) + cv * lab * rng.standard_normal(n)
+            found.append(not H.loop_reference_stats(
+                fresh, loop_mean=float(loop.mean()), loop_sd=float(loop.std(ddof=1)),
+                loop_n=k, lab=lab, targets=4)["reproduces_loop"])
+        assert lo <= np.mean(found) <= hi, (shift, np.mean(found))
+
+
+def test_the_table_judges_against_the_closed_loop_only_when_the_runs_repeat_it(
+        verified, monkeypatch):
+    """Fresh seeds on the loop's cylinder: every target is judged against the card's
+    closed-loop mean (judged_by "closed loop", the loop's seeds and SD from the card); on
+    another cylinder the loop's mean is no reference and the lab-referenced verdict
+    decides."""
+    tmp_path, card, _ = verified
+    monkeypatch.setattr(H, "run_ucs_file", FreshDEM())
+    run_fresh_seeds(tmp_path, card, [101, 102, 103])
+    seeds = pd.read_csv(tmp_path / "h" / "seeds.csv")
+    assert seeds["loop_reference"].all()
+    t = H.fresh_seeds_table([card], [tmp_path / "h" / "seeds.csv"], table=tmp_path / "t.csv")
+    loop = read_card(card)["verification"]["closed_loop"]
+    for _, r in t.iterrows():
+        assert r["judged_by"] == "closed loop" and r["loop_n"] == 3
+        assert r["loop_mean"] == pytest.approx(loop[r["response"]])
+        assert r["loop_se"] == pytest.approx(loop["seed_sd"][r["response"]] / math.sqrt(3))
+        assert r["passed"] == r["reproduces_loop"]
+    d = tmp_path / "h2"
+    H.fresh_seeds(card, seeds=[101, 102, 103], runs=[d / f"s{s}.h5" for s in (101, 102, 103)],
+                  seed_runs=d / "seeds.csv", geometry=Geometry(scale=0.3), settings=UCSSettings())
+    assert not pd.read_csv(d / "seeds.csv")["loop_reference"].any()
+    t = H.fresh_seeds_table([card], [d / "seeds.csv"], table=tmp_path / "t2.csv")
+    assert (t["judged_by"] == "lab").all() and (t["passed"] == t["within_z_se"]).all()
+    assert t["t_loop"].isna().all()
+
+
+def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkeypatch):
+    """The report's fresh-seed section: the check against the closed loop (its verdict,
+    the loop's and the fresh means, the detectable difference), then the same seeds
+    against the lab as a measurement; a card whose fresh seeds read 30 % above its loop is
+    named as not reproduced."""
+    from bpmcal.io import study_files as L
+    from bpmcal.report.build import _fresh_seeds
+
+    tmp_path, card, _ = verified
+    lay = L.StudyFiles(tmp_path / "study")
+    table = Path(lay.table(L.FRESH_SEEDS))
+    monkeypatch.setattr(H, "run_ucs_file", FreshDEM())
+    run_fresh_seeds(tmp_path, card, [101, 102, 103])
+    H.fresh_seeds_table([card], [tmp_path / "h" / "seeds.csv"], table=table)
+    text = _fresh_seeds(lay)
+    assert "Every card reproduces its closed loop." in text
+    assert "tell a difference of" in text and "A measurement, not the check" in text
+    high = pd.read_csv(tmp_path / "h" / "seeds.csv")
+    high["E_GPa"] *= 1.3
+    high.to_csv(tmp_path / "h" / "high.csv", index=False)
+    H.fresh_seeds_table([card], [tmp_path / "h" / "high.csv"], table=table)
+    text = _fresh_seeds(lay)
+    assert "**Not reproduced**: B1 E (+" in text and "off the loop's mean" in text

@@ -506,8 +506,14 @@ def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
             assert r["n"] == len(vals)
             if len(vals):
                 assert r["mean"] == pytest.approx(vals.mean(), rel=1e-12)
+            if r["role"] == "target":  # the same cylinder as the loop's: its mean the reference
+                loop = card["verification"]["closed_loop"]
+                assert r["judged_by"] == "closed loop" and runs["loop_reference"].all()
+                assert r["loop_mean"] == pytest.approx(loop[r["response"]], rel=1e-12)
+                assert r["loop_n"] == loop["n_seeds"]
     index = (smoke / OUTDIR / "report" / "index.md").read_text()
     assert "The verified cards on fresh packing seeds" in index
+    assert "**The check**: do the fresh seeds read as the card's closed loop" in index
     assert "σt of each card on the same fresh seeds" in index
     loops = [yaml.safe_load(Path(lay.verified_card(sp)).read_text())["verification"]
              .get("n_seeds") for sp in ("B1", "B2", "B3")]

@@ -4,10 +4,23 @@ The closed loop steers the mean of its rounds' packing seeds onto the lab target
 the card then describes the rock rather than those packings shows on packings the loop
 never saw: :func:`fresh_seeds` runs a verified card's parameters on fresh packing seeds (the
 UCS test of every seed and, for a card with a tensile-strength target, its Brazilian test
-on the same seed), and :func:`fresh_seeds_table` judges every card and target: is the lab
-value within ``z`` standard errors of the fresh seeds' mean (``within_z_se``, z = 2 by
-default), and within the tolerance the loop itself used, max(rtol, z standard errors)
-(``met``)? A failed run is a row with its reason, counted in ``n_failed``, never dropped.
+on the same seed), and :func:`fresh_seeds_table` judges every card and target.
+
+The check (``passed``) asks whether the fresh seeds read as the card's closed loop read on
+its own seeds (:func:`loop_reference_stats`): the two-sample t of the two means, against the
+Student-t quantile at the level of ``z`` normal standard errors shared among the card's
+targets (Šidák), so that a card which describes the rock as well as its loop's seeds can
+tell fails with that probability (4.55 % for z = 2), whatever its number of targets and
+seeds. The loop itself judged the card against the lab, within max(rtol, z standard
+errors): the two together say that the card meets the lab on packings it never saw. The
+lab-referenced statistics stay in the table as measurements: is the lab value within ``z``
+standard errors of the fresh seeds' mean (``within_z_se``), and within the loop's own
+tolerance max(rtol, z standard errors) (``met``)? They count neither the loop's own
+sampling error, which the card carries (:func:`false_alarm`), nor the residual the loop
+accepted, so a card exactly as good as its loop can make it fails them more often than z
+says. A card whose fresh seeds did not run the loop's parameters on the loop's specimens
+(a transferred card, another scale) has no loop reference and is judged on ``within_z_se``.
+A failed run is a row with its reason, counted in ``n_failed``, never dropped.
 """
 from __future__ import annotations
 
@@ -116,6 +129,9 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
     params = card_parameters(c)
     disc = bts_geometry or disc_geometry(geometry)
     bts_settings = bts_settings or BTSSettings()
+    # the loop's mean is this card's on other seeds only if these runs repeat the loop's
+    same = _loop_reference(c, geometry, disc if with_bts else None,
+                           cylinder if with_dtt else None)
     if ran and max_balls is not None:
         for g in (geometry, *([disc] if bts_runs is not None else []),
                   *([cylinder] if with_dtt else [])):
@@ -142,8 +158,8 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
                     write_failure(files[i], test=test, inputs=inputs_of(params, s, geo, st),
                                   error=reason)
         df = pd.DataFrame([{"specimen": c["specimen"], "seed": s, "status": "not-run",
-                            "error": reason, **{k: math.nan for k in (*c["targets"], *_EXTRA)}}
-                           for s in seeds])
+                            "error": reason, **{k: math.nan for k in (*c["targets"], *_EXTRA)},
+                            "loop_reference": False} for s in seeds])
         write_table(df, seed_runs, index=False)
         return df
     output_dirs((cache, "--specimen-cache"))
@@ -156,8 +172,40 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
             tensile_specimens=int(v.get("tensile_specimens", 1)))
             for i, s in enumerate(seeds)], tags=[f"seed {s}" for s in seeds])
     df = pd.DataFrame(rows)
+    df["loop_reference"] = same
     write_table(df, seed_runs, index=False)
     return df
+
+
+def _same_values(a: dict | None, b: dict) -> bool:
+    """Whether the geometry record ``a`` (a card's, read back from YAML) describes the same
+    specimen as ``b`` (``Geometry.to_dict``): every key equal, numbers to 1e-9 relative,
+    NaN equal to NaN (a card writes it as null)."""
+    if not isinstance(a, dict) or set(a) != set(b):
+        return False
+    for k, x in b.items():
+        y = math.nan if a[k] is None else a[k]
+        if isinstance(x, (int, float)) and isinstance(y, (int, float)):
+            if not (math.isnan(x) and math.isnan(y)) and not math.isclose(x, y, rel_tol=1e-9):
+                return False
+        elif x != y:
+            return False
+    return True
+
+
+def _loop_reference(c: dict, geometry, disc=None, cylinder=None) -> bool:
+    """Whether fresh seeds run on ``geometry`` (and the Brazilian ``disc``, the
+    direct-tension ``cylinder``: None without that target) repeat the runs of the card's
+    closed loop with other packings: the loop's own parameters (no full-size transfer's),
+    on the loop's specimens. Only then is the loop's mean a reference for the fresh seeds'
+    (:func:`loop_reference_stats`)."""
+    v = c.get("verification") or {}
+    if (c.get("transfer") or {}).get("parameters") or not v.get("closed_loop"):
+        return False
+    if not _same_values(v.get("geometry"), geometry.to_dict()):
+        return False
+    return all(g is None or _same_values(v.get(key), g.to_dict())
+               for key, g in (("bts_geometry", disc), ("dtt_geometry", cylinder)))
 
 
 def _fresh_seed(*, specimen, params: dict, seed: int, run, geometry, settings, extra: list,
@@ -240,6 +288,60 @@ def fresh_seed_stats(values, lab: float, *, rtol: float, z: float = 2.0,
             "met": bool(n > 1 and abs(err) <= tol)}
 
 
+def loop_reference_stats(values, *, loop_mean: float, loop_sd: float, loop_n: int,
+                         lab: float, z: float = 2.0, targets: int = 1) -> dict:
+    """Do the fresh seeds' ``values`` (NaN: a failed run, not counted) read as the card's
+    closed loop read on its own ``loop_n`` seeds (mean ``loop_mean``, sample SD
+    ``loop_sd``)? The same parameters and specimens on two independent sets of packings:
+    their means differ by sampling alone, whatever the lab value and whatever residual the
+    loop accepted against it, and both sets scatter alike (one population of packings).
+    So Student's two-sample t with the pooled SD (``t_loop``, ``dof`` = n + loop_n - 2,
+    exact for normal scatter) is judged against the Student-t quantile ``t_crit`` of the
+    two-sided level of ``z`` normal standard errors (alpha = 2 (1 - Phi(z)): 4.55 % for
+    z = 2) shared among the card's ``targets`` (Šidák: 1 - (1 - alpha)^(1/targets) each),
+    so that a card that generalises fails one target or more with probability alpha.
+    ``reproduces_loop``: |t_loop| <= t_crit. ``loop_se``: the loop mean's own standard
+    error; ``diff_pct``: the difference of the means in % of ``lab`` (of the loop's mean
+    without one); ``mdd_pct``: the difference, in the same %, that the check finds half
+    the time (t_crit standard errors of the difference): what these seeds can tell from
+    noise. Fewer than two fresh or loop seeds: no verdict (NaN statistics,
+    ``reproduces_loop`` False)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    return two_sample_check(float(v.mean()) if len(v) else math.nan,
+                            float(v.std(ddof=1)) if len(v) > 1 else math.nan, len(v),
+                            loop_mean=loop_mean, loop_sd=loop_sd, loop_n=loop_n, lab=lab, z=z,
+                            targets=targets)
+
+
+def two_sample_check(mean: float, sd: float, n: int, *, loop_mean: float, loop_sd: float,
+                     loop_n: int, lab: float, z: float = 2.0, targets: int = 1) -> dict:
+    """:func:`loop_reference_stats` from the fresh seeds' ``mean``, sample SD ``sd`` and
+    count ``n`` (a record that kept only those)."""
+    from scipy import stats
+
+    k = int(loop_n) if loop_n is not None and math.isfinite(loop_n) else 0
+    out = {"loop_mean": float(loop_mean), "loop_n": k, "loop_se": math.nan, "diff_pct": math.nan,
+           "t_loop": math.nan, "dof": math.nan, "t_crit": math.nan, "mdd_pct": math.nan,
+           "reproduces_loop": False}
+    if n < 2 or k < 2 or not all(math.isfinite(x) for x in (mean, sd, loop_mean, loop_sd)):
+        return out
+    dof = n + k - 2
+    pooled = math.sqrt(((n - 1) * float(sd) ** 2 + (k - 1) * float(loop_sd) ** 2) / dof)
+    se = pooled * math.sqrt(1.0 / n + 1.0 / k)
+    alpha = 2.0 * float(stats.norm.sf(z))
+    each = 1.0 - (1.0 - alpha) ** (1.0 / max(int(targets), 1))
+    crit = float(stats.t.isf(each / 2.0, dof))
+    d = float(mean) - float(loop_mean)
+    t = d / se if se > 0 else (0.0 if d == 0 else math.copysign(math.inf, d))
+    ref = abs(lab) if lab and math.isfinite(lab) else abs(float(loop_mean))
+    out.update(loop_se=float(loop_sd) / math.sqrt(k), diff_pct=100 * d / ref if ref else math.nan,
+               t_loop=t, dof=float(dof), t_crit=crit,
+               mdd_pct=100 * crit * se / ref if ref else math.nan,
+               reproduces_loop=bool(abs(t) <= crit))
+    return out
+
+
 def false_alarm(n: int, z: float = 2.0, targets: int = 1, loop_seeds: int | None = None) -> float:
     """The probability that a card exactly on its targets still fails the ``within_z_se``
     check of :func:`fresh_seed_stats` on ``n`` fresh seeds for at least one of ``targets``
@@ -266,11 +368,16 @@ def fresh_seeds_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataF
     """One row per card (``cards[i]`` with its seed table ``seed_runs[i]`` from
     :func:`fresh_seeds`) and target: the lab value, the fresh seeds' n, mean, standard
     deviation, standard error and CV, the error of the mean (%), its z-score and the
-    verdicts of :func:`fresh_seed_stats`; ``seeds`` lists the seeds, ``n_failed`` the failed
-    runs and ``note`` why none ran (a card whose closed loop did not run). A tensile
-    strength measured on the fresh seeds but not a target of the card is a row too, its
-    ``role`` "prediction" (no lab value, no verdict: σt of the card and its seed
-    scatter); the targets' rows have ``role`` "target"."""
+    verdicts of :func:`fresh_seed_stats`; the card's closed-loop mean, its standard error
+    and seeds, and the comparison of :func:`loop_reference_stats` with the card's targets
+    sharing the level (when the seed table says its runs repeat the loop's:
+    ``loop_reference``); ``passed`` the check's verdict (``reproduces_loop``, or
+    ``within_z_se`` without a loop reference) and ``judged_by`` which ("closed loop" or
+    "lab"); ``seeds`` lists the seeds, ``n_failed`` the failed runs and ``note`` why none
+    ran (a card whose closed loop did not run). A tensile strength measured on the fresh
+    seeds but not a target of the card is a row too, its ``role`` "prediction" (no lab
+    value, no verdict: σt of the card and its seed scatter); the targets' rows have
+    ``role`` "target"."""
     if len(seed_runs) != len(cards):
         raise BadInput(f"--seed-runs: {len(seed_runs)} table(s) for {len(cards)} card(s); "
                        "expected one per card, in the same order")
@@ -297,17 +404,29 @@ def fresh_seeds_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataF
         note = str(df["error"].iloc[0]) if not_run and "error" in df.columns else ""
         predicted = [k for k in P.SAMPLE_TESTS if k in df.columns
                      and k not in c["targets"]]  # measured on the fresh seeds, no lab value
+        loop = (c.get("verification") or {}).get("closed_loop") or {}
+        by_loop = bool(len(df) and "loop_reference" in df.columns and loop
+                       and df["loop_reference"].astype(bool).all())
         for k in (*c["targets"], *predicted):
-            lab = float(c["targets"][k]) if k in c["targets"] else math.nan
+            target = k in c["targets"]
+            lab = float(c["targets"][k]) if target else math.nan
             vals = df.loc[ok, k].to_numpy(float)
             st = fresh_seed_stats(vals, lab, rtol=rtol, z=z,
                                   lab_se=float((c.get("target_se") or {}).get(k, 0.0)))
+            ref = loop_reference_stats(
+                vals, loop_mean=float(loop.get(k, math.nan)) if by_loop else math.nan,
+                loop_sd=float((loop.get("seed_sd") or {}).get(k, math.nan)),
+                loop_n=int((loop.get("n_measured") or {}).get(k, loop.get("n_seeds", 0))),
+                lab=lab, z=z, targets=len(c["targets"]))
             fin = vals[np.isfinite(vals)]
             rows.append({"specimen": c["specimen"], "response": k,
-                         "role": "target" if k in c["targets"] else "prediction",
+                         "role": "target" if target else "prediction",
                          "lab": lab, **st,
                          "cv_pct": (100 * st["sd"] / abs(st["mean"])
                                     if len(fin) > 1 and st["mean"] else math.nan),
+                         **ref, "judged_by": ("closed loop" if by_loop else "lab") if target else "",
+                         "passed": target and (ref["reproduces_loop"] if by_loop
+                                               else st["within_z_se"]),
                          "n_failed": int((~ok).sum()),
                          "seeds": ",".join(str(int(s)) for s in df["seed"]), "note": note})
     out = pd.DataFrame(rows)
