@@ -51,6 +51,8 @@ ALLOWED = [
     (r"\(default 2 %\) of a range", "the inversion's distinct-solution distance (a default)"),
     (r"would take more than 10 s|longer than 10 s if", "the loading screen's limit "
      "(lab.budget.HOPELESS_S, a method constant)"),
+    (r"\(4\.55 %\)|probability 4\.55 %", "the two-sided level of 2 normal standard errors "
+     "(the fresh-seed check's, a method constant)"),
 ]
 ALLOWED_RE = re.compile("|".join(f"(?:{p})" for p, _ in ALLOWED))
 

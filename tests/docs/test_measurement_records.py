@@ -79,6 +79,18 @@ def test_the_planted_card_record_is_its_json_rendered():
         assert md.read_text() == planted_card.markdown(rec), (md.name, "regenerate from", raw.name)
 
 
+def test_the_fresh_seed_check_record_is_the_planted_records_rejudged():
+    """Record 2026-11-28p's table is planted_card.rejudge_markdown of the records its
+    command names, as they are in benchmarks/."""
+    import planted_card
+
+    page = (REPO / "docs" / "measurements" / "2026-11-28p-fresh-seed-check.md").read_text()
+    cmd = re.search(r"--rejudge ([^`]+)`", page).group(1).split()
+    assert len(cmd) == 6
+    assert planted_card.rejudge_markdown([str(REPO / "benchmarks" / f) for f in cmd]).replace(
+        str(REPO / "benchmarks") + "/", "") in page
+
+
 def test_the_test_tiers_record_is_its_json_rendered():
     import test_tiers
 
