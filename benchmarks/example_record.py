@@ -84,8 +84,71 @@ def collect(clone: Path, overlays: list[str]) -> dict:
     return rec
 
 
+def rejudge(rec: dict, lab_csv: str, z: float = 2.0, triaxial_seeds: int | None = None) -> list[dict]:
+    """The fresh-seed check of ``bpmcal fresh-seeds-table`` (each specimen's fresh seeds
+    against its closed-loop mean, the card's targets sharing the level:
+    :func:`~bpmcal.stages.fresh_seeds.two_sample_check`) applied to an example record from
+    before the check, from what it kept: the fresh seeds' mean, count and z-score against
+    the lab value of ``lab_csv`` (their SD is the z-score's standard error times sqrt(n),
+    with the lab value's own ``<target>_se`` taken out), the loop's mean, seed CV and seed
+    count (σ1's: ``triaxial_seeds``, the loop's first seeds that ran the triaxial test,
+    when its config capped them; the record does not keep it). One row per specimen and
+    target."""
+    import math
+
+    from bpmcal.stages.fresh_seeds import two_sample_check
+
+    lab = pd.read_csv(REPO / lab_csv, comment="#").set_index("specimen")
+    out = []
+    for spec, s in rec["specimens"].items():
+        v = s["verified"]
+        for f in s.get("fresh_seeds") or []:
+            k, n = f["response"], int(f["n"])
+            lab_v = float(lab.loc[spec, k])
+            lab_se = float(lab.loc[spec, f"{k}_se"]) if f"{k}_se" in lab.columns else 0.0
+            both = (float(f["mean"]) - lab_v) / float(f["z_score"])
+            sd = math.sqrt(max(both ** 2 - lab_se ** 2, 0.0) * n)
+            t = v["targets"][k]
+            m = triaxial_seeds if k == "tri_MPa" and triaxial_seeds else v["n_seeds"]
+            c = two_sample_check(float(f["mean"]), sd, n, loop_mean=t["mean"],
+                                 loop_sd=t["seed_cv_pct"] / 100 * t["mean"],
+                                 loop_n=m, lab=lab_v, z=z, targets=len(v["targets"]))
+            out.append({"specimen": spec, "response": k, "loop_n": m,
+                        "loop_mean": t["mean"], "n": n, "mean": f["mean"], "sd": sd,
+                        "err_pct": f["err_pct"], "z_score": f["z_score"],
+                        "within_z_se": f["within_z_se"], **c})
+    return out
+
+
+def rejudge_markdown(path: str, lab_csv: str, triaxial_seeds: int | None = None) -> str:
+    """The table of :func:`rejudge` for the record ``path`` and its lab CSV."""
+    rec = json.loads(Path(path).read_text())
+    lines = ["| record | target | loop mean (seeds) | fresh mean (seeds) | fresh − loop | "
+             "t (limit) | passed | limit of one target alone | against the lab: error, z |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    from scipy import stats
+
+    for r in rejudge(rec, lab_csv, triaxial_seeds=triaxial_seeds):
+        one = float(stats.t.isf(stats.norm.sf(2.0), r["dof"]))  # the level of z = 2 alone
+        lines.append(f"| {Path(path).name} | {r['response']} | {r['loop_mean']:.4g} "
+                     f"({r['loop_n']}) | {float(r['mean']):.4g} ({r['n']}) | "
+                     f"{r['diff_pct']:+.2f} % | {r['t_loop']:+.2f} ({r['t_crit']:.2f}) | "
+                     f"{r['reproduces_loop']} | {one:.2f} | {float(r['err_pct']):+.2f} %, "
+                     f"{float(r['z_score']):+.2f} |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--rejudge"]:  # no runs: the check applied to a record that predates it
+        rj = argparse.ArgumentParser(description="the fresh-seed check of an example record")
+        rj.add_argument("--rejudge", required=True, metavar="RECORD")
+        rj.add_argument("--lab", required=True, help="the lab CSV the record's study used")
+        rj.add_argument("--triaxial-seeds", type=int, default=None,
+                        help="verification.triaxial_seeds of the record's study, if set")
+        r = rj.parse_args(argv)
+        print(rejudge_markdown(r.rejudge, r.lab, r.triaxial_seeds))
+        return 0
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("clone")
     ap.add_argument("--configfile", nargs="+", required=True)

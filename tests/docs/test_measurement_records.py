@@ -89,6 +89,14 @@ def test_the_fresh_seed_check_record_is_the_planted_records_rejudged():
     assert len(cmd) == 6
     assert planted_card.rejudge_markdown([str(REPO / "benchmarks" / f) for f in cmd]).replace(
         str(REPO / "benchmarks") + "/", "") in page
+    import example_record
+
+    examples = re.findall(r"`python example_record.py --rejudge (\S+) --lab (\S+)"
+                          r"(?: --triaxial-seeds (\d+))?`", page)
+    assert len(examples) == 3
+    for rec, lab, m in examples:
+        assert example_record.rejudge_markdown(str(REPO / "benchmarks" / rec), lab,
+                                               int(m) if m else None) in page, rec
 
 
 def test_the_test_tiers_record_is_its_json_rendered():

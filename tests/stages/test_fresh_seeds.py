@@ -462,3 +462,10 @@ def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkey
     H.fresh_seeds_table([card], [tmp_path / "h" / "high.csv"], table=table)
     text = _fresh_seeds(lay)
     assert "**Not reproduced**: B1 E (+" in text and "off the loop's mean" in text
+    assert "did not converge" not in text
+    # a card whose loop ended without meeting the lab: named, not verified by the check
+    c = read_card(card)
+    c["verification"]["status"] = "max_rounds"
+    Path(lay.verified_card("B1")).parent.mkdir(parents=True, exist_ok=True)
+    write_card(lay.verified_card("B1"), c)
+    assert "The closed loops of B1 (max_rounds) did not converge" in _fresh_seeds(lay)

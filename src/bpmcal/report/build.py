@@ -529,13 +529,15 @@ def _fresh_seeds(lay) -> str:
     by_loop = t[(t["judged_by"] == "closed loop") & (notes == "")]
     return ("\n### The verified cards on fresh packing seeds\n\n"
             f"Each verified card re-run on packing seeds its closed loop never saw ({seeds}). "
-            + _fresh_check(t, notes, by_loop, z) + _fresh_against_lab(lay, t, notes, z)
+            + _fresh_check(lay, t, notes, by_loop, z) + _fresh_against_lab(lay, t, notes, z)
             + _predicted_tension(pred))
 
 
-def _fresh_check(t: pd.DataFrame, notes: pd.Series, by_loop: pd.DataFrame, z: float) -> str:
+def _fresh_check(lay, t: pd.DataFrame, notes: pd.Series, by_loop: pd.DataFrame,
+                 z: float) -> str:
     """The fresh-seed check: the fresh seeds' mean against the closed loop's (same card,
-    same specimens, other packings), its verdict and table."""
+    same specimens, other packings), its verdict and table; a card whose closed loop did
+    not converge is named (the check does not verify it)."""
     alpha = 200 * statistics.NormalDist().cdf(-z)  # the normal two-sided level of z
     judged = t[notes == ""]
     miss = judged[~judged["passed"].astype(bool)]
@@ -563,6 +565,16 @@ def _fresh_check(t: pd.DataFrame, notes: pd.Series, by_loop: pd.DataFrame, z: fl
                     f"{r.t_crit:.2f})" if r.judged_by == "closed loop"
                     else f"({r.err_pct:+.2f} % off the lab, z = {r.z_score:+.2f})")
                  for r in miss.itertuples()) + ".")
+    unverified = []
+    for sp in sorted(set(by_loop["specimen"])):
+        f = Path(lay.verified_card(sp))
+        st = (read_card(f).get("verification") or {}).get("status") if f.exists() else None
+        if st and st != "converged":
+            unverified.append(f"{sp} ({st})")
+    if unverified:
+        text += (" The closed loops of " + ", ".join(unverified) + " did not converge: those "
+                 "cards are checked against means that miss the lab (Table 5), and passing "
+                 "here does not verify them.")
     skipped = sorted(set(t.loc[notes != "", "specimen"]))
     if skipped:
         text += " Not run: " + "; ".join(
