@@ -224,3 +224,24 @@ def test_the_cli_refuses_a_bad_specimen_count_in_one_line(card, d, tmp_path, cap
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "--tensile-specimens" in err[0], err
     assert not any(tmp_path.iterdir())
+
+
+def test_no_two_specimens_of_seeds_below_100000_share_a_packing(monkeypatch):
+    """Every tensile specimen j, replacement m and ISRM retest k of a seed is packed with
+    seed + j x TENSILE_REPLICATE_STRIDE + m x BTS_REPLACEMENT_STRIDE + k x RETEST_SEED_STEP:
+    two such offsets differ by at least 100,000, so seeds below it never share a disc, and
+    every packing seed stays below 2**32. Checked by brute force on the seeds of a study
+    (loop 1-20, fresh 101-105) too. The old stride, 1,000,000, put retest 1 of seed 101 on
+    specimen 1 of seed 104 (a planted-card run shared two discs that way)."""
+    from bpmcal.lab.brazilian import retest_seed
+
+    gap, reach = V.packing_seed_gap()
+    assert gap >= 100_000 and 100_000 + reach < 2 ** 32
+    seeds = [*range(1, 21), *range(101, 106)]
+    used = [V.replicate_seed(s, j) + m * V.BTS_REPLACEMENT_STRIDE + k * 1_000_003
+            for s in seeds for j in range(4) for m in range(V.BTS_MAX_REPLACEMENTS + 1)
+            for k in range(3)]
+    assert len(set(used)) == len(used)
+    assert retest_seed(101, 1) != V.replicate_seed(104, 1)
+    monkeypatch.setattr(V, "TENSILE_REPLICATE_STRIDE", 1_000_000)
+    assert V.packing_seed_gap()[0] == 3 and retest_seed(101, 1) == V.replicate_seed(104, 1)

@@ -149,16 +149,38 @@ def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, set
 #: the tensile tests (``P.SAMPLE_TESTS``) whose strength a seed may measure on several
 #: specimens (``tensile_specimens``): specimen j of packing seed s is packed with
 #: ``replicate_seed(s, j)`` = s + j x TENSILE_REPLICATE_STRIDE (j = 0: s itself, the UCS
-#: test's packing); an invalid one is replaced as above, so for seeds below 100,000 and at
-#: most 9 replacements no two specimens, or a specimen and a loop seed, share a packing
+#: test's packing). Its packing may move on twice: a replacement as above (+ m x
+#: BTS_REPLACEMENT_STRIDE, m <= BTS_MAX_REPLACEMENTS) and, for a Brazilian disc, the
+#: test's own ISRM retests (+ k x ``lab.brazilian.RETEST_SEED_STEP``, k <= 10). The stride
+#: keeps every such packing seed of every seed below 100,000 apart from every other
+#: (:func:`packing_seed_gap`: the smallest difference of two offsets is the replacement
+#: stride, 100,000) and below 2**32. (It was 1,000,000: then a retest of seed s, s +
+#: 1,000,003, was specimen 1 of seed s + 3, and two seeds shared that disc.)
 TENSILE_TESTS = ("bts", "dtt")
-TENSILE_REPLICATE_STRIDE = 1_000_000
+TENSILE_REPLICATE_STRIDE = 20_000_003
 MAX_TENSILE_SPECIMENS = 50
 
 
 def replicate_seed(seed: int, j: int) -> int:
     """The packing seed of specimen ``j`` (0, 1, ...) of packing ``seed``'s tensile test."""
     return int(seed) + int(j) * TENSILE_REPLICATE_STRIDE
+
+
+def packing_seed_gap(max_retests: int = 10) -> tuple[int, int]:
+    """(the smallest nonzero difference between two offsets from a packing seed, the
+    largest offset) over every tensile specimen j < MAX_TENSILE_SPECIMENS, replacement
+    m <= BTS_MAX_REPLACEMENTS and ISRM retest k <= ``max_retests`` (the offset j x
+    TENSILE_REPLICATE_STRIDE + m x BTS_REPLACEMENT_STRIDE + k x RETEST_SEED_STEP): two
+    seeds closer than the gap never share a packing, and a seed below 2**32 minus the
+    largest offset stays a valid packing seed."""
+    from ..lab.brazilian import RETEST_SEED_STEP
+
+    steps = (TENSILE_REPLICATE_STRIDE, BTS_REPLACEMENT_STRIDE, RETEST_SEED_STEP)
+    reach = (MAX_TENSILE_SPECIMENS - 1, BTS_MAX_REPLACEMENTS, max_retests)
+    gap = min(abs(a * steps[0] + b * steps[1] + c * steps[2])
+              for a in range(-reach[0], reach[0] + 1) for b in range(-reach[1], reach[1] + 1)
+              for c in range(-reach[2], reach[2] + 1) if (a, b, c) != (0, 0, 0))
+    return gap, sum(r * s for r, s in zip(reach, steps))
 
 
 def check_triaxial_seeds(n, flag: str = "--triaxial-seeds"):
