@@ -466,6 +466,6 @@ def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkey
     # a card whose loop ended without meeting the lab: named, not verified by the check
     c = read_card(card)
     c["verification"]["status"] = "max_rounds"
-    Path(lay.verified_card("B1")).parent.mkdir(parents=True, exist_ok=True)
-    write_card(lay.verified_card("B1"), c)
+    write_card(tmp_path / "mr.yaml", c)
+    H.fresh_seeds_table([tmp_path / "mr.yaml"], [tmp_path / "h" / "seeds.csv"], table=table)
     assert "The closed loops of B1 (max_rounds) did not converge" in _fresh_seeds(lay)

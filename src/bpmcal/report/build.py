@@ -529,12 +529,11 @@ def _fresh_seeds(lay) -> str:
     by_loop = t[(t["judged_by"] == "closed loop") & (notes == "")]
     return ("\n### The verified cards on fresh packing seeds\n\n"
             f"Each verified card re-run on packing seeds its closed loop never saw ({seeds}). "
-            + _fresh_check(lay, t, notes, by_loop, z) + _fresh_against_lab(lay, t, notes, z)
+            + _fresh_check(t, notes, by_loop, z) + _fresh_against_lab(lay, t, notes, z)
             + _predicted_tension(pred))
 
 
-def _fresh_check(lay, t: pd.DataFrame, notes: pd.Series, by_loop: pd.DataFrame,
-                 z: float) -> str:
+def _fresh_check(t: pd.DataFrame, notes: pd.Series, by_loop: pd.DataFrame, z: float) -> str:
     """The fresh-seed check: the fresh seeds' mean against the closed loop's (same card,
     same specimens, other packings), its verdict and table; a card whose closed loop did
     not converge is named (the check does not verify it)."""
@@ -566,11 +565,10 @@ def _fresh_check(lay, t: pd.DataFrame, notes: pd.Series, by_loop: pd.DataFrame,
                     else f"({r.err_pct:+.2f} % off the lab, z = {r.z_score:+.2f})")
                  for r in miss.itertuples()) + ".")
     unverified = []
-    for sp in sorted(set(by_loop["specimen"])):
-        f = Path(lay.verified_card(sp))
-        st = (read_card(f).get("verification") or {}).get("status") if f.exists() else None
-        if st and st != "converged":
-            unverified.append(f"{sp} ({st})")
+    if "loop_status" in by_loop.columns:  # the table says each card's loop status
+        for sp, st in by_loop.groupby("specimen")["loop_status"].first().items():
+            if isinstance(st, str) and st and st != "converged":
+                unverified.append(f"{sp} ({st})")
     if unverified:
         text += (" The closed loops of " + ", ".join(unverified) + " did not converge: those "
                  "cards are checked against means that miss the lab (Table 5), and passing "

@@ -373,11 +373,12 @@ def fresh_seeds_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataF
     sharing the level (when the seed table says its runs repeat the loop's:
     ``loop_reference``); ``passed`` the check's verdict (``reproduces_loop``, or
     ``within_z_se`` without a loop reference) and ``judged_by`` which ("closed loop" or
-    "lab"); ``seeds`` lists the seeds, ``n_failed`` the failed runs and ``note`` why none
-    ran (a card whose closed loop did not run). A tensile strength measured on the fresh
-    seeds but not a target of the card is a row too, its ``role`` "prediction" (no lab
-    value, no verdict: σt of the card and its seed scatter); the targets' rows have
-    ``role`` "target"."""
+    "lab"), ``loop_status`` the closed loop's status (a check passed against a loop that
+    did not converge does not verify the card); ``seeds`` lists the seeds, ``n_failed``
+    the failed runs and ``note`` why none ran (a card whose closed loop did not run). A
+    tensile strength measured on the fresh seeds but not a target of the card is a row
+    too, its ``role`` "prediction" (no lab value, no verdict: σt of the card and its seed
+    scatter); the targets' rows have ``role`` "target"."""
     if len(seed_runs) != len(cards):
         raise BadInput(f"--seed-runs: {len(seed_runs)} table(s) for {len(cards)} card(s); "
                        "expected one per card, in the same order")
@@ -425,6 +426,7 @@ def fresh_seeds_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataF
                          "cv_pct": (100 * st["sd"] / abs(st["mean"])
                                     if len(fin) > 1 and st["mean"] else math.nan),
                          **ref, "judged_by": ("closed loop" if by_loop else "lab") if target else "",
+                         "loop_status": str((c.get("verification") or {}).get("status", "")),
                          "passed": target and (ref["reproduces_loop"] if by_loop
                                                else st["within_z_se"]),
                          "n_failed": int((~ok).sum()),
