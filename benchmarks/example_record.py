@@ -126,10 +126,10 @@ def rejudge_markdown(path: str, lab_csv: str, triaxial_seeds: int | None = None)
     lines = ["| record | target | loop mean (seeds) | fresh mean (seeds) | fresh − loop | "
              "t (limit) | passed | limit of one target alone | against the lab: error, z |",
              "|---|---|---|---|---|---|---|---|---|"]
-    from scipy import stats
+    from bpmcal.stages.fresh_seeds import check_limit
 
     for r in rejudge(rec, lab_csv, triaxial_seeds=triaxial_seeds):
-        one = float(stats.t.isf(stats.norm.sf(2.0), r["dof"]))  # the level of z = 2 alone
+        one = check_limit(r["dof"])  # the limit of one target alone
         lines.append(f"| {Path(path).name} | {r['response']} | {r['loop_mean']:.4g} "
                      f"({r['loop_n']}) | {float(r['mean']):.4g} ({r['n']}) | "
                      f"{r['diff_pct']:+.2f} % | {r['t_loop']:+.2f} ({r['t_crit']:.2f}) | "

@@ -260,7 +260,8 @@ def markdown(rec: dict) -> str:
         missed = [h["response"] for h in rec["holdout"] if not h["passed"]]
         ok = v["status"] == "converged" and not missed
         lines += ["", "The fresh-seed check (the fresh seeds against the closed loop's mean, "
-                      "at 2 normal standard errors shared among the 4 targets): "
+                      f"at 2 normal standard errors shared among the {len(rec['holdout'])} "
+                      "targets): "
                   + ("passed on every target" if not missed else "not passed on " + ", ".join(
                       missed)) + f". The planted-card target (the loop converges and the "
                   f"check passes): **{'met' if ok else 'not met'}**."]

@@ -27,7 +27,7 @@ from ..io.checks import BadInput, out_file, parse_json, read_json, read_yaml
 from ..io.h5 import read_summary
 from ..io.provenance import git_commit
 from ..io.tables import markdown_table, write_table
-from ..stages.fresh_seeds import false_alarm
+from ..stages.fresh_seeds import check_level, false_alarm
 from ..study import paper
 from ..study.config import translate_deprecated
 
@@ -537,7 +537,7 @@ def _fresh_check(t: pd.DataFrame, notes: pd.Series, by_loop: pd.DataFrame, z: fl
     """The fresh-seed check: the fresh seeds' mean against the closed loop's (same card,
     same specimens, other packings), its verdict and table; a card whose closed loop did
     not converge is named (the check does not verify it)."""
-    alpha = 200 * statistics.NormalDist().cdf(-z)  # the normal two-sided level of z
+    alpha = 100 * check_level(z)
     judged = t[notes == ""]
     miss = judged[~judged["passed"].astype(bool)]
     text = ("**The check**: do the fresh seeds read as the card's closed loop read on its own "

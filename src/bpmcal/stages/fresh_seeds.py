@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from statistics import NormalDist
 
 import numpy as np
 import pandas as pd
@@ -288,6 +289,22 @@ def fresh_seed_stats(values, lab: float, *, rtol: float, z: float = 2.0,
             "met": bool(n > 1 and abs(err) <= tol)}
 
 
+def check_level(z: float = 2.0) -> float:
+    """The two-sided level of ``z`` normal standard errors, 2 (1 - Phi(z)): the chance
+    that the fresh-seed check fails a card that generalises (4.55 % for z = 2)."""
+    return 2.0 * NormalDist().cdf(-float(z))
+
+
+def check_limit(dof: float, z: float = 2.0, targets: int = 1) -> float:
+    """The fresh-seed check's limit on |t| with ``dof`` degrees of freedom: the Student-t
+    quantile of :func:`check_level` shared among ``targets`` targets (Šidák: each at
+    1 - (1 - level)^(1/targets))."""
+    from scipy import stats
+
+    each = 1.0 - (1.0 - check_level(z)) ** (1.0 / max(int(targets), 1))
+    return float(stats.t.isf(each / 2.0, dof))
+
+
 def loop_reference_stats(values, *, loop_mean: float, loop_sd: float, loop_n: int,
                          lab: float, z: float = 2.0, targets: int = 1) -> dict:
     """Do the fresh seeds' ``values`` (NaN: a failed run, not counted) read as the card's
@@ -318,8 +335,6 @@ def two_sample_check(mean: float, sd: float, n: int, *, loop_mean: float, loop_s
                      loop_n: int, lab: float, z: float = 2.0, targets: int = 1) -> dict:
     """:func:`loop_reference_stats` from the fresh seeds' ``mean``, sample SD ``sd`` and
     count ``n`` (a record that kept only those)."""
-    from scipy import stats
-
     k = int(loop_n) if loop_n is not None and math.isfinite(loop_n) else 0
     out = {"loop_mean": float(loop_mean), "loop_n": k, "loop_se": math.nan, "diff_pct": math.nan,
            "t_loop": math.nan, "dof": math.nan, "t_crit": math.nan, "mdd_pct": math.nan,
@@ -329,9 +344,7 @@ def two_sample_check(mean: float, sd: float, n: int, *, loop_mean: float, loop_s
     dof = n + k - 2
     pooled = math.sqrt(((n - 1) * float(sd) ** 2 + (k - 1) * float(loop_sd) ** 2) / dof)
     se = pooled * math.sqrt(1.0 / n + 1.0 / k)
-    alpha = 2.0 * float(stats.norm.sf(z))
-    each = 1.0 - (1.0 - alpha) ** (1.0 / max(int(targets), 1))
-    crit = float(stats.t.isf(each / 2.0, dof))
+    crit = check_limit(dof, z, targets)
     d = float(mean) - float(loop_mean)
     t = d / se if se > 0 else (0.0 if d == 0 else math.copysign(math.inf, d))
     ref = abs(lab) if lab and math.isfinite(lab) else abs(float(loop_mean))
