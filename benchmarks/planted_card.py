@@ -99,15 +99,23 @@ def main(argv=None) -> int:
         tmp.mkdir(parents=True, exist_ok=True)
         cache = ["--specimen-cache", str(tmp / "packings")]
         pf = tmp / "planted.yaml"
+        # a --keep folder of the same planted card: its lab runs are read, not run again
+        same = pf.exists() and yaml.safe_load(pf.read_text()) == planted
         pf.write_text(yaml.safe_dump(planted))
+        reused: list[int] = []  # lab seeds whose runs the --keep folder had
+
         def run_planted(seeds, prefix):
             from bpmcal.io.h5 import read_summary
 
             out = []
             for s in seeds:
-                _run(["bpmcal", "ucs", "--params", str(pf), "--seed", str(s), "--out",
-                      str(tmp / f"{prefix}{s}.h5"), "--bts-out", str(tmp / f"{prefix}{s}.bts.h5"),
-                      *common, *bts_opts, *cache], log)
+                if same and (tmp / f"{prefix}{s}.h5").exists() \
+                        and (tmp / f"{prefix}{s}.bts.h5").exists():
+                    reused.append(s)
+                else:
+                    _run(["bpmcal", "ucs", "--params", str(pf), "--seed", str(s), "--out",
+                          str(tmp / f"{prefix}{s}.h5"), "--bts-out",
+                          str(tmp / f"{prefix}{s}.bts.h5"), *common, *bts_opts, *cache], log)
                 us = read_summary(tmp / f"{prefix}{s}.h5")
                 bs = read_summary(tmp / f"{prefix}{s}.bts.h5")
                 out.append({"seed": s, "ucs_MPa": us["ucs_MPa"], "E_GPa": us["E_GPa"],
@@ -157,10 +165,12 @@ def main(argv=None) -> int:
               "--rtol", str(v["rtol"])], log)
         cal = yaml.safe_load(card.read_text())
         ver = yaml.safe_load(verified.read_text())["verification"]
-        # the planted card itself on the seeds of the loop's card round: how far the lab
-        # seeds' mean lies from the loop seeds' mean of the true card
-        own = _judge(pd.DataFrame(run_planted([int(s) for s in ver["seeds"]], "own")), lab,
-                     float(v["rtol"]), lab_se)
+        # the planted card itself on the seeds of the loop's card round, measured as the
+        # loop measures (σt the mean of the loop's tensile specimens per seed): how far
+        # the lab seeds' mean lies from the loop seeds' mean of the true card
+        own = _judge(own_runs(verified, planted, [int(s) for s in ver["seeds"]], tmp,
+                              [*common, *bts_opts, *cache, *loop_threads], log),
+                     lab, float(v["rtol"]), lab_se)
         hold = pd.read_csv(tmp / "fresh_seeds_table.csv")
         rounds = pd.read_csv(tmp / "rounds.csv")
     c1 = os.times()
@@ -182,16 +192,56 @@ def main(argv=None) -> int:
         "tolerance_pct": {k: 100 * float(rounds.iloc[ver["best_round"] - 1][f"tol_{k}"])
                           for k in lab},
         "holdout": hold.to_dict("records"), "planted_on_loop_seeds": own,
+        "own_tensile_specimens": int(v["tensile_specimens"]),
+        "reused_runs": reused,
         "cpu_s_children": (c1.children_user + c1.children_system)
                           - (c0.children_user + c0.children_system),
         "cpu_s_self": time.process_time() - cpu0, "commands": log,
     }
+    # the loop's rounds (parameters, means, errors, tolerances, steps) beside the record
+    rec["rounds_csv"] = rounds_name(a.out)
+    rounds.to_csv(Path(a.out).with_name(rec["rounds_csv"]), index=False)
     Path(a.out).write_text(json.dumps(rec, indent=1, default=float) + "\n")
     text = markdown(rec)
     if a.markdown:
         Path(a.markdown).write_text(text)
     print(text)
     return 0
+
+
+def own_runs(verified: Path, planted: dict, seeds: list, tmp: Path, opts: list, log) -> pd.DataFrame:
+    """The planted card on ``seeds`` as the closed loop ran them: ``bpmcal fresh-seeds`` of
+    a copy of the verified card with the planted parameters (its specimens, settings and
+    tensile specimens per seed). Returns the seed rows; ``bts_valid``: σt was measured."""
+    card = yaml.safe_load(verified.read_text())
+    card["parameters"] = {**card["parameters"], **planted}
+    # the card stands for its loop's parameters (io.card.card_parameters): planted there
+    card["verification"]["parameters"] = {**card["verification"]["parameters"], **planted}
+    card["verification"]["seeds"] = []  # the planted card was fitted on no seed
+    card.pop("transfer", None)
+    own = tmp / "own.yaml"
+    own.write_text(yaml.safe_dump(card))
+    table = tmp / "own_seeds.csv"
+    _run(["bpmcal", "fresh-seeds", "--card", str(own), "--seeds", ",".join(map(str, seeds)),
+          "--runs", *[str(tmp / f"own{s}.h5") for s in seeds],
+          "--bts-runs", *[str(tmp / f"own{s}.bts.h5") for s in seeds],
+          "--seed-runs", str(table), *opts], log)
+    runs = pd.read_csv(table)
+    return runs.assign(bts_valid=runs["bts_MPa"].notna())
+
+
+def rounds_name(out: str) -> str:
+    """The file name of a record's closed-loop rounds (CSV, beside the record ``out``)."""
+    return Path(out).stem.replace("results_planted_card_", "results_planted_card_rounds_") + ".csv"
+
+
+def _loop_tensile_specimens(rec: dict) -> int:
+    """The closed loop's tensile specimens per seed, from the record's verify command."""
+    for c in rec.get("commands", []):
+        words = c["cmd"].split()
+        if words[:2] == ["bpmcal", "verify"] and "--tensile-specimens" in words:
+            return int(words[words.index("--tensile-specimens") + 1])
+    return 1
 
 
 def _judge(runs: pd.DataFrame, lab: dict, rtol: float, lab_se: dict | None = None) -> dict:
@@ -214,7 +264,10 @@ def markdown(rec: dict) -> str:
     lines = [f"# A planted card calibrated back from its DEM responses: {rec['date']}", "",
              f"Host: {rec['cpu_model']} ({rec['cpus']} CPUs), commit {rec['commit']}, load "
              f"average when recorded {', '.join(f'{x:.2f}' for x in rec['load_average'])}; "
-             f"CPU time of the runs {rec['cpu_s_children'] / 60:.1f} min.", "",
+             f"CPU time of the runs {rec['cpu_s_children'] / 60:.1f} min"
+             + (f" (the runs of {len(rec['reused_runs'])} lab seeds were read from the --keep "
+                "folder of an earlier run of the same planted card, not run again)"
+                if rec.get("reused_runs") else "") + ".", "",
              f"Command: `{rec['command']}`", "",
              f"Lab values: the means of the planted card over {len(rec['lab_seeds'])} packing "
              f"seeds (σt over the valid discs: "
@@ -230,7 +283,9 @@ def markdown(rec: dict) -> str:
                      f"{got.get(k, float('nan')):.4g} |")
     v = rec["verification"]
     lines += ["", f"Closed loop: {v['status']} after {v['rounds']} round(s), {v['runs']} runs "
-                  f"({v['n_seeds']} seeds in the card's round): {v['message']}", "",
+                  f"({v['n_seeds']} seeds in the card's round): {v['message']}"
+              + (f" (every round: `benchmarks/{rec['rounds_csv']}`)" if rec.get("rounds_csv")
+                 else ""), "",
               "| target | lab | closed-loop mean | error | tolerance "
               + ("max(1 %, 2 sqrt(SE² + SE_lab²))" if rec.get("lab_se") else "max(1 %, 2 SE)")
               + " | seed CV |",
@@ -242,8 +297,13 @@ def markdown(rec: dict) -> str:
                      f"{'–' if cv is None else f'{100 * cv:.1f} %'} |")
     own = rec.get("planted_on_loop_seeds")
     if own:
+        m = rec.get("own_tensile_specimens", 1)  # older records: one disc per seed
+        loop_m = _loop_tensile_specimens(rec)
         lines += ["", "The planted card itself on the seeds of the loop's card round (the lab "
-                      "values come from other seeds): judged as the loop judges a round", "",
+                      "values come from other seeds): judged as the loop judges a round"
+                  + (f", σt the mean of {m} discs per seed as the loop measured it" if m > 1
+                     else f", but σt on one disc per seed where the loop's σt was the mean of "
+                          f"{loop_m}" if loop_m > 1 else ""), "",
                   "| target | n | mean | error against the lab | tolerance "
                   + ("max(1 %, 2 sqrt(SE² + SE_lab²))" if rec.get("lab_se") else "max(1 %, 2 SE)")
                   + " | within |",

@@ -310,6 +310,13 @@ TENSILE_RESPONSES: tuple[str, ...] = tuple(TENSILE_TESTS)
 #: microstructure (a flat joint's slit fraction) sets.
 TRI = "tri_MPa"
 
+#: The strengths among the responses: the peak stress of a test (UCS, Brazilian, direct
+#: tension, triaxial at the design confinement). A stronger bond never makes a weaker
+#: specimen, so none of them falls when a bond strength of the contact model's strength
+#: pair (:attr:`ContactModel.strength`) rises (the closed loop's starting Jacobian holds
+#: to it: ``analysis.calibration.closed_loop``).
+STRENGTH_RESPONSES: tuple[str, ...] = ("ucs_MPa", *TENSILE_RESPONSES, TRI)
+
 #: Every test a study can run on each design sample besides the UCS test: response ->
 #: test (the dataset's ``<test>_status``, ``<test>_error``, ...). Each is screened and
 #: regressed on its own rows and is a calibration target where the lab gives it.

@@ -45,14 +45,18 @@ Format 1 (keys in this order; paper units)::
                         error_pct); bts_geometry (with σt); seeds (the best round's),
                         seeds_per_round, max_seeds (the seed set's growth limit);
                         jacobian (the loop's final Broyden estimate, response ->
-                        parameter -> ∂response/∂parameter, paper units)
+                        parameter -> ∂response/∂parameter, paper units);
+                        jacobian_sign_held (when any: the regression's negative
+                        slopes of a strength against a bond strength that the loop
+                        started from 0 instead: response, parameter, regression)
     calibrated_at_scale (verified cards) the specimen scale the parameters were last fitted at
     transfer            (transferred cards, ``bpmcal transfer``) status, rounds, scale,
                         tolerance_pct, at_transfer and final responses, parameters
 
 Keys added within format 1 (``strength_ratio``, ``missed``, ``reach``, ``target_se``,
 ``verification.missed``, ``verification.bts_geometry``, ``verification.jacobian``,
-``verification.max_seeds``, ``verification.seeds_per_round``) are optional for readers: cards
+``verification.max_seeds``, ``verification.seeds_per_round``,
+``verification.jacobian_sign_held``) are optional for readers: cards
 written before them stay readable.
 
 A card without ``card_format`` (bpmcal before this format was versioned) or of a newer

@@ -646,6 +646,8 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
         "geometry": geometry.to_dict(), **_loop_box(res, range_margin),
     }
     v["missed"] = _missed(v["closed_loop"], targets, rtol)
+    if res.sign_held:  # the regression's slopes the loop did not start from
+        v["jacobian_sign_held"] = [dict(h) for h in res.sign_held]
     if BTS in targets:
         v["bts_geometry"] = disc.to_dict()
     if "dtt_MPa" in targets:

@@ -5,7 +5,8 @@ when every mean is within max(rtol, z standard errors) of its target, else take 
 damped, weighted Gauss-Newton (or Levenberg-Marquardt) step in the unit cube from the
 best round so far (a trust region that shrinks after a worse round and grows again
 after a better one its cap cut), with the Jacobian started from the regression models
-and corrected by Broyden's secant update, each row shrunk by its signal-to-noise ratio
+(a strength's slope against a bond strength held at >= 0: a stronger bond never makes
+a weaker specimen) and corrected by Broyden's secant update, each row shrunk by its signal-to-noise ratio
 (a change within the seeds' scatter barely moves it). Parameters held at a bound are
 probed; the seed set can grow when a standard error is too large to state a target to
 ``rtol``; a converged seed-averaged loop may take one polishing step.
@@ -21,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from bpmcal.params import ParameterError
+from bpmcal.params import STRENGTH_RESPONSES, ParameterError
 
 from ..stepwise import RegressionModel
 from .space import (
@@ -55,7 +56,9 @@ class ClosedLoopResult:
     mean, ``n_seeds``, the Jacobian rows the round's secant updated (``broyden_rows``)
     and the step; ``samples`` one row per simulation (round, seed,
     responses). ``jacobian`` is the final Broyden estimate of ∂response/∂parameter in
-    physical units.
+    physical units. ``sign_held``: the starting Jacobian's entries set to 0 because the
+    regression gave a strength that falls with a bond strength (response, parameter, the
+    regression's slope; :meth:`ClosedLoop._hold_signs`).
     """
 
     status: str
@@ -71,6 +74,7 @@ class ClosedLoopResult:
     best_round: int = 0
     outside: dict = field(default_factory=dict)
     loop_bounds: dict = field(default_factory=dict)
+    sign_held: list = field(default_factory=list)
 
     @property
     def converged(self) -> bool:
@@ -273,6 +277,7 @@ class ClosedLoop:
         if not isinstance(polish, (bool, np.bool_)):
             raise ValueError(f"polish={polish!r}: expected True or False")
         self.polish = bool(polish)
+        self.sign_held: list[dict] = []  # the starting Jacobian's entries held to their sign
 
     def _space(self, initial: Mapping[str, float]) -> CalibrationSpace:
         model = space_model(self.free, initial, self.ranges)
@@ -289,9 +294,12 @@ class ClosedLoop:
         return space
 
     def _initial_jacobian(self, space: CalibrationSpace, x: np.ndarray) -> np.ndarray:
+        """The starting Jacobian in unit coordinates and relative errors: the regression
+        models' at ``x`` (held to :meth:`_hold_signs`), or the ``jacobian`` given."""
+        self.sign_held = []
         if self.models is not None:
             space.check_models(self.models, self.responses)
-            Jx = space.jacobian(self.models, self.responses, x)
+            Jx = self._hold_signs(space, space.jacobian(self.models, self.responses, x))
         else:
             jac = pd.DataFrame(self.jacobian)
             missing = [r for r in self.responses if r not in jac.index] + [p for p in space.free
@@ -301,6 +309,30 @@ class ClosedLoop:
                                  f"columns {list(space.free)}")
             Jx = jac.loc[list(self.responses), list(space.free)].to_numpy(float)
         return Jx * space.width / np.abs(self.t)[:, None]
+
+    def _hold_signs(self, space: CalibrationSpace, Jx: np.ndarray) -> np.ndarray:
+        """The regression's Jacobian ``Jx`` (physical units) with every strength's slope
+        against a bond strength of the model's strength pair that is negative set to 0
+        (``params.STRENGTH_RESPONSES``): a stronger bond never makes a weaker specimen. A
+        quadratic model of a strength that saturates (a shear-strong card, whose bonds
+        break in tension whatever their cohesion) turns over inside the design range, and
+        past its vertex it would send the loop's first step the wrong way at the full cap;
+        0 says the slope is not known to be other than flat there, and the measured rounds
+        correct it (Broyden). Each entry set is listed in ``sign_held`` (response,
+        parameter, the regression's slope)."""
+        pair = set(space.model.strength or ())
+        for k, r in enumerate(self.responses):
+            for j, p in enumerate(space.free):
+                if r in STRENGTH_RESPONSES and p in pair and Jx[k, j] < 0:
+                    self.sign_held.append({"response": r, "parameter": p,
+                                           "regression": float(Jx[k, j])})
+                    Jx[k, j] = 0.0
+        if self.sign_held and self.report is not None:
+            self.report("closed loop: the regression's slope of " + ", ".join(
+                f"{h['response']} against {h['parameter']} ({h['regression']:+.3g})"
+                for h in self.sign_held) + " is negative at the start, where a stronger bond "
+                "never weakens the specimen: taken as 0 (flat), for the rounds to measure")
+        return Jx
 
     @property
     def seeds_per_round(self) -> int:
@@ -324,7 +356,15 @@ class ClosedLoop:
         would leave the cap is a Levenberg-Marquardt step instead of a shortened
         Gauss-Newton one: the weighted residuals decide its direction, so a poorly
         conditioned pair of parameters is not swung across its range to chase a response
-        known only to its scatter."""
+        known only to its scatter. And the step leaves alone a weak direction (a singular
+        vector of the weighted Jacobian along which the largest step, ``max_step``, moves
+        the residuals by less than one tolerance: singular value < 1 / max_step, 4 by
+        default) unless the residual along it exceeds one tolerance and a move within the
+        range cancels it: a residual within the tolerance there is the seeds' scatter,
+        which a weak direction would turn into a large move, and one beyond the range's
+        reach cannot be cancelled by it (σc and σt, which pull the tensile strength apart
+        once the cohesion no longer matters, would be chased through the small slope of
+        some other parameter, swung across its range)."""
         held: list[int] = []
         du = np.zeros_like(u)
         damp = self.damping if damping is None else damping
@@ -340,7 +380,8 @@ class ClosedLoop:
                 du[j] = v
             r = e + J @ du
             if act:
-                du[act] = _lm_step(w[:, None] * J[:, act], w * r, cap / damp) * damp
+                du[act] = _lm_step(w[:, None] * J[:, act], w * r, cap / damp,
+                                   1.0 / self.max_step if weights is not None else 0.0) * damp
             out = [j for j in act if (u[j] <= box[0][j] + _EDGE and du[j] < 0)
                    or (u[j] >= box[1][j] - _EDGE and du[j] > 0)]
             if not out:
@@ -681,7 +722,8 @@ class ClosedLoop:
             seed_cv={r: float(best.get(f"cv_{r}", np.nan)) for r in self.responses},
             n_seeds=int(best["n_seeds"]), seeds=tuple(seeds[:int(best["n_seeds"])]),
             best_round=int(best["round"]), outside=_outside(space, space.full(x_best)),
-            loop_bounds={p: (float(a), float(b)) for p, a, b in zip(space.free, xlo, xhi)})
+            loop_bounds={p: (float(a), float(b)) for p, a, b in zip(space.free, xlo, xhi)},
+            sign_held=list(self.sign_held))
 
 
 @dataclass
@@ -830,21 +872,36 @@ def _target_se(target_se, responses, t: np.ndarray) -> np.ndarray | None:
     return out
 
 
-def _lm_step(A: np.ndarray, b: np.ndarray, cap: float) -> np.ndarray:
+def _lm_step(A: np.ndarray, b: np.ndarray, cap: float, min_sensitivity: float = 0.0) -> np.ndarray:
     """The step ``x`` minimising ``|A x + b|²`` (Gauss-Newton) when it lies within ``cap``
     in the max norm, else the Levenberg-Marquardt step ``-(AᵀA + λI)⁻¹ Aᵀ b`` with the
     λ that brings it onto the cap (bisection on log λ; the step shrinks monotonically
-    with λ and turns from the Gauss-Newton towards the steepest-descent direction)."""
-    x = -np.linalg.lstsq(A, b, rcond=None)[0]
-    if not np.all(np.isfinite(x)) or float(np.max(np.abs(x))) <= cap:
-        return x
-    AtA, Atb = A.T @ A, A.T @ b
-    n = AtA.shape[0]
-    scale = float(np.trace(AtA)) / n or 1.0
+    with λ and turns from the Gauss-Newton towards the steepest-descent direction).
+
+    Both are taken in the directions of ``A``'s singular vectors that are strong (a
+    singular value >= ``min_sensitivity``) or that carry a residual of at least 1 which
+    a move of at most 1 cancels (with the closed loop's ``A``, the Jacobian in unit
+    coordinates with each row divided by its tolerance, and ``min_sensitivity`` 1 /
+    max_step: a miss beyond the tolerance that lies within the range;
+    :meth:`ClosedLoop._step`); every other direction is left alone."""
+    if not np.all(np.isfinite(A)) or not np.all(np.isfinite(b)):
+        return -np.linalg.lstsq(A, b, rcond=None)[0]
+    U, sv, Vt = np.linalg.svd(A, full_matrices=False)
+    c = np.abs(U.T @ b)  # the residual along each direction
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reach = np.where(sv > 0, c / sv, np.inf)  # the move that would cancel it
+    keep = (sv >= min_sensitivity) | ((c >= 1.0) & (reach <= 1.0))
+    U, sv, Vt = U[:, keep], sv[keep], Vt[keep]
+    ub = U.T @ b
+    n = A.shape[1]
+    scale = float(np.sum(sv ** 2)) / n or 1.0  # the mean diagonal of AᵀA (kept directions)
 
     def step(lam):
-        return -np.linalg.solve(AtA + lam * scale * np.eye(n), Atb)
+        return -Vt.T @ (sv * ub / (sv ** 2 + lam * scale))
 
+    x = step(0.0)
+    if not len(sv) or float(np.max(np.abs(x))) <= cap:
+        return x
     lo, hi = -12.0, 12.0  # log10 of λ / mean diagonal
     if float(np.max(np.abs(step(10.0 ** hi)))) > cap:  # not even the gradient step fits
         return step(10.0 ** hi)
