@@ -433,10 +433,36 @@ def test_the_table_judges_against_the_closed_loop_only_when_the_runs_repeat_it(
     d = tmp_path / "h2"
     H.fresh_seeds(card, seeds=[101, 102, 103], runs=[d / f"s{s}.h5" for s in (101, 102, 103)],
                   seed_runs=d / "seeds.csv", geometry=Geometry(scale=0.3), settings=UCSSettings())
-    assert not pd.read_csv(d / "seeds.csv")["loop_reference"].any()
+    other = pd.read_csv(d / "seeds.csv")
+    assert not other["loop_reference"].any()
+    assert (other["loop_reference_note"] == "the fresh seeds run another UCS specimen than "
+            "the loop's").all()
     t = H.fresh_seeds_table([card], [d / "seeds.csv"], table=tmp_path / "t2.csv")
     assert (t["judged_by"] == "lab").all() and (t["passed"] == t["within_z_se"]).all()
     assert t["t_loop"].isna().all()
+    assert (t["lab_because"] == other["loop_reference_note"].iloc[0]).all()
+    assert (H.fresh_seeds_table([card], [tmp_path / "h" / "seeds.csv"],
+                                table=tmp_path / "t3.csv")["lab_because"] == "").all()
+    # a seed table of an older bpmcal (no loop_reference column): the lab, saying why
+    old = seeds.drop(columns=["loop_reference", "loop_reference_note"])
+    old.to_csv(tmp_path / "old.csv", index=False)
+    t = H.fresh_seeds_table([card], [tmp_path / "old.csv"], table=tmp_path / "t4.csv")
+    assert (t["judged_by"] == "lab").all() and (t["lab_because"] == H.OLD_SEED_TABLE).all()
+
+
+def test_why_fresh_seeds_do_not_repeat_the_loop(verified):
+    """The loop's mean is a reference only for the loop's own parameters on its own
+    specimens: a transferred card, a card without a closed-loop mean, another cylinder or
+    another disc each say so."""
+    _, card, _ = verified
+    c = read_card(card)
+    g = Geometry(scale=0.25)  # the loop's cylinder (run_verify)
+    assert H._loop_reference(c, g) == ""
+    assert "full-size transfer" in H._loop_reference({**c, "transfer": {"parameters": {"x": 1}}}, g)
+    assert "no closed-loop mean" in H._loop_reference(
+        {**c, "verification": {**c["verification"], "closed_loop": {}}}, g)
+    assert "another UCS specimen" in H._loop_reference(c, Geometry(scale=0.3))
+    assert "another Brazilian disc" in H._loop_reference(c, g, disc=Geometry(scale=0.3))
 
 
 def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkeypatch):
@@ -469,3 +495,8 @@ def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkey
     write_card(tmp_path / "mr.yaml", c)
     H.fresh_seeds_table([tmp_path / "mr.yaml"], [tmp_path / "h" / "seeds.csv"], table=table)
     assert "The closed loops of B1 (max_rounds) did not converge" in _fresh_seeds(lay)
+    # judged against the lab: the report says why
+    old = pd.read_csv(tmp_path / "h" / "seeds.csv").drop(columns=["loop_reference"])
+    old.to_csv(tmp_path / "h" / "old.csv", index=False)
+    H.fresh_seeds_table([card], [tmp_path / "h" / "old.csv"], table=table)
+    assert f"Judged against the lab instead (no closed-loop mean of the same runs): B1 ({H.OLD_SEED_TABLE})" in _fresh_seeds(lay)

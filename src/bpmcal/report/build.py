@@ -521,7 +521,8 @@ def _fresh_seeds(lay) -> str:
     pred = t[t["role"] == "prediction"] if "role" in t.columns else t.iloc[:0]
     t = t[t["role"] != "prediction"] if "role" in t.columns else t
     if "passed" not in t.columns:  # a table of an older bpmcal: judged against the lab only
-        t = t.assign(passed=t["within_z_se"], judged_by="lab")
+        t = t.assign(passed=t["within_z_se"], judged_by="lab",
+                     lab_because="a table of an older bpmcal, which judged against the lab only")
     notes = (t["note"].astype(object).fillna("").astype(str) if "note" in t.columns
              else pd.Series("", t.index))
     z = float(t["z"].iloc[0]) if len(t) else 2.0
@@ -554,9 +555,11 @@ def _fresh_check(t: pd.DataFrame, notes: pd.Series, by_loop: pd.DataFrame, z: fl
                  "half the time). ")
     other = judged[judged["judged_by"] != "closed loop"]
     if len(other):
-        text += ("Judged against the lab instead (no closed-loop mean of the same runs: a "
-                 "transferred card or another specimen): " + ", ".join(
-                     sorted(set(other["specimen"]))) + ". ")
+        why = (other.groupby("specimen")["lab_because"].first() if "lab_because" in other
+               else pd.Series("", index=sorted(set(other["specimen"]))))
+        text += ("Judged against the lab instead (no closed-loop mean of the same runs): "
+                 + ", ".join(f"{sp} ({w})" if isinstance(w, str) and w else sp
+                             for sp, w in why.items()) + ". ")
     text += ("Every card reproduces its closed loop." if miss.empty else
              "**Not reproduced**: " + ", ".join(
                  f"{r.specimen} {P.RESPONSES[r.response].symbol} "

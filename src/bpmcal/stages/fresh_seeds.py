@@ -131,8 +131,8 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
     disc = bts_geometry or disc_geometry(geometry)
     bts_settings = bts_settings or BTSSettings()
     # the loop's mean is this card's on other seeds only if these runs repeat the loop's
-    same = _loop_reference(c, geometry, disc if with_bts else None,
-                           cylinder if with_dtt else None)
+    other = _loop_reference(c, geometry, disc if with_bts else None,
+                            cylinder if with_dtt else None)
     if ran and max_balls is not None:
         for g in (geometry, *([disc] if bts_runs is not None else []),
                   *([cylinder] if with_dtt else [])):
@@ -160,7 +160,9 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
                                   error=reason)
         df = pd.DataFrame([{"specimen": c["specimen"], "seed": s, "status": "not-run",
                             "error": reason, **{k: math.nan for k in (*c["targets"], *_EXTRA)},
-                            "loop_reference": False} for s in seeds])
+                            "loop_reference": False,
+                            "loop_reference_note": "the card's closed loop did not run"}
+                           for s in seeds])
         write_table(df, seed_runs, index=False)
         return df
     output_dirs((cache, "--specimen-cache"))
@@ -173,7 +175,8 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
             tensile_specimens=int(v.get("tensile_specimens", 1)))
             for i, s in enumerate(seeds)], tags=[f"seed {s}" for s in seeds])
     df = pd.DataFrame(rows)
-    df["loop_reference"] = same
+    df["loop_reference"] = not other
+    df["loop_reference_note"] = other
     write_table(df, seed_runs, index=False)
     return df
 
@@ -194,19 +197,29 @@ def _same_values(a: dict | None, b: dict) -> bool:
     return True
 
 
-def _loop_reference(c: dict, geometry, disc=None, cylinder=None) -> bool:
-    """Whether fresh seeds run on ``geometry`` (and the Brazilian ``disc``, the
-    direct-tension ``cylinder``: None without that target) repeat the runs of the card's
-    closed loop with other packings: the loop's own parameters (no full-size transfer's),
-    on the loop's specimens. Only then is the loop's mean a reference for the fresh seeds'
-    (:func:`loop_reference_stats`)."""
+def _loop_reference(c: dict, geometry, disc=None, cylinder=None) -> str:
+    """Why fresh seeds run on ``geometry`` (and the Brazilian ``disc``, the direct-tension
+    ``cylinder``: None without that target) do not repeat the runs of the card's closed
+    loop with other packings, "" when they do: the loop's own parameters (no full-size
+    transfer's), on the loop's specimens. Only then is the loop's mean a reference for the
+    fresh seeds' (:func:`loop_reference_stats`)."""
     v = c.get("verification") or {}
-    if (c.get("transfer") or {}).get("parameters") or not v.get("closed_loop"):
-        return False
+    if (c.get("transfer") or {}).get("parameters"):
+        return "the card's parameters are its full-size transfer's, not its loop's"
+    if not v.get("closed_loop"):
+        return "the card has no closed-loop mean"
     if not _same_values(v.get("geometry"), geometry.to_dict()):
-        return False
-    return all(g is None or _same_values(v.get(key), g.to_dict())
-               for key, g in (("bts_geometry", disc), ("dtt_geometry", cylinder)))
+        return "the fresh seeds run another UCS specimen than the loop's"
+    for key, g, what in (("bts_geometry", disc, "Brazilian disc"),
+                         ("dtt_geometry", cylinder, "direct-tension cylinder")):
+        if g is not None and not _same_values(v.get(key), g.to_dict()):
+            return f"the fresh seeds run another {what} than the loop's"
+    return ""
+
+
+#: why a seed table without a ``loop_reference`` column is judged against the lab
+OLD_SEED_TABLE = ("a seed table of an older bpmcal, which does not say whether its runs "
+                  "repeat the loop's")
 
 
 def _fresh_seed(*, specimen, params: dict, seed: int, run, geometry, settings, extra: list,
@@ -377,6 +390,20 @@ def false_alarm(n: int, z: float = 2.0, targets: int = 1, loop_seeds: int | None
     return 1 - (1 - p_one) ** int(targets)
 
 
+def _lab_because(df: pd.DataFrame, loop: dict) -> str:
+    """Why a card's fresh seeds (its seed table ``df``) are judged against the lab rather
+    than its closed loop's mean (``loop``: the card's ``verification.closed_loop``)."""
+    if not len(df):
+        return "no fresh seed ran"
+    if "loop_reference" not in df.columns:
+        return OLD_SEED_TABLE
+    notes = (df["loop_reference_note"].astype(object).fillna("").astype(str)
+             if "loop_reference_note" in df.columns else pd.Series([""]))
+    said = next((n for n in notes if n), "")
+    return said or ("the card has no closed-loop mean" if not loop
+                    else "the seed table says its runs do not repeat the loop's")
+
+
 def fresh_seeds_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataFrame:
     """One row per card (``cards[i]`` with its seed table ``seed_runs[i]`` from
     :func:`fresh_seeds`) and target: the lab value, the fresh seeds' n, mean, standard
@@ -386,7 +413,8 @@ def fresh_seeds_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataF
     sharing the level (when the seed table says its runs repeat the loop's:
     ``loop_reference``); ``passed`` the check's verdict (``reproduces_loop``, or
     ``within_z_se`` without a loop reference) and ``judged_by`` which ("closed loop" or
-    "lab"), ``loop_status`` the closed loop's status (a check passed against a loop that
+    "lab"; ``lab_because`` says why a target's row is judged against the lab),
+    ``loop_status`` the closed loop's status (a check passed against a loop that
     did not converge does not verify the card); ``seeds`` lists the seeds, ``n_failed``
     the failed runs and ``note`` why none ran (a card whose closed loop did not run). A
     tensile strength measured on the fresh seeds but not a target of the card is a row
@@ -421,6 +449,7 @@ def fresh_seeds_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataF
         loop = (c.get("verification") or {}).get("closed_loop") or {}
         by_loop = bool(len(df) and "loop_reference" in df.columns and loop
                        and df["loop_reference"].astype(bool).all())
+        lab_because = "" if by_loop else _lab_because(df, loop)
         for k in (*c["targets"], *predicted):
             target = k in c["targets"]
             lab = float(c["targets"][k]) if target else math.nan
@@ -439,6 +468,7 @@ def fresh_seeds_table(cards, seed_runs, *, table, rtol=_RTOL, z=2.0) -> pd.DataF
                          "cv_pct": (100 * st["sd"] / abs(st["mean"])
                                     if len(fin) > 1 and st["mean"] else math.nan),
                          **ref, "judged_by": ("closed loop" if by_loop else "lab") if target else "",
+                         "lab_because": lab_because if target else "",
                          "loop_status": str((c.get("verification") or {}).get("status", "")),
                          "passed": target and (ref["reproduces_loop"] if by_loop
                                                else st["within_z_se"]),
