@@ -934,3 +934,16 @@ def test_a_strength_falling_with_a_bond_strength_starts_the_loop_flat():
     Jg = given._initial_jacobian(space, space.x(space.u(space.free_values(s))))
     assert Jg[i, j] < 0 and given.sign_held == []
 
+
+
+def test_a_rank_deficient_step_is_the_minimum_norm_least_squares_step():
+    """An exactly zero column (a parameter nothing depends on) stays put, as lstsq's
+    minimum-norm solution has it, with or without the weak-direction rule."""
+    from bpmcal.analysis.calibration.closed_loop import _lm_step
+
+    A = np.array([[2.0, 0.0], [1.0, 0.0]])
+    b = np.array([0.4, 0.2])
+    for ms in (0.0, 4.0):
+        step = _lm_step(A, b, 10.0, ms)
+        assert np.all(np.isfinite(step)) and step[1] == 0.0
+    np.testing.assert_allclose(_lm_step(A, b, 10.0, 0.0), -np.linalg.lstsq(A, b, rcond=None)[0])

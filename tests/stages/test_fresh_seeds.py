@@ -499,4 +499,5 @@ def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkey
     old = pd.read_csv(tmp_path / "h" / "seeds.csv").drop(columns=["loop_reference"])
     old.to_csv(tmp_path / "h" / "old.csv", index=False)
     H.fresh_seeds_table([card], [tmp_path / "h" / "old.csv"], table=table)
-    assert f"Judged against the lab instead (no closed-loop mean of the same runs): B1 ({H.OLD_SEED_TABLE})" in _fresh_seeds(lay)
+    assert (f"Judged against the lab instead (no closed-loop mean of the same runs): "
+            f"B1 ({H.OLD_SEED_TABLE})") in _fresh_seeds(lay)

@@ -6,8 +6,10 @@ damped, weighted Gauss-Newton (or Levenberg-Marquardt) step in the unit cube fro
 best round so far (a trust region that shrinks after a worse round and grows again
 after a better one its cap cut), with the Jacobian started from the regression models
 (a strength's slope against a bond strength held at >= 0: a stronger bond never makes
-a weaker specimen) and corrected by Broyden's secant update, each row shrunk by its signal-to-noise ratio
-(a change within the seeds' scatter barely moves it). Parameters held at a bound are
+a weaker specimen) and corrected by Broyden's secant update, each row shrunk by its
+signal-to-noise ratio (a change within the seeds' scatter barely moves it); the step
+leaves alone the weak directions that would only chase scatter or a miss out of the
+range's reach. Parameters held at a bound are
 probed; the seed set can grow when a standard error is too large to state a target to
 ``rtol``; a converged seed-averaged loop may take one polishing step.
 
@@ -890,7 +892,8 @@ def _lm_step(A: np.ndarray, b: np.ndarray, cap: float, min_sensitivity: float = 
     c = np.abs(U.T @ b)  # the residual along each direction
     with np.errstate(divide="ignore", invalid="ignore"):
         reach = np.where(sv > 0, c / sv, np.inf)  # the move that would cancel it
-    keep = (sv >= min_sensitivity) | ((c >= 1.0) & (reach <= 1.0))
+    tiny = (float(sv.max()) if len(sv) else 0.0) * max(A.shape) * np.finfo(float).eps
+    keep = (sv > tiny) & ((sv >= min_sensitivity) | ((c >= 1.0) & (reach <= 1.0)))
     U, sv, Vt = U[:, keep], sv[keep], Vt[keep]
     ub = U.T @ b
     n = A.shape[1]
