@@ -508,13 +508,10 @@ def _loop4(rs, **kw):
 def test_four_targets_with_a_noisy_sigma_t_converge(start):
     """sigma_c, E, nu and a sigma_t eight times noisier than E, both strengths free, the
     regression's strength balance wrong: the loop meets all four within max(rtol, 2 SE) in
-    most realisations (47 of 50 measured with the weighted, trust-region steps, probing and
-    the weak directions left alone; the plain damped Gauss-Newton steps of before met 34)."""
+    most realisations (45 of 50 measured with the weighted, trust-region steps and probing;
+    the plain damped Gauss-Newton steps of before met 34)."""
     res = [_loop4(rs) for rs in range(50)]
     assert sum(r.converged for r in res) >= 40
-    # steps that leave the weak directions alone rarely overshoot: 5 rounds worse than the
-    # best in the first 20 loops (17 when every direction was steered, 46 of 50 converged)
-    assert sum(int((r.history["accepted"] == False).sum()) for r in res[:20]) <= 9  # noqa: E712
     for r in res:
         if r.converged:
             h = r.history.iloc[r.best_round]
@@ -523,12 +520,10 @@ def test_four_targets_with_a_noisy_sigma_t_converge(start):
 
 def test_a_round_worse_than_the_best_is_not_stepped_from(start):
     """The trust region: after a round whose weighted misfit sum (e/tol)² exceeds the best
-    round's, the next step starts from the best round, capped at half the rejected step
-    (full Newton steps, damping 1, overshoot now and then: 5 rejected rounds in these 40
-    loops)."""
+    round's, the next step starts from the best round, capped at half the rejected step."""
     seen = 0
-    for rs in range(40):
-        h = _loop4(rs, damping=1.0).history
+    for rs in range(20):
+        h = _loop4(rs).history
         merit = [float(np.sum([(row[f"err_{k}"] / row[f"tol_{k}"]) ** 2 for k in TARGETS4]))
                  for _, row in h.iterrows()]
         free_u = {p: T2[p] for p in FREE4}
@@ -860,43 +855,7 @@ def test_bad_seed_caps_are_refused(start):
             ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seed_caps=bad)
 
 
-# -- the step's directions and the starting Jacobian's signs --------------------------------
-def test_a_near_null_direction_is_not_swung_to_the_cap():
-    """Two residual rows pulled apart by one parameter (σc, σt through the tensile
-    strength) and a third parameter that moves them apart only through a slope of 1e-3:
-    plain Levenberg-Marquardt (no direction left out) moves that parameter to the cap to
-    cancel the conflict; the loop's step leaves that direction alone and splits the
-    conflict by least squares."""
-    from bpmcal.analysis.calibration.closed_loop import _lm_step
-
-    A = np.array([[100.0, 0.0], [100.0, 1e-3]])  # weighted: residuals per unit range
-    b = np.array([2.0, -2.0])  # two tolerances apart, in opposite directions
-    plain = _lm_step(A, b, 0.25, 0.0)
-    step = _lm_step(A, b, 0.25, 4.0)
-    assert abs(plain[1]) == pytest.approx(0.25)  # swung to the cap
-    assert step[1] == pytest.approx(0.0, abs=1e-12)
-    np.testing.assert_allclose(step[0], 0.0, atol=1e-12)  # the least-squares split: none
-
-
-def test_a_weak_direction_is_steered_only_for_a_reachable_miss_beyond_its_tolerance():
-    """A direction along which the whole range moves the residual by 2 tolerances (weaker
-    than 1 / max_step = 4): a residual of 0.8 tolerances (the seeds' scatter) is left, one
-    of 1.6 (a miss, cancelled by 0.8 of the range) is steered by Gauss-Newton, one of 3
-    (beyond the range's reach) is left; a strong direction is always steered."""
-    from bpmcal.analysis.calibration.closed_loop import _lm_step
-
-    A = np.diag([40.0, 2.0])
-    for r, moved in ((0.8, False), (1.6, True), (3.0, False)):
-        step = _lm_step(A, np.array([4.0, r]), 1.0, 4.0)
-        assert step[0] == pytest.approx(-0.1)
-        assert step[1] == (pytest.approx(-r / 2.0) if moved else pytest.approx(0.0, abs=1e-12))
-    # no direction left out: plain Gauss-Newton (lstsq)
-    A = np.array([[3.0, 1.0], [1.0, 2.0], [0.5, 0.5]])
-    b = np.array([0.3, -0.2, 0.1])
-    np.testing.assert_allclose(_lm_step(A, b, 10.0, 0.0), -np.linalg.lstsq(A, b, rcond=None)[0],
-                               rtol=1e-10)
-
-
+# -- the starting Jacobian's signs ---------------------------------------------------------
 #: a quadratic sigma_c that turns over inside the design range (its vertex in pb_coh at
 #: 40 MPa): the shape a regression of a strength that saturates takes
 TURNED = {**MODELS4, "ucs_MPa": RegressionModel(
@@ -935,15 +894,3 @@ def test_a_strength_falling_with_a_bond_strength_starts_the_loop_flat():
     assert Jg[i, j] < 0 and given.sign_held == []
 
 
-
-def test_a_rank_deficient_step_is_the_minimum_norm_least_squares_step():
-    """An exactly zero column (a parameter nothing depends on) stays put, as lstsq's
-    minimum-norm solution has it, with or without the weak-direction rule."""
-    from bpmcal.analysis.calibration.closed_loop import _lm_step
-
-    A = np.array([[2.0, 0.0], [1.0, 0.0]])
-    b = np.array([0.4, 0.2])
-    for ms in (0.0, 4.0):
-        step = _lm_step(A, b, 10.0, ms)
-        assert np.all(np.isfinite(step)) and step[1] == 0.0
-    np.testing.assert_allclose(_lm_step(A, b, 10.0, 0.0), -np.linalg.lstsq(A, b, rcond=None)[0])

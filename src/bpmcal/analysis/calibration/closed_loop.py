@@ -7,9 +7,8 @@ best round so far (a trust region that shrinks after a worse round and grows aga
 after a better one its cap cut), with the Jacobian started from the regression models
 (a strength's slope against a bond strength held at >= 0: a stronger bond never makes
 a weaker specimen) and corrected by Broyden's secant update, each row shrunk by its
-signal-to-noise ratio (a change within the seeds' scatter barely moves it); the step
-leaves alone the weak directions that would only chase scatter or a miss out of the
-range's reach. Parameters held at a bound are
+signal-to-noise ratio (a change within the seeds' scatter barely moves it). Parameters
+held at a bound are
 probed; the seed set can grow when a standard error is too large to state a target to
 ``rtol``; a converged seed-averaged loop may take one polishing step.
 
@@ -358,15 +357,7 @@ class ClosedLoop:
         would leave the cap is a Levenberg-Marquardt step instead of a shortened
         Gauss-Newton one: the weighted residuals decide its direction, so a poorly
         conditioned pair of parameters is not swung across its range to chase a response
-        known only to its scatter. And the step leaves alone a weak direction (a singular
-        vector of the weighted Jacobian along which the largest step, ``max_step``, moves
-        the residuals by less than one tolerance: singular value < 1 / max_step, 4 by
-        default) unless the residual along it exceeds one tolerance and a move within the
-        range cancels it: a residual within the tolerance there is the seeds' scatter,
-        which a weak direction would turn into a large move, and one beyond the range's
-        reach cannot be cancelled by it (σc and σt, which pull the tensile strength apart
-        once the cohesion no longer matters, would be chased through the small slope of
-        some other parameter, swung across its range)."""
+        known only to its scatter."""
         held: list[int] = []
         du = np.zeros_like(u)
         damp = self.damping if damping is None else damping
@@ -382,8 +373,7 @@ class ClosedLoop:
                 du[j] = v
             r = e + J @ du
             if act:
-                du[act] = _lm_step(w[:, None] * J[:, act], w * r, cap / damp,
-                                   1.0 / self.max_step if weights is not None else 0.0) * damp
+                du[act] = _lm_step(w[:, None] * J[:, act], w * r, cap / damp) * damp
             out = [j for j in act if (u[j] <= box[0][j] + _EDGE and du[j] < 0)
                    or (u[j] >= box[1][j] - _EDGE and du[j] > 0)]
             if not out:
@@ -874,37 +864,21 @@ def _target_se(target_se, responses, t: np.ndarray) -> np.ndarray | None:
     return out
 
 
-def _lm_step(A: np.ndarray, b: np.ndarray, cap: float, min_sensitivity: float = 0.0) -> np.ndarray:
+def _lm_step(A: np.ndarray, b: np.ndarray, cap: float) -> np.ndarray:
     """The step ``x`` minimising ``|A x + b|²`` (Gauss-Newton) when it lies within ``cap``
     in the max norm, else the Levenberg-Marquardt step ``-(AᵀA + λI)⁻¹ Aᵀ b`` with the
     λ that brings it onto the cap (bisection on log λ; the step shrinks monotonically
-    with λ and turns from the Gauss-Newton towards the steepest-descent direction).
-
-    Both are taken in the directions of ``A``'s singular vectors that are strong (a
-    singular value >= ``min_sensitivity``) or that carry a residual of at least 1 which
-    a move of at most 1 cancels (with the closed loop's ``A``, the Jacobian in unit
-    coordinates with each row divided by its tolerance, and ``min_sensitivity`` 1 /
-    max_step: a miss beyond the tolerance that lies within the range;
-    :meth:`ClosedLoop._step`); every other direction is left alone."""
-    if not np.all(np.isfinite(A)) or not np.all(np.isfinite(b)):
-        return -np.linalg.lstsq(A, b, rcond=None)[0]
-    U, sv, Vt = np.linalg.svd(A, full_matrices=False)
-    c = np.abs(U.T @ b)  # the residual along each direction
-    with np.errstate(divide="ignore", invalid="ignore"):
-        reach = np.where(sv > 0, c / sv, np.inf)  # the move that would cancel it
-    tiny = (float(sv.max()) if len(sv) else 0.0) * max(A.shape) * np.finfo(float).eps
-    keep = (sv > tiny) & ((sv >= min_sensitivity) | ((c >= 1.0) & (reach <= 1.0)))
-    U, sv, Vt = U[:, keep], sv[keep], Vt[keep]
-    ub = U.T @ b
-    n = A.shape[1]
-    scale = float(np.sum(sv ** 2)) / n or 1.0  # the mean diagonal of AᵀA (kept directions)
+    with λ and turns from the Gauss-Newton towards the steepest-descent direction)."""
+    x = -np.linalg.lstsq(A, b, rcond=None)[0]
+    if not np.all(np.isfinite(x)) or float(np.max(np.abs(x))) <= cap:
+        return x
+    AtA, Atb = A.T @ A, A.T @ b
+    n = AtA.shape[0]
+    scale = float(np.trace(AtA)) / n or 1.0
 
     def step(lam):
-        return -Vt.T @ (sv * ub / (sv ** 2 + lam * scale))
+        return -np.linalg.solve(AtA + lam * scale * np.eye(n), Atb)
 
-    x = step(0.0)
-    if not len(sv) or float(np.max(np.abs(x))) <= cap:
-        return x
     lo, hi = -12.0, 12.0  # log10 of λ / mean diagonal
     if float(np.max(np.abs(step(10.0 ** hi)))) > cap:  # not even the gradient step fits
         return step(10.0 ** hi)
