@@ -53,6 +53,10 @@ from pathlib import Path
 import yaml
 from _study import A1, CONFIG, REPO, bts_disc_and_settings, cpu_model, study_design
 
+# the σt seed CV a card must meet over 5 seeds (issue 24), the chance of missing it that
+# the choice of ``verification.tensile_specimens`` accepts: the closed loop's own rule
+from bpmcal.analysis.calibration.specimens import CV_TARGET, MISS_ACCEPTED, N_CHECK, expected_cv
+
 #: loading variants of the ``loadings`` part: name -> BTSSettings overrides
 VARIANTS = {
     "flat, caps": {"loading": "flat"},
@@ -399,11 +403,6 @@ def markdown(records: list[dict], title: str | None = None, names=None) -> str:
     return "\n".join(lines)
 
 
-#: the σt seed CV a card must meet over 5 seeds (issue 24), and the chance of missing it
-#: that the choice of ``verification.tensile_specimens`` accepts
-CV_TARGET, N_CHECK, MISS_ACCEPTED = 0.05, 5, 0.10
-
-
 def disc_cv(recs) -> dict:
     """Per card of ``cards --specimens`` records (one, or a list pooled): (the seed CV of
     one disc from every valid disc, the mean σt of disc 0 of each seed, that of the other
@@ -418,16 +417,6 @@ def disc_cv(recs) -> dict:
         out[name] = (statistics.stdev(v) / statistics.fmean(v), statistics.fmean(first),
                      statistics.fmean(rest), len(v))
     return out
-
-
-def expected_cv(cv_disc: float, k: int) -> tuple[float, float]:
-    """The seed CV of a k-disc mean (discs on distinct packings are independent:
-    cv_disc / sqrt(k)) and the chance that the sample CV of N_CHECK seeds exceeds
-    CV_TARGET ((N-1) s^2 / sigma^2 is chi-square with N-1 degrees of freedom)."""
-    from scipy.stats import chi2
-
-    cvk = cv_disc / k ** 0.5
-    return cvk, float(chi2.sf((N_CHECK - 1) * (CV_TARGET / cvk) ** 2, N_CHECK - 1))
 
 
 def _expected_table(cvs: dict, what: str, n: int = 4) -> list[str]:

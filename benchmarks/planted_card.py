@@ -147,14 +147,18 @@ def main(argv=None) -> int:
               "--free", ",".join(c["free"]), "--ranges", json.dumps(cfg["ranges"]),
               "--ratio", str(c["strength_ratio"]), "--n-boot", "0", "--seed", str(c["seed"])], log)
         verified = tmp / "P1.verified.yaml"
+        # the study's adaptive tensile specimens per seed (verification.tensile_seed_cv)
+        adapt = (["--tensile-seed-cv", str(v["tensile_seed_cv"]), "--max-tensile-specimens",
+                  str(v.get("max_tensile_specimens") or v["tensile_specimens"])]
+                 if v.get("tensile_seed_cv") else [])
         _run(["bpmcal", "verify", "--card", str(card), "--models",
               str(study / "regression" / "models.json"), "--out-card", str(verified),
               "--rounds", str(tmp / "rounds.csv"), "--run", str(tmp / "best.h5"),
               "--seed", str(v["seed"]), "--seeds-per-round", str(v["seeds_per_round"]),
               "--max-seeds", str(v["max_seeds"]), "--range-margin", str(v["range_margin"]),
               "--rtol", str(v["rtol"]), "--max-rounds", str(v["max_rounds"]),
-              "--tensile-specimens", str(v["tensile_specimens"]), *common, *bts_opts, *cache,
-              *loop_threads], log)  # the fresh-seed check measures σt as the card's loop did
+              "--tensile-specimens", str(v["tensile_specimens"]), *adapt, *common, *bts_opts,
+              *cache, *loop_threads], log)  # the fresh-seed check measures σt as the card's loop did
         seeds = [int(s) for s in v["fresh_seeds"]]
         _run(["bpmcal", "fresh-seeds", "--card", str(verified), "--seeds",
               ",".join(map(str, seeds)), "--runs", *[str(tmp / f"h{s}.h5") for s in seeds],
@@ -192,7 +196,8 @@ def main(argv=None) -> int:
         "tolerance_pct": {k: 100 * float(rounds.iloc[ver["best_round"] - 1][f"tol_{k}"])
                           for k in lab},
         "holdout": hold.to_dict("records"), "planted_on_loop_seeds": own,
-        "own_tensile_specimens": int(v["tensile_specimens"]),
+        "own_tensile_specimens": int(ver.get("tensile_specimens", 1)),  # the card's count
+        "tensile": ver.get("tensile"),
         "reused_runs": reused,
         "cpu_s_children": (c1.children_user + c1.children_system)
                           - (c0.children_user + c0.children_system),
@@ -295,6 +300,18 @@ def markdown(rec: dict) -> str:
         lines.append(f"| {k} | {rec['lab'][k]:.4g} | {c['mean']:.4g} | {c['err_pct']:+.2f} % | "
                      f"{rec['tolerance_pct'][k]:.2f} % | "
                      f"{'–' if cv is None else f'{100 * cv:.1f} %'} |")
+    if rec.get("tensile"):  # the loop adapted its discs per seed to the card
+        from bpmcal.stages.verification import tensile_note
+
+        t = rec["tensile"]
+        note = tensile_note({"tensile": t, "tensile_specimens": rec["own_tensile_specimens"]})
+        lines += ["", "Discs per seed (`verification.tensile_seed_cv` "
+                      f"{t['seed_cv_target']:g}, from {t['start']}, at most {t['max']}): "
+                  + (note or f"σt of a seed: the mean of {rec['own_tensile_specimens']} "
+                             f"discs, not raised (the discs scatter "
+                             f"{100 * t.get('specimen_cv', float('nan')):.1f} %, a seed's σt "
+                             f"{100 * t.get('seed_cv_expected', float('nan')):.1f} % expected)")
+                  + "."]
     own = rec.get("planted_on_loop_seeds")
     if own:
         m = rec.get("own_tensile_specimens", 1)  # older records: one disc per seed
@@ -316,6 +333,13 @@ def markdown(rec: dict) -> str:
     lines += ["", "Fresh seeds (`bpmcal holdout`, the study's holdout seeds):", "",
               *fresh_seed_lines(rec["holdout"], "2 sqrt(SE² + SE_lab²)" if rec.get("lab_se")
                                 else "2 SE")]
+    if rec.get("tensile"):  # the σt seed CV the target reads: over the fresh seeds
+        h = next(h for h in rec["holdout"] if h["response"] == "bts_MPa")
+        lines += ["", f"σt seed CV over the {h['n']} fresh seeds "
+                      f"({rec['own_tensile_specimens']} discs per seed): "
+                      f"{float(h['cv_pct']):.1f} %; over the loop's {rec['verification']['n_seeds']} "
+                      f"seeds of the card's round: "
+                      f"{100 * rec['closed_loop']['bts_MPa']['seed_cv']:.1f} %."]
     if any("passed" in h for h in rec["holdout"]):
         missed = [h["response"] for h in rec["holdout"] if not h["passed"]]
         ok = v["status"] == "converged" and not missed

@@ -245,3 +245,119 @@ def test_no_two_specimens_of_seeds_below_100000_share_a_packing(monkeypatch):
     assert retest_seed(101, 1) != V.replicate_seed(104, 1)
     monkeypatch.setattr(V, "TENSILE_REPLICATE_STRIDE", 1_000_000)
     assert V.packing_seed_gap()[0] == 3 and retest_seed(101, 1) == V.replicate_seed(104, 1)
+
+
+class ScatterDEM(SpecimenDEM):
+    """SpecimenDEM whose specimen j of a seed reads the models' σt times 1 + ``cv`` z, z a
+    fixed standard-normal draw of (packing seed, j): specimens scatter by ``cv``."""
+
+    def __init__(self, cv):
+        super().__init__()
+        self.cv = cv
+
+    def dtt(self, out, params, seed, geometry, settings, **kw):
+        self.calls.append(("dtt", seed))
+        z = np.random.default_rng(seed).standard_normal()
+        v = predict(dtt_models(), params)[DTT] * (1 + self.cv * z)
+        s = {"dtt_peak_MPa": v, "dtt_MPa": v, "dtt_valid": True, "dtt_invalid_reason": ""}
+        write_run(out, test="dtt", inputs={"seed": seed}, summary=s)
+        return RunOutcome(status="ok", summary=s, path=out)
+
+
+def _verify_adaptive(card, d, out, monkeypatch, cv, **kw):
+    dem = ScatterDEM(cv)
+    monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
+    monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
+    opts = dict(seed=7, seeds_per_round=3, max_seeds=3, rtol=0.05, max_rounds=3,
+                tensile_specimens=3, tensile_seed_cv=0.05, max_tensile_specimens=8) | kw
+    v = A.verify(card, d / "models.json", out_card=out / "B1.yaml", rounds=out / "B1.csv",
+                 run=out / "B1.h5", geometry=Geometry(scale=0.4), settings=UCSSettings(),
+                 **opts)["verification"]
+    return dem, v
+
+
+def _specimens_by_seed(dem):
+    """Packing seed -> how many distinct specimens ran for it (a round's seeds in order)."""
+    stride = V.TENSILE_REPLICATE_STRIDE
+    out = {}
+    for test, s in dem.calls:
+        if test == "dtt":
+            out.setdefault(s % stride, set()).add(s // stride)
+    return {s: len(js) for s, js in out.items()}
+
+
+def test_a_card_whose_specimens_scatter_gets_more_of_them_per_seed(card, d, tmp_path,
+                                                                    monkeypatch):
+    # specimens scatter 15 %: 3 per seed read a seed CV above 5 % over 5 seeds too often;
+    # the rule asks for ~18, the cap is 8
+    dem, v = _verify_adaptive(card, d, tmp_path, monkeypatch, 0.15)
+    t = v["tensile"]
+    assert v["tensile_specimens"] == 8 and t["start"] == 3 and t["max"] == 8
+    assert t["raised"][0]["round"] == 1 and t["raised"][0]["from"] == 3
+    assert t["raised"][0]["to"] == 8 and t["raised"][0]["dof"] == 8  # 3 seeds x 3 - 1
+    assert 0.08 < t["specimen_cv"] < 0.25
+    assert t["seed_cv_expected"] == pytest.approx(t["specimen_cv"] / np.sqrt(8), rel=1e-4)
+    # round 1's three seeds were topped up to 8 (specimens 3 .. 7), never run twice
+    assert _specimens_by_seed(dem) == {7: 8, 8: 8, 9: 8}
+    assert len([c for c in dem.calls if c[0] == "dtt"]) == 8 * 3 * v["rounds"]
+    assert "verification.max_tensile_specimens" in v["message"]
+    note = V.tensile_note(v)  # Table 5's note and the report's line
+    assert "the mean of 8 specimens (from round 1; 3 before)" in note
+    assert f"scatter {100 * t['specimen_cv']:.1f} %" in note and "max_tensile_specimens" in note
+    # every round's seed σt is the mean of its 8 specimens (the rounds of the card)
+    for row in [v["single_pass"], v["closed_loop"]]:
+        assert row["n_seeds"] == 3
+    rounds = pd.read_csv(tmp_path / "B1.csv")
+    assert len(rounds) == v["rounds"]
+
+
+def test_a_card_whose_specimens_agree_keeps_its_count(card, d, tmp_path, monkeypatch):
+    dem, v = _verify_adaptive(card, d, tmp_path, monkeypatch, 0.01)
+    t = v["tensile"]
+    assert v["tensile_specimens"] == 3 and t["raised"] == [] and t["start"] == 3
+    assert t["specimen_cv"] < 0.03 and t["chance_above"] < 0.01
+    assert set(_specimens_by_seed(dem).values()) == {3}
+    assert "tensile specimens per seed" not in v["message"] and V.tensile_note(v) == ""
+
+
+def test_without_a_seed_cv_target_the_count_is_fixed(card, d, tmp_path, monkeypatch):
+    dem, v = _verify_adaptive(card, d, tmp_path, monkeypatch, 0.15, tensile_seed_cv=None)
+    assert v["tensile_specimens"] == 3 and "tensile" not in v
+    assert set(_specimens_by_seed(dem).values()) == {3}
+
+
+def test_the_topped_up_seed_mean_is_that_of_all_its_specimens(tmp_path, monkeypatch):
+    """The loop's runner alone: a raise after round 1 tops each seed up and its σt becomes
+    the mean of every specimen (the first ones' exact values, not their 6-digit record)."""
+    dem = ScatterDEM(0.2)
+    monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
+    monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
+    runs = V._LoopRuns(tmp_path / "j", [DTT, "ucs_MPa"], geometry=Geometry(scale=0.4),
+                       settings=UCSSettings(), specimens={"dtt": (Geometry(scale=0.4), None)},
+                       genesis_max_steps=None, cache=None, threads=1, progress=None,
+                       tensile_specimens=3, seed_cv=0.05, max_specimens=6)
+    params = dict(PLANTED)
+    outs = runs.simulate_seeds(params, [1, 2, 3])
+    stride = V.TENSILE_REPLICATE_STRIDE
+    base = predict(dtt_models(), params)[DTT]
+    for seed, out, row in zip([1, 2, 3], outs, runs.by_round[0]):
+        vals = [base * (1 + 0.2 * np.random.default_rng(seed + j * stride).standard_normal())
+                for j in range(6)]
+        assert out[DTT] == pytest.approx(np.mean(vals), rel=1e-12)
+        assert row["dtt_specimens"] == 6 and row[DTT] == out[DTT]
+    assert runs.specimen_record()["count"] == 6
+    # a second attempt with the same inputs reads every run, the top-ups too, from the journal
+    calls = len(dem.calls)
+    again = V._LoopRuns(tmp_path / "j", [DTT, "ucs_MPa"], geometry=Geometry(scale=0.4),
+                        settings=UCSSettings(), specimens={"dtt": (Geometry(scale=0.4), None)},
+                        genesis_max_steps=None, cache=None, threads=1, progress=None,
+                        tensile_specimens=3, seed_cv=0.05, max_specimens=6)
+    assert again.simulate_seeds(params, [1, 2, 3]) == outs and len(dem.calls) == calls
+    runs.close(True)
+    again.close(True)
+
+
+@pytest.mark.parametrize("cv", [0, 1, -0.1, float("nan"), True, "0.05"])
+def test_a_bad_seed_cv_names_the_value(cv):
+    with pytest.raises(V.BadInput, match=r"--tensile-seed-cv .*expected a fraction in \(0, 1\)"):
+        V.check_seed_cv(cv)

@@ -102,6 +102,10 @@ DEFAULTS = {
     "verification.tensile_specimens": (VER["tensile_specimens"],
                                        ("verify", "tensile_specimens", None)),
     "verification.triaxial_seeds": (VER["triaxial_seeds"], None),  # null: no option
+    "verification.tensile_seed_cv": (VER["tensile_seed_cv"],
+                                     ("verify", "tensile_seed_cv", None)),
+    "verification.max_tensile_specimens": (VER["max_tensile_specimens"],
+                                           ("verify", "max_tensile_specimens", None)),
     "verification.from_unreachable": (VER["from_unreachable"],
                                       ("verify", "from_unreachable", None)),
     "transfer.scale": (GEO.scale, ("transfer", "scale", None)),

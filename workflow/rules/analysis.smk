@@ -184,6 +184,18 @@ rule verify:
                 "tensile_specimens",
             )
         },
+        # the adaptive count only for a σt target: otherwise it reruns nothing
+        tcv=(
+            [
+                "--tensile-seed-cv",
+                config["verification"]["tensile_seed_cv"],
+                "--max-tensile-specimens",
+                config["verification"]["max_tensile_specimens"]
+                or config["verification"]["tensile_specimens"],
+            ]
+            if (LAB_BTS or LAB_DTT) and config["verification"]["tensile_seed_cv"]
+            else []
+        ),
         opts=specimen_args(),
         bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
         dtt=dtt_args() if LAB_DTT else [],
@@ -206,7 +218,7 @@ rule verify:
         "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
         "--max-seeds {params.v[max_seeds]:q} --range-margin {params.v[range_margin]:q} "
         "--jacobian-update {params.v[jacobian_update]:q} {params.polish:q} "
-        "--tensile-specimens {params.v[tensile_specimens]:q} {params.tseeds:q} "
+        "--tensile-specimens {params.v[tensile_specimens]:q} {params.tcv:q} {params.tseeds:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
         "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
 

@@ -105,6 +105,19 @@ def _add_verify(p):
                         f"{TENSILE_REPLICATE_STRIDE:,}; the card records it and the transfer "
                         "and the fresh-seed check measure sigma_t "
                         f"the same way (default {d['tensile_specimens']})")
+    p.add_argument("--tensile-seed-cv",
+                   type=number("tensile-seed-cv", 0.0, 1.0, lo_open=True, hi_open=True),
+                   default=d["tensile_seed_cv"],
+                   help="adapt the tensile specimens per seed to the card: once the "
+                        "specimens measured scatter too much for --tensile-specimens of "
+                        "them to average to this seed CV (read over 5 seeds, missed at "
+                        "most 1 time in 10), later seeds and the round just started get "
+                        "more, up to --max-tensile-specimens (default: a fixed count)")
+    p.add_argument("--max-tensile-specimens",
+                   type=integer("max-tensile-specimens", 1, MAX_TENSILE_SPECIMENS),
+                   default=d["max_tensile_specimens"],
+                   help="the most tensile specimens per seed --tensile-seed-cv may ask for "
+                        "(default: --tensile-specimens, no raise)")
     p.add_argument("--triaxial-seeds", type=integer("triaxial-seeds", 2, 200),
                    default=d["triaxial_seeds"],
                    help="with a triaxial-strength target (tri_MPa), only the first N seeds of "
@@ -141,7 +154,8 @@ def cmd_verify(args) -> int:
                bts_settings=bts_settings_of(args, "bts_"), range_margin=args.range_margin,
                polish=args.polish, dtt_geometry=dtt_cylinder_of(args, "dtt_"),
                jacobian_update=args.jacobian_update, tensile_specimens=args.tensile_specimens,
-               triaxial_seeds=args.triaxial_seeds,
+               triaxial_seeds=args.triaxial_seeds, tensile_seed_cv=args.tensile_seed_cv,
+               max_tensile_specimens=args.max_tensile_specimens,
                dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
                **budget_of(args))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")

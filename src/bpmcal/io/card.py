@@ -48,7 +48,13 @@ Format 1 (keys in this order; paper units)::
                         parameter -> ∂response/∂parameter, paper units);
                         jacobian_sign_held (when any: the regression's negative
                         slopes of a strength against a bond strength that the loop
-                        started from 0 instead: response, parameter, regression)
+                        started from 0 instead: response, parameter, regression);
+                        tensile_specimens (when > 1: a seed's σt is the mean of this
+                        many specimens, in the loop's last rounds, the transfer and
+                        the fresh-seed check); tensile (with a seed-CV target,
+                        ``verification.tensile_seed_cv``: seed_cv_target, start, max,
+                        specimen_cv and its dof, seed_cv_expected, chance_above, and
+                        every raise of the count: round, from, to, specimen_cv, dof)
     calibrated_at_scale (verified cards) the specimen scale the parameters were last fitted at
     transfer            (transferred cards, ``bpmcal transfer``) status, rounds, scale,
                         tolerance_pct, at_transfer and final responses, parameters
@@ -56,7 +62,7 @@ Format 1 (keys in this order; paper units)::
 Keys added within format 1 (``strength_ratio``, ``missed``, ``reach``, ``target_se``,
 ``verification.missed``, ``verification.bts_geometry``, ``verification.jacobian``,
 ``verification.max_seeds``, ``verification.seeds_per_round``,
-``verification.jacobian_sign_held``) are optional for readers: cards
+``verification.jacobian_sign_held``, ``verification.tensile``) are optional for readers: cards
 written before them stay readable.
 
 A card without ``card_format`` (bpmcal before this format was versioned) or of a newer

@@ -425,6 +425,8 @@ def _verification(lay, comp, ref=False) -> str:
             notes.append(f"- **{spec}: outside the design space** — {r['note']} (the closed "
                          "loop ran the DEM there, within verification.range_margin; the "
                          "regression never sampled it)")
+        if ran and isinstance(r.get("tensile_note"), str) and r["tensile_note"]:
+            notes.append(f"- **{spec}: tensile specimens per seed** — {r['tensile_note']}")
         if ran and isinstance(r.get("missed"), str) and r["missed"]:
             notes.append(f"- **{spec}: target(s) missed by the closed loop** — {r['missed']} "
                          "(error of the DEM in % of the lab value; no target is left out)")

@@ -95,7 +95,7 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             error=reason, params=params, seed=seed, geometry=geometry, settings=settings)
     shrink = scatter_factor(v.get("geometry"), geometry)
     tol = _tolerances(v, targets, rtol, z, shrink)
-    res, by_round, best = _dem_loop(
+    res, by_round, best, _ = _dem_loop(
         c, model_set, targets, params=params, run=run, seeds=[int(seed)],
         geometry=geometry, settings=settings, rtol=tol, max_rounds=1 + max_rounds,
         cache=cache, threads=threads, progress=progress,

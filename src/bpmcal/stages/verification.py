@@ -24,6 +24,12 @@ import pandas as pd
 from .. import params as P
 from ..analysis import ClosedLoop, scatter_table
 from ..analysis.calibration import UPDATES
+from ..analysis.calibration.specimens import (
+    MISS_ACCEPTED,
+    expected_cv,
+    pooled_cv,
+    specimens_needed,
+)
 from ..io.card import card_parameters, read_card, write_card
 from ..io.checks import BadInput
 from ..io.figures import save_figure
@@ -159,6 +165,9 @@ def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, set
 TENSILE_TESTS = ("bts", "dtt")
 TENSILE_REPLICATE_STRIDE = 20_000_003
 MAX_TENSILE_SPECIMENS = 50
+#: the degrees of freedom of the pooled specimen CV before the loop raises a seed's count
+#: on it (:class:`_LoopRuns`): 3 seeds x 3 discs give 8, 3 seeds x 1 disc 2 (not enough)
+MIN_SPECIMEN_DOF = 6
 
 
 def replicate_seed(seed: int, j: int) -> int:
@@ -194,6 +203,18 @@ def check_triaxial_seeds(n, flag: str = "--triaxial-seeds"):
     return n
 
 
+def check_seed_cv(cv, flag: str = "--tensile-seed-cv"):
+    """The σt seed CV a closed loop aims at (None: a fixed count of specimens), a number
+    in (0, 1), else BadInput naming the value."""
+    if cv is None:
+        return None
+    if isinstance(cv, bool) or not isinstance(cv, (int, float)) \
+            or not (math.isfinite(cv) and 0 < cv < 1):
+        raise BadInput(f"{flag} {cv!r}: expected a fraction in (0, 1) (the seed CV of σt "
+                       "to aim at, e.g. 0.05), or none for a fixed count of specimens")
+    return float(cv)
+
+
 def check_tensile_specimens(n, flag: str = "--tensile-specimens") -> int:
     """``n`` as the number of tensile specimens per seed: an integer in 1 ..
     MAX_TENSILE_SPECIMENS, else BadInput naming ``flag`` and the value."""
@@ -205,7 +226,7 @@ def check_tensile_specimens(n, flag: str = "--tensile-specimens") -> int:
 
 
 def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, settings, *,
-                  specimens: int = 1, **kw):
+                  specimens: int = 1, start: int = 0, **kw):
     """The strength ``resp`` (``P.SAMPLE_TESTS``) of packing ``seed``: with ``specimens``
     = 1 its test's (:func:`valid_tensile_run`); a tensile strength (σt: Brazilian or
     direct tension, ``TENSILE_TESTS``) with ``specimens`` = n > 1 the mean of n specimens,
@@ -214,16 +235,18 @@ def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, setting
     then scatters sqrt(n) times less from packing to packing, at n tests' cost.
     ``path_of(j, s, k)`` names the run file of specimen j's attempt k on packing s. The
     mean is NaN when a specimen failed or had no valid test (a seed is measured on all n,
-    or it has no σt). Returns (the first specimen's outcome, or the failed one's, the
-    packing seed the first ran on, the invalid attempts' reasons of every specimen, the
-    seed's strength, the specimens' strengths)."""
+    or it has no σt). ``start`` = m > 0 runs specimens m .. n-1 only (a seed's count
+    raised after its first m were measured: :class:`_LoopRuns`); the mean is then theirs.
+    Returns (the first specimen's outcome, or the failed one's, the packing seed the first
+    ran on, the invalid attempts' reasons of every specimen, the seed's strength, the
+    specimens' strengths)."""
     test = SAMPLE_TESTS[resp]
     if specimens > 1 and test not in TENSILE_TESTS:
         raise BadInput(f"tensile specimens {specimens}: only a tensile strength "
                        f"({', '.join(TENSILE_TESTS)}) is measured on several specimens, "
                        f"not {resp}")
     first, used, invalid, values = None, None, [], []
-    for j in range(specimens):
+    for j in range(start, specimens):
         b, s, bad = valid_tensile_run(test, lambda s, k, j=j: path_of(j, s, k), params,
                                       replicate_seed(seed, j), geometry, settings, **kw)
         invalid += bad
@@ -234,7 +257,7 @@ def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, setting
             first = b  # a failed specimen: the seed has no σt; the others need not run
             break
     v = np.array(values, float)
-    mean = float(v.mean()) if len(v) == specimens and np.isfinite(v).all() else math.nan
+    mean = float(v.mean()) if len(v) == specimens - start and np.isfinite(v).all() else math.nan
     return first, used, invalid, mean, values
 
 
@@ -248,7 +271,8 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
               free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
               jacobian=None, range_margin=0.0, polish=True, cylinder=None,
               dtt_settings=None, tri_settings=None, jacobian_update="broyden",
-              tensile_specimens=1, triaxial_seeds=None):
+              tensile_specimens=1, triaxial_seeds=None, tensile_seed_cv=None,
+              max_tensile_specimens=None):
     """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
     into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
     ``disc`` (or the direct-tension test on ``cylinder``) with the same seed, and when
@@ -256,12 +280,15 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
     first seed's run files of the best round become
     ``run`` and ``bts_run``). A round's seeds run side by side on up to ``threads``
     processes (:class:`SeedPool`); a seed's σt is the mean of ``tensile_specimens``
-    specimens (:func:`seed_strength`); with ``triaxial_seeds`` = m only a round's first m
+    specimens (:func:`seed_strength`), raised up to ``max_tensile_specimens`` for a card
+    whose σt scatters too much for ``tensile_seed_cv`` (:class:`_LoopRuns`); with
+    ``triaxial_seeds`` = m only a round's first m
     seeds run the triaxial test (:class:`ClosedLoop`'s ``seed_caps``). The first step
     follows the regression models' Jacobian, or ``jacobian`` (responses x free
     parameters, physical units) when given; the measured
     rounds correct it by ``jacobian_update`` (:class:`ClosedLoop`'s ``update``).
-    Returns (ClosedLoopResult, per-round list of seed summaries, best round index)."""
+    Returns (ClosedLoopResult, per-round list of seed summaries, best round index, the
+    tensile specimens per seed: :meth:`_LoopRuns.specimen_record`)."""
     ratio = c.get("ratio_ten_coh")
     with_bts = BTS in targets
     caps = {P.TRI: int(triaxial_seeds)} if triaxial_seeds and P.TRI in targets else {}
@@ -270,7 +297,8 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                      specimens={"bts": (disc, bts_settings), "dtt": (cylinder, dtt_settings),
                                 "tri": (geometry, tri_settings)},
                      cache=cache, threads=threads, progress=progress,
-                     tensile_specimens=tensile_specimens, caps=caps, first_seed=int(seeds[0]))
+                     tensile_specimens=tensile_specimens, caps=caps, first_seed=int(seeds[0]),
+                     seed_cv=tensile_seed_cv, max_specimens=max_tensile_specimens)
     ok = False
     try:
         free = free or [k for k, v in c["roles"].items() if v == "free"]
@@ -295,7 +323,7 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
         ok = True
     finally:
         runs.close(ok)
-    return res, runs.by_round, best
+    return res, runs.by_round, best, runs.specimen_record()
 
 
 class _LoopRuns:
@@ -305,11 +333,20 @@ class _LoopRuns:
     same inputs reads the runs it had finished); per round the seeds' rows (``by_round``),
     UCS run files (``paths``) and Brazilian run files (``bts_paths``). ``caps``: target ->
     how many of the seed set's first seeds (from ``first_seed`` on) measure it; a seed
-    past a target's cap does not run its test."""
+    past a target's cap does not run its test.
+
+    With ``seed_cv`` (config ``verification.tensile_seed_cv``) and a σt target, the count
+    of tensile specimens per seed adapts to the card: when a round starts, the specimen
+    CV pooled over every specimen measured so far (:func:`pooled_cv`; at least
+    ``MIN_SPECIMEN_DOF`` degrees of freedom) sets the count its seeds need
+    (:func:`specimens_needed`: the chance of reading a seed CV above ``seed_cv`` over 5
+    seeds below 10 %), never fewer than now nor more than ``max_specimens``. A raise
+    tops up that round's seeds (specimens m .. n-1 only, journaled like a run) and holds
+    for every later round and seed, so a round's seeds are all measured alike."""
 
     def __init__(self, folder: Path, targets: list, *, geometry, settings, specimens: dict,
                  genesis_max_steps, cache, threads, progress, tensile_specimens=1,
-                 caps=None, first_seed=1):
+                 caps=None, first_seed=1, seed_cv=None, max_specimens=None):
         self.journal = RunJournal(folder)
         self.inputs = dict(targets=targets, geometry=geometry, settings=settings,
                            specimens=specimens, genesis_max_steps=genesis_max_steps,
@@ -321,6 +358,11 @@ class _LoopRuns:
         self.bts_paths: list[list[Path]] = []
         self._last: dict | None = None
         self.caps, self.first_seed = dict(caps or {}), int(first_seed)
+        self.tensile = next((r for r in targets if SAMPLE_TESTS.get(r) in TENSILE_TESTS), None)
+        self.seed_cv = seed_cv if self.tensile is not None else None
+        self.max_specimens = max(int(max_specimens or tensile_specimens), tensile_specimens)
+        self.start_specimens = int(tensile_specimens)
+        self.raised: list[dict] = []
         if self.journal.resumable:
             self._note(f"{self.journal.resumable} finished run(s) of an earlier attempt in "
                        f"{folder}: a run with the same inputs is read, not run again")
@@ -331,7 +373,8 @@ class _LoopRuns:
 
     def simulate_seeds(self, params: dict, seeds: list) -> list[dict]:
         """:class:`ClosedLoop`'s ``simulate_seeds``: the responses of ``params`` on each seed."""
-        if params != self._last:  # a new point: a new round (grown seeds join theirs)
+        new_round = params != self._last
+        if new_round:  # a new point: a new round (grown seeds join theirs)
             self._last = dict(params)
             self.by_round.append([])
             self.paths.append([])
@@ -354,12 +397,88 @@ class _LoopRuns:
         self.pool.map(_loop_seed, [dict(jobs[i], cache=self.cache,
                                         stem=self.journal.stem(keys[i])) for i in todo],
                       tags=[f"round {k} seed {seeds[i]}" for i in todo], done=finished)
+        rows = [dict(done[i]["row"]) for i in range(len(seeds))]
+        outs = [dict(done[i]["out"]) for i in range(len(seeds))]
         for i in range(len(seeds)):
             self.paths[-1].append(self.journal.folder / done[i]["ucs"])
             if done[i]["bts"] is not None:
                 self.bts_paths[-1].append(self.journal.folder / done[i]["bts"])
-            self.by_round[-1].append(done[i]["row"])
-        return [done[i]["out"] for i in range(len(seeds))]
+            self.by_round[-1].append(rows[i])
+        if new_round and self.seed_cv is not None:
+            self._adapt(params, seeds, rows, outs)
+        return outs
+
+    def _specimen_cv(self) -> tuple[float, int]:
+        """The tensile specimen CV pooled over every round so far (:func:`pooled_cv`)."""
+        test = SAMPLE_TESTS[self.tensile]
+        return pooled_cv([v for row in rnd for v in specimen_values(row, self.tensile, test)]
+                         for rnd in self.by_round)
+
+    def _adapt(self, params: dict, seeds: list, rows: list, outs: list) -> None:
+        """Raise the tensile specimens per seed when the pooled specimen CV asks for more
+        (class docs), topping up this round's ``rows`` and ``outs`` in place."""
+        cv, dof = self._specimen_cv()
+        k = self.inputs["tensile_specimens"]
+        if dof < MIN_SPECIMEN_DOF:
+            return
+        need = specimens_needed(cv, self.seed_cv, least=k, most=self.max_specimens)
+        if need <= k:
+            return
+        resp, test = self.tensile, SAMPLE_TESTS[self.tensile]
+        self.raised.append({"round": len(self.by_round), "from": k, "to": need,
+                            "specimen_cv": round(cv, 6), "dof": dof})
+        self._note(f"tensile specimens per seed {k} -> {need} from round {len(self.by_round)}"
+                   f": the {test} specimens scatter {100 * cv:.1f} % ({dof} degrees of "
+                   f"freedom), and {k} per seed would read a seed CV above "
+                   f"{100 * self.seed_cv:g} % over 5 seeds too often"
+                   + (f" ({need} is verification.max_tensile_specimens)"
+                      if need == self.max_specimens else ""))
+        self.inputs["tensile_specimens"] = need
+        top = [i for i, row in enumerate(rows) if _finite(row.get(resp))]
+        jobs = [dict(self.inputs, params=params, seed=seeds[i], targets=[resp], first_specimen=k)
+                for i in top]
+        keys = [RunJournal.key(**job) for job in jobs]
+        done = {j: self.journal.get(key) for j, key in enumerate(keys)}
+        todo = [j for j, rec in done.items() if rec is None]
+
+        def finished(j, res):
+            rec, files = res
+            done[todo[j]] = self.journal.add(keys[todo[j]], rec, files)
+
+        self.pool.map(_top_up_seed, [dict(jobs[j], cache=self.cache,
+                                          stem=self.journal.stem(keys[j])) for j in todo],
+                      tags=[f"round {len(self.by_round)} seed {seeds[top[j]]} top-up"
+                            for j in todo], done=finished)
+        for j, i in enumerate(top):
+            rec, row = done[j], rows[i]
+            old = specimen_values(row, resp, test)
+            vals = old + [float(v) for v in rec["values"]]
+            row[f"{test}_specimens"] = len(vals)
+            row[f"{test}_specimen_MPa"] = ";".join(f"{v:.6g}" for v in vals)
+            row[f"{test}_invalid"] = int(row.get(f"{test}_invalid", 0)) + int(rec["invalid"])
+            ok = rec["status"] == "ok" and len(vals) == need and all(map(_finite, vals))
+            # the old specimens' exact sum (their mean x k), not their 6-digit record
+            row[resp] = (float(row[resp]) * k + sum(rec["values"])) / need if ok else math.nan
+            if not ok:
+                row["status"] = "failed"
+            outs[i][resp] = row[resp]
+
+    def specimen_record(self) -> dict:
+        """The tensile specimens per seed of the loop: ``count`` (the last rounds'), and
+        with a ``seed_cv`` target the pooled specimen CV (``specimen_cv``, ``dof``), the
+        seed CV expected at ``count`` and its chance of reading above the target over 5
+        seeds, and every raise (``raised``: round, from, to, CV, dof)."""
+        out = {"count": int(self.inputs["tensile_specimens"])}
+        if self.seed_cv is None:
+            return out
+        cv, dof = self._specimen_cv()
+        out.update(seed_cv_target=float(self.seed_cv), start=self.start_specimens,
+                   max=self.max_specimens, raised=list(self.raised))
+        if dof:
+            cvk, p = expected_cv(cv, out["count"], self.seed_cv)
+            out.update(specimen_cv=round(cv, 6), dof=dof, seed_cv_expected=round(cvk, 6),
+                       chance_above=round(p, 4))
+        return out
 
     def simulate(self, params: dict, seed: int) -> dict:
         """:class:`ClosedLoop`'s ``simulate``: one seed."""
@@ -409,6 +528,41 @@ def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, 
     return row, out, res.path, bts_path, files
 
 
+def _top_up_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, settings,
+                 specimens: dict, cache, genesis_max_steps, threads, progress,
+                 tensile_specimens: int, first_specimen: int):
+    """The tensile specimens ``first_specimen`` .. ``tensile_specimens`` - 1 of one seed
+    whose count the closed loop raised (:meth:`_LoopRuns._adapt`; the tensile target is
+    ``targets``' only entry), into ``<stem>.<test><k>.r<j>.h5``. Returns (a record:
+    their strengths, the count of invalid attempts and the status, every run file)."""
+    resp = targets[0]
+    test = SAMPLE_TESTS[resp]
+    geo, st = specimens[test]
+    b, _, invalid, _, values = seed_strength(
+        resp, lambda j, s, k: Path(f"{stem}.{test}{k}.r{j}.h5"), params, seed, geo, st,
+        specimens=tensile_specimens, start=first_specimen, cache=cache, threads=threads,
+        progress=progress, genesis_max_steps=genesis_max_steps)
+    files = [Path(f) for f in Path(stem).parent.glob(f"{Path(stem).name}*.h5")]
+    return {"values": [float(v) for v in values], "invalid": len(invalid),
+            "status": b.status}, files
+
+
+def specimen_values(row: dict, resp: str, test: str) -> list[float]:
+    """The strengths of a seed row's tensile specimens (``<test>_specimen_MPa``, or the
+    seed's one value ``row[resp]``)."""
+    text = row.get(f"{test}_specimen_MPa")
+    if isinstance(text, str) and text:
+        return [float(v) for v in text.split(";")]
+    return [float(row.get(resp, math.nan))]
+
+
+def _finite(x) -> bool:
+    try:
+        return math.isfinite(float(x))
+    except (TypeError, ValueError):
+        return False
+
+
 def row_strength(row: dict, resp: str, path_of, params: dict, seed: int, geometry, settings,
                  *, tensile_specimens: int = 1, **kw):
     """:func:`seed_strength` of ``resp`` into a seed's ``row`` (the closed loop's and the
@@ -436,7 +590,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
            bts_run=None, max_seeds=10, range_margin=0.25, polish=True, dtt_geometry=None,
            dtt_settings=None, tri_settings=None, jacobian_update="broyden",
-           tensile_specimens=1, triaxial_seeds=None) -> dict:
+           tensile_specimens=1, triaxial_seeds=None, tensile_seed_cv=None,
+           max_tensile_specimens=None) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -495,7 +650,12 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     (:func:`valid_tensile_run`), and the round fails only when none is valid. With
     ``tensile_specimens`` = n > 1 (config ``verification.tensile_specimens``) a seed's σt
     is the mean of n specimens (:func:`seed_strength`; the card records n, and the
-    transfer and the fresh-seed check measure σt the same way). A card with
+    transfer and the fresh-seed check measure σt the same way). With ``tensile_seed_cv``
+    (config ``verification.tensile_seed_cv``) that n is where the loop starts: a card
+    whose specimens scatter more than n of them can average to that seed CV gets more,
+    up to ``max_tensile_specimens`` (:class:`_LoopRuns`); the card records the count its
+    last rounds used, the specimen CV, the seed CV expected and every raise
+    (``verification.tensile``). A card with
     a triaxial-strength target (``tri_MPa``, σ1 at the study's design confinement) runs
     the triaxial test of ``tri_settings`` (its ``sigma3``) on the UCS cylinder in every
     round (required then: BadInput without it); with ``triaxial_seeds`` = m (config
@@ -530,6 +690,10 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     range_margin = _check_margin(range_margin)
     jacobian_update = _check_update(jacobian_update)
     tensile_specimens = check_tensile_specimens(tensile_specimens)
+    tensile_seed_cv = check_seed_cv(tensile_seed_cv)
+    max_tensile_specimens = max(check_tensile_specimens(
+        max_tensile_specimens or tensile_specimens, "--max-tensile-specimens"),
+        tensile_specimens)
     triaxial_seeds = check_triaxial_seeds(triaxial_seeds)
     seeds = [int(seed) + i for i in range(seeds_per_round)]
     if c.get("status") == "unreachable" and not from_unreachable:
@@ -544,14 +708,15 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
                         error=f"not run: {reason}", params=c["parameters"], seed=seed,
                         geometry=geometry, settings=settings, bts_run=bts_run, disc=disc,
                         bts_settings=bts_settings)
-    res, by_round, best = _dem_loop(
+    res, by_round, best, tensile = _dem_loop(
         c, model_set, targets, params=c["parameters"], run=run, seeds=seeds,
         geometry=geometry, settings=settings, rtol=rtol, max_rounds=max_rounds, cache=cache,
         threads=threads, progress=progress, genesis_max_steps=genesis_max_steps, free=free,
         disc=disc, bts_settings=bts_settings, bts_run=bts_run, max_seeds=max_seeds,
         range_margin=range_margin, polish=bool(polish), cylinder=cylinder,
         dtt_settings=dtt_settings, tri_settings=tri_settings, jacobian_update=jacobian_update,
-        tensile_specimens=tensile_specimens, triaxial_seeds=triaxial_seeds)
+        tensile_specimens=tensile_specimens, triaxial_seeds=triaxial_seeds,
+        tensile_seed_cv=tensile_seed_cv, max_tensile_specimens=max_tensile_specimens)
     write_table(res.history, rounds, index=False)
     verified = dict(c)
     verified.update({
@@ -561,7 +726,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             seeds_per_round=seeds_per_round, max_seeds=max_seeds, polish=polish,
             geometry=geometry, range_margin=range_margin, disc=disc, cylinder=cylinder,
             tri_settings=tri_settings, jacobian_update=jacobian_update,
-            tensile_specimens=tensile_specimens, triaxial_seeds=triaxial_seeds)})
+            tensile=tensile, triaxial_seeds=triaxial_seeds)})
     write_card(out_card, verified)
     if bts_run is not None and BTS not in targets:
         write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
@@ -625,9 +790,10 @@ def _not_run(c: dict, out_card, key: str, section: dict, *, rounds, run, error: 
 def _verification_section(c: dict, res, by_round: list, best: int, targets: dict, *, rtol, seed, seeds,
                           seeds_per_round, max_seeds, polish, geometry, range_margin, disc,
                           cylinder, tri_settings=None, jacobian_update="broyden",
-                          tensile_specimens=1, triaxial_seeds=None) -> dict:
+                          tensile=None, triaxial_seeds=None) -> dict:
     """The verified card's ``verification`` section from the closed loop's result ``res``
-    and its rounds' seed summaries ``by_round`` (``best``: the card's round)."""
+    and its rounds' seed summaries ``by_round`` (``best``: the card's round; ``tensile``:
+    :meth:`_LoopRuns.specimen_record`)."""
     message = res.message + _outside_text(res.outside, range_margin)
     if c.get("status") == "unreachable":
         message = ("started from an unreachable calibration at the user's request "
@@ -652,8 +818,19 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
         v["bts_geometry"] = disc.to_dict()
     if "dtt_MPa" in targets:
         v["dtt_geometry"] = cylinder.to_dict()
-    if tensile_specimens > 1:  # σt of a seed: the mean of this many specimens
-        v["tensile_specimens"] = int(tensile_specimens)
+    tensile = tensile or {"count": 1}
+    if tensile["count"] > 1:  # σt of a seed: the mean of this many specimens
+        v["tensile_specimens"] = int(tensile["count"])
+    if "seed_cv_target" in tensile:  # the count adapted to the card's specimen scatter
+        v["tensile"] = {k: x for k, x in tensile.items() if k != "count"}
+        if tensile.get("chance_above", 0) >= MISS_ACCEPTED:
+            why = ("the most verification.max_tensile_specimens allows"
+                   if tensile["count"] >= tensile["max"] else
+                   "the count set when the last round started, on fewer specimens")
+            v["message"] += (
+                f"; σt seed CV expected {100 * tensile['seed_cv_expected']:.1f} % at "
+                f"{tensile['count']} tensile specimens per seed ({why}), above the "
+                f"{100 * tensile['seed_cv_target']:g} % aimed at")
     if P.TRI in targets:
         v["tri_sigma3_MPa"] = tri_settings.sigma3 / 1e6
         if triaxial_seeds and triaxial_seeds < max_seeds:  # σ1 judged on the first m seeds
@@ -763,6 +940,26 @@ def _scatter_seed(*, params: dict, seed: int, run, geometry, settings, cache,
             **{k: r.get(k, math.nan) for k in (*P.TARGETS, "u_pre_MJm3")}}
 
 
+def tensile_note(v: dict) -> str:
+    """What a card's ``verification.tensile`` says of its tensile specimens per seed when
+    the loop raised their count or could not reach the seed CV it aims at ("" else)."""
+    t = v.get("tensile") or {}
+    if not t.get("raised") and t.get("chance_above", 0) < MISS_ACCEPTED:
+        return ""
+    n = int(v.get("tensile_specimens", 1))
+    text = f"σt of a seed: the mean of {n} specimens"
+    if t.get("raised"):
+        r = t["raised"][0]
+        text += f" (from round {r['round']}; {r['from']} before)"
+    if "specimen_cv" in t:
+        text += (f"; the specimens scatter {100 * t['specimen_cv']:.1f} % ({t['dof']} degrees "
+                 f"of freedom), a seed's σt {100 * t['seed_cv_expected']:.1f} % expected")
+    if t.get("chance_above", 0) >= MISS_ACCEPTED:
+        text += (f", above the {100 * t['seed_cv_target']:g} % aimed at"
+                 + (" (verification.max_tensile_specimens)" if n >= t.get("max", n) else ""))
+    return text
+
+
 def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
     """Tables 5 and 6 and Fig. 6 from the verified cards and their best rounds' run files
     (``runs[i]`` belongs to ``cards[i]``). Table 5 holds the seed mean of every response
@@ -771,8 +968,9 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
     (``not-run``) keeps its row, with empty responses, status ``not-run`` and the reason in
     ``note``; its Fig. 6 panel says why it has no curve. When some card has a tensile
     strength target, Table 5 also has the σt columns (empty for the specimens without
-    one) and ``missed``: every target the closed loop misses by more than its tolerance,
-    with the error in %."""
+    one), ``missed``: every target the closed loop misses by more than its tolerance,
+    with the error in %, ``tensile_specimens`` (per seed) and ``tensile_note``
+    (:func:`tensile_note`)."""
     if len(runs) != len(cards):
         raise BadInput(f"--runs: {len(runs)} run file(s) for {len(cards)} card(s); expected "
                        "one per card, in the same order")
@@ -815,6 +1013,8 @@ def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
         if tensile:
             row["missed"] = "; ".join(f"{m['target']} {m['error_pct']:+.2f} %"
                                       for m in v.get("missed") or [])
+            row["tensile_specimens"] = int(v.get("tensile_specimens", 1))
+            row["tensile_note"] = tensile_note(v)
         t5.append(row)
         up_lab = c["lab"].get("u_pre_MJm3")
         up_sim = v["closed_loop"]["u_pre_MJm3"] if ran else math.nan
