@@ -12,9 +12,16 @@ when its key matches and its files are there, so a changed setting or another bp
 runs again; since every run is deterministic, a reused run is the run that would have
 been made. A line cut short by a kill is skipped. The stage removes the folder once its
 outputs are written; after a failure the folder stays for the next attempt.
+
+One process at a time works in a folder: the journal holds an exclusive lock on
+``.lock`` in it (``flock``) from its start until the stage removes or keeps the folder,
+and a second stage pointed at the same folder (two runs of one command, or a child
+process left running by a killed one) stops at once with a message naming the folder
+and the process holding it, instead of removing the runs under the first.
 """
 from __future__ import annotations
 
+import fcntl
 import functools
 import hashlib
 import json
@@ -24,8 +31,10 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..io.checks import BadInput
 
 FILE = "journal.jsonl"
+LOCK = ".lock"
 
 
 @functools.lru_cache(maxsize=1)
@@ -54,6 +63,7 @@ class RunJournal:
     def __init__(self, folder: str | os.PathLike):
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
+        self._lock = _lock(self.folder / LOCK)
         self.path = self.folder / FILE
         self.entries: dict[str, dict] = {}
         self.reused = 0
@@ -103,14 +113,39 @@ class RunJournal:
     def remove(self) -> None:
         """Remove the folder and the files in it (the stage's outputs are written; the
         folder holds files only)."""
-        if not self.folder.is_dir():
-            return
-        for f in self.folder.iterdir():
-            f.unlink(missing_ok=True)
-        self.folder.rmdir()
+        if self.folder.is_dir():
+            for f in self.folder.iterdir():
+                f.unlink(missing_ok=True)
+            self.folder.rmdir()
+        self.release()
 
     def keep_or_remove(self) -> None:
         """After a failure: keep the folder when it holds a finished run, else remove it."""
         if not self.entries:
             self.remove()
+        self.release()
+
+    def release(self) -> None:
+        """Let another process work in the folder (the lock's file stays, unlocked)."""
+        if self._lock is not None:
+            os.close(self._lock)
+            self._lock = None
+
+
+def _lock(path: Path) -> int:
+    """An exclusive lock on ``path`` (created; the holder's pid written in it), or
+    BadInput naming the folder and the process that holds it."""
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+        os.close(fd)
+        raise BadInput(f"{path.parent}: another bpmcal process (pid {holder}) is working in "
+                       "this folder; wait for it to end, or stop it, and run again (two "
+                       "stages sharing one working folder would remove each other's "
+                       "runs)") from None
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, str(os.getpid()).encode(), 0)
+    return fd
 
