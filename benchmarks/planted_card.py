@@ -104,26 +104,25 @@ def main(argv=None) -> int:
         pf.write_text(yaml.safe_dump(planted))
         reused: list[int] = []  # lab seeds whose runs the --keep folder had
 
-        def run_planted(seeds, prefix):
+        def run_lab(seeds):  # the lab's specimens: the planted card, one disc per seed
             from bpmcal.io.h5 import read_summary
 
             out = []
             for s in seeds:
-                if same and (tmp / f"{prefix}{s}.h5").exists() \
-                        and (tmp / f"{prefix}{s}.bts.h5").exists():
+                if same and (tmp / f"lab{s}.h5").exists() and (tmp / f"lab{s}.bts.h5").exists():
                     reused.append(s)
                 else:
                     _run(["bpmcal", "ucs", "--params", str(pf), "--seed", str(s), "--out",
-                          str(tmp / f"{prefix}{s}.h5"), "--bts-out",
-                          str(tmp / f"{prefix}{s}.bts.h5"), *common, *bts_opts, *cache], log)
-                us = read_summary(tmp / f"{prefix}{s}.h5")
-                bs = read_summary(tmp / f"{prefix}{s}.bts.h5")
+                          str(tmp / f"lab{s}.h5"), "--bts-out", str(tmp / f"lab{s}.bts.h5"),
+                          *common, *bts_opts, *cache], log)
+                us = read_summary(tmp / f"lab{s}.h5")
+                bs = read_summary(tmp / f"lab{s}.bts.h5")
                 out.append({"seed": s, "ucs_MPa": us["ucs_MPa"], "E_GPa": us["E_GPa"],
                             "nu": us["nu"], "bts_MPa": bs["bts_MPa"],
                             "bts_valid": bool(bs["bts_valid"])})
             return out
 
-        rows = run_planted([int(x) for x in a.lab_seeds.split(",")], "lab")
+        rows = run_lab([int(x) for x in a.lab_seeds.split(",")])
         labs = pd.DataFrame(rows)
         valid = labs[labs["bts_valid"]]
         lab = {k: float(labs[k].mean()) for k in ("ucs_MPa", "E_GPa", "nu")}
