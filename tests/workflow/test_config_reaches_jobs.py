@@ -29,7 +29,8 @@ OVERLAY = {
             "max_strain": 0.0437, "record_strain": 1.37e-5},
     "transfer": {"enabled": True},
     "verification": {"range_margin": 0.137, "polish": False, "jacobian_update": "history",
-                     "tensile_specimens": 3},
+                     "tensile_specimens": 3, "tensile_seed_cv": 0.037,
+                     "max_tensile_specimens": 13},
     # a lab with a sigma_t target: the closed loops run Brazilian tests too (without one
     # they get no --bts-* options, so that a bts key does not rerun them)
     "lab": {"csv": "config/lab/lac_du_bonnet.csv"},
@@ -99,6 +100,11 @@ def test_the_verification_gets_its_polish_switch(commands):
 def test_the_closed_loop_gets_its_tensile_specimen_count(commands):
     # the transfer and the fresh-seed check read it from the verified card
     _expect(commands["verify"], "verification", ["tensile_specimens"])
+
+
+def test_the_closed_loop_of_a_tensile_target_gets_its_seed_cv_and_cap(commands):
+    # the count adapts to the card's specimen scatter (a lab with σt: the overlay's)
+    _expect(commands["verify"], "verification", ["tensile_seed_cv", "max_tensile_specimens"])
 
 
 @pytest.mark.parametrize("cmd", ["verify", "transfer"])
