@@ -304,6 +304,8 @@ def test_a_card_whose_specimens_scatter_gets_more_of_them_per_seed(card, d, tmp_
     note = V.tensile_note(v)  # Table 5's note and the report's line
     assert "the mean of 8 specimens (from round 1; 3 before)" in note
     assert f"scatter {100 * t['specimen_cv']:.1f} %" in note and "max_tensile_specimens" in note
+    assert f"aimed at {100 * t['chance_above']:.0f} % of the time" in note
+    assert t["chance_above"] >= 0.10 and f"{100 * t['chance_above']:.0f} % of the time" in v["message"]
     # every round's seed σt is the mean of its 8 specimens (the rounds of the card)
     for row in [v["single_pass"], v["closed_loop"]]:
         assert row["n_seeds"] == 3
