@@ -228,8 +228,16 @@ def curve(a, argv) -> dict:
     meta = _meta(argv)
     scales = [float(x) for x in a.scales.split(",")]
     seeds = [int(x) for x in a.seeds.split(",")]
+    name, prm = "A1", dict(A1)
+    if a.card:  # another card's curve (a verified or planted card file)
+        from bpmcal import params as P
+        from bpmcal.io.card import card_parameters
+
+        card = yaml.safe_load(Path(a.card).read_text())
+        name = f"{card.get('specimen', Path(a.card).stem)} ({Path(a.card).name})"
+        prm = {k: float(card_parameters(card)[k]) for k in P.PARAMS}
     with tempfile.TemporaryDirectory() as tmp:
-        jobs = [("A1", dict(A1), s, sc, {}, str(Path(tmp) / f"c{sc}"), cfg)
+        jobs = [(name, prm, s, sc, {}, str(Path(tmp) / f"c{sc}"), cfg)
                 for sc in scales for s in seeds]
         rows = _pool(jobs, a.jobs)
     per = {}
@@ -237,6 +245,7 @@ def curve(a, argv) -> dict:
         per[f"{sc:g}"] = {"scale": sc, "diameter_mm": cfg["bts"]["diameter_mm"] * sc,
                           **_stats([r for r in rows if r["scale"] == sc])}
     return {**meta, "part": "curve", "config": str(a.config), "bts": cfg["bts"],
+            **({"card": name, "parameters": prm, "seeds": seeds} if a.card else {}),
             "load_average_end": os.getloadavg(), "sizes": per, "runs": rows}
 
 
@@ -334,6 +343,11 @@ def markdown(records: list[dict], title: str | None = None, names=None) -> str:
                   f"{', '.join(f'{x:.2f}' for x in rec['load_average_end'])}.", "",
                   f"Command: `{rec['command']}`", ""]
         if rec["part"] == "curve":
+            if rec.get("card"):
+                lines += [f"The card {rec['card']} ("
+                          + ", ".join(f"{k} {v:g}" for k, v in rec["parameters"].items())
+                          + f"), one disc per packing seed {_seed_span(rec['seeds'])} at "
+                          "each size, the study's other Brazilian settings:", ""]
             lines += ["| scale | D (mm) | balls across | balls | runs | valid | σt mean of the "
                       "valid (MPa) | seed CV | CPU s per run (median) |",
                       "|---|---|---|---|---|---|---|---|---|"]
@@ -490,6 +504,8 @@ def main(argv=None) -> int:
     c = sub.add_parser("curve")
     c.add_argument("--scales", default="0.4,0.55,0.7,0.85,1.0")
     c.add_argument("--seeds", default="1,2,3,4,5")
+    c.add_argument("--card", default=None,
+                   help="a card file (verified or planted) instead of the paper's A1")
     dd = sub.add_parser("dtt")
     dd.add_argument("--seeds", default="1,2,3,4,5,6,7,8")
     lo = sub.add_parser("loadings")
