@@ -383,20 +383,8 @@ class _LoopRuns:
                      targets=[r for r in self.inputs["targets"]
                               if seed - self.first_seed < self.caps.get(r, math.inf)])
                 for seed in seeds]
-        keys = [RunJournal.key(**job) for job in jobs]
-        done = {i: self.journal.get(key) for i, key in enumerate(keys)}
-        todo = [i for i, rec in done.items() if rec is None]
-
-        def finished(j, res):  # journal each run as soon as it ends
-            row, out, ucs_path, bts_path, files = res
-            rec = {"row": row, "out": out, "ucs": Path(ucs_path).name,
-                   "bts": None if bts_path is None else Path(bts_path).name}
-            done[todo[j]] = self.journal.add(keys[todo[j]], rec, files)  # as a reused run reads
-
         k = len(self.by_round)
-        self.pool.map(_loop_seed, [dict(jobs[i], cache=self.cache,
-                                        stem=self.journal.stem(keys[i])) for i in todo],
-                      tags=[f"round {k} seed {seeds[i]}" for i in todo], done=finished)
+        done = self._journaled(_loop_seed, jobs, [f"round {k} seed {s}" for s in seeds])
         rows = [dict(done[i]["row"]) for i in range(len(seeds))]
         outs = [dict(done[i]["out"]) for i in range(len(seeds))]
         for i in range(len(seeds)):
@@ -407,6 +395,22 @@ class _LoopRuns:
         if new_round and self.seed_cv is not None:
             self._adapt(params, seeds, rows, outs)
         return outs
+
+    def _journaled(self, fn, jobs: list[dict], tags: list[str]) -> list[dict]:
+        """``fn`` (returning (record, run files)) over ``jobs`` through the journal: a job
+        whose inputs it holds is read back, the others run side by side, each journaled as
+        soon as it ends. Returns every job's record, in order, as a reused run reads it."""
+        keys = [RunJournal.key(**job) for job in jobs]
+        done = {i: self.journal.get(key) for i, key in enumerate(keys)}
+        todo = [i for i, rec in done.items() if rec is None]
+
+        def finished(j, res):
+            rec, files = res
+            done[todo[j]] = self.journal.add(keys[todo[j]], rec, files)
+
+        self.pool.map(fn, [dict(jobs[i], cache=self.cache, stem=self.journal.stem(keys[i]))
+                           for i in todo], tags=[tags[i] for i in todo], done=finished)
+        return [done[i] for i in range(len(jobs))]
 
     def _specimen_cv(self) -> tuple[float, int]:
         """The tensile specimen CV pooled over every round so far (:func:`pooled_cv`)."""
@@ -437,24 +441,14 @@ class _LoopRuns:
         top = [i for i, row in enumerate(rows) if _finite(row.get(resp))]
         jobs = [dict(self.inputs, params=params, seed=seeds[i], targets=[resp], first_specimen=k)
                 for i in top]
-        keys = [RunJournal.key(**job) for job in jobs]
-        done = {j: self.journal.get(key) for j, key in enumerate(keys)}
-        todo = [j for j, rec in done.items() if rec is None]
-
-        def finished(j, res):
-            rec, files = res
-            done[todo[j]] = self.journal.add(keys[todo[j]], rec, files)
-
-        self.pool.map(_top_up_seed, [dict(jobs[j], cache=self.cache,
-                                          stem=self.journal.stem(keys[j])) for j in todo],
-                      tags=[f"round {len(self.by_round)} seed {seeds[top[j]]} top-up"
-                            for j in todo], done=finished)
+        done = self._journaled(_top_up_seed, jobs, [
+            f"round {len(self.by_round)} seed {seeds[i]} top-up" for i in top])
         for j, i in enumerate(top):
             rec, row = done[j], rows[i]
             old = specimen_values(row, resp, test)
             vals = old + [float(v) for v in rec["values"]]
             row[f"{test}_specimens"] = len(vals)
-            row[f"{test}_specimen_MPa"] = ";".join(f"{v:.6g}" for v in vals)
+            row[f"{test}_specimen_MPa"] = specimen_text(vals)
             row[f"{test}_invalid"] = int(row.get(f"{test}_invalid", 0)) + int(rec["invalid"])
             ok = rec["status"] == "ok" and len(vals) == need and all(map(_finite, vals))
             # the old specimens' exact sum (their mean x k), not their 6-digit record
@@ -504,8 +498,8 @@ def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, 
     worker or in this process): the UCS test into ``<stem>.h5`` and every per-sample test
     of the ``targets`` (``specimens``: test -> (specimen, settings)), an invalid one
     replaced, σt the mean of ``tensile_specimens`` specimens (:func:`seed_strength`).
-    Returns (the seed's row, its responses, the UCS run file, the Brazilian run file or
-    None, every run file it wrote)."""
+    Returns (its journal record: the seed's row, its responses, the names of the UCS run
+    file and of the Brazilian one or None; every run file it wrote)."""
     kw = dict(cache=cache, threads=threads, progress=progress,
               genesis_max_steps=genesis_max_steps)
     res = run_ucs_file(Path(f"{stem}.h5"), params, seed, geometry, settings, **kw)
@@ -516,16 +510,32 @@ def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, 
     for resp in (r for r in SAMPLE_TESTS if r in targets):  # σt, σ1: a valid test, or NaN
         test = SAMPLE_TESTS[resp]
         geo, st = specimens[test]
-        b, _ = row_strength(
-            row, resp, lambda j, s, k, t=test: Path(f"{stem}.{t}{k}{f'.r{j}' if j else ''}.h5"),
-            params, seed, geo, st, tensile_specimens=tensile_specimens, **kw)
+        b, _ = row_strength(row, resp, lambda j, s, k, t=test: specimen_path(stem, t, j, k),
+                            params, seed, geo, st, tensile_specimens=tensile_specimens, **kw)
         if test == "bts":
             bts_path = b.path
         if b.status != "ok" or not math.isfinite(row[resp]):
             row["status"] = "failed"
         out[resp] = row[resp]
-    files = [Path(f) for f in Path(stem).parent.glob(f"{Path(stem).name}*.h5")]
-    return row, out, res.path, bts_path, files
+    return ({"row": row, "out": out, "ucs": Path(res.path).name,
+             "bts": None if bts_path is None else Path(bts_path).name}, run_files(stem))
+
+
+def specimen_path(stem, test: str, j: int, k: int) -> Path:
+    """The run file of tensile specimen ``j``'s attempt ``k`` of a loop seed (``stem``):
+    ``<stem>.<test><k>.h5`` for specimen 0, ``<stem>.<test><k>.r<j>.h5`` after it."""
+    return Path(f"{stem}.{test}{k}{f'.r{j}' if j else ''}.h5")
+
+
+def run_files(stem) -> list[Path]:
+    """Every run file a loop job wrote under ``stem`` (the journal keeps them)."""
+    return [Path(f) for f in Path(stem).parent.glob(f"{Path(stem).name}*.h5")]
+
+
+def specimen_text(values) -> str:
+    """A seed row's ``<test>_specimen_MPa``: each specimen's strength, ``;``-separated
+    (:func:`specimen_values` reads it back)."""
+    return ";".join(f"{v:.6g}" for v in values)
 
 
 def _top_up_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, settings,
@@ -539,12 +549,11 @@ def _top_up_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry
     test = SAMPLE_TESTS[resp]
     geo, st = specimens[test]
     b, _, invalid, _, values = seed_strength(
-        resp, lambda j, s, k: Path(f"{stem}.{test}{k}.r{j}.h5"), params, seed, geo, st,
+        resp, lambda j, s, k: specimen_path(stem, test, j, k), params, seed, geo, st,
         specimens=tensile_specimens, start=first_specimen, cache=cache, threads=threads,
         progress=progress, genesis_max_steps=genesis_max_steps)
-    files = [Path(f) for f in Path(stem).parent.glob(f"{Path(stem).name}*.h5")]
     return {"values": [float(v) for v in values], "invalid": len(invalid),
-            "status": b.status}, files
+            "status": b.status}, run_files(stem)
 
 
 def specimen_values(row: dict, resp: str, test: str) -> list[float]:
@@ -579,7 +588,7 @@ def row_strength(row: dict, resp: str, path_of, params: dict, seed: int, geometr
     row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
     if n > 1:
         row[f"{test}_specimens"] = len(values)
-        row[f"{test}_specimen_MPa"] = ";".join(f"{v:.6g}" for v in values)
+        row[f"{test}_specimen_MPa"] = specimen_text(values)
     return b, invalid
 
 
@@ -691,9 +700,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     jacobian_update = _check_update(jacobian_update)
     tensile_specimens = check_tensile_specimens(tensile_specimens)
     tensile_seed_cv = check_seed_cv(tensile_seed_cv)
-    max_tensile_specimens = max(check_tensile_specimens(
-        max_tensile_specimens or tensile_specimens, "--max-tensile-specimens"),
-        tensile_specimens)
+    max_tensile_specimens = check_tensile_specimens(  # never below the start: _LoopRuns
+        max_tensile_specimens or tensile_specimens, "--max-tensile-specimens")
     triaxial_seeds = check_triaxial_seeds(triaxial_seeds)
     seeds = [int(seed) + i for i in range(seeds_per_round)]
     if c.get("status") == "unreachable" and not from_unreachable:
@@ -829,9 +837,8 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
                    "the count set when the last round started, on fewer specimens")
             v["message"] += (
                 f"; σt seed CV expected {100 * tensile['seed_cv_expected']:.1f} % at "
-                f"{tensile['count']} tensile specimens per seed ({why}): 5 seeds read it "
-                f"above the {100 * tensile['seed_cv_target']:g} % aimed at "
-                f"{100 * tensile['chance_above']:.0f} % of the time")
+                f"{tensile['count']} tensile specimens per seed ({why}): "
+                + _shortfall(tensile))
     if P.TRI in targets:
         v["tri_sigma3_MPa"] = tri_settings.sigma3 / 1e6
         if triaxial_seeds and triaxial_seeds < max_seeds:  # σ1 judged on the first m seeds
@@ -956,11 +963,15 @@ def tensile_note(v: dict) -> str:
         text += (f"; the specimens scatter {100 * t['specimen_cv']:.1f} % ({t['dof']} degrees "
                  f"of freedom), a seed's σt {100 * t['seed_cv_expected']:.1f} % expected")
     if t.get("chance_above", 0) >= MISS_ACCEPTED:
-        text += (f"; 5 seeds read it above the {100 * t['seed_cv_target']:g} % aimed at "
-                 f"{100 * t['chance_above']:.0f} % of the time"
-                 + (" (the count is verification.max_tensile_specimens)"
-                    if n >= t.get("max", n) else ""))
+        text += ("; " + _shortfall(t) + (" (the count is verification.max_tensile_specimens)"
+                                         if n >= t.get("max", n) else ""))
     return text
+
+
+def _shortfall(t: dict) -> str:
+    """How often 5 seeds read σt's seed CV above the target (``verification.tensile``)."""
+    return (f"5 seeds read it above the {100 * t['seed_cv_target']:g} % aimed at "
+            f"{100 * t['chance_above']:.0f} % of the time")
 
 
 def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
