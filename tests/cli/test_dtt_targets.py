@@ -226,6 +226,24 @@ def test_the_cli_refuses_a_bad_specimen_count_in_one_line(card, d, tmp_path, cap
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("rounds", ["0", "Auto", "2.5", "51"])
+def test_the_cli_refuses_a_bad_round_budget_in_one_line(card, d, tmp_path, capsys, rounds):
+    from bpmcal.cli import main
+
+    rc = main(["verify", "--card", str(card), "--models", str(d / "models.json"),
+               "--out-card", str(tmp_path / "v.yaml"), "--rounds", str(tmp_path / "r.csv"),
+               "--run", str(tmp_path / "r.h5"), "--max-rounds", rounds])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and f"max-rounds={rounds!r}" in err[0], err
+    assert "or 'auto'" in err[-1] and not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("rounds", [0, "Auto", 2.5])
+def test_verify_refuses_a_bad_round_budget_naming_it(rounds):
+    with pytest.raises(V.BadInput, match=r"--max-rounds: max_rounds=.*or 'auto'"):
+        V._check_rounds(rounds)
+
+
 def test_no_two_specimens_of_seeds_below_100000_share_a_packing(monkeypatch):
     """Every tensile specimen j, replacement m and ISRM retest k of a seed is packed with
     seed + j x TENSILE_REPLICATE_STRIDE + m x BTS_REPLACEMENT_STRIDE + k x RETEST_SEED_STEP:

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from support.repo import REPO, SCHEMA, merged_config, update_config
 
-from bpmcal.study.config import ConfigError, load_lab, validate_config
+from bpmcal.study.config import ConfigError, load_lab, loop_rounds_bound, validate_config
 
 EXAMPLE = ("config.yaml", "examples/lac_du_bonnet.yaml")
 EXAMPLE_SMOKE = (*EXAMPLE, "examples/lac_du_bonnet_smoke.yaml")
@@ -82,12 +82,29 @@ def test_lab_csv_comment_lines_are_skipped(tmp_path):
      "study.reference: yu2026 compares the results with the paper's green sandstone specimens"),
     ({"study": {"reference": "yu2025"}}, "study.reference: 'yu2025' is not one of"),
     ({"verification": {"from_unreachable": "no"}}, "verification.from_unreachable: 'no' is not of type"),
+    ({"verification": {"max_rounds": "Auto"}}, "verification.max_rounds: 'Auto' does not match '^auto$'"),
+    ({"verification": {"max_rounds": 0}}, "verification.max_rounds: 0 is less than the minimum of 1"),
 ])
 def test_calibration_space_config_errors_name_the_key(patch, needle):
     cfg = update_config(merged_config(*EXAMPLE), patch, keep=("bounds",))
     with pytest.raises(ConfigError) as e:
         validate_config(cfg, SCHEMA, base_dir=REPO)
     assert needle in str(e.value)
+
+
+def test_a_cluster_loop_job_is_given_the_rounds_its_loop_may_take():
+    """verification.max_rounds auto: 2 per free parameter, the tensile strength counted
+    when a σt target frees it (the verify job's runtime on a cluster)."""
+    cfg = validate_config(merged_config("config.yaml"), SCHEMA, base_dir=REPO)
+    assert cfg["verification"]["max_rounds"] == "auto"
+    assert loop_rounds_bound(cfg, tensile=False) == 6 and loop_rounds_bound(cfg, tensile=True) == 8
+    cfg["calibration"]["free"] = [*cfg["calibration"]["free"], "pb_ten_MPa"]
+    assert loop_rounds_bound(cfg, tensile=True) == 8  # freed already: not counted twice
+    fj = validate_config(merged_config("config.yaml", "examples/lac_du_bonnet_fj.yaml"), SCHEMA,
+                         base_dir=REPO)
+    assert loop_rounds_bound(fj, tensile=True) == 8  # the model's default free + fj_ten_MPa
+    fj["verification"]["max_rounds"] = 5
+    assert loop_rounds_bound(fj, tensile=True) == 5
 
 
 def test_narrowing_bounds_are_accepted():

@@ -12,6 +12,7 @@ from support.repo import SCHEMA as SCHEMA_FILE
 
 from bpmcal import params as P
 from bpmcal.analysis import PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
+from bpmcal.analysis.calibration.closed_loop import auto_rounds
 from bpmcal.cli import build_parser
 from bpmcal.cli.options import DESIGN_STOP_DROP
 from bpmcal.lab.brazilian import BTSSettings
@@ -233,10 +234,11 @@ def test_a_setting_has_one_name_in_the_config_the_command_and_the_code():
 def test_the_two_known_disagreements_are_settled_as_the_study_runs():
     """ImpactSettings said 5 ms / 10 us where the CLI and the schema said 10 ms / 5 us, and
     ClosedLoop 6 rounds where the study ran 5: the study's values are the defaults (the
-    impact's limit is now 40 ms, longer than the rebound of every measured size; the loop's
-    6 rounds leave room for the polishing round)."""
+    impact's limit is now 40 ms, longer than the rebound of every measured size; the
+    loop's budget is two rounds per free parameter, 6 for the paper's three, room for the
+    polishing round)."""
     assert IMP.duration == pytest.approx(40e-3) and IMP.record_dt == pytest.approx(5e-6)
-    assert LOOP["max_rounds"] == 6
+    assert LOOP["max_rounds"] == "auto" and auto_rounds(len(P.LINEARPBOND.free)) == 6
     cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
     assert cfg["impact"]["duration_ms"] == 40.0 and cfg["impact"]["record_us"] == 5.0
     assert cfg["verification"]["max_rounds"] == LOOP["max_rounds"]

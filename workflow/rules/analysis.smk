@@ -164,7 +164,7 @@ rule verify:
     threads: config["resources"]["loop_threads"]  # its seeds side by side
     resources:
         runtime=config["resources"]["dem_runtime_min"]
-        * config["verification"]["max_rounds"]
+        * loop_rounds_bound(config, LAB_BTS or LAB_DTT)
         * config["verification"]["max_seeds"],
         mem_mb=config["resources"]["dem_mem_mb"] * config["resources"]["loop_threads"],
     params:

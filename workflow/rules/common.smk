@@ -13,7 +13,13 @@ import json
 
 from bpmcal.cli import BTS_OPTIONS, DTT_OPTIONS
 from bpmcal.io import study_files as L
-from bpmcal.study.config import ConfigError, load_lab, transfer_seed, validate_config
+from bpmcal.study.config import (
+    ConfigError,
+    load_lab,
+    loop_rounds_bound,
+    transfer_seed,
+    validate_config,
+)
 
 try:
     validate_config(config, workflow.source_path("../schemas/config.schema.yaml"))

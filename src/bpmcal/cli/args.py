@@ -99,6 +99,21 @@ def integer(name: str, lo: int | None = None, hi: int | None = None):
     return conv
 
 
+def integer_or(word: str, name: str, lo: int | None = None, hi: int | None = None):
+    """An argparse type: ``word`` as it is, else :func:`integer` within [lo, hi]."""
+    whole = integer(name, lo, hi)
+
+    def conv(s):
+        if s == word:
+            return s
+        try:
+            return whole(s)
+        except argparse.ArgumentTypeError as e:
+            raise argparse.ArgumentTypeError(f"{e}, or {word!r}") from None
+    conv.__name__ = name
+    return conv
+
+
 def choice(name: str, options):
     """An argparse type: one of ``options`` (the message names them)."""
     opts = tuple(options)

@@ -15,7 +15,7 @@ from pathlib import Path
 from ..io.checks import BadInput
 from ..stages import defaults_of
 from ..stages.progress import Progress
-from .args import SEED, integer, number
+from .args import SEED, integer, integer_or, number
 from .options import (
     add_bts_args,
     add_dtt_args,
@@ -74,6 +74,7 @@ def _seeds(text) -> list[int]:
 
 
 def _add_verify(p):
+    from ..analysis.calibration.closed_loop import AUTO_ROUNDS, ROUNDS_PER_FREE
     from ..stages.verification import MAX_TENSILE_SPECIMENS, TENSILE_REPLICATE_STRIDE, verify
 
     d = defaults_of(verify)
@@ -126,9 +127,11 @@ def _add_verify(p):
                         "every seed)")
     p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
                    help=f"relative tolerance (default {d['rtol']:g})")
-    p.add_argument("--max-rounds", type=integer("max-rounds", 1, 50), default=d["max_rounds"],
-                   help=f"rounds at most, each of --seeds-per-round DEM runs "
-                        f"(default {d['max_rounds']})")
+    p.add_argument("--max-rounds", type=integer_or(AUTO_ROUNDS, "max-rounds", 1, 50),
+                   default=d["max_rounds"],
+                   help=f"rounds at most, each of --seeds-per-round DEM runs, or "
+                        f"{AUTO_ROUNDS} ({ROUNDS_PER_FREE} per free parameter: 6 for the "
+                        f"paper's three, 8 with both strengths free; default {d['max_rounds']})")
     p.add_argument("--from-unreachable", action="store_true",
                    help="run the closed loop even when the card's inversion is unreachable "
                         "(default: do not; the verified card says why)")

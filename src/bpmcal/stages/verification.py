@@ -24,6 +24,7 @@ import pandas as pd
 from .. import params as P
 from ..analysis import ClosedLoop, scatter_table
 from ..analysis.calibration import UPDATES
+from ..analysis.calibration.closed_loop import check_max_rounds
 from ..analysis.calibration.specimens import (
     MISS_ACCEPTED,
     expected_cv,
@@ -604,7 +605,9 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
-    or ``max_rounds`` rounds are used up. Every round runs the candidate on
+    or ``max_rounds`` rounds are used up (``"auto"``: two per free parameter,
+    :func:`~bpmcal.analysis.calibration.closed_loop.auto_rounds`; the card records the
+    budget). Every round runs the candidate on
     ``seeds_per_round`` packing seeds (``seed``, ``seed + 1``, ...) and steers their mean;
     a target is met when the mean lies within max(``rtol``, 2 standard errors of the
     mean) of it (:class:`~bpmcal.analysis.ClosedLoop`), so the loop fits the rock, not
@@ -698,6 +701,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     max_seeds = max(max_seeds, seeds_per_round)
     range_margin = _check_margin(range_margin)
     jacobian_update = _check_update(jacobian_update)
+    _check_rounds(max_rounds)
     tensile_specimens = check_tensile_specimens(tensile_specimens)
     tensile_seed_cv = check_seed_cv(tensile_seed_cv)
     max_tensile_specimens = check_tensile_specimens(  # never below the start: _LoopRuns
@@ -811,7 +815,8 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
         "runs": sum(len(r) for r in by_round), "rtol": rtol, "seed": seed,
         "seeds": [int(x) for x in res.seeds], "n_seeds": int(res.n_seeds),
         "seeds_per_round": seeds_per_round, "max_seeds": max_seeds, "polish": bool(polish),
-        "jacobian_update": jacobian_update, "best_round": best + 1, "run_seed": seeds[0],
+        "jacobian_update": jacobian_update, "max_rounds": int(res.max_rounds),
+        "best_round": best + 1, "run_seed": seeds[0],
         "jacobian": {r: {p: float(x) for p, x in row.items()}
                      for r, row in res.jacobian.iterrows()},
         "single_pass": _responses(by_round[0], targets),
@@ -866,6 +871,14 @@ def check_tri_target(card, targets: dict, tri_settings, model_set=None, models=N
 def _notes(progress):
     """A line reporter that passes each line to ``progress`` as a note (None: none)."""
     return None if progress is None else (lambda line: progress({"note": line}))
+
+
+def _check_rounds(max_rounds) -> None:
+    """BadInput naming ``max_rounds`` unless the closed loop takes it."""
+    try:
+        check_max_rounds(max_rounds)
+    except ValueError as e:
+        raise BadInput(f"--max-rounds: {e}") from None
 
 
 def _check_update(rule) -> str:

@@ -6,6 +6,7 @@ cannot disagree (tests/study/test_config_doc.py). Regenerate it with
 from __future__ import annotations
 
 import json
+import re
 
 from .. import params as P
 
@@ -23,6 +24,10 @@ def _allowed(node: dict) -> str:
             n = f"≥ {node['minItems']} "
         inner = _allowed(node.get("items", {}))
         return f"list of {n}{inner or 'items'}".strip()
+    word = re.fullmatch(r"\^(\w+)\$", node.get("pattern", ""))  # an integer or a word
+    if word and isinstance(t, list) and "string" in t:
+        rest = _allowed({k: v for k, v in node.items() if k != "pattern"})
+        return f"{rest} or {word.group(1)}" if rest else word.group(1)
     a = node.get("exclusiveMinimum", node.get("minimum"))
     b = node.get("exclusiveMaximum", node.get("maximum"))
     lo = "(" if "exclusiveMinimum" in node or a is None else "["

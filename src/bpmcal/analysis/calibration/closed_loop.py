@@ -37,6 +37,32 @@ from .space import (
     space_model,
 )
 
+#: ``max_rounds`` of a loop that sizes its budget by its free parameters (:func:`auto_rounds`)
+AUTO_ROUNDS = "auto"
+#: rounds per free parameter of ``max_rounds="auto"``
+ROUNDS_PER_FREE = 2
+
+
+def auto_rounds(n_free: int) -> int:
+    """The round budget of a loop with ``n_free`` free parameters: ``ROUNDS_PER_FREE``
+    per parameter. A secant (Broyden) method learns the Jacobian one step direction at a
+    time; on a linear system it solves within 2n steps (Gay 1979, SIAM J. Numer. Anal.
+    16, 623-630). The loop's steps are damped, capped and noisy, so this is a scale, not
+    a guarantee: the paper's three free parameters keep its 6 rounds, four (both
+    strengths free under a σt target) get 8, five 10 (docs/calibration.md, "The round
+    budget", says what was measured)."""
+    if isinstance(n_free, bool) or not isinstance(n_free, (int, np.integer)) or n_free < 1:
+        raise ValueError(f"n_free={n_free!r}: expected a number of free parameters >= 1")
+    return ROUNDS_PER_FREE * int(n_free)
+
+
+def check_max_rounds(max_rounds) -> None:
+    """A ValueError naming ``max_rounds`` unless it is an integer >= 1 or ``"auto"``."""
+    whole = isinstance(max_rounds, (int, np.integer)) and not isinstance(max_rounds, bool)
+    if not ((whole and max_rounds >= 1) or max_rounds == AUTO_ROUNDS):
+        raise ValueError(f"max_rounds={max_rounds!r}: expected an integer >= 1 or "
+                         f"{AUTO_ROUNDS!r} ({ROUNDS_PER_FREE} per free parameter)")
+
 
 @dataclass
 class ClosedLoopResult:
@@ -59,7 +85,8 @@ class ClosedLoopResult:
     responses). ``jacobian`` is the final Broyden estimate of ∂response/∂parameter in
     physical units. ``sign_held``: the starting Jacobian's entries set to 0 because the
     regression gave a strength that falls with a bond strength (response, parameter, the
-    regression's slope; :meth:`ClosedLoop._hold_signs`).
+    regression's slope; :meth:`ClosedLoop._hold_signs`). ``max_rounds``: the round budget
+    the loop had (``"auto"`` resolved by :func:`auto_rounds`).
     """
 
     status: str
@@ -76,6 +103,7 @@ class ClosedLoopResult:
     outside: dict = field(default_factory=dict)
     loop_bounds: dict = field(default_factory=dict)
     sign_held: list = field(default_factory=list)
+    max_rounds: int = 0
 
     @property
     def converged(self) -> bool:
@@ -121,8 +149,9 @@ class ClosedLoop:
         Relative tolerance, one number or response -> number (default 0.01); the loop
         stops when every mean is within max(rtol, z · SE) of its target (module docstring).
     max_rounds:
-        Maximum number of rounds (default 6, room for a polishing round), each of
-        ``seeds_per_round`` simulations.
+        Maximum number of rounds, each of ``seeds_per_round`` simulations: an integer,
+        or ``"auto"`` (the default): :func:`auto_rounds`, two rounds per free parameter
+        (6 for the paper's three).
     seeds_per_round, seeds:
         The packing seeds every round runs (the same in every round): ``seeds`` (distinct
         integers), else 1..``seeds_per_round``; default 3 seeds for a simulator with a
@@ -212,7 +241,8 @@ class ClosedLoop:
                  ranges: Mapping[str, Sequence[float]],
                  bounds: Mapping[str, Sequence[float]] | None = None,
                  models: Mapping[str, RegressionModel] | None = None, jacobian: pd.DataFrame | None = None,
-                 rtol: float | Mapping[str, float] = 0.01, max_rounds: int = 6, damping: float = 0.8,
+                 rtol: float | Mapping[str, float] = 0.01, max_rounds: int | str = "auto",
+                 damping: float = 0.8,
                  max_step: float = 0.25, broyden: bool = True, seeds_per_round: int | None = None,
                  seeds: Sequence[int] | None = None, z: float = 2.0, max_seeds: int | None = None,
                  margin: float = 0.0, polish: bool = True,
@@ -245,8 +275,7 @@ class ClosedLoop:
         rt = {r: float(rtol[r] if isinstance(rtol, Mapping) else rtol) for r in self.responses}
         if not all(v > 0 for v in rt.values()):
             raise ValueError(f"rtol={rtol!r}: expected positive relative tolerance(s)")
-        if not isinstance(max_rounds, (int, np.integer)) or max_rounds < 1:
-            raise ValueError(f"max_rounds={max_rounds!r}: expected an integer >= 1")
+        check_max_rounds(max_rounds)
         if not 0 < damping <= 1:
             raise ValueError(f"damping={damping!r}: expected a factor in (0, 1]")
         if not 0 < max_step <= 1:
@@ -258,7 +287,8 @@ class ClosedLoop:
         self.free, self.ratio, self.ranges, self.bounds = free, ratio, _check_ranges(ranges), bounds
         self.models, self.jacobian = models, jacobian
         self.rtol = np.array([rt[r] for r in self.responses])
-        self.max_rounds, self.damping, self.max_step = int(max_rounds), float(damping), float(max_step)
+        self.max_rounds = max_rounds if max_rounds == AUTO_ROUNDS else int(max_rounds)
+        self.damping, self.max_step = float(damping), float(max_step)
         self.broyden = bool(broyden)
         if update not in UPDATES:
             raise ValueError(f"update={update!r}: expected one of {list(UPDATES)}")
@@ -387,6 +417,9 @@ class ClosedLoop:
     def run(self, initial: Mapping[str, float]) -> ClosedLoopResult:
         """Iterate from ``initial`` (a full parameter set, e.g. ``invert(...).solution``)."""
         space = self._space(initial)
+        # "auto": resolved once the free parameters are known
+        n_rounds = (auto_rounds(len(space.free)) if self.max_rounds == AUTO_ROUNDS
+                    else self.max_rounds)
         box = space.loop_box(self.margin)
         u = self._start(space, box, initial)
         J = J0 = self._initial_jacobian(space, space.x(u))
@@ -397,8 +430,8 @@ class ClosedLoop:
         polished_from = None  # the converged round a polishing step left
         trust = _TrustRegion(self.max_step, len(space.free))
         stats = _SeedStats(len(self.responses))
-        out = _Outcome("max_rounds", f"tolerance not met within {self.max_rounds} rounds")
-        for rnd in range(self.max_rounds):
+        out = _Outcome("max_rounds", f"tolerance not met within {n_rounds} rounds")
+        for rnd in range(n_rounds):
             params = space.full(space.x(u))
             rd = self._run_round(rnd, params, seeds, spare, stats, samples)
             seeds, spare = rd.seeds, rd.spare
@@ -428,9 +461,9 @@ class ClosedLoop:
             rec["broyden_update"], rec["broyden_rows"] = bool(rows), ",".join(rows)
             within = bool(np.all(np.abs(e) <= tol))
             polishing = (polished_from is None and within and self.polish and rd.k > 1
-                         and rnd < self.max_rounds - 1 and bool(np.any(np.abs(e) > rd.se)))
+                         and rnd < n_rounds - 1 and bool(np.any(np.abs(e) > rd.se)))
             decided = self._decide(rnd, rd, within, polishing, polished_from)
-            if decided is not None or rnd == self.max_rounds - 1:
+            if decided is not None or rnd == n_rounds - 1:
                 history.append(rec)
                 out = decided or out
                 break
@@ -442,7 +475,7 @@ class ClosedLoop:
             if polishing:
                 polished_from = rnd
             prev, u = (u, e, rd.ys), u_new
-        return self._result(space, box, history, samples, J, seeds, out)
+        return self._result(space, box, history, samples, J, seeds, out, n_rounds)
 
     def _start(self, space: CalibrationSpace, box, initial: Mapping[str, float]) -> np.ndarray:
         """The starting point in unit coordinates; an error if it lies outside the loop's box."""
@@ -695,7 +728,7 @@ class ClosedLoop:
                         "unreachable within the parameter ranges")
 
     def _result(self, space: CalibrationSpace, box, history: list, samples: list, J: np.ndarray,
-                seeds: list, out: _Outcome) -> ClosedLoopResult:
+                seeds: list, out: _Outcome, max_rounds: int) -> ClosedLoopResult:
         """The result: the history, and the parameters and responses of the best round."""
         hist = pd.DataFrame.from_records(history)
         message = out.message
@@ -715,7 +748,7 @@ class ClosedLoop:
             n_seeds=int(best["n_seeds"]), seeds=tuple(seeds[:int(best["n_seeds"])]),
             best_round=int(best["round"]), outside=_outside(space, space.full(x_best)),
             loop_bounds={p: (float(a), float(b)) for p, a, b in zip(space.free, xlo, xhi)},
-            sign_held=list(self.sign_held))
+            sign_held=list(self.sign_held), max_rounds=max_rounds)
 
 
 @dataclass
