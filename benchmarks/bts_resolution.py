@@ -292,7 +292,7 @@ def cards(a, argv) -> dict:
     meta = _meta(argv)
     scale = cfg["bts"]["scale"] or cfg["specimen"]["scale"]
     seeds = [int(x) for x in a.seeds.split(",")]
-    named = {"A1": dict(A1)}
+    named = {} if a.without_a1 else {"A1": dict(A1)}
     for f in (x for x in a.cards.split(",") if x):
         card = yaml.safe_load(Path(f).read_text())
         prm = card_parameters(card)
@@ -519,6 +519,8 @@ def main(argv=None) -> int:
     ca.add_argument("--seeds", default="1,2,3,4,5")
     ca.add_argument("--specimens", type=int, default=1,
                     help="discs per seed, measured as the study's loop measures a seed")
+    ca.add_argument("--without-a1", action="store_true",
+                    help="the given cards only (by default the paper's A1 runs beside them)")
     for p in (c, lo, dd, ca):
         p.add_argument("--config", default=str(CONFIG))
         p.add_argument("--jobs", type=int, default=2)
