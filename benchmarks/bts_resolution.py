@@ -18,7 +18,8 @@ Three parts, each a JSON record (date, commit, CPU model, load average, the comm
   cards: the parameters the card stands for) and of A1, on packing ``--seeds``, with the
   config's ``bts`` settings: valid fraction, mean and seed CV per card. With
   ``--specimens N`` each seed is measured as the study's closed loop and fresh-seed check
-  measure it (``verification.seed_strength``: N discs on packings seed + j x 1,000,000,
+  measure it (``verification.seed_strength``: N discs on packings seed + j x the
+  replicate stride,
   an invalid disc replaced), and the seed CV is given for a seed's sigma_t as the mean of
   its first k = 1 .. N discs (``verification.tensile_specimens`` = k).
 
@@ -56,6 +57,7 @@ from _study import A1, CONFIG, REPO, bts_disc_and_settings, cpu_model, study_des
 # the σt seed CV a card must meet over 5 seeds (issue 24), the chance of missing it that
 # the choice of ``verification.tensile_specimens`` accepts: the closed loop's own rule
 from bpmcal.analysis.calibration.specimens import CV_TARGET, MISS_ACCEPTED, N_CHECK, expected_cv
+from bpmcal.stages.verification import TENSILE_REPLICATE_STRIDE
 
 #: loading variants of the ``loadings`` part: name -> BTSSettings overrides
 VARIANTS = {
@@ -299,7 +301,8 @@ def cards(a, argv) -> dict:
         named[f"{card['specimen']} ({Path(f).parent.name}/{Path(f).name})"] = {
             k: float(prm[k]) for k in P.PARAMS}
     rec = {**meta, "part": "cards", "config": str(a.config), "bts": cfg["bts"],
-           "scale": scale, "seeds": seeds, "parameters": named}
+           "scale": scale, "seeds": seeds, "parameters": named,
+           "replicate_stride": TENSILE_REPLICATE_STRIDE}
     with tempfile.TemporaryDirectory() as tmp:
         if a.specimens > 1:  # each seed as the study measures it, N discs
             jobs = [(name, prm, s, a.specimens, str(Path(tmp) / f"c{i}"), cfg)
@@ -433,7 +436,7 @@ def disc_cv(recs) -> dict:
     return out
 
 
-def _expected_table(cvs: dict, what: str, n: int = 4) -> list[str]:
+def _expected_table(cvs: dict, what: str, n: int = 4, stride: int = 1_000_000) -> list[str]:
     """The table of :func:`expected_cv` for k = 1 .. n and each card of ``cvs``
     (:func:`disc_cv`), and the smallest k whose chance is below MISS_ACCEPTED for all."""
     lines = [f"{what}: the disc CV, the seed CV expected of a k-disc mean (the disc CV / √k; "
@@ -441,7 +444,7 @@ def _expected_table(cvs: dict, what: str, n: int = 4) -> list[str]:
              f"measured over {N_CHECK} seeds exceeds {100 * CV_TARGET:g} % (χ² with "
              f"{N_CHECK - 1} degrees of freedom). The mean of disc 0 (packed with the seed "
              "itself, as the seed's UCS cylinder is) beside that of the other discs (seed + "
-             "j x 1,000,000):", "",
+             f"j x {stride:,}):", "",
              "| card | discs | disc CV | disc 0 / discs 1+: σt (MPa) | "
              + " | ".join(f"k = {k}: CV, P(CV{N_CHECK} > {100 * CV_TARGET:g} %)"
                           for k in range(1, n + 1)) + " |",
@@ -486,8 +489,11 @@ def _block_cvs(rec: dict) -> list[str]:
 
 def _specimens_expected(rec: dict) -> list[str]:
     """:func:`_expected_table` of one ``cards --specimens`` record."""
+    # records since 2026-11-29 name the replicate stride and give k up to their N
+    new = "replicate_stride" in rec
     return [""] + _expected_table(
-        disc_cv(rec), f"Expected from every disc of a card ({rec['specimens']} per seed)")
+        disc_cv(rec), f"Expected from every disc of a card ({rec['specimens']} per seed)",
+        rec["specimens"] if new else 4, rec.get("replicate_stride", 1_000_000))
 
 
 def _seed_span(seeds) -> str:

@@ -23,6 +23,18 @@ def test_the_tensile_strength_records_are_their_json_rendered():
         assert page.read_text() == bts_resolution.markdown(recs, title, names), page.name
 
 
+def test_the_planted_cards_tensile_records_are_their_json_rendered():
+    for page, names in (
+            ("2026-11-29c-bts-size-planted.md", ("results_bts_resolution_2026-11-29_planted_u.json",
+                                                 "results_bts_resolution_2026-11-29_planted_q.json")),
+            ("2026-11-29g-bts-specimens-planted.md",
+             ("results_bts_specimens_planted_u_2026-11-29.json",))):
+        page = REPO / "docs" / "measurements" / page
+        recs = [json.loads((REPO / "benchmarks" / n).read_text()) for n in names]
+        title = page.read_text().splitlines()[0][2:]
+        assert page.read_text() == bts_resolution.markdown(recs, title, list(names)), page.name
+
+
 def test_every_record_page_is_listed_in_the_index():
     index = (REPO / "docs" / "measurements" / "README.md").read_text()
     for page in (REPO / "docs" / "measurements").glob("2*.md"):
