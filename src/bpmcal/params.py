@@ -26,6 +26,7 @@ schema's parameter limits are tested against it (``tests/workflow/test_defaults.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 
@@ -207,6 +208,28 @@ FLATJOINT = ContactModel(
 MODELS: dict[str, ContactModel] = {m.name: m for m in (LINEARPBOND, FLATJOINT)}
 #: contact models by PFC name: the parameters of their cards
 CONTACT_MODELS: dict[str, dict[str, Param]] = {k: m.params for k, m in MODELS.items()}
+
+# ---------------------------------------------------------------- the closed loop's budget
+#: ``max_rounds`` of a loop that sizes its budget by its free parameters (:func:`auto_rounds`)
+AUTO_ROUNDS = "auto"
+#: rounds per free parameter of ``max_rounds="auto"``
+ROUNDS_PER_FREE = 2
+
+
+def auto_rounds(n_free: int) -> int:
+    """The round budget of a loop with ``n_free`` free parameters: ``ROUNDS_PER_FREE``
+    per parameter. A secant (Broyden) method learns the Jacobian one step direction at a
+    time; on a linear system it solves within 2n steps (Gay 1979, SIAM J. Numer. Anal.
+    16, 623-630). The loop's steps are damped, capped and noisy, so this is a scale, not
+    a guarantee: the paper's three free parameters keep its 6 rounds, four (both
+    strengths free under a σt target) get 8, five 10 (docs/calibration.md, "The round
+    budget", says what was measured; :class:`~bpmcal.analysis.calibration.ClosedLoop`
+    uses it)."""
+    if isinstance(n_free, bool) or not isinstance(n_free, numbers.Integral) or n_free < 1:
+        raise ValueError(f"n_free={n_free!r}: expected a number of free parameters >= 1")
+    return ROUNDS_PER_FREE * int(n_free)
+
+
 DEFAULT_CONTACT_MODEL = "linearpbond"
 #: every parameter of every contact model, name -> Param (the names do not overlap
 #: except for the ball parameters, which are the same Param)

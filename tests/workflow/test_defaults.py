@@ -12,7 +12,6 @@ from support.repo import SCHEMA as SCHEMA_FILE
 
 from bpmcal import params as P
 from bpmcal.analysis import PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
-from bpmcal.analysis.calibration.closed_loop import auto_rounds
 from bpmcal.cli import build_parser
 from bpmcal.cli.options import DESIGN_STOP_DROP
 from bpmcal.lab.brazilian import BTSSettings
@@ -22,6 +21,7 @@ from bpmcal.lab.impact import ImpactSettings
 from bpmcal.lab.runner import BTS_DIAMETER_MM, BTS_THICKNESS_MM, Geometry
 from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
+from bpmcal.params import auto_rounds
 from bpmcal.stages import defaults_of
 from bpmcal.stages.analysis import calibrate, transfer, verify
 from bpmcal.stages.ratio_sweep import sweep_analyse, sweep_plan

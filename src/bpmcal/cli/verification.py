@@ -74,7 +74,7 @@ def _seeds(text) -> list[int]:
 
 
 def _add_verify(p):
-    from ..analysis.calibration.closed_loop import AUTO_ROUNDS, ROUNDS_PER_FREE
+    from ..params import AUTO_ROUNDS, ROUNDS_PER_FREE
     from ..stages.verification import MAX_TENSILE_SPECIMENS, TENSILE_REPLICATE_STRIDE, verify
 
     d = defaults_of(verify)

@@ -606,7 +606,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
     or ``max_rounds`` rounds are used up (``"auto"``: two per free parameter,
-    :func:`~bpmcal.analysis.calibration.closed_loop.auto_rounds`; the card records the
+    :func:`~bpmcal.params.auto_rounds`; the card records the
     budget). Every round runs the candidate on
     ``seeds_per_round`` packing seeds (``seed``, ``seed + 1``, ...) and steers their mean;
     a target is met when the mean lies within max(``rtol``, 2 standard errors of the

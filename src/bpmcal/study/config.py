@@ -375,20 +375,18 @@ def loop_seeds(verification: dict) -> list[int]:
 def loop_rounds_bound(cfg: dict, tensile: bool) -> int:
     """The most rounds a study's closed loop may take (a cluster job's time limit):
     ``verification.max_rounds``, or for ``auto`` two per free parameter
-    (:func:`~bpmcal.analysis.calibration.closed_loop.auto_rounds`), counting the
+    (:func:`bpmcal.params.auto_rounds`), counting the
     tensile strength a σt target frees (``tensile``) when the config does not fix or
     free it already."""
-    from ..analysis.calibration.closed_loop import AUTO_ROUNDS, auto_rounds
-
     m = cfg["verification"]["max_rounds"]
-    if m != AUTO_ROUNDS:
+    if m != P.AUTO_ROUNDS:
         return int(m)
     model = P.MODELS[cfg.get("contact_model", P.DEFAULT_CONTACT_MODEL)]
     c = cfg["calibration"]
     free = list(c.get("free") or model.free)
     if tensile and model.ten and model.ten not in free and model.ten not in (c.get("fixed") or {}):
         free.append(model.ten)
-    return auto_rounds(len(free))
+    return P.auto_rounds(len(free))
 
 
 def transfer_seed(verification: dict) -> int:

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from bpmcal.params import STRENGTH_RESPONSES, ParameterError
+from bpmcal.params import AUTO_ROUNDS, ROUNDS_PER_FREE, STRENGTH_RESPONSES, ParameterError, auto_rounds
 
 from ..stepwise import RegressionModel
 from .space import (
@@ -36,24 +36,6 @@ from .space import (
     _inside,
     space_model,
 )
-
-#: ``max_rounds`` of a loop that sizes its budget by its free parameters (:func:`auto_rounds`)
-AUTO_ROUNDS = "auto"
-#: rounds per free parameter of ``max_rounds="auto"``
-ROUNDS_PER_FREE = 2
-
-
-def auto_rounds(n_free: int) -> int:
-    """The round budget of a loop with ``n_free`` free parameters: ``ROUNDS_PER_FREE``
-    per parameter. A secant (Broyden) method learns the Jacobian one step direction at a
-    time; on a linear system it solves within 2n steps (Gay 1979, SIAM J. Numer. Anal.
-    16, 623-630). The loop's steps are damped, capped and noisy, so this is a scale, not
-    a guarantee: the paper's three free parameters keep its 6 rounds, four (both
-    strengths free under a σt target) get 8, five 10 (docs/calibration.md, "The round
-    budget", says what was measured)."""
-    if isinstance(n_free, bool) or not isinstance(n_free, (int, np.integer)) or n_free < 1:
-        raise ValueError(f"n_free={n_free!r}: expected a number of free parameters >= 1")
-    return ROUNDS_PER_FREE * int(n_free)
 
 
 def check_max_rounds(max_rounds) -> None:
