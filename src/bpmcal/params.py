@@ -166,6 +166,16 @@ class ContactModel:
         """The cohesion of the strength pair."""
         return self.strength[1] if self.strength else None
 
+    def tensile_free(self, free=None, fixed=()) -> tuple[str, ...]:
+        """The parameters a calibration against a tensile target frees: ``free`` (else
+        the model's default) with the tensile strength beside them, since σt then sets
+        the strength ratio; unchanged when ``fixed`` holds the tensile strength (σt a
+        plain target) or the model has no strength pair."""
+        base = tuple(free) if free is not None else self.free
+        if self.ten is None or self.ten in fixed or self.ten in base:
+            return base
+        return base + (self.ten,)
+
     def design_ranges(self) -> dict[str, tuple[float, float]]:
         """The default design ranges (paper units): Table 2 for the parallel bond."""
         return {p.name: (p.lo, p.hi) for p in self.params.values()}

@@ -383,10 +383,10 @@ def loop_rounds_bound(cfg: dict, tensile: bool) -> int:
         return int(m)
     model = P.MODELS[cfg.get("contact_model", P.DEFAULT_CONTACT_MODEL)]
     c = cfg["calibration"]
-    free = list(c.get("free") or model.free)
-    if tensile and model.ten and model.ten not in free and model.ten not in (c.get("fixed") or {}):
-        free.append(model.ten)
-    return P.auto_rounds(len(free))
+    free = c.get("free") or None
+    if tensile:
+        free = model.tensile_free(free, c.get("fixed") or {})
+    return P.auto_rounds(len(free or model.free))
 
 
 def transfer_seed(verification: dict) -> int:

@@ -76,10 +76,7 @@ def bts_strengths(targets: Mapping[str, float], free: Sequence[str] | None, fixe
     model = space_model(free, fixed)
     if tr is None or model.ten in fixed:
         return (tuple(free) if free is not None else None), ratio, "ratio"
-    base = tuple(free) if free is not None else model.free
-    if model.ten not in base:
-        base = base + (model.ten,)
-    return base, None, tr
+    return model.tensile_free(free, fixed), None, tr
 
 
 class CalibrationSpace:
