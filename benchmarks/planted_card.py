@@ -38,6 +38,11 @@ PLANTED = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=25.0, pb_kratio=2.5, pb_t
                pb_coh_MPa=37.5, pb_fa_deg=35.0, fric=0.35)
 
 
+#: the verification settings a planted-card record names (from its config)
+LOOP_SETTINGS = ("max_rounds", "seeds_per_round", "max_seeds", "grow_within", "jacobian_update",
+                 "tensile_specimens", "tensile_seed_cv", "max_tensile_specimens")
+
+
 def _run(cmd, log):
     t = time.time()
     r = subprocess.run(cmd, capture_output=True, text=True)
@@ -154,8 +159,10 @@ def main(argv=None) -> int:
               str(study / "regression" / "models.json"), "--out-card", str(verified),
               "--rounds", str(tmp / "rounds.csv"), "--run", str(tmp / "best.h5"),
               "--seed", str(v["seed"]), "--seeds-per-round", str(v["seeds_per_round"]),
-              "--max-seeds", str(v["max_seeds"]), "--range-margin", str(v["range_margin"]),
+              "--max-seeds", str(v["max_seeds"]), "--grow-within", str(v["grow_within"]),
+              "--range-margin", str(v["range_margin"]),
               "--rtol", str(v["rtol"]), "--max-rounds", str(v["max_rounds"]),
+              "--jacobian-update", v["jacobian_update"],
               "--tensile-specimens", str(v["tensile_specimens"]), *adapt, *common, *bts_opts,
               *cache, *loop_threads], log)  # the fresh-seed check measures σt as the card's loop did
         seeds = [int(s) for s in v["fresh_seeds"]]
@@ -198,6 +205,9 @@ def main(argv=None) -> int:
         "own_tensile_specimens": int(ver.get("tensile_specimens", 1)),  # the card's count
         "tensile": ver.get("tensile"),
         "reused_runs": reused,
+        # the loop's settings from --config (a config other than the default one can
+        # change them; the record names them)
+        "loop_settings": {k: v[k] for k in LOOP_SETTINGS if k in v},
         "cpu_s_children": (c1.children_user + c1.children_system)
                           - (c0.children_user + c0.children_system),
         "cpu_s_self": time.process_time() - cpu0, "commands": log,
@@ -348,6 +358,12 @@ def markdown(rec: dict) -> str:
                   + ("passed on every target" if not missed else "not passed on " + ", ".join(
                       missed)) + f". The planted-card target (the loop converges and the "
                   f"check passes): **{'met' if ok else 'not met'}**."]
+    if rec.get("loop_settings"):
+        lines += ["", "The loop's settings (the `verification` section of the command's "
+                      "config): " + ", ".join(f"`{k}` {val}" for k, val
+                                             in rec["loop_settings"].items()) + "."]
+    if rec.get("note"):  # a hand-written note added to the record (JSON key "note")
+        lines += ["", rec["note"]]
     return "\n".join(lines) + "\n"
 
 
