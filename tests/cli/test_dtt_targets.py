@@ -244,6 +244,25 @@ def test_verify_refuses_a_bad_round_budget_naming_it(rounds):
         V._check_rounds(rounds)
 
 
+@pytest.mark.parametrize("factor", ["0.5", "two", "nan", "-1"])
+def test_the_cli_refuses_a_bad_grow_within_in_one_line(card, d, tmp_path, capsys, factor):
+    from bpmcal.cli import main
+
+    rc = main(["verify", "--card", str(card), "--models", str(d / "models.json"),
+               "--out-card", str(tmp_path / "v.yaml"), "--rounds", str(tmp_path / "r.csv"),
+               "--run", str(tmp_path / "r.h5"), "--grow-within", factor])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and f"grow-within={factor!r}" in err[0], err
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("factor", [0.99, 0, True, "2"])
+def test_verify_refuses_a_bad_grow_within_naming_it(factor):
+    with pytest.raises(V.BadInput, match=r"--grow-within: grow_within=.*factor >= 1"):
+        V._check_grow(factor)
+    assert V._check_grow(1) == 1.0 and V._check_grow(2.5) == 2.5
+
+
 def test_no_two_specimens_of_seeds_below_100000_share_a_packing(monkeypatch):
     """Every tensile specimen j, replacement m and ISRM retest k of a seed is packed with
     seed + j x TENSILE_REPLICATE_STRIDE + m x BTS_REPLACEMENT_STRIDE + k x RETEST_SEED_STEP:

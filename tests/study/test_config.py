@@ -84,6 +84,8 @@ def test_lab_csv_comment_lines_are_skipped(tmp_path):
     ({"verification": {"from_unreachable": "no"}}, "verification.from_unreachable: 'no' is not of type"),
     ({"verification": {"max_rounds": "Auto"}}, "verification.max_rounds: 'Auto' does not match '^auto$'"),
     ({"verification": {"max_rounds": 0}}, "verification.max_rounds: 0 is less than the minimum of 1"),
+    ({"verification": {"grow_within": 0.5}},
+     "verification.grow_within: 0.5 is less than the minimum of 1"),
 ])
 def test_calibration_space_config_errors_name_the_key(patch, needle):
     cfg = update_config(merged_config(*EXAMPLE), patch, keep=("bounds",))

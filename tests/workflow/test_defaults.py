@@ -97,6 +97,7 @@ DEFAULTS = {
     "verification.seed": (VER["seed"], ("verify", "seed", None)),
     "verification.seeds_per_round": (VER["seeds_per_round"], ("verify", "seeds_per_round", None)),
     "verification.max_seeds": (VER["max_seeds"], ("verify", "max_seeds", None)),
+    "verification.grow_within": (LOOP["grow_within"], ("verify", "grow_within", None)),
     "verification.range_margin": (VER["range_margin"], ("verify", "range_margin", None)),
     "verification.polish": (VER["polish"], ("verify", "polish", None)),
     "verification.jacobian_update": (VER["jacobian_update"], ("verify", "jacobian_update", None)),

@@ -176,6 +176,7 @@ rule verify:
                 "seed",
                 "seeds_per_round",
                 "max_seeds",
+                "grow_within",
                 "rtol",
                 "max_rounds",
                 "range_margin",
@@ -216,7 +217,8 @@ rule verify:
         "bpmcal verify --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
         "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
-        "--max-seeds {params.v[max_seeds]:q} --range-margin {params.v[range_margin]:q} "
+        "--max-seeds {params.v[max_seeds]:q} --grow-within {params.v[grow_within]:q} "
+        "--range-margin {params.v[range_margin]:q} "
         "--jacobian-update {params.v[jacobian_update]:q} {params.polish:q} "
         "--tensile-specimens {params.v[tensile_specimens]:q} {params.tcv:q} {params.tseeds:q} "
         "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "

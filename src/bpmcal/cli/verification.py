@@ -95,9 +95,15 @@ def _add_verify(p):
                         f"their mean (default {d['seeds_per_round']})")
     p.add_argument("--max-seeds", type=integer("max-seeds", 1, 200), default=d["max_seeds"],
                    help="the seed set may grow to this many seeds once the means are within "
-                        "tolerance but their standard errors are too large to state them to "
-                        f"--rtol (default {d['max_seeds']}; at most --seeds-per-round: no "
-                        "growth)")
+                        "--grow-within tolerances but their standard errors are too large to "
+                        f"state them to --rtol (default {d['max_seeds']}; at most "
+                        "--seeds-per-round: no growth)")
+    p.add_argument("--grow-within", type=number("grow-within", 1.0),
+                   default=d["grow_within"],
+                   help="the seed set grows once every mean is within this many tolerances "
+                        "(a few seeds' spread can understate the scatter, so close to the "
+                        "targets the loop steers the grown set, not those seeds; "
+                        f"1: only once within tolerance; default {d['grow_within']:g})")
     p.add_argument("--tensile-specimens",
                    type=integer("tensile-specimens", 1, MAX_TENSILE_SPECIMENS),
                    default=d["tensile_specimens"],
@@ -159,6 +165,7 @@ def cmd_verify(args) -> int:
                jacobian_update=args.jacobian_update, tensile_specimens=args.tensile_specimens,
                triaxial_seeds=args.triaxial_seeds, tensile_seed_cv=args.tensile_seed_cv,
                max_tensile_specimens=args.max_tensile_specimens,
+               grow_within=args.grow_within,
                dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
                **budget_of(args))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")

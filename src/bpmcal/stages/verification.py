@@ -24,7 +24,7 @@ import pandas as pd
 from .. import params as P
 from ..analysis import ClosedLoop, scatter_table
 from ..analysis.calibration import UPDATES
-from ..analysis.calibration.closed_loop import check_max_rounds
+from ..analysis.calibration.closed_loop import check_grow_within, check_max_rounds
 from ..analysis.calibration.specimens import (
     MISS_ACCEPTED,
     expected_cv,
@@ -57,6 +57,7 @@ from .runs import (  # noqa: F401 (the per-sample tests' runners: _TEST_RUN name
 
 #: the defaults of the stages are those of the analysis they run
 _LOOP = defaults_of(ClosedLoop)
+_LOOP_GROW = _LOOP["grow_within"]
 
 #: responses a verified card records per round besides the targets
 _EXTRA = ("u_pre_MJm3", "peak_strain", "cracks_tension", "cracks_shear")
@@ -273,8 +274,9 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
               jacobian=None, range_margin=0.0, polish=True, cylinder=None,
               dtt_settings=None, tri_settings=None, jacobian_update="broyden",
               tensile_specimens=1, triaxial_seeds=None, tensile_seed_cv=None,
-              max_tensile_specimens=None):
-    """The closed loop on ``seeds``, growing to ``max_seeds`` (every round runs each seed
+              max_tensile_specimens=None, grow_within=_LOOP_GROW):
+    """The closed loop on ``seeds``, growing to ``max_seeds`` once every mean is within
+    ``grow_within`` tolerances (every round runs each seed
     into a temporary file: the UCS test and, when σt is a target, the Brazilian test on
     ``disc`` (or the direct-tension test on ``cylinder``) with the same seed, and when
     ``tri_MPa`` is one, the triaxial test with ``tri_settings`` on the UCS cylinder; the
@@ -315,7 +317,8 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
                           max_seeds=max_seeds, margin=range_margin, polish=polish,
                           target_se=c.get("target_se") or None,
                           update=jacobian_update, report=_notes(progress),
-                          simulate_seeds=runs.simulate_seeds, seed_caps=caps or None)
+                          simulate_seeds=runs.simulate_seeds, seed_caps=caps or None,
+                          grow_within=grow_within)
         res = loop.run(params)
         best = res.best_round  # converged, else the smallest max |error| of the seed mean
         os.replace(runs.paths[best][0], run)  # the best round's first seed is the run file
@@ -601,7 +604,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            bts_run=None, max_seeds=10, range_margin=0.25, polish=True, dtt_geometry=None,
            dtt_settings=None, tri_settings=None, jacobian_update="broyden",
            tensile_specimens=1, triaxial_seeds=None, tensile_seed_cv=None,
-           max_tensile_specimens=None) -> dict:
+           max_tensile_specimens=None, grow_within=_LOOP_GROW) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -615,7 +618,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     ``threads`` processes (:mod:`bpmcal.stages.pool`; the card does not depend on how
     many). The seed set grows to
     ``max_seeds`` seeds (``seed + seeds_per_round``, ...; at most ``seeds_per_round``:
-    no growth) once the means are within tolerance but their standard errors are too
+    no growth) once every mean is within ``grow_within`` tolerances (config
+    ``verification.grow_within``; the card records it) but their standard errors are too
     large to state them to ``rtol``, so the card is judged, and steered, on the mean of
     more packings (a fixed few packings' mean is itself off the rock's by ~CV/sqrt(k));
     later rounds run the grown set.
@@ -702,6 +706,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     range_margin = _check_margin(range_margin)
     jacobian_update = _check_update(jacobian_update)
     _check_rounds(max_rounds)
+    grow_within = _check_grow(grow_within)
     tensile_specimens = check_tensile_specimens(tensile_specimens)
     tensile_seed_cv = check_seed_cv(tensile_seed_cv)
     max_tensile_specimens = check_tensile_specimens(  # never below the start: _LoopRuns
@@ -728,7 +733,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         range_margin=range_margin, polish=bool(polish), cylinder=cylinder,
         dtt_settings=dtt_settings, tri_settings=tri_settings, jacobian_update=jacobian_update,
         tensile_specimens=tensile_specimens, triaxial_seeds=triaxial_seeds,
-        tensile_seed_cv=tensile_seed_cv, max_tensile_specimens=max_tensile_specimens)
+        tensile_seed_cv=tensile_seed_cv, max_tensile_specimens=max_tensile_specimens,
+        grow_within=grow_within)
     write_table(res.history, rounds, index=False)
     verified = dict(c)
     verified.update({
@@ -738,7 +744,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             seeds_per_round=seeds_per_round, max_seeds=max_seeds, polish=polish,
             geometry=geometry, range_margin=range_margin, disc=disc, cylinder=cylinder,
             tri_settings=tri_settings, jacobian_update=jacobian_update,
-            tensile=tensile, triaxial_seeds=triaxial_seeds)})
+            tensile=tensile, triaxial_seeds=triaxial_seeds, grow_within=grow_within)})
     write_card(out_card, verified)
     if bts_run is not None and BTS not in targets:
         write_failure(bts_run, test="bts", inputs=bts_inputs(c["parameters"], seed, disc,
@@ -802,7 +808,7 @@ def _not_run(c: dict, out_card, key: str, section: dict, *, rounds, run, error: 
 def _verification_section(c: dict, res, by_round: list, best: int, targets: dict, *, rtol, seed, seeds,
                           seeds_per_round, max_seeds, polish, geometry, range_margin, disc,
                           cylinder, tri_settings=None, jacobian_update="broyden",
-                          tensile=None, triaxial_seeds=None) -> dict:
+                          tensile=None, triaxial_seeds=None, grow_within=_LOOP_GROW) -> dict:
     """The verified card's ``verification`` section from the closed loop's result ``res``
     and its rounds' seed summaries ``by_round`` (``best``: the card's round; ``tensile``:
     :meth:`_LoopRuns.specimen_record`)."""
@@ -815,7 +821,7 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
         "runs": sum(len(r) for r in by_round), "rtol": rtol, "seed": seed,
         "seeds": [int(x) for x in res.seeds], "n_seeds": int(res.n_seeds),
         "seeds_per_round": seeds_per_round, "max_seeds": max_seeds, "polish": bool(polish),
-        "jacobian_update": jacobian_update, "max_rounds": int(res.max_rounds),
+        "grow_within": float(grow_within), "jacobian_update": jacobian_update, "max_rounds": int(res.max_rounds),
         "best_round": best + 1, "run_seed": seeds[0],
         "jacobian": {r: {p: float(x) for p, x in row.items()}
                      for r, row in res.jacobian.iterrows()},
@@ -879,6 +885,14 @@ def _check_rounds(max_rounds) -> None:
         check_max_rounds(max_rounds)
     except ValueError as e:
         raise BadInput(f"--max-rounds: {e}") from None
+
+
+def _check_grow(grow_within) -> float:
+    """BadInput naming ``grow_within`` unless the closed loop takes it."""
+    try:
+        return check_grow_within(grow_within)
+    except ValueError as e:
+        raise BadInput(f"--grow-within: {e}") from None
 
 
 def _check_update(rule) -> str:

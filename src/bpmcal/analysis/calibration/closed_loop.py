@@ -9,8 +9,9 @@ after a better one its cap cut), with the Jacobian started from the regression m
 a weaker specimen) and corrected by Broyden's secant update, each row shrunk by its
 signal-to-noise ratio (a change within the seeds' scatter barely moves it). Parameters
 held at a bound are
-probed; the seed set can grow when a standard error is too large to state a target to
-``rtol``; a converged seed-averaged loop may take one polishing step.
+probed; the seed set can grow once the means are near their targets (``grow_within``
+tolerances) while a standard error is too large to state a target to ``rtol``; a
+converged seed-averaged loop may take one polishing step.
 
 The method: ``docs/methods/calibration.md`` (section "Closed loop").
 """
@@ -44,6 +45,16 @@ def check_max_rounds(max_rounds) -> None:
     if not ((whole and max_rounds >= 1) or max_rounds == AUTO_ROUNDS):
         raise ValueError(f"max_rounds={max_rounds!r}: expected an integer >= 1 or "
                          f"{AUTO_ROUNDS!r} ({ROUNDS_PER_FREE} per free parameter)")
+
+
+def check_grow_within(grow_within) -> float:
+    """``grow_within`` as a float, or a ValueError naming it unless it is a number >= 1."""
+    if isinstance(grow_within, (bool, np.bool_)) or not isinstance(
+            grow_within, (int, float, np.integer, np.floating)) \
+            or not (math.isfinite(float(grow_within)) and float(grow_within) >= 1):
+        raise ValueError(f"grow_within={grow_within!r}: expected a factor >= 1 on the tolerance "
+                         "(1: the seed set grows once every mean is within its tolerance)")
+    return float(grow_within)
 
 
 @dataclass
@@ -144,6 +155,15 @@ class ClosedLoop:
         ``seeds``) once the means are within tolerance but a standard error is too large
         to state them to ``rtol`` (module docstring); default (or at most the seeds of a
         round): no growth.
+    grow_within:
+        The seed set grows once every mean is within ``grow_within`` times its tolerance
+        (default 2; 1: only once within tolerance), when a standard error is too large to
+        state a target to ``rtol``. The tolerance is judged on the few seeds' own spread,
+        and three seeds' standard deviation falls below half the true one in about one
+        draw in five (chi-square, 2 degrees of freedom; the rounds reuse those seeds, so
+        pooling them does not add independent packings): a loop that fits those seeds
+        to within such a tolerance fits their offset. Within a few tolerances the
+        remaining error is of that size, so the last rounds steer the grown set instead.
     seed_caps:
         Response -> the number of a round's seeds that measure it (the first ones of the
         seed set; default: every seed measures every response). A costly test is judged
@@ -231,7 +251,7 @@ class ClosedLoop:
                  target_se: Mapping[str, float] | None = None, update: str = "broyden",
                  min_step: float | None = None, report: Callable[[str], None] | None = None,
                  simulate_seeds: Callable[[dict, list], Sequence[Mapping[str, float]]] | None = None,
-                 seed_caps: Mapping[str, int] | None = None):
+                 seed_caps: Mapping[str, int] | None = None, grow_within: float = 2.0):
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = _round_seeds(simulate, seeds_per_round, seeds)
@@ -250,6 +270,7 @@ class ClosedLoop:
         self.responses, self.t = _check_targets(targets, models)
         self.target_se = _target_se(target_se, self.responses, self.t)
         self.seed_caps = _seed_caps(seed_caps, self.responses)
+        self.grow_within = check_grow_within(grow_within)
         # each response's seed cap (inf: every seed)
         self._caps = np.array([self.seed_caps.get(r, np.inf) for r in self.responses], float)
         if (models is None) == (jacobian is None):
@@ -512,7 +533,8 @@ class ClosedLoop:
                                  self.target_se)
             se, tol, e = judged[2], judged[3], judged[4]
             can_grow = self._caps > len(seeds)  # a response a grown set measures on more seeds
-            if np.all(np.abs(e) <= tol) and spare and np.any((self.z * se > self.rtol) & can_grow):
+            if (np.all(np.abs(e) <= self.grow_within * tol) and spare
+                    and np.any((self.z * se > self.rtol) & can_grow)):
                 grown, seeds, spare = len(spare), seeds + spare, []
                 ys = np.vstack([ys, run_seeds(seeds[-grown:], len(ys))])
                 bad = failed(ys)
