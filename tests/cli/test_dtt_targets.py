@@ -215,27 +215,29 @@ def test_a_triaxial_strength_is_not_measured_on_several_specimens(tmp_path):
                         specimens=2)
 
 
-def test_the_cli_refuses_a_bad_specimen_count_in_one_line(card, d, tmp_path, capsys):
+def _verify_refuses(card, d, tmp_path, capsys, option: str, value: str) -> str:
+    """``bpmcal verify`` with one bad option: exit 2, one line on stderr (returned), no
+    output file."""
     from bpmcal.cli import main
 
     rc = main(["verify", "--card", str(card), "--models", str(d / "models.json"),
                "--out-card", str(tmp_path / "v.yaml"), "--rounds", str(tmp_path / "r.csv"),
-               "--run", str(tmp_path / "r.h5"), "--tensile-specimens", "0"])
+               "--run", str(tmp_path / "r.h5"), option, value])
     err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2 and len(err) == 1 and "--tensile-specimens" in err[0], err
+    assert rc == 2 and len(err) == 1, err
     assert not any(tmp_path.iterdir())
+    return err[0]
+
+
+def test_the_cli_refuses_a_bad_specimen_count_in_one_line(card, d, tmp_path, capsys):
+    assert "--tensile-specimens" in _verify_refuses(card, d, tmp_path, capsys,
+                                                    "--tensile-specimens", "0")
 
 
 @pytest.mark.parametrize("rounds", ["0", "Auto", "2.5", "51"])
 def test_the_cli_refuses_a_bad_round_budget_in_one_line(card, d, tmp_path, capsys, rounds):
-    from bpmcal.cli import main
-
-    rc = main(["verify", "--card", str(card), "--models", str(d / "models.json"),
-               "--out-card", str(tmp_path / "v.yaml"), "--rounds", str(tmp_path / "r.csv"),
-               "--run", str(tmp_path / "r.h5"), "--max-rounds", rounds])
-    err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2 and len(err) == 1 and f"max-rounds={rounds!r}" in err[0], err
-    assert "or 'auto'" in err[-1] and not any(tmp_path.iterdir())
+    line = _verify_refuses(card, d, tmp_path, capsys, "--max-rounds", rounds)
+    assert f"max-rounds={rounds!r}" in line and "or 'auto'" in line
 
 
 @pytest.mark.parametrize("rounds", [0, "Auto", 2.5])
@@ -246,14 +248,8 @@ def test_verify_refuses_a_bad_round_budget_naming_it(rounds):
 
 @pytest.mark.parametrize("factor", ["0.5", "two", "nan", "-1"])
 def test_the_cli_refuses_a_bad_grow_within_in_one_line(card, d, tmp_path, capsys, factor):
-    from bpmcal.cli import main
-
-    rc = main(["verify", "--card", str(card), "--models", str(d / "models.json"),
-               "--out-card", str(tmp_path / "v.yaml"), "--rounds", str(tmp_path / "r.csv"),
-               "--run", str(tmp_path / "r.h5"), "--grow-within", factor])
-    err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2 and len(err) == 1 and f"grow-within={factor!r}" in err[0], err
-    assert not any(tmp_path.iterdir())
+    line = _verify_refuses(card, d, tmp_path, capsys, "--grow-within", factor)
+    assert f"grow-within={factor!r}" in line
 
 
 @pytest.mark.parametrize("factor", [0.99, 0, True, "2"])
