@@ -29,6 +29,7 @@ OVERLAY = {
             "max_strain": 0.0437, "record_strain": 1.37e-5},
     "transfer": {"enabled": True},
     "verification": {"range_margin": 0.137, "polish": False, "jacobian_update": "history",
+                     "grow_within": 1.37,
                      "tensile_specimens": 3, "tensile_seed_cv": 0.037,
                      "max_tensile_specimens": 13},
     # a lab with a sigma_t target: the closed loops run Brazilian tests too (without one
@@ -95,6 +96,10 @@ def test_both_closed_loops_search_the_same_widened_box(commands, cmd):
 
 def test_the_verification_gets_its_polish_switch(commands):
     _expect(commands["verify"], "verification", ["polish"])
+
+
+def test_the_verification_gets_its_seed_growth_factor(commands):
+    _expect(commands["verify"], "verification", ["grow_within"])
 
 
 def test_the_closed_loop_gets_its_tensile_specimen_count(commands):

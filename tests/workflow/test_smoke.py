@@ -608,6 +608,7 @@ RERUN = {
     "verification.seeds_per_round": (3, _VERIFY | {"transfer"}),
     "verification.max_seeds": (4, _VERIFY | {"transfer"}),
     "verification.polish": (False, _VERIFY),
+    "verification.grow_within": (1.5, _VERIFY),
     "verification.tensile_specimens": (2, _VERIFY),  # transfer, fresh seeds: from the card
     # no σt target in the smoke study: the loops get no seed-CV options, so nothing reruns
     # (they reach a loop with a σt target: test_config_reaches_jobs.py)
