@@ -152,9 +152,9 @@ class ClosedLoop:
         more.
     max_seeds:
         The seed set may grow to this many seeds (the next integers after the largest of
-        ``seeds``) once the means are within tolerance but a standard error is too large
-        to state them to ``rtol`` (module docstring); default (or at most the seeds of a
-        round): no growth.
+        ``seeds``) once the means are within ``grow_within`` tolerances but a standard
+        error is too large to state them to ``rtol`` (module docstring); default (or at
+        most the seeds of a round): no growth.
     grow_within:
         The seed set grows once every mean is within ``grow_within`` times its tolerance
         (default 2; 1: only once within tolerance), when a standard error is too large to
