@@ -821,7 +821,8 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
         "runs": sum(len(r) for r in by_round), "rtol": rtol, "seed": seed,
         "seeds": [int(x) for x in res.seeds], "n_seeds": int(res.n_seeds),
         "seeds_per_round": seeds_per_round, "max_seeds": max_seeds, "polish": bool(polish),
-        "grow_within": float(grow_within), "jacobian_update": jacobian_update, "max_rounds": int(res.max_rounds),
+        "grow_within": float(grow_within), "jacobian_update": jacobian_update,
+        "max_rounds": int(res.max_rounds),
         "best_round": best + 1, "run_seed": seeds[0],
         "jacobian": {r: {p: float(x) for p, x in row.items()}
                      for r, row in res.jacobian.iterrows()},
