@@ -118,6 +118,19 @@ def _forks():
 
 
 def _run_forked(cwd, args, timeout) -> subprocess.CompletedProcess:
+    """Snakemake in a fork; a fork that ends with an error before writing a word (not a
+    Snakemake verdict: Snakemake says why it fails) is run once more in a new fork."""
+    r = _fork_once(cwd, args, timeout)
+    if r.returncode and r.stderr.startswith(NO_OUTPUT):
+        r = _fork_once(cwd, args, timeout)
+    return r
+
+
+#: the start of the stderr of a fork that ended with an error and no output
+NO_OUTPUT = "the forked snakemake ended with exit code"
+
+
+def _fork_once(cwd, args, timeout) -> subprocess.CompletedProcess:
     import tempfile
 
     with tempfile.TemporaryDirectory() as d:
@@ -134,7 +147,7 @@ def _run_forked(cwd, args, timeout) -> subprocess.CompletedProcess:
         read = lambda f: Path(f).read_text() if os.path.exists(f) else ""  # noqa: E731
         stderr = read(err)
         if p.exitcode and not stderr:  # ended before its output went to the files
-            stderr = f"the forked snakemake ended with exit code {p.exitcode} and no output"
+            stderr = f"{NO_OUTPUT} {p.exitcode} and no output"
         return subprocess.CompletedProcess(["snakemake", *args], p.exitcode, read(out), stderr)
 
 
