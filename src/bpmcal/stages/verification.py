@@ -880,20 +880,22 @@ def _notes(progress):
     return None if progress is None else (lambda line: progress({"note": line}))
 
 
+def _loop_option(option: str, check, value):
+    """``check(value)`` (a closed-loop check), its ValueError as BadInput naming ``option``."""
+    try:
+        return check(value)
+    except ValueError as e:
+        raise BadInput(f"{option}: {e}") from None
+
+
 def _check_rounds(max_rounds) -> None:
     """BadInput naming ``max_rounds`` unless the closed loop takes it."""
-    try:
-        check_max_rounds(max_rounds)
-    except ValueError as e:
-        raise BadInput(f"--max-rounds: {e}") from None
+    _loop_option("--max-rounds", check_max_rounds, max_rounds)
 
 
 def _check_grow(grow_within) -> float:
-    """BadInput naming ``grow_within`` unless the closed loop takes it."""
-    try:
-        return check_grow_within(grow_within)
-    except ValueError as e:
-        raise BadInput(f"--grow-within: {e}") from None
+    """BadInput naming ``grow_within`` unless the closed loop takes it; the factor."""
+    return _loop_option("--grow-within", check_grow_within, grow_within)
 
 
 def _check_update(rule) -> str:
