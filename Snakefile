@@ -45,6 +45,7 @@ include: "workflow/rules/study.smk"
 include: "workflow/rules/analysis.smk"
 include: "workflow/rules/fracture.smk"
 include: "workflow/rules/triaxial.smk"
+include: "workflow/rules/posterior.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -84,4 +85,6 @@ rule all:
         rules.sweep_analyse.output if SWEEP_ON else [],
         rules.impact_analyse.output,
         rules.triaxial_envelopes.output if TRIAX_ON else [],
+        [FILES.posterior_card(s) for s in SPECIMENS] if POSTERIOR_ON else [],
+        [FILES.posterior_predictive(s) for s in PREDICTIVE_SPECS],
         rules.report.output,

@@ -153,9 +153,10 @@ rule verify:
         card=FILES.card("{spec}"),
         models=FILES.models,
     output:
-        beside(FILES.verification_rounds("{spec}")),
+        beside(FILES.verification_rounds("{spec}"), FILES.verification_seeds("{spec}")),
         card=FILES.verified_card("{spec}"),
         rounds=FILES.verification_rounds("{spec}"),
+        seeds=FILES.verification_seeds("{spec}"),
         run=FILES.verification_run("{spec}"),
     log:
         FILES.log("verify", "{spec}"),
@@ -216,7 +217,7 @@ rule verify:
     shell:
         "bpmcal verify --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
-        "--seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
+        "--seed-runs {output.seeds:q} --seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
         "--max-seeds {params.v[max_seeds]:q} --grow-within {params.v[grow_within]:q} "
         "--range-margin {params.v[range_margin]:q} "
         "--jacobian-update {params.v[jacobian_update]:q} {params.polish:q} "

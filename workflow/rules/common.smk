@@ -64,6 +64,14 @@ TRIAX_LAB = config["triaxial"]["lab_csv"]  # None: no lab triaxial points
 TRI_ON = config["triaxial"]["design_sigma3_MPa"] is not None
 # a lab triaxial strength at that confinement: the closed loops and fresh seeds run it
 LAB_TRI = "tri_MPa" in _lab.columns and bool(_lab["tri_MPa"].notna().any())
+POSTERIOR_ON = bool(config["posterior"]["enabled"])  # every verified card's posterior
+POSTERIOR_CURVE = bool(config["posterior"]["learning_curve"])
+# the posterior predictive in DEM: the first N specimens' cards, when draws are asked for
+PREDICTIVE_SPECS = (
+    SPECIMENS[: config["posterior"]["predictive"]["specimens"]]
+    if POSTERIOR_ON and config["posterior"]["predictive"]["draws"]
+    else []
+)
 
 
 def beside(*files):
@@ -154,3 +162,15 @@ def dtt_args(cfg=config):
     for f in DTT_OPTIONS:
         opts[f"--dtt-{f.replace('_', '-')}"] = d[f]
     return [str(x) for k, v in opts.items() for x in (k, v)]
+
+
+# ---- the posterior predictive (workflow/rules/posterior.smk)
+_PRED = config["posterior"]["predictive"]
+_PRED_S3 = [float(x) for x in (_PRED["sigma3_MPa"] or config["triaxial"]["sigma3_MPa"])]
+_PRED_N = int(_PRED["draws"])
+_PRED_IMPACT = bool(_PRED["impact"])
+_PRED_ENV = TRIAX_ON and "verified" in TRIAX_KINDS  # the card's own envelope
+
+
+# the predictive's run files, with the {spec} wildcard
+_PRED_TRI, _PRED_IMP = FILES.predictive_runs("{spec}", _PRED_N, _PRED_S3, _PRED_IMPACT)

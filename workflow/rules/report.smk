@@ -1,15 +1,26 @@
 # The report: every table and figure next to the paper's published values. It reads the
 # study's files through bpmcal.io.study_files (the files declared here) and writes its own.
 
+_POSTERIOR_FILES = (
+    FILES.posterior_report_files(SPECIMENS, POSTERIOR_CURVE, PREDICTIVE_SPECS)
+    if POSTERIOR_ON
+    else []
+)
 _REPORT_OUT = FILES.report_outputs(
-    SWEEP_ON, REFERENCE, TRIAX_ON, bool(TRIAX_LAB), FRESH_SEEDS_ON
+    SWEEP_ON, REFERENCE, TRIAX_ON, bool(TRIAX_LAB), FRESH_SEEDS_ON, _POSTERIOR_FILES
 )
 
 
 rule report:
     input:
         **FILES.report_inputs(
-            SPECIMENS, IMPACT_V0, SWEEP_ON, TRIAX_ON, bool(TRIAX_LAB), FRESH_SEEDS_ON
+            SPECIMENS,
+            IMPACT_V0,
+            SWEEP_ON,
+            TRIAX_ON,
+            bool(TRIAX_LAB),
+            FRESH_SEEDS_ON,
+            _POSTERIOR_FILES,
         ),
     output:
         [f for f in _REPORT_OUT if f not in (FILES.report_index, FILES.report_config)],

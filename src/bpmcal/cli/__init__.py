@@ -27,6 +27,7 @@ directly above its ``cmd_<cmd>`` (its handler):
 - ``cli.verification``: ``verify``, ``transfer``, ``transfer-table``, ``scatter``,
   ``fresh-seeds``, ``fresh-seeds-table``, ``verification-tables``, ``envelopes``,
   ``impact-analyse``;
+- ``cli.posterior``: ``posterior``, ``predictive``;
 - ``cli.options``: the option groups several commands share and their readers;
 - ``cli.args``: argument types and exit codes.
 
@@ -69,6 +70,7 @@ from .options import (
     run_geometry,
     run_settings,
 )
+from .posterior import _add_posterior, _add_predictive
 from .runs import _add_bts, _add_dtt, _add_impact, _add_summary, _add_triaxial, _add_ucs, _add_vtk
 from .study import (
     _add_calibrate,
@@ -137,6 +139,10 @@ COMMANDS = {
     "fresh-seeds-table": ("the fresh-seed check of every card against its lab targets "
                           "(formerly holdout-table)", _add_fresh_seeds_table, False),
     "verification-tables": ("Tables 5 and 6 and Fig. 6", _add_verification_tables, False),
+    "posterior": ("a verified card's posterior: what its targets pin and leave free",
+                  _add_posterior, False),
+    "predictive": ("posterior draws run in DEM: triaxial envelope and impact spreads",
+                   _add_predictive, False),
     "envelopes": ("triaxial strength envelopes (Mohr-Coulomb, Hoek-Brown) per card",
                   _add_envelopes, False),
     "sweep-plan": ("bond-strength-ratio sweep: one row per ratio", _add_sweep_plan, False),

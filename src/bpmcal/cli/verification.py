@@ -83,6 +83,10 @@ def _add_verify(p):
     file_arg(p, "--out-card", "output: the verified card")
     file_arg(p, "--rounds", "output table: one row per DEM round")
     file_arg(p, "--run", "output: the run file of the best round")
+    p.add_argument("--seed-runs", default=None,
+                   help="output table (optional): every seed run of every round (round, seed, "
+                        "parameters, responses): the runs near the card a posterior learns "
+                        "from (bpmcal posterior)")
     p.add_argument("--bts-run", default=None,
                    help="output (optional): the Brazilian run file of the best round when the "
                         "card has a tensile-strength target (bts_MPa), else a failure record "
@@ -165,7 +169,7 @@ def cmd_verify(args) -> int:
                jacobian_update=args.jacobian_update, tensile_specimens=args.tensile_specimens,
                triaxial_seeds=args.triaxial_seeds, tensile_seed_cv=args.tensile_seed_cv,
                max_tensile_specimens=args.max_tensile_specimens,
-               grow_within=args.grow_within,
+               grow_within=args.grow_within, seed_runs=args.seed_runs,
                dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
                **budget_of(args))["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")

@@ -257,6 +257,72 @@ class StudyFiles:
         """The run file of the best round (a failure record when the loop did not run)."""
         return self.path("verification", specimen, "best_round.h5")
 
+    def verification_seeds(self, specimen: str) -> str:
+        """Every seed run of every round of the closed loop (table: round, seed,
+        parameters, responses): the runs near the card the posterior learns from."""
+        return self.path("verification", specimen, "seeds.csv")
+
+    # ---------------------------------------------------------------- posterior
+    def posterior_card(self, specimen: str) -> str:
+        """The verified card with its posterior (``posterior`` section: intervals, what
+        the targets pin and leave free, reach)."""
+        return self.path("posterior", specimen, "card.yaml")
+
+    def posterior_table(self, specimen: str) -> str:
+        """One row per calibrated parameter: card value, posterior mean, sd, 90 % HDI,
+        the card's position, convergence (table)."""
+        return self.path("posterior", specimen, "parameters.csv")
+
+    def posterior_predictions(self, specimen: str) -> str:
+        """One row per response (targeted or not): the surrogate's mean and interval over
+        the posterior, the card's value (table)."""
+        return self.path("posterior", specimen, "predictions.csv")
+
+    def posterior_netcdf(self, specimen: str) -> str:
+        """The posterior's draws as an arviz InferenceData (NetCDF)."""
+        return self.path("posterior", specimen, "posterior.nc")
+
+    def posterior_pairs(self, specimen: str) -> str:
+        """The pair plot of the posterior's draws, the card marked (figure)."""
+        return self.path("posterior", specimen, "pairs.png")
+
+    def posterior_learning(self, specimen: str) -> str:
+        """The learning curve: posterior width against the DEM runs near the card
+        (table)."""
+        return self.path("posterior", specimen, "learning.csv")
+
+    def posterior_learning_figure(self, specimen: str) -> str:
+        """The learning curve (figure)."""
+        return self.path("posterior", specimen, "learning.png")
+
+    def posterior_refine(self, specimen: str) -> str:
+        """The refinement's DEM runs (table: one row per seed run, like the loop's)."""
+        return self.path("posterior", specimen, "refine.csv")
+
+    def posterior_draws(self, specimen: str) -> str:
+        """The draws the posterior predictive runs in DEM (table)."""
+        return self.path("posterior", specimen, "draws.csv")
+
+    def predictive_run(self, specimen: str, draw, test: str) -> str:
+        """A posterior-predictive DEM run of draw ``draw`` (``test``: ``s3_<σ3>MPa`` or
+        ``impact``)."""
+        return self.path("posterior", specimen, "predictive", f"draw{draw}.{test}.h5")
+
+    def predictive_runs(self, specimen: str, n: int, sigma3, impact: bool
+                        ) -> tuple[list[str], list[str]]:
+        """The run files of ``n`` predictive draws: the triaxial runs draw by draw, σ3
+        (MPa) within each, and the impact runs (empty without)."""
+        tri = [self.predictive_run(specimen, i, f"s3_{sigma3_tag(s)}MPa")
+               for i in range(1, n + 1) for s in sigma3]
+        imp = [self.predictive_run(specimen, i, "impact") for i in range(1, n + 1)] if impact \
+            else []
+        return tri, imp
+
+    def posterior_predictive(self, specimen: str) -> str:
+        """The posterior predictive in DEM: one row per draw (mi, c, φ, η_f) and the
+        verified card's (table)."""
+        return self.path("posterior", specimen, "predictive.csv")
+
     def transferred_card(self, specimen: str) -> str:
         """The verified card run (and, if needed, corrected) at the transfer scale."""
         return self.path("transfer", specimen, "card.yaml")
@@ -358,12 +424,30 @@ class StudyFiles:
         """The merged study config the report was built with (JSON)."""
         return self.path("report", "config.json")
 
+    def posterior_report_files(self, specimens, curve: bool = True, predictive=()) -> list[str]:
+        """The posterior files the report shows (every specimen's tables, figures and
+        card; the predictive table of the ``predictive`` specimens)."""
+        out = []
+        for s in specimens:
+            out += [self.posterior_card(s), *companions(self.posterior_table(s)),
+                    *companions(self.posterior_predictions(s)),
+                    *companions(self.posterior_pairs(s))]
+            if curve:
+                out += [*companions(self.posterior_learning(s)),
+                        *companions(self.posterior_learning_figure(s))]
+            if s in predictive:
+                out += companions(self.posterior_predictive(s))
+        return out
+
     def report_copy(self, path: str) -> str:
         """Where the report keeps its copy of a table, figure or the equations."""
         folder = {".csv": "tables", ".md": "tables", ".png": "figures", ".pdf": "figures"}
         name = path.rsplit("/", 1)[-1]
         if path == self.equations:
             return self.path("report", name)
+        post = self.path("posterior", "")
+        if path.startswith(post):  # posterior/<specimen>/<name>: one folder per specimen
+            return self.path("report", "posterior", path[len(post):])
         return self.path("report", folder[name[name.rfind("."):]], name)
 
     @property
@@ -395,8 +479,9 @@ class StudyFiles:
 
     def report_inputs(self, specimens, impact_tag: str, sweep: bool = True,
                       triaxial: bool = False, triaxial_lab: bool = False,
-                      fresh_seeds: bool = False) -> dict:
-        """Every file the report reads, by role (the report rule's ``input:``)."""
+                      fresh_seeds: bool = False, posterior=()) -> dict:
+        """Every file the report reads, by role (the report rule's ``input:``);
+        ``posterior``: :meth:`posterior_report_files`."""
         tabs = [f for t in self.report_tables(sweep, triaxial, triaxial_lab, fresh_seeds)
                 for f in companions(t)]
         figs = [f for g in self.report_figures(sweep, triaxial) for f in companions(g)]
@@ -406,16 +491,18 @@ class StudyFiles:
             "verified": [self.verified_card(specimens[0])], "scatter": [self.seed_scatter],
             "impact": [self.impact_run(impact_tag)], "jk_fit": [self.jk_fit],
             "chosen": [self.sweep_chosen] if sweep else [],
+            "posterior": list(posterior),
         }
 
     def report_outputs(self, sweep: bool = True, reference: bool = True,
                        triaxial: bool = False, triaxial_lab: bool = False,
-                       fresh_seeds: bool = False) -> list[str]:
-        """Every file the report writes (the report rule's ``output:``)."""
+                       fresh_seeds: bool = False, posterior=()) -> list[str]:
+        """Every file the report writes (the report rule's ``output:``); ``posterior``:
+        :meth:`posterior_report_files` (every one but the cards is copied)."""
         copies = [self.report_copy(f) for f in [
             *(f for t in self.report_tables(sweep, triaxial, triaxial_lab, fresh_seeds)
               for f in companions(t)),
             *(f for g in self.report_figures(sweep, triaxial) for f in companions(g)),
-            self.equations]]
+            self.equations, *(f for f in posterior if not f.endswith(".yaml"))]]
         extra = companions(self.comparison) if reference else []
         return [self.report_index, self.report_config, *copies, *extra]

@@ -30,6 +30,7 @@ from ..io.tables import markdown_table, write_table
 from ..stages.fresh_seeds import check_level, false_alarm
 from ..study import paper
 from ..study.config import translate_deprecated
+from .posterior import section as posterior_section
 
 #: tables and figures of the report (stem -> caption)
 TABLES = {
@@ -158,6 +159,7 @@ def build(outdir, config: dict) -> Path:
     S.append(_ratio(lay, comp, ref) if sweep else "")
     S.append(_impact(lay, cfg, comp, ref))
     S.append(_triaxial(lay, cfg, ref) if triax else "")
+    S.append(posterior_section(lay, cfg, _specimens(lay)))
     if comp:
         write_table(pd.DataFrame(comp), lay.comparison, index=False)
         S.append("All of these comparisons, one row per published value: "

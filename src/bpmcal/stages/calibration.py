@@ -18,6 +18,7 @@ import pandas as pd
 from .. import params as P
 from ..analysis import PAPER_RATIO, bootstrap_intervals, invert
 from ..analysis.calibration import bts_strengths, check_calibration_space, tensile_target
+from ..analysis.calibration.reach import prediction_errors
 from ..io.card import write_card
 from ..io.checks import BadInput, read_json
 from ..io.provenance import provenance
@@ -87,6 +88,7 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
     _check_tensile_models(jobs, model_set, df, dataset, models, lab, n_boot)
     outputs(*((c, "--cards", YAML) for c in cards), (table, "--table", CSV))
     dnote = usable(df)
+    errors = prediction_errors(df, model_set)  # a miss within them is no verdict
     if with_bts:
         note = "; ".join(x for x in (note, (
             f"the tensile strength sets the bond-strength ratio of {with_bts} "
@@ -96,7 +98,8 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
         spec = str(rec["specimen"])
         s_free, s_ratio, ratio_by = bts_strengths(targets, free, fixed, ratio)
         inv = invert(model_set, targets, fixed, free=s_free, bounds=bounds, ratio=s_ratio,
-                     ranges=ranges, seed=seed)
+                     ranges=ranges, seed=seed, errors=errors,
+                     target_se=lab_target_se(rec, targets))
         if n_boot:
             boot = bootstrap_intervals(df, model_set, targets, fixed, free=s_free,
                                        bounds=bounds, ratio=s_ratio, ranges=ranges,
@@ -218,6 +221,7 @@ def calibration_card(spec: str, inv, rec: dict, targets: dict, *, ratio: float |
         "residuals_pct": {k: 100 * v for k, v in inv.residuals.items()},
         "missed": inv.missed,
         "reach": inv.reach,
+        **({"reach_test": inv.reach_test} if inv.reach_test else {}),
         "alternatives": inv.alternatives.to_dict("records"),
         "bootstrap": bootstrap,
         "dataset_note": dataset_note,

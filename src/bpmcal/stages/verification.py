@@ -395,6 +395,7 @@ class _LoopRuns:
             self.paths[-1].append(self.journal.folder / done[i]["ucs"])
             if done[i]["bts"] is not None:
                 self.bts_paths[-1].append(self.journal.folder / done[i]["bts"])
+            rows[i]["round"], rows[i]["params"] = k, dict(params)
             self.by_round[-1].append(rows[i])
         if new_round and self.seed_cv is not None:
             self._adapt(params, seeds, rows, outs)
@@ -569,6 +570,22 @@ def specimen_values(row: dict, resp: str, test: str) -> list[float]:
     return [float(row.get(resp, math.nan))]
 
 
+def seed_runs_table(by_round: list[list[dict]]) -> pd.DataFrame:
+    """One row per DEM seed of a closed loop (``verification/<specimen>/seeds.csv``): the
+    round (1-based), the seed, every card parameter of that round (paper units), the run's
+    status and every response it measured (a tensile seed's specimens in
+    ``<test>_specimen_MPa``). The posterior's surrogate learns from these runs near the
+    card (:mod:`bpmcal.stages.posterior`)."""
+    recs = []
+    for rnd in by_round:
+        for row in rnd:
+            rec = {"round": int(row["round"]), "seed": int(row["seed"]), **row["params"]}
+            rec.update({k: v for k, v in row.items() if k not in ("round", "seed", "params")
+                        and (v is None or isinstance(v, (str, bool, int, float, np.number)))})
+            recs.append(rec)
+    return pd.DataFrame(recs, columns=None if recs else ["round", "seed", "status"])
+
+
 def _finite(x) -> bool:
     try:
         return math.isfinite(float(x))
@@ -604,7 +621,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            bts_run=None, max_seeds=10, range_margin=0.25, polish=True, dtt_geometry=None,
            dtt_settings=None, tri_settings=None, jacobian_update="broyden",
            tensile_specimens=1, triaxial_seeds=None, tensile_seed_cv=None,
-           max_tensile_specimens=None, grow_within=_LOOP_GROW) -> dict:
+           max_tensile_specimens=None, grow_within=_LOOP_GROW, seed_runs=None) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
     Newton-Broyden step until every response is within the tolerance of the lab value,
@@ -630,7 +647,9 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     seed CVs, standard errors, tolerances, errors and step of every round) and ``run``,
     the run file of the best round's first seed (each run goes to a temporary file; any
     run can be redone with ``bpmcal ucs --params ... --seed``, the runs being
-    deterministic). The loop stays inside the card's bounds (its design ``ranges``,
+    deterministic); ``seed_runs`` (optional) the table of every seed run of every round
+    (:func:`seed_runs_table`: round, seed, parameters, responses; the posterior's runs near
+    the card). The loop stays inside the card's bounds (its design ``ranges``,
     narrowed by its ``calibration_bounds``), each design range widened by
     ``range_margin`` of its width (config ``verification.range_margin``; never past a
     ``calibration_bounds`` narrowing or the parameter's physical domain): the regression
@@ -698,7 +717,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
                          max_balls=max_balls, mem_budget_mb=mem_budget_mb,
                          tri_settings=tri_settings)
     outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5),
-            (bts_run, "--bts-run", H5))
+            (bts_run, "--bts-run", H5), (seed_runs, "--seed-runs", CSV))
     output_dirs((cache, "--specimen-cache"))
     if isinstance(max_seeds, bool) or not isinstance(max_seeds, int) or max_seeds < 1:
         raise BadInput(f"--max-seeds {max_seeds!r}: expected an integer >= 1")
@@ -721,6 +740,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
             "seeds": seeds, "n_seeds": seeds_per_round, "max_seeds": max_seeds,
             "best_round": None, "single_pass": None, "closed_loop": None, "parameters": None,
             "widen": c.get("widen", []), "geometry": geometry.to_dict()}
+        if seed_runs is not None:
+            write_table(seed_runs_table([]), seed_runs, index=False)
         return _not_run(c, out_card, "verification", section, rounds=rounds, run=run,
                         error=f"not run: {reason}", params=c["parameters"], seed=seed,
                         geometry=geometry, settings=settings, bts_run=bts_run, disc=disc,
@@ -736,6 +757,8 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         tensile_seed_cv=tensile_seed_cv, max_tensile_specimens=max_tensile_specimens,
         grow_within=grow_within)
     write_table(res.history, rounds, index=False)
+    if seed_runs is not None:
+        write_table(seed_runs_table(by_round), seed_runs, index=False)
     verified = dict(c)
     verified.update({
         "calibrated_at_scale": float(geometry.scale),

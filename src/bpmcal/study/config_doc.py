@@ -52,6 +52,18 @@ def _default(node: dict, required: bool) -> str:
     return "required" if required else "–"
 
 
+def _nested(prefix: str, node: dict) -> list[str]:
+    """The rows of a subsection's keys (``refine.max_runs``), one level at a time."""
+    rows, req = [], set(node.get("required", []))
+    for key, sub in node.get("properties", {}).items():
+        meaning = " ".join(str(sub.get("description", "")).split())
+        rows.append(f"| `{prefix}.{key}` | {_type(sub)} | {_default(sub, key in req)} | "
+                    f"{_allowed(sub) or '–'} | {meaning or '–'} |")
+        if sub.get("type") == "object" and sub.get("properties"):
+            rows += _nested(f"{prefix}.{key}", sub)
+    return rows
+
+
 def schema_reference(schema: dict) -> str:
     """Every section and key of the config schema as Markdown tables (type, default,
     allowed values, meaning): the reference part of config/README.md, generated from the
@@ -78,6 +90,8 @@ def schema_reference(schema: dict) -> str:
                 meaning = f"{meaning} Keys, each optional: {items}.".strip()
             out.append(f"| `{key}` | {_type(sub)} | {_default(sub, key in req)} | "
                        f"{_allowed(sub) or '–'} | {meaning or '–'} |")
+            if sub.get("type") == "object" and props and not set(props) <= set(P.PARAMS):
+                out += _nested(key, sub)  # a subsection: its keys as key.sub rows
         out.append("")
     return "\n".join(out).rstrip() + "\n"
 

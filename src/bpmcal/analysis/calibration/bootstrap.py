@@ -110,10 +110,10 @@ def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel],
     out = []
     quantities = [(p, "parameter", base.solution[p], p) for p in base.free + base.derived]
     quantities += [(r, "response", base.predicted[r], f"{r}@estimate") for r in responses]
-    if base.status == "no-exact-fit":
+    if base.status in ("no-exact-fit", "within-error"):
         # the targets cannot all be met: the calibrated set is the least-squares compromise,
         # and so is every resample's (an interior optimum, well defined): use those
-        used = draws[draws["status"].isin(["ok", "non-unique", "no-exact-fit"])]
+        used = draws[draws["status"].isin(["ok", "non-unique", "no-exact-fit", "within-error"])]
     else:
         used = draws[draws["reachable"]]
     for name, kind, est, col in quantities:

@@ -22,6 +22,7 @@ from bpmcal.params import BTS
 
 from ..stepwise import RegressionModel
 from .fit import _fit, _fmt_pct, _lhs
+from .reach import reach_text, reach_within_error
 from .space import PAPER_RATIO, CalibrationSpace, _check_targets, tensile_target
 from .widen import _what_to_widen
 
@@ -60,6 +61,7 @@ class InversionResult:
     widen: list[dict] = field(default_factory=list)
     advice: str = ""
     reach: dict = field(default_factory=dict)  # σt / σc/σt spans when σt misses (see the module doc)
+    reach_test: dict = field(default_factory=dict)  # the miss against the models' error (.reach)
 
     @property
     def missed(self) -> list[dict]:
@@ -75,6 +77,8 @@ class InversionResult:
 
     @property
     def reachable(self) -> bool:
+        """Met exactly by the models (``ok``, ``non-unique``); a ``within-error`` miss is
+        not, though it is within their own error."""
         return self.status in ("ok", "non-unique")
 
     @property
@@ -110,7 +114,8 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
            free: Sequence[str] | None = None, bounds: Mapping[str, Sequence[float]] | None = None,
            ratio: float | None = PAPER_RATIO, *, ranges: Mapping[str, Sequence[float]], n_starts: int = 24,
            seed: int = 0, tol: float = 1e-3, distinct: float = 0.02, x0: Sequence[Mapping[str, float]] = (),
-           diagnose: bool = True) -> InversionResult:
+           diagnose: bool = True, errors: Mapping | None = None,
+           target_se: Mapping[str, float] | None = None) -> InversionResult:
     """Solve the regression models for the free parameters that reproduce ``targets``.
 
     Parameters
@@ -147,6 +152,14 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
         For ``unreachable`` and ``no-exact-fit``, search the extrapolated regression for
         which configured limit to widen and how far (``widen``, ``advice``; costs one more
         multi-start), and with a σt target the spans the models reach (``reach``).
+    errors, target_se:
+        The models' prediction errors (:func:`~.reach.prediction_errors`) and the lab
+        values' standard errors: when the targets are not met exactly, whether the miss
+        is within the models' own error (:func:`~.reach.reach_within_error`,
+        ``reach_test``). Within it the status is ``within-error`` (no advice to widen or to
+        change the model: the regression cannot tell); beyond it ``no-exact-fit`` or
+        ``unreachable`` with the probability stated. Without ``errors`` the models are
+        taken as exact (the bootstrap's resamples).
     """
     space = CalibrationSpace(free, fixed, ratio, ranges, bounds)
     responses, t = _check_targets(targets, models)
@@ -163,15 +176,10 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
     start_frame = _fits_frame(space, models, responses, fits)
     solution = space.full(space.x(best_u))
     edges = space.at_bound(best_u)
-    widen, advice = [], ""
-    if not reachable and diagnose:
-        widen, advice = _what_to_widen(space, models, responses, t, space.x(best_u), tol, n_starts,
-                                       seed + 1)
-    reach, joint = {}, ""
-    if not reachable:
-        reach, joint = _joint_bts_diagnosis(space, models, targets, responses, t, space.x(best_u), tol,
-                                            n_starts, seed, diagnose)
-    status, message = _classify(space, responses, best_r, len(kept), reachable, joint, edges, advice, tol)
+    v = _verdict(space, models, targets, responses, t, best_u, best_r, reachable, len(kept), edges,
+                 tol=tol, n_starts=n_starts, seed=seed, diagnose=diagnose, errors=errors,
+                 target_se=target_se)
+    status, message, widen, advice, reach, test = v
     return InversionResult(
         status=status, message=message, solution=solution, free=space.free, derived=space.derived,
         targets=dict(zip(responses, t.tolist())),
@@ -180,7 +188,36 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
         bounds=space.bounds(),
         at_bound=edges, alternatives=alternatives, starts=start_frame, tol=tol,
         bound_origins=space.bound_origins(), ranges=dict(space.ranges), widen=widen, advice=advice,
-        reach=reach)
+        reach=reach, reach_test=test)
+
+
+def _verdict(space: CalibrationSpace, models, targets, responses, t, best_u, best_r, reachable: bool,
+             n_kept: int, edges, *, tol, n_starts, seed, diagnose, errors, target_se) -> tuple:
+    """The status and message of an inversion, with what to widen (``widen``, ``advice``),
+    the σt spans (``reach``) and the test of the miss against the models' own error
+    (``test``; :mod:`.reach`): a miss within that error is ``within-error`` and gets no
+    advice to widen or to change the model."""
+    x_best = space.x(best_u)
+    test = {}
+    if not reachable and errors:
+        test = reach_within_error(space, models, errors, dict(zip(responses, t.tolist())),
+                                  target_se, [x_best], seed=seed + 5)
+    within = bool(test) and test["reachable"]
+    widen, advice = [], ""
+    if not reachable and diagnose and not within:
+        widen, advice = _what_to_widen(space, models, responses, t, x_best, tol, n_starts, seed + 1)
+    reach, joint = {}, ""
+    if not reachable and not within:
+        reach, joint = _joint_bts_diagnosis(space, models, targets, responses, t, x_best, tol,
+                                            n_starts, seed, diagnose)
+    status, message = _classify(space, responses, best_r, n_kept, reachable, joint, edges, advice, tol)
+    if within:
+        status = "within-error"
+        message = (f"the models do not meet the targets exactly (relative residuals "
+                   f"{_fmt_pct(responses, best_r)}), but {reach_text(test)}.")
+    elif test:
+        message = f"{message} Counting their error, {reach_text(test)}."
+    return status, message, widen, advice, reach, test
 
 
 def _distinct(fits: list[tuple], reachable: bool, tol: float, distinct: float) -> list[tuple]:
