@@ -152,6 +152,16 @@ def bts_geometry(scale: float = 1.0, diameter_mm: float = BTS_DIAMETER_MM,
     return Geometry(scale=scale, diameter_mm=diameter_mm, height_mm=thickness_mm, **kw)
 
 
+#: The one setting in which the default study's tests differ from the library's defaults:
+#: the size of their specimens (config/config.yaml ``specimen.scale``, ``bts.scale``,
+#: ``impact.scale``; tests/workflow/test_defaults.py holds them equal). ``Geometry()`` and
+#: the lab commands default to the laboratory's full-size specimens (scale 1); the study
+#: shrinks them to run on a laptop, so a full-size test measures a different σc, E or σt
+#: by the size effect (docs/lab-tests.md). A lab command at another scale says so once
+#: (``bpmcal.cli.runs``). Keys: the cylinder, the Brazilian disc, the impact's cylinder.
+STUDY_SCALES = {"cylinder": 0.4, "disc": 0.55, "impact": 0.5}
+
+
 # ------------------------------------------------------------------ the inputs a run records
 def _base_inputs(params: dict, seed: int, geometry: Geometry) -> dict:
     model = params.get("contact_model", P.DEFAULT_CONTACT_MODEL)
