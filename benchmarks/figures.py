@@ -240,12 +240,13 @@ def render() -> str:
 def pages() -> list[Path]:
     """The pages that quote figures: the README, every docs page outside the records, and
     the undated summaries among them (``docs/measurements/<name>.md`` not starting with a
-    date, its README index aside), which quote several records side by side."""
+    date, its two indexes, README and archive, aside), which quote several records side by
+    side."""
     meas = REPO / "docs" / "measurements"
     docs = [p for p in sorted((REPO / "docs").rglob("*.md"))
             if "measurements" not in p.relative_to(REPO / "docs").parts]
     summaries = [p for p in sorted(meas.glob("*.md"))
-                 if not p.name[:1].isdigit() and p.name != "README.md"]
+                 if not p.name[:1].isdigit() and p.name not in ("README.md", "archive.md")]
     return [REPO / "README.md", REPO / "config" / "README.md", *docs, *summaries]
 
 
