@@ -81,8 +81,8 @@ def _note(args, cmd: str, tests) -> None:
 
 
 def _lab_test(args, test: str, geometry, settings, done_line) -> int:
-    """``ucs``, ``bts`` and ``triaxial``: the run file (``stages.runs.lab_test_file``), its
-    one-line result and the exit code."""
+    """``ucs``, ``bts``, ``dtt`` and ``triaxial``: the run file
+    (``stages.runs.lab_test_file``), its one-line result and the exit code."""
     return _lab_tests(args, [(test, args.out, geometry, settings, done_line)])
 
 

@@ -3,7 +3,8 @@ parameters (paper units), get the packing (cached), build the specimen, run the 
 return everything a run file holds as a :class:`LabRun` (no file is written here: the
 stages in ``bpmcal.stages.runs`` write it, or a failure record).
 
-``ucs_test``, ``bts_test`` (Brazilian), ``triaxial_test`` and ``impact_test`` share these
+``ucs_test``, ``bts_test`` (Brazilian), ``dtt_test`` (direct tension), ``triaxial_test`` and
+``impact_test`` share these
 conventions. A run that goes numerically unstable, a specimen that cannot be built or
 does not settle, or a servo stage that does not converge raises one of
 :data:`RUN_FAILURES`: the run failed, which a study records as data (a failure record);
@@ -101,7 +102,7 @@ class Geometry:
 class LabRun:
     """A finished virtual test: what its run file holds (``bpmcal.io.h5.write_run``)."""
 
-    test: str  # "ucs" | "bts" | "triaxial" | "impact"
+    test: str  # "ucs" | "bts" | "dtt" | "triaxial" | "impact"
     inputs: dict
     summary: dict
     genesis: dict
@@ -259,7 +260,8 @@ def _threads(m) -> int:
 def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
               boundary: str, run, *, cache, threads, keep_particles, progress=None,
               genesis_max_steps=None, finite=()) -> LabRun:
-    """Shared body of the UCS, Brazilian and triaxial tests: specimen, test, results."""
+    """Shared body of the UCS, Brazilian, direct-tension and triaxial tests: specimen, test,
+    results."""
     if threads:
         set_threads(threads)  # for the whole run, genesis included
     t0 = time.perf_counter()
