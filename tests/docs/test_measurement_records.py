@@ -190,3 +190,18 @@ def test_job_times_sums_each_rule_from_snakemakes_log(tmp_path):
         "[Sat Nov 28 11:44:11 2026]\nrule verify:\n    jobid: 9\nError in rule verify\n")
     assert study_record.job_times(log) == {"design": {"jobs": 1, "wall_s": 3.0},
                                            "ucs": {"jobs": 2, "wall_s": 100.0 + 130.0}}
+
+
+def test_a_test_tiers_record_says_whether_numba_s_cache_was_warm():
+    """The tiers' times depend on numba's cache: a record made now counts the compiled
+    kernels before the first tier and says warm or cold (records before 2026-12 carry it
+    in their note)."""
+    import test_tiers
+
+    rec = json.loads((REPO / "benchmarks" / "results_test_tiers_2026-11-28.json").read_text())
+    for n, state in ((0, "cold"), (12, "warm")):
+        rec["numba_cache"] = {"dir": ".cache/test/bpmcal/numba/x", "kernels": n, "state": state}
+        text = test_tiers.markdown(rec)
+        assert f"Numba cache before the first tier: **{state}** ({n} compiled kernels" in text
+    nc = test_tiers.numba_cache()
+    assert nc["state"] == ("warm" if nc["kernels"] else "cold") and "numba" in nc["dir"]
