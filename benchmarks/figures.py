@@ -122,6 +122,10 @@ def _study_outputs(rec: dict) -> dict:
     for p, nd in (("pb_emod_GPa", 2), ("pb_kratio", 2), ("pb_ten_MPa", 1), ("pb_coh_MPa", 1)):
         v = [o["calibration"][s][p] for s in spec]
         f[f"results.card.{p}"] = (_slash(v, f"{{:.{nd}f}}"), v, p.rsplit("_", 1)[-1])
+    f["results.card.status"] = (_slash([o["calibration"][s]["status"] for s in spec], "{}"),
+                                [o["calibration"][s]["status"] for s in spec], "")
+    f["results.table5.status"] = (_slash([o["table5"][s]["status"] for s in spec], "{}"),
+                                  [o["table5"][s]["status"] for s in spec], "")
     r = o["ratio"]
     f["results.ratio"] = (f"{r['chosen']:g}", r["chosen"], "")
     f["results.ratio_tensile_share"] = (f"{100 * r['value']:.1f} %", 100 * r["value"], "%")
