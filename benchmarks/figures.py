@@ -126,6 +126,8 @@ def _study_outputs(rec: dict) -> dict:
                                 [o["calibration"][s]["status"] for s in spec], "")
     f["results.table5.status"] = (_slash([o["table5"][s]["status"] for s in spec], "{}"),
                                   [o["table5"][s]["status"] for s in spec], "")
+    notes = [f"{s}: {o['table5'][s]['note']}" for s in spec if o["table5"][s].get("note")]
+    f["results.table5.notes"] = ("; ".join(notes) or "none", notes, "")
     r = o["ratio"]
     f["results.ratio"] = (f"{r['chosen']:g}", r["chosen"], "")
     f["results.ratio_tensile_share"] = (f"{100 * r['value']:.1f} %", 100 * r["value"], "%")
