@@ -122,6 +122,12 @@ def _study_outputs(rec: dict) -> dict:
     for p, nd in (("pb_emod_GPa", 2), ("pb_kratio", 2), ("pb_ten_MPa", 1), ("pb_coh_MPa", 1)):
         v = [o["calibration"][s][p] for s in spec]
         f[f"results.card.{p}"] = (_slash(v, f"{{:.{nd}f}}"), v, p.rsplit("_", 1)[-1])
+    f["results.card.status"] = (_slash([o["calibration"][s]["status"] for s in spec], "{}"),
+                                [o["calibration"][s]["status"] for s in spec], "")
+    f["results.table5.status"] = (_slash([o["table5"][s]["status"] for s in spec], "{}"),
+                                  [o["table5"][s]["status"] for s in spec], "")
+    notes = [f"{s}: {o['table5'][s]['note']}" for s in spec if o["table5"][s].get("note")]
+    f["results.table5.notes"] = ("; ".join(notes) or "none", notes, "")
     r = o["ratio"]
     f["results.ratio"] = (f"{r['chosen']:g}", r["chosen"], "")
     f["results.ratio_tensile_share"] = (f"{100 * r['value']:.1f} %", 100 * r["value"], "%")
@@ -240,12 +246,13 @@ def render() -> str:
 def pages() -> list[Path]:
     """The pages that quote figures: the README, every docs page outside the records, and
     the undated summaries among them (``docs/measurements/<name>.md`` not starting with a
-    date, its README index aside), which quote several records side by side."""
+    date, its two indexes, README and archive, aside), which quote several records side by
+    side."""
     meas = REPO / "docs" / "measurements"
     docs = [p for p in sorted((REPO / "docs").rglob("*.md"))
             if "measurements" not in p.relative_to(REPO / "docs").parts]
     summaries = [p for p in sorted(meas.glob("*.md"))
-                 if not p.name[:1].isdigit() and p.name != "README.md"]
+                 if not p.name[:1].isdigit() and p.name not in ("README.md", "archive.md")]
     return [REPO / "README.md", REPO / "config" / "README.md", *docs, *summaries]
 
 

@@ -64,7 +64,7 @@ from pathlib import Path
 from _study import CONFIG, REPO, bts_disc_and_settings
 from bts_resolution import _config, _meta
 
-#: the base card (Lac du Bonnet-like granite; /tmp/fjcard.yaml of the brief)
+#: the base card (a Lac du Bonnet-like granite, written out here in full)
 BASE = dict(contact_model="flatjoint", rmin_mm=0.8, porosity=0.30, fj_emod_GPa=60.0,
             fj_kratio=2.0, fj_ten_MPa=10.0, fj_coh_MPa=100.0, fj_fa_deg=30.0, fj_fric=0.6,
             fj_gi_ratio=0.2, fj_slit_frac=0.2, fj_nr=1.0, fj_nal=3.0)

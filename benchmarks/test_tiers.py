@@ -6,8 +6,10 @@ pytest reports, the host's CPU, the load average before and after, and the commi
         --markdown docs/measurements/DATE-test-tiers.md
 
 ``--tiers fast`` times the fast tier only. Run it on a quiet machine with a warm numba
-cache (a fresh clone first compiles the kernels: run the fast tier once before); the
-record says which (``--note``).
+cache (a fresh clone first compiles the kernels: run the fast tier once before). The
+record says which: it counts the compiled kernels in the test run's numba cache before the
+first tier (``numba_cache``: warm if there are any; the cache tests/conftest.py gives the
+test run, ``.cache/test/bpmcal`` or ``$BPMCAL_CACHE``).
 """
 from __future__ import annotations
 
@@ -40,6 +42,23 @@ def _counts(tail: str) -> dict:
         r"(\d+) (passed|failed|skipped|deselected|errors?|xfailed|xpassed)", tail)}
 
 
+def numba_cache() -> dict:
+    """The numba cache the test run will use (tests/conftest.py's choice: $NUMBA_CACHE_DIR,
+    else $BPMCAL_CACHE, else .cache/test/bpmcal, each keyed on the engine's source as
+    bpmcal.dem._jit does) and how many compiled kernels it holds now."""
+    if "NUMBA_CACHE_DIR" in os.environ:
+        d = Path(os.environ["NUMBA_CACHE_DIR"])
+    else:
+        base = Path(os.environ.get("BPMCAL_CACHE", REPO / ".cache" / "test" / "bpmcal"))
+        key = subprocess.run([sys.executable, "-c", "from bpmcal.dem._jit import _source_hash;"
+                              " print(_source_hash())"], capture_output=True, text=True,
+                             check=True).stdout.strip()
+        d = base / "numba" / key
+    n = len(list(d.rglob("*.nbc"))) if d.is_dir() else 0
+    where = d.relative_to(REPO) if d.is_relative_to(REPO) else d
+    return {"dir": str(where), "kernels": n, "state": "warm" if n else "cold"}
+
+
 def time_tier(name: str) -> dict:
     cmd = [sys.executable, "-m", "pytest", "-q", "-ra", "-p", "no:cacheprovider",
            *TIERS[name]]
@@ -60,6 +79,11 @@ def markdown(rec: dict) -> str:
              f"Command: `{rec['command']}`", ""]
     if rec.get("note"):
         lines += [rec["note"], ""]
+    nc = rec.get("numba_cache")
+    if nc:  # recorded from 2026-12 on
+        lines += [f"Numba cache before the first tier: **{nc['state']}** ({nc['kernels']} "
+                  f"compiled kernels in `{nc['dir']}`"
+                  + ("" if nc["kernels"] else "; the first tier compiled them") + ").", ""]
     lines += ["| tier | pytest command | wall | CPU (children) | passed | skipped | deselected "
               "| failed | load (1 min) before / after |", "|---|---|---|---|---|---|---|---|---|"]
     for t in rec["tiers"]:
@@ -86,7 +110,7 @@ def main(argv=None) -> int:
     rec = {"date": dt.date.today().isoformat(), "cpu_model": cpu_model(),
            "cpus": os.cpu_count(), "commit": _commit(),
            "command": "python benchmarks/test_tiers.py " + shlex.join(argv), "note": a.note,
-           "tiers": [time_tier(n) for n in names]}
+           "numba_cache": numba_cache(), "tiers": [time_tier(n) for n in names]}
     Path(a.out).write_text(json.dumps(rec, indent=1) + "\n")
     text = markdown(rec)
     if a.markdown:

@@ -76,7 +76,7 @@ RMIN, POROSITY = BALL_PARAMS
 
 #: The flat-joint card (PFC ``flatjoint``, docs/contact_laws.md): the interface's
 #: deformability and strength, its discretisation, and the flat-jointed material's
-#: microstructure (FJM.md §6). ``lo``/``hi`` are starting design ranges, not Table 2.
+#: microstructure (docs/flatjoint-spec.md §6). ``lo``/``hi`` are starting design ranges, not Table 2.
 FJ_PARAMS: dict[str, Param] = {p.name: p for p in [
     Param("fj_emod_GPa", "Ec", r"$E_c$", "GPa", 1e9, 20.0, 120.0, 0.0, math.inf, True,
           "flat-joint effective modulus (= linear emod at walls and new contacts)",
@@ -107,7 +107,7 @@ FJ_PARAMS: dict[str, Param] = {p.name: p for p in [
           "initial gap of gapped flat joints over the mean ball radius", unicode="g0/R̄"),
 ]}
 
-#: defaults of the flat-joint card's optional keys (PFC's usual 3D choices, FJM.md §5-6)
+#: defaults of the flat-joint card's optional keys (PFC's usual 3D choices, docs/flatjoint-spec.md §5-6)
 FJ_DEFAULTS: dict[str, float] = {"fj_rmul": 1.0, "fj_nr": 1.0, "fj_nal": 3.0,
                                  "fj_gi_ratio": 0.0, "fj_slit_frac": 0.0, "fj_gap_frac": 0.0,
                                  "fj_gap0_ratio": 0.0}

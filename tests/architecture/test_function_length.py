@@ -12,7 +12,7 @@ SRC = Path(__file__).resolve().parents[2] / "src" / "bpmcal"
 MAX_LINES = 80
 
 #: "path:qualified name" -> why it stays long (functions outside the refactor of issue 25;
-#: each entry is a candidate for a later split, see /work/shared/STRUCTURE-REVIEW.md §2)
+#: each entry is a candidate for a later split)
 ALLOWED = {
     "dem/bondblock.py:_compute": "the njit parallel-bond law of one block, written branch-free for "
                                  "the vectoriser; a call per step inside it would cost the SIMD loop",

@@ -202,7 +202,9 @@ def _verify(cards, d, spec, o, max_rounds=8, seeds_per_round=1):
     return A.verify(cards["dir"] / f"{spec}.yaml", d / "models.json", out_card=o / f"{spec}.yaml",
                     rounds=o / f"{spec}.csv", run=o / f"{spec}.h5", bts_run=o / f"{spec}.bts.h5",
                     geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
-                    rtol=0.01, max_rounds=max_rounds, seeds_per_round=seeds_per_round)
+                    rtol=0.01, max_rounds=max_rounds, seeds_per_round=seeds_per_round,
+                    tensile_specimens=1)  # one disc per seed: its
+    # order of runs is what these tests read (several: tests/cli/test_dtt_targets.py)
 
 
 def test_every_seed_of_a_round_gets_its_brazilian_test(cards, d, tmp_path, dem):

@@ -136,7 +136,8 @@ def _verify(card, d, tmp_path, name):
                     rounds=tmp_path / f"{name}.csv", run=tmp_path / f"{name}.h5",
                     geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
                     seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
-                    tri_settings=TriaxialSettings(sigma3=S3 * 1e6))
+                    tri_settings=TriaxialSettings(sigma3=S3 * 1e6),
+                    tensile_specimens=1)  # one disc per seed
 
 
 def test_verify_runs_the_triaxial_test_every_seed_and_steers_sigma1(card, d, tmp_path,

@@ -1,7 +1,7 @@
 """One flat joint between two balls, each loading mode, against the closed forms of
-FJM.md §8 (T1-T8) and docs/contact_laws.md.
+docs/flatjoint-spec.md §8 (T1-T8) and docs/contact_laws.md.
 
-Common set-up (FJM.md §8): R1 = R2 = 1 mm, lambda = 1, E* = 50 GPa (k_n = 2.5e13 Pa/m),
+Common set-up (docs/flatjoint-spec.md §8): R1 = R2 = 1 mm, lambda = 1, E* = 50 GPa (k_n = 2.5e13 Pa/m),
 kappa* = 2, 1 x 3 elements, sigma_b = 10 MPa, c_b = 20 MPa, phi_b = 30 deg, mu = 0.5.
 Ball 0 at the origin, ball 1 on +x; n = x, the frame's s = y, t = z, so the elements'
 centroids lie at 60, 180 and 300 degrees from y towards z. Motion is prescribed (both
@@ -21,7 +21,7 @@ KN = 50e9 / (2 * R)  # k_n [Pa/m]
 KS = KN / 2.0
 A = math.pi * R * R
 INERTIA = math.pi * R ** 4 / 4
-RHO_E = 0.55133 * R  # centroid distance, 1 x 3 (FJM.md §1 table; checked below)
+RHO_E = 0.55133 * R  # centroid distance, 1 x 3 (docs/flatjoint-spec.md §1 table; checked below)
 TOL = 1e-9
 
 

@@ -35,10 +35,46 @@ def test_the_planted_cards_tensile_records_are_their_json_rendered():
         assert page.read_text() == bts_resolution.markdown(recs, title, list(names)), page.name
 
 
-def test_every_record_page_is_listed_in_the_index():
-    index = (REPO / "docs" / "measurements" / "README.md").read_text()
-    for page in (REPO / "docs" / "measurements").glob("2*.md"):
-        assert f"({page.name})" in index, page.name
+def _listed(page: str) -> set[str]:
+    """The records a page of docs/measurements lists in its tables (first column)."""
+    text = (REPO / "docs" / "measurements" / page).read_text()
+    return set(re.findall(r"^\| \[(2[^\]]+\.md)\]\(\1\) \|", text, re.M))
+
+
+def test_every_record_is_current_or_earlier_in_one_list():
+    """Every record is listed once: as its topic's current record in the index, or in the
+    archive of earlier records, with the record that superseded or prompted it."""
+    records = {p.name for p in (REPO / "docs" / "measurements").glob("2*.md")}
+    current, earlier = _listed("README.md"), _listed("archive.md")
+    assert current | earlier == records, records - current - earlier
+    assert not current & earlier, current & earlier
+    archive = (REPO / "docs" / "measurements" / "archive.md").read_text()
+    for name in earlier:
+        row = next(ln for ln in archive.splitlines() if ln.startswith(f"| [{name}]"))
+        later = re.findall(r"\]\((2[^)]+\.md)\)", row.split(" | ")[1])
+        assert later and all(r in records and r != name for r in later), row
+
+
+def test_the_navigation_holds_the_current_records_only():
+    """The site's navigation lists the index, the current record of each topic and one
+    archive page, not the 50-odd earlier records."""
+    import yaml
+
+    class Loader(yaml.SafeLoader):  # mkdocs.yml's !!python tags are not needed here
+        pass
+    Loader.add_multi_constructor("tag:yaml.org,2002:python/", lambda *a: None)
+    nav = yaml.load((REPO / "mkdocs.yml").read_text(), Loader)["nav"]
+
+    def pages(node):
+        if isinstance(node, str):
+            return [node]
+        if isinstance(node, dict):
+            return [p for v in node.values() for p in pages(v)]
+        return [p for v in node for p in pages(v)]
+    in_nav = {p.removeprefix("measurements/") for p in pages(nav)
+              if p.startswith("measurements/2")}
+    assert in_nav == _listed("README.md")
+    assert "measurements/archive.md" in pages(nav)
 
 
 def test_the_readme_links_to_records_that_exist():
@@ -154,3 +190,18 @@ def test_job_times_sums_each_rule_from_snakemakes_log(tmp_path):
         "[Sat Nov 28 11:44:11 2026]\nrule verify:\n    jobid: 9\nError in rule verify\n")
     assert study_record.job_times(log) == {"design": {"jobs": 1, "wall_s": 3.0},
                                            "ucs": {"jobs": 2, "wall_s": 100.0 + 130.0}}
+
+
+def test_a_test_tiers_record_says_whether_numba_s_cache_was_warm():
+    """The tiers' times depend on numba's cache: a record made now counts the compiled
+    kernels before the first tier and says warm or cold (records before 2026-12 carry it
+    in their note)."""
+    import test_tiers
+
+    rec = json.loads((REPO / "benchmarks" / "results_test_tiers_2026-11-28.json").read_text())
+    for n, state in ((0, "cold"), (12, "warm")):
+        rec["numba_cache"] = {"dir": ".cache/test/bpmcal/numba/x", "kernels": n, "state": state}
+        text = test_tiers.markdown(rec)
+        assert f"Numba cache before the first tier: **{state}** ({n} compiled kernels" in text
+    nc = test_tiers.numba_cache()
+    assert nc["state"] == ("warm" if nc["kernels"] else "cold") and "numba" in nc["dir"]

@@ -23,7 +23,11 @@ from bpmcal.lab.ucs import run_ucs
 #: a small ISRM disc: 20 x 10 mm (~390 balls, 9.4 balls across with Rmin 0.8 mm)
 DISC = bts_geometry(scale=0.4)
 SEED = 2
-DEFAULT = BTSSettings()
+DEFAULT = BTSSettings()  # the default study's Brazilian loading (config/config.yaml bts)
+#: a careful quasi-static loading (the defaults until the study's were made the library's):
+#: a slow platen from the start, stopped well past the split
+CAREFUL = dict(platen_velocity=0.00625, approach_velocity=0.0, stop_drop=0.7,
+               post_peak_strain=0.002)
 
 
 def scaled(p, k):
@@ -38,10 +42,10 @@ def bts(params, cache, seed=SEED, **kw):
 
 @pytest.fixture(scope="module")
 def base(cache, tmp_path_factory):
-    """The A1 disc at the default settings, through the command line (one HDF5 file): a
-    ~10 s run at the careful default speed, so the tests that read it are in the slow
-    tier (CI runs them; the fast tier keeps the Brazilian tests of tests/cli and the
-    cheap ones below)."""
+    """The A1 disc at the default settings (the study's loading), through the command line
+    (one HDF5 file): a run of seconds, so the tests that read it are in the slow tier (CI
+    runs them; the fast tier keeps the Brazilian tests of tests/cli and the cheap ones
+    below)."""
     d = tmp_path_factory.mktemp("bts")
     pf = d / "a1.yaml"
     pf.write_text("\n".join(f"{k}: {v}" for k, v in A1.items()))
@@ -86,19 +90,36 @@ def test_sigma_t_is_2P_over_pi_D_t_of_the_peak_mean_platen_load(base):
     assert ser["load"][-1] < DEFAULT.stop_drop * P[ip]
 
 
+@pytest.fixture(scope="module")
+def careful(cache):
+    """The A1 disc of ``base`` under the CAREFUL loading."""
+    return bts(A1, cache, **CAREFUL)[0]
+
+
+def _mismatch(ser, first: int = 0):
+    """The two platens' relative load difference from record ``first`` to the peak, where
+    the load is established (above a fifth of the peak)."""
+    ip = int(np.argmax(ser["load"]))
+    up = slice(first, ip + 1)
+    loaded = ser["load"][up] > 0.2 * ser["load"][ip]
+    return np.abs(ser["load_bottom"][up] - ser["load_top"][up])[loaded] / ser["load"][up][loaded]
+
+
 @pytest.mark.slow
-def test_the_two_platen_forces_agree(base):
+def test_the_two_platen_forces_agree(base, careful):
     """Quasi-static loading: the two platens carry the same load (no net force on the
     disc) at the peak and along the pre-peak curve once the load is established; only
-    the stress waves of single bond breaks near one platen separate them for a moment."""
-    s, ser = base.summary, base.series
-    assert s["platen_mismatch"] < 0.005
-    ip = int(np.argmax(ser["load"]))
-    up = slice(0, ip + 1)
-    loaded = ser["load"][up] > 0.2 * ser["load"][ip]
-    rel = np.abs(ser["load_bottom"][up] - ser["load_top"][up])[loaded] / ser["load"][up][loaded]
-    assert rel.size > 100
-    assert rel.mean() < 0.005 and np.percentile(rel, 95) < 0.01, (rel.mean(), rel.max())
+    the stress waves of single bond breaks near one platen separate them for a moment.
+    So under the careful loading from the start, and under the default (the study's) from
+    the first crack on, when its platens slow from the fast approach of the elastic disc
+    (during that approach they differ by up to a few per cent; the peak is not in it)."""
+    for s in (base.summary, careful.summary):
+        assert s["platen_mismatch"] < 0.005
+    cracks = base.series["cracks_tension"] + base.series["cracks_shear"]
+    for ser, first in ((careful.series, 0), (base.series, int(np.argmax(cracks > 0)))):
+        rel = _mismatch(ser, first)
+        assert rel.size > 100
+        assert rel.mean() < 0.005 and np.percentile(rel, 95) < 0.01, (rel.mean(), rel.max())
 
 
 @pytest.mark.slow
@@ -150,22 +171,22 @@ def test_halving_the_default_platen_speed_changes_sigma_t_by_less_than_2_percent
 
 
 @pytest.mark.slow
-def test_the_study_settings_give_the_sigma_t_of_the_default_settings(base, cache):
-    """The study's Brazilian test (config/config.yaml ``bts``: a fast approach until the
-    first crack, a faster platen, a stop once the disc has split) against the careful
-    default on the A1 disc: the same sigma_t within 2 %, in fewer steps; the platens
-    switch to the loading speed at the first crack."""
+def test_the_study_settings_give_the_sigma_t_of_a_careful_loading(base, careful):
+    """The default Brazilian test, which is the study's (config/config.yaml ``bts``: a fast
+    approach until the first crack, a faster platen, a stop once the disc has split),
+    against the CAREFUL loading on the A1 disc: the same sigma_t within 2 %, in fewer
+    steps; the platens switch to the loading speed at the first crack."""
     import yaml
 
     b = yaml.safe_load((REPO / "config" / "config.yaml").read_text())["bts"]
     keys = ("platen_velocity", "approach_velocity", "post_peak_strain", "stop_drop", "loading",
             "contact_cap")
-    r, _ = bts(A1, cache, **{k: b[k] for k in keys})
-    s = r.summary
-    assert s["bts_valid"] and base.summary["bts_valid"]
-    assert s["bts_MPa"] == pytest.approx(base.summary["bts_MPa"], rel=0.02)
-    assert s["steps"] < 0.7 * base.summary["steps"]
-    ser = r.series
+    assert {k: getattr(DEFAULT, k) for k in keys} == {k: b[k] for k in keys}
+    s = base.summary
+    assert s["bts_valid"] and careful.summary["bts_valid"]
+    assert s["bts_MPa"] == pytest.approx(careful.summary["bts_MPa"], rel=0.02)
+    assert s["steps"] < 0.7 * careful.summary["steps"]
+    ser = base.series
     cracks = ser["cracks_tension"] + ser["cracks_shear"]
     k = int(np.argmax(cracks > 0))  # the first record with a crack: the switch
     assert s["approach_strain"] == ser["diametral_strain"][k] > 0

@@ -68,7 +68,7 @@ def test_genesis_installs_the_microstructure_asked_for(cache):
 
 
 def test_installation_is_force_free(cache):
-    """Right after installation every flat joint carries no force (FJM.md T9)."""
+    """Right after installation every flat joint carries no force (docs/flatjoint-spec.md T9)."""
     from bpmcal.dem import Model
     from bpmcal.lab.runner import specimen_spec
     from bpmcal.lab.specimen import card_material, get_packing
@@ -124,7 +124,7 @@ def test_scaling_moduli_and_strengths_by_1_5_scales_sigma_c_and_sigma_t(base, ca
 
 
 def test_flat_joints_raise_sigma_c_over_sigma_t_above_the_parallel_bond(base, cache):
-    """The reason for the model (Potyondy 2012, FJM.md §9): the same kind of specimen
+    """The reason for the model (Potyondy 2012, docs/flatjoint-spec.md §9): the same kind of specimen
     gives a far higher sigma_c / sigma_t with flat joints than A1 with parallel bonds."""
     st = DTTSettings()
     fjt = run_dtt(make_specimen(FJ1, 3, SMALL, cache=cache, boundary="free"), st).summary

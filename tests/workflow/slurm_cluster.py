@@ -2,7 +2,8 @@
 
 ``local_slurm_cluster(workdir)`` is a context manager that
 
-1. checks the prerequisites (root; the daemons installed, else ``apt-get`` to install them),
+1. checks the prerequisites (asked for with ``BPMCAL_TEST_SLURM=1``; root; the daemons
+   installed, else ``apt-get`` to install them),
 2. starts ``munged`` as the ``munge`` user on the default socket (or reuses a working one),
 3. writes a ``slurm.conf`` into a private directory (this host, its real CPUs and
    RealMemory from ``slurmd -C``, no accounting, private state/spool/pid/log paths, free
@@ -15,6 +16,9 @@
    stops the daemons it started by their pids, restores whatever ``/etc/slurm/slurm.conf``
    was before and removes its private directories.
 
+It changes the machine (system packages, daemons, ``/etc/slurm``), so it runs only when
+asked: ``BPMCAL_TEST_SLURM=1`` in the environment (``.ci/run`` sets it; a plain
+``python -m pytest`` skips the Slurm tests and changes nothing outside the repository).
 Prerequisites that are not met raise :class:`SlurmUnavailable` before anything is
 changed; a test fixture turns that into a skip.  Anything that goes wrong later raises
 :class:`SlurmClusterError` with the daemons' log tails in the message.
@@ -53,6 +57,8 @@ REQUIRED_BINARIES = (
     "munged",
     "munge",
 )
+#: the environment variable that asks for the Slurm tests (they install and start services)
+ASK = "BPMCAL_TEST_SLURM"
 ETC_SLURM_CONF = Path("/etc/slurm/slurm.conf")
 SAVED_ETC_CONF = Path("/etc/slurm/slurm.conf.bpmcal-saved")
 MUNGE_SOCKET_DIR = Path("/run/munge")
@@ -149,8 +155,9 @@ def missing_binaries() -> list[str]:
 
 def unavailable_reason() -> str | None:
     """Why the private cluster cannot be brought up here, or None if it can."""
-    if os.environ.get("BPMCAL_SKIP_SLURM", "") not in ("", "0"):
-        return "Slurm test disabled by BPMCAL_SKIP_SLURM"
+    if os.environ.get(ASK, "") in ("", "0"):
+        return (f"Slurm test not asked for: set {ASK}=1 to run it (as root it installs "
+                f"{' '.join(PACKAGES)} with apt-get and starts their daemons)")
     if os.name != "posix" or not Path("/proc/self").exists():
         return "Slurm test needs Linux"
     if os.geteuid() != 0:

@@ -185,6 +185,8 @@ def cli_default(cmd, dest):
 
 
 def same(a, b):
+    if a is None or b is None:
+        return a is b
     if isinstance(a, float) or isinstance(b, float):
         return math.isclose(float(a), float(b), rel_tol=1e-12)
     return a == b and type(a) is type(b) or (isinstance(a, list) and list(a) == list(b))
@@ -243,6 +245,104 @@ def test_the_two_known_disagreements_are_settled_as_the_study_runs():
     cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
     assert cfg["impact"]["duration_ms"] == 40.0 and cfg["impact"]["record_us"] == 5.0
     assert cfg["verification"]["max_rounds"] == LOOP["max_rounds"]
+
+
+# ------------------------------------------------------------ the default study's values
+CONFIG = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+
+#: config/config.yaml values that the library's defaults do not take, and why. A lab
+#: command run at another scale than the study's says so (bpmcal.cli.runs.study_scale_note)
+STUDY_DIFFERS = {
+    # the study shrinks its specimens to run on a laptop; Geometry(), bts_geometry() and
+    # the lab commands test the laboratory's full-size ones (lab.runner.STUDY_SCALES)
+    "specimen.scale": GEO.scale,
+    "bts.scale": None,  # null: the disc at the cylinder's scale (bpmcal ucs --bts-scale)
+    "impact.scale": GEO.scale,
+    # the report compares the default study with the paper; another rock's study has
+    # no published values (a study-only key, no library default)
+    "study.reference": "none",
+    # the adaptive tensile-specimen count: the workflow passes it only for a card with a
+    # sigma_t target, so the command's default must be the fixed count that a config's
+    # null means (the default study has no sigma_t target: it never acts there)
+    "verification.tensile_seed_cv": VER["tensile_seed_cv"],
+    "verification.max_tensile_specimens": VER["max_tensile_specimens"],
+}
+
+#: config/config.yaml keys that are the study's own inputs: no library default to agree with
+STUDY_INPUTS = {"outdir", "study.name", "study.n_samples", "study.lhs_seed", "lab.csv",
+                "calibration.fixed", "calibration.free", "calibration.bounds",
+                "specimen.install_gap_mm"}  # null in both (tested above)
+
+
+def config_values(node=CONFIG, key=""):
+    """Every (dotted key, value) of config/config.yaml (a section's leaves; a mapping
+    that is a value, e.g. calibration.fixed, as one)."""
+    out = {}
+    for name, v in node.items():
+        k = f"{key}.{name}" if key else name
+        if isinstance(v, dict) and k not in STUDY_INPUTS and v:
+            out.update(config_values(v, k))
+        else:
+            out[k] = v
+    return out
+
+
+def library_default(key):
+    """The library's default for a config key: the settings, classes and stage functions
+    of DEFAULTS; the design ranges of bpmcal.params (Table 2); the study-only keys'
+    schema defaults."""
+    if key in DEFAULTS:
+        return DEFAULTS[key][0]
+    section, _, name = key.partition(".")
+    if section == "ranges":
+        p = P.PARAMS[name]
+        return [p.lo, p.hi]
+    if key in STUDY_ONLY or key in STUDY_DIFFERS:
+        return schema_defaults().get(key, STUDY_DIFFERS.get(key))
+    raise KeyError(key)
+
+
+def test_every_config_key_is_a_library_default_a_stated_difference_or_a_study_input():
+    keys = set(config_values())
+    known = set(DEFAULTS) | STUDY_ONLY | set(STUDY_DIFFERS) | STUDY_INPUTS
+    known |= {f"ranges.{n}" for n in P.PARAMS}
+    assert keys - known == set(), "config/config.yaml keys of no known source"
+
+
+@pytest.mark.parametrize("key", sorted(set(config_values()) - STUDY_INPUTS))
+def test_the_library_defaults_are_the_default_studys(key):
+    """A test, a lab command or an API call run with its defaults measures what the
+    default study measures: every value of config/config.yaml is the library's default,
+    but the STUDY_DIFFERS, each with its reason (and they do differ)."""
+    value, default = config_values()[key], library_default(key)
+    if key in STUDY_DIFFERS:
+        assert default == STUDY_DIFFERS[key] and not same(value, default), (
+            f"{key}: config/config.yaml {value!r} now equals the library's default: "
+            "remove it from STUDY_DIFFERS")
+    else:
+        assert same(value, default), (
+            f"{key}: config/config.yaml {value!r}, the library's default {default!r} (make "
+            "the library's default the study's, or state why not in STUDY_DIFFERS)")
+
+
+def test_the_study_scales_are_the_default_studys():
+    """The scales the lab commands compare with (lab.runner.STUDY_SCALES), and the note
+    they print when their specimen is of another size: one line naming each setting that
+    differs, and none at the study's scales."""
+    from bpmcal.cli.runs import study_scale_note
+    from bpmcal.lab.runner import STUDY_SCALES, bts_geometry
+
+    assert STUDY_SCALES == {"cylinder": CONFIG["specimen"]["scale"],
+                            "disc": CONFIG["bts"]["scale"], "impact": CONFIG["impact"]["scale"]}
+    at = {k: Geometry(scale=v) for k, v in STUDY_SCALES.items()}
+    assert study_scale_note("ucs", [("ucs", at["cylinder"]), ("bts", at["disc"])]) is None
+    assert study_scale_note("impact", [("impact", at["impact"])]) is None
+    line = study_scale_note("ucs", [("ucs", Geometry()), ("bts", bts_geometry())])
+    assert "\n" not in line and line.startswith("bpmcal ucs: note: ")
+    assert "scale 1 (the default study's specimen.scale 0.4)" in line
+    assert "scale 1 (the default study's bts.scale 0.55)" in line and "size effect" in line
+    line = study_scale_note("bts", [("bts", bts_geometry(scale=0.4))])
+    assert "bts.scale 0.55" in line and "specimen.scale" not in line
 
 
 def test_the_check_can_fail(monkeypatch):

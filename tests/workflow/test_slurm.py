@@ -41,6 +41,7 @@ def test_profile_keys_are_valid_snakemake_options():
 
 
 def test_skips_cleanly_when_not_root(monkeypatch, tmp_path):
+    monkeypatch.setenv(sc.ASK, "1")
     monkeypatch.setattr(os, "geteuid", lambda: 1000)
     assert sc.unavailable_reason() == "Slurm test needs root and apt-get (not root)"
     etc_before = sc.ETC_SLURM_CONF.exists() or sc.ETC_SLURM_CONF.is_symlink()
@@ -55,9 +56,29 @@ def test_skips_cleanly_when_not_root(monkeypatch, tmp_path):
     assert not (tmp_path / sc.MARKER).exists()
 
 
-def test_skips_when_disabled(monkeypatch):
-    monkeypatch.setenv("BPMCAL_SKIP_SLURM", "1")
-    assert "BPMCAL_SKIP_SLURM" in sc.unavailable_reason()
+@pytest.mark.parametrize("value", [None, "", "0"])
+def test_skips_and_changes_nothing_unless_asked(monkeypatch, tmp_path, value):
+    """Without BPMCAL_TEST_SLURM=1 the cluster is not brought up, even as root with
+    apt-get at hand: no package is installed, no daemon started, /etc is untouched."""
+    if value is None:
+        monkeypatch.delenv(sc.ASK, raising=False)
+    else:
+        monkeypatch.setenv(sc.ASK, value)
+    monkeypatch.setattr(os, "geteuid", lambda: 0)  # root, where the test would install
+    calls = []
+    monkeypatch.setattr(sc, "ensure_installed", lambda *a, **k: calls.append(a) or 0.0)
+    monkeypatch.setattr(sc.subprocess, "Popen", lambda *a, **k: calls.append(a))
+    assert sc.unavailable_reason().startswith("Slurm test not asked for: set BPMCAL_TEST_SLURM=1")
+    etc_before = sc.ETC_SLURM_CONF.exists() or sc.ETC_SLURM_CONF.is_symlink()
+    with pytest.raises(pytest.skip.Exception, match="not asked for"):
+        with sc.cluster_or_skip(tmp_path):
+            pass
+    with pytest.raises(sc.SlurmUnavailable, match="not asked for"):
+        with sc.local_slurm_cluster(tmp_path):
+            pass
+    assert calls == []
+    assert (sc.ETC_SLURM_CONF.exists() or sc.ETC_SLURM_CONF.is_symlink()) == etc_before
+    assert not (tmp_path / sc.MARKER).exists()
 
 
 @pytest.mark.slow

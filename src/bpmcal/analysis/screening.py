@@ -144,13 +144,14 @@ class XGBScreening:
     xgb_params:
         Overrides of :data:`DEFAULT_XGB_PARAMS`.
     seed:
-        Seeds the folds, xgboost's subsampling, the permutations and the shadow columns.
+        Seeds the folds, xgboost's subsampling, the permutations and the shadow columns
+        (default 11, the default study's ``screening.seed``).
     """
 
     def __init__(self, params: Sequence[str] = PARAM_NAMES, responses: Sequence[str] = TARGETS, *,
                  n_splits: int = 5, threshold: float = 10.0, importance: str = "gain",
                  n_repeats: int = 10, shadow: bool = True, rule: str = "threshold",
-                 xgb_params: Mapping[str, object] | None = None, seed: int = 0):
+                 xgb_params: Mapping[str, object] | None = None, seed: int = 11):
         self.params = check_params(params)
         self.responses = check_responses(responses)
         if not self.params or not self.responses:

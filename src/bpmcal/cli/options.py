@@ -274,7 +274,7 @@ def add_bts_args(p, prefix: str = ""):
                             "docs/lab-tests.md)"),
         "approach_velocity": (number(lab("approach_velocity"), 0.0, 100.0, unit="m/s"),
                               "speed of each platen until the first crack [m/s] (default "
-                              "{d:g}: off, the whole test at the platen velocity)"),
+                              "{d:g}; 0: off, the whole test at the platen velocity)"),
         "platen_fric": (number(lab("platen_fric"), 0.0, 10.0),
                         "platen friction coefficient (default {d:g}; with 0 the free disc "
                         "spins on the platens before it seats, and sigma_t is ~15 %% lower)"),

@@ -45,9 +45,44 @@ def _run_done(args, cmd: str, out, path=None) -> int:
     return EXIT_OK if args.failed_ok and not out.kept else EXIT_RUN_FAILED
 
 
+#: each lab test's specimen, and the config key that sizes it in the default study
+_SPECIMEN = {"ucs": ("cylinder", "specimen.scale"), "triaxial": ("cylinder", "specimen.scale"),
+             "dtt": ("cylinder", "specimen.scale"), "bts": ("disc", "bts.scale"),
+             "impact": ("impact", "impact.scale")}
+
+
+def study_scale_note(cmd: str, tests) -> str | None:
+    """The one line a lab command prints when its specimens (``tests``: (test, geometry))
+    are not at the default study's scale (``lab.runner.STUDY_SCALES``), the one setting in
+    which its defaults differ from the study's, or None."""
+    from ..lab.runner import STUDY_SCALES
+
+    parts = []
+    for test, geo in tests:
+        what, key = _SPECIMEN[test]
+        study = STUDY_SCALES[what]
+        if abs(geo.scale - study) > 1e-12:
+            name = "cylinder" if what == "impact" else what
+            parts.append(f"the {name} at scale {geo.scale:g} (the default study's {key} "
+                         f"{study:g})")
+    if not parts:
+        return None
+    return (f"bpmcal {cmd}: note: {', '.join(parts)}: another size than the default "
+            "study's, so what it measures differs from the study's by the size effect; every "
+            "other default is the study's")
+
+
+def _note(args, cmd: str, tests) -> None:
+    """Print :func:`study_scale_note` (stderr; not with --quiet) after the runs: a command
+    refused for bad input prints its one error line only."""
+    line = None if args.quiet else study_scale_note(cmd, tests)
+    if line:
+        print(line, file=sys.stderr)
+
+
 def _lab_test(args, test: str, geometry, settings, done_line) -> int:
-    """``ucs``, ``bts`` and ``triaxial``: the run file (``stages.runs.lab_test_file``), its
-    one-line result and the exit code."""
+    """``ucs``, ``bts``, ``dtt`` and ``triaxial``: the run file
+    (``stages.runs.lab_test_file``), its one-line result and the exit code."""
     return _lab_tests(args, [(test, args.out, geometry, settings, done_line)])
 
 
@@ -69,6 +104,7 @@ def _lab_tests(args, tests, flags=None) -> int:
                   else "")
         r = _run_done(args, test, out, path)
         rc = r if rc == EXIT_OK else rc
+    _note(args, tests[0][0], [(t, g) for t, _, g, *_ in tests])
     return rc
 
 
@@ -263,6 +299,7 @@ def cmd_impact(args) -> int:
                   f"{100 * s['closure_rel_max']:.3f} %, {s['steps']} steps, {s['wall_s']:.0f} s")
     else:
         prog.done()
+    _note(args, "impact", [("impact", run_geometry(args))])
     return _run_done(args, "impact", out)
 
 

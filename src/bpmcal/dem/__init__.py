@@ -1,8 +1,11 @@
-"""bpmcal.dem: bonded-sphere DEM engine with PFC3D's linear + linear-parallel-bond semantics.
+"""bpmcal.dem: bonded-sphere DEM engine with PFC3D's linear, linear-parallel-bond and
+flat-joint semantics.
 
 Layers (numba kernels below ``model``):
 
 - ``laws`` (one contact) and ``motion`` (one ball): the physics, as small inlined functions;
+  ``flatjoint``: the flat joint's law (one interface of elements) and its loop over the
+  flat-jointed pairs;
 - ``kernels``: laws mapped over pairs and wall slots, integration, the chunk runner
   (``bondblock`` holds the vectorised bond pairs); ``neighbors``: Verlet lists and
   ball-wall slots; ``diagnostics``: energies, critical timestep, unbalanced force;

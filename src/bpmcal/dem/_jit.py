@@ -43,8 +43,10 @@ if not numba.config.CACHE_DIR:  # numba was imported before us: set it at run ti
 #: True when numba is switched off for debugging.
 JIT_DISABLED = bool(numba.config.DISABLE_JIT)
 
-# No fastmath: results must not depend on instruction-level reassociation, and NaN
-# checks must not be optimised away (blow-up detection relies on them).
+# fastmath only for "contract" (fused multiply-adds, which every x86-64 host with FMA
+# forms alike: docs/reproducibility.md), none of its other flags: results must not depend
+# on instruction-level reassociation, and NaN checks must not be optimised away (blow-up
+# detection relies on them).
 # error_model="numpy": a division by zero gives inf/nan (caught by the blow-up guard)
 # instead of raising; without it every division carries an exception branch that stops
 # LLVM from vectorising the bond blocks.

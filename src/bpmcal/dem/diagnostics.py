@@ -118,7 +118,7 @@ def stiffness_timestep(radius, mass, inertia, fix, pi, pj, npairs, nb, bstate, s
     max(ks_bar J, kn_bar I)). A live flat joint (``fjlive[k]``; ``fjprm`` its law's
     parameters, ``fjtwist`` = sum A_e rho_e^2 of a unit interface) counts instead of the
     linear contact with k_tran = max(kn, ks) A and k_rot = ks A a^2 + max(kn I,
-    ks R^4 fjtwist) (FJM.md §5). Returns (dt_crit, index of the limiting ball).
+    ks R^4 fjtwist) (docs/flatjoint-spec.md §5). Returns (dt_crit, index of the limiting ball).
     """
     n = radius.shape[0]
     kt = np.zeros(n)

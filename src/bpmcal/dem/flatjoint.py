@@ -1,5 +1,5 @@
 """The flat-joint contact model (PFC ``flatjoint``) for ONE contact and over the
-flat-jointed pairs, as numba kernels. Specification: ``../shared/FJM.md``; the choices made
+flat-jointed pairs, as numba kernels. Specification: ``docs/flatjoint-spec.md``; the choices made
 where PFC's documentation is silent are listed in ``docs/contact_laws.md``.
 
 A flat joint replaces the point contact of two balls by a disk interface of radius
@@ -80,7 +80,7 @@ TWO_PI = 2.0 * math.pi
 
 
 def element_table(nr: int, nal: int) -> np.ndarray:
-    """Geometry of the ``nr`` x ``nal`` elements of a unit-radius interface (FJM.md §1):
+    """Geometry of the ``nr`` x ``nal`` elements of a unit-radius interface (docs/flatjoint-spec.md §1):
     rings of equal radial width, sectors of equal angle measured from s towards t."""
     nr = int(nr)
     nal = int(nal)

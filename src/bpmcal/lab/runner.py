@@ -3,7 +3,8 @@ parameters (paper units), get the packing (cached), build the specimen, run the 
 return everything a run file holds as a :class:`LabRun` (no file is written here: the
 stages in ``bpmcal.stages.runs`` write it, or a failure record).
 
-``ucs_test``, ``bts_test`` (Brazilian), ``triaxial_test`` and ``impact_test`` share these
+``ucs_test``, ``bts_test`` (Brazilian), ``dtt_test`` (direct tension), ``triaxial_test`` and
+``impact_test`` share these
 conventions. A run that goes numerically unstable, a specimen that cannot be built or
 does not settle, or a servo stage that does not converge raises one of
 :data:`RUN_FAILURES`: the run failed, which a study records as data (a failure record);
@@ -101,7 +102,7 @@ class Geometry:
 class LabRun:
     """A finished virtual test: what its run file holds (``bpmcal.io.h5.write_run``)."""
 
-    test: str  # "ucs" | "bts" | "triaxial" | "impact"
+    test: str  # "ucs" | "bts" | "dtt" | "triaxial" | "impact"
     inputs: dict
     summary: dict
     genesis: dict
@@ -150,6 +151,16 @@ def bts_geometry(scale: float = 1.0, diameter_mm: float = BTS_DIAMETER_MM,
                  thickness_mm: float = BTS_THICKNESS_MM, **kw) -> Geometry:
     """Geometry of a Brazilian disc (``height_mm`` is the disc thickness)."""
     return Geometry(scale=scale, diameter_mm=diameter_mm, height_mm=thickness_mm, **kw)
+
+
+#: The one setting in which the default study's tests differ from the library's defaults:
+#: the size of their specimens (config/config.yaml ``specimen.scale``, ``bts.scale``,
+#: ``impact.scale``; tests/workflow/test_defaults.py holds them equal). ``Geometry()`` and
+#: the lab commands default to the laboratory's full-size specimens (scale 1); the study
+#: shrinks them to run on a laptop, so a full-size test measures a different σc, E or σt
+#: by the size effect (docs/lab-tests.md). A lab command at another scale says so once
+#: (``bpmcal.cli.runs``). Keys: the cylinder, the Brazilian disc, the impact's cylinder.
+STUDY_SCALES = {"cylinder": 0.4, "disc": 0.55, "impact": 0.5}
 
 
 # ------------------------------------------------------------------ the inputs a run records
@@ -249,7 +260,8 @@ def _threads(m) -> int:
 def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
               boundary: str, run, *, cache, threads, keep_particles, progress=None,
               genesis_max_steps=None, finite=()) -> LabRun:
-    """Shared body of the UCS, Brazilian and triaxial tests: specimen, test, results."""
+    """Shared body of the UCS, Brazilian, direct-tension and triaxial tests: specimen, test,
+    results."""
     if threads:
         set_threads(threads)  # for the whole run, genesis included
     t0 = time.perf_counter()

@@ -432,7 +432,7 @@ def get_packing(spec: SpecimenSpec, cache: str | os.PathLike | None = None,
 
 @dataclass(frozen=True)
 class Microstructure:
-    """A flat-jointed material's microstructure (FJM.md §6; the card's ``fj_gi_ratio``,
+    """A flat-jointed material's microstructure (docs/flatjoint-spec.md §6; the card's ``fj_gi_ratio``,
     ``fj_slit_frac``, ``fj_gap_frac``, ``fj_gap0_ratio``): flat joints are installed on
     every pair whose surface gap is at most ``gi_ratio`` x the mean ball radius; of the N
     joints, round(``gap_frac`` N) are gapped (all elements unbonded, surfaces

@@ -25,7 +25,7 @@ Measurements, recorded every ``record_strain`` of axial strain (compression posi
   than the bulk; docs/measurements/2026-11-26-end-layers.md).
 
 End caps (``end_cap``, off by default; 1 mean ball diameter caps the first layer of balls;
-``bpmcal ucs --end-cap``, config ``ucs.end_cap``):
+``bpmcal ucs --end-cap``, config ``compression.end_cap``):
 the balls packed against a flat platen form a layer with fewer bonds (a ball touching a
 platen has ~27 % fewer than a bulk ball, the balls within half a mean ball diameter d of
 it ~37 % fewer; docs/measurements/2026-11-26-end-layers.md), and with frictionless platens that

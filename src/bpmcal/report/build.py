@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 import statistics
 from pathlib import Path
@@ -151,6 +152,7 @@ def build(outdir, config: dict) -> Path:
         S.append(f"Lab data: `{cfg['lab']['csv']}`.\n")
     S.append(f"bpmcal {__version__}, commit `{git_commit()}`.\n")
     S.append(_settings(lay, cfg, ref))
+    S.append(_not_found(lay, outdir, sweep, triax, tlab, fresh))
     comp: list[dict] = []  # every published value we compare against, one row each
     S.append(_table3(lay, comp, ref))
     S.append(_regression(lay, comp, ref))
@@ -178,6 +180,19 @@ def build(outdir, config: dict) -> Path:
         S.append("\n## Notes on the paper\n")
         S.extend(f"- {n}" for n in paper.NOTES)
     return write_text(lay.report_index, "\n".join(S) + "\n")
+
+
+def _not_found(lay, outdir, sweep, triax, tlab, fresh) -> str:
+    """The files this configuration's report shows that the study has not written (a
+    partial run, or a stage that failed): named, so that a missing section is explained."""
+    want = [lay.dataset, *lay.report_tables(sweep, triax, tlab, fresh),
+            *lay.report_figures(sweep, triax)]
+    gone = [os.path.relpath(p, outdir) for p in want if not Path(p).exists()]
+    if not gone:
+        return ""
+    return ("**Not in this study yet** (their sections, tables and figures are left out of "
+            "this report; rerun the study to make them): "
+            + ", ".join(f"`{g}`" for g in gone) + ".\n")
 
 
 def is_paper_study(cfg: dict) -> bool:

@@ -5,7 +5,7 @@ A stage reads the files it is given, checks them and its output paths before any
 ``plots``, and writes exactly the files it is given. File names come from
 ``bpmcal.io.study_files`` (the rules declare them), never from a stage.
 
-- :mod:`.runs` — DEM run files (``ucs``, ``bts``, ``triaxial``, ``impact``) and failure
+- :mod:`.runs` — DEM run files (``ucs``, ``bts``, ``dtt``, ``triaxial``, ``impact``) and failure
   records;
 - :mod:`.dataset` — the design and the gathered dataset (``study.smk``);
 - :mod:`.analysis` — screening, regression, calibration, verification (``analysis.smk``);

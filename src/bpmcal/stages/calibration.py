@@ -50,7 +50,7 @@ def chosen_ratio(ratio_from, ratio: float | None) -> tuple[float | None, str]:
 
 def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=None,
               ratio: float | None = PAPER_RATIO, ratio_from=None, free=None, n_boot=200,
-              seed=0, table=None) -> dict:
+              seed=13, table=None) -> dict:
     """Invert the final regression models for every lab specimen; bootstrap intervals;
     one material card per specimen: ``cards`` holds one file per lab specimen, named
     ``<specimen>.yaml`` (``bpmcal.io.study_files``); ``table``: the calibration table (optional).

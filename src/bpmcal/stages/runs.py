@@ -309,7 +309,7 @@ def lab_test_file(test: str, out, *, geometry, settings, params_file=None, sets=
                   design=None, sample=None, seed=None, max_balls=MAX_BALLS,
                   mem_budget_mb=None, cache=None, threads=None, progress=None,
                   genesis_max_steps=None, keep_particles: bool = True) -> RunOutcome:
-    """The job of ``bpmcal ucs|bts|triaxial``: parameters and seed (a parameter file or a
+    """The job of ``bpmcal ucs|bts|dtt|triaxial``: parameters and seed (a parameter file or a
     design row), the resource budget, the output path and the cache folder, all checked
     before any work; then the run file, or the failure record of a failed run or of a plan
     row that is not to be run."""

@@ -620,7 +620,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
            mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None, bts_settings=None,
            bts_run=None, max_seeds=10, range_margin=0.25, polish=True, dtt_geometry=None,
            dtt_settings=None, tri_settings=None, jacobian_update="broyden",
-           tensile_specimens=1, triaxial_seeds=None, tensile_seed_cv=None,
+           tensile_specimens=3, triaxial_seeds=None, tensile_seed_cv=None,
            max_tensile_specimens=None, grow_within=_LOOP_GROW, seed_runs=None) -> dict:
     """Closed-loop verification of one material card: round 1 is the paper's single pass
     (the regression's answer), later rounds correct the free parameters with a
