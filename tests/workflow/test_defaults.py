@@ -12,6 +12,7 @@ from support.repo import SCHEMA as SCHEMA_FILE
 
 from bpmcal import params as P
 from bpmcal.analysis import PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
+from bpmcal.analysis.posterior import PosteriorSettings
 from bpmcal.cli import build_parser
 from bpmcal.cli.options import DESIGN_STOP_DROP
 from bpmcal.lab.brazilian import BTSSettings
@@ -24,6 +25,7 @@ from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import auto_rounds
 from bpmcal.stages import defaults_of
 from bpmcal.stages.analysis import calibrate, transfer, verify
+from bpmcal.stages.posterior import RefineSettings, posterior
 from bpmcal.stages.ratio_sweep import sweep_analyse, sweep_plan
 from bpmcal.stages.runs import impact_file
 from bpmcal.stages.screening import TENSILE_RULE
@@ -32,6 +34,7 @@ from bpmcal.study.design import lhs_design
 from bpmcal.study.sweep import DEFAULT_RATIOS
 
 SCHEMA = yaml.safe_load(SCHEMA_FILE.read_text())
+POST, REFINE = PosteriorSettings(), RefineSettings()
 
 GEO, UCS, IMP, BTS = Geometry(), UCSSettings(), ImpactSettings(), BTSSettings()
 DTT = DTTSettings()
@@ -132,6 +135,18 @@ DEFAULTS = {
                              ("triaxial", "servo_alpha", None)),
     "triaxial.design_sigma3_MPa": (None, ("ucs", "design_sigma3", None)),
     "triaxial.design_stop_drop": (DESIGN_STOP_DROP, ("ucs", "design_stop_drop", None)),
+    "posterior.surrogate": (POST.surrogate, ("posterior", "surrogate", None)),
+    "posterior.seed": (POST.seed, ("posterior", "posterior_seed", None)),
+    "posterior.hdi_prob": (POST.hdi_prob, ("posterior", "hdi_prob", None)),
+    "posterior.rhat_max": (POST.rhat_max, ("posterior", "rhat_max", None)),
+    "posterior.ess_min": (POST.ess_min, ("posterior", "ess_min", None)),
+    "posterior.max_steps": (POST.max_steps, ("posterior", "sampler_max_steps", None)),
+    "posterior.refine.max_runs": (REFINE.max_runs, ("posterior", "refine_max_runs", None)),
+    "posterior.refine.ratio": (REFINE.ratio, ("posterior", "refine_ratio", None)),
+    "posterior.refine.seeds": (REFINE.seeds, ("posterior", "refine_seeds", None)),
+    "posterior.refine.seed": (REFINE.seed, ("posterior", "refine_seed", None)),
+    "posterior.predictive.draws": (defaults_of(posterior)["n_draws"],
+                                   ("posterior", "n_draws", None)),
 }
 
 #: unit suffixes of config keys that their options drop (``diameter_mm``: ``--diameter``)
@@ -143,6 +158,15 @@ OTHER_NAMES = {
     "study.lhs_optimization": "optimization",
     # not renamed yet (bpmcal calibrate --ratio, its --ratio-from and the sweep's ratios)
     "calibration.strength_ratio": "ratio",
+    # bpmcal posterior also takes the run options (--seed of nothing, --max-steps of the
+    # loading): the sampler's carry its name, a subsection's keys their subsection's
+    "posterior.seed": "posterior_seed",
+    "posterior.max_steps": "sampler_max_steps",
+    "posterior.refine.max_runs": "refine_max_runs",
+    "posterior.refine.ratio": "refine_ratio",
+    "posterior.refine.seeds": "refine_seeds",
+    "posterior.refine.seed": "refine_seed",
+    "posterior.predictive.draws": "n_draws",
 }
 
 
@@ -165,6 +189,13 @@ STUDY_ONLY = {
     "triaxial.enabled", "triaxial.cards",  # whether and which cards the DAG tests
     "triaxial.seed",  # packing seed of the study's triaxial jobs (bpmcal triaxial: 1 too)
     "triaxial.lab_csv",  # optional lab points (null: none)
+    "posterior", "posterior.enabled",  # whether the DAG has the posterior jobs
+    "posterior.learning_curve",  # whether the posterior job writes its learning curve
+    "posterior.refine", "posterior.predictive",  # the subsections ({}: their defaults)
+    # which cards the predictive jobs run, at which stresses (null: triaxial.sigma3_MPa),
+    # with or without the impact: the DAG's (bpmcal predictive takes each run file)
+    "posterior.predictive.specimens", "posterior.predictive.sigma3_MPa",
+    "posterior.predictive.impact",
 }
 
 

@@ -69,7 +69,10 @@ def _add_posterior(p):
     p.add_argument("--sampler-max-steps", type=integer("sampler-max-steps", 100, 10_000_000),
                    default=s["max_steps"], help=f"sampler steps at most (default {s['max_steps']})")
     p.add_argument("--refine-max-runs", type=integer("refine-max-runs", 0, 1000),
-                   default=0, help="DEM seed runs the refinement may add (default 0: none)")
+                   default=r["max_runs"],
+                   help="DEM seed runs the refinement may add, measured as the card's closed "
+                        "loop measured it (the specimen and loading options must be the "
+                        f"loop's; default {r['max_runs']}; 0: none)")
     p.add_argument("--refine-ratio", type=number("refine-ratio", 0.0, lo_open=True),
                    default=r["ratio"], help="refine while a target's surrogate error exceeds "
                    f"this multiple of its lab side's sd (default {r['ratio']:g})")

@@ -10,7 +10,9 @@ Format 1 (keys in this order; paper units)::
 
     card_format: 1
     specimen            the lab specimen's name
-    status, message     the inversion's outcome (ok | non-unique | no-exact-fit | unreachable)
+    status, message     the inversion's outcome (ok | non-unique | within-error |
+                        no-exact-fit | unreachable; within-error: missed, but within the
+                        regression's own prediction error)
     ratio_ten_coh       the bond-strength ratio pb_ten/pb_coh used (null: both free, as when
                         the lab's tensile strength sets it)
     strength_ratio      value: pb_ten/pb_coh of ``parameters``; set_by: bts_MPa target |
@@ -33,6 +35,8 @@ Format 1 (keys in this order; paper units)::
                         value, predicted, error_pct (empty when all are met)
     reach               for a no-exact-fit with σt: the σt and σc/σt spans the models reach
                         while they meet the other targets
+    reach_test          (a missed target) the miss against the models' prediction error:
+                        chi2_min, dof, p_reach, reachable, the point and each target's z
     alternatives        other solutions that fit as well
     bootstrap           n_boot, scheme and the 95 % intervals
     dataset_note        how many samples the regression used
@@ -58,8 +62,14 @@ Format 1 (keys in this order; paper units)::
     calibrated_at_scale (verified cards) the specimen scale the parameters were last fitted at
     transfer            (transferred cards, ``bpmcal transfer``) status, rounds, scale,
                         tolerance_pct, at_transfer and final responses, parameters
+    posterior           (posterior cards, ``bpmcal posterior``) status, note, identifiability,
+                        hdi_prob, parameters (card, mean, sd, hdi, card_quantile,
+                        card_in_hdi, role), directions, suggestions, predictions, reach,
+                        lab_sd, surrogates, sampler, refine, learning_curve
+                        (docs/methods/posterior.md)
 
-Keys added within format 1 (``strength_ratio``, ``missed``, ``reach``, ``target_se``,
+Keys added within format 1 (``strength_ratio``, ``missed``, ``reach``, ``reach_test``,
+``posterior``, ``target_se``,
 ``verification.missed``, ``verification.bts_geometry``, ``verification.jacobian``,
 ``verification.max_seeds``, ``verification.seeds_per_round``,
 ``verification.jacobian_sign_held``, ``verification.tensile``) are optional for readers: cards

@@ -418,7 +418,7 @@ def posterior(card, dataset, models, *, out_card, table, predictions, netcdf, fi
               loop_seeds=None, fresh_seeds=None, learning=None, learning_figure=None,
               refine_runs=None, draws=None,
               n_draws: int = 8, settings: PosteriorSettings = PosteriorSettings(),
-              refine: RefineSettings = RefineSettings(max_runs=0), dem: DemRuns | None = None,
+              refine: RefineSettings = RefineSettings(), dem: DemRuns | None = None,
               design_sigma3=None, progress=None) -> dict:
     """The posterior of one verified card (module docstring). Inputs: the card, the
     dataset and the regression's models (the surrogates' basis), the loop's and the fresh
