@@ -7,7 +7,7 @@ predictions (:func:`bpmcal.analysis.posterior.fit_surrogate`), samples the poste
 the card's free parameters given its lab targets
 (:func:`bpmcal.analysis.posterior.fit_posterior`), and, where the surrogate's own error
 near the posterior is large beside the lab side's scatter, runs the DEM where it narrows
-the posterior most and samples again (:func:`_refine`, at most ``RefineSettings.max_runs``
+the posterior most and samples again (:func:`refine_posterior`, at most ``RefineSettings.max_runs``
 seed runs). It writes the card with its ``posterior`` section, the parameter and
 prediction tables, the draws as arviz InferenceData (NetCDF), the pair plot, the
 learning curve (posterior width against the DEM runs near the card) and the draws the
@@ -273,16 +273,18 @@ def _measure(point: dict, seeds: list[int], targets: list[str], dem: DemRuns, fo
     return rows
 
 
-def _refine(res, runs, fit, rs: RefineSettings, dem: DemRuns | None, folder: Path,
-            tensile_specimens: int, params, progress):
+def refine_posterior(res, runs, fit, rs: RefineSettings, measure, params, progress=None):
     """Refinement rounds (module docstring) until every target's surrogate ratio is at
-    most ``rs.ratio`` or ``rs.max_runs`` seed runs are spent. Returns (the last posterior,
-    the runs with the new ones, the refinement's seed rows, its history)."""
+    most ``rs.ratio`` or ``rs.max_runs`` seed runs are spent: ``measure(point, seeds,
+    step)`` returns the seed rows of a card measured at ``point`` (the DEM's:
+    :func:`_measure`; None: no refinement), ``fit(runs)`` the posterior on runs. Returns
+    (the last posterior, the runs with the new ones, the refinement's seed rows, its
+    history)."""
     history = [{"step": 0, "runs": 0, **{f"ratio_{r}": v for r, v in
                                           surrogate_ratio(res).items()}}]
     rows: list[dict] = []
     it = 0
-    while dem is not None and len(rows) + rs.seeds <= rs.max_runs:
+    while measure is not None and len(rows) + rs.seeds <= rs.max_runs:
         ratios = surrogate_ratio(res)
         if max(ratios.values()) <= rs.ratio:
             break
@@ -293,8 +295,7 @@ def _refine(res, runs, fit, rs: RefineSettings, dem: DemRuns | None, folder: Pat
             progress({"note": f"refinement {it}: surrogate error up to "
                               f"{max(ratios.values()):.2f} x the lab side's sd; DEM on "
                               f"seeds {seeds}"})
-        new = _measure(point, seeds, list(res.targets), dem, folder, it, tensile_specimens,
-                       progress)
+        new = measure(point, seeds, it)
         rows += new
         runs = pd.concat([runs, seed_rows(pd.DataFrame(new), None, "refine", params)],
                          ignore_index=True)
@@ -460,8 +461,15 @@ def _posterior(card, dataset, models, *, out_card, table, predictions, netcdf, f
     res = fit(runs)
     folder = Path(out_card).parent / f".{Path(out_card).stem}.refine"
     tensile_n = int((c.get("verification") or {}).get("tensile_specimens", 1))
-    res, runs, rows, history = _refine(res, runs, fit, refine, dem, folder, tensile_n, params,
-                                       progress)
+    measure = None
+    if dem is not None and refine.max_runs:
+        targets = list(c["targets"])
+
+        def measure(point, seeds, it):
+            return _measure(point, seeds, targets, dem, folder, it, tensile_n, progress)
+
+    res, runs, rows, history = refine_posterior(res, runs, fit, refine, measure, params,
+                                                progress)
     curve = None
     if learning is not None:
         cheap = PosteriorSettings(**{**settings.__dict__, **CURVE_SETTINGS})

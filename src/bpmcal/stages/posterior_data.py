@@ -48,6 +48,9 @@ def design_runs(df: pd.DataFrame, params) -> pd.DataFrame:
     out[TENSILE_SHARE] = tensile_share(ok)
     out["source"], out["round"] = "design", np.nan
     out["run"] = ["design:" + str(x) for x in ok["sample_id"]] if "sample_id" in ok else "design"
+    # each sample its own packing (its own seed)
+    out["packing"] = ([f"design:{x}" for x in ok["seed"]] if "seed" in ok
+                      else [f"design:{i}" for i in range(len(ok))])
     return out.reset_index(drop=True)
 
 
@@ -56,10 +59,12 @@ def seed_rows(df: pd.DataFrame, params: dict | None, source: str, names) -> pd.D
     whose rows carry their parameters, or the fresh seeds' at the card's ``params``): the
     UCS responses and crack share on the seed's row, each tensile specimen of a seed on a
     row of its own (``<test>_specimen_MPa``, else the seed's value); ``round`` and ``run``
-    (source, round and seed: one id per DEM seed run) say which run a row came from.
+    (source, round and seed: one id per DEM seed run) say which run a row came from, and
+    ``packing`` which packing it ran on (a seed's, or its tensile specimen j's): a
+    closed loop's rounds share their seeds' packings.
     Rows of failed runs keep only what they measured (NaN elsewhere)."""
     if df is None or df.empty:
-        return pd.DataFrame(columns=[*names, "round", "run", "source"])
+        return pd.DataFrame(columns=[*names, "round", "run", "source", "packing"])
     rows = []
     for _, r in df.iterrows():
         base = {p: float(params[p] if params is not None else r[p]) for p in names}
@@ -69,18 +74,20 @@ def seed_rows(df: pd.DataFrame, params: dict | None, source: str, names) -> pd.D
         ucs = {k: (float(pd.to_numeric(r.get(k), errors="coerce")) if ok else math.nan)
                for k in P.TARGETS}
         sh = tensile_share(pd.DataFrame([r]))
+        seed = r.get("seed")
         rows.append({**base, **ucs, TENSILE_SHARE: float(sh.iloc[0]) if ok else math.nan,
-                     "source": source})
+                     "source": source, "packing": f"{seed}"})
         for resp, test in P.SAMPLE_TESTS.items():
             if resp not in r.index:
                 continue
             text = r.get(f"{test}_specimen_MPa")
             vals = ([float(v) for v in str(text).split(";")]
                     if isinstance(text, str) and text.strip() else [r.get(resp)])
-            for v in vals:
+            for j, v in enumerate(vals):  # specimen j of a seed: its own packing
                 v = float(pd.to_numeric(v, errors="coerce"))
                 if math.isfinite(v):
-                    rows.append({**base, resp: v, "source": source})
+                    rows.append({**base, resp: v, "source": source,
+                                 "packing": f"{seed}/{test}{j}"})
     return pd.DataFrame(rows)
 
 

@@ -3,18 +3,23 @@
 The model (Rasmussen & Williams 2006, section 2.7, "explicit basis functions")::
 
     y_i = h(x_i)' b + f(x_i) + e_i,   f ~ GP(0, a² exp(-½ Σ_j (Δx_j / l_j)²)),
-    e_i ~ N(0, s² / k_i)
+    cov(e_i, e_j) = s² (ρ C_ij + (1 - ρ) δ_ij / k_i)
 
 ``x`` are the parameters in unit coordinates (the design ranges mapped to [0, 1]), ``h``
 the basis (the intercept and the stepwise regression's terms of that response, columns
 standardised), ``y_i`` the mean of ``k_i`` observations at one parameter point (a design
 sample: one DEM run; a closed-loop round: its seeds; a tensile seed: its discs), so one
-noise variance ``s²`` (the packing scatter of one specimen) serves every point. ``b`` is
+noise variance ``s²`` (the packing scatter of one specimen) serves every point. A share ρ
+of that scatter is the packing's own offset, which every run on the same packing seed
+shares (the closed loop runs its seeds in every round): ``C_ij`` = Σ_s c_is c_js / (k_i
+k_j), with c_is the runs of point i on packing s, so two points on the same packings are
+correlated by their common offsets and their means do not average them away. ρ is
+fitted where points share packings (else it does not matter and is 0). ``b`` is
 estimated by generalised least squares with a vague prior, and the prediction's
 variance carries its uncertainty, so the model's error grows where the data thin out
 (far from every run it is the basis's extrapolation error, not a constant).
 
-The hyperparameters (``a``, the length scales ``l``, ``s``) maximise the marginal
+The hyperparameters (``a``, the length scales ``l``, ``s``, ρ) maximise the marginal
 likelihood of the ordinary-least-squares residuals (type-II maximum likelihood, analytic
 gradients, L-BFGS-B from fixed and seeded starts: deterministic). With ``gp=False`` the
 process is off (``a`` = 0) and the model is the weighted least-squares regression on the
@@ -66,9 +71,18 @@ class BasisGP:
     h_sd: np.ndarray
     lack_of_fit: float = 0.0
     nll: float = float("nan")
+    C: np.ndarray | None = None  # shared-packing matrix (None: no shared packings)
+    rho: float = 0.0  # the packing offset's share of a specimen's scatter
 
     def __post_init__(self):
         self._prepare()
+
+    def noise_matrix(self) -> np.ndarray:
+        """The points' noise covariance s² (ρ C + (1 - ρ) diag(1/k))."""
+        D = np.diag(1.0 / self.k)
+        if self.C is None or self.rho == 0.0:
+            return self.noise ** 2 * D
+        return self.noise ** 2 * (self.rho * self.C + (1.0 - self.rho) * D)
 
     def _kernel(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
         if self.amp == 0.0:
@@ -76,8 +90,8 @@ class BasisGP:
         return self.amp ** 2 * np.exp(-0.5 * sq_dist_scaled(A, B, self.ls))
 
     def _prepare(self) -> None:
-        K = self._kernel(self.X, self.X)
-        K[np.diag_indices_from(K)] += self.noise ** 2 / self.k + JITTER
+        K = self._kernel(self.X, self.X) + self.noise_matrix()
+        K[np.diag_indices_from(K)] += JITTER
         cf = cho_factor(K, lower=True)
         self._Ki_H = cho_solve(cf, self.H)
         A = self.H.T @ self._Ki_H
@@ -113,8 +127,10 @@ class BasisGP:
         """The same hyperparameters on the points not in the boolean mask ``drop`` (a
         held-out prediction: :func:`bpmcal.analysis.posterior.surrogate.held_out`)."""
         keep = ~np.asarray(drop, bool)
+        C = None if self.C is None else self.C[np.ix_(keep, keep)]
         return BasisGP(self.X[keep], self.H[keep], self.y[keep], self.k[keep], self.amp,
-                       self.ls, self.noise, self.h_mean, self.h_sd, self.lack_of_fit)
+                       self.ls, self.noise, self.h_mean, self.h_sd, self.lack_of_fit,
+                       C=C, rho=self.rho)
 
 
 def standardise(H_raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -130,16 +146,43 @@ def standardise(H_raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return H[:, keep], mean[~const], sd[~const]
 
 
-def _nll_and_grad(theta: np.ndarray, X: np.ndarray, r: np.ndarray, inv_k: np.ndarray
-                  ) -> tuple[float, np.ndarray]:
+def shared_packings(seeds: list[list[str]]) -> np.ndarray | None:
+    """The shared-packing matrix C of points whose runs ran on the packing ``seeds`` (a
+    list of labels per point): C_ij = Σ_s c_is c_js / (k_i k_j); None when no two points
+    share a packing (C is then diag(1/k) and ρ does not matter)."""
+    index: dict[str, dict[int, int]] = {}
+    for i, labels in enumerate(seeds):
+        for s in labels:
+            index.setdefault(s, {})
+            index[s][i] = index[s].get(i, 0) + 1
+    k = np.array([len(x) for x in seeds], float)
+    n = len(seeds)
+    C = np.zeros((n, n))
+    cross = False
+    for rows in index.values():
+        items = list(rows.items())
+        for i, ci in items:
+            for j, cj in items:
+                C[i, j] += ci * cj
+        cross = cross or len(items) > 1
+    if not cross:
+        return None
+    return C / np.outer(k, k)
+
+
+def _nll_and_grad(theta: np.ndarray, X: np.ndarray, r: np.ndarray, inv_k: np.ndarray,
+                  C: np.ndarray | None) -> tuple[float, np.ndarray]:
     """Negative log marginal likelihood of residuals ``r`` and its gradient in
-    ``theta`` = (log amp, log ls_1..d, log noise)."""
+    ``theta`` = (log amp, log ls_1..d, log noise, logit rho)."""
     d = X.shape[1]
-    amp, ls, noise = np.exp(theta[0]), np.exp(theta[1:1 + d]), np.exp(theta[-1])
+    amp, ls, noise = np.exp(theta[0]), np.exp(theta[1:1 + d]), np.exp(theta[1 + d])
+    rho = 1.0 / (1.0 + np.exp(-theta[2 + d]))
     D = [((X[:, j:j + 1] - X[:, j:j + 1].T) / ls[j]) ** 2 for j in range(d)]
     Kf = amp ** 2 * np.exp(-0.5 * sum(D))
-    K = Kf.copy()
-    K[np.diag_indices_from(K)] += noise ** 2 * inv_k + JITTER
+    Dk = np.diag(inv_k)
+    shape = Dk if C is None else rho * C + (1.0 - rho) * Dk
+    K = Kf + noise ** 2 * shape
+    K[np.diag_indices_from(K)] += JITTER
     try:
         cf = cho_factor(K, lower=True)
     except np.linalg.LinAlgError:
@@ -147,16 +190,23 @@ def _nll_and_grad(theta: np.ndarray, X: np.ndarray, r: np.ndarray, inv_k: np.nda
     alpha = cho_solve(cf, r)
     nll = 0.5 * r @ alpha + np.log(np.diag(cf[0])).sum() + 0.5 * len(r) * np.log(2 * np.pi)
     M = np.outer(alpha, alpha) - cho_solve(cf, np.eye(len(r)))
-    grad = np.empty_like(theta)
+    grad = np.zeros_like(theta)
     grad[0] = -0.5 * np.sum(M * (2.0 * Kf))
     for j in range(d):
         grad[1 + j] = -0.5 * np.sum(M * (Kf * D[j]))
-    grad[-1] = -0.5 * np.sum(np.diag(M) * 2.0 * noise ** 2 * inv_k)
+    grad[1 + d] = -0.5 * np.sum(M * (2.0 * noise ** 2 * shape))
+    if C is not None:
+        grad[2 + d] = -0.5 * np.sum(M * (noise ** 2 * (C - Dk))) * rho * (1.0 - rho)
     return float(nll), grad
 
 
+#: bounds of the packing offset's share ρ, on the logit scale
+LOGIT_RHO = (-7.0, 3.0)
+
+
 def fit_basis_gp(X, H_raw, y, k=None, *, gp: bool = True, seed: int = 0, restarts: int = 3,
-                 noise: float | None = None) -> BasisGP:
+                 noise: float | None = None, C: np.ndarray | None = None,
+                 rho: float | None = None) -> BasisGP:
     """Fit :class:`BasisGP` to points ``X`` (n, d; unit coordinates), raw basis columns
     ``H_raw`` (n, p), means ``y`` of ``k`` observations each (default 1).
 
@@ -168,7 +218,9 @@ def fit_basis_gp(X, H_raw, y, k=None, *, gp: bool = True, seed: int = 0, restart
     ``gp=False``: the
     regression alone, with noise ``noise`` (the packing scatter of one specimen, from
     replicates) if given, its lack of fit the residual variance beyond that noise (all of
-    it without ``noise``)."""
+    it without ``noise``). ``C``: the shared-packing matrix (:func:`shared_packings`);
+    ``rho`` holds the packing offset's share (the regression's: the process's fitted ρ),
+    else it is fitted."""
     X = np.asarray(X, float)
     y = np.asarray(y, float)
     k = np.ones(len(y)) if k is None else np.asarray(k, float)
@@ -185,28 +237,35 @@ def fit_basis_gp(X, H_raw, y, k=None, *, gp: bool = True, seed: int = 0, restart
         s2_noise = s2 if noise is None else min(float(noise) ** 2, s2)
         lof = max(0.0, s2 - s2_noise) if noise is not None else s2
         return BasisGP(X, H, y, k, 0.0, np.ones(d), float(np.sqrt(max(s2_noise, 1e-300))),
-                       h_mean, h_sd, lack_of_fit=lof)
+                       h_mean, h_sd, lack_of_fit=lof, C=C, rho=float(rho or 0.0))
     scale = float(np.sqrt(max(s2, 1e-300)))
     rs = r / scale
-    inv_k = 1.0 / k
     rng = np.random.default_rng(seed)
-    starts = [np.concatenate([[0.0], np.full(d, np.log(0.5)), [np.log(0.5)]])]
+    starts = [np.concatenate([[0.0], np.full(d, np.log(0.5)), [np.log(0.5), 0.0]])]
     for _ in range(restarts):
         starts.append(np.concatenate([[rng.uniform(np.log(0.1), np.log(3.0))],
                                       rng.uniform(np.log(0.1), np.log(3.0), d),
-                                      [rng.uniform(np.log(0.05), np.log(1.0))]]))
-    bounds = [LOG_AMP] + [LOG_LENGTH] * d + [LOG_NOISE]
+                                      [rng.uniform(np.log(0.05), np.log(1.0))],
+                                      [rng.uniform(-2.0, 2.0)]]))
+    bounds = [LOG_AMP] + [LOG_LENGTH] * d + [LOG_NOISE, LOGIT_RHO]
+    fixed = {}
     if noise is not None and noise > 0:
-        ln = float(np.clip(np.log(float(noise) / scale), *LOG_NOISE))
-        bounds[-1] = (ln, ln)
+        fixed[1 + d] = float(np.clip(np.log(float(noise) / scale), *LOG_NOISE))
+    if C is None or rho is not None:  # no shared packing: ρ does not matter
+        r0 = 0.0 if rho is None else float(rho)
+        fixed[2 + d] = float(np.clip(np.log(max(r0, 1e-9) / max(1 - r0, 1e-9)), *LOGIT_RHO))
+    for i, v in fixed.items():
+        bounds[i] = (v, v)
         for t0 in starts:
-            t0[-1] = ln
+            t0[i] = v
     best = None
     for t0 in starts:
-        res = minimize(_nll_and_grad, t0, args=(X, rs, inv_k), jac=True, method="L-BFGS-B",
-                       bounds=bounds, options={"maxiter": 300})
+        res = minimize(_nll_and_grad, t0, args=(X, rs, 1.0 / k, C), jac=True,
+                       method="L-BFGS-B", bounds=bounds, options={"maxiter": 300})
         if best is None or res.fun < best.fun:
             best = res
     t = best.x
+    rho_fit = 0.0 if C is None else float(1.0 / (1.0 + np.exp(-t[2 + d])))
     return BasisGP(X, H, y, k, float(np.exp(t[0]) * scale), np.exp(t[1:1 + d]),
-                   float(np.exp(t[-1]) * scale), h_mean, h_sd, nll=float(best.fun))
+                   float(np.exp(t[1 + d]) * scale), h_mean, h_sd, nll=float(best.fun), C=C,
+                   rho=rho_fit)

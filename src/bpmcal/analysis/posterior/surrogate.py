@@ -39,7 +39,7 @@ from scipy.optimize import brentq
 
 from bpmcal.params import STRENGTH_RESPONSES
 
-from .gp import BasisGP, fit_basis_gp
+from .gp import BasisGP, fit_basis_gp, shared_packings
 
 #: responses modelled on the log scale (positive, scatter proportional to size)
 LOG_RESPONSES = (*STRENGTH_RESPONSES, "E_GPa")
@@ -79,7 +79,8 @@ class ResponseData:
     coordinates (n, d), ``P`` the parameters (DataFrame, physical units), ``y`` the mean
     on the surrogate's scale of ``k`` specimens, ``source`` each point's origin;
     ``pure_sd``/``pure_dof``: the pooled scatter of one specimen among replicated points
-    (NaN, 0 without replicates); ``n_obs`` specimens in all."""
+    (NaN, 0 without replicates); ``n_obs`` specimens in all; ``C`` which points share
+    packings (a run's ``packing`` label; None when none do)."""
 
     response: str
     params: tuple[str, ...]
@@ -92,6 +93,7 @@ class ResponseData:
     pure_dof: int
     n_obs: int
     H_raw: np.ndarray  # the raw basis columns of the points
+    C: np.ndarray | None = None  # the shared-packing matrix (gp.shared_packings)
 
     @property
     def near(self) -> np.ndarray:
@@ -124,6 +126,8 @@ def response_data(runs: pd.DataFrame, resp: str, params: Sequence[str], ranges, 
         raise ValueError(f"no run with a finite {resp}")
     key = df[list(params)].round(12).astype(str).agg("|".join, axis=1)
     df["_key"] = key
+    df["_packing"] = (runs.loc[ok, "packing"].astype(str) if "packing" in runs.columns
+                      else [f"_run{i}" for i in range(len(df))])
     g = df.groupby("_key", sort=False)
     first = g.first()
     y = g["_y"].mean().to_numpy(float)
@@ -135,8 +139,10 @@ def response_data(runs: pd.DataFrame, resp: str, params: Sequence[str], ranges, 
     # loop's best round there: "loop")
     P = first[list(params)].reset_index(drop=True)
     H_raw = np.asarray(basis(P), float).reshape(len(y), -1)
+    labels = [list(v) for v in g["_packing"].agg(list)]
     return ResponseData(resp, tuple(params), unit(P, params, ranges), P, y, k,
-                        first["source"].to_numpy(str), pure, dof, int(len(df)), H_raw)
+                        first["source"].to_numpy(str), pure, dof, int(len(df)), H_raw,
+                        shared_packings(labels))
 
 
 @dataclass
@@ -165,7 +171,8 @@ class ResponseSurrogate:
 
     def describe(self) -> dict:
         return {"kind": self.kind, "inflation": float(self.inflation),
-                "noise_sd": float(self.noise_sd), "points": self.n_points,
+                "noise_sd": float(self.noise_sd), "packing_share": float(self.model.rho),
+                "points": self.n_points,
                 "specimens": self.n_obs, "near_points": self.n_near,
                 "scale": "log" if self.response in LOG_RESPONSES else "linear",
                 "held_out": {k: dict(v) for k, v in self.scores.items()}}
@@ -190,8 +197,9 @@ def held_out(model: BasisGP, data: ResponseData, kind: str, noise_sd: float, see
         if kind == "gp":
             m = model.without(drop)
         else:
+            C = None if data.C is None else data.C[np.ix_(~drop, ~drop)]
             m = fit_basis_gp(data.X[~drop], data.H_raw[~drop], data.y[~drop],
-                             data.k[~drop], gp=False, noise=noise_sd)
+                             data.k[~drop], gp=False, noise=noise_sd, C=C, rho=model.rho)
         mu, sd = m.predict(data.X[f], data.H_raw[f])
         e.extend(data.y[f] - mu)
         sig2.extend(sd ** 2)
@@ -234,14 +242,20 @@ def fit_surrogate(runs: pd.DataFrame, resp: str, params: Sequence[str], ranges, 
     columns); ``choice``: "auto" (the better held-out prediction), "gp" or "stepwise"."""
     if choice not in SURROGATES:
         raise ValueError(f"surrogate {choice!r}: expected one of {', '.join(SURROGATES)}")
+    flat = [q for q in params if not float(ranges[q][1]) > float(ranges[q][0])]
+    if flat:
+        raise ValueError(f"the range of {flat} has no width: a surrogate's parameters are "
+                         "the ones the design varies")
     data = response_data(runs, resp, params, ranges, basis)
     noise = data.pure_sd if data.pure_dof >= 2 and data.pure_sd > 0 else None
     fitted, scores = {}, {}
+    rho = None
     for kind in ("gp", "stepwise"):
         if choice not in ("auto", kind):
             continue
         m = fit_basis_gp(data.X, data.H_raw, data.y, data.k, gp=kind == "gp", seed=seed,
-                         noise=noise)
+                         noise=noise, C=data.C, rho=None if kind == "gp" else rho)
+        rho = m.rho if kind == "gp" else rho
         nsd = _noise_sd(data, noise, m)
         fitted[kind] = m
         scores[kind] = held_out(m, data, kind, nsd, seed)
