@@ -215,3 +215,57 @@ def test_a_card_outside_its_prior_box_is_refused():
     card = dict(zip(NAMES, LO + np.array([0.5, 0.5, 1.5]) * W))
     with pytest.raises(ValueError, match="outside its prior box"):
         fit_posterior(surr, prob, t, card, target_se={r: 0.02 for r in t})
+
+
+def test_runs_on_shared_packings_do_not_average_away_their_offsets():
+    """Six closed-loop rounds at one point, each on the same five packings: their mean is
+    one observation of f there whose variance is s² (ρ / 5 + (1 - ρ) / 30) (the five
+    packings' offsets stay), so the latent variance there is 1 / (1 / V_d + 1 / V_loop)
+    with V_d the design's alone: the shared-packing term gives exactly that; without it
+    the rounds count as 30 independent runs (s² / 30)."""
+    from bpmcal.analysis.posterior.gp import BasisGP, shared_packings
+
+    rng = np.random.default_rng(5)
+    Xd = rng.uniform(0, 1, (40, 2))
+    yd = Xd[:, 0] + 0.3 * np.sin(4 * Xd[:, 1]) + 0.05 * rng.standard_normal(40)
+    x0 = np.array([[0.4, 0.6]])
+    X = np.vstack([Xd, np.repeat(x0, 6, axis=0)])
+    y = np.concatenate([yd, 0.4 + 0.3 * np.sin(2.4) + 0.02 * rng.standard_normal(6)])
+    k = np.concatenate([np.ones(40), np.full(6, 5.0)])
+    labels = [[f"d{i}"] for i in range(40)] + [[f"s{j}" for j in range(5)]] * 6
+    C = shared_packings(labels)
+    hyp = dict(amp=0.3, ls=np.array([0.5, 0.4]), noise=0.05, h_mean=np.zeros(0),
+               h_sd=np.ones(0))
+    H = np.ones((len(y), 1))
+    design = BasisGP(Xd, H[:40], yd, np.ones(40), **hyp)
+    v_d = design.predict(x0, np.zeros((1, 0)))[1][0] ** 2
+    for rho, C_ in ((0.8, C), (0.0, None)):
+        m = BasisGP(X, H, y, k, **hyp, C=C_, rho=rho)
+        v = m.predict(x0, np.zeros((1, 0)))[1][0] ** 2
+        v_loop = 0.05 ** 2 * (rho / 5 + (1 - rho) / 30)
+        assert np.isclose(v, 1 / (1 / v_d + 1 / v_loop), rtol=1e-6), (rho, v)
+
+
+def test_the_packing_share_is_fitted_where_points_share_packings():
+    """Loop rounds at several points on the same packings with offsets of 80 % of the
+    scatter's variance: the fitted share lies near 0.8; a design alone has none."""
+    rng = np.random.default_rng(9)
+
+    def f(U):
+        return np.column_stack([U[:, 0] + 0.5 * U[:, 1], U[:, 2], U[:, 0]])
+
+    sd = 0.05
+    runs = _runs(f, n=80, noise=sd, seed=4)
+    runs["packing"] = [f"d{i}" for i in range(len(runs))]
+    offsets = np.sqrt(0.8) * sd * rng.standard_normal(10)
+    rows = []
+    for r in range(12):
+        u = rng.uniform(0.3, 0.7, 3)
+        for s in range(10):
+            y = f(u[None])[0, 0] + offsets[s] + np.sqrt(0.2) * sd * rng.standard_normal()
+            rows.append({**dict(zip(NAMES, LO + u * W)), "y1": y, "source": "loop",
+                         "packing": f"s{s}"})
+    both = pd.concat([runs, pd.DataFrame(rows)], ignore_index=True)
+    s = fit_surrogate(both, "y1", NAMES, RANGES, _basis, choice="gp")
+    assert 0.55 < s.model.rho < 0.95
+    assert fit_surrogate(runs, "y1", NAMES, RANGES, _basis, choice="gp").model.rho == 0.0

@@ -20,9 +20,10 @@ Responses are modelled on a log scale where they are strengths or moduli (positi
 with a scatter proportional to their size: :data:`LOG_RESPONSES`), on their own scale
 otherwise (ν, the tensile crack share).
 
-Held-out test (:func:`held_out`): each near-card point in turn is left out and predicted
-from the rest (the process's hyperparameters kept); with fewer than two such points, the
-design samples in five folds. The surrogate with the smaller root-mean-square error is
+Held-out test (:func:`held_out`): each group of near-card points that share packings (the
+closed loop's rounds; the fresh seeds; a refinement step) in turn is left out and
+predicted from the rest (the process's hyperparameters kept); without points near the
+card, the design samples in five folds. The surrogate with the smaller root-mean-square error is
 chosen; if its standardised errors show it is overconfident (mean z² > 1), its error is
 scaled up until they do not (``inflation``), so the likelihood never trusts it more than
 the runs near the card allow.
@@ -124,7 +125,9 @@ def response_data(runs: pd.DataFrame, resp: str, params: Sequence[str], ranges, 
     df["_y"] = vals[ok]
     if df.empty:
         raise ValueError(f"no run with a finite {resp}")
-    key = df[list(params)].round(12).astype(str).agg("|".join, axis=1)
+    # a point: one parameter set of one source (the fresh seeds at the card's point are a
+    # point of their own beside the loop's best round: other packings, a separate test)
+    key = df[list(params)].round(12).astype(str).agg("|".join, axis=1) + "|" + df["source"]
     df["_key"] = key
     df["_packing"] = (runs.loc[ok, "packing"].astype(str) if "packing" in runs.columns
                       else [f"_run{i}" for i in range(len(df))])
@@ -178,15 +181,42 @@ class ResponseSurrogate:
                 "held_out": {k: dict(v) for k, v in self.scores.items()}}
 
 
+def components(data: ResponseData, idx: np.ndarray) -> list[np.ndarray]:
+    """The points ``idx`` grouped by the packings they share (connected components of the
+    shared-packing matrix): a closed loop's rounds are one group, the fresh seeds another,
+    each refinement step with new seeds another."""
+    idx = list(idx)
+    parent = {i: i for i in idx}
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    if data.C is not None:
+        for a in idx:
+            for b in idx:
+                if a < b and data.C[a, b] > 0:
+                    parent[root(a)] = root(b)
+    groups: dict[int, list[int]] = {}
+    for i in idx:
+        groups.setdefault(root(i), []).append(i)
+    return [np.array(g) for g in groups.values()]
+
+
 def held_out(model: BasisGP, data: ResponseData, kind: str, noise_sd: float, seed: int = 0
              ) -> dict:
     """Held-out prediction of ``data``'s points by ``model`` (module docstring): the
     root-mean-square error (surrogate scale), the mean standardised error squared
-    (``mean_z2``) and the errors themselves, on the near-card points (``on``: "near")
-    when there are two or more, else on five folds of the design (``on``: "design")."""
+    (``mean_z2``) and the errors themselves. Near the card (``on``: "near") a group of
+    points that share packings is left out whole (:func:`components`): a round left out
+    while its packings stay in the others would be predicted through their offsets, which
+    no fresh packing shares. Without points near the card, five folds of the design
+    (``on``: "design")."""
     near = np.flatnonzero(data.near)
-    if len(near) >= 2:
-        folds, on = [np.array([i]) for i in near], "near"
+    if len(near) >= 1:
+        folds, on = components(data, near), "near"
     else:
         idx = np.random.default_rng(seed).permutation(len(data.y))
         folds, on = [f for f in np.array_split(idx, 5) if len(f)], "design"
@@ -205,7 +235,8 @@ def held_out(model: BasisGP, data: ResponseData, kind: str, noise_sd: float, see
         sig2.extend(sd ** 2)
         noise2.extend(noise_sd ** 2 / data.k[f])
     e, sig2, noise2 = (np.asarray(v, float) for v in (e, sig2, noise2))
-    return {"on": on, "points": int(len(e)), "rmse": float(np.sqrt(np.mean(e ** 2))),
+    return {"on": on, "points": int(len(e)), "groups": len(folds),
+            "rmse": float(np.sqrt(np.mean(e ** 2))),
             "mean_z2": float(np.mean(e ** 2 / (sig2 + noise2))),
             "_e": e, "_sig2": sig2, "_noise2": noise2}
 
