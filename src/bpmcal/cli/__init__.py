@@ -47,6 +47,7 @@ import os
 import sys
 import traceback
 
+from .. import cost
 from .. import params as P
 from ..io.checks import BadInput
 from .args import EXIT_BAD_INPUT, EXIT_BUG, EXIT_INTERRUPTED, EXIT_OK, EXIT_SYSTEM, Parser
@@ -201,6 +202,7 @@ def main(argv=None) -> int:
         args = ap.parse_args(argv)
     except SystemExit as e:  # --help, --version, usage errors (one line, exit 2)
         return e.code if isinstance(e.code, int) else (0 if e.code is None else EXIT_BAD_INPUT)
+    cost.begin()  # the CPU seconds so far (imports, the parser): the start (bpmcal.cost)
     try:
         bad_input = _bad_input_types()
     except Exception:  # noqa: BLE001 - a broken install is a bug, reported below
@@ -227,4 +229,6 @@ def main(argv=None) -> int:
         print(f"{where}: internal error (a bug in bpmcal, not in your input): please report it "
               "with the traceback above and the command line", file=sys.stderr)
         return EXIT_BUG
+    finally:
+        cost.print_cost_line(where)  # with BPMCAL_COST set (the workflow's jobs)
 
