@@ -192,7 +192,36 @@ def _one_line(e) -> str:
 
 
 def main(argv=None) -> int:
-    """Run one subcommand; returns the exit code (see the module doc)."""
+    """Run one subcommand; returns the exit code (see the module doc). As the ``bpmcal``
+    command (``argv`` None: this process's command line) it ends the process when done:
+    :func:`_end`."""
+    rc = _main(argv)
+    if argv is None:
+        _end(rc)
+    return rc
+
+
+def _end(rc: int) -> None:
+    """End the process with exit code ``rc`` once its output is flushed and its exit
+    handlers (``atexit``) have run, without tearing the interpreter down: the teardown
+    (freeing every module, numba's and LLVM's objects among them) cost about 0.2 CPU s
+    of every job, which no job needs (every file is closed, every worker joined)."""
+    import atexit
+
+    for f in (sys.stdout, sys.stderr):
+        try:
+            f.flush()
+        except (OSError, ValueError):
+            pass
+    import threading
+
+    getattr(threading, "_shutdown", lambda: None)()  # join the threads, as an exit does
+    atexit._run_exitfuncs()
+    os._exit(rc if isinstance(rc, int) else EXIT_BUG)
+
+
+def _main(argv) -> int:
+    """``main``'s work."""
     os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
     argv = sys.argv[1:] if argv is None else list(argv)
     cmd = next((x for x in argv if not x.startswith("-")), None)
