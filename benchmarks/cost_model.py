@@ -19,7 +19,8 @@ What it reads (``bpmcal.cost`` books it; the workflow sets ``BPMCAL_COST``):
 
 A phase path's category (``category``): ``start`` (the interpreter and imports up to the
 command's start), ``imports`` (the run machinery imported later), ``inputs`` (reading
-and checking the inputs), ``kernels`` (numba loading its kernels at their first call),
+and checking the inputs), ``kernels: numba's set-up`` and ``kernels: loading`` (numba
+setting up its compiler context once, loading each kernel at its first call),
 ``genesis: packing``/``genesis: build`` (each split into the engine's steps and the rest:
 distributing, the cache, bonding), ``test: engine`` and ``test: records`` (the loading's
 steps; the work between them: records, servo, checks, progress), ``results`` (the
@@ -52,7 +53,8 @@ from _study import record_header, write_record
 HERE = Path(__file__).resolve().parent
 
 #: the order of the categories in the tables
-CATEGORIES = ("start", "imports", "inputs", "kernels", "genesis: packing (engine)",
+CATEGORIES = ("start", "imports", "inputs", "kernels: numba's set-up", "kernels: loading",
+              "genesis: packing (engine)",
               "genesis: packing (rest)", "genesis: build (engine)", "genesis: build (rest)",
               "test: engine", "test: records", "results", "write", "retests",
               "engine (elsewhere)", "other", "work (no DEM)")
@@ -62,8 +64,12 @@ _LINE = re.compile(r"^bpmcal (\S+): cost (\{.*\})\s*$", re.M)
 
 def category(path: str) -> str:
     """The category of a phase path (module doc)."""
-    if path in ("start", "imports", "inputs", "kernels", "write", "other"):
+    if path in ("start", "imports", "inputs", "write", "other"):
         return path
+    if path == "kernels":
+        return "kernels: loading"
+    if path == "kernels_setup":
+        return "kernels: numba's set-up"
     parts = path.split("/")
     if parts[0].endswith("_retest"):
         return "retests"
@@ -153,6 +159,16 @@ def job_steps(job: dict) -> dict:
     return out
 
 
+def geneses(job: dict) -> tuple[int, int]:
+    """(specimens built, packings relaxed: not read from the specimen cache) of a job."""
+    calls = dict(job.get("calls", {}))
+    for k, v in job.get("worker_calls", {}).items():
+        calls[k] = calls.get(k, 0) + v
+    built = sum(v for k, v in calls.items() if k.split("/")[-1] == "genesis")
+    relaxed = sum(v for k, v in calls.items() if k.endswith("genesis/packing/relax"))
+    return built, relaxed
+
+
 def job_cpu(job: dict) -> float:
     """The job's CPU seconds: its process and its finished children."""
     return job["cpu_s"] + job["children_cpu_s"]
@@ -209,9 +225,12 @@ def per_rule(jobs: list[dict]) -> list[dict]:
     for j in jobs:
         r = rules.setdefault(j["rule"], {"rule": j["rule"], "jobs": 0, "cpu_s": 0.0,
                                          "ball_steps": 0, "test_ball_steps": 0,
-                                         "engine_cpu_s": 0.0})
+                                         "engine_cpu_s": 0.0, "geneses": 0, "relaxed": 0})
         st, ph = job_steps(j), job_phases(j)
         r["jobs"] += 1
+        built, relaxed = geneses(j)
+        r["geneses"] += built
+        r["relaxed"] += relaxed
         if j.get("wall_s") is not None:
             r["job_wall_s"] = r.get("job_wall_s", 0.0) + j["wall_s"]
         r["cpu_s"] += job_cpu(j)
@@ -273,7 +292,9 @@ def sample_jobs(jobs: list[dict], runs: list[dict]) -> dict:
                      "engine_ps_per_cpu_s": eng_steps / eng_cpu if eng_cpu else 0.0,
                      "genesis_share": genesis / cpu if cpu else 0.0,
                      "startup_share": (cat.get("start", 0.0) + cat.get("imports", 0.0)
-                                       + cat.get("kernels", 0.0)) / cpu if cpu else 0.0,
+                                       + cat.get("kernels: loading", 0.0)
+                                       + cat.get("kernels: numba's set-up", 0.0)) / cpu
+                     if cpu else 0.0,
                      "other_share": cat.get("other", 0.0) / cpu if cpu else 0.0})
     if not rows:
         return {"jobs": 0}
@@ -335,16 +356,16 @@ def markdown(rec: dict) -> str:
          f"{rec['jobs']} jobs with a cost line, {rec['run_files']} run files with a cost "
          "record.", "", "## By rule", "",
          "| rule | jobs | CPU s | share | M ball-steps | of them loading | M ball-steps per CPU s "
-         "(job) | M ball-steps per CPU s (engine) |" + (" job time (wall) s |"
-                                                       if any("job_wall_s" in r for r in rec["rules"])
-                                                       else ""),
-         "|---|---|---|---|---|---|---|---|" + ("---|" if any("job_wall_s" in r for r in
-                                                             rec["rules"]) else "")]
+         "(job) | M ball-steps per CPU s (engine) | specimens built (packings relaxed) |"
+         + (" job time (wall) s |" if any("job_wall_s" in r for r in rec["rules"]) else ""),
+         "|---|---|---|---|---|---|---|---|---|" + ("---|" if any("job_wall_s" in r for r in
+                                                                 rec["rules"]) else "")]
     wall = any("job_wall_s" in r for r in rec["rules"])
     for r in rec["rules"]:
+        built = f"{r['geneses']} ({r['relaxed']})" if r.get("geneses") else "–"
         line = (f"| {r['rule']} | {r['jobs']} | {r['cpu_s']:.1f} | {100 * r['share']:.1f} % | "
                 f"{_m(r['ball_steps'])} | {_m(r['test_ball_steps'])} | "
-                f"{_m(r['ps_per_cpu_s'])} | {_m(r['engine_ps_per_cpu_s'])} |")
+                f"{_m(r['ps_per_cpu_s'])} | {_m(r['engine_ps_per_cpu_s'])} | {built} |")
         if wall:
             line += f" {r.get('job_wall_s', float('nan')):.1f} |"
         L.append(line)

@@ -7,14 +7,16 @@ is booked under its path (``ucs/genesis/packing``). The ledger books the CPU sec
 the process (``time.process_time``: every thread of it) to the innermost phase running,
 so no second is booked twice, and the ball-steps the engine runs (``lab.stepping.cycle``
 books them, with the CPU of the engine's calls, to the phase ``engine`` inside the phase
-that runs them). Two phases are booked by the ledger itself:
+that runs them). Three phases are booked by the ledger itself:
 
 - ``start``: the process's CPU seconds before :func:`begin` (the start of the ``bpmcal``
-  command): the interpreter and the imports of the command line;
+  command): the interpreter, the imports and the parsing of the command line (the
+  parser of a DEM command imports the engine, numba with it);
 - ``kernels``: numba's loading of a kernel at its first call in the process (from the
   on-disk cache, or compiling it), wherever that call happens; its time is taken out of
-  the phase that made the call. :func:`meter_numba` installs the meter (``dem._jit``
-  does, on import).
+  the phase that made the call; ``kernels_setup``: inside the first of them, the
+  one-time set-up of numba's compiler context. :func:`meter_numba` installs the meter
+  (``dem._jit`` does, on import).
 
 What no phase holds is ``other`` (argument checks, the gaps between phases).
 :meth:`Ledger.take` returns what was booked since the last ``take`` of the same name: a
@@ -71,10 +73,12 @@ class Ledger:
     def __init__(self):
         self.cpu: dict[str, float] = {}
         self.ball_steps: dict[str, int] = {}
+        self.calls: dict[str, int] = {}  # phases ended, by path (not the engine's calls)
         self.stack: list[_Phase] = []
         self.marks: dict[str, tuple] = {}
         self.workers: dict[str, float] = {}  # CPU of worker processes, by phase path
         self.worker_steps: dict[str, int] = {}
+        self.worker_calls: dict[str, int] = {}
         self.begun = False
 
     def path(self) -> str:
@@ -101,6 +105,8 @@ class Ledger:
         self.cpu[ph.path] = self.cpu.get(ph.path, 0.0) + dt - ph.kids
         if ph.steps:
             self.ball_steps[ph.path] = self.ball_steps.get(ph.path, 0) + ph.steps
+        else:
+            self.calls[ph.path] = self.calls.get(ph.path, 0) + 1
         if stack:
             stack[-1].kids += dt
 
@@ -128,23 +134,26 @@ class Ledger:
 
     def _snapshot(self) -> tuple:
         now = self._flush()
-        return (now, dict(self.cpu), dict(self.ball_steps))
+        return (now, dict(self.cpu), dict(self.ball_steps), dict(self.calls))
 
     def take(self, name: str) -> dict:
         """What was booked since the last ``take(name)`` (the first: since the process
         began): ``cpu_s`` (the process's CPU seconds in between), ``phases`` (CPU seconds
-        by phase path, ``other`` = what no phase holds) and ``ball_steps`` (by phase
-        path)."""
-        now, cpu, steps = self._snapshot()
-        t0, cpu0, steps0 = self.marks.get(name, (0.0, {}, {}))
-        self.marks[name] = (now, cpu, steps)
+        by phase path, ``other`` = what no phase holds), ``ball_steps`` (by phase path)
+        and ``calls`` (the phases that ended, by path; the engine's calls are not
+        counted)."""
+        now, cpu, steps, calls = self._snapshot()
+        t0, cpu0, steps0, calls0 = self.marks.get(name, (0.0, {}, {}, {}))
+        self.marks[name] = (now, cpu, steps, calls)
         phases = {k: v - cpu0.get(k, 0.0) for k, v in cpu.items()}
         phases = {k: v for k, v in phases.items() if v > 0.0}
         total = now - t0
         phases["other"] = total - sum(phases.values())
         bs = {k: v - steps0.get(k, 0) for k, v in steps.items()}
+        nc = {k: v - calls0.get(k, 0) for k, v in calls.items()}
         return {"cpu_s": total, "phases": phases,
-                "ball_steps": {k: v for k, v in bs.items() if v}}
+                "ball_steps": {k: v for k, v in bs.items() if v},
+                "calls": {k: v for k, v in nc.items() if v}}
 
     def add_worker(self, share: dict) -> None:
         """A worker process's share (its ``take``) of this process's work."""
@@ -152,6 +161,8 @@ class Ledger:
             self.workers[k] = self.workers.get(k, 0.0) + v
         for k, v in share.get("ball_steps", {}).items():
             self.worker_steps[k] = self.worker_steps.get(k, 0) + v
+        for k, v in share.get("calls", {}).items():
+            self.worker_calls[k] = self.worker_calls.get(k, 0) + v
 
 
 #: the ledger of this process
@@ -168,29 +179,40 @@ def begin() -> None:
     LEDGER.begin()
 
 
-def meter_numba() -> bool:
-    """Book numba's loading (or compiling) of each kernel at its first call to the flat
-    phase ``kernels`` (wraps numba's dispatcher method that a call without a matching
-    compiled version goes through; the kernels and their results are untouched). False
-    when numba has no such method (another numba version: nothing is booked)."""
-    try:
-        from numba.core.dispatcher import Dispatcher
-    except ImportError:
-        return False
-    f = getattr(Dispatcher, "_compile_for_args", None)
+def _metered(owner, name: str, phase_name: str) -> bool:
+    """Wrap method ``name`` of class ``owner`` so that its calls are booked to the flat
+    phase ``phase_name``; False when there is no such method."""
+    f = getattr(owner, name, None)
     if f is None:
         return False
     if getattr(f, "_bpmcal_metered", False):
         return True
 
-    def _compile_for_args(self, *args, **kws):
-        with LEDGER.phase("kernels", flat=True):
+    def metered(self, *args, **kws):
+        with LEDGER.phase(phase_name, flat=True):
             return f(self, *args, **kws)
 
-    _compile_for_args._bpmcal_metered = True
-    _compile_for_args.__doc__ = f.__doc__
-    Dispatcher._compile_for_args = _compile_for_args
+    metered._bpmcal_metered = True
+    metered.__doc__ = f.__doc__
+    setattr(owner, name, metered)
     return True
+
+
+def meter_numba() -> bool:
+    """Book numba's loading (or compiling) of each kernel at its first call to the flat
+    phase ``kernels``, and the one-time set-up of its compiler context inside the first
+    one (the registries of its implementations, which import scipy.linalg) to
+    ``kernels_setup``: wraps the two numba methods they run in (the dispatcher's, which
+    a call without a matching compiled version goes through, and the CPU context's); the
+    kernels and their results are untouched. False when numba has no such methods
+    (another numba version: nothing is booked)."""
+    try:
+        from numba.core.cpu import CPUContext
+        from numba.core.dispatcher import Dispatcher
+    except ImportError:
+        return False
+    return (_metered(Dispatcher, "_compile_for_args", "kernels")
+            and _metered(CPUContext, "load_additional_registries", "kernels_setup"))
 
 
 def job_cost() -> dict:
@@ -207,6 +229,8 @@ def job_cost() -> dict:
             "ball_steps": dict(sorted(own["ball_steps"].items())),
             "worker_phases": {k: round(v, 6) for k, v in sorted(LEDGER.workers.items())},
             "worker_ball_steps": dict(sorted(LEDGER.worker_steps.items())),
+            "calls": dict(sorted(own["calls"].items())),
+            "worker_calls": dict(sorted(LEDGER.worker_calls.items())),
             "max_rss_mb": round(me.ru_maxrss / 1024.0, 1)}
 
 

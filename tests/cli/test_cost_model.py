@@ -64,8 +64,8 @@ def test_the_phases_of_a_sample_job_account_for_its_cpu_time(study):
     # ... and names the phase of nearly every second of it
     assert phases["other"] < 0.03 * job["cpu_s"]
     cat = cost_model.by_category(phases)["cpu_s"]
-    for c in ("start", "kernels", "genesis: packing (engine)", "test: engine",
-              "test: records", "write"):
+    for c in ("start", "kernels: loading", "kernels: numba's set-up",
+              "genesis: packing (engine)", "test: engine", "test: records", "write"):
         assert cat[c] > 0, c
     assert cat["test: engine"] > 0.3 * job["cpu_s"]
 
@@ -92,7 +92,10 @@ def test_the_run_files_share_the_process_and_count_its_steps(study):
     # the job's cost line holds the run files' ball-steps, and the genesis's too
     steps = cost_model.job_steps(job)
     assert steps["ucs/test/engine"] == u["ball_steps"]["ucs/test/engine"]
-    assert steps["ucs/genesis/packing/engine"] > 0 and steps["bts/genesis/build/engine"] > 0
+    assert steps["ucs/genesis/packing/relax/engine"] > 0
+    assert steps["bts/genesis/build/engine"] > 0
+    # two geneses, each packing relaxed (the job's specimen cache was empty)
+    assert cost_model.geneses(job) == (2, 2)
 
 
 def test_phase_paths_fall_into_the_model_categories():
@@ -102,7 +105,8 @@ def test_phase_paths_fall_into_the_model_categories():
     assert c("ucs/test/engine") == "test: engine"
     assert c("triaxial/test") == "test: records"
     assert c("bts_retest/test/engine") == "retests"
-    assert c("kernels") == "kernels" and c("ucs/results") == "results"
+    assert c("kernels") == "kernels: loading" and c("ucs/results") == "results"
+    assert c("ucs/genesis/packing/relax/engine") == "genesis: packing (engine)"
     assert cost_model.test_steps("ucs/test/engine")
     assert not cost_model.test_steps("bts_retest/test/engine")
     assert not cost_model.test_steps("ucs/genesis/packing/engine")
@@ -128,5 +132,7 @@ def test_the_ledger_books_nested_phases_once(monkeypatch):
     assert first["phases"] == {"ucs": 1.0, "ucs/genesis": 2.0, "kernels": 0.5,
                                "ucs/genesis/engine": 3.0, "other": 0.0}
     assert first["cpu_s"] == 6.5 and first["ball_steps"] == {"ucs/genesis/engine": 1000}
-    assert second == {"cpu_s": 4.0, "phases": {"ucs": 4.0, "other": 0.0}, "ball_steps": {}}
+    assert first["calls"] == {"kernels": 1, "ucs/genesis": 1}  # the engine's not counted
+    assert second == {"cpu_s": 4.0, "phases": {"ucs": 4.0, "other": 0.0}, "ball_steps": {},
+                      "calls": {"ucs": 1}}
     json.dumps(first)
