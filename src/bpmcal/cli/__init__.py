@@ -196,8 +196,8 @@ def main(argv=None) -> int:
     command (``argv`` None: this process's command line) it ends the process when done:
     :func:`_end`."""
     rc = _main(argv)
-    if argv is None:
-        _end(rc)
+    if argv is None and sys.getprofile() is None and sys.gettrace() is None:
+        _end(rc)  # (a profiler or tracer, e.g. cProfile, writes its output at the teardown)
     return rc
 
 
@@ -205,7 +205,8 @@ def _end(rc: int) -> None:
     """End the process with exit code ``rc`` once its output is flushed and its exit
     handlers (``atexit``) have run, without tearing the interpreter down: the teardown
     (freeing every module, numba's and LLVM's objects among them) cost about 0.2 CPU s
-    of every job, which no job needs (every file is closed, every worker joined)."""
+    of every job, which no job needs (every file is closed, every worker joined). Not
+    under a profiler or a tracer (``main``)."""
     import atexit
 
     for f in (sys.stdout, sys.stderr):
