@@ -15,7 +15,9 @@ What it reads (``bpmcal.cost`` books it; the workflow sets ``BPMCAL_COST``):
 - the run files (``<study>/ucs/<id>.h5``, ``bts/<id>.h5``, ...): each one's ``/cost``
   group, the share of its process it stands for (what the process spent since the run
   file before it), and its summary (balls, steps, discs);
-- with ``--snakemake-log``: each rule's job time (wall, from Snakemake's stamps).
+- with ``--snakemake-log``: each rule's job time (wall, from Snakemake's stamps) and how
+  busy its jobs kept the cores they held (CPU seconds over wall x threads: a seed pool
+  waiting for its last seed, or a loaded host, shows as less than 100 %).
 
 A phase path's category (``category``): ``start`` (the interpreter and imports up to the
 command's start), ``imports`` (the run machinery imported later), ``inputs`` (reading
@@ -115,14 +117,17 @@ def snakemake_jobs(log: Path) -> dict:
         block = m.group(3)
         jid = re.search(r"    jobid: (\d+)", block)
         lg = re.search(r"    log: (\S+)", block)
+        th = re.search(r"    threads: (\d+)", block)
         if jid and lg:
             key = lg.group(1)[lg.group(1).find("logs/"):]
-            start[jid.group(1)] = (key, m.group(2), when(m.group(1)))
+            start[jid.group(1)] = (key, m.group(2), when(m.group(1)),
+                                   int(th.group(1)) if th else 1)
     out = {}
     for m in re.finditer(_STAMP + r"Finished jobid: (\d+)", text):
         if m.group(2) in start:
-            key, rule, t0 = start[m.group(2)]
-            out[key] = {"rule": rule, "wall_s": (when(m.group(1)) - t0).total_seconds()}
+            key, rule, t0, threads = start[m.group(2)]
+            out[key] = {"rule": rule, "wall_s": (when(m.group(1)) - t0).total_seconds(),
+                        "threads": threads}
     return out
 
 
@@ -140,7 +145,8 @@ def read_jobs(study: Path, sm: dict | None = None) -> list[dict]:
         info = (sm or {}).get(f"logs/{rel.as_posix()}", {})
         rule = info.get("rule") or (rel.parts[0] if len(rel.parts) > 1 else rel.stem)
         jobs.append({"rule": rule, "job": rel.with_suffix("").as_posix(),
-                     "command": m[-1].group(1), "wall_s": info.get("wall_s"), **d})
+                     "command": m[-1].group(1), "wall_s": info.get("wall_s"),
+                     "threads": info.get("threads", 1), **d})
     return jobs
 
 
@@ -233,6 +239,7 @@ def per_rule(jobs: list[dict]) -> list[dict]:
         r["relaxed"] += relaxed
         if j.get("wall_s") is not None:
             r["job_wall_s"] = r.get("job_wall_s", 0.0) + j["wall_s"]
+            r["core_s"] = r.get("core_s", 0.0) + j["wall_s"] * j["threads"]
         r["cpu_s"] += job_cpu(j)
         r["ball_steps"] += sum(st.values())
         r["test_ball_steps"] += sum(v for k, v in st.items() if test_steps(k))
@@ -244,6 +251,8 @@ def per_rule(jobs: list[dict]) -> list[dict]:
         r["ps_per_cpu_s"] = r["ball_steps"] / r["cpu_s"] if r["cpu_s"] else 0.0
         r["engine_ps_per_cpu_s"] = (r["ball_steps"] / r["engine_cpu_s"]
                                     if r["engine_cpu_s"] else 0.0)
+        if r.get("core_s"):  # CPU seconds over the cores the jobs held (wall x threads)
+            r["busy"] = r["cpu_s"] / r["core_s"]
         out.append(r)
     return out
 
@@ -322,11 +331,21 @@ def bench(n: int, steps: int) -> dict:
     return json.loads(p.stdout.strip().splitlines()[-1])
 
 
-def record(study: Path, label: str, snakemake_log, bench_n, bench_steps, argv) -> dict:
+def _head() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE,
+                              capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "not recorded"
+
+
+def record(study: Path, label: str, snakemake_log, bench_n, bench_steps, argv,
+           commit=None) -> dict:
     sm = snakemake_jobs(Path(snakemake_log)) if snakemake_log else None
     jobs = read_jobs(study, sm)
     runs = run_file_costs(study)
     rec = {**record_header("cost_model.py", argv), "study": label,
+           "commit": commit or _head(),
            "jobs": len(jobs), "rules": per_rule(jobs),
            "phases_all": per_phase(jobs),
            "phases_dem": per_phase(jobs, {j["rule"] for j in jobs
@@ -351,15 +370,17 @@ def _m(x: float) -> str:
 def markdown(rec: dict) -> str:
     L = [f"# The cost model of a study: {rec['date']}", "",
          f"Host: {rec['cpu_model']} ({rec['cpus']} CPUs); load average when recorded "
-         f"{', '.join(f'{x:.2f}' for x in rec['load_average'])}. Study: {rec['study']}.", "",
+         f"{', '.join(f'{x:.2f}' for x in rec['load_average'])}. Commit: {rec['commit']}. "
+         f"Study: {rec['study']}.", "",
          f"Command: `{rec['command']}`", "",
          f"{rec['jobs']} jobs with a cost line, {rec['run_files']} run files with a cost "
          "record.", "", "## By rule", "",
          "| rule | jobs | CPU s | share | M ball-steps | of them loading | M ball-steps per CPU s "
          "(job) | M ball-steps per CPU s (engine) | specimens built (packings relaxed) |"
-         + (" job time (wall) s |" if any("job_wall_s" in r for r in rec["rules"]) else ""),
-         "|---|---|---|---|---|---|---|---|---|" + ("---|" if any("job_wall_s" in r for r in
-                                                                 rec["rules"]) else "")]
+         + (" job time (wall) s | busy |" if any("job_wall_s" in r for r in rec["rules"])
+            else ""),
+         "|---|---|---|---|---|---|---|---|---|" + ("---|---|" if any("job_wall_s" in r for r in
+                                                                     rec["rules"]) else "")]
     wall = any("job_wall_s" in r for r in rec["rules"])
     for r in rec["rules"]:
         built = f"{r['geneses']} ({r['relaxed']})" if r.get("geneses") else "–"
@@ -367,7 +388,8 @@ def markdown(rec: dict) -> str:
                 f"{_m(r['ball_steps'])} | {_m(r['test_ball_steps'])} | "
                 f"{_m(r['ps_per_cpu_s'])} | {_m(r['engine_ps_per_cpu_s'])} | {built} |")
         if wall:
-            line += f" {r.get('job_wall_s', float('nan')):.1f} |"
+            busy = f"{100 * r['busy']:.0f} %" if "busy" in r else "–"
+            line += f" {r.get('job_wall_s', float('nan')):.1f} | {busy} |"
         L.append(line)
     for key, title in (("phases_samples", "The sample jobs (rule `ucs`) by phase"),
                        ("phases_dem", "Every DEM job by phase"),
@@ -416,6 +438,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--study", required=True, help="the study's outdir (results)")
     ap.add_argument("--label", default="", help="what the study was (for the record)")
+    ap.add_argument("--commit", default=None,
+                    help="the commit the study ran (default: this checkout's HEAD)")
     ap.add_argument("--snakemake-log", default=None,
                     help="Snakemake's log of the run (job times by rule)")
     ap.add_argument("--bench-n", type=int, default=0,
@@ -425,7 +449,7 @@ def main(argv=None) -> int:
     ap.add_argument("--markdown", default=None, help="Markdown record")
     a = ap.parse_args(argv)
     rec = record(Path(a.study), a.label or a.study, a.snakemake_log, a.bench_n, a.bench_steps,
-                 sys.argv[1:] if argv is None else argv)
+                 sys.argv[1:] if argv is None else argv, a.commit)
     write_record(rec, a.out, a.markdown, markdown)
     return 0
 

@@ -48,7 +48,7 @@ COST_TAG = "cost "
 class _Phase:
     """One open phase of the ledger (a context manager; cheaper than a generator)."""
 
-    __slots__ = ("ledger", "path", "c0", "kids", "steps")
+    __slots__ = ("ledger", "path", "c0", "kids", "steps", "engine")
 
     def __init__(self, ledger: "Ledger", path: str):
         self.ledger = ledger
@@ -56,6 +56,7 @@ class _Phase:
         self.c0 = 0.0
         self.kids = 0.0
         self.steps = 0
+        self.engine = f"{path}/engine"  # where the engine's calls inside it are booked
 
     def __enter__(self) -> "_Phase":
         self.c0 = _clock()
@@ -116,6 +117,24 @@ class Ledger:
         ph = self.phase("engine")
         ph.steps = int(ball_steps)
         return ph
+
+    @staticmethod
+    def engine_start() -> float:
+        """The clock before a call of the engine (:meth:`engine_end` books it): the same
+        booking as a :meth:`engine` phase for less work (``lab.stepping.cycle`` calls the
+        engine thousands of times in a test)."""
+        return _clock()
+
+    def engine_end(self, c0: float, ball_steps: int) -> None:
+        """Book a call of the engine that began at ``c0`` (:meth:`engine_start`) and ran
+        ``ball_steps`` ball-steps to the phase ``engine`` inside the open one."""
+        dt = _clock() - c0
+        top = self.stack[-1] if self.stack else None
+        path = top.engine if top is not None else "engine"
+        self.cpu[path] = self.cpu.get(path, 0.0) + dt
+        self.ball_steps[path] = self.ball_steps.get(path, 0) + ball_steps
+        if top is not None:
+            top.kids += dt
 
     def _flush(self) -> float:
         """Book the open phases' time so far (they go on from now); the clock now."""
