@@ -200,6 +200,7 @@ def run_file_costs(study: Path) -> list[dict]:
                              "phases": json.loads(c["phases"]),
                              "ball_steps": json.loads(c["ball_steps"]),
                              "n_balls": int(s.get("n_balls", 0)),
+                             "bonds_per_ball": float(s.get("bonds_per_ball", 0.0)),
                              "steps": int(s.get("steps", 0)),
                              "seat_steps": int(s.get("seat_steps", 0)),
                              "discs": int(s.get("discs", 1) or 1)})
@@ -310,6 +311,14 @@ def sample_jobs(jobs: list[dict], runs: list[dict]) -> dict:
     tot = {k: sum(r[k] for r in rows) for k in ("cpu_s", "test_ball_steps", "ball_steps",
                                                 "engine_cpu_s")}
     med = {k: statistics.median(r[k] for r in rows) for k in rows[0] if k != "job"}
+    # the loading's bond-steps (balls x steps x bonds per ball / 2) over the engine's CPU
+    # seconds of the loading, from the run files: the engine's speed per bond
+    bond_steps, load_cpu = 0.0, 0.0
+    for r in runs:
+        for k, v in r["ball_steps"].items():
+            if test_steps(k) and k.split("/")[0] in ("ucs", "bts"):
+                bond_steps += v * r["bonds_per_ball"] / 2.0
+                load_cpu += r["phases"].get(k, 0.0)
     ucs_runs = [r for r in runs if r["file"].startswith("ucs/") and r["status"] == "ok"]
     # the step count of the ledger against the run's own: balls x steps of the UCS test
     counted = [(sum(v for k, v in r["ball_steps"].items() if k == "ucs/test/engine"),
@@ -320,6 +329,7 @@ def sample_jobs(jobs: list[dict], runs: list[dict]) -> dict:
             "engine_ps_per_cpu_s": tot["ball_steps"] / tot["engine_cpu_s"]
             if tot["engine_cpu_s"] else 0.0,
             "ucs_steps_match": sum(a == b for a, b in counted), "ucs_runs": len(counted),
+            "loading_bond_steps_per_cpu_s": bond_steps / load_cpu if load_cpu else 0.0,
             "rows": rows}
 
 
@@ -360,6 +370,9 @@ def record(study: Path, label: str, snakemake_log, bench_n, bench_steps, argv,
             rec["samples"]["vs_bench"] = s["ps_per_cpu_s"] / b["particle_steps_per_cpu_s"]
             rec["samples"]["engine_vs_bench"] = (s["engine_ps_per_cpu_s"]
                                                  / b["particle_steps_per_cpu_s"])
+            bench_bonds = b["particle_steps_per_cpu_s"] * b["bonds_per_ball"] / 2.0
+            rec["samples"]["bond_steps_vs_bench"] = (s["loading_bond_steps_per_cpu_s"]
+                                                     / bench_bonds)
     return rec
 
 
@@ -430,7 +443,13 @@ def markdown(rec: dict) -> str:
                   f"{_m(b['particle_steps_per_cpu_s'])} M particle-steps per CPU-second. "
                   f"The sample jobs' loading particle-steps per CPU-second are "
                   f"{s['vs_bench']:.2f} x that; the engine inside them runs at "
-                  f"{s['engine_vs_bench']:.2f} x."]
+                  f"{s['engine_vs_bench']:.2f} x per particle-step. Per bond (the "
+                  f"benchmark's pack has {b['bonds_per_ball']:.2f} bonds per ball; the "
+                  f"loading's bond-steps, balls x steps x bonds per ball / 2 of each run "
+                  f"file, over the loading's engine CPU seconds: "
+                  f"{_m(s['loading_bond_steps_per_cpu_s'])} M per CPU-second) the engine "
+                  f"inside the jobs runs at {s['bond_steps_vs_bench']:.2f} x the "
+                  f"benchmark's."]
     return "\n".join(L) + "\n"
 
 
