@@ -2,8 +2,10 @@
 phase, from the jobs' logs and the run files.
 
     python benchmarks/cost_model.py --study CLONE/results [--snakemake-log study.log] \\
-        [--bench-n 10000] [--label LABEL] --out benchmarks/results_cost_model_DATE.json \\
-        --markdown docs/measurements/DATE-cost-model.md
+        [--bench-n 10000] [--label LABEL] --out benchmarks/results_cost_model_DATE_NAME.json \\
+        --markdown docs/measurements/DATE-cost-model-NAME.md
+    python benchmarks/cost_model.py --render benchmarks/results_cost_model_DATE_NAME.json \\
+        --markdown docs/measurements/DATE-cost-model-NAME.md
 
 What it reads (``bpmcal.cost`` books it; the workflow sets ``BPMCAL_COST``):
 
@@ -455,7 +457,9 @@ def markdown(rec: dict) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--study", required=True, help="the study's outdir (results)")
+    ap.add_argument("--study", help="the study's outdir (results)")
+    ap.add_argument("--render", default=None,
+                    help="a JSON record of this script: write its Markdown (--markdown) again")
     ap.add_argument("--label", default="", help="what the study was (for the record)")
     ap.add_argument("--commit", default=None,
                     help="the commit the study ran (default: this checkout's HEAD)")
@@ -467,6 +471,11 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None, help="JSON record")
     ap.add_argument("--markdown", default=None, help="Markdown record")
     a = ap.parse_args(argv)
+    if a.render:
+        write_record(json.loads(Path(a.render).read_text()), None, a.markdown, markdown)
+        return 0
+    if not a.study:
+        ap.error("--study is required (a study's outdir), or --render RECORD.json")
     rec = record(Path(a.study), a.label or a.study, a.snakemake_log, a.bench_n, a.bench_steps,
                  sys.argv[1:] if argv is None else argv, a.commit)
     write_record(rec, a.out, a.markdown, markdown)

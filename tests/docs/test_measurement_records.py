@@ -154,3 +154,14 @@ def test_job_times_sums_each_rule_from_snakemakes_log(tmp_path):
         "[Sat Nov 28 11:44:11 2026]\nrule verify:\n    jobid: 9\nError in rule verify\n")
     assert study_record.job_times(log) == {"design": {"jobs": 1, "wall_s": 3.0},
                                            "ucs": {"jobs": 2, "wall_s": 100.0 + 130.0}}
+
+
+def test_the_cost_model_records_are_their_json_rendered():
+    import cost_model
+
+    for raw in (REPO / "benchmarks").glob("results_cost_model_*.json"):
+        date, name = raw.stem.removeprefix("results_cost_model_").split("_", 1)
+        rec = json.loads(raw.read_text())
+        assert rec["date"] == date, raw.name
+        md = REPO / "docs" / "measurements" / f"{date}-cost-model-{name}.md"
+        assert md.read_text() == cost_model.markdown(rec), (md.name, "regenerate from", raw.name)
