@@ -26,14 +26,15 @@ command's start), ``imports`` (the run machinery imported later), ``inputs`` (re
 and checking the inputs), ``kernels: numba's set-up`` and ``kernels: loading`` (numba
 setting up its compiler context once, loading each kernel at its first call),
 ``genesis: packing``/``genesis: build`` (each split into the engine's steps and the rest:
-distributing, the cache, bonding), ``test: engine`` and ``test: records`` (the loading's
-steps; the work between them: records, servo, checks, progress), ``results`` (the
-failure morphology), ``write`` (the run files), ``retests`` (the Brazilian discs after
-the first, all their phases), ``other`` (what no phase holds).
+distributing, the cache, bonding), ``test: engine`` and ``test: records`` (the test's
+steps: a Brazilian disc's seating and loading, a cylinder's loading, a triaxial test's
+consolidation and loading; the work between them: records, servo, checks, progress),
+``results`` (the failure morphology), ``write`` (the run files), ``retests`` (the
+Brazilian discs after the first, all their phases), ``other`` (what no phase holds).
 
 The engine's rate inside the jobs (ball-steps of the engine over the engine's CPU
-seconds) and the sample jobs' particle-steps per CPU-second (the two tests' loading
-steps x balls over the whole job's CPU seconds, start-up and genesis included) are set
+seconds) and the sample jobs' particle-steps per CPU-second (the two tests' steps
+x balls over the whole job's CPU seconds, start-up and genesis included) are set
 beside the engine's own benchmark (``dem_throughput.py``, ``--bench-n`` balls, one
 thread, run in the same invocation: its particle-steps per CPU-second).
 
@@ -93,7 +94,7 @@ def category(path: str) -> str:
 
 
 def test_steps(path: str) -> bool:
-    """Whether a phase path's ball-steps are a test's loading steps (not genesis, not a
+    """Whether a phase path's ball-steps are a test's own steps (not genesis, not a
     discarded disc)."""
     parts = path.split("/")
     return (not parts[0].endswith("_retest") and "test" in parts[1:]
@@ -390,7 +391,7 @@ def markdown(rec: dict) -> str:
          f"Command: `{rec['command']}`", "",
          f"{rec['jobs']} jobs with a cost line, {rec['run_files']} run files with a cost "
          "record.", "", "## By rule", "",
-         "| rule | jobs | CPU s | share | M ball-steps | of them loading | M ball-steps per CPU s "
+         "| rule | jobs | CPU s | share | M ball-steps | of them the tests' | M ball-steps per CPU s "
          "(job) | M ball-steps per CPU s (engine) | specimens built (packings relaxed) |"
          + (" job time (wall) s | busy |" if any("job_wall_s" in r for r in rec["rules"])
             else ""),
@@ -421,11 +422,11 @@ def markdown(rec: dict) -> str:
     if s.get("jobs"):
         med = s["median"]
         L += ["", "## The sample jobs' throughput", "",
-              f"{s['jobs']} jobs, {s['total']['cpu_s']:.1f} CPU s; loading ball-steps "
+              f"{s['jobs']} jobs, {s['total']['cpu_s']:.1f} CPU s; the tests' ball-steps "
               f"{s['total']['test_ball_steps'] / 1e9:.3f} G, all engine ball-steps "
               f"{s['total']['ball_steps'] / 1e9:.3f} G.", "",
               "| | all jobs | median job |", "|---|---|---|",
-              f"| loading particle-steps per job CPU-second (M) | {_m(s['ps_per_cpu_s'])} | "
+              f"| the tests' particle-steps per job CPU-second (M) | {_m(s['ps_per_cpu_s'])} | "
               f"{_m(med['ps_per_cpu_s'])} |",
               f"| engine particle-steps per job CPU-second (M) | {_m(s['all_ps_per_cpu_s'])} | "
               f"{_m(med['all_ps_per_cpu_s'])} |",
@@ -436,19 +437,19 @@ def markdown(rec: dict) -> str:
               f"{100 * med['startup_share']:.1f} % |",
               f"| unbooked (other) share | – | {100 * med['other_share']:.1f} % |",
               f"| job CPU s | {s['total']['cpu_s']:.1f} | {med['cpu_s']:.2f} |"]
-        L += ["", f"The ledger's UCS loading ball-steps equal the run file's balls x steps in "
+        L += ["", f"The ledger's UCS test ball-steps equal the run file's balls x steps in "
               f"{s['ucs_steps_match']} of {s['ucs_runs']} UCS run files."]
         if "bench" in rec:
             b = rec["bench"]
             L += ["", f"The engine's benchmark in the same invocation (`dem_throughput.py "
                   f"--n {b['n']} --threads 1 --steps {b['steps']}`): "
                   f"{_m(b['particle_steps_per_cpu_s'])} M particle-steps per CPU-second. "
-                  f"The sample jobs' loading particle-steps per CPU-second are "
+                  f"The sample jobs' test particle-steps per CPU-second are "
                   f"{s['vs_bench']:.2f} x that; the engine inside them runs at "
                   f"{s['engine_vs_bench']:.2f} x per particle-step. Per bond (the "
                   f"benchmark's pack has {b['bonds_per_ball']:.2f} bonds per ball; the "
-                  f"loading's bond-steps, balls x steps x bonds per ball / 2 of each run "
-                  f"file, over the loading's engine CPU seconds: "
+                  f"tests' bond-steps, balls x steps x bonds per ball at the test's start / 2 of each run "
+                  f"file, over the tests' engine CPU seconds: "
                   f"{_m(s['loading_bond_steps_per_cpu_s'])} M per CPU-second) the engine "
                   f"inside the jobs runs at {s['bond_steps_vs_bench']:.2f} x the "
                   f"benchmark's."]
