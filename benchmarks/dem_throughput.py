@@ -9,6 +9,14 @@ JIT compile (or cache load) time is measured separately on a tiny model first.
 
     python benchmarks/dem_throughput.py --n 30000 --threads 1 --steps 2000 --json
 
+Size sweep (``--sweep``): the same case at several ball counts, paired in one invocation,
+each run in its own process with about ``--ball-steps`` particle-steps (steps = ball-steps
+/ N), the sizes' order rotating from one repeat to the next; medians of the CPU seconds
+per particle-step and their ratio to the largest size's:
+
+    python benchmarks/dem_throughput.py --sweep 1000,2000,3000,10000 --repeat 3 \
+        --threads 1 [--out results.json]
+
 Packs are cached in ~/.cache/bpmcal/bench_pack_N.npz (the relaxation is not part of the
 timed run) and numbered along a Morton curve, as the specimen genesis numbers balls.
 """
@@ -132,6 +140,50 @@ def run(n: int, threads: int, steps: int, seed: int = 1) -> dict:
             "skin": float(m.skin)}
 
 
+def sweep(sizes, threads: int, ball_steps: float, repeat: int, seed: int = 1) -> dict:
+    """``run`` at every size of ``sizes``, each in its own process, ``repeat`` times, the
+    order rotating; medians per size and the ratio of each size's CPU seconds per
+    particle-step to the largest size's (below 1: a particle-step costs less)."""
+    import statistics
+    import subprocess
+
+    sizes = list(sizes)
+    for n in sizes:  # the packs (cached on disk) and the kernels, untimed
+        subprocess.run([sys.executable, __file__, "--n", str(n), "--steps", "10", "--threads",
+                        str(threads), "--seed", str(seed), "--json"], check=True,
+                       capture_output=True)
+    runs = []
+    for r in range(repeat):
+        k = r % len(sizes)
+        for n in sizes[k:] + sizes[:k]:
+            steps = max(10, int(round(ball_steps / n)))
+            p = subprocess.run([sys.executable, __file__, "--n", str(n), "--steps", str(steps),
+                                "--threads", str(threads), "--seed", str(seed), "--json"],
+                               check=True, capture_output=True, text=True)
+            d = json.loads(p.stdout.strip().splitlines()[-1])
+            d["repeat"] = r
+            runs.append(d)
+            print(f"n {n:6d}  steps {steps:6d}  {d['particle_steps_per_cpu_s'] / 1e6:6.2f} M "
+                  f"particle-steps per CPU s  (wall {d['particle_steps_per_s'] / 1e6:6.2f} M/s)",
+                  flush=True)
+    med = {}
+    for n in sizes:
+        rs = [d for d in runs if d["n"] == n]
+        med[n] = {"ns_per_particle_step_cpu": statistics.median(
+                      1e9 * d["cpu_s"] / (d["n"] * d["steps"]) for d in rs),
+                  "particle_steps_per_cpu_s": statistics.median(
+                      d["particle_steps_per_cpu_s"] for d in rs),
+                  "particle_steps_per_s": statistics.median(d["particle_steps_per_s"]
+                                                            for d in rs),
+                  "rebuilds": statistics.median(d["rebuilds"] for d in rs),
+                  "steps": rs[0]["steps"]}
+    top = med[max(sizes)]["ns_per_particle_step_cpu"]
+    for n in sizes:
+        med[n]["cost_vs_largest"] = med[n]["ns_per_particle_step_cpu"] / top
+    return {"sizes": sizes, "threads": threads, "ball_steps": ball_steps, "repeat": repeat,
+            "load_average_after": list(os.getloadavg()), "median": med, "runs": runs}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--n", type=int, default=30000)
@@ -139,7 +191,23 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--sweep", default=None, help="ball counts, comma-separated: size sweep")
+    ap.add_argument("--ball-steps", type=float, default=2e7,
+                    help="particle-steps of each sweep run (steps = this / N)")
+    ap.add_argument("--repeat", type=int, default=3, help="repeats of the sweep")
+    ap.add_argument("--out", default=None, help="the sweep's JSON record")
     a = ap.parse_args(argv)
+    if a.sweep:
+        rec = {"date": time.strftime("%Y-%m-%d"), "load_average_before": list(os.getloadavg()),
+               **sweep([int(x) for x in a.sweep.split(",")], a.threads, a.ball_steps,
+                       a.repeat, a.seed)}
+        print(f"{'balls':>8s} {'ns/particle-step (CPU)':>24s} {'x largest':>10s}")
+        for n in rec["sizes"]:
+            m = rec["median"][n]
+            print(f"{n:8d} {m['ns_per_particle_step_cpu']:24.1f} {m['cost_vs_largest']:10.3f}")
+        if a.out:
+            Path(a.out).write_text(json.dumps(rec, indent=1) + "\n")
+        return 0
     res = run(a.n, a.threads, a.steps, a.seed)
     if a.json:
         print(json.dumps(res))

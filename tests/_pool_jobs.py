@@ -32,3 +32,15 @@ def fails_soon(*, x, marker, threads, progress):
     import time
     time.sleep(1.0)
     raise ValueError("planted failure beside a long run")
+
+
+def burns(*, x, threads, progress):
+    """About ``x`` CPU seconds in the cost ledger's phase ``burn`` (bpmcal.cost)."""
+    import time
+
+    from bpmcal.cost import phase
+    with phase("burn"):
+        t = time.process_time()
+        while time.process_time() - t < x:
+            pass
+    return x

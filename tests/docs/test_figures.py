@@ -53,6 +53,10 @@ ALLOWED = [
      "(lab.budget.HOPELESS_S, a method constant)"),
     (r"\(4\.55 %\)|probability 4\.55 %", "the two-sided level of 2 normal standard errors "
      "(the fresh-seed check's, a method constant)"),
+    (r"90 % (?:interval|HDI|highest-density)", "the posterior's interval probability "
+     "(posterior.hdi_prob, a config value)"),
+    (r"within 2 % of a posterior sd|within 2 % \(the test", "the closed-form posterior "
+     "test's tolerance (a method constant of the test)"),
 ]
 ALLOWED_RE = re.compile("|".join(f"(?:{p})" for p, _ in ALLOWED))
 

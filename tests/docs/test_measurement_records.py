@@ -205,3 +205,14 @@ def test_a_test_tiers_record_says_whether_numba_s_cache_was_warm():
         assert f"Numba cache before the first tier: **{state}** ({n} compiled kernels" in text
     nc = test_tiers.numba_cache()
     assert nc["state"] == ("warm" if nc["kernels"] else "cold") and "numba" in nc["dir"]
+
+
+def test_the_cost_model_records_are_their_json_rendered():
+    import cost_model
+
+    for raw in (REPO / "benchmarks").glob("results_cost_model_*.json"):
+        date, name = raw.stem.removeprefix("results_cost_model_").split("_", 1)
+        rec = json.loads(raw.read_text())
+        assert rec["date"] == date, raw.name
+        md = REPO / "docs" / "measurements" / f"{date}-cost-model-{name}.md"
+        assert md.read_text() == cost_model.markdown(rec), (md.name, "regenerate from", raw.name)

@@ -123,3 +123,18 @@ def test_an_interrupted_or_killed_stage_leaves_no_worker_running(tmp_path, how):
     assert _gone_within(pids, 10), "a worker ran on after its stage ended"
     assert time.monotonic() - t0 < 15  # not the 120 s of the runs
     assert len(list(tmp_path.glob("w*"))) == 2  # no queued run started after the stop
+
+
+def test_the_workers_report_what_they_spent_to_the_cost_ledger():
+    """Each worker returns its share of the stage's cost with its run (bpmcal.cost): the
+    stage's cost line holds its workers' phases."""
+    from _pool_jobs import burns
+
+    from bpmcal.cost import LEDGER
+
+    before = LEDGER.workers.get("burn", 0.0)
+    with SeedPool(2) as pool:
+        assert pool.map(burns, [{"x": 0.2}, {"x": 0.3}]) == [0.2, 0.3]
+    assert LEDGER.workers.get("burn", 0.0) - before == pytest.approx(0.5, abs=0.05)
+    assert LEDGER.worker_calls.get("burn", 0) >= 2
+    assert LEDGER.workers.get("start", 0.0) > 0  # each worker's start-up, booked once

@@ -10,6 +10,7 @@
 # never spliced as text. outdir, lab.csv and specimen names are also checked against safe
 # patterns at validation (bpmcal.io.safe_names).
 import json
+import os
 
 from bpmcal.cli import BTS_OPTIONS, DTT_OPTIONS
 from bpmcal.io import study_files as L
@@ -28,6 +29,9 @@ except ConfigError as e:
     raise WorkflowError(str(e)) from None
 
 FILES = L.StudyFiles(config["outdir"])
+# every bpmcal job ends its log with its cost line: CPU seconds and the engine's
+# ball-steps by phase (bpmcal.cost; read by benchmarks/cost_model.py)
+os.environ.setdefault("BPMCAL_COST", "1")
 SAMPLES = L.sample_ids(config["study"]["n_samples"])
 SPECIMENS = list(_lab["specimen"])
 SWEEP_ON = bool(config["ratio_sweep"]["enabled"])

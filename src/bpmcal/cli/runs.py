@@ -10,6 +10,7 @@ import json
 import sys
 from pathlib import Path
 
+from ..cost import phase
 from ..io.checks import BadInput
 from ..stages import defaults_of
 from ..stages.progress import Progress
@@ -31,6 +32,13 @@ from .options import (
     run_settings,
     tri_settings_of,
 )
+
+
+def _import_runs() -> None:
+    """Import the run machinery (the engine and numba, h5py) first, in the cost ledger's
+    phase ``imports`` (``bpmcal.cost``; the commands import it lazily)."""
+    with phase("imports"):
+        from ..stages import runs  # noqa: F401
 
 
 def _run_done(args, cmd: str, out, path=None) -> int:
@@ -141,6 +149,7 @@ def _ucs_line(s):
 
 
 def cmd_ucs(args) -> int:
+    _import_runs()
     tests = [("ucs", args.out, run_geometry(args), run_settings(args), _ucs_line)]
     flags = ["--out"]
     if args.bts_out is not None:  # the study's sample job: the Brazilian test in this process
@@ -183,6 +192,7 @@ def _bts_line(s):
 
 
 def cmd_bts(args) -> int:
+    _import_runs()
     return _lab_test(args, "bts", bts_disc_of(args), bts_settings_of(args), _bts_line)
 
 
@@ -206,6 +216,7 @@ def _dtt_line(s):
 
 
 def cmd_dtt(args) -> int:
+    _import_runs()
     return _lab_test(args, "dtt", dtt_cylinder_of(args), dtt_settings_of(args), _dtt_line)
 
 
@@ -241,6 +252,7 @@ def _tri_line(s):
 
 
 def cmd_triaxial(args) -> int:
+    _import_runs()
     from ..lab.triaxial import TriaxialSettings
 
     st = run_settings(args, TriaxialSettings, sigma3=args.sigma3 * 1e6,
@@ -282,6 +294,7 @@ def _add_impact(p):
 
 
 def cmd_impact(args) -> int:
+    _import_runs()
     from ..lab.impact import ImpactSettings
     from ..stages.runs import impact_file
 

@@ -37,8 +37,14 @@ if "NUMBA_CACHE_DIR" not in os.environ:
 import numba  # noqa: E402
 from numba import njit, prange  # noqa: E402,F401
 
+from ..cost import meter_numba  # noqa: E402
+
 if not numba.config.CACHE_DIR:  # numba was imported before us: set it at run time
     numba.config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"]
+
+# numba's loading of each kernel at its first call is booked to the cost ledger's phase
+# "kernels" (bpmcal.cost: what a job spends its CPU on; the kernels are untouched)
+meter_numba()
 
 #: True when numba is switched off for debugging.
 JIT_DISABLED = bool(numba.config.DISABLE_JIT)

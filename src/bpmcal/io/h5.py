@@ -26,6 +26,11 @@ StudyFiles (``SCHEMA_VERSION`` 1)::
     /bonds            i, j, state (0 intact, 1 tension, 2 shear), break_step
     /fragments        (impact runs) mass [kg], size [m] (equivalent-sphere diameter) of
                       every fragment; /particles/final/fragment holds each ball's label
+    /cost             attrs: what the process spent on this run (``bpmcal.cost``), since
+                      the run file it wrote before (the first: since it began), this
+                      file's writing included: cpu_s, phases (JSON: CPU seconds by phase
+                      path), ball_steps (JSON: the engine's ball-steps by phase path),
+                      process_cpu_s (the process's CPU seconds when written), pid
 
 A file is written under a temporary name in the same directory and renamed when
 complete, so a file that exists is complete (``write_run``).
@@ -94,8 +99,10 @@ def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
               cracks: dict | None = None, particles_initial: dict | None = None,
               particles_final: dict | None = None, bonds: dict | None = None,
               status: str = "ok", error: str = "", extra: dict | None = None,
-              groups: dict | None = None) -> Path:
-    """Write one run atomically (temporary file in the same directory, then rename)."""
+              groups: dict | None = None, cost=None) -> Path:
+    """Write one run atomically (temporary file in the same directory, then rename).
+    ``cost``: a callable giving the ``/cost`` attributes, called when everything else is
+    written (so that they include the writing)."""
     path = Path(path)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         prov = provenance(inputs, stamp=True)
@@ -130,6 +137,8 @@ def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
             g = f.create_group("bonds")
             for k, v in bonds.items():
                 g.create_dataset(k, data=np.asarray(v), compression="gzip", shuffle=True)
+        if cost is not None:
+            _put_attrs(f.create_group("cost"), cost())
     return path
 
 

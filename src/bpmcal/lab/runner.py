@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import params as P
+from ..cost import phase
 from ..dem._jit import numba, set_threads
 from ..dem.errors import InputError, InstabilityError
 from .brazilian import BTSSettings, retest_seed, run_bts
@@ -134,12 +135,16 @@ def make_specimen(params: dict, seed: int, geometry: Geometry = Geometry(), *, c
     (``geometry.install_gap_mm`` applies to parallel bonds)."""
     p = P.validate_params(params)
     spec = specimen_spec(p, seed, geometry)
-    pk = get_packing(spec, cache=cache, progress=progress, threads=threads)
-    mat, micro = card_material(p)
-    gap = None if micro is not None else geometry.install_gap(p[P.RMIN]) * 1e-3
-    return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6, install_gap=gap,
-                          threads=threads, progress=progress, max_steps=genesis_max_steps,
-                          boundary=boundary, genesis=geometry.genesis, microstructure=micro)
+    with phase("genesis"):  # the cost ledger's phases (bpmcal.cost)
+        with phase("packing"):
+            pk = get_packing(spec, cache=cache, progress=progress, threads=threads)
+        mat, micro = card_material(p)
+        gap = None if micro is not None else geometry.install_gap(p[P.RMIN]) * 1e-3
+        with phase("build"):
+            return build_specimen(pk, mat, sigma0=geometry.sigma0_MPa * 1e6, install_gap=gap,
+                                  threads=threads, progress=progress,
+                                  max_steps=genesis_max_steps, boundary=boundary,
+                                  genesis=geometry.genesis, microstructure=micro)
 
 
 #: the ISRM Brazilian disc at full size: D = 50 mm, t = D / 2 (scaled like the cylinder)
@@ -259,9 +264,22 @@ def _threads(m) -> int:
 
 def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
               boundary: str, run, *, cache, threads, keep_particles, progress=None,
-              genesis_max_steps=None, finite=()) -> LabRun:
-    """Shared body of the UCS, Brazilian, direct-tension and triaxial tests: specimen, test,
-    results."""
+              genesis_max_steps=None, finite=(), cost_phase: str | None = None) -> LabRun:
+    """Shared body of the UCS, Brazilian, direct-tension and triaxial tests: specimen, test, results;
+    booked to the cost ledger's phase ``cost_phase`` (default: the test's name;
+    ``bpmcal.cost``)."""
+    with phase(cost_phase or test):
+        return _lab_test_run(test, params, seed, geometry, inputs, boundary, run, cache=cache,
+                             threads=threads, keep_particles=keep_particles,
+                             progress=progress, genesis_max_steps=genesis_max_steps,
+                             finite=finite)
+
+
+def _lab_test_run(test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
+                  boundary: str, run, *, cache, threads, keep_particles, progress,
+                  genesis_max_steps, finite) -> LabRun:
+    """``_lab_test``'s work: genesis (phase ``genesis``), the test (``test``), its
+    results (``results``)."""
     if threads:
         set_threads(threads)  # for the whole run, genesis included
     t0 = time.perf_counter()
@@ -271,7 +289,16 @@ def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: di
     t_gen = time.perf_counter() - t0
     m = sp.model
     ini = {"position": m.positions.copy(), "radius": m.radii.copy()}
-    res = run(sp)
+    with phase("test"):
+        res = run(sp)
+    with phase("results"):
+        return _lab_run(test, sp, res, ini, inputs, t0, t_gen, keep_particles, finite)
+
+
+def _lab_run(test, sp, res, ini, inputs, t0, t_gen, keep_particles, finite) -> LabRun:
+    """The LabRun of a finished test: its summary (with the failure morphology and the
+    specimen's genesis report), series, cracks and particles."""
+    m = sp.model
     summ = dict(res.summary)
     summ.update(_morphology(test, sp, res, ini))
     g = sp.report
@@ -324,11 +351,12 @@ def bts_test(params: dict, seed: int, geometry: Geometry | None = None,
     p = P.validate_params(params)
     inputs = bts_inputs(p, seed, geo, st)
 
-    def disc(k: int) -> LabRun:
+    def disc(k: int) -> LabRun:  # the cost ledger books a retest apart (bpmcal.cost)
         return _lab_test("bts", p, retest_seed(seed, k), geo, inputs, "free",
                          lambda sp: run_bts(sp, st, progress=progress), cache=cache,
                          threads=threads, keep_particles=keep_particles, progress=progress,
-                         genesis_max_steps=genesis_max_steps, finite=("bts_MPa",))
+                         genesis_max_steps=genesis_max_steps, finite=("bts_MPa",),
+                         cost_phase="bts" if k == 0 else "bts_retest")
 
     # an invalid disc is discarded and another tested, as in the laboratory (lab.brazilian)
     run, discarded, wall = disc(0), [], 0.0
@@ -385,11 +413,20 @@ def impact_test(params: dict, seed: int, geometry: Geometry = Geometry(),
     inputs = impact_inputs(p, seed, geometry, st)
     if threads:
         set_threads(threads)
+    with phase("impact"):  # the cost ledger (bpmcal.cost)
+        return _impact_run(p, seed, geometry, st, inputs, cache=cache, threads=threads,
+                           progress=progress, genesis_max_steps=genesis_max_steps)
+
+
+def _impact_run(p, seed, geometry, st, inputs, *, cache, threads, progress,
+                genesis_max_steps) -> LabRun:
+    """``impact_test``'s work: genesis, the drop (phase ``test``), its LabRun."""
     t0 = time.perf_counter()
     sp = make_specimen(p, seed, geometry, cache=cache, threads=threads, progress=progress,
                        genesis_max_steps=genesis_max_steps)
     ini = {"position": sp.model.positions.copy(), "radius": sp.model.radii.copy()}
-    res = run_impact(sp, st, progress=progress)
+    with phase("test"):
+        res = run_impact(sp, st, progress=progress)
     m = sp.model
     summ = dict(res.summary)
     summ["velocity"] = st.velocity

@@ -80,6 +80,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import params as P
+from ..cost import phase
 from ..dem import FlatJointMaterial, Material, Model
 from ..dem import flatjoint as FJ
 from ..dem.errors import InputError
@@ -423,7 +424,8 @@ def get_packing(spec: SpecimenSpec, cache: str | os.PathLike | None = None,
         z = np.load(f, allow_pickle=False)
         return Packing(spec=spec, pos=z["pos"], radius=z["radius"],
                        report=json.loads(str(z["report"])))
-    pk = relax_packing(spec, progress=progress, threads=threads)
+    with phase("relax"):  # the cost ledger: a packing relaxed, not read (bpmcal.cost)
+        pk = relax_packing(spec, progress=progress, threads=threads)
     with atomic_path(f) as tmp, open(tmp, "wb") as fh:  # a file object: no ".npz" appended
         np.savez(fh, pos=pk.pos, radius=pk.radius, report=json.dumps(pk.report),
                  spec=json.dumps(asdict(spec)))

@@ -17,6 +17,7 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 
+from ..cost import LEDGER
 from ..dem.material import expected_failure_strain, stiffest_spring
 from .budget import Loading, check_loading_steps
 
@@ -65,7 +66,11 @@ def cycle(m, nsteps: int, record: bool = True) -> None:
         budget = CALL_S * _rate if _rate else FIRST_BALL_STEPS
         k = min(max(1, int(budget / n)), nsteps - done)
         t = time.perf_counter()
-        m.cycle(k, record=record and done + k == nsteps)
+        c0 = LEDGER.engine_start()  # the cost ledger: CPU and ball-steps of the engine
+        try:
+            m.cycle(k, record=record and done + k == nsteps)
+        finally:
+            LEDGER.engine_end(c0, k * n)
         el = time.perf_counter() - t
         done += k
         if el > 1e-3:  # a measurable call: update the speed (fast to slow down)

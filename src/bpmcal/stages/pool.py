@@ -29,6 +29,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Sequence
 
+from ..cost import LEDGER
 from .progress import Progress
 
 
@@ -60,7 +61,9 @@ def _worker_init() -> None:
     dies with its parent: when the process that started it ends (killed by SIGTERM or
     SIGKILL, which no Python code of its may catch), the kernel sends the worker SIGTERM
     (Linux ``PR_SET_PDEATHSIG``) instead of leaving it to run on, orphaned, to its end.
-    Elsewhere only the handler is set."""
+    Elsewhere only the handler is set. The worker's CPU seconds so far (its start-up,
+    imports) are booked as the cost ledger's ``start`` (``bpmcal.cost``)."""
+    LEDGER.begin()
     signal.signal(signal.SIGTERM, _interrupt)
     try:
         import ctypes
@@ -83,7 +86,8 @@ def _call(fn: Callable, job: dict, threads: int, spec: tuple | None, tag: str):
         label, every, enabled = spec
         progress = Progress(f"{label} [{tag}]", every=every, enabled=enabled)
     try:
-        return fn(**job, threads=threads, progress=progress)
+        # with what the worker spent on it (its share of the stage's cost, bpmcal.cost)
+        return fn(**job, threads=threads, progress=progress), LEDGER.take("worker")
     except KeyboardInterrupt:
         os._exit(130)
 
@@ -173,7 +177,8 @@ class SeedPool:
                 for f in sorted(finished, key=index.get):
                     i = index[f]
                     try:
-                        results[i] = f.result()
+                        results[i], share = f.result()
+                        LEDGER.add_worker(share)
                     except BrokenProcessPool as e:
                         raise WorkerLost(f"the worker process running {fn.__name__} [{tags[i]}] "
                                          "died (killed, or out of memory: each of the "

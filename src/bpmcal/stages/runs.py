@@ -19,11 +19,13 @@ before any work.
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import params as P
+from ..cost import LEDGER, phase
 from ..dem.errors import InputError
 from ..io.card import card_parameters, check_card, is_card
 from ..io.checks import BadInput, out_dir, out_file, read_model_table, read_yaml
@@ -68,6 +70,13 @@ def failed_path(out):
     return out.with_name(f"{out.stem}.failed{out.suffix}")
 
 
+def file_cost() -> dict:
+    """The ``/cost`` attributes of the run file being written: what the process spent
+    since the run file it wrote before (``bpmcal.cost``)."""
+    d = LEDGER.take("file")
+    return {**d, "process_cpu_s": time.process_time(), "pid": os.getpid()}
+
+
 def write_failure(out, *, test: str, inputs: dict, error: str, wall_s: float = 0.0
                   ) -> RunOutcome:
     """Write a failure record (status "failed", the reason) to ``out``, or beside it if
@@ -80,16 +89,19 @@ def write_failure(out, *, test: str, inputs: dict, error: str, wall_s: float = 0
                 kept, out = out, failed_path(out)
         except RunFileError:
             pass  # not a good run: replace it
-    write_run(out, test=test, inputs=inputs, status="failed", error=error,
-              summary={"wall_s": wall_s})
+    with phase("write"):
+        write_run(out, test=test, inputs=inputs, status="failed", error=error,
+                  summary={"wall_s": wall_s}, cost=file_cost)
     return RunOutcome(status="failed", error=error, path=out, kept=kept)
 
 
 def write_lab_run(out, r: LabRun) -> RunOutcome:
     """Write a finished test to ``out`` (HDF5, atomically)."""
-    write_run(out, test=r.test, inputs=r.inputs, summary=r.summary, genesis=r.genesis,
-              series=r.series, cracks=r.cracks, particles_initial=r.particles_initial,
-              particles_final=r.particles_final, bonds=r.bonds, groups=r.groups)
+    with phase("write"):
+        write_run(out, test=r.test, inputs=r.inputs, summary=r.summary, genesis=r.genesis,
+                  series=r.series, cracks=r.cracks, particles_initial=r.particles_initial,
+                  particles_final=r.particles_final, bonds=r.bonds, groups=r.groups,
+                  cost=file_cost)
     return RunOutcome(status="ok", summary=r.summary, path=out)
 
 
@@ -334,6 +346,32 @@ def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None
     record, whatever happened to the others. ``flags``: the option naming each output in
     error messages (default ``--out``); ``progress``: one callable for all tests or a list,
     one per test."""
+    with phase("inputs"):  # the cost ledger (bpmcal.cost)
+        params, seed, skips = _checked_tests(tests, params_file=params_file, sets=sets,
+                                             design=design, sample=sample, seed=seed,
+                                             max_balls=max_balls, mem_budget_mb=mem_budget_mb,
+                                             cache=cache, flags=flags,
+                                             contact_model=contact_model)
+    progs = progress if isinstance(progress, (list, tuple)) else [progress] * len(tests)
+    done = []
+    for (test, out, geometry, settings), prog, skip in zip(tests, progs, skips):
+        inputs_of, run_file = _TESTS[test]
+        if skip:
+            inp = inputs_of({k: _float_or_nan(v) for k, v in params.items()}, seed, geometry,
+                            settings)
+            done.append(write_failure(out, test=test, inputs=inp, error=skip))
+            continue
+        done.append(run_file(out, params, seed, geometry, settings, cache=cache,
+                             threads=threads, progress=prog,
+                             keep_particles=keep_particles,
+                             genesis_max_steps=genesis_max_steps))
+    return done
+
+
+def _checked_tests(tests, *, params_file, sets, design, sample, seed, max_balls,
+                   mem_budget_mb, cache, flags, contact_model) -> tuple[dict, int, list]:
+    """``lab_test_files``' inputs, all checked before any work: the parameters, the
+    packing seed and, per test, the reason not to run it ("" to run)."""
     params, seed, skip = run_source(params_file=params_file, sets=sets, design=design,
                                     sample=sample, seed=seed, contact_model=contact_model)
     flags = flags or ["--out"] * len(tests)
@@ -361,20 +399,7 @@ def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None
         out_file(out, flag)
     if cache is not None:
         out_dir(cache, "--specimen-cache")
-    progs = progress if isinstance(progress, (list, tuple)) else [progress] * len(tests)
-    done = []
-    for (test, out, geometry, settings), prog, skip in zip(tests, progs, skips):
-        inputs_of, run_file = _TESTS[test]
-        if skip:
-            inp = inputs_of({k: _float_or_nan(v) for k, v in params.items()}, seed, geometry,
-                            settings)
-            done.append(write_failure(out, test=test, inputs=inp, error=skip))
-            continue
-        done.append(run_file(out, params, seed, geometry, settings, cache=cache,
-                             threads=threads, progress=prog,
-                             keep_particles=keep_particles,
-                             genesis_max_steps=genesis_max_steps))
-    return done
+    return params, seed, skips
 
 
 def impact_file(card, out, *, geometry, settings, seed=1, max_balls=MAX_BALLS,
