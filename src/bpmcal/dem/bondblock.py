@@ -58,9 +58,11 @@ S_LX, S_LY, S_LZ = next(_S), next(_S), next(_S)  # shear force of the linear com
 S_RG = next(_S)  # reference gap of the linear component [m]; max(rg, 0) once a broken
 #                  pair's surfaces are apart (re-contact starts at first touch)
 S_FLAGS = next(_S)  # 3.0 intact; broken: 1.0 if the linear part carried force last step, else 0
-S_SF = next(_S)  # strength factor of the bond: its tensile strength and cohesion are the
-#                  material's pb_ten and pb_coh x this (1 unless set, Model.set_bond_strength_factors;
-#                  PFC's per-contact pb_ten / pb_coh)
+S_SF = next(_S)  # strength factor of the bond: it fails at S_TEN and S_COH x this (1 unless
+#                  set, Model.set_bond_strength_factors: end caps, contact caps)
+S_TEN, S_COH = next(_S), next(_S)  # the bond's own tensile strength and cohesion [Pa] (PFC's
+#                  per-contact pb_ten / pb_coh): the material's means at installation, or
+#                  drawn per bond (Model.set_bond_strengths; strength scatter)
 S_DFX, S_DFY, S_DFZ = next(_S), next(_S), next(_S)  # dashpot force of the last step (last:
 #                     untouched without dashpots, so the rows read every step are contiguous)
 #: S_FLAGS values (one field for two flags: one load and one store less per bond and step)
@@ -91,11 +93,14 @@ def n_blocks(nb: int) -> int:
     return max(1, -(-int(nb) // BLK))
 
 
-def new_state(nb: int) -> np.ndarray:
-    """Zeroed state for ``nb`` bonds, all intact, strength factor 1."""
+def new_state(nb: int, ten: float = 0.0, coh: float = 0.0) -> np.ndarray:
+    """Zeroed state for ``nb`` bonds, all intact, strength factor 1, tensile strength
+    ``ten`` and cohesion ``coh`` [Pa]."""
     blk = np.zeros(n_blocks(nb) * BLOCK_SIZE)
     set_field(blk, S_FLAGS, nb, FLAG_INTACT)
     set_field(blk, S_SF, nb, 1.0)
+    set_field(blk, S_TEN, nb, ten)
+    set_field(blk, S_COH, nb, coh)
     return blk
 
 
@@ -127,8 +132,8 @@ def state_index(k, f):
 
 
 @jit
-def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa,
-             rmul, mcf, betan, betas, dp, record):
+def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, tanfa, rmul, mcf, betan,
+             betas, dp, record):
     """Linear + parallel-bond law for every lane of a block, without branches (the laws.py
     helpers are select-based): reads ``T``, updates the block's state ``sb`` (a view of
     one block of ``blk``: indices stay non-negative and affine, which the vectoriser
@@ -207,7 +212,8 @@ def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, ta
         sb2 = sbx * sbx + sby * sby + sbz * sbz
         mb2 = mbx * mbx + mby * mby + mbz * mbz
         sf = sb[S_SF * STR + ll]  # per-bond strength factor (x 1.0 is exact: no change)
-        fm = bond_failure(fnb, sb2, mt, mb2, rb, area, pb_ten * sf, pb_coh * sf, tanfa, mcf)
+        fm = bond_failure(fnb, sb2, mt, mb2, rb, area, sb[S_TEN * STR + ll] * sf,
+                          sb[S_COH * STR + ll] * sf, tanfa, mcf)
         keep = intact and fm == 0
         # state: the new (or, for a failing bond, the trial) state; zero once broken
         sb[S_FN * STR + ll] = fnb if intact else 0.0
@@ -329,7 +335,8 @@ def bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash, pestr,
                pb_emod, pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf, betan, betas, step, record):
     """Bond pairs k0..k1 in chunks of at most BLK lanes that never cross a block of the
     state (a partition may start inside a block: ``neighbors.PART_ALIGN`` is finer than
-    BLK). Returns the bonds broken.
+    BLK). Returns the bonds broken. ``pb_ten``, ``pb_coh`` (the material's means) are not
+    read: each bond fails at its own strengths, kept in its state (``S_TEN``, ``S_COH``).
 
     Gather and scatter are written out here rather than called: a call that passes ~30
     arrays costs more than a block."""
@@ -368,7 +375,7 @@ def bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash, pestr,
                 T[F_MJ * STR + ll] = mass[pj[b0 + ll]]
         # ---- compute (vectorised)
         _compute(T, blk[base:base + BLOCK_SIZE - l0], nl, dt, emod, ikr, fric, pb_emod,
-                 pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf, betan, betas, dp, record)
+                 pb_ikr, tanfa, rmul, mcf, betan, betas, dp, record)
         # ---- scatter, in increasing pair order
         nbrk = 0
         for ll in range(nl):
