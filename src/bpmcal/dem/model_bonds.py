@@ -153,6 +153,7 @@ class BondsMixin:
             self.Fj.c[:, C_SF] = f
         else:
             bb.set_field(self.Bd.blk, bb.S_SF, nb, f)
+            bb.set_strengths(self.Bd.blk, nb)
         self._touch()
 
     def set_bond_strengths(self, ten, coh):
@@ -175,8 +176,9 @@ class BondsMixin:
             self.Fj.c[:, C_TEN] = out[0]
             self.Fj.c[:, C_COH] = out[1]
         else:
-            bb.set_field(self.Bd.blk, bb.S_TEN, nb, out[0])
-            bb.set_field(self.Bd.blk, bb.S_COH, nb, out[1])
+            bb.set_field(self.Bd.blk, bb.S_TEN0, nb, out[0])
+            bb.set_field(self.Bd.blk, bb.S_COH0, nb, out[1])
+            bb.set_strengths(self.Bd.blk, nb)
         self._touch()
 
     def _reset_bond_strengths(self):
@@ -191,7 +193,8 @@ class BondsMixin:
         if self.material.contact_model == "flatjoint":
             return self.Fj.c[:, C_TEN].copy(), self.Fj.c[:, C_COH].copy()
         nb = self.n_bonds
-        return bb.get_field(self.Bd.blk, bb.S_TEN, nb), bb.get_field(self.Bd.blk, bb.S_COH, nb)
+        return (bb.get_field(self.Bd.blk, bb.S_TEN0, nb),
+                bb.get_field(self.Bd.blk, bb.S_COH0, nb))
 
     @property
     def bond_strength_factors(self) -> np.ndarray:
