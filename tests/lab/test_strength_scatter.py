@@ -178,3 +178,19 @@ def test_the_config_can_hold_a_scatter_fixed_or_free_it():
     del cfg["calibration"]["fixed"]["pb_ten_sd_MPa"]
     cfg["calibration"]["free"] = ["pb_emod_GPa", "pb_kratio", "pb_coh_MPa", "pb_ten_sd_MPa"]
     validate_config(cfg, SCHEMA, base_dir=REPO)
+
+
+def test_a_design_carries_a_ranged_sd_and_leaves_an_unused_one_out(tmp_path):
+    from bpmcal.stages.runs import params_from_design
+    from bpmcal.study.design import lhs_design
+
+    ranges = {k: list(v) for k, v in P.table2_ranges().items()}
+    d = lhs_design({**ranges, "pb_ten_sd_MPa": [0.0, 10.0]}, 8, 1)
+    assert d["pb_ten_sd_MPa"].between(0, 10).all() and d["pb_ten_sd_MPa"].nunique() == 8
+    assert "pb_coh_sd_MPa" not in d.columns  # no range, no fixed value: 0, left out
+    f = tmp_path / "design.csv"
+    d.to_csv(f, index=False)
+    card, _, _ = params_from_design(f, "s003")
+    assert card["pb_ten_sd_MPa"] == pytest.approx(d["pb_ten_sd_MPa"][3])
+    assert "pb_coh_sd_MPa" not in card
+    assert list(lhs_design(ranges, 8, 1).columns) == ["sample_id", *P.PARAM_NAMES, "seed"]
