@@ -132,7 +132,10 @@ def read_model_table(path, flag: str, columns, dtype=None):
         model = P.model_of(df.columns)
     except P.ParameterError as e:
         raise BadInput(f"{flag} {path}: {e}") from None
-    return require_columns(df, path, flag, columns(model)), model
+    # a model's quiet keys (its strength scatter) are left out of a table while at their
+    # defaults (ContactModel.quiet): never required
+    need = [c for c in columns(model) if c not in model.quiet]
+    return require_columns(df, path, flag, need), model
 
 
 # ------------------------------------------------------------------------ outputs

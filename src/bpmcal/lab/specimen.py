@@ -479,6 +479,43 @@ def install_microstructure(m: Model, micro: Microstructure, seed: int, rmean: fl
             "fj_gap0_mm": float(micro.gap0_ratio * rmean * 1e3)}
 
 
+def truncated_normal(rng: np.random.Generator, mean: float, sd: float, n: int) -> np.ndarray:
+    """``n`` values of a Gaussian of ``mean`` and ``sd`` truncated at zero as PFC's
+    material-modeling package draws strengths (fistPkg ``ft_valNormDist``: a negative draw
+    is drawn again), i.e. the Gaussian conditioned on >= 0. ``sd`` = 0 gives ``mean``
+    exactly, without touching ``rng``."""
+    if sd == 0.0:
+        return np.full(n, float(mean))
+    x = mean + sd * rng.standard_normal(n)
+    bad = np.flatnonzero(x < 0.0)
+    while bad.size:  # in order, so the result depends on the seed only
+        x[bad] = mean + sd * rng.standard_normal(bad.size)
+        bad = bad[x[bad] < 0.0]
+    return x
+
+
+def install_strength_scatter(m: Model, material, seed: int) -> dict:
+    """The strength scatter (``pb_ten_sd``/``pb_coh_sd``, ``fj_ten_sd``/``fj_coh_sd``):
+    every installed contact draws its own tensile strength and cohesion, independently,
+    from the material's means and standard deviations (``truncated_normal``; PFC assigns
+    ``pb_ten``/``pb_coh`` per bond and ``fj_ten``/``fj_coh`` per flat joint, which its
+    elements share), in contact order, from a stream of the packing seed. Without scatter
+    (both sd 0) nothing is drawn or set: the contacts keep the means, bit for bit.
+    Returns what was drawn (empty without scatter)."""
+    ten, ten_sd, coh, coh_sd = material.strengths()
+    if ten_sd == 0.0 and coh_sd == 0.0:
+        return {}
+    rng = np.random.default_rng([int(seed), 0x5343])  # "SC": the scatter's own stream
+    nb = m.n_bonds
+    t = truncated_normal(rng, ten, ten_sd, nb)
+    c = truncated_normal(rng, coh, coh_sd, nb)
+    m.set_bond_strengths(t, c)
+    return {"strength_ten_mean_MPa": float(t.mean() / 1e6) if nb else math.nan,
+            "strength_ten_sd_MPa": float(t.std() / 1e6) if nb else math.nan,
+            "strength_coh_mean_MPa": float(c.mean() / 1e6) if nb else math.nan,
+            "strength_coh_sd_MPa": float(c.std() / 1e6) if nb else math.nan}
+
+
 @dataclass
 class Specimen:
     """A bonded specimen ready for testing."""
@@ -540,7 +577,9 @@ def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
     With a :class:`FlatJointMaterial` the pairs get flat joints instead of parallel
     bonds (force-free), on every pair within ``microstructure.gi_ratio`` x the mean ball
     radius (``install_gap`` does not apply), with the microstructure's types drawn from
-    the packing seed (``install_microstructure``)."""
+    the packing seed (``install_microstructure``). A material with a strength scatter
+    gives every contact its own strengths, drawn from the packing seed
+    (``install_strength_scatter``)."""
     spec = packing.spec
     flat = isinstance(material, FlatJointMaterial)
     rmean = float(np.mean(packing.radius))
@@ -601,6 +640,7 @@ def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
     n_overlapping = int(np.count_nonzero(gaps < 0.0))
     nb = m.bond(gap=install_gap, rgap=None if flat else rg)
     fj_report = install_microstructure(m, microstructure, spec.seed, rmean) if flat else {}
+    scatter = install_strength_scatter(m, material, spec.seed)
     for w in range(3):
         m.scale_wall_overlaps(w, f)
     z = m.coordination_numbers()
@@ -659,6 +699,7 @@ def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
         "surface_balls": int(surface.size),
         "diameter_after_settle_mm": 2e3 * float(np.percentile(rho, 99.5)),
     })
+    report.update(scatter)  # (nothing without a scatter: the report is as before)
     if flat:  # a parallel-bond run file records exactly what it did before flat joints
         report.update({"contact_model": material.contact_model,
                        "flatjoints_per_ball": float(2.0 * nb / m.n), **fj_report})
@@ -708,6 +749,7 @@ def card_material(p: dict, dp_nratio=0.0, dp_sratio=0.0):
     ``material_fixed``, ``microstructure``)."""
     model = P.contact_model(p.get("contact_model", P.DEFAULT_CONTACT_MODEL))
     fields = dict(model.material_fixed or {})
+    p = {**(model.defaults or {}), **p}  # optional keys absent: their defaults
     for name, engine_fields in model.material.items():
         v = int(p[name]) if model.is_integer(name) else P.to_si(name, p[name])
         fields.update(dict.fromkeys(engine_fields, v))

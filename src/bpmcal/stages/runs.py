@@ -231,7 +231,7 @@ def params_from_design(path, sample_id) -> tuple[dict, int, str]:
     run: its reason is returned and its parameters (NaN strengths) are not validated."""
     d, model = read_model_table(path, "--design", lambda m: ["sample_id", *m.params, "seed"],
                                 dtype={"sample_id": str})
-    names = list(model.params)
+    names = [k for k in model.params if k in d.columns]  # (quiet keys may be absent)
     row = d[d["sample_id"] == sample_id]
     if len(row) != 1:
         raise BadInput(f"--sample {sample_id!r}: {'not in' if len(row) == 0 else 'repeated in'} "

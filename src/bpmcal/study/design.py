@@ -71,7 +71,9 @@ def lhs_design(ranges: dict, n: int, seed: int, optimization: str | None = "rand
     df = pd.DataFrame(x, columns=varied)
     for k, v in fixed.items():
         df[k] = float(v)
-    df = df[list(model.params)]
+    # the quiet keys (a strength scatter) only when the study gives one
+    df = df[[k for k in model.params if k not in model.quiet
+             or not (df[k] == (model.defaults or {})[k]).all()]]
     df.insert(0, "sample_id", sample_ids(n))
     seeds = np.random.SeedSequence(int(seed)).generate_state(int(n), dtype=np.uint32)
     df["seed"] = (seeds % 2_000_000_000).astype(np.int64)
