@@ -3,12 +3,17 @@ run as a user runs it (a fresh ``bpmcal`` process), judged and counted by class.
 
     python benchmarks/hostile_inputs.py [--src CHECKOUT/src] [--slow] [--json out.json]
 
+    python benchmarks/hostile_inputs.py --record BEFORE.json AFTER.json  # the tables
+
 ``--src`` is the bpmcal under test (its ``src`` folder, put first on PYTHONPATH: e.g. a
-``git worktree`` of an older commit); the cases, their inputs and the judge are this
-checkout's. Each case prints one line: ``clean`` or what was wrong (a traceback, a hang,
-the wrong exit code, files left, ...), with its wall time. The full-disk case mounts a
-64 kB tmpfs and needs root (skipped otherwise); ``--slow`` adds the cases of minutes
-(a triaxial test, a damaged numba cache that is compiled again).
+``git worktree`` of an older commit), whose config files and schema the config cases
+validate against; the cases, their inputs and the judge are this checkout's. Each case
+prints one line: ``clean`` or what was wrong (a traceback, a hang, the wrong exit code,
+files left, ...), with its wall time; a case that does not end in
+``support.hostile.timeout_of`` seconds is a hang (a process without a DEM run is limited
+to 4 GB of address space, so reading /dev/zero cannot take the machine). The full-disk
+case mounts a 64 kB tmpfs and needs root (skipped otherwise); ``--slow`` adds the cases
+of minutes (a triaxial test, a damaged numba cache that is compiled again).
 """
 from __future__ import annotations
 
@@ -46,6 +51,63 @@ def _tiny(tmp: Path) -> Path | None:
     return m if r.returncode == 0 else None
 
 
+def scrub(rows: list, tmp: str, src: str, label: str) -> list:
+    """``rows`` with the run's temporary folder and the checkout's path replaced by
+    ``<tmp>`` and ``label`` (a record names no path outside the repository)."""
+    text = json.dumps(rows).replace(tmp, "<tmp>").replace(src, label)
+    return json.loads(text)
+
+
+def _kind(row: dict) -> str:
+    """One word for how a case ended: clean, or its worst problem: a hang, a crash (a
+    signal), a traceback, accepted (exit 0 where a refusal or a failed measurement was
+    due), the wrong exit code, unclear (the right code, but not one line naming the value)
+    or wrong output (an escape printed raw, a value gathered, files left)."""
+    if "skipped" in row:
+        return "skipped"
+    if not row["problems"]:
+        return "clean"
+    first = row["problems"][0]
+    for word in ("hang", "crash", "traceback"):
+        if any(p.startswith(word) for p in row["problems"]):
+            return word
+    if first.startswith("exit 0"):
+        return "accepted"
+    if first.startswith("exit"):
+        return "wrong exit"
+    return "unclear" if "stderr does not say" in first or "line" in first else "wrong output"
+
+
+def markdown(before: dict, after: dict) -> str:
+    """The record's tables: cases by class, clean before and after, and every case."""
+    b = {r["case"]: r for r in before["cases"]}
+    a = {r["case"]: r for r in after["cases"]}
+    out = ["| class | what | cases | clean before | clean after |", "|---|---|---|---|---|"]
+    for cls, what in CLASSES.items():
+        ids = [c.id for c in CASES if c.cls == cls and c.id in a and c.id in b]
+        out.append(f"| {cls} | {what} | {len(ids)} | "
+                   f"{sum(_kind(b[i]) == 'clean' for i in ids)} | "
+                   f"{sum(_kind(a[i]) == 'clean' for i in ids)} |")
+    both = [c.id for c in CASES if c.id in a and c.id in b]
+    out.append(f"| all | | {len(both)} | {sum(_kind(b[i]) == 'clean' for i in both)} | "
+               f"{sum(_kind(a[i]) == 'clean' for i in both)} |")
+    kinds = ("clean", "accepted", "traceback", "crash", "hang", "wrong exit", "unclear",
+             "wrong output", "skipped")
+    out += ["", "| ending | before | after |", "|---|---|---|"]
+    out += [f"| {k} | {sum(_kind(b[i]) == k for i in both)} | "
+            f"{sum(_kind(a[i]) == k for i in both)} |" for k in kinds
+            if any(_kind(r[i]) == k for r in (a, b) for i in both)]
+    out += ["", "| case | class | before: exit, ending | after: exit, ending |", "|---|---|---|---|"]
+    for i in both:
+        cells = []
+        for r in (b[i], a[i]):
+            k = _kind(r)
+            why = "" if k in ("clean", "skipped") else f": {r['problems'][0][:70]}"
+            cells.append(f"{r.get('exit')}, {k}{why}".replace("|", "/"))
+        out.append(f"| `{i}` | {a[i]['class']} | {cells[0]} | {cells[1]} |")
+    return "\n".join(out) + "\n"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--src", type=Path, default=ROOT / "src",
@@ -53,8 +115,16 @@ def main(argv=None) -> int:
     ap.add_argument("--slow", action="store_true", help="also the cases of minutes")
     ap.add_argument("--only", default=None, help="run the cases whose id contains this")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--label", default=None,
+                    help="how the JSON names the bpmcal under test (default its src path)")
+    ap.add_argument("--record", nargs=2, type=Path, metavar=("BEFORE", "AFTER"),
+                    help="print the record's tables of two --json results and stop")
     a = ap.parse_args(argv)
+    if a.record:
+        print(markdown(*(json.loads(f.read_text()) for f in a.record)), end="")
+        return 0
     env = {**os.environ, "PYTHONPATH": str(a.src.resolve())}
+    repo = a.src.resolve().parent  # the checkout under test: its config files and schema
     rows = []
     with tempfile.TemporaryDirectory() as t:
         tmp = Path(t)
@@ -78,8 +148,7 @@ def main(argv=None) -> int:
                                  "skipped": f"setup failed: {e}"})
                     continue
                 before = files_beside(d)
-                ending = run(case, d, o, cache, repo=ROOT, env=env, tiny=tiny,
-                             timeout=max(120.0, 3 * case.max_s))
+                ending = run(case, d, o, cache, repo=repo, env=env, tiny=tiny)
                 problems = judge(case, ending, o, before, files_beside(d))
                 if tiny is not None and case.root:
                     left = [p.name for p in tiny.iterdir()]
@@ -111,7 +180,9 @@ def main(argv=None) -> int:
         if "skipped" in r:
             print(f"  skipped {r['case']}: {r['skipped']}")
     if a.json:
-        a.json.write_text(json.dumps({"src": str(a.src), "cases": rows}, indent=1) + "\n")
+        label = a.label or str(a.src)
+        a.json.write_text(json.dumps({"src": label, "cases": scrub(rows, t, str(a.src.resolve()),
+                                                                   label)}, indent=1) + "\n")
     return 0
 
 

@@ -3,14 +3,15 @@ every problem is a :class:`BadInput` naming the file (or option) and what was ex
 raised before any work starts (the CLI turns it into one line on stderr and exit code 2).
 
 - :func:`in_file`, :func:`read_yaml`, :func:`read_json`, :func:`read_csv` for inputs
-  (missing, a directory, a FIFO or device, larger than :data:`MAX_INPUT_BYTES`,
-  unreadable, binary, garbled, columns missing, no rows); YAML and JSON are read with
-  bounds on their nesting (:data:`MAX_DEPTH`) and on YAML aliases (:data:`MAX_ALIASES`:
-  a few hundred bytes of aliases can stand for billions of values);
+  (missing, a directory, a FIFO or device, larger than :data:`MAX_INPUT_BYTES` or, YAML
+  and JSON, :data:`MAX_TEXT_BYTES`, unreadable, binary, garbled, columns missing, no
+  rows); YAML and JSON are read with bounds on their nesting (:data:`MAX_DEPTH`) and on
+  YAML aliases (:data:`MAX_ALIASES`, :data:`MAX_YAML_NODES`: a few hundred bytes of
+  aliases can stand for billions of values);
 - :func:`out_file`, :func:`out_dir` for outputs, called before any work (after the other
   checks: they create the directory and prove it writable). The directories they create
-  are remembered (:func:`created_dirs`), so that a command that fails removes the ones
-  it left empty (:func:`remove_created_dirs`).
+  are remembered (``io.atomic.make_dirs``), so that a command that fails removes the ones
+  it left empty (``io.atomic.remove_created_dirs``, called by ``bpmcal.cli``).
 
 Values quoted in messages are cut (``safe_names.shown``).
 """
@@ -28,6 +29,9 @@ H5_SUFFIXES = (".h5", ".hdf5")
 #: the largest input file a command reads [bytes] (a design of 100,000 samples is ~15 MB;
 #: a card or config a few kB); larger ones are refused before they are read
 MAX_INPUT_BYTES = 256 * 2 ** 20
+#: the largest YAML or JSON input [bytes] (a card or a config is a few kB, a regression's
+#: models.json a few hundred): parsed in Python, 256 MB of YAML would take many minutes
+MAX_TEXT_BYTES = 16 * 2 ** 20
 #: the deepest nesting of a YAML or JSON input (a config is 4 levels deep)
 MAX_DEPTH = 64
 #: the most YAML aliases (``*name``) in one input file (a config uses none)
@@ -68,8 +72,9 @@ def in_file(path, flag: str, max_bytes: int = MAX_INPUT_BYTES) -> Path:
     return p
 
 
-def read_text(path, flag: str) -> str:
-    p = in_file(path, flag)
+def read_text(path, flag: str, max_bytes: int | None = None) -> str:
+    """A UTF-8 text file (a YAML or JSON input: at most :data:`MAX_TEXT_BYTES`)."""
+    p = in_file(path, flag, MAX_TEXT_BYTES if max_bytes is None else max_bytes)
     try:
         return p.read_text(encoding="utf-8")
     except UnicodeDecodeError as e:
