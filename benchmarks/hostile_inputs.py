@@ -13,7 +13,8 @@ files left, ...), with its wall time; a case that does not end in
 ``support.hostile.timeout_of`` seconds is a hang (a process without a DEM run is limited
 to 4 GB of address space, so reading /dev/zero cannot take the machine). The full-disk
 case mounts a 64 kB tmpfs and needs root (skipped otherwise); ``--slow`` adds the cases
-of minutes (a triaxial test, a damaged numba cache that is compiled again).
+the fast test tier leaves out (minutes: a triaxial test, a damaged numba cache compiled
+again; seconds: three more small DEM runs).
 """
 from __future__ import annotations
 
@@ -112,7 +113,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--src", type=Path, default=ROOT / "src",
                     help="the src folder of the bpmcal under test (default this checkout's)")
-    ap.add_argument("--slow", action="store_true", help="also the cases of minutes")
+    ap.add_argument("--slow", action="store_true",
+                    help="also the cases the fast test tier leaves out")
     ap.add_argument("--only", default=None, help="run the cases whose id contains this")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--label", default=None,

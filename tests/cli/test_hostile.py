@@ -9,8 +9,6 @@ fresh process (a file-size limit, a closed stderr, SIGTERM, a mounted full disk)
 small DEM test run as ``bpmcal`` subprocesses. ``benchmarks/hostile_inputs.py`` runs the
 same cases against any checkout and counts them by class.
 """
-import contextlib
-import io
 import os
 import shutil
 import subprocess
@@ -160,9 +158,7 @@ def test_a_full_disk_leaves_no_temporary_and_no_crash(tmp_path):
     import resource
 
     code = ("import numpy as np\n"
-            "from bpmcal.cli import main\n"
             "from bpmcal.io import h5\n"
-            "import bpmcal.cli.runs as r\n"
             f"h5.write_run({str(tmp_path / 'r.h5')!r}, test='ucs', inputs={{}}, "
             "series={'x': np.random.default_rng(0).random(200000)})\n")
 
@@ -353,16 +349,6 @@ def test_closed_stdout_and_stderr_are_no_second_error(tmp_path):
                                           f"nope.yaml --out {tmp_path}/r.h5 {redirect}"],
                            capture_output=True, text=True, env=env, cwd=tmp_path)
         assert p.returncode == 2, p
-
-
-@contextlib.contextmanager
-def _stdin(text):
-    old = sys.stdin
-    sys.stdin = io.StringIO(text)
-    try:
-        yield
-    finally:
-        sys.stdin = old
 
 
 def test_a_lab_table_is_a_schema(tmp_path):
