@@ -138,9 +138,11 @@ def translate_deprecated(config: dict, note=_stderr_line) -> dict:
     return config
 
 
-def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line) -> dict:
+def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line,
+                    read_files: bool = True) -> dict:
     """Validate ``config`` in place (deprecated keys renamed, :func:`translate_deprecated`,
-    with one line each to ``note``; defaults filled in) and return it.
+    with one line each to ``note``; defaults filled in) and return it. ``read_files``:
+    also read and check the lab CSVs it names (relative to ``base_dir``).
 
     Raises :class:`ConfigError` listing every problem as ``key: message``.
     """
@@ -161,7 +163,7 @@ def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line) 
         else:
             msgs.append(f"{_path(e)}: {clip(e.message, 300)}")
     if not msgs:
-        msgs.extend(_semantic_checks(config, Path(base_dir)))
+        msgs.extend(_semantic_checks(config, Path(base_dir), read_files))
     if msgs:
         raise ConfigError("invalid configuration:\n  " + "\n  ".join(msgs))
     return config
@@ -195,9 +197,9 @@ def check_study_config(cfg: dict, flag: str) -> dict:
                           "overlay alone? Give the config as the workflow merges it "
                           "(config/config.yaml with the overlay over it; the workflow passes "
                           "it with --config-json)")
-    if schema is not None:
+    if schema is not None:  # (the lab files are not the report's inputs: not read)
         try:
-            validate_config(cfg, schema, note=lambda line: None)
+            validate_config(cfg, schema, note=lambda line: None, read_files=False)
         except ConfigError as e:
             raise ConfigError(f"{flag}: {' '.join(str(e).split())}") from None
     return cfg
@@ -301,7 +303,7 @@ def _finite_problems(v, key="") -> list[str]:
     return []
 
 
-def _semantic_checks(cfg: dict, base: Path) -> list[str]:
+def _semantic_checks(cfg: dict, base: Path, read_files: bool = True) -> list[str]:
     msgs = _finite_problems(cfg) or _model_problems(cfg)
     if msgs:
         return msgs  # the checks below compare numbers of the model's parameters
@@ -339,8 +341,16 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
         msgs.extend(_loading_checks(cfg))
     msgs.extend(_sweep_checks(cfg))
     msgs.extend(_fresh_seed_checks(cfg))
-    msgs.extend(_check_bts_disc(cfg, base))
-    msgs.extend(_check_tensile_tests(cfg, base))
+    if read_files:
+        msgs.extend(_lab_file_checks(cfg, base))
+    if not msgs:
+        msgs.extend(_check_calibration_space(cfg))
+    return msgs
+
+
+def _lab_file_checks(cfg: dict, base: Path) -> list[str]:
+    """The checks of the lab CSVs the config names (:func:`_semantic_checks`)."""
+    msgs = _check_bts_disc(cfg, base) + _check_tensile_tests(cfg, base)
     if not path_problem(cfg["lab"]["csv"]):
         lab = base / cfg["lab"]["csv"]
         if not lab.is_file():
@@ -351,8 +361,6 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
             if not lab_msgs:
                 msgs.extend(_check_reference(cfg, lab))
                 msgs.extend(_check_lab_triaxial(cfg, lab, base))
-    if not msgs:
-        msgs.extend(_check_calibration_space(cfg))
     return msgs
 
 
