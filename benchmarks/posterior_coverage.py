@@ -5,7 +5,7 @@ checked against its 90 % highest-density intervals.
 
 No DEM. Per planted card (inside the ranges' middle 80 %): the rock's design (a Latin
 hypercube, one run each) and its stepwise regression; the lab targets as the mean of the
-rock's lab seeds with their standard errors (``--se-factor`` scales them: 0.25 is a lab
+card's own 20 lab packings with their standard errors (``--se-factor`` scales them: 0.25 is a lab
 with 16 times the specimens); the inversion; the closed loop from it (3 seeds growing to
 10, margin 0.25, the loop's defaults), every run kept; the posterior on the design and
 the loop's runs, with active refinement (``--refine`` seed runs at most, on the rock);
