@@ -186,7 +186,7 @@ def test_shown_cuts_and_summarises():
 
 
 @pytest.mark.parametrize("path, ok", [
-    ("results", True), ("results/my rock", True), ("/scratch/me/study", True),
+    ("results", True), ("results/my rock", True), ("/tmp/me/study", True),
     ("/", False), ("//", False), (".", False), ("./", False), ("../x", False),
     ("a/../../x", False), ("a/../b", True),
 ])
