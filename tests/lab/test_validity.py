@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bpmcal.lab.brazilian import PeakTracker
-from bpmcal.lab.validity import INIT_MIN, bts_validity, burst_mask, dtt_validity
+from bpmcal.lab.validity import INIT_MIN, bts_validity, burst_mask, dtt_validity, per_contact
 
 R = 0.01  # disc radius [m]
 D_BALL = 0.002  # mean ball diameter [m]
@@ -158,3 +158,65 @@ def test_a_fracture_grown_from_a_platen_before_the_peak_is_invalid():
     v = bts_validity(cracks(few, np.concatenate([ev["step"], np.arange(300, 304)])), STEPS,
                      PEAK, centre=(0, 0), radius=R, mean_ball_diameter=D_BALL)
     assert v["bts_valid"], v["bts_invalid_reason"]
+
+
+def fj_events(contacts):
+    """Flat-joint element breaks: ``contacts`` = [(contact, (x, y), [steps of its broken
+    elements])], one event per element (as ``Model.breaks`` gives them for flat joints)."""
+    rows = [(s, k, e, p) for k, p, steps in contacts for e, s in enumerate(steps)]
+    rows.sort(key=lambda r: (r[0], r[1], r[2]))
+    pos = np.zeros((len(rows), 3))
+    pos[:, :2] = [r[3] for r in rows]
+    return {"step": np.array([r[0] for r in rows]), "bond": np.array([r[1] for r in rows]),
+            "element": np.array([r[2] for r in rows]), "pos": pos,
+            "mode": np.ones(len(rows), np.int64)}
+
+
+def test_per_contact_keeps_each_flat_joints_first_element_break():
+    ev = fj_events([(7, (0.0, 0.0), [1200, 1100, 1300]), (3, (0.0, 0.5 * R), [1150])])
+    pc = per_contact(ev)
+    assert pc["bond"].tolist() == [7, 3] and pc["step"].tolist() == [1100, 1150]
+    assert pc["element"].tolist() == [1, 0]
+    pb = cracks([(0, 0), (0, 0.1 * R)], [1000, 1001])  # parallel bonds: unchanged
+    assert per_contact(pb) is pb
+
+
+def _split_with_a_crushed_loader():
+    """A split through the centre while four contacts under the top platen lose their
+    three elements each, one after another, as the split starts (and a few more below):
+    counted by element, the crushed contacts outnumber the split's first contacts."""
+    rng = np.random.default_rng(3)
+    loader = [(100 + i, (0.03 * R * (-1) ** i, (0.85 + 0.02 * i) * R),
+               [951 + 6 * i, 952 + 6 * i, 953 + 6 * i]) for i in range(4)]
+    first = [(200 + i, (0.02 * R * (-1) ** i, y * R), [s])
+             for i, (y, s) in enumerate(zip([0.05, -0.1, 0.15, 0.0, -0.05, 0.1],
+                                            [954, 955, 956, 960, 961, 962]))]
+    rest = [(300 + i, (rng.uniform(-0.1, 0.1) * R, rng.uniform(-0.9, 0.9) * R),
+             [1100 + 3 * i, 1101 + 3 * i, 1102 + 3 * i]) for i in range(20)]
+    return fj_events(loader + first + rest)
+
+
+def test_a_flat_jointed_disc_that_splits_through_the_centre_is_valid():
+    ev = _split_with_a_crushed_loader()
+    v = bts_validity(ev, STEPS, PEAK, centre=(0, 0), radius=R, mean_ball_diameter=D_BALL)
+    assert v["bts_valid"], v["bts_invalid_reason"]
+    assert v["burst_cracks"] == 30  # contacts, not the 78 element breaks
+    assert v["init_offset"] < 0.5
+    # counted by element, the same disc would have "started" at the crushed loader
+    el = {k: a for k, a in ev.items() if k != "element"}
+    assert not bts_validity(el, STEPS, PEAK, centre=(0, 0), radius=R,
+                            mean_ball_diameter=D_BALL)["bts_valid"]
+
+
+def test_a_flat_jointed_disc_that_shatters_from_a_loader_is_invalid_with_the_reason():
+    rng = np.random.default_rng(4)
+    # the failure starts under the top jaw: its first contacts there, element by element,
+    # then the disc breaks up everywhere (cracks off the loaded diameter)
+    start = [(i, (0.05 * R * (-1) ** i, (0.9 - 0.03 * i) * R), [951 + 3 * i, 952 + 3 * i])
+             for i in range(8)]
+    shatter = [(100 + i, (rng.uniform(-0.9, 0.9) * R, rng.uniform(-0.9, 0.9) * R),
+                [1100 + 3 * i, 1101 + 3 * i, 1102 + 3 * i]) for i in range(60)]
+    v = bts_validity(fj_events(start + shatter), STEPS, PEAK, centre=(0, 0), radius=R,
+                     mean_ball_diameter=D_BALL, contact="jaw")
+    assert not v["bts_valid"] and v["burst_cracks"] == 68
+    assert v["bts_invalid_reason"].startswith("fracture initiated next to the top jaw")

@@ -96,7 +96,7 @@ from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
 from .stepping import LoadingProgress, cycle, heartbeat, loading_bound
-from .validity import INIT_MIN, bts_validity
+from .validity import INIT_MIN, bts_validity, per_contact
 
 #: how the disc is loaded: ISRM curved jaws or two planar platens
 LOADINGS = ("flat", "jaws")
@@ -419,8 +419,9 @@ def _split_started(m, step0, since_step, centre, radius, half_band, zone) -> boo
     """Whether the cracks formed after ``since_step`` (loading steps) reach the central
     zone of the loaded diameter: at least ``validity.INIT_MIN`` of them within ``zone`` R
     of the centre along y and ``half_band`` of it along x. A load drop without them is a
-    contact event (a seating or crushing event at a jaw), not the split."""
-    ev = m.breaks()
+    contact event (a seating or crushing event at a jaw), not the split. Flat joints count
+    per contact (``validity.per_contact``)."""
+    ev = per_contact(m.breaks())
     cs = ev["step"] - step0
     sel = cs > since_step
     p = ev["pos"][sel]
