@@ -30,7 +30,9 @@ LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
 #: e.g. the standard deviation over the lab's n specimens / sqrt(n)): the closed loop and
 #: the fresh-seed check then compare two means, each with its error
 LAB_SE = tuple(f"{c}_se" for c in ("ucs_MPa", "E_GPa", "nu", "bts_MPa", "dtt_MPa", "tri_MPa"))
-LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa", "tri_MPa", *LAB_SE)
+#: ``bts_diameter_mm``: the diameter of the lab's Brazilian discs [mm] (> 0; with its row's
+#: ``bts_MPa``): σt falls with the disc's size, so the study says at which size it compared
+LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa", "tri_MPa", "bts_diameter_mm", *LAB_SE)
 
 
 def lab_problems(df, key: str) -> list[str]:
@@ -75,6 +77,14 @@ def lab_problems(df, key: str) -> list[str]:
                             f"positive number{' (or empty)' if optional else ''}")
             elif c == "nu" and v >= 0.5:
                 msgs.append(f"lab.csv: {key!r} specimen {spec} nu={raw!r}: expected below 0.5")
+    if "bts_diameter_mm" in df.columns:
+        alone = [str(sp) for sp, d, b in zip(df["specimen"], df["bts_diameter_mm"],
+                                             df["bts_MPa"] if "bts_MPa" in df.columns
+                                             else [None] * len(df))
+                 if _given(d) and not _given(b)]
+        if alone:
+            msgs.append(f"lab.csv: {key!r} specimen {', '.join(alone)} gives bts_diameter_mm without "
+                        "bts_MPa: expected the diameter of the discs of a Brazilian σt")
     if "bts_MPa" in df.columns and "dtt_MPa" in df.columns:
         both = [str(sp) for sp, a, b in zip(df["specimen"], df["bts_MPa"], df["dtt_MPa"])
                 if _given(a) and _given(b)]
