@@ -1,11 +1,19 @@
 """Validity of tensile tests (bpmcal.lab.validity) and the Brazilian peak (PeakTracker):
 planted crack sets and load sequences with a known verdict."""
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from bpmcal.lab.brazilian import PeakTracker
+from bpmcal.dem.errors import InputError
+from bpmcal.lab.brazilian import (
+    FLATJOINT_SPLIT_DROP,
+    BTSSettings,
+    PeakTracker,
+    cap_bridges,
+    split_drop,
+)
 from bpmcal.lab.validity import INIT_MIN, bts_validity, burst_mask, dtt_validity, per_contact
 
 R = 0.01  # disc radius [m]
@@ -220,3 +228,42 @@ def test_a_flat_jointed_disc_that_shatters_from_a_loader_is_invalid_with_the_rea
                      mean_ball_diameter=D_BALL, contact="jaw")
     assert not v["bts_valid"] and v["burst_cracks"] == 68
     assert v["bts_invalid_reason"].startswith("fracture initiated next to the top jaw")
+
+
+def _split_then_reload():
+    """A flat-jointed disc's load (nominal MPa) against diametral strain (per mil): up to
+    the split at 8.2, a 7 % dip, then its halves load up to 9.5 (f08_s2 of
+    docs/measurements/2026-12-02b-flatjoint-brazilian-split.md, rounded)."""
+    up = [(0.4 * k, 0.1 * k) for k in range(1, 21)]  # 0.4 ... 8.0 at 2.0 per mil
+    return up + [(8.2, 2.03), (7.6, 2.1), (7.6, 2.2), (7.7, 2.35), (7.9, 2.4), (8.5, 2.8), (9.1, 3.0),
+                 (9.5, 3.3), (8.9, 3.4), (8.3, 3.8), (4.6, 6.0)]
+
+
+def _first_stop(drop):
+    tr = PeakTracker(stop_drop=drop, post_peak_strain=3e-4 * 1e3)  # strain in per mil
+    for p, e in _split_then_reload():
+        if tr.add(p, e) and tr.judge(split=True):
+            return tr.peak
+    return tr.peak
+
+
+def test_a_flat_jointed_split_is_its_first_drop_not_the_halves_reloading():
+    """The split of a flat-jointed disc drops the load by 5-15 %, not by half: with the
+    flat joint's split_drop (0.95) the tracker stops at the split's 8.2; with the
+    parallel bond's 0.5 it loads on to the halves' crushing at 9.5."""
+    assert _first_stop(FLATJOINT_SPLIT_DROP) == 8.2
+    assert _first_stop(0.5) == 9.5
+
+
+def test_the_split_drop_and_the_caps_follow_the_contact_model():
+    def disc(model):
+        return SimpleNamespace(model=SimpleNamespace(material=SimpleNamespace(
+            contact_model=model)))
+    st = BTSSettings()
+    assert split_drop(disc("linearpbond"), st) == st.stop_drop == 0.5
+    assert split_drop(disc("flatjoint"), st) == FLATJOINT_SPLIT_DROP == 0.95
+    assert split_drop(disc("flatjoint"), BTSSettings(split_drop=0.8)) == 0.8
+    assert cap_bridges(disc("linearpbond"), None) and not cap_bridges(disc("flatjoint"), None)
+    assert cap_bridges(disc("flatjoint"), True)
+    with pytest.raises(InputError, match="split_drop=1.5"):
+        BTSSettings(split_drop=1.5)
