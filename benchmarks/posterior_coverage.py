@@ -41,11 +41,11 @@ import time
 import numpy as np
 import pandas as pd
 from _study import record_header, write_record
-from loop_convergence import ROCKS, simulate
+from loop_convergence import ROCKS, design_runs, simulate
 
 from bpmcal.analysis.calibration import ClosedLoop, invert
 from bpmcal.analysis.posterior import PosteriorSettings, Problem, fit_posterior, fit_surrogate
-from bpmcal.analysis.stepwise import StepwiseRegression, design_matrix
+from bpmcal.analysis.stepwise import design_matrix
 from bpmcal.stages.posterior import RefineSettings, refine_posterior
 
 RATIO = 1.5
@@ -58,22 +58,12 @@ CASES = {
 
 
 def design(rock, n: int, seed: int = 11):
-    """The rock's design runs (DataFrame, ``source`` design) and stepwise models."""
-    from scipy.stats import qmc
-
-    space = rock.design or {q: rock.ranges[q] for q in rock.free}
-    u = qmc.LatinHypercube(d=len(space), seed=seed).random(n)
-    rows = []
-    for i, ui in enumerate(u):
-        p = dict(rock.fixed)
-        p.update({q: lo + x * (hi - lo) for (q, (lo, hi)), x in zip(space.items(), ui)})
-        rows.append({**p, **simulate(rock, p, 1000 + i, rock.design_cv)})
-    df = pd.DataFrame(rows)
-    models = StepwiseRegression(cv_folds=0, seed=seed).fit(
-        df, {r: list(space) for r in rock.responses}).final_models
+    """The rock's design runs (``loop_convergence.design_runs``, labelled for the
+    posterior: source design, one packing each), its stepwise models and parameters."""
+    df, models = design_runs(rock, n, seed)
     df["source"], df["round"], df["run"] = "design", np.nan, [f"d{i}" for i in range(n)]
     df["packing"] = [f"d{i}" for i in range(n)]
-    return df, models, list(space)
+    return df, models, list(rock.design or {q: rock.ranges[q] for q in rock.free})
 
 
 def planted_card(rock, i: int, ratio):

@@ -425,15 +425,21 @@ def as_number(v, name: str, expected: str = "a number", error=None) -> float:
     if type(v).__module__ == "numpy" and hasattr(v, "item"):
         v = v.item()  # numpy scalar -> Python (plain repr in messages)
     if isinstance(v, bool) or v is None or isinstance(v, (str, bytes)):
-        raise error(f"{name}={v!r}: expected {expected}, got "
+        raise error(f"{name}={_shown(v)}: expected {expected}, got "
                     f"{'a boolean' if isinstance(v, bool) else type(v).__name__}")
     try:
         x = float(v)
-    except (TypeError, ValueError):
-        raise error(f"{name}={v!r}: expected {expected}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise error(f"{name}={_shown(v)}: expected {expected}") from None
     if not math.isfinite(x):
         raise error(f"{name}={v!r}: expected a finite number ({expected})")
     return x
+
+
+def _shown(v, limit: int = 60) -> str:
+    """``repr(v)`` for a message, cut to ``limit`` characters."""
+    r = repr(v)
+    return r if len(r) <= limit else f"{r[:limit]}... ({len(r) - limit:,} more characters)"
 
 
 def validate_params(values: dict, *, require_all: bool = True, within_table2: bool = False
@@ -471,6 +477,9 @@ def validate_params(values: dict, *, require_all: bool = True, within_table2: bo
             e = ")" if p.hi_open else "]"
             raise ParameterError(f"{k}={x:g}{unit} is outside its physical domain "
                                  f"{b}{p.phys_lo:g}, {p.phys_hi:g}{e} ({p.description})")
+        if not math.isfinite(x * p.si):  # (the engine's SI value: e.g. 1e300 GPa)
+            raise ParameterError(f"{k}={x:g}{unit}: too large, expected a number in "
+                                 f"{p.unit or 'its unit'} well below 1e300")
         if within_table2 and not (p.lo <= x <= p.hi):
             raise ParameterError(f"{k}={x:g}{unit} is outside the Table 2 range "
                                  f"[{p.lo:g}, {p.hi:g}]{unit}")
