@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import time
@@ -126,13 +127,20 @@ def main(argv=None) -> int:
              for sc in a.scales.split(",") for sd in seeds]
     tasks += [(c, float(sc), sd, "before") for c in a.cards.split(",")
               for sc in a.before.split(",") if sc for sd in seeds]
+    out = {**head, "discs": [], "ucs": []}
+
+    def save():  # after every run: a long matrix cut short keeps what it measured
+        out["load_average_end"] = list(os.getloadavg())
+        Path(a.out).write_text(json.dumps(out, indent=1, default=float))
+
     with ProcessPoolExecutor(a.jobs) as ex:
-        ucs = list(ex.map(ucs_run, UCS_CARDS)) if a.ucs else []
-        print(json.dumps(ucs, default=float), flush=True)
-        discs = list(ex.map(disc_run, *zip(*tasks), [cfg] * len(tasks)))
-    head["load_average_end"] = list(__import__("os").getloadavg())
-    out = {**head, "discs": discs, "ucs": ucs}
-    Path(a.out).write_text(json.dumps(out, indent=1, default=float))
+        for r in (ex.map(ucs_run, UCS_CARDS) if a.ucs else []):
+            out["ucs"].append(r)
+            save()
+        for r in ex.map(disc_run, *zip(*tasks), [cfg] * len(tasks)):
+            out["discs"].append(r)
+            save()
+    save()
     return 0
 
 
