@@ -63,6 +63,14 @@ def d(tmp_path_factory):
     for name, bad in (("neg", "-1"), ("zero", "0"), ("text", "abc"), ("nan", "nan")):
         (d / f"lab_{name}.csv").write_text(HEAD + ",bts_MPa\n" + lab_row("B1", T, bad))
     (d / "lab_b1.csv").write_text(HEAD + ",bts_MPa\n" + lab_row("B1", T, repr(T[BTS])))
+    # the lab's disc diameter (issue 56): > 0, numeric, with its row's bts_MPa
+    for name, bad in (("dneg", "-50"), ("dzero", "0"), ("dtext", "fifty")):
+        (d / f"lab_{name}.csv").write_text(HEAD + ",bts_MPa,bts_diameter_mm\n"
+                                           + lab_row("B1", T, f"{T[BTS]!r},{bad}"))
+    (d / "lab_dalone.csv").write_text(HEAD + ",bts_MPa,bts_diameter_mm\n"
+                                      + lab_row("B1", T, ",50"))
+    (d / "lab_diam.csv").write_text(HEAD + ",bts_MPa,bts_diameter_mm\n"
+                                    + lab_row("B1", T, f"{T[BTS]!r},50"))
     return d
 
 
@@ -142,6 +150,10 @@ def test_the_bootstrap_refits_the_sigma_t_model(d, tmp_path):
     ("lab_zero.csv", "bts_MPa='0': expected a positive number (or empty)"),
     ("lab_text.csv", "bts_MPa='abc': expected a positive number (or empty)"),
     ("lab_nan.csv", "bts_MPa='nan': expected a positive number (or empty)"),
+    ("lab_dneg.csv", "bts_diameter_mm='-50': expected a positive number (or empty)"),
+    ("lab_dzero.csv", "bts_diameter_mm='0': expected a positive number (or empty)"),
+    ("lab_dtext.csv", "bts_diameter_mm='fifty': expected a positive number (or empty)"),
+    ("lab_dalone.csv", "gives bts_diameter_mm without bts_MPa"),
 ])
 def test_bad_sigma_t_is_one_line_exit_2_nothing_written(d, tmp_path, capsys, lab, needle):
     o = tmp_path / "out"
@@ -152,6 +164,13 @@ def test_bad_sigma_t_is_one_line_exit_2_nothing_written(d, tmp_path, capsys, lab
     assert lines[0].startswith("bpmcal calibrate: error: ") and needle in lines[0], err
     assert "specimen B1" in lines[0] and "Traceback" not in err
     assert not o.exists() or not any(o.rglob("*"))
+
+
+def test_the_lab_disc_diameter_is_read_and_is_no_target(d, tmp_path):
+    """``bts_diameter_mm`` says where the lab measured σt; it is not a target itself."""
+    assert calibrate(d, tmp_path, lab="lab_diam.csv", specs=("B1",)) == 0
+    c = yaml.safe_load((tmp_path / "B1.yaml").read_text())
+    assert set(c["targets"]) == {"ucs_MPa", "E_GPa", "nu", BTS}
 
 
 def test_sigma_t_without_a_sigma_t_model_is_one_line_exit_2(d, tmp_path, capsys):

@@ -16,7 +16,14 @@ from bpmcal.cli import main
 from bpmcal.dem.errors import InputError
 from bpmcal.io import h5
 from bpmcal.io.vtk import export_run
-from bpmcal.lab.brazilian import BTSSettings, analyse, run_bts, tensile_strength
+from bpmcal.lab.brazilian import (
+    BTSSettings,
+    analyse,
+    cap_bridges,
+    contact_cap_bonds,
+    run_bts,
+    tensile_strength,
+)
 from bpmcal.lab.runner import bts_geometry, make_specimen
 from bpmcal.lab.ucs import run_ucs
 
@@ -233,6 +240,7 @@ def test_settings_refuse_bad_values():
                        (dict(loading="curved"), "loading='curved'"),
                        (dict(jaw_ratio=0.8), "jaw_ratio=0.8: expected a jaw radius larger"),
                        (dict(contact_cap=-1.0), "contact_cap=-1.0"),
+                       (dict(contact_cap_bridge="yes"), "contact_cap_bridge=.yes."),
                        (dict(central_zone=0.0), "central_zone=0.0"),
                        (dict(retests=-1), "retests=-1"), (dict(retests=1.5), "retests=1.5"),
                        (dict(retests=11), "retests=11")]:
@@ -413,3 +421,21 @@ def test_retest_seeds_are_deterministic_distinct_and_in_range():
     assert retest_seed(5, 0) == 5
     seeds = [retest_seed(2 ** 32 - 3, k) for k in range(4)]
     assert len(set(seeds)) == 4 and all(0 <= x < 2 ** 32 for x in seeds)
+
+
+def test_caps_that_do_not_bridge_leave_the_split_free(cache):
+    """``contact_cap_bridge`` False caps the same zones less the bonds whose balls lie on
+    opposite sides of the loaded diameter, which would staple the two halves together
+    (issue 56: a flat-jointed disc's peak fell from 19.8 to 9.0 MPa without them,
+    docs/measurements/2026-12-02b-flatjoint-brazilian-split.md); by default the caps bridge
+    for parallel bonds (the study's measured practice) and not for flat joints."""
+    sp = make_specimen(A1, SEED, DISC, cache=cache, boundary="free")
+    m = sp.model
+    bi, bj = m.bond_pairs()
+    x = m.positions[:, 0] - m.positions[:, 0].mean()
+    every = contact_cap_bonds(sp, 1.5)
+    split = contact_cap_bonds(sp, 1.5, bridge=False)
+    across = every[x[bi[every]] * x[bj[every]] < 0]
+    assert across.size > 0 and set(split) == set(every) - set(across)
+    assert not np.any(x[bi[split]] * x[bj[split]] < 0)
+    assert cap_bridges(sp, None) and not cap_bridges(sp, False)

@@ -84,9 +84,39 @@ def test_analyse_against_a_closed_form_curve():
     mid = 0.5 * (lo + hi)
     assert r["E_GPa"] == pytest.approx(E * (1 - mid / ep) / 1e9, rel=0.01)
     assert r["nu"] == pytest.approx(nu, rel=1e-9)
+    assert (r["nu_window_lo"], r["nu_window_hi"]) == (0.4, 0.6)  # no dilation: E's window
     assert r["u_pre_MJm3"] == pytest.approx(E * ep ** 2 / 3 / 1e6, rel=1e-4)
     assert r["crack_init_MPa"] == pytest.approx(
         sig[np.argmax(eps > 0.5 * ep)] / 1e6, rel=1e-9)
+
+
+def test_nu_is_measured_before_crack_dilation():
+    """A specimen elastic (nu 0.17) up to 0.3 sigma_c whose lateral strain then grows with
+    the cracks (tangent nu rising to 1.5, past 0.5 inside the 40-60 % window, as a
+    flat-jointed card with slits does): nu is fitted below the onset, over the window of
+    E's proportions that ends there (0.2-0.3 sigma_c), and is the elastic one; E keeps its
+    window. Without the dilation the same curve gives the same nu over 40-60 %."""
+    E, nu0, peak = 50e9, 0.17, 100e6
+    sig = np.linspace(0.0, peak, 4001)
+    eps = sig / E
+    e_on = 0.3 * peak / E
+    extra = np.where(eps > e_on, 4.0 * (eps - e_on) ** 2 / e_on, 0.0)  # dilation from 0.3
+    ser = {"axial_stress": np.append(sig, 0.5 * peak),
+           "axial_strain": np.append(eps, 1.1 * eps[-1]),
+           "lateral_strain": np.append(-nu0 * eps - extra, -nu0 * eps[-1] - 2 * extra[-1]),
+           "cracks_tension": np.zeros(4002, int), "cracks_shear": np.zeros(4002, int)}
+    r = analyse(ser, UCSSettings())
+    assert r["nu_window_hi"] == pytest.approx(0.3) and r["nu_window_lo"] == pytest.approx(0.2)
+    assert r["nu"] == pytest.approx(nu0, rel=1e-6)
+    assert r["E_GPa"] == pytest.approx(E / 1e9, rel=1e-9)  # E: still 40-60 %
+    old = -np.polyfit(eps[(sig >= 0.4 * peak) & (sig <= 0.6 * peak)],
+                      ser["lateral_strain"][:4001][(sig >= 0.4 * peak) & (sig <= 0.6 * peak)],
+                      1)[0]
+    assert old > 0.5  # what the 40-60 % window read
+    flat = dict(ser, lateral_strain=np.append(-nu0 * eps, -nu0 * eps[-1]))
+    r = analyse(flat, UCSSettings())
+    assert (r["nu_window_lo"], r["nu_window_hi"]) == (0.4, 0.6)
+    assert r["nu"] == pytest.approx(nu0, rel=1e-9)
 
 
 def test_end_caps_strengthen_only_the_end_bonds_and_hold(base, cache):

@@ -1,12 +1,20 @@
 """Validity of tensile tests (bpmcal.lab.validity) and the Brazilian peak (PeakTracker):
 planted crack sets and load sequences with a known verdict."""
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from bpmcal.lab.brazilian import PeakTracker
-from bpmcal.lab.validity import INIT_MIN, bts_validity, burst_mask, dtt_validity
+from bpmcal.dem.errors import InputError
+from bpmcal.lab.brazilian import (
+    FLATJOINT_SPLIT_DROP,
+    BTSSettings,
+    PeakTracker,
+    cap_bridges,
+    split_drop,
+)
+from bpmcal.lab.validity import INIT_MIN, bts_validity, burst_mask, dtt_validity, per_contact
 
 R = 0.01  # disc radius [m]
 D_BALL = 0.002  # mean ball diameter [m]
@@ -158,3 +166,104 @@ def test_a_fracture_grown_from_a_platen_before_the_peak_is_invalid():
     v = bts_validity(cracks(few, np.concatenate([ev["step"], np.arange(300, 304)])), STEPS,
                      PEAK, centre=(0, 0), radius=R, mean_ball_diameter=D_BALL)
     assert v["bts_valid"], v["bts_invalid_reason"]
+
+
+def fj_events(contacts):
+    """Flat-joint element breaks: ``contacts`` = [(contact, (x, y), [steps of its broken
+    elements])], one event per element (as ``Model.breaks`` gives them for flat joints)."""
+    rows = [(s, k, e, p) for k, p, steps in contacts for e, s in enumerate(steps)]
+    rows.sort(key=lambda r: (r[0], r[1], r[2]))
+    pos = np.zeros((len(rows), 3))
+    pos[:, :2] = [r[3] for r in rows]
+    return {"step": np.array([r[0] for r in rows]), "bond": np.array([r[1] for r in rows]),
+            "element": np.array([r[2] for r in rows]), "pos": pos,
+            "mode": np.ones(len(rows), np.int64)}
+
+
+def test_per_contact_keeps_each_flat_joints_first_element_break():
+    ev = fj_events([(7, (0.0, 0.0), [1200, 1100, 1300]), (3, (0.0, 0.5 * R), [1150])])
+    pc = per_contact(ev)
+    assert pc["bond"].tolist() == [7, 3] and pc["step"].tolist() == [1100, 1150]
+    assert pc["element"].tolist() == [1, 0]
+    pb = cracks([(0, 0), (0, 0.1 * R)], [1000, 1001])  # parallel bonds: unchanged
+    assert per_contact(pb) is pb
+
+
+def _split_with_a_crushed_loader():
+    """A split through the centre while four contacts under the top platen lose their
+    three elements each, one after another, as the split starts (and a few more below):
+    counted by element, the crushed contacts outnumber the split's first contacts."""
+    rng = np.random.default_rng(3)
+    loader = [(100 + i, (0.03 * R * (-1) ** i, (0.85 + 0.02 * i) * R),
+               [951 + 6 * i, 952 + 6 * i, 953 + 6 * i]) for i in range(4)]
+    first = [(200 + i, (0.02 * R * (-1) ** i, y * R), [s])
+             for i, (y, s) in enumerate(zip([0.05, -0.1, 0.15, 0.0, -0.05, 0.1],
+                                            [954, 955, 956, 960, 961, 962]))]
+    rest = [(300 + i, (rng.uniform(-0.1, 0.1) * R, rng.uniform(-0.9, 0.9) * R),
+             [1100 + 3 * i, 1101 + 3 * i, 1102 + 3 * i]) for i in range(20)]
+    return fj_events(loader + first + rest)
+
+
+def test_a_flat_jointed_disc_that_splits_through_the_centre_is_valid():
+    ev = _split_with_a_crushed_loader()
+    v = bts_validity(ev, STEPS, PEAK, centre=(0, 0), radius=R, mean_ball_diameter=D_BALL)
+    assert v["bts_valid"], v["bts_invalid_reason"]
+    assert v["burst_cracks"] == 30  # contacts, not the 78 element breaks
+    assert v["init_offset"] < 0.5
+    # counted by element, the same disc would have "started" at the crushed loader
+    el = {k: a for k, a in ev.items() if k != "element"}
+    assert not bts_validity(el, STEPS, PEAK, centre=(0, 0), radius=R,
+                            mean_ball_diameter=D_BALL)["bts_valid"]
+
+
+def test_a_flat_jointed_disc_that_shatters_from_a_loader_is_invalid_with_the_reason():
+    rng = np.random.default_rng(4)
+    # the failure starts under the top jaw: its first contacts there, element by element,
+    # then the disc breaks up everywhere (cracks off the loaded diameter)
+    start = [(i, (0.05 * R * (-1) ** i, (0.9 - 0.03 * i) * R), [951 + 3 * i, 952 + 3 * i])
+             for i in range(8)]
+    shatter = [(100 + i, (rng.uniform(-0.9, 0.9) * R, rng.uniform(-0.9, 0.9) * R),
+                [1100 + 3 * i, 1101 + 3 * i, 1102 + 3 * i]) for i in range(60)]
+    v = bts_validity(fj_events(start + shatter), STEPS, PEAK, centre=(0, 0), radius=R,
+                     mean_ball_diameter=D_BALL, contact="jaw")
+    assert not v["bts_valid"] and v["burst_cracks"] == 68
+    assert v["bts_invalid_reason"].startswith("fracture initiated next to the top jaw")
+
+
+def _split_then_reload():
+    """A flat-jointed disc's load (nominal MPa) against diametral strain (per mil): up to
+    the split at 8.2, a 7 % dip, then its halves load up to 9.5 (f08_s2 of
+    docs/measurements/2026-12-02b-flatjoint-brazilian-split.md, rounded)."""
+    up = [(0.4 * k, 0.1 * k) for k in range(1, 21)]  # 0.4 ... 8.0 at 2.0 per mil
+    return up + [(8.2, 2.03), (7.6, 2.1), (7.6, 2.2), (7.7, 2.35), (7.9, 2.4), (8.5, 2.8), (9.1, 3.0),
+                 (9.5, 3.3), (8.9, 3.4), (8.3, 3.8), (4.6, 6.0)]
+
+
+def _first_stop(drop):
+    tr = PeakTracker(stop_drop=drop, post_peak_strain=3e-4 * 1e3)  # strain in per mil
+    for p, e in _split_then_reload():
+        if tr.add(p, e) and tr.judge(split=True):
+            return tr.peak
+    return tr.peak
+
+
+def test_a_flat_jointed_split_is_its_first_drop_not_the_halves_reloading():
+    """The split of a flat-jointed disc drops the load by 5-15 %, not by half: with the
+    flat joint's split_drop (0.95) the tracker stops at the split's 8.2; with the
+    parallel bond's 0.5 it loads on to the halves' crushing at 9.5."""
+    assert _first_stop(FLATJOINT_SPLIT_DROP) == 8.2
+    assert _first_stop(0.5) == 9.5
+
+
+def test_the_split_drop_and_the_caps_follow_the_contact_model():
+    def disc(model):
+        return SimpleNamespace(model=SimpleNamespace(material=SimpleNamespace(
+            contact_model=model)))
+    st = BTSSettings()
+    assert split_drop(disc("linearpbond"), st) == st.stop_drop == 0.5
+    assert split_drop(disc("flatjoint"), st) == FLATJOINT_SPLIT_DROP == 0.95
+    assert split_drop(disc("flatjoint"), BTSSettings(split_drop=0.8)) == 0.8
+    assert cap_bridges(disc("linearpbond"), None) and not cap_bridges(disc("flatjoint"), None)
+    assert cap_bridges(disc("flatjoint"), True)
+    with pytest.raises(InputError, match="split_drop=1.5"):
+        BTSSettings(split_drop=1.5)

@@ -32,7 +32,12 @@ continuum line load the formula assumes, and without the caps most discs of more
 balls across split from a contact (ISRM: invalid); the caps do for the disc what the
 jaws and cushions of the laboratory do, and the UCS end caps do for the cylinder. Which
 loading and cap were chosen, and why (valid fraction and sigma_t scatter under each):
-docs/measurements.
+docs/measurements. A cap that bridges the loaded diameter staples the disc's two halves
+together across the split; ``contact_cap_bridge`` False leaves its bonds across the
+diameter (balls on opposite sides of it) uncapped. By default (None) the caps bridge for
+parallel bonds, the study's measured practice, and not for flat joints: a flat-jointed
+disc's stapled halves carried twice the load of its split
+(docs/measurements/2026-12-02b-flatjoint-brazilian-split.md).
 
 Stages:
 
@@ -61,11 +66,15 @@ discarded disc's seed and reason); if every disc was invalid, the last one is re
 invalid, and gives no σt. ``wall_s`` is the time of all of them.
 
 The peak (``PeakTracker``) is the load at which the disc splits: when the load falls
-below ``stop_drop`` of the peak (at least ``post_peak_strain`` diametral strain past it), the
+below ``split_drop`` of the peak (at least ``post_peak_strain`` diametral strain past it), the
 cracks formed since the peak must reach the central zone (``_split_started``); a drop
 without them is a contact event (a seating or crushing event at a loader, recorded in
 ``contact_events``), and the test loads on with the peak restarted. The test stops at the
-split, at ``max_strain``, or after ``max_steps``.
+split, at ``max_strain``, or after ``max_steps``. ``split_drop`` is ``stop_drop`` (0.5) for
+parallel bonds, whose load falls past half its peak when the disc splits, and 0.95 for
+flat joints (``FLATJOINT_SPLIT_DROP``): a flat-jointed disc's halves carry on after the
+split and load up to a second, higher peak, the crushing of the halves, which is not
+sigma_t (an explicit ``split_drop`` applies to both models).
 
 Result: ``bts_peak_MPa`` = 2 P_peak / (pi D t); validity (``validity.bts_validity``, ISRM:
 the fracture must start in the central zone, ``central_zone`` x R of the centre along
@@ -96,7 +105,7 @@ from .records import append_cracks, append_energies, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
 from .stepping import LoadingProgress, cycle, heartbeat, loading_bound
-from .validity import INIT_MIN, bts_validity
+from .validity import INIT_MIN, bts_validity, per_contact
 
 #: how the disc is loaded: ISRM curved jaws or two planar platens
 LOADINGS = ("flat", "jaws")
@@ -122,6 +131,13 @@ class BTSSettings:
     central_zone: float = 0.5  # a valid fracture starts within this * R of the centre (y)
     contact_cap: float = 1.5  # bonds within this many mean ball diameters of a loading contact
     contact_cap_factor: float = 1000.0  # ... get this factor on their strengths (not stiffness)
+    # ... including the bonds across the loaded diameter (None: parallel bonds yes, flat
+    # joints no; lab.brazilian.cap_bridges, docs/measurements/2026-12-02b)
+    contact_cap_bridge: bool | None = None
+    # the split: a load drop below this fraction of the peak with cracks in the central zone
+    # ends the test at that peak (None: stop_drop for parallel bonds, FLATJOINT_SPLIT_DROP
+    # for flat joints; lab.brazilian.split_drop)
+    split_drop: float | None = None
     seat_stress: float = 0.1e6  # Pa, seating load as 2 P / (pi D t) before loading
     seat_velocity: float = 0.0125  # m/s, platen speed cap and at-rest threshold of seating
     seat_tol: float = 0.05  # seated: both platen loads within this fraction of the target
@@ -186,6 +202,14 @@ class BTSSettings:
                 and 1.0 <= self.contact_cap_factor <= 1e6):
             raise InputError(f"contact_cap_factor={self.contact_cap_factor!r}: expected a "
                              "strength factor in [1, 1e6]")
+        if self.split_drop is not None and not (
+                isinstance(self.split_drop, (int, float)) and not isinstance(self.split_drop, bool)
+                and 0.0 < self.split_drop < 1.0):
+            raise InputError(f"split_drop={self.split_drop!r}: expected a fraction in (0, 1) or "
+                             "null (by contact model)")
+        if self.contact_cap_bridge not in (None, True, False):
+            raise InputError(f"contact_cap_bridge={self.contact_cap_bridge!r}: expected true, "
+                             "false or null (by contact model)")
         if isinstance(self.retests, bool) or not (
                 isinstance(self.retests, (int, np.integer)) and 0 <= self.retests <= 10):
             raise InputError(f"retests={self.retests!r}: expected a whole number of further "
@@ -301,10 +325,12 @@ def add_loaders(sp: Specimen, st: BTSSettings) -> tuple[int, int]:
     return add_platens(sp, st.platen_fric)
 
 
-def contact_cap_bonds(sp: Specimen, height_d: float) -> np.ndarray:
+def contact_cap_bonds(sp: Specimen, height_d: float, bridge: bool = True) -> np.ndarray:
     """Indices (``Model.bond_pairs`` order) of the bonds whose contact point lies within
     ``height_d`` mean ball diameters (in the disc's plane) of a loading contact, the rim
-    points (x_c, y_c -+ R) of the loaded diameter."""
+    points (x_c, y_c -+ R) of the loaded diameter. ``bridge`` False leaves out the bonds
+    whose two balls lie on opposite sides of the loaded diameter (x - x_c of opposite
+    signs): caps that do not staple the disc's two halves together across the split."""
     m = sp.model
     bi, bj = m.bond_pairs()
     pos, r = m.positions, m.radii
@@ -317,17 +343,48 @@ def contact_cap_bonds(sp: Specimen, height_d: float) -> np.ndarray:
     near = np.zeros(bi.size, bool)
     for sign in (-1.0, 1.0):
         near |= np.hypot(cp[:, 0] - c[0], cp[:, 1] - (c[1] + sign * R)) <= h
+    if not bridge:
+        near &= (pos[bi, 0] - c[0]) * (pos[bj, 0] - c[0]) >= 0.0
     return np.flatnonzero(near)
 
 
-def install_contact_caps(sp: Specimen, height_d: float, factor: float) -> np.ndarray:
+#: the split of a flat-jointed disc: a drop of 5 % with central cracks. Its two halves go on
+#: carrying the load after the split (broken flat joints keep their compression, friction
+#: and rolling resistance) and load up again towards a second, higher peak, the crushing
+#: of the halves; a parallel-bonded disc's load falls past half its peak at the split
+#: (docs/measurements/2026-12-02b-flatjoint-brazilian-split.md)
+FLATJOINT_SPLIT_DROP = 0.95
+
+
+def split_drop(sp: Specimen, st: "BTSSettings") -> float:
+    """The load drop (a fraction of the peak) that is the split of disc ``sp`` when its
+    cracks reach the central zone (``BTSSettings.split_drop``; None: ``stop_drop`` for
+    parallel bonds, :data:`FLATJOINT_SPLIT_DROP` for flat joints)."""
+    if st.split_drop is not None:
+        return float(st.split_drop)
+    if sp.model.material.contact_model == "flatjoint":
+        return FLATJOINT_SPLIT_DROP
+    return float(st.stop_drop)
+
+
+def cap_bridges(sp: Specimen, bridge: bool | None) -> bool:
+    """Whether the contact caps of ``sp`` bridge the loaded diameter (``BTSSettings.
+    contact_cap_bridge``; None: as the contact model's study measured it, yes for parallel
+    bonds, no for flat joints)."""
+    if bridge is None:
+        return sp.model.material.contact_model != "flatjoint"
+    return bool(bridge)
+
+
+def install_contact_caps(sp: Specimen, height_d: float, factor: float,
+                         bridge: bool | None = True) -> np.ndarray:
     """Contact caps: the bonds of ``contact_cap_bonds`` get ``factor`` x their tensile
     strength and cohesion (``Model.set_bond_strength_factors``; stiffnesses unchanged, so
-    the elastic stress field of the test is that of the uncapped disc). Returns their
-    indices (none when ``height_d`` is 0)."""
+    the elastic stress field of the test is that of the uncapped disc); ``bridge``:
+    :func:`cap_bridges`. Returns their indices (none when ``height_d`` is 0)."""
     if height_d <= 0:
         return np.zeros(0, np.int64)
-    idx = contact_cap_bonds(sp, height_d)
+    idx = contact_cap_bonds(sp, height_d, cap_bridges(sp, bridge))
     f = sp.model.bond_strength_factors
     f[idx] *= factor
     sp.model.set_bond_strength_factors(f)
@@ -419,8 +476,9 @@ def _split_started(m, step0, since_step, centre, radius, half_band, zone) -> boo
     """Whether the cracks formed after ``since_step`` (loading steps) reach the central
     zone of the loaded diameter: at least ``validity.INIT_MIN`` of them within ``zone`` R
     of the centre along y and ``half_band`` of it along x. A load drop without them is a
-    contact event (a seating or crushing event at a jaw), not the split."""
-    ev = m.breaks()
+    contact event (a seating or crushing event at a jaw), not the split. Flat joints count
+    per contact (``validity.per_contact``)."""
+    ev = per_contact(m.breaks())
     cs = ev["step"] - step0
     sel = cs > since_step
     p = ev["pos"][sel]
@@ -465,7 +523,8 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
     dbar = 2.0 * float(m.radii.mean())
     half_band = max(0.25 * R, 1.5 * dbar)
     wb, wt = add_loaders(sp, st)
-    caps = install_contact_caps(sp, st.contact_cap, st.contact_cap_factor)
+    caps = install_contact_caps(sp, st.contact_cap, st.contact_cap_factor,
+                                st.contact_cap_bridge)
     m.set_damping(st.damping)
     m.set_timestep(None)
     dt = m.dt
@@ -514,7 +573,8 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
         return P, delta / D
 
     record()
-    track = PeakTracker(st.stop_drop, st.post_peak_strain)
+    drop = split_drop(sp, st)
+    track = PeakTracker(drop, st.post_peak_strain)
     tell = LoadingProgress(progress, m, step0, bound, st.max_strain)
     with heartbeat(lambda: tell(strain=ser["diametral_strain"][-1])):
         while True:
@@ -562,6 +622,7 @@ def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) 
         "diameter_mm": D * 1e3, "thickness_mm": t * 1e3,
         "mean_ball_diameter_mm": dbar * 1e3, "balls_across": D / dbar,
         "contact_events": len(events), "contact_cap_bonds": int(caps.size),
+        "contact_cap_bridge": cap_bridges(sp, st.contact_cap_bridge), "split_drop": drop,
         "contact_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
         "contact_event_max_MPa": (max(float(tensile_strength(e["load_N"], D, t))
                                       for e in events) / 1e6 if events else 0.0),

@@ -42,11 +42,15 @@ summary reports ``end_cap_bonds`` and ``end_cap_broken`` (0 when the caps hold).
 
 Results: sigma_c = peak stress; E = least-squares slope of sigma vs eps_a and
 nu = -slope of eps_r vs eps_a over the pre-peak records with 0.4 <= sigma/sigma_c <= 0.6
-(``fit_window``); strain at peak; pre-peak energy density U_p = integral of sigma d eps_a
-from 0 to the peak (trapezoids, the paper's Table 6); ``E_central_GPa``, the slope of
-sigma vs the central gauge's strain over the same window (the bulk modulus of the
-specimen's middle half, not what the paper calls E); crack-initiation stress = sigma when
-the crack count first reaches ``ci_fraction`` (1 %) of the count at peak (at least one).
+(``fit_window``), nu before crack dilation: where the tangent nu of a 0.1 sigma_c bin
+rises more than 25 % above its value over 0.1-0.2 sigma_c inside the window (a flat-jointed
+card with slits dilates from about 0.3 sigma_c), nu is fitted over the window of the same
+proportions that ends there (``nu_window_lo``/``_hi``; ``dilation_onset``); strain at peak;
+pre-peak energy density U_p = integral of sigma d eps_a from 0 to the peak (trapezoids,
+the paper's Table 6); ``E_central_GPa``, the slope of sigma vs the central gauge's strain
+over E's window (the bulk modulus of the specimen's middle half, not what the paper calls
+E); crack-initiation stress = sigma when the crack count first reaches ``ci_fraction``
+(1 %) of the count at peak (at least one).
 The test stops when sigma falls below ``stop_drop`` (70 %) of the peak after the peak, at
 ``max_strain``, or after ``max_steps``; ``stop_reason`` says which.
 """
@@ -173,8 +177,44 @@ def fit_slope(x, y):
     return lsq_slope(np.asarray(x, float), np.asarray(y, float))
 
 
+#: the Poisson's ratio's dilation check: the tangent nu over bins of this width (fraction of
+#: sigma_c) from ``NU_REF[0]`` up; the first bin (``NU_REF``) is the elastic reference
+NU_BIN = 0.1
+NU_REF = (0.1, 0.2)
+#: a bin whose tangent nu exceeds the reference by more than this fraction has dilated
+NU_DILATION = 0.25
+
+
+def dilation_onset(sig, ea, er, peak: float, hi: float) -> float:
+    """Where crack dilation starts inside the pre-peak records (``sig``, ``ea``, ``er``),
+    as a fraction of ``peak``: the lower edge of the first bin of width ``NU_BIN`` (from
+    ``NU_REF[0]`` up to ``hi``) whose tangent nu (-d eps_r / d eps_a) exceeds the elastic
+    reference, the tangent nu over ``NU_REF``, by more than ``NU_DILATION``; ``hi`` when
+    none does (or the reference cannot be fitted). The laboratory's crack-initiation
+    stress is read the same way, where the lateral strain leaves its linear trend."""
+    def tangent(a, b):
+        w = (sig >= a * peak) & (sig <= b * peak)
+        return -fit_slope(ea[w], er[w])
+
+    ref = tangent(*NU_REF)
+    if not (math.isfinite(ref) and ref > 0):
+        return hi
+    k = 1
+    while NU_REF[0] + (k + 1) * NU_BIN <= hi + 1e-12:
+        a = NU_REF[0] + k * NU_BIN
+        t = tangent(a, a + NU_BIN)
+        if math.isfinite(t) and t > ref * (1.0 + NU_DILATION):
+            return a
+        k += 1
+    return hi
+
+
 def analyse(series: dict, settings: UCSSettings) -> dict:
-    """sigma_c, E, nu, peak strain, U_p and the crack-initiation stress from a series."""
+    """sigma_c, E, nu, peak strain, U_p and the crack-initiation stress from a series.
+    nu is fitted over the E window unless the specimen dilates inside it
+    (:func:`dilation_onset` below its top): then over the window of the same proportions
+    that ends where dilation starts (``nu_window_lo``/``_hi`` say which, in fractions of
+    sigma_c)."""
     s = np.asarray(series["axial_stress"])
     ea = np.asarray(series["axial_strain"])
     er = np.asarray(series["lateral_strain"])
@@ -187,7 +227,13 @@ def analyse(series: dict, settings: UCSSettings) -> dict:
     E = fit_slope(ea[pre][win], s[pre][win])
     ec = series.get("axial_strain_central")
     E_c = fit_slope(np.asarray(ec)[pre][win], s[pre][win]) if ec is not None else math.nan
-    nu = -fit_slope(ea[pre][win], er[pre][win])
+    onset = dilation_onset(s[pre], ea[pre], er[pre], peak, hi)
+    if onset < hi:  # nu before crack dilation (module docstring)
+        nlo, nhi = lo * onset / hi, onset
+        nwin = (s[pre] >= nlo * peak) & (s[pre] <= nhi * peak)
+    else:
+        nlo, nhi, nwin = lo, hi, win
+    nu = -fit_slope(ea[pre][nwin], er[pre][nwin])
     up = float(np.trapezoid(s[: ip + 1], ea[: ip + 1])) if ip > 0 else 0.0
     ci_target = max(1.0, settings.ci_fraction * cr[ip])
     hit = np.flatnonzero(cr >= ci_target)
@@ -195,6 +241,7 @@ def analyse(series: dict, settings: UCSSettings) -> dict:
     return {"ucs_MPa": peak / 1e6, "E_GPa": E / 1e9, "E_central_GPa": E_c / 1e9, "nu": nu,
             "peak_strain": float(ea[ip]), "u_pre_MJm3": up / 1e6,
             "crack_init_MPa": ci / 1e6, "fit_points": int(win.sum()),
+            "nu_window_lo": float(nlo), "nu_window_hi": float(nhi),
             "cracks_tension_peak": int(series["cracks_tension"][ip]),
             "cracks_shear_peak": int(series["cracks_shear"][ip])}
 

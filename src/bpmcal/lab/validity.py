@@ -34,6 +34,15 @@ of the disc"; a test whose fracture starts at a loading contact is invalid):
 gauge section, at least ``clearance`` from the inner face of either grip; otherwise
 invalid: "failure next to the bottom/top grip".
 
+**Flat joints: one crack per contact.** A flat joint breaks element by element (its 1 x 3
+elements, by default, fail one at a time as it opens or bends), so its element breaks are
+not independent cracks: a joint whose three elements fail as the split passes would count
+three times, a joint under a loader that loses one element to bending once. Both verdicts
+therefore judge the crack events per contact (:func:`per_contact`): a flat joint is one
+crack, formed at the step of its first broken element, at that element's position, in its
+mode; the burst, the initiation, the pre-peak count and the split band all count contacts.
+Parallel bonds (one event per bond) are judged as they are.
+
 An invalid run gives no strength value (``bts_MPa`` / ``dtt_MPa`` NaN; the peak stress
 stays in ``bts_peak_MPa`` / ``dtt_peak_MPa`` for inspection), and says why in
 ``bts_invalid_reason`` / ``dtt_invalid_reason``.
@@ -73,6 +82,23 @@ def burst_mask(crack_step, series_step, peak_record: int) -> np.ndarray:
     return (cs >= 0) & (cs > start)
 
 
+def per_contact(cracks: dict) -> dict:
+    """The crack events with one event per contact (module docstring): for flat joints
+    (events with an ``element`` key, ``bond`` the contact), each contact's first element
+    break (the earliest step; of equal steps the first event, as ``Model.breaks`` orders
+    them), in step order; other events unchanged."""
+    if "element" not in cracks or "bond" not in cracks:
+        return cracks
+    bond = np.asarray(cracks["bond"])
+    step = np.asarray(cracks["step"])
+    order = np.lexsort((np.arange(bond.size), step))
+    _, first = np.unique(bond[order], return_index=True)
+    keep = np.sort(order[first])
+    keep = keep[np.argsort(step[keep], kind="stable")]
+    return {k: (np.asarray(v)[keep] if np.ndim(v) and len(v) == bond.size else v)
+            for k, v in cracks.items()}
+
+
 def _first(cs: np.ndarray, mask: np.ndarray, k: int) -> np.ndarray:
     idx = np.flatnonzero(mask)
     order = idx[np.argsort(cs[idx], kind="stable")]
@@ -84,7 +110,9 @@ def bts_validity(cracks: dict, series_step, peak_record: int, *, centre, radius:
                  ended: bool = True, contact: str = "platen") -> dict:
     """Verdict on one Brazilian run (module docstring). ``cracks``: the run's crack events
     (``step``, ``pos``); ``centre``: (x, y) of the disc centre; the load axis is y;
-    ``contact``: what loads the disc ("platen", "jaw"), for the reason."""
+    ``contact``: what loads the disc ("platen", "jaw"), for the reason. Flat-joint
+    element breaks are judged per contact (:func:`per_contact`)."""
+    cracks = per_contact(cracks)
     cs = np.asarray(cracks["step"])
     pos = np.asarray(cracks["pos"], float).reshape(-1, 3)
     b = burst_mask(cs, series_step, peak_record)
@@ -139,7 +167,9 @@ def bts_validity(cracks: dict, series_step, peak_record: int, *, centre, radius:
 def dtt_validity(cracks: dict, series_step, peak_record: int, *, grip_faces,
                  clearance: float, ended: bool = True) -> dict:
     """Verdict on one direct-tension run (module docstring); ``grip_faces``: heights of
-    the inner faces of the bottom and top grips; the axis is z."""
+    the inner faces of the bottom and top grips; the axis is z. Flat-joint element breaks
+    are judged per contact (:func:`per_contact`)."""
+    cracks = per_contact(cracks)
     cs = np.asarray(cracks["step"])
     pos = np.asarray(cracks["pos"], float).reshape(-1, 3)
     b = burst_mask(cs, series_step, peak_record)

@@ -35,7 +35,9 @@ LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
 #: e.g. the standard deviation over the lab's n specimens / sqrt(n)): the closed loop and
 #: the fresh-seed check then compare two means, each with its error
 LAB_SE = tuple(f"{c}_se" for c in ("ucs_MPa", "E_GPa", "nu", "bts_MPa", "dtt_MPa", "tri_MPa"))
-LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa", "tri_MPa", *LAB_SE)
+#: ``bts_diameter_mm``: the diameter of the lab's Brazilian discs [mm] (> 0; with its row's
+#: ``bts_MPa``): σt falls with the disc's size, so the study says at which size it compared
+LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa", "tri_MPa", "bts_diameter_mm", *LAB_SE)
 #: the physical bounds of each lab value (open below, closed above; a standard error is
 #: bounded by its value's upper bound): the weakest rocks' sigma_c is near 1 MPa and the
 #: strongest's 500-600 MPa, moduli range from ~0.1 to ~150 GPa, tensile strengths stay
@@ -43,7 +45,9 @@ LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa", "tri_MPa", *LAB_SE)
 #: around these and refuse only what no rock has (a typo's 1e-300 or 1e30)
 LAB_BOUNDS = {"ucs_MPa": (0.0, 2000.0), "E_GPa": (1e-3, 500.0), "nu": (0.0, 0.5),
               "u_pre_MJm3": (0.0, 100.0), "bts_MPa": (0.0, 200.0), "dtt_MPa": (0.0, 200.0),
-              "tri_MPa": (0.0, 10000.0)}
+              "tri_MPa": (0.0, 10000.0),
+              # a Brazilian disc: ISRM's 54 mm, large-scale tests a few hundred mm
+              "bts_diameter_mm": (0.0, 2000.0)}
 #: the bounds of the lab triaxial table's stresses [MPa] (sigma3 from 0 inclusive)
 TRIAXIAL_BOUNDS = {"sigma3_MPa": (0.0, 2000.0), "sigma1_MPa": (0.0, 10000.0)}
 
@@ -119,6 +123,14 @@ def lab_problems(df, key: str) -> list[str]:
                 msgs.append(f"{where}: expected below 0.5")
             elif _bounded(c, v):
                 msgs.append(f"{where}: {_bounded(c, v)}")
+    if "bts_diameter_mm" in df.columns:
+        alone = [clip(str(sp)) for sp, d, b in zip(df["specimen"], df["bts_diameter_mm"],
+                                             df["bts_MPa"] if "bts_MPa" in df.columns
+                                             else [None] * len(df))
+                 if _given(d) and not _given(b)]
+        if alone:
+            msgs.append(f"lab.csv: {key!r} specimen {', '.join(alone)} gives bts_diameter_mm "
+                        "without bts_MPa: expected the diameter of the discs of a Brazilian σt")
     if "bts_MPa" in df.columns and "dtt_MPa" in df.columns:
         both = [str(sp) for sp, a, b in zip(df["specimen"], df["bts_MPa"], df["dtt_MPa"])
                 if _given(a) and _given(b)]

@@ -1,0 +1,148 @@
+"""Flat-jointed Brazilian discs that split, and the UCS Poisson's ratio before crack
+dilation: the measurement behind record 2026-12-02b (issue 56, item 2).
+
+Two parts, one JSON record (date, commit, CPU model, load average, the command):
+
+- ``discs``: the study's Brazilian disc (config/config.yaml ``bts``, one disc per seed:
+  ``retests`` 0) of each flat-joint card of ``CARDS`` at each ``--scales`` on packing
+  ``--seeds``, with the test's defaults for flat joints (``contact_cap_bridge`` and
+  ``split_drop`` None: caps that do not bridge the loaded diameter, the split at the first
+  5 % drop) and, with ``--before``, with the parallel bond's settings the flat joints had
+  before (caps that bridge, the split at a drop to 50 %). Per disc: valid, why not, the
+  peak stress, the elements broken, the flat joints broken (contacts with a broken
+  element), the balls and the CPU time.
+- ``ucs``: the UCS test of each card of ``UCS_CARDS`` (seed 1, the study's cylinder at the
+  card's scale): nu as the summary gives it (before crack dilation: ``lab.ucs``) beside
+  nu over the whole 40-60 % window (the rule before), with ``nu_window_lo``/``_hi``.
+
+    python benchmarks/flatjoint_brazilian.py --scales 0.55,0.8 --seeds 1,2,3,4,5 \\
+        --out benchmarks/results_flatjoint_brazilian_DATE.json
+
+Runs go two at a time (``--jobs``, one numba thread each).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import yaml
+from _study import CONFIG, REPO, bts_disc_and_settings, record_header
+
+#: the verified card of the Lac du Bonnet flat-joint example (record 2026-11-29d) and a
+#: flat-joint card with slits and an installation gap (fj_slit_frac 0.2, fj_gi_ratio 0.2)
+LDB_FJ = {"contact_model": "flatjoint", "rmin_mm": 0.8, "porosity": 0.3,
+          "fj_emod_GPa": 86.72, "fj_kratio": 1.7, "fj_ten_MPa": 11.63, "fj_coh_MPa": 115.0,
+          "fj_fa_deg": 30.0, "fj_fric": 0.6}
+FJ_SLIT = {"contact_model": "flatjoint", "rmin_mm": 0.8, "porosity": 0.3,
+           "fj_emod_GPa": 60.0, "fj_kratio": 2.0, "fj_ten_MPa": 10.0, "fj_coh_MPa": 100.0,
+           "fj_fa_deg": 30.0, "fj_fric": 0.6, "fj_slit_frac": 0.2, "fj_gi_ratio": 0.2}
+CARDS = {"ldb_fj": LDB_FJ, "fj_slit02_gi02": FJ_SLIT}
+#: the paper's A1 (parallel bond) and flat-joint cards with and without slits
+A1 = {"rmin_mm": 0.8, "porosity": 0.34, "pb_emod_GPa": 10.396, "pb_kratio": 3.467,
+      "pb_ten_MPa": 27.67, "pb_coh_MPa": 19.689, "pb_fa_deg": 35.0, "fric": 0.35}
+UCS_CARDS = {"a1": (A1, 0.4), "ldb_fj": (LDB_FJ, 0.3),
+             "fj_slit02_gi0": ({**FJ_SLIT, "fj_gi_ratio": 0.0}, 0.3),
+             "fj_slit04_gi02": ({**FJ_SLIT, "fj_slit_frac": 0.4}, 0.3)}
+#: the Brazilian settings flat joints had before (those of parallel bonds)
+BEFORE = {"contact_cap_bridge": True, "split_drop": 0.5}
+
+
+def study_config() -> dict:
+    """config/config.yaml, validated (the schema's defaults filled in) as the workflow
+    reads it."""
+    from bpmcal.study.config import validate_config
+
+    cfg = yaml.safe_load(CONFIG.read_text())
+    validate_config(cfg, REPO / "workflow" / "schemas" / "config.schema.yaml", base_dir=REPO)
+    return cfg
+
+
+def disc_run(card: str, scale: float, seed: int, variant: str, cfg: dict) -> dict:
+    from bpmcal.lab.runner import bts_test
+
+    over = {"retests": 0, **(BEFORE if variant == "before" else {})}
+    geo, st = bts_disc_and_settings(cfg, scale=scale, **over)
+    t0 = time.process_time()
+    run = bts_test(CARDS[card], seed, geo, st, threads=1, keep_particles=False)
+    s, c = run.summary, run.cracks
+    pairs = np.unique(np.asarray(c["i"], np.int64) * 10_000_000 + np.asarray(c["j"]))
+    return {"card": card, "scale": scale, "seed": seed, "variant": variant,
+            "valid": bool(s["bts_valid"]), "reason": s["bts_invalid_reason"],
+            "peak_MPa": s["bts_peak_MPa"], "bts_MPa": s["bts_MPa"],
+            "elements_broken": int(np.size(c["step"])), "joints_broken": int(pairs.size),
+            "n_balls": int(s["n_balls"]), "balls_across": s["balls_across"],
+            "contact_cap_bonds": int(s["contact_cap_bonds"]),
+            "contact_cap_bridge": bool(s["contact_cap_bridge"]),
+            "split_drop": s["split_drop"], "steps": int(s["steps"]),
+            "cpu_s": time.process_time() - t0}
+
+
+def ucs_run(card: str) -> dict:
+    from bpmcal.lab.runner import Geometry, ucs_test
+    from bpmcal.lab.ucs import fit_slope
+
+    params, scale = UCS_CARDS[card]
+    t0 = time.process_time()
+    run = ucs_test(params, 1, Geometry(scale=scale), threads=1, keep_particles=False)
+    s, se = run.summary, run.series
+    sig, ea, er = (np.asarray(se[k]) for k in ("axial_stress", "axial_strain",
+                                                 "lateral_strain"))
+    ip = int(np.argmax(sig))
+    pre = slice(0, ip + 1)
+    w = (sig[pre] >= 0.4 * sig[ip]) & (sig[pre] <= 0.6 * sig[ip])
+    return {"card": card, "scale": scale, "seed": 1, "ucs_MPa": s["ucs_MPa"],
+            "E_GPa": s["E_GPa"], "nu": s["nu"], "nu_window_lo": s["nu_window_lo"],
+            "nu_window_hi": s["nu_window_hi"],
+            "nu_40_60": -fit_slope(ea[pre][w], er[pre][w]), "n_balls": int(s["n_balls"]),
+            "cpu_s": time.process_time() - t0}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scales", default="0.55,0.8")
+    ap.add_argument("--seeds", default="1,2,3,4,5")
+    ap.add_argument("--cards", default=",".join(CARDS))
+    ap.add_argument("--before", default="", help="scales at which to run the before settings")
+    ap.add_argument("--ucs", action="store_true", help="the UCS part too")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--commit", default="", help="the commit of the source when it runs "
+                    "from an export (git archive) that git cannot name")
+    ap.add_argument("--out", required=True)
+    a = ap.parse_args(argv)
+    head = record_header("flatjoint_brazilian.py", sys.argv[1:] if argv is None else argv)
+    head["commit"] = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
+                                    capture_output=True, text=True).stdout.strip() or a.commit
+    import bpmcal
+    head["bpmcal_source"] = str(Path(bpmcal.__file__).parent)
+    seeds = [int(x) for x in a.seeds.split(",")]
+    cfg = study_config()
+    tasks = [(c, float(sc), sd, "after") for c in a.cards.split(",")
+             for sc in a.scales.split(",") for sd in seeds]
+    tasks += [(c, float(sc), sd, "before") for c in a.cards.split(",")
+              for sc in a.before.split(",") if sc for sd in seeds]
+    out = {**head, "discs": [], "ucs": []}
+
+    def save():  # after every run: a long matrix cut short keeps what it measured
+        out["load_average_end"] = list(os.getloadavg())
+        Path(a.out).write_text(json.dumps(out, indent=1, default=float))
+
+    with ProcessPoolExecutor(a.jobs) as ex:
+        for r in (ex.map(ucs_run, UCS_CARDS) if a.ucs else []):
+            out["ucs"].append(r)
+            save()
+        for r in ex.map(disc_run, *zip(*tasks), [cfg] * len(tasks)):
+            out["discs"].append(r)
+            save()
+    save()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
