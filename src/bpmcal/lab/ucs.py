@@ -42,10 +42,12 @@ summary reports ``end_cap_bonds`` and ``end_cap_broken`` (0 when the caps hold).
 
 Results: sigma_c = peak stress; E = least-squares slope of sigma vs eps_a and
 nu = -slope of eps_r vs eps_a over the pre-peak records with 0.4 <= sigma/sigma_c <= 0.6
-(``fit_window``), nu before crack dilation: where the tangent nu of a 0.1 sigma_c bin
+(``fit_window``; the laboratory's practice: the target nu is read there), and beside it
+``nu_pre_dilation``, nu before crack dilation: where the tangent nu of a 0.1 sigma_c bin
 rises more than 25 % above its value over 0.1-0.2 sigma_c inside the window (a flat-jointed
-card with slits dilates from about 0.3 sigma_c), nu is fitted over the window of the same
-proportions that ends there (``nu_window_lo``/``_hi``; ``dilation_onset``); strain at peak;
+card with slits dilates from about 0.3 sigma_c), it is fitted over the window of the same
+proportions that ends there (``nu_window_lo``/``_hi``; ``dilation_onset``), else it is nu;
+strain at peak;
 pre-peak energy density U_p = integral of sigma d eps_a from 0 to the peak (trapezoids,
 the paper's Table 6); ``E_central_GPa``, the slope of sigma vs the central gauge's strain
 over E's window (the bulk modulus of the specimen's middle half, not what the paper calls
@@ -211,10 +213,10 @@ def dilation_onset(sig, ea, er, peak: float, hi: float) -> float:
 
 def analyse(series: dict, settings: UCSSettings) -> dict:
     """sigma_c, E, nu, peak strain, U_p and the crack-initiation stress from a series.
-    nu is fitted over the E window unless the specimen dilates inside it
-    (:func:`dilation_onset` below its top): then over the window of the same proportions
-    that ends where dilation starts (``nu_window_lo``/``_hi`` say which, in fractions of
-    sigma_c)."""
+    nu is fitted over the E window; ``nu_pre_dilation`` too unless the specimen dilates
+    inside it (:func:`dilation_onset` below its top): then over the window of the same
+    proportions that ends where dilation starts (``nu_window_lo``/``_hi`` say which, in
+    fractions of sigma_c)."""
     s = np.asarray(series["axial_stress"])
     ea = np.asarray(series["axial_strain"])
     er = np.asarray(series["lateral_strain"])
@@ -233,7 +235,8 @@ def analyse(series: dict, settings: UCSSettings) -> dict:
         nwin = (s[pre] >= nlo * peak) & (s[pre] <= nhi * peak)
     else:
         nlo, nhi, nwin = lo, hi, win
-    nu = -fit_slope(ea[pre][nwin], er[pre][nwin])
+    nu = -fit_slope(ea[pre][win], er[pre][win])
+    nu_pre = -fit_slope(ea[pre][nwin], er[pre][nwin])
     up = float(np.trapezoid(s[: ip + 1], ea[: ip + 1])) if ip > 0 else 0.0
     ci_target = max(1.0, settings.ci_fraction * cr[ip])
     hit = np.flatnonzero(cr >= ci_target)
@@ -241,7 +244,7 @@ def analyse(series: dict, settings: UCSSettings) -> dict:
     return {"ucs_MPa": peak / 1e6, "E_GPa": E / 1e9, "E_central_GPa": E_c / 1e9, "nu": nu,
             "peak_strain": float(ea[ip]), "u_pre_MJm3": up / 1e6,
             "crack_init_MPa": ci / 1e6, "fit_points": int(win.sum()),
-            "nu_window_lo": float(nlo), "nu_window_hi": float(nhi),
+            "nu_pre_dilation": nu_pre, "nu_window_lo": float(nlo), "nu_window_hi": float(nhi),
             "cracks_tension_peak": int(series["cracks_tension"][ip]),
             "cracks_shear_peak": int(series["cracks_shear"][ip])}
 
