@@ -35,9 +35,11 @@ studies; the DEM's planted cards are ``posterior_planted.py``'s.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -245,16 +247,29 @@ def main(argv=None) -> int:
     ap.add_argument("--refine", type=int, default=6, help="refinement seed runs at most")
     ap.add_argument("--jobs", type=int, default=1, help="cards side by side (processes)")
     ap.add_argument("--commit", default="")
+    ap.add_argument("--rows", help="append each card's row to this JSONL file as it ends "
+                    "(a long run cut short keeps what it measured)")
+    ap.add_argument("--from-rows", nargs="+", metavar="JSONL",
+                    help="no runs: the record of the rows in these files (several runs')")
     ap.add_argument("--out")
     ap.add_argument("--markdown")
     a = ap.parse_args(argv)
     header = record_header("posterior_coverage.py", argv)
+    if a.from_rows:
+        rows = [json.loads(line) for f in a.from_rows for line in Path(f).read_text().splitlines()
+                if line.strip()]
+        rec = {"header": header, "commit": a.commit, "rows": rows, "summary": summarise(rows)}
+        write_record(rec, a.out, a.markdown, markdown, default=float)
+        return 0
     jobs = [(case, i, f, a.design, a.refine) for case in a.case for f in a.se_factor
             for i in range(a.first, a.first + a.cards)]
     rows = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:  # each worker its own designs
         for r in pool.map(_one, jobs):
             rows.append(r)
+            if a.rows:
+                with open(a.rows, "a") as fh:
+                    fh.write(json.dumps(r, default=float) + "\n")
             print(f"{r['case']} se x{r['se_factor']:g} card {r['card']}: inside {r['inside']} "
                   f"widths { {q: round(w, 1) for q, w in r['width_pct'].items()} } "
                   f"classes {r['classes']} {r['cpu_s']:.0f} s", flush=True)
