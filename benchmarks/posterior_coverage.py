@@ -206,6 +206,7 @@ def markdown(rec: dict) -> str:
              f"| host | {h['cpu_model']}, {h['cpus']} cores |",
              f"| load | {h['load_average'][0]:.1f} at the start (others' jobs; CPU time is "
              "the figure) |", f"| command | `{h['command']}` |", "",
+             *([rec["note"], ""] if rec.get("note") else []),
              "Each planted card went through the study's path on a synthetic rock "
              "(benchmarks/loop_convergence.py: design, stepwise regression, inversion, "
              "closed loop) and then the posterior (design and loop runs, active refinement "
@@ -251,6 +252,7 @@ def main(argv=None) -> int:
                     "(a long run cut short keeps what it measured)")
     ap.add_argument("--from-rows", nargs="+", metavar="JSONL",
                     help="no runs: the record of the rows in these files (several runs')")
+    ap.add_argument("--note", default="", help="a line for the record (e.g. the runs' commands)")
     ap.add_argument("--out")
     ap.add_argument("--markdown")
     a = ap.parse_args(argv)
@@ -258,7 +260,8 @@ def main(argv=None) -> int:
     if a.from_rows:
         rows = [json.loads(line) for f in a.from_rows for line in Path(f).read_text().splitlines()
                 if line.strip()]
-        rec = {"header": header, "commit": a.commit, "rows": rows, "summary": summarise(rows)}
+        rec = {"header": header, "commit": a.commit, "note": a.note, "rows": rows,
+               "summary": summarise(rows)}
         write_record(rec, a.out, a.markdown, markdown, default=float)
         return 0
     jobs = [(case, i, f, a.design, a.refine) for case in a.case for f in a.se_factor
@@ -273,7 +276,8 @@ def main(argv=None) -> int:
             print(f"{r['case']} se x{r['se_factor']:g} card {r['card']}: inside {r['inside']} "
                   f"widths { {q: round(w, 1) for q, w in r['width_pct'].items()} } "
                   f"classes {r['classes']} {r['cpu_s']:.0f} s", flush=True)
-    rec = {"header": header, "commit": a.commit, "rows": rows, "summary": summarise(rows)}
+    rec = {"header": header, "commit": a.commit, "note": a.note, "rows": rows,
+               "summary": summarise(rows)}
     write_record(rec, a.out, a.markdown, markdown, default=float)
     return 0
 
