@@ -232,11 +232,18 @@ def test_example_card_is_bounded_by_the_configured_ranges_and_reachable(example)
         assert ok[k].min() < v < ok[k].max(), (k, ok[k].min(), ok[k].max())
     if "bts_MPa" in card["targets"]:
         # LdB's sigma_c/sigma_t = 21.5 lies beyond the parallel-bond model (~4-8): the card is
-        # either a fit or, truthfully, no-exact-fit naming sigma_t among the missed targets
-        assert card["status"] in ("ok", "non-unique", "no-exact-fit"), card["message"]
+        # either a fit or, truthfully, no-exact-fit naming sigma_t among the missed targets,
+        # or - ten tiny samples make imprecise models - a miss within the models' own
+        # prediction error, which says so with its probability and advises nothing
+        assert card["status"] in ("ok", "non-unique", "no-exact-fit", "within-error"), \
+            card["message"]
         if card["status"] == "no-exact-fit":
             assert "bts_MPa" in [m["target"] for m in card["missed"]], card["missed"]
             assert "sigma" in card["message"] or "σt" in card["message"], card["message"]
+        if card["status"] == "within-error":
+            t = card["reach_test"]
+            assert t["reachable"] and t["p_reach"] >= t["alpha"], t
+            assert not card.get("widen") and not card.get("advice"), card
     else:
         assert card["status"] in ("ok", "non-unique"), card["message"]
     for p in ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa"):
