@@ -33,6 +33,23 @@ FILES = L.StudyFiles(config["outdir"])
 # ball-steps by phase (bpmcal.cost; read by benchmarks/cost_model.py)
 os.environ.setdefault("BPMCAL_COST", "1")
 SAMPLES = L.sample_ids(config["study"]["n_samples"])
+# which ready job Snakemake starts first (a job's priority, higher first; no rule waits
+# for a lower one): the longest jobs, so that short ones fill the cores at the end instead
+# of a long one running alone - the posterior predictive (every draw's triaxial tests and
+# impact), the closed loops and transfers, the posteriors, the fresh seeds, the impacts,
+# the seed scatter, then the one-test jobs; the analysis jobs (seconds) last
+PRIORITY = {
+    "posterior_predictive": 60,
+    "verify": 50,
+    "transfer": 50,
+    "posterior": 45,
+    "fresh_seeds": 40,
+    "impact": 30,
+    "seed_scatter": 25,
+    "ucs": 20,
+    "triaxial": 20,
+    "sweep_ucs": 10,
+}
 SPECIMENS = list(_lab["specimen"])
 SWEEP_ON = bool(config["ratio_sweep"]["enabled"])
 BTS_ON = bool(config["bts"]["enabled"])  # a Brazilian test of every design sample

@@ -37,6 +37,7 @@ rule posterior:
         ),
     log:
         FILES.log("posterior", "{spec}"),
+    priority: PRIORITY["posterior"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["loop_threads"]  # refinement seeds side by side
@@ -106,6 +107,7 @@ rule posterior_predictive:
         impact=_PRED_IMP,
     log:
         FILES.log("posterior_predictive", "{spec}"),
+    priority: PRIORITY["posterior_predictive"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["loop_threads"]  # draws side by side

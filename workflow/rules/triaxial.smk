@@ -12,6 +12,7 @@ rule triaxial:
     wildcard_constraints:
         kind="calibrated|verified",
         s3=r"[0-9.e+]+",
+    priority: PRIORITY["triaxial"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["dem_threads"]
