@@ -100,10 +100,12 @@ def beside(*files):
     return [c for f in files for c in L.companions(f)[1:]]
 
 
-def specimen_args(cfg=config, scale=None, loading=True):
+def specimen_args(cfg=config, scale=None, loading=True, ucs=True):
     """bpmcal ucs/impact options of the specimen, loading (the compression section; ``loading``
-    False for a job that does not load a cylinder axially: the impact) and resources
-    sections, as a list of arguments (for {params.opts:q}: each one is shell-quoted).
+    False for a job that does not load a cylinder axially: the impact; ``ucs`` False for
+    one that runs no UCS test, without the UCS test's approach: the triaxial tests) and
+    resources sections, as a list of arguments (for {params.opts:q}: each one is
+    shell-quoted).
     A job's params hold only what it reads, so that a changed key reruns exactly those
     jobs (tests/workflow/test_smoke.py, the rerun map)."""
     sp, u, r = cfg["specimen"], cfg["compression"], cfg["resources"]
@@ -129,6 +131,9 @@ def specimen_args(cfg=config, scale=None, loading=True):
                 "--end-cap-factor": u["end_cap_factor"],
             }
         )
+    if loading and ucs:
+        opts["--approach-velocity"] = u["approach_velocity"]
+        opts["--approach-ramp"] = u["approach_ramp"]
     opts.update(
         {
             "--specimen-cache": FILES.packings,

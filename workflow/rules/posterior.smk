@@ -141,7 +141,7 @@ rule posterior_predictive:
         card_impact=lambda wc, input: (
             ["--card-impact", input.card_impact] if input.card_impact else []
         ),
-        opts=specimen_args(),
+        opts=specimen_args(ucs=False),
     shell:
         "bpmcal predictive --draws {input.draws:q} --specimen {wildcards.spec:q} "
         "--table {output.table:q} --sigma3 {params.sigma3:q} --tri-runs {output.tri:q} "
