@@ -177,9 +177,10 @@ def simulate(rock: Rock, p: dict, seed: int, cv: dict | None = None) -> dict:
     return {r: float(y[r] * (1.0 + cv[r] * zi)) for r, zi in zip(rock.responses, z)}
 
 
-def regression(rock: Rock, n: int, seed: int) -> dict:
+def design_runs(rock: Rock, n: int, seed: int) -> tuple[pd.DataFrame, dict]:
     """The study's path to the models: a Latin hypercube of ``n`` cards (sample i on packing
-    i + 1000), one run each, the three-stage stepwise regression of every response."""
+    i + 1000), one run each (a DataFrame), and the three-stage stepwise regression of every
+    response (its final models)."""
     from scipy.stats import qmc
 
     design = rock.design or {q: rock.ranges[q] for q in rock.free}
@@ -191,7 +192,12 @@ def regression(rock: Rock, n: int, seed: int) -> dict:
         rows.append({**p, **simulate(rock, p, 1000 + i, rock.design_cv)})
     df = pd.DataFrame(rows)
     res = StepwiseRegression(cv_folds=0, seed=seed).fit(df, {r: list(design) for r in rock.responses})
-    return res.final_models
+    return df, res.final_models
+
+
+def regression(rock: Rock, n: int, seed: int) -> dict:
+    """The stepwise models of :func:`design_runs`."""
+    return design_runs(rock, n, seed)[1]
 
 
 def one_card(rock: Rock, i: int, models: dict, max_rounds, updates=UPDATES,

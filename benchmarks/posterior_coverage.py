@@ -5,7 +5,7 @@ checked against its 90 % highest-density intervals.
 
 No DEM. Per planted card (inside the ranges' middle 80 %): the rock's design (a Latin
 hypercube, one run each) and its stepwise regression; the lab targets as the mean of the
-rock's lab seeds with their standard errors (``--se-factor`` scales them: 0.25 is a lab
+card's own 20 lab packings with their standard errors (``--se-factor`` scales them: 0.25 is a lab
 with 16 times the specimens); the inversion; the closed loop from it (3 seeds growing to
 10, margin 0.25, the loop's defaults), every run kept; the posterior on the design and
 the loop's runs, with active refinement (``--refine`` seed runs at most, on the rock);
@@ -37,15 +37,16 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pandas as pd
 from _study import record_header, write_record
-from loop_convergence import ROCKS, simulate
+from loop_convergence import ROCKS, design_runs, simulate
 
 from bpmcal.analysis.calibration import ClosedLoop, invert
 from bpmcal.analysis.posterior import PosteriorSettings, Problem, fit_posterior, fit_surrogate
-from bpmcal.analysis.stepwise import StepwiseRegression, design_matrix
+from bpmcal.analysis.stepwise import design_matrix
 from bpmcal.stages.posterior import RefineSettings, refine_posterior
 
 RATIO = 1.5
@@ -58,22 +59,12 @@ CASES = {
 
 
 def design(rock, n: int, seed: int = 11):
-    """The rock's design runs (DataFrame, ``source`` design) and stepwise models."""
-    from scipy.stats import qmc
-
-    space = rock.design or {q: rock.ranges[q] for q in rock.free}
-    u = qmc.LatinHypercube(d=len(space), seed=seed).random(n)
-    rows = []
-    for i, ui in enumerate(u):
-        p = dict(rock.fixed)
-        p.update({q: lo + x * (hi - lo) for (q, (lo, hi)), x in zip(space.items(), ui)})
-        rows.append({**p, **simulate(rock, p, 1000 + i, rock.design_cv)})
-    df = pd.DataFrame(rows)
-    models = StepwiseRegression(cv_folds=0, seed=seed).fit(
-        df, {r: list(space) for r in rock.responses}).final_models
+    """The rock's design runs (``loop_convergence.design_runs``, labelled for the
+    posterior: source design, one packing each), its stepwise models and parameters."""
+    df, models = design_runs(rock, n, seed)
     df["source"], df["round"], df["run"] = "design", np.nan, [f"d{i}" for i in range(n)]
     df["packing"] = [f"d{i}" for i in range(n)]
-    return df, models, list(space)
+    return df, models, list(rock.design or {q: rock.ranges[q] for q in rock.free})
 
 
 def planted_card(rock, i: int, ratio):
@@ -86,6 +77,15 @@ def planted_card(rock, i: int, ratio):
         p["pb_coh_MPa"] = min(p["pb_coh_MPa"], 0.9 * hi / ratio)
         p["pb_ten_MPa"] = ratio * p["pb_coh_MPa"]
     return p
+
+
+def lab_seeds(rock, i: int) -> range:
+    """Card ``i``'s lab packings: its own (a rock's lab tests its own specimens). The
+    rock's ``lab_seeds`` shared by every card would give every card the same packing
+    offsets in its targets, one draw repeated, and the cards' coverages would not be
+    independent trials (``loop_convergence.py`` keeps them: it measures the loop)."""
+    shift = 1000 * (i + 1)
+    return range(rock.lab_seeds.start + shift, rock.lab_seeds.stop + shift)
 
 
 def _problem(rock, free, ratio, margin: float = 0.25) -> Problem:
@@ -110,7 +110,7 @@ def one_case(case: str, i: int, se_factor: float, n_design: int, refine_max: int
     free = [q for q in rock.free if not (ratio is not None and q == "pb_ten_MPa")]
     t0 = time.process_time()
     planted = planted_card(rock, i, ratio)
-    lab = pd.DataFrame([simulate(rock, planted, s) for s in rock.lab_seeds])
+    lab = pd.DataFrame([simulate(rock, planted, s) for s in lab_seeds(rock, i)])
     targets = {r: float(lab[r].mean()) for r in targets_r}
     se = {r: se_factor * float(lab[r].std(ddof=1) / len(lab) ** 0.5) for r in targets_r}
     inv = invert({r: models[r] for r in targets_r}, targets, rock.fixed, free=free, ratio=ratio,
@@ -226,6 +226,14 @@ def markdown(rec: dict) -> str:
     return "\n".join(lines)
 
 
+_CACHE: dict = {}  # a worker's designs (one per rock)
+
+
+def _one(job: tuple) -> dict:
+    case, i, f, n_design, refine = job
+    return one_case(case, i, f, n_design, refine, _CACHE)
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -235,20 +243,21 @@ def main(argv=None) -> int:
     ap.add_argument("--se-factor", type=float, nargs="+", default=[1.0])
     ap.add_argument("--design", type=int, default=150, help="design samples")
     ap.add_argument("--refine", type=int, default=6, help="refinement seed runs at most")
+    ap.add_argument("--jobs", type=int, default=1, help="cards side by side (processes)")
     ap.add_argument("--commit", default="")
     ap.add_argument("--out")
     ap.add_argument("--markdown")
     a = ap.parse_args(argv)
     header = record_header("posterior_coverage.py", argv)
-    rows, cache = [], {}
-    for case in a.case:
-        for f in a.se_factor:
-            for i in range(a.first, a.first + a.cards):
-                r = one_case(case, i, f, a.design, a.refine, cache)
-                rows.append(r)
-                print(f"{case} se x{f:g} card {i}: inside {r['inside']} widths "
-                      f"{ {q: round(w, 1) for q, w in r['width_pct'].items()} } "
-                      f"classes {r['classes']} {r['cpu_s']:.0f} s", flush=True)
+    jobs = [(case, i, f, a.design, a.refine) for case in a.case for f in a.se_factor
+            for i in range(a.first, a.first + a.cards)]
+    rows = []
+    with ProcessPoolExecutor(max_workers=a.jobs) as pool:  # each worker its own designs
+        for r in pool.map(_one, jobs):
+            rows.append(r)
+            print(f"{r['case']} se x{r['se_factor']:g} card {r['card']}: inside {r['inside']} "
+                  f"widths { {q: round(w, 1) for q, w in r['width_pct'].items()} } "
+                  f"classes {r['classes']} {r['cpu_s']:.0f} s", flush=True)
     rec = {"header": header, "commit": a.commit, "rows": rows, "summary": summarise(rows)}
     write_record(rec, a.out, a.markdown, markdown, default=float)
     return 0

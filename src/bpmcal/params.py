@@ -69,6 +69,23 @@ PARAMS: dict[str, Param] = {p.name: p for p in [
 
 PARAM_NAMES: tuple[str, ...] = tuple(PARAMS)
 
+#: The strength scatter of the parallel bond (PFC's material-modeling package, fistPkg:
+#: ``pbm_ten_sd``, ``pbm_coh_sd``): the standard deviations of the per-contact tensile
+#: strength ``pb_ten`` and cohesion ``pb_coh``, whose means are ``pb_ten_MPa`` and
+#: ``pb_coh_MPa``. Each bond draws its own pair at installation from a Gaussian truncated
+#: at zero (``lab.specimen.install_strength_scatter``). Optional keys, default 0 (every
+#: bond at the mean, as the paper); not Table 2 parameters.
+PB_SCATTER: dict[str, Param] = {p.name: p for p in [
+    Param("pb_ten_sd_MPa", "sd(sigma_cp)", r"$s(\sigma_c^p)$", "MPa", 1e6, 0.0, 0.0, 0.0,
+          math.inf, False, "standard deviation of the per-bond tensile strength pb_ten",
+          unicode="sd(σcp)"),
+    Param("pb_coh_sd_MPa", "sd(tau_cp)", r"$s(\tau_c^p)$", "MPa", 1e6, 0.0, 0.0, 0.0,
+          math.inf, False, "standard deviation of the per-bond cohesion pb_coh",
+          unicode="sd(τcp)"),
+]}
+#: defaults of the parallel bond's optional keys: no scatter
+PB_DEFAULTS: dict[str, float] = {"pb_ten_sd_MPa": 0.0, "pb_coh_sd_MPa": 0.0}
+
 #: The ball parameters every contact model shares.
 BALL_PARAMS: tuple[str, ...] = ("rmin_mm", "porosity")
 #: ... by name: the smallest ball radius and the porosity of the packing
@@ -105,12 +122,20 @@ FJ_PARAMS: dict[str, Param] = {p.name: p for p in [
           "fraction of gapped (unbonded, open) flat joints", unicode="φG"),
     Param("fj_gap0_ratio", "g_0", r"$g_0/\bar R$", "", 1.0, 0.0, 0.1, 0.0, 5.0, False,
           "initial gap of gapped flat joints over the mean ball radius", unicode="g0/R̄"),
+    # the strength scatter (fistPkg's fjm_ten_sd, fjm_coh_sd): per flat joint, shared by
+    # its elements, as PFC's fj_ten / fj_coh are contact properties (PB_SCATTER)
+    Param("fj_ten_sd_MPa", "sd(sigma_b)", r"$s(\sigma_b)$", "MPa", 1e6, 0.0, 0.0, 0.0,
+          math.inf, False, "standard deviation of the per-joint tensile strength fj_ten",
+          unicode="sd(σb)"),
+    Param("fj_coh_sd_MPa", "sd(c_b)", r"$s(c_b)$", "MPa", 1e6, 0.0, 0.0, 0.0, math.inf,
+          False, "standard deviation of the per-joint cohesion fj_coh", unicode="sd(cb)"),
 ]}
 
 #: defaults of the flat-joint card's optional keys (PFC's usual 3D choices, docs/flatjoint-spec.md §5-6)
 FJ_DEFAULTS: dict[str, float] = {"fj_rmul": 1.0, "fj_nr": 1.0, "fj_nal": 3.0,
                                  "fj_gi_ratio": 0.0, "fj_slit_frac": 0.0, "fj_gap_frac": 0.0,
-                                 "fj_gap0_ratio": 0.0}
+                                 "fj_gap0_ratio": 0.0, "fj_ten_sd_MPa": 0.0,
+                                 "fj_coh_sd_MPa": 0.0}
 #: integer-valued flat-joint parameters (element counts)
 FJ_INTEGERS: tuple[str, ...] = ("fj_nr", "fj_nal")
 #: the parallel bond's radius multiplier, fixed by the paper (section 2.2: lambda_p = 1)
@@ -130,7 +155,10 @@ class ContactModel:
     ``free``: the parameters a calibration frees by default (the paper's method, with
     the tensile strength derived through the ratio); ``title``: the model in words;
     ``ratio_advice``: what to try when a target σc/σt lies ``"above"`` or ``"below"``
-    what this model's cards reach (the calibration's ``no-exact-fit`` message adds it).
+    what this model's cards reach (the calibration's ``no-exact-fit`` message adds it);
+    ``quiet``: optional keys that cards, designs and run files leave out while they are at
+    their defaults (the strength scatter: a study without it writes what it wrote before
+    the keys existed; absent means the default).
 
     How a card builds its material (``lab.specimen.card_material``): ``material``, card
     parameter -> the engine material fields it sets (``dem.material``: SI units, through
@@ -151,6 +179,7 @@ class ContactModel:
     material: dict[str, tuple[str, ...]] | None = None
     material_fixed: dict[str, float] | None = None
     microstructure: dict[str, str] | None = None
+    quiet: tuple[str, ...] = ()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -185,8 +214,8 @@ class ContactModel:
 
 
 LINEARPBOND = ContactModel(
-    "linearpbond", "linear parallel bond", PARAMS, ("pb_ten_MPa", "pb_coh_MPa"), "σcp/τcp",
-    ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa"),
+    "linearpbond", "linear parallel bond", {**PARAMS, **PB_SCATTER}, ("pb_ten_MPa", "pb_coh_MPa"),
+    "σcp/τcp", ("pb_emod_GPa", "pb_kratio", "pb_coh_MPa"), defaults=PB_DEFAULTS,
     ratio_advice={
         "above": "a σc/σt this high is beyond bonded spheres with parallel bonds (their "
                  "known limit, for which PFC's flat joint was made): try "
@@ -196,8 +225,9 @@ LINEARPBOND = ContactModel(
     # the paper's set: the linear part shares the bond's modulus and stiffness ratio
     material={"pb_emod_GPa": ("emod", "pb_emod"), "pb_kratio": ("kratio", "pb_kratio"),
               "pb_ten_MPa": ("pb_ten",), "pb_coh_MPa": ("pb_coh",), "pb_fa_deg": ("pb_fa",),
-              "fric": ("fric",)},
-    material_fixed={"pb_rmul": PB_RMUL})
+              "fric": ("fric",), "pb_ten_sd_MPa": ("pb_ten_sd",),
+              "pb_coh_sd_MPa": ("pb_coh_sd",)},
+    material_fixed={"pb_rmul": PB_RMUL}, quiet=tuple(PB_SCATTER))
 FLATJOINT = ContactModel(
     "flatjoint", "flat joint", {**{k: PARAMS[k] for k in BALL_PARAMS}, **FJ_PARAMS},
     ("fj_ten_MPa", "fj_coh_MPa"), "σb/cb", ("fj_emod_GPa", "fj_kratio", "fj_coh_MPa"),
@@ -210,9 +240,11 @@ FLATJOINT = ContactModel(
     material={"fj_emod_GPa": ("fj_emod",), "fj_kratio": ("fj_kratio",),
               "fj_ten_MPa": ("fj_ten",), "fj_coh_MPa": ("fj_coh",), "fj_fa_deg": ("fj_fa",),
               "fj_fric": ("fj_fric",), "fj_rmul": ("fj_rmul",), "fj_nr": ("fj_nr",),
-              "fj_nal": ("fj_nal",)},
+              "fj_nal": ("fj_nal",), "fj_ten_sd_MPa": ("fj_ten_sd",),
+              "fj_coh_sd_MPa": ("fj_coh_sd",)},
     microstructure={"fj_gi_ratio": "gi_ratio", "fj_slit_frac": "slit_frac",
-                    "fj_gap_frac": "gap_frac", "fj_gap0_ratio": "gap0_ratio"})
+                    "fj_gap_frac": "gap_frac", "fj_gap0_ratio": "gap0_ratio"},
+    quiet=("fj_ten_sd_MPa", "fj_coh_sd_MPa"))
 
 #: contact models by PFC name: their cards (:class:`ContactModel`)
 MODELS: dict[str, ContactModel] = {m.name: m for m in (LINEARPBOND, FLATJOINT)}
@@ -274,7 +306,7 @@ def card_model(values: dict) -> str:
     if named is not None and named not in CONTACT_MODELS:
         raise ParameterError(f"contact_model={named!r}: expected one of "
                              f"{', '.join(CONTACT_MODELS)}")
-    pb = sorted(k for k in values if k in PARAMS and k not in BALL_PARAMS)
+    pb = sorted(k for k in values if k in LINEARPBOND.params and k not in BALL_PARAMS)
     fj = sorted(k for k in values if k in FJ_PARAMS)
     if pb and fj:
         raise ParameterError(f"mixed card: parallel-bond keys {pb} and flat-joint keys {fj}; "
@@ -370,10 +402,8 @@ class ParameterError(ValueError):
 
 def to_si(name: str, value: float) -> float:
     """Paper units -> SI for a parameter or response name."""
-    if name in PARAMS:
-        return float(value) * PARAMS[name].si
-    if name in FJ_PARAMS:
-        return float(value) * FJ_PARAMS[name].si
+    if name in ALL_PARAMS:
+        return float(value) * ALL_PARAMS[name].si
     if name in RESPONSES:
         return float(value) * RESPONSES[name].si
     raise ParameterError(f"unknown quantity {name!r}")
@@ -381,10 +411,8 @@ def to_si(name: str, value: float) -> float:
 
 def from_si(name: str, value: float) -> float:
     """SI -> paper units."""
-    if name in PARAMS:
-        return float(value) / PARAMS[name].si
-    if name in FJ_PARAMS:
-        return float(value) / FJ_PARAMS[name].si
+    if name in ALL_PARAMS:
+        return float(value) / ALL_PARAMS[name].si
     if name in RESPONSES:
         return float(value) / RESPONSES[name].si
     raise ParameterError(f"unknown quantity {name!r}")
@@ -397,15 +425,21 @@ def as_number(v, name: str, expected: str = "a number", error=None) -> float:
     if type(v).__module__ == "numpy" and hasattr(v, "item"):
         v = v.item()  # numpy scalar -> Python (plain repr in messages)
     if isinstance(v, bool) or v is None or isinstance(v, (str, bytes)):
-        raise error(f"{name}={v!r}: expected {expected}, got "
+        raise error(f"{name}={_shown(v)}: expected {expected}, got "
                     f"{'a boolean' if isinstance(v, bool) else type(v).__name__}")
     try:
         x = float(v)
-    except (TypeError, ValueError):
-        raise error(f"{name}={v!r}: expected {expected}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise error(f"{name}={_shown(v)}: expected {expected}") from None
     if not math.isfinite(x):
         raise error(f"{name}={v!r}: expected a finite number ({expected})")
     return x
+
+
+def _shown(v, limit: int = 60) -> str:
+    """``repr(v)`` for a message, cut to ``limit`` characters."""
+    r = repr(v)
+    return r if len(r) <= limit else f"{r[:limit]}... ({len(r) - limit:,} more characters)"
 
 
 def validate_params(values: dict, *, require_all: bool = True, within_table2: bool = False
@@ -424,9 +458,9 @@ def validate_params(values: dict, *, require_all: bool = True, within_table2: bo
         raise ParameterError(f"unknown parameter(s) {unknown}; expected names from {list(table)}"
                              + (f" (contact model {model})" if model != DEFAULT_CONTACT_MODEL
                                 else ""))
-    if require_all:
-        if model == "flatjoint":
-            values = {**{k: v for k, v in FJ_DEFAULTS.items() if k not in values}, **values}
+    if require_all:  # the model's optional keys at their defaults
+        defaults = MODELS[model].defaults or {}
+        values = {**{k: v for k, v in defaults.items() if k not in values}, **values}
         missing = [p for p in table if p not in values]
         if missing:
             raise ParameterError(f"missing parameter(s) {missing}")
@@ -443,6 +477,9 @@ def validate_params(values: dict, *, require_all: bool = True, within_table2: bo
             e = ")" if p.hi_open else "]"
             raise ParameterError(f"{k}={x:g}{unit} is outside its physical domain "
                                  f"{b}{p.phys_lo:g}, {p.phys_hi:g}{e} ({p.description})")
+        if not math.isfinite(x * p.si):  # (the engine's SI value: e.g. 1e300 GPa)
+            raise ParameterError(f"{k}={x:g}{unit}: too large, expected a number in "
+                                 f"{p.unit or 'its unit'} well below 1e300")
         if within_table2 and not (p.lo <= x <= p.hi):
             raise ParameterError(f"{k}={x:g}{unit} is outside the Table 2 range "
                                  f"[{p.lo:g}, {p.hi:g}]{unit}")
@@ -454,6 +491,8 @@ def validate_params(values: dict, *, require_all: bool = True, within_table2: bo
         if frac > 1.0:
             raise ParameterError(f"fj_slit_frac + fj_gap_frac = {frac:g}: expected at most 1 "
                                  "(the rest of the flat joints are bonded)")
-        out = {k: out[k] for k in table if k in out}
         out["contact_model"] = model
-    return out
+    defaults = MODELS[model].defaults or {}
+    quiet = [k for k in MODELS[model].quiet if k in out and out[k] == defaults[k]]
+    # the card's order; the quiet keys (no strength scatter) left out at their defaults
+    return {k: out[k] for k in (*table, "contact_model") if k in out and k not in quiet}

@@ -183,7 +183,10 @@ def test_surrogate_choice_prefers_the_gp_on_a_curved_response_and_replicates_giv
     assert s.kind == "gp"
     assert s.scores["gp"]["rmse"] < 0.5 * s.scores["stepwise"]["rmse"]
     d = response_data(runs, "y1", NAMES, RANGES, _basis)
-    g = runs.assign(_k=runs[list(NAMES)].round(12).astype(str).agg("|".join, axis=1))
+    # a point is one parameter set of one source: the design run and its loop replicates
+    # are two points (the loop's three replicates give 2 degrees of freedom each)
+    g = runs.assign(_k=runs[list(NAMES)].round(12).astype(str).agg("|".join, axis=1)
+                    + "|" + runs["source"])
     dev = g["y1"] - g.groupby("_k")["y1"].transform("mean")
     dof = (g.groupby("_k").size() - 1).sum()
     assert d.pure_dof == dof and np.isclose(d.pure_sd, np.sqrt((dev ** 2).sum() / dof))

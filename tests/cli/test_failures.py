@@ -108,8 +108,9 @@ def test_gather_records_unreadable_missing_and_failed_samples(tmp_path, capsys):
     pd.DataFrame(rows).to_csv(design, index=False)
     runs = tmp_path / "runs"
     runs.mkdir()
-    h5.write_run(runs / "s000.h5", test="ucs", inputs={}, summary={"ucs_MPa": 50.0})
-    h5.write_run(runs / "s001.h5", test="ucs", inputs={}, status="failed",
+    h5.write_run(runs / "s000.h5", test="ucs", inputs={**A1, "seed": 0},
+                 summary={"ucs_MPa": 50.0, "stop_reason": "post_peak_drop"})
+    h5.write_run(runs / "s001.h5", test="ucs", inputs={**A1, "seed": 1}, status="failed",
                  error="InstabilityError: blew up")
     raw = (runs / "s000.h5").read_bytes()
     (runs / "s002.h5").write_bytes(raw[: len(raw) // 3])  # truncated (a killed copy)
@@ -245,7 +246,8 @@ def test_calibrate_writes_exactly_the_cards_it_is_given(models, tmp_path, capsys
 @pytest.mark.parametrize("exc, code, needle", [
     (RuntimeError("boom"), 1, "internal error (a bug in bpmcal, not in your input)"),
     (OSError(28, "No space left on device", "/full/disk.h5"), 4,
-     "bpmcal summary: error: /full/disk.h5: No space left on device (system error)"),
+     "bpmcal summary: error: /full/disk.h5: no space left on the device (the disk is full) "
+     "(system error); free space there"),
     (KeyboardInterrupt(), 130, "bpmcal summary: interrupted"),
 ])
 def test_bugs_system_errors_and_interrupts_have_their_own_exit_codes(monkeypatch, capsys,

@@ -22,6 +22,11 @@ REQUIRED = {
                  "--rounds", "r.csv", "--run", "1.h5"],
     "fresh-seeds": ["--card", "c.yaml", "--seeds", "101,102", "--runs", "1.h5", "2.h5",
                     "--seed-runs", "s.csv"],
+    "posterior": ["--card", "c.yaml", "--dataset", "d.csv", "--models", "m.json",
+                  "--out-card", "p.yaml", "--table", "t.csv", "--predictions", "p.csv",
+                  "--netcdf", "p.nc", "--figure", "f.png"],
+    "predictive": ["--draws", "d.csv", "--specimen", "B1", "--table", "t.csv",
+                   "--sigma3", "0,10", "--tri-runs", "1.h5", "2.h5"],
 }
 
 #: old spelling -> (new spelling, a valid value other than the default)
@@ -37,7 +42,7 @@ RENAMED = {
 CASES = [("ucs", "--bts-post-peak-min"), ("ucs", "--dtt-post-peak-min"),
          ("bts", "--post-peak-min"), ("dtt", "--post-peak-min"), ("triaxial", "--servo-gain"),
          ("screen", "--splits"), ("screen", "--repeats"),
-         *[(c, o) for c in ("verify", "transfer", "fresh-seeds")
+         *[(c, o) for c in ("verify", "transfer", "fresh-seeds", "posterior", "predictive")
            for o in ("--bts-post-peak-min", "--dtt-post-peak-min")]]
 
 

@@ -238,14 +238,17 @@ def test_gather_reads_the_triaxial_run_files(tmp_path):
     design = pd.DataFrame([{"sample_id": f"s{i:03d}", **{k: v[0] for k, v in R.items()},
                             "seed": i} for i in range(3)])
     ucs, tri = {}, {}
+    rows = design.to_dict("records")
     for i, sid in enumerate(design["sample_id"]):
         ucs[sid] = tmp_path / f"{sid}.h5"
-        write_run(ucs[sid], test="ucs", inputs={}, summary={"ucs_MPa": 100.0 + i})
+        inputs = {k: v for k, v in rows[i].items() if k != "sample_id"}  # its design row
+        write_run(ucs[sid], test="ucs", inputs=inputs,
+                  summary={"ucs_MPa": 100.0 + i, "stop_reason": "post_peak_drop"})
         tri[sid] = tmp_path / f"{sid}.tri.h5"
-    write_run(tri["s000"], test="triaxial", inputs={},
+    write_run(tri["s000"], test="triaxial", inputs={**rows[0], "sample_id": None},
               summary={"sigma1_MPa": 150.0, "sigma3_MPa": S3, "wall_s": 2.0})
-    write_run(tri["s001"], test="triaxial", inputs={}, status="failed",
-              error="ServoError: planted", summary={"wall_s": 1.0})
+    write_run(tri["s001"], test="triaxial", inputs={**rows[1], "sample_id": None},
+              status="failed", error="ServoError: planted", summary={"wall_s": 1.0})
     df = gather(design, ucs, tri_files=tri)  # s002: no triaxial run file
     assert df["tri_MPa"].iloc[0] == 150.0 and df["tri_sigma3_MPa"].iloc[0] == S3
     assert list(df["tri_status"]) == ["ok", "failed", "missing"]

@@ -3,6 +3,7 @@ missing; each file added brings its section; the paper's values appear only for 
 paper's study; bad input is one clear error. (The whole report of a finished study:
 tests/workflow/test_smoke.py.)"""
 import copy
+import json
 import math
 from pathlib import Path
 
@@ -125,4 +126,4 @@ def test_bad_input_is_one_clear_error_and_writes_nothing(study, kw, needle):
 
 def test_an_outdir_that_is_not_a_folder_is_named(tmp_path):
     with pytest.raises(BadInput, match=r"--outdir .*nowhere: not a directory"):
-        report(tmp_path / "nowhere", config_json='{"study": {"name": "x"}}')
+        report(tmp_path / "nowhere", config_json=json.dumps(CONFIG))

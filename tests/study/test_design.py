@@ -11,9 +11,11 @@ def test_a_flat_joint_design_has_the_models_columns_and_defaults():
               "fj_kratio": [1.5, 3], "fj_ten_MPa": [5, 20], "fj_coh_MPa": [50, 200],
               "fj_fa_deg": [0, 40], "fj_fric": [0.4, 0.8]}
     d = lhs_design(ranges, 20, 7)
-    assert list(d.columns) == ["sample_id", *P.FLATJOINT.names, "seed"]
+    # the quiet keys (no strength scatter) are left out at their defaults
+    loud = [k for k in P.FLATJOINT.names if k not in P.FLATJOINT.quiet]
+    assert list(d.columns) == ["sample_id", *loud, "seed"]
     for k, v in P.FJ_DEFAULTS.items():  # no range, no fixed value: the model's default
-        assert (d[k] == v).all()
+        assert k in P.FLATJOINT.quiet or (d[k] == v).all()
     for k, (lo, hi) in ranges.items():
         assert d[k].between(lo, hi).all() and d[k].nunique() == 20
 
@@ -60,5 +62,6 @@ def test_a_flat_joint_design_row_is_a_flat_joint_card(tmp_path):
     with pytest.raises(BadInput, match="--contact-model linearpbond: .* flatjoint cards"):
         run_source(design=f, sample="s002", contact_model="linearpbond")
     df = gather(d, {})  # no run files: every sample missing, the card's columns kept
-    assert list(df.columns[:len(P.FLATJOINT.names) + 1]) == ["sample_id", *P.FLATJOINT.names]
+    loud = [k for k in P.FLATJOINT.names if k not in P.FLATJOINT.quiet]
+    assert list(df.columns[:len(loud) + 1]) == ["sample_id", *loud]
     assert (df["status"] == "missing").all()

@@ -422,3 +422,37 @@ def test_the_cli_offers_the_geneses_of_the_specimen_module():
     from bpmcal.lab.specimen import GENESES
 
     assert tuple(cli.GENESES) == tuple(GENESES)
+
+
+# ------------------------------------------------------------------------ bounds
+def cli_type(cmd, dest):
+    p = build_parser(only=cmd)._subparsers._group_actions[0].choices[cmd]
+    return next(a.type for a in p._actions if a.dest == dest)
+
+
+def _inside(inner, outer) -> bool:
+    """Whether the interval ``inner`` (low, low open, high, high open; None: unbounded)
+    lies inside ``outer``."""
+    (a, ao, b, bo), (c, co, d, do) = inner, outer
+    low = c is None or (a is not None and (a > c or (a == c and (ao or not co))))
+    high = d is None or (b is not None and (b < d or (b == d and (bo or not do))))
+    return low and high
+
+
+@pytest.mark.parametrize("key", sorted(k for k, (_, cli) in DEFAULTS.items() if cli))
+def test_what_the_config_allows_the_command_accepts(key):
+    """Config and command share their bounds: every value the schema lets through is one
+    the command the workflow passes it to accepts (else a study would fail at that job,
+    after the jobs before it, instead of at its validation)."""
+    cmd, dest, conv = DEFAULTS[key][1]
+    node = SCHEMA
+    for part in key.split("."):
+        node = node["properties"][part]
+    node = node.get("items", node)
+    bounds = getattr(cli_type(cmd, dest), "bounds", None)
+    if bounds is None or conv is not None or node.get("type") not in ("number", "integer"):
+        return  # a choice, a list or text: compared by the default's check
+    lo, lo_open, hi, hi_open = _limits(node)
+    assert _inside((lo, lo_open, hi, hi_open), bounds), (
+        f"{key}: the schema allows {(lo, lo_open, hi, hi_open)}, bpmcal {cmd} --"
+        f"{dest.replace('_', '-')} {bounds}")

@@ -620,7 +620,9 @@ RERUN = {
     "verification.from_unreachable": (False, _VERIFY),
     "verification.scatter_seeds": ([1, 2, 3], {"seed_scatter"}),
     "verification.fresh_seeds": ([11, 12, 13], {"fresh_seeds": 3}),
-    "transfer.enabled": (False, {"impact": 2}),  # the impact takes the verified card instead
+    # the impact takes the verified card instead; the first card's predictive check then
+    # reads that card's own reference impact (a new input)
+    "transfer.enabled": (False, {"impact": 2, "posterior_predictive": 1}),
     "transfer.scale": (0.36, {"transfer"}),
     "transfer.max_rounds": (2, {"transfer"}),
     "ratio_sweep.enabled": (False, {"calibrate"}),
@@ -628,19 +630,29 @@ RERUN = {
     "ratio_sweep.criterion": ("crack_count", {"sweep_analyse"}),
     "ratio_sweep.target": (0.55, {"sweep_analyse"}),
     "ratio_sweep.seed": (2, {"sweep_plan"}),
-    **{f"impact.{k}": (v, {"impact"}) for k, v in {
+    **{f"impact.{k}": (v, {"impact", "posterior_predictive"}) for k, v in {  # draws' impacts
         "scale": 0.26, "hammer_mass_kg": 4.4, "dp_ratio": 0.11, "anvil_fric": 0.31,
         "duration_ms": 2.1, "record_us": 21.0, "seed": 2}.items()},
-    "impact.velocity": (7.0, {"impact": 1}),  # a new reference run; 10 m/s stays
+    "impact.velocity": (7.0, {"impact": 1, "posterior_predictive": 1}),  # 10 m/s stays
     "impact.sweep_velocities": ([10.0, 12.0], {"impact": 1}),
-    "triaxial.enabled": (False, set()),
+    "triaxial.enabled": (False, {"posterior_predictive"}),  # its own envelope is gone
     "triaxial.cards": (["verified", "calibrated"], {"triaxial": 6}),
-    "triaxial.sigma3_MPa": ([0.0, 10.0, 20.0], {"triaxial": 3}),
-    "triaxial.servo_alpha": (0.7, {"triaxial"}),
-    "triaxial.seed": (2, {"triaxial"}),
+    # the predictive check's stresses default to the triaxial section's
+    "triaxial.sigma3_MPa": ([0.0, 10.0, 20.0], {"triaxial": 3, "posterior_predictive": 1}),
+    "triaxial.servo_alpha": (0.7, {"triaxial", "posterior_predictive"}),
+    "triaxial.seed": (2, {"triaxial", "posterior_predictive"}),
     "triaxial.lab_csv": ("config/lab/gs_triaxial.csv", {"triaxial_envelopes"}),
     "triaxial.design_sigma3_MPa": (10.0, {"ucs"}),  # the sample jobs gain the test
     "triaxial.design_stop_drop": (0.85, set()),  # no design triaxial test in the smoke study
+    "posterior.enabled": (False, set()),  # its jobs leave the DAG: the report only
+    **{f"posterior.{k}": (v, {"posterior"}) for k, v in {
+        "surrogate": "stepwise", "seed": 1, "hdi_prob": 0.8, "rhat_max": 1.02, "ess_min": 300,
+        "max_steps": 30000, "refine.max_runs": 1, "refine.ratio": 0.6, "refine.seeds": 1,
+        "refine.seed": 202, "predictive.draws": 3}.items()},
+    "posterior.learning_curve": (False, set()),  # fewer outputs: nothing to redo
+    "posterior.predictive.specimens": (2, {"posterior_predictive": 1}),
+    "posterior.predictive.sigma3_MPa": ([0.0, 5.0], {"posterior_predictive": 1}),
+    "posterior.predictive.impact": (False, {"posterior_predictive"}),
 }
 #: keys the map leaves out, and why
 NOT_MAPPED = {"outdir": "moves every file: everything reruns, by construction",

@@ -11,9 +11,11 @@ Parameters are in the paper's units at this edge (mm, GPa, MPa, degrees); the pa
 works in SI inside. Bad input (arguments, parameter values, input files, output paths,
 resource budgets) is reported before any work starts as one line on stderr,
 ``bpmcal CMD: error: ...``, with exit code 2, and nothing is written. Exit codes: 0 done,
-1 internal error (a bug: traceback and a hint), 2 bad input, 3 the DEM run failed and its
-failure record was written (0 with ``--failed-ok``, what the workflow rules pass),
-4 system error (disk full, permission), 130 interrupted.
+1 internal error (a bug: traceback and a hint), 2 bad input, 3 the DEM run failed (or
+ended incomplete) and its record was written (0 with ``--failed-ok``, what the workflow
+rules pass), 4 system error (disk full, a file-size limit, memory, a killed worker,
+SIGTERM), 130 interrupted. A closed stdout or stderr is no error of its own, and a command
+that fails removes the folders it created and left empty.
 
 The package only parses arguments and calls one stage (``bpmcal.stages``, the report) or
 one I/O helper. This module holds ``main``, the registry ``COMMANDS`` and
@@ -44,8 +46,11 @@ says what it was called before.
 from __future__ import annotations
 
 import argparse
+import errno
 import os
+import signal
 import sys
+import threading
 import traceback
 
 from .. import cost
@@ -111,9 +116,9 @@ def _param_help() -> str:
         unit = p.unit or "-"
         rows.append(f"  {p.name:12s} {p.symbol:9s} [{unit:3s}] Table 2 range {p.lo:g}-{p.hi:g}:"
                     f" {p.description}")
-    rows.append("exit codes: 0 done, 2 bad input (nothing written), 3 the run failed and its "
-                "failure record was written (0 with --failed-ok), 1 internal error, "
-                "4 system error, 130 interrupted")
+    rows.append("exit codes: 0 done, 2 bad input (nothing written), 3 the run failed or ended "
+                "incomplete and its record was written (0 with --failed-ok), 1 internal "
+                "error, 4 system error (disk full, memory, SIGTERM), 130 interrupted")
     return "\n".join(rows)
 
 
@@ -193,15 +198,82 @@ def _bad_input_types() -> tuple:
     return (BadInput, P.ParameterError, InputError, ConfigError, RunFileError)
 
 
+def _system_error_types() -> tuple:
+    """Failures of the machine, not of bpmcal or the input: memory, a worker process that
+    died (killed, out of memory)."""
+    from ..stages.pool import WorkerLost
+
+    return (MemoryError, WorkerLost)
+
+
 def _one_line(e) -> str:
-    return " ".join(str(e).split())
+    from ..io.safe_names import LINE_CHARS, clip
+
+    return clip(" ".join(str(e).split()), LINE_CHARS)
+
+
+#: errno -> (what happened, what to do) of a failed read or write (exit code 4)
+_SYSTEM_ADVICE = {
+    errno.ENOSPC: ("no space left on the device (the disk is full)",
+                   "free space there or write the outputs to another file system"),
+    errno.EDQUOT: ("disk quota exceeded", "free space in your quota or write elsewhere"),
+    errno.EFBIG: ("file too large for a limit on file size (ulimit -f, or the file "
+                  "system's)", "raise the limit or write to another file system"),
+    errno.EACCES: ("permission denied", "check the permissions of the file and its folder"),
+    errno.EPERM: ("operation not permitted", "check the permissions of the file and its "
+                                             "folder"),
+    errno.EROFS: ("read-only file system", "write the outputs to a writable folder"),
+    errno.EIO: ("input/output error (a failing disk or network file system)",
+                "check the file system, then run the command again"),
+    errno.ENOMEM: ("out of memory", "free memory, or run fewer jobs at once"),
+    errno.EMFILE: ("too many open files", "raise the limit (ulimit -n)"),
+}
+
+
+def _system_message(e: BaseException) -> str:
+    """What happened and what to do, in one line, for a system error (exit code 4)."""
+    if isinstance(e, MemoryError):
+        return ("out of memory (system error): free memory, run fewer jobs at once, or a "
+                "smaller specimen (--mem-budget-mb / resources.dem_mem_mb)")
+    if not isinstance(e, OSError):  # a worker that died (stages.pool.WorkerLost)
+        return f"{_one_line(e)} (system error): run it again with fewer jobs at once"
+    name = f"{e.filename}: " if getattr(e, "filename", None) else ""
+    what, todo = _SYSTEM_ADVICE.get(e.errno, (e.strerror or _one_line(e), ""))
+    hint = f"; {todo}" if todo else ""
+    return (f"{name}{what} (system error){hint}; no file was left under the name of the file "
+            "being written")
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM (a Slurm time limit, ``snakemake`` stopping its jobs, ``kill``): handled as
+    Ctrl-C is (the file being written is discarded), reported as a system error."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated()
+
+
+def _usable_std_streams() -> None:
+    """A closed stdout or stderr (``2>&-``; the descriptor may even be reused by a file
+    opened for reading since) is replaced by /dev/null for this process's messages: a
+    message that cannot be shown must not turn into a second error (the exit code
+    still tells)."""
+    import fcntl
+
+    for fd, name in ((1, "stdout"), (2, "stderr")):
+        try:
+            mode = fcntl.fcntl(fd, fcntl.F_GETFL) & os.O_ACCMODE
+        except OSError:
+            mode = None
+        if mode not in (os.O_WRONLY, os.O_RDWR):
+            setattr(sys, name, open(os.devnull, "w"))  # noqa: SIM115 - lives as sys.std*
 
 
 def main(argv=None) -> int:
     """Run one subcommand; returns the exit code (see the module doc). As the ``bpmcal``
     command (``argv`` None: this process's command line) it ends the process when done:
     :func:`_end`."""
-    rc = _main(argv)
+    rc = _run(argv)
     if argv is None and sys.getprofile() is None and sys.gettrace() is None:
         _end(rc)  # (a profiler or tracer, e.g. cProfile, writes its output at the teardown)
     return rc
@@ -220,16 +292,33 @@ def _end(rc: int) -> None:
             f.flush()
         except (OSError, ValueError):
             pass
-    import threading
-
     getattr(threading, "_shutdown", lambda: None)()  # join the threads, as an exit does
     atexit._run_exitfuncs()
     os._exit(rc if isinstance(rc, int) else EXIT_BUG)
 
 
-def _main(argv) -> int:
-    """``main``'s work."""
+def _run(argv) -> int:
+    """``main``'s work. A command that fails removes the folders it created and left
+    empty."""
+    from ..io.atomic import forget_created_dirs, remove_created_dirs
+
     os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
+    _usable_std_streams()
+    forget_created_dirs()
+    old = None
+    if threading.current_thread() is threading.main_thread():
+        old = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        rc = _main(argv)
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGTERM, old)
+    if rc != EXIT_OK:
+        remove_created_dirs()
+    return rc
+
+
+def _main(argv) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     cmd = next((x for x in argv if not x.startswith("-")), None)
     cmd = ALIASES.get(cmd, cmd)
@@ -240,25 +329,28 @@ def _main(argv) -> int:
         return e.code if isinstance(e.code, int) else (0 if e.code is None else EXIT_BAD_INPUT)
     cost.begin()  # the CPU seconds so far (imports, the parser): the start (bpmcal.cost)
     try:
-        bad_input = _bad_input_types()
+        bad_input, system = _bad_input_types(), _system_error_types()
     except Exception:  # noqa: BLE001 - a broken install is a bug, reported below
-        bad_input = (BadInput, P.ParameterError)
+        bad_input, system = (BadInput, P.ParameterError), (MemoryError,)
     where = f"bpmcal {args.cmd}"
     try:
         return args.func(args)
     except bad_input as e:
         print(f"{where}: error: {_one_line(e)}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except _Terminated:
+        print(f"\n{where}: terminated (SIGTERM: a time limit, or the job was stopped); the "
+              "file being written was discarded: run the command again to redo it",
+              file=sys.stderr)
+        return EXIT_SYSTEM
     except KeyboardInterrupt:
         print(f"\n{where}: interrupted; the file being written was discarded", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:  # e.g. `bpmcal summary run.h5 | head`
         sys.stdout = open(os.devnull, "w")
         return EXIT_OK
-    except OSError as e:
-        name = f"{e.filename}: " if getattr(e, "filename", None) else ""
-        print(f"{where}: error: {name}{e.strerror or _one_line(e)} (system error)",
-              file=sys.stderr)
+    except (OSError, *system) as e:
+        print(f"{where}: error: {_system_message(e)}", file=sys.stderr)
         return EXIT_SYSTEM
     except Exception:  # noqa: BLE001 - a bug: keep the traceback, add a hint
         traceback.print_exc()

@@ -11,9 +11,13 @@ Exit codes (docs/troubleshooting.md lists them):
 1   internal error (a bug in bpmcal): traceback, then a one-line hint
 2   bad input (arguments, parameter values, input files, resource budget); nothing written
 3   the DEM run failed (instability, genesis not converged, step budget); a *failure
-    record* (status "failed" and the reason) was written. With ``--failed-ok`` (what the
-    workflow rules pass) such a run exits 0: the failure is data, carried into the dataset
-4   system error while reading or writing (disk full, permission denied, ...)
+    record* (status "failed" and the reason) was written; or it ended incomplete (a
+    cut-off came before the peak and drop that define its measure: the run file has status
+    "incomplete" and the reason). With ``--failed-ok`` (what the workflow rules pass) such
+    a run exits 0: the failure is data, carried into the dataset
+4   the system failed: disk full, a file-size limit, permission denied while writing, out
+    of memory, a worker process killed, SIGTERM (a time limit); one line says what
+    happened and what to do, files being written were discarded
 130 interrupted (Ctrl-C / SIGINT); files being written were discarded
 ==  =======================================================================================
 
@@ -48,6 +52,12 @@ class Parser(argparse.ArgumentParser):
 
 
 # ------------------------------------------------------------------------ argument types
+def _cut(s: str, limit: int = 60) -> str:
+    """``repr(s)`` of an argument for a message, cut to ``limit`` characters."""
+    r = repr(s)
+    return r if len(r) <= limit else f"{r[:limit]}... ({len(r) - limit:,} more characters)"
+
+
 def number(name: str, lo: float | None = None, hi: float | None = None, *,
            lo_open: bool = False, hi_open: bool = False, unit: str = ""):
     """An argparse type: a finite float within [lo, hi] (open ends as told)."""
@@ -62,7 +72,7 @@ def number(name: str, lo: float | None = None, hi: float | None = None, *,
         try:
             v = float(s)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a number{u}") from None
+            raise argparse.ArgumentTypeError(f"{name}={_cut(s)}: expected a number{u}") from None
         if not math.isfinite(v):
             raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a finite number{u}")
         bad = (lo is not None and (v <= lo if lo_open else v < lo)) or \
@@ -71,6 +81,7 @@ def number(name: str, lo: float | None = None, hi: float | None = None, *,
             raise argparse.ArgumentTypeError(f"{name}={s!r}: expected a number in {rng()}{u}")
         return v
     conv.__name__ = name  # argparse names the type in some messages
+    conv.bounds = (lo, lo_open, hi, hi_open)  # compared with the config schema's (tests)
     return conv
 
 
@@ -88,7 +99,7 @@ def integer(name: str, lo: int | None = None, hi: int | None = None):
         try:
             v = int(s, 10)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected an integer") from None
+            raise argparse.ArgumentTypeError(f"{name}={_cut(s)}: expected an integer") from None
         if (lo is not None and v < lo) or (hi is not None and v > hi):
             a = "" if lo is None else f">= {lo}"
             b = "" if hi is None else f"<= {hi}"
@@ -96,6 +107,7 @@ def integer(name: str, lo: int | None = None, hi: int | None = None):
                 f"{name}={s!r}: expected an integer {' and '.join(x for x in (a, b) if x)}")
         return v
     conv.__name__ = name
+    conv.bounds = (lo, False, hi, False)
     return conv
 
 
@@ -120,7 +132,7 @@ def choice(name: str, options):
 
     def conv(s):
         if s not in opts:
-            raise argparse.ArgumentTypeError(f"{name}={s!r}: expected one of {', '.join(opts)}")
+            raise argparse.ArgumentTypeError(f"{name}={_cut(s)}: expected one of {', '.join(opts)}")
         return s
     conv.__name__ = name
     return conv

@@ -46,9 +46,11 @@ def _run_done(args, cmd: str, out, path=None) -> int:
     is printed even with --quiet."""
     if out.status == "ok":
         return EXIT_OK
-    where = (f"failure record written to {out.path}; the good run in {out.kept} was kept"
-             if out.kept else "failure record written")
-    print(f"bpmcal {cmd}: FAILED: {path or args.out}: {out.error} ({where})", file=sys.stderr)
+    record = "failure record" if out.status == "failed" else f"{out.status} run"
+    where = (f"{record} written to {out.path}; the good run in {out.kept} was kept"
+             if out.kept else f"{record} written")
+    word = "FAILED" if out.status == "failed" else out.status.upper()
+    print(f"bpmcal {cmd}: {word}: {path or args.out}: {out.error} ({where})", file=sys.stderr)
     sys.stderr.flush()
     return EXIT_OK if args.failed_ok and not out.kept else EXIT_RUN_FAILED
 
@@ -324,13 +326,14 @@ def _add_summary(p):
 
 def cmd_summary(args) -> int:
     from ..io.h5 import json_safe, read_summary
+    from ..io.safe_names import clip, printable
 
     s = read_summary(args.run)
     if args.json:
         print(json.dumps(json_safe(s), sort_keys=True))
-    else:
-        for k in sorted(s):
-            print(f"{k:24s} {s[k]}")
+    else:  # the file's strings escaped: no terminal escape, no line of their own
+        for k in sorted(s, key=str):
+            print(f"{printable(clip(k, 60)):24s} {printable(clip(s[k], 2000))}")
     return 0
 
 

@@ -16,13 +16,13 @@ from .options import file_arg
 
 
 def _add_design(p):
-    from ..study.design import lhs_design
+    from ..study.design import MAX_SAMPLES, lhs_design
 
     opt = defaults_of(lhs_design)["optimization"]
     p.add_argument("--ranges", required=True,
                    help='JSON mapping of parameter name to [low, high] (paper units)')
-    p.add_argument("--n", type=integer("n", 2, 1_000_000), required=True,
-                   help="number of samples")
+    p.add_argument("--n", type=integer("n", 2, MAX_SAMPLES), required=True,
+                   help=f"number of samples (at most {MAX_SAMPLES:,})")
     p.add_argument("--seed", type=SEED, required=True, help="design seed")
     p.add_argument("--optimization", default=opt, choices=["random-cd", "lloyd", "none"],
                    help=f"LHS optimisation (default {opt})")

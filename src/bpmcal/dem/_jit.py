@@ -7,6 +7,7 @@
   without bound (measured during the engine's early development; that measurement is
   not kept as a record in docs/measurements). Set ``NUMBA_THREADING_LAYER`` yourself
   to override.
+- A damaged cached kernel is removed and compiled again (``jit_cache``).
 - ``NUMBA_DISABLE_JIT=1`` keeps working: ``prange`` becomes ``range`` and every kernel
   runs as plain Python (slow, for debugging).
 """
@@ -45,6 +46,9 @@ if not numba.config.CACHE_DIR:  # numba was imported before us: set it at run ti
 # numba's loading of each kernel at its first call is booked to the cost ledger's phase
 # "kernels" (bpmcal.cost: what a job spends its CPU on; the kernels are untouched)
 meter_numba()
+from .jit_cache import heal_cache_loads  # noqa: E402
+
+heal_cache_loads()  # a damaged cached kernel is removed and compiled again (one line)
 
 #: True when numba is switched off for debugging.
 JIT_DISABLED = bool(numba.config.DISABLE_JIT)

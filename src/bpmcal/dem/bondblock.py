@@ -58,11 +58,17 @@ S_LX, S_LY, S_LZ = next(_S), next(_S), next(_S)  # shear force of the linear com
 S_RG = next(_S)  # reference gap of the linear component [m]; max(rg, 0) once a broken
 #                  pair's surfaces are apart (re-contact starts at first touch)
 S_FLAGS = next(_S)  # 3.0 intact; broken: 1.0 if the linear part carried force last step, else 0
-S_SF = next(_S)  # strength factor of the bond: its tensile strength and cohesion are the
-#                  material's pb_ten and pb_coh x this (1 unless set, Model.set_bond_strength_factors;
-#                  PFC's per-contact pb_ten / pb_coh)
-S_DFX, S_DFY, S_DFZ = next(_S), next(_S), next(_S)  # dashpot force of the last step (last:
-#                     untouched without dashpots, so the rows read every step are contiguous)
+S_TEN, S_COH = next(_S), next(_S)  # the strengths the bond fails at [Pa]: its own tensile
+#                  strength and cohesion (S_TEN0, S_COH0) x its strength factor (S_SF), the
+#                  product taken when either is set (Model.set_bond_strengths,
+#                  set_bond_strength_factors), so the law reads two rows, not three
+S_DFX, S_DFY, S_DFZ = next(_S), next(_S), next(_S)  # dashpot force of the last step (after
+#                     the rows read every step: untouched without dashpots)
+S_SF = next(_S)  # strength factor of the bond (1 unless set: end caps, contact caps)
+S_TEN0, S_COH0 = next(_S), next(_S)  # the bond's own tensile strength and cohesion [Pa] (PFC's
+#                  per-contact pb_ten / pb_coh): the material's means at installation, or
+#                  drawn per bond (strength scatter). S_SF, S_TEN0, S_COH0 are kept for the
+#                  Python side; no kernel reads them
 #: S_FLAGS values (one field for two flags: one load and one store less per bond and step)
 FLAG_INTACT = 3.0
 FLAG_ACTIVE = 1.0
@@ -91,12 +97,24 @@ def n_blocks(nb: int) -> int:
     return max(1, -(-int(nb) // BLK))
 
 
-def new_state(nb: int) -> np.ndarray:
-    """Zeroed state for ``nb`` bonds, all intact, strength factor 1."""
+def new_state(nb: int, ten: float = 0.0, coh: float = 0.0) -> np.ndarray:
+    """Zeroed state for ``nb`` bonds, all intact, strength factor 1, tensile strength
+    ``ten`` and cohesion ``coh`` [Pa]."""
     blk = np.zeros(n_blocks(nb) * BLOCK_SIZE)
     set_field(blk, S_FLAGS, nb, FLAG_INTACT)
     set_field(blk, S_SF, nb, 1.0)
+    set_field(blk, S_TEN0, nb, ten)
+    set_field(blk, S_COH0, nb, coh)
+    set_strengths(blk, nb)
     return blk
+
+
+def set_strengths(blk, nb):
+    """The strengths bonds 0..nb-1 fail at (``S_TEN``, ``S_COH``): their own x their
+    strength factor (Python side; after either changes)."""
+    sf = get_field(blk, S_SF, nb)
+    set_field(blk, S_TEN, nb, get_field(blk, S_TEN0, nb) * sf)
+    set_field(blk, S_COH, nb, get_field(blk, S_COH0, nb) * sf)
 
 
 def field_index(f: int, nb: int) -> np.ndarray:
@@ -127,8 +145,8 @@ def state_index(k, f):
 
 
 @jit
-def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, tanfa,
-             rmul, mcf, betan, betas, dp, record):
+def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, tanfa, rmul, mcf, betan,
+             betas, dp, record):
     """Linear + parallel-bond law for every lane of a block, without branches (the laws.py
     helpers are select-based): reads ``T``, updates the block's state ``sb`` (a view of
     one block of ``blk``: indices stay non-negative and affine, which the vectoriser
@@ -206,8 +224,10 @@ def _compute(T, sb, nl, dt, emod, ikr, fric, pb_emod, pb_ikr, pb_ten, pb_coh, ta
         mbz = bz - kni * (thz - tht * nz)
         sb2 = sbx * sbx + sby * sby + sbz * sbz
         mb2 = mbx * mbx + mby * mby + mbz * mbz
-        sf = sb[S_SF * STR + ll]  # per-bond strength factor (x 1.0 is exact: no change)
-        fm = bond_failure(fnb, sb2, mt, mb2, rb, area, pb_ten * sf, pb_coh * sf, tanfa, mcf)
+        # the bond's own strengths x its strength factor (S_TEN, S_COH: taken at set time;
+        # x 1.0 is exact, so a bond at the material's means fails where it always did)
+        fm = bond_failure(fnb, sb2, mt, mb2, rb, area, sb[S_TEN * STR + ll],
+                          sb[S_COH * STR + ll], tanfa, mcf)
         keep = intact and fm == 0
         # state: the new (or, for a failing bond, the trial) state; zero once broken
         sb[S_FN * STR + ll] = fnb if intact else 0.0
@@ -329,7 +349,8 @@ def bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash, pestr,
                pb_emod, pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf, betan, betas, step, record):
     """Bond pairs k0..k1 in chunks of at most BLK lanes that never cross a block of the
     state (a partition may start inside a block: ``neighbors.PART_ALIGN`` is finer than
-    BLK). Returns the bonds broken.
+    BLK). Returns the bonds broken. ``pb_ten``, ``pb_coh`` (the material's means) are not
+    read: each bond fails at its own strengths, kept in its state (``S_TEN``, ``S_COH``).
 
     Gather and scatter are written out here rather than called: a call that passes ~30
     arrays costs more than a block."""
@@ -368,7 +389,7 @@ def bond_range(pos, vel, angvel, radius, mass, pi, pj, blk, pslip, pdash, pestr,
                 T[F_MJ * STR + ll] = mass[pj[b0 + ll]]
         # ---- compute (vectorised)
         _compute(T, blk[base:base + BLOCK_SIZE - l0], nl, dt, emod, ikr, fric, pb_emod,
-                 pb_ikr, pb_ten, pb_coh, tanfa, rmul, mcf, betan, betas, dp, record)
+                 pb_ikr, tanfa, rmul, mcf, betan, betas, dp, record)
         # ---- scatter, in increasing pair order
         nbrk = 0
         for ll in range(nl):

@@ -51,7 +51,10 @@ C_G0 = 6  # initial surface gap g_0 (gapped contacts) [m]
 C_SF = 7  # strength factor (x fj_ten, fj_coh) [-]
 C_LX, C_LY, C_LZ = 8, 9, 10  # linear shear force once the flat joint is deleted [N]
 C_FX, C_FY, C_FZ = 11, 12, 13  # force on j of the last recording step (diagnostics) [N]
-NC = 14
+C_TEN, C_COH = 14, 15  # the joint's own fj_ten, fj_coh [Pa] (PFC: contact properties, shared
+#                        by its elements): the material's at installation, or drawn per
+#                        joint (Model.set_bond_strengths); x C_SF at the failure checks
+NC = 16
 
 # ---- per-contact flags: Fj.flag[k, ...] ------------------------------------------------
 K_TYPE = 0  # microstructural type at installation (MT_*)
@@ -388,9 +391,7 @@ def fj_range(pos, vel, angvel, radius, pi, pj, pslip, pestr, bstate, bstep, be, 
     een = Fj.een
     emod = prm_fj[0]
     ikr = prm_fj[1]
-    ten0 = prm_fj[2]
-    coh0 = prm_fj[3]
-    tanfa = prm_fj[4]
+    tanfa = prm_fj[4]  # (prm_fj[2], prm_fj[3], the material's means: each joint has its own)
     mu = prm_fj[5]
     rmul = prm_fj[6]
     ne = geo.shape[0]
@@ -430,8 +431,8 @@ def fj_range(pos, vel, angvel, radius, pi, pj, pslip, pestr, bstate, bstep, be, 
             kn = emod * inv_l
             ks = kn * ikr
             sf = c[k, C_SF]
-            ten = ten0 * sf
-            coh = coh0 * sf
+            ten = c[k, C_TEN] * sf
+            coh = c[k, C_COH] * sf
             # ---- carry the frame: drop the component along the new normal, turn by the spin
             sx, sy, sz = rotate_shear(c[k, C_SX], c[k, C_SY], c[k, C_SZ], nx, ny, nz, dphi)
             sm = sx * sx + sy * sy + sz * sz

@@ -8,6 +8,13 @@ Names follow PFC's properties: ``emod`` (E*), ``kratio`` (kappa*), ``fric`` (mu)
 ``dp_nratio``/``dp_sratio`` (dashpot critical-damping ratios); ``fj_emod``,
 ``fj_kratio``, ``fj_ten``, ``fj_coh``, ``fj_fa``, ``fj_fric``, ``fj_rmul``, ``fj_nr``,
 ``fj_nal`` for the flat joint.
+
+Strength scatter (PFC's material-modeling package, fistPkg: ``pbm_ten_sd``,
+``pbm_coh_sd``, ``fjm_ten_sd``, ``fjm_coh_sd``): ``pb_ten_sd``, ``pb_coh_sd``,
+``fj_ten_sd``, ``fj_coh_sd`` are the standard deviations of the per-contact strengths,
+whose means are ``pb_ten`` ... ``fj_coh``. The engine keeps one tensile strength and one
+cohesion per contact (``Model.set_bond_strengths``), set to the means at installation;
+the lab draws the scatter (``lab.specimen.install_strength_scatter``). Default 0.
 """
 from __future__ import annotations
 
@@ -51,6 +58,8 @@ class Material:
     pb_mcf: float = 1.0  # moment-contribution factor beta-bar [-]
     dp_nratio: float = 0.0  # normal critical-damping ratio [-]
     dp_sratio: float = 0.0  # shear critical-damping ratio [-]
+    pb_ten_sd: float = 0.0  # standard deviation of the per-bond pb_ten [Pa]
+    pb_coh_sd: float = 0.0  # standard deviation of the per-bond pb_coh [Pa]
 
     def __post_init__(self):
         inf = math.inf
@@ -67,6 +76,10 @@ class Material:
         _check("pb_fa", self.pb_fa, 0.0, 90.0, False, " deg", "friction angle in [0, 90)")
         _check("pb_rmul", self.pb_rmul, 0.0, inf, True, "", "bond radius multiplier > 0")
         _check("pb_mcf", self.pb_mcf, 0.0, 1.0, False, "", "moment-contribution factor in [0, 1]")
+        _check("pb_ten_sd", self.pb_ten_sd, 0.0, inf, False, " Pa",
+               "standard deviation of the tensile strength >= 0")
+        _check("pb_coh_sd", self.pb_coh_sd, 0.0, inf, False, " Pa",
+               "standard deviation of the cohesion >= 0")
         _check("dp_nratio", self.dp_nratio, 0.0, 1.0, False, "", "critical-damping ratio in [0, 1]")
         _check("dp_sratio", self.dp_sratio, 0.0, 1.0, False, "", "critical-damping ratio in [0, 1]")
 
@@ -80,6 +93,11 @@ class Material:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def strengths(self) -> tuple[float, float, float, float]:
+        """(tensile mean, its sd, cohesion mean, its sd) of the per-contact strengths [Pa]."""
+        return (float(self.pb_ten), float(self.pb_ten_sd), float(self.pb_coh),
+                float(self.pb_coh_sd))
 
     def springs(self) -> tuple:
         """(modulus name, ratio name, what, radius multiplier) of each spring set: the
@@ -127,6 +145,8 @@ class FlatJointMaterial:
     fric: float | None = None  # linear contacts: friction (default fj_fric) [-]
     dp_nratio: float = 0.0
     dp_sratio: float = 0.0
+    fj_ten_sd: float = 0.0  # standard deviation of the per-joint fj_ten [Pa]
+    fj_coh_sd: float = 0.0  # standard deviation of the per-joint fj_coh [Pa]
 
     def __post_init__(self):
         inf = math.inf
@@ -150,6 +170,10 @@ class FlatJointMaterial:
         _check("emod", self.emod, 0.0, inf, True, " Pa", "linear effective modulus > 0")
         _check("kratio", self.kratio, 0.0, inf, True, "", "linear stiffness ratio > 0")
         _check("fric", self.fric, 0.0, inf, False, "", "linear friction coefficient >= 0")
+        _check("fj_ten_sd", self.fj_ten_sd, 0.0, inf, False, " Pa",
+               "standard deviation of the tensile strength >= 0")
+        _check("fj_coh_sd", self.fj_coh_sd, 0.0, inf, False, " Pa",
+               "standard deviation of the cohesion >= 0")
         _check("dp_nratio", self.dp_nratio, 0.0, 1.0, False, "", "critical-damping ratio in [0, 1]")
         _check("dp_sratio", self.dp_sratio, 0.0, 1.0, False, "", "critical-damping ratio in [0, 1]")
 
@@ -167,6 +191,11 @@ class FlatJointMaterial:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def strengths(self) -> tuple[float, float, float, float]:
+        """(tensile mean, its sd, cohesion mean, its sd) of the per-contact strengths [Pa]."""
+        return (float(self.fj_ten), float(self.fj_ten_sd), float(self.fj_coh),
+                float(self.fj_coh_sd))
 
     def springs(self) -> tuple:
         """(modulus name, ratio name, what, radius multiplier) of each spring set: the

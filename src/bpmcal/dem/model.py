@@ -229,7 +229,11 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
     # ------------------------------------------------------------------ parameters
     def set_material(self, material: Material | FlatJointMaterial):
         """Install material properties (takes effect at the next step). The contact model
-        cannot change once bonds or flat joints are installed."""
+        cannot change once bonds or flat joints are installed. A material whose mean
+        tensile strength or cohesion differs from the current one's also sets every
+        installed contact's own strengths to the new means (PFC ``contact property``; a
+        strength scatter drawn for the old means is gone: draw it again with
+        :meth:`set_bond_strengths`)."""
         if not isinstance(material, MATERIALS):
             raise InputError("material: expected a bpmcal.dem.Material or FlatJointMaterial, "
                              f"got {type(material).__name__}")
@@ -237,6 +241,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         if old is not None and self.n_bonds and old.contact_model != material.contact_model:
             raise InputError(f"material: contact model {material.contact_model!r}, but the "
                              f"model has {self.n_bonds} {old.contact_model} contacts installed")
+        new_means = old is None or old.strengths()[::2] != material.strengths()[::2]
         if isinstance(material, FlatJointMaterial):
             if self.n_bonds and (material.fj_nr, material.fj_nal) != (old.fj_nr, old.fj_nal):
                 raise InputError(f"material: fj_nr x fj_nal = {material.fj_nr} x "
@@ -256,6 +261,8 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
             p[P_DP_S] = material.dp_sratio
             self.Fj.prm[:] = flatjoint_params(material)
             if hasattr(self, 'iprm'):
+                if new_means and self.n_bonds:
+                    self._reset_bond_strengths()
                 self._touch()
             return
         self.material = material
@@ -274,6 +281,8 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         p[P_DP_N] = material.dp_nratio
         p[P_DP_S] = material.dp_sratio
         if hasattr(self, 'iprm'):
+            if new_means and self.n_bonds:
+                self._reset_bond_strengths()
             self._touch()
 
     def set_damping(self, alpha: float):

@@ -1,5 +1,5 @@
-"""``BondsMixin``: the parallel bonds of ``Model``: installing them, their reference gaps
-and per-bond strength factors, their state, and the breakage events.
+"""``BondsMixin``: the parallel bonds of ``Model``: installing them, their reference gaps,
+per-contact strengths and strength factors, their state, and the breakage events.
 
 This is the contact-model-specific part of the Python facade (the linear parallel-bond
 model; its laws are in ``laws.py`` and ``bondblock.py``). A mixin of
@@ -15,7 +15,7 @@ import numpy as np
 
 from . import bondblock as bb
 from .errors import InputError
-from .flatjoint import C_LX, C_LZ, C_SF
+from .flatjoint import C_COH, C_LX, C_LZ, C_SF, C_TEN
 from .model_arrays import IDX, Bonds, readonly
 from .slots import BOND_INTACT, E_DASH, E_SLIP, I_NB, I_NBROKEN, I_NPAIRS, I_REBUILD
 
@@ -25,7 +25,8 @@ class BondsMixin:
     :meth:`bond_pairs`: bond ``k`` is pair ``k`` of the neighbour list)."""
 
     def _empty_bonds(self, nb):
-        return Bonds(blk=bb.new_state(nb), state=np.zeros(nb, np.int8),
+        ten, _, coh, _ = self.material.strengths()  # new bonds: the material's means
+        return Bonds(blk=bb.new_state(nb, ten, coh), state=np.zeros(nb, np.int8),
                      step=np.full(nb, -1, np.int64), pos=np.zeros((nb, 3)),
                      nrm=np.zeros((nb, 3)), energy=np.zeros(nb), estr=np.zeros(nb),
                      sig=np.zeros((nb, 3)), ptr=np.zeros(self.n + 1, np.int64),
@@ -137,12 +138,11 @@ class BondsMixin:
 
     def set_bond_strength_factors(self, factors):
         """Per-bond strength factors: bond k (in the order of :meth:`bond_pairs`) fails at
-        the material's tensile strength ``pb_ten`` and cohesion ``pb_coh`` times
-        ``factors[k]`` (its friction angle and stiffnesses are unchanged). PFC gives every
-        contact its own ``pb_ten`` / ``pb_coh``; here the material holds the common value
-        and this factor the per-bond deviation. New bonds get factor 1. A scalar applies to
-        every bond. For flat joints the factor multiplies ``fj_ten`` and ``fj_coh`` of
-        every element of the contact."""
+        its own tensile strength and cohesion (:meth:`set_bond_strengths`; the material's
+        ``pb_ten`` and ``pb_coh`` unless scattered) times ``factors[k]`` (its friction
+        angle and stiffnesses are unchanged): the end and contact caps of the lab tests.
+        New bonds get factor 1. A scalar applies to every bond. For flat joints the factor
+        multiplies the joint's ``fj_ten`` and ``fj_coh``, for every element."""
         nb = self.n_bonds
         f = np.broadcast_to(np.asarray(factors, float), (nb,)) if np.ndim(factors) == 0 \
             else np.asarray(factors, float).reshape(-1)
@@ -153,7 +153,48 @@ class BondsMixin:
             self.Fj.c[:, C_SF] = f
         else:
             bb.set_field(self.Bd.blk, bb.S_SF, nb, f)
+            bb.set_strengths(self.Bd.blk, nb)
         self._touch()
+
+    def set_bond_strengths(self, ten, coh):
+        """Each contact's own tensile strength and cohesion [Pa] (PFC's per-contact
+        ``pb_ten`` / ``pb_coh``, or ``fj_ten`` / ``fj_coh`` shared by a flat joint's
+        elements), in the order of :meth:`bond_pairs`: a strength scatter
+        (``lab.specimen.install_strength_scatter``). Bonds get the material's means at
+        installation; a strength factor (:meth:`set_bond_strength_factors`) multiplies
+        these. A scalar applies to every contact."""
+        nb = self.n_bonds
+        out = []
+        for name, v in (("tensile strengths", ten), ("cohesions", coh)):
+            a = np.broadcast_to(np.asarray(v, float), (nb,)) if np.ndim(v) == 0 \
+                else np.asarray(v, float).reshape(-1)
+            if a.shape != (nb,) or not np.all(np.isfinite(a)) or np.any(a < 0):
+                raise InputError(f"bond {name}: expected {nb} finite values >= 0 Pa, got "
+                                 f"shape {a.shape}")
+            out.append(a)
+        if self.material.contact_model == "flatjoint":
+            self.Fj.c[:, C_TEN] = out[0]
+            self.Fj.c[:, C_COH] = out[1]
+        else:
+            bb.set_field(self.Bd.blk, bb.S_TEN0, nb, out[0])
+            bb.set_field(self.Bd.blk, bb.S_COH0, nb, out[1])
+            bb.set_strengths(self.Bd.blk, nb)
+        self._touch()
+
+    def _reset_bond_strengths(self):
+        """Every installed contact's strengths to the material's means (``set_material``)."""
+        ten, _, coh, _ = self.material.strengths()
+        self.set_bond_strengths(ten, coh)
+
+    @property
+    def bond_strengths(self) -> tuple[np.ndarray, np.ndarray]:
+        """(tensile strengths, cohesions) of every contact [Pa] (copies; before their
+        strength factors; :meth:`set_bond_strengths`)."""
+        if self.material.contact_model == "flatjoint":
+            return self.Fj.c[:, C_TEN].copy(), self.Fj.c[:, C_COH].copy()
+        nb = self.n_bonds
+        return (bb.get_field(self.Bd.blk, bb.S_TEN0, nb),
+                bb.get_field(self.Bd.blk, bb.S_COH0, nb))
 
     @property
     def bond_strength_factors(self) -> np.ndarray:

@@ -83,6 +83,8 @@ class FlatJointsMixin:
         F.flag[:, fj.K_TYPE] = fj.MT_BONDED
         F.c[:, fj.C_GREF] = gi
         F.c[:, fj.C_SF] = 1.0
+        F.c[:, fj.C_TEN] = mat.fj_ten  # each joint's own strengths: the material's means
+        F.c[:, fj.C_COH] = mat.fj_coh
         d = self.B.pos[nj] - self.B.pos[ni]
         n = d / np.linalg.norm(d, axis=1)[:, None]
         # s: the unit vector perpendicular to n closest to the global axis least aligned

@@ -13,6 +13,11 @@ as any other. Before writing, stale temporary files in the target directory are 
 those of a process of this host that no longer runs (a killed run), the
 ``.NAME.PID.tmp`` files of earlier bpmcal versions whose process is gone, and any older
 than a day (a run killed on another cluster node). ``.gitignore`` matches ``.*.tmp``.
+
+A write that fails for want of space or permission (``OSError``) names the final file, not
+the temporary one. Directories are created with :func:`make_dirs`, which remembers the ones
+it created, so that a command that fails can remove those it left empty
+(:func:`remove_created_dirs`, called by ``bpmcal.cli``).
 """
 from __future__ import annotations
 
@@ -90,6 +95,42 @@ def clean_stale_temps(directory, *, now: float | None = None) -> list[Path]:
     return removed
 
 
+#: directories created by :func:`make_dirs` since :func:`forget_created_dirs`, in order
+_CREATED: list[Path] = []
+
+
+def make_dirs(d) -> Path:
+    """``mkdir -p d``, remembering each directory it created (:func:`remove_created_dirs`)."""
+    d = Path(d)
+    new = []
+    a = d
+    while not os.path.lexists(a) and a.parent != a:
+        new.append(a)
+        a = a.parent
+    d.mkdir(parents=True, exist_ok=True)
+    _CREATED.extend(reversed(new))
+    return d
+
+
+def forget_created_dirs() -> None:
+    """Start a new record of created directories (a command starts)."""
+    _CREATED.clear()
+
+
+def remove_created_dirs() -> list[Path]:
+    """Remove the directories :func:`make_dirs` created that are empty now, deepest first
+    (a failed command leaves no empty folder behind); returns them."""
+    removed = []
+    for d in sorted(set(_CREATED), key=lambda p: len(p.parts), reverse=True):
+        try:
+            d.rmdir()  # only an empty directory
+            removed.append(d)
+        except OSError:
+            pass
+    _CREATED.clear()
+    return removed
+
+
 def _create_temp(path: Path) -> Path:
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | getattr(
         os, "O_CLOEXEC", 0)
@@ -115,12 +156,17 @@ def atomic_path(path) -> Iterator[Path]:
     block ends without error, delete it otherwise. The temporary name ends in ``.tmp``:
     writers that choose a format from the suffix must be told the format explicitly."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_dirs(path.parent)
     clean_stale_temps(path.parent)
     tmp = _create_temp(path)
     try:
         yield tmp
         os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        if e.filename in (None, str(tmp), tmp):  # name the file written, not its temporary
+            raise OSError(e.errno, e.strerror, str(path)) from None
+        raise
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

@@ -128,6 +128,15 @@ def check_card(d, where: str, need=("parameters",)) -> dict:
     if missing:
         raise CardError(f"{where}: not a complete material card (no {', '.join(missing)}; "
                         "expected the output of 'bpmcal calibrate' or 'bpmcal verify')")
+    for key in ("verification", "transfer"):  # sections a command may take parameters from
+        sec = d.get(key)
+        if sec is not None and not isinstance(sec, dict):
+            raise CardError(f"{where}: '{key}' is not a mapping (got {type(sec).__name__}); "
+                            "expected the section 'bpmcal verify' or 'bpmcal transfer' writes")
+        params = (sec or {}).get("parameters")
+        if params is not None and not isinstance(params, dict):
+            raise CardError(f"{where}: '{key}.parameters' is not a mapping of parameter "
+                            "names to values")
     if "parameters" in d:
         if not isinstance(d["parameters"], dict):
             raise CardError(f"{where}: 'parameters' is not a mapping of parameter names to "

@@ -33,16 +33,23 @@ StudyFiles (``SCHEMA_VERSION`` 1)::
                       process_cpu_s (the process's CPU seconds when written), pid
 
 A file is written under a temporary name in the same directory and renamed when
-complete, so a file that exists is complete (``write_run``).
+complete, so a file that exists is complete (``write_run``). The HDF5 image is built in
+memory and then written as plain bytes: a full disk or a file-size limit is an ``OSError``
+naming the file (``ENOSPC``, ``EFBIG``), never an error inside the HDF5 library (which
+h5py raises as ``RuntimeError`` and which could crash the interpreter at exit).
 
 Readers raise :class:`RunFileError` (a ``ValueError``) naming the file when it is missing,
-a directory, not HDF5 (another format, or truncated) or an HDF5 file that is not a bpmcal
-run file; ``check_run_file`` does that check alone and returns the root attributes.
+a directory or not a regular file, not HDF5 (another format, or truncated) or an HDF5 file
+that is not a bpmcal run file; ``check_run_file`` does that check alone and returns the
+root attributes. The array readers refuse a dataset of more than :data:`MAX_ELEMENTS`
+values (a file of a few kB can declare terabytes of compressed fill values).
 """
 from __future__ import annotations
 
+import io
 import json
 import math
+import stat
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -51,6 +58,7 @@ import numpy as np
 
 from .atomic import atomic_path
 from .provenance import provenance
+from .safe_names import clip, shown
 
 SCHEMA_VERSION = 1
 
@@ -100,51 +108,63 @@ def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
               particles_final: dict | None = None, bonds: dict | None = None,
               status: str = "ok", error: str = "", extra: dict | None = None,
               groups: dict | None = None, cost=None) -> Path:
-    """Write one run atomically (temporary file in the same directory, then rename).
-    ``cost``: a callable giving the ``/cost`` attributes, called when everything else is
-    written (so that they include the writing)."""
+    """Write one run atomically (built in memory, written to a temporary file in the same
+    directory, then renamed). ``cost``: a callable giving the ``/cost`` attributes, called
+    when everything else is in the file (so that they include building it)."""
     path = Path(path)
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        prov = provenance(inputs, stamp=True)
-        _put_attrs(f, {"schema_version": SCHEMA_VERSION, "test": test, "status": status,
-                       "error": error, **prov})
-        _put_attrs(f.create_group("inputs"), inputs)
-        _put_attrs(f.create_group("summary"), summary or {})
-        _put_attrs(f.create_group("genesis"), genesis or {})
-        if extra:
-            _put_attrs(f.create_group("extra"), extra)
-        if series:
-            g = f.create_group("series")
-            for k, v in series.items():
-                ds = g.create_dataset(k, data=np.asarray(v), compression="gzip",
-                                      shuffle=True)
-                ds.attrs["unit"] = SERIES_UNITS.get(k, "")
-        if cracks is not None:
-            g = f.create_group("cracks")
-            for k, v in cracks.items():
-                g.create_dataset(k, data=np.asarray(v))
-        for name, d in (("initial", particles_initial), ("final", particles_final)):
-            if d:
-                g = f.require_group("particles").create_group(name)
-                for k, v in d.items():
-                    g.create_dataset(k, data=np.asarray(v), compression="gzip",
-                                     shuffle=True)
-        for gname, arrays in (groups or {}).items():
-            g = f.create_group(gname)
-            for k, v in arrays.items():
-                g.create_dataset(k, data=np.asarray(v))
-        if bonds:
-            g = f.create_group("bonds")
-            for k, v in bonds.items():
-                g.create_dataset(k, data=np.asarray(v), compression="gzip", shuffle=True)
+    image = io.BytesIO()
+    with h5py.File(image, "w") as f:
+        _fill(f, test=test, inputs=inputs, summary=summary, genesis=genesis, series=series,
+              cracks=cracks, particles_initial=particles_initial,
+              particles_final=particles_final, bonds=bonds, status=status, error=error,
+              extra=extra, groups=groups)
         if cost is not None:
             _put_attrs(f.create_group("cost"), cost())
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        fh.write(image.getbuffer())
     return path
+
+
+def _fill(f, *, test, inputs, summary, genesis, series, cracks, particles_initial,
+          particles_final, bonds, status, error, extra, groups) -> None:
+    """The groups and datasets of a run file (:func:`write_run`) in the open file ``f``."""
+    prov = provenance(inputs, stamp=True)
+    _put_attrs(f, {"schema_version": SCHEMA_VERSION, "test": test, "status": status,
+                   "error": error, **prov})
+    _put_attrs(f.create_group("inputs"), inputs)
+    _put_attrs(f.create_group("summary"), summary or {})
+    _put_attrs(f.create_group("genesis"), genesis or {})
+    if extra:
+        _put_attrs(f.create_group("extra"), extra)
+    if series:
+        g = f.create_group("series")
+        for k, v in series.items():
+            ds = g.create_dataset(k, data=np.asarray(v), compression="gzip",
+                                  shuffle=True)
+            ds.attrs["unit"] = SERIES_UNITS.get(k, "")
+    if cracks is not None:
+        g = f.create_group("cracks")
+        for k, v in cracks.items():
+            g.create_dataset(k, data=np.asarray(v))
+    for name, d in (("initial", particles_initial), ("final", particles_final)):
+        if d:
+            g = f.require_group("particles").create_group(name)
+            for k, v in d.items():
+                g.create_dataset(k, data=np.asarray(v), compression="gzip",
+                                 shuffle=True)
+    for gname, arrays in (groups or {}).items():
+        g = f.create_group(gname)
+        for k, v in arrays.items():
+            g.create_dataset(k, data=np.asarray(v))
+    if bonds:
+        g = f.create_group("bonds")
+        for k, v in bonds.items():
+            g.create_dataset(k, data=np.asarray(v), compression="gzip", shuffle=True)
 
 
 def _decode(v):
     if isinstance(v, bytes):
-        v = v.decode()
+        v = v.decode(errors="backslashreplace")
     if isinstance(v, np.generic):
         v = v.item()
     return v
@@ -154,14 +174,26 @@ class RunFileError(ValueError):
     """A file is not a readable bpmcal run file (missing, not HDF5, truncated, foreign)."""
 
 
+#: the most values one dataset of a run file may hold to be read (a full-size specimen's
+#: positions are ~0.2 M values, 2 M balls' 6 M): more is a damaged or crafted file
+MAX_ELEMENTS = 50_000_000
+
+
 @contextmanager
 def _open(path):
     """Open a run file for reading; every failure to open or read it is a RunFileError."""
     p = Path(path)
-    if not p.exists():
-        raise RunFileError(f"{path}: no such file")
-    if p.is_dir():
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise RunFileError(f"{path}: no such file") from None
+    except OSError as e:  # a symlink loop, a path through a file
+        raise RunFileError(f"{path}: cannot be opened ({e.strerror or e})") from None
+    if stat.S_ISDIR(st.st_mode):
         raise RunFileError(f"{path}: is a directory, expected an HDF5 run file")
+    if not stat.S_ISREG(st.st_mode):
+        raise RunFileError(f"{path}: not a regular file (a FIFO, device or socket); "
+                           "expected an HDF5 run file")
     try:
         f = h5py.File(p, "r")
     except OSError as e:
@@ -171,9 +203,11 @@ def _open(path):
     try:
         with f:
             yield f
-    except (OSError, KeyError) as e:  # a damaged file that opens but cannot be read
+    except RunFileError:
+        raise
+    except (OSError, KeyError, RuntimeError, TypeError, ValueError) as e:  # opens, unreadable
         raise RunFileError(f"{path}: damaged HDF5 run file ({type(e).__name__}: "
-                           f"{' '.join(str(e).split())})") from None
+                           f"{clip(' '.join(str(e).split()), 200)})") from None
 
 
 def check_run_file(path) -> dict:
@@ -184,10 +218,14 @@ def check_run_file(path) -> dict:
     if missing:
         raise RunFileError(f"{path}: an HDF5 file but not a bpmcal run file (no {', '.join(missing)} "
                            "attribute)")
+    bad = [k for k in ("test", "status") if not isinstance(attrs[k], str)]
+    if bad:
+        raise RunFileError(f"{path}: {bad[0]}={shown(attrs[bad[0]])}: expected text; not a "
+                           "bpmcal run file")
     try:
         version = int(attrs["schema_version"])
-    except (TypeError, ValueError):
-        raise RunFileError(f"{path}: schema_version={attrs['schema_version']!r} is not an "
+    except (TypeError, ValueError, OverflowError):
+        raise RunFileError(f"{path}: schema_version={shown(attrs['schema_version'])} is not an "
                            "integer") from None
     if version > SCHEMA_VERSION:
         raise RunFileError(f"{path}: run file schema_version {version} is newer than this bpmcal "
@@ -199,7 +237,33 @@ def read_attrs(path, group: str = "/") -> dict:
     with _open(path) as f:
         if group not in f:
             return {}
+        if not isinstance(f[group], h5py.Group):
+            raise RunFileError(f"{path}: /{group.strip('/')} is not a group")
         return {k: _decode(v) for k, v in f[group].attrs.items()}
+
+
+def _values(path, ds):
+    """The values of dataset ``ds`` of run file ``path``: numbers (or text), at most
+    :data:`MAX_ELEMENTS` of them, else a RunFileError naming it."""
+    if not isinstance(ds, h5py.Dataset):
+        raise RunFileError(f"{path}: {ds.name} is not a dataset")
+    if ds.dtype.kind not in "biuf" or ds.dtype.names:
+        raise RunFileError(f"{path}: {ds.name} holds {ds.dtype} values, expected numbers")
+    if ds.size > MAX_ELEMENTS:
+        raise RunFileError(f"{path}: {ds.name} declares {ds.size:,} values {ds.shape}, more "
+                           f"than a run file holds ({MAX_ELEMENTS:,}): a damaged or foreign "
+                           "file")
+    return ds[()]
+
+
+def _arrays(path, f, name) -> dict:
+    """Every dataset of group ``name`` (:func:`_values`), {} if there is none."""
+    if name not in f:
+        return {}
+    g = f[name]
+    if not isinstance(g, h5py.Group):
+        raise RunFileError(f"{path}: {g.name} is not a group")
+    return {k: _values(path, g[k]) for k in g}
 
 
 def read_summary(path) -> dict:
@@ -222,58 +286,58 @@ def read_series(path):
     """Time series as a pandas DataFrame (SI units; see ``SERIES_UNITS``)."""
     import pandas as pd
     with _open(path) as f:
-        if "series" not in f:
-            return pd.DataFrame()
-        return pd.DataFrame({k: f["series"][k][()] for k in f["series"]})
+        d = _arrays(path, f, "series")
+    try:
+        return pd.DataFrame(d)
+    except ValueError as e:  # columns of different lengths, or not 1-D
+        raise RunFileError(f"{path}: /series is damaged ({e})") from None
 
 
 def read_cracks(path):
     """Crack events as a DataFrame (x, y, z, nx, ny, nz split out)."""
     import pandas as pd
     with _open(path) as f:
-        if "cracks" not in f:
-            return pd.DataFrame()
-        g = f["cracks"]
-        d = {}
-        for k in g:
-            v = g[k][()]
-            if v.ndim == 2 and v.shape[1] == 3:
-                names = ("x", "y", "z") if k == "position" else tuple(f"{k}_{c}" for c in "xyz")
-                for c, nm in enumerate(names):
-                    d[nm] = v[:, c]
-            else:
-                d[k] = v
+        g = _arrays(path, f, "cracks")
+    d = {}
+    for k, v in g.items():
+        if v.ndim == 2 and v.shape[1] == 3:
+            names = ("x", "y", "z") if k == "position" else tuple(f"{k}_{c}" for c in "xyz")
+            for c, nm in enumerate(names):
+                d[nm] = v[:, c]
+        else:
+            d[k] = v
+    try:
         return pd.DataFrame(d)
+    except ValueError as e:
+        raise RunFileError(f"{path}: /cracks is damaged ({e})") from None
 
 
 def read_particles(path, which: str = "final") -> dict:
     with _open(path) as f:
-        key = f"particles/{which}"
-        if key not in f:
-            return {}
-        return {k: f[key][k][()] for k in f[key]}
+        return _arrays(path, f, f"particles/{which}")
 
 
 def read_group(path, name) -> dict:
     with _open(path) as f:
-        if name not in f:
-            return {}
-        return {k: f[name][k][()] for k in f[name]}
+        return _arrays(path, f, name)
 
 
 def read_bonds(path) -> dict:
     with _open(path) as f:
-        if "bonds" not in f:
-            return {}
-        return {k: f["bonds"][k][()] for k in f["bonds"]}
+        return _arrays(path, f, "bonds")
 
 
 def json_safe(d: dict) -> dict:
-    """NaN/inf -> None, numpy scalars -> Python, for JSON output."""
+    """NaN/inf -> None, numpy scalars -> Python, arrays -> lists (of a crafted file's
+    attribute), anything else JSON cannot hold -> its text, for JSON output."""
     out = {}
     for k, v in d.items():
         v = _decode(v)
+        if isinstance(v, np.ndarray):
+            v = v.tolist() if v.dtype.kind in "biuf" else str(v)
         if isinstance(v, float) and not math.isfinite(v):
             v = None
-        out[k] = v
+        elif not isinstance(v, (str, int, float, bool, list, type(None))):
+            v = str(v)
+        out[str(k)] = v
     return out

@@ -55,16 +55,38 @@ def sample_ids(n: int, prefix: str = "s") -> list[str]:
     return [f"{prefix}{i:0{width}d}" for i in range(n)]
 
 
+#: at most this many ratios in the strength-ratio sweep (one DEM job each; the config's
+#: ``ratio_sweep.ratios`` and ``bpmcal sweep-plan --ratios`` alike)
+MAX_SWEEP_RATIOS = 200
+
+
+def ratio_count(start: float, stop: float, step: float) -> float:
+    """How many ratios start, start + step, ... <= stop are (a float: it may be huge, or
+    inf for a denormal step)."""
+    q = (stop - start) / step + 1e-9
+    return math.floor(q) + 1 if math.isfinite(q) else math.inf
+
+
 def ratio_grid(start: float, stop: float, step: float) -> list[float]:
     """The strength ratios of the sweep: start, start + step, ... <= stop (rounded to 10
-    digits); ParameterError for a reversed, empty or non-finite grid."""
+    digits); ParameterError for a reversed, empty or non-finite grid, one of more than
+    :data:`MAX_SWEEP_RATIOS` ratios, or a step finer than the run names (0.01)."""
     ok = all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
              for x in (start, stop, step))
     if not (ok and start > 0 and stop >= start and step > 0):
         raise P.ParameterError(f"ratio grid [{start}, {stop}] step {step}: expected "
                                "finite numbers with 0 < start <= stop and step > 0")
-    n = int(math.floor((stop - start) / step + 1e-9)) + 1
-    return [round(start + k * step, 10) for k in range(n)]
+    n = ratio_count(start, stop, step)
+    if not n <= MAX_SWEEP_RATIOS:
+        raise P.ParameterError(f"ratio grid [{start:g}, {stop:g}] step {step:g} gives "
+                               f"{n:.4g} ratios, more than {MAX_SWEEP_RATIOS} (one DEM run "
+                               "each); use a larger step")
+    grid = [round(start + k * step, 10) for k in range(int(n))]
+    ids = [ratio_id(a) for a in grid]
+    if len(set(ids)) != len(ids):
+        raise P.ParameterError(f"ratio grid step {step:g} is finer than 0.01: ratios would "
+                               "share a run name (a{100 x ratio})")
+    return grid
 
 
 def ratio_id(a: float) -> str:

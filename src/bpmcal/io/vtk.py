@@ -17,7 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import write_text
-from .h5 import check_run_file, read_bonds, read_cracks, read_particles
+from .h5 import RunFileError, check_run_file, read_bonds, read_cracks, read_particles
+
+#: the most balls (or cracks) a run's export may hold: the engine's specimens are refused
+#: above 2 million balls (``lab.budget.MAX_BALLS``); a file declaring more is not a run
+MAX_POINTS = 5_000_000
 
 
 def _arr(name, a, ncomp=1):
@@ -54,9 +58,43 @@ def write_vtp(path, points: np.ndarray, point_data: dict) -> Path:
     return write_text(path, xml)
 
 
+def _check_shapes(path, ini: dict, fin: dict, bonds: dict, cr) -> int:
+    """The ball count of a run's arrays, after checking that they fit together (a
+    RunFileError naming the first that does not: a damaged or crafted file)."""
+    def need(cond, what):
+        if not cond:
+            raise RunFileError(f"{path}: {what}; not a bpmcal run file that can be exported")
+
+    need(not ini or {"position", "radius"} <= set(ini), "/particles/initial lacks position "
+         "or radius")
+    n = ini["position"].shape[0] if ini else 0
+    need(n <= MAX_POINTS, f"{n:,} balls, more than {MAX_POINTS:,}")
+    if ini:
+        need(ini["position"].shape == (n, 3) and ini["radius"].shape == (n,),
+             "/particles/initial: position is not (n, 3) or radius not (n,)")
+    if fin and ini:
+        need(all(k in fin and fin[k].shape == (n, 3) for k in ("position", "velocity")),
+             "/particles/final: position or velocity is not (n, 3) for the n initial balls")
+    if bonds and n:
+        need({"i", "j", "state"} <= set(bonds), "/bonds lacks i, j or state")
+        m = bonds["state"].shape
+        need(len(m) == 1 and bonds["i"].shape == m and bonds["j"].shape == m,
+             "/bonds: i, j and state differ in shape")
+        for k in ("i", "j"):
+            need(bonds[k].dtype.kind in "iu" and (bonds[k].size == 0 or (
+                bonds[k].min() >= 0 and bonds[k].max() < n)), f"/bonds/{k}: not ball indices")
+    if len(cr):
+        cols = {"x", "y", "z", "normal_x", "normal_y", "normal_z", "radius", "mode", "step",
+                "energy"}
+        need(cols <= set(cr.columns), "/cracks lacks " + ", ".join(sorted(cols - set(cr.columns))))
+        need(len(cr) <= MAX_POINTS, f"{len(cr):,} cracks, more than {MAX_POINTS:,}")
+    return n
+
+
 def export_run(h5path, outdir) -> list[Path]:
     """particles_initial.vtp, particles_final.vtp, cracks.vtp and run.pvd for one run
-    (a RunFileError, before anything is written, if ``h5path`` is not a bpmcal run file)."""
+    (a RunFileError, before anything is written, if ``h5path`` is not a bpmcal run file
+    or its arrays do not fit together)."""
     h5path = Path(h5path)
     check_run_file(h5path)
     out = Path(outdir)
@@ -65,7 +103,7 @@ def export_run(h5path, outdir) -> list[Path]:
     fin = read_particles(h5path, "final")
     bonds = read_bonds(h5path)
     cr = read_cracks(h5path)
-    n = ini["position"].shape[0] if ini else 0
+    n = _check_shapes(h5path, ini, fin, bonds, cr)
     broken = np.zeros(n, np.int64)
     if bonds and n:
         st = np.isin(bonds["state"], (1, 2))  # broken (3: a flat joint never bonded)

@@ -47,11 +47,25 @@ def estimate_balls(rmin_mm: float, porosity: float, *, scale: float = 1.0,
     """Expected ball count of a cylinder ``scale * diameter_mm`` x ``scale * height_mm``
     with radii uniform in [rmin, ratio rmin] and nominal porosity ``porosity``."""
     r0 = float(rmin_mm)
+    if not 1e-30 < r0 < 1e30:  # beyond the powers' range: the same balance in logarithms
+        return _estimate_balls_log(r0, float(porosity), scale * diameter_mm,
+                                   scale * height_mm, ratio)
     r1 = ratio * r0
     mean_r3 = (r1 ** 4 - r0 ** 4) / (4 * (r1 - r0)) if r1 > r0 else r0 ** 3
     mean_v = 4.0 / 3.0 * math.pi * mean_r3
     vol = math.pi * (0.5 * scale * diameter_mm) ** 2 * scale * height_mm
     return (1.0 - float(porosity)) * vol / mean_v
+
+
+def _estimate_balls_log(r0: float, porosity: float, d: float, h: float, ratio: float) -> float:
+    """:func:`estimate_balls` for an extreme ``r0`` (1e-100 or 1e300 mm): inf or 0 where
+    the count leaves the floats, never an overflow or a division by zero."""
+    if not (r0 > 0 and d > 0 and h > 0) or not porosity < 1:
+        return 0.0 if r0 > 0 else math.inf
+    f = (ratio ** 4 - 1.0) / (4.0 * (ratio - 1.0)) if ratio > 1 else 1.0
+    ln = (math.log(1.0 - porosity) + 2.0 * math.log(0.5 * d) + math.log(h) - 3.0 * math.log(r0)
+          + math.log(0.75 / f))
+    return math.inf if ln > 700 else math.exp(ln)
 
 
 def estimate_memory_mb(n_balls: float) -> float:
@@ -191,17 +205,25 @@ def screen_loading(loading: Loading, material, rmin: float, *, max_strain: float
                    max_steps: int, n_balls: float, spring: str,
                    failure_strain: float | None, density: float = P.DENSITY) -> None:
     """Refuse, before the specimen is built, a loading that cannot reach the card's
-    failure: a :class:`BudgetError` (bad input) when even at :func:`timestep_bound` the
-    cut-off at ``max_steps`` comes before :data:`REACH_FRACTION` of ``failure_strain``
-    and the steps to it (``n_balls`` balls at :data:`DEFAULT_BALL_STEPS_PER_S`) would
-    take longer than :data:`HOPELESS_S`. The message names the cause: the velocity, or
+    failure: a :class:`BudgetError` (bad input) when ``max_strain`` comes before
+    :data:`REACH_FRACTION` of ``failure_strain`` (the run could only end incomplete), or
+    when even at :func:`timestep_bound` the cut-off at ``max_steps`` comes before it and
+    the steps to it (``n_balls`` balls at :data:`DEFAULT_BALL_STEPS_PER_S`) would take
+    longer than :data:`HOPELESS_S`. The message names the cause: the velocity, or
     ``spring`` (``dem.material.stiffest_spring``: the property that sets the timestep)."""
     if not failure_strain or failure_strain <= 0:
         return
+    need = REACH_FRACTION * float(failure_strain)
+    if float(max_strain) < need:  # stopped before any test peaks, however fast it runs
+        raise BudgetError(
+            f"{loading.test}: max_strain = {float(max_strain):g} stops the loading before the "
+            f"card can fail: it fails at about {failure_strain:.3g} (its bonds' "
+            f"{'tensile ' if loading.tension else ''}strength over modulus) and no test "
+            f"peaked before {REACH_FRACTION:g} of that; raise max_strain. Refused before "
+            "building the specimen")
     dt = timestep_bound(material, rmin, density)
     per_step = 2.0 * loading.velocity * dt / loading.length
     reach = per_step * max_steps
-    need = REACH_FRACTION * float(failure_strain)
     cut_s = max_steps * max(float(n_balls), 1.0) / DEFAULT_BALL_STEPS_PER_S
     if reach >= need or cut_s <= min(HOPELESS_S, budget_seconds()):
         return

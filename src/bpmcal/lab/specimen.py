@@ -73,6 +73,7 @@ import hashlib
 import json
 import math
 import os
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -421,15 +422,51 @@ def get_packing(spec: SpecimenSpec, cache: str | os.PathLike | None = None,
     d = Path(cache) if cache is not None else cache_dir()
     f = d / f"packing_{spec.key()}.npz"
     if f.exists():
-        z = np.load(f, allow_pickle=False)
-        return Packing(spec=spec, pos=z["pos"], radius=z["radius"],
-                       report=json.loads(str(z["report"])))
+        pk = _cached_packing(f, spec)
+        if pk is not None:
+            return pk
     with phase("relax"):  # the cost ledger: a packing relaxed, not read (bpmcal.cost)
         pk = relax_packing(spec, progress=progress, threads=threads)
-    with atomic_path(f) as tmp, open(tmp, "wb") as fh:  # a file object: no ".npz" appended
-        np.savez(fh, pos=pk.pos, radius=pk.radius, report=json.dumps(pk.report),
-                 spec=json.dumps(asdict(spec)))
+    try:
+        with atomic_path(f) as tmp, open(tmp, "wb") as fh:  # a file object: no ".npz" added
+            np.savez(fh, pos=pk.pos, radius=pk.radius, report=json.dumps(pk.report),
+                     spec=json.dumps(asdict(spec)))
+    except OSError as e:  # a cache that cannot be written (full, read-only) is no failure
+        _note(f"bpmcal: the packing cache {f} could not be written "
+              f"({e.strerror or e}); going on without it")
     return pk
+
+
+def _note(line: str) -> None:
+    print(line, file=sys.stderr)
+
+
+def _cached_packing(f: Path, spec: SpecimenSpec) -> Packing | None:
+    """The packing cached in ``f``, or None when the file is damaged (truncated by a full
+    disk, not a zip, arrays of the wrong shape or not finite): then it is removed with
+    one line on stderr and the caller relaxes the packing again (a cache heals)."""
+    import zipfile
+
+    try:
+        with np.load(f, allow_pickle=False) as z:
+            pos, radius = np.asarray(z["pos"], float), np.asarray(z["radius"], float)
+            report = json.loads(str(z["report"]))
+        n = radius.shape[0] if radius.ndim == 1 else -1
+        if n < 1 or pos.shape != (n, 3) or not (np.isfinite(pos).all()
+                                                 and np.isfinite(radius).all()
+                                                 and (radius > 0).all()):
+            raise ValueError(f"arrays of shapes {pos.shape} and {radius.shape}, or not finite")
+        if not isinstance(report, dict):
+            raise ValueError("its report is not a mapping")
+    except (OSError, EOFError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as e:
+        _note(f"bpmcal: the cached packing {f} is damaged ({type(e).__name__}: "
+              f"{' '.join(str(e).split())[:120]}); it was removed and is built again")
+        try:
+            f.unlink()
+        except OSError:
+            pass
+        return None
+    return Packing(spec=spec, pos=pos, radius=radius, report=report)
 
 
 @dataclass(frozen=True)
@@ -477,6 +514,43 @@ def install_microstructure(m: Model, micro: Microstructure, seed: int, rmean: fl
             "fj_slit_frac_installed": float(frac[FJ.MT_SLIT]),
             "fj_gi_mm": float(micro.gi_ratio * rmean * 1e3),
             "fj_gap0_mm": float(micro.gap0_ratio * rmean * 1e3)}
+
+
+def truncated_normal(rng: np.random.Generator, mean: float, sd: float, n: int) -> np.ndarray:
+    """``n`` values of a Gaussian of ``mean`` and ``sd`` truncated at zero as PFC's
+    material-modeling package draws strengths (fistPkg ``ft_valNormDist``: a negative draw
+    is drawn again), i.e. the Gaussian conditioned on >= 0. ``sd`` = 0 gives ``mean``
+    exactly, without touching ``rng``."""
+    if sd == 0.0:
+        return np.full(n, float(mean))
+    x = mean + sd * rng.standard_normal(n)
+    bad = np.flatnonzero(x < 0.0)
+    while bad.size:  # in order, so the result depends on the seed only
+        x[bad] = mean + sd * rng.standard_normal(bad.size)
+        bad = bad[x[bad] < 0.0]
+    return x
+
+
+def install_strength_scatter(m: Model, material, seed: int) -> dict:
+    """The strength scatter (``pb_ten_sd``/``pb_coh_sd``, ``fj_ten_sd``/``fj_coh_sd``):
+    every installed contact draws its own tensile strength and cohesion, independently,
+    from the material's means and standard deviations (``truncated_normal``; PFC assigns
+    ``pb_ten``/``pb_coh`` per bond and ``fj_ten``/``fj_coh`` per flat joint, which its
+    elements share), in contact order, from a stream of the packing seed. Without scatter
+    (both sd 0) nothing is drawn or set: the contacts keep the means, bit for bit.
+    Returns what was drawn (empty without scatter)."""
+    ten, ten_sd, coh, coh_sd = material.strengths()
+    if ten_sd == 0.0 and coh_sd == 0.0:
+        return {}
+    rng = np.random.default_rng([int(seed), 0x5343])  # "SC": the scatter's own stream
+    nb = m.n_bonds
+    t = truncated_normal(rng, ten, ten_sd, nb)
+    c = truncated_normal(rng, coh, coh_sd, nb)
+    m.set_bond_strengths(t, c)
+    return {"strength_ten_mean_MPa": float(t.mean() / 1e6) if nb else math.nan,
+            "strength_ten_sd_MPa": float(t.std() / 1e6) if nb else math.nan,
+            "strength_coh_mean_MPa": float(c.mean() / 1e6) if nb else math.nan,
+            "strength_coh_sd_MPa": float(c.std() / 1e6) if nb else math.nan}
 
 
 @dataclass
@@ -540,7 +614,9 @@ def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
     With a :class:`FlatJointMaterial` the pairs get flat joints instead of parallel
     bonds (force-free), on every pair within ``microstructure.gi_ratio`` x the mean ball
     radius (``install_gap`` does not apply), with the microstructure's types drawn from
-    the packing seed (``install_microstructure``)."""
+    the packing seed (``install_microstructure``). A material with a strength scatter
+    gives every contact its own strengths, drawn from the packing seed
+    (``install_strength_scatter``)."""
     spec = packing.spec
     flat = isinstance(material, FlatJointMaterial)
     rmean = float(np.mean(packing.radius))
@@ -601,6 +677,7 @@ def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
     n_overlapping = int(np.count_nonzero(gaps < 0.0))
     nb = m.bond(gap=install_gap, rgap=None if flat else rg)
     fj_report = install_microstructure(m, microstructure, spec.seed, rmean) if flat else {}
+    scatter = install_strength_scatter(m, material, spec.seed)
     for w in range(3):
         m.scale_wall_overlaps(w, f)
     z = m.coordination_numbers()
@@ -659,6 +736,7 @@ def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
         "surface_balls": int(surface.size),
         "diameter_after_settle_mm": 2e3 * float(np.percentile(rho, 99.5)),
     })
+    report.update(scatter)  # (nothing without a scatter: the report is as before)
     if flat:  # a parallel-bond run file records exactly what it did before flat joints
         report.update({"contact_model": material.contact_model,
                        "flatjoints_per_ball": float(2.0 * nb / m.n), **fj_report})
@@ -708,6 +786,7 @@ def card_material(p: dict, dp_nratio=0.0, dp_sratio=0.0):
     ``material_fixed``, ``microstructure``)."""
     model = P.contact_model(p.get("contact_model", P.DEFAULT_CONTACT_MODEL))
     fields = dict(model.material_fixed or {})
+    p = {**(model.defaults or {}), **p}  # optional keys absent: their defaults
     for name, engine_fields in model.material.items():
         v = int(p[name]) if model.is_integer(name) else P.to_si(name, p[name])
         fields.update(dict.fromkeys(engine_fields, v))

@@ -37,6 +37,15 @@ invalid: "failure next to the bottom/top grip".
 An invalid run gives no strength value (``bts_MPa`` / ``dtt_MPa`` NaN; the peak stress
 stays in ``bts_peak_MPa`` / ``dtt_peak_MPa`` for inspection), and says why in
 ``bts_invalid_reason`` / ``dtt_invalid_reason``.
+
+**Complete or not** (:func:`incomplete_reason`, every quasi-static test): a test's measure
+is defined by what it must reach: the UCS, triaxial and direct-tension tests a peak
+followed by the drop to ``stop_drop`` of it (``stop_reason`` "post_peak_drop"), the
+Brazilian test the split that ends it the same way. A loading stopped by a cut-off first
+(``max_strain``, ``max_steps``) measured no strength: the stress at the cut-off is no
+sigma_c (nor a sigma_1 at failure, nor a sigma_t). Such a run is written with status
+"incomplete" and the reason (``stages.runs``), and every analysis treats it as a failed
+measurement, never a value.
 """
 from __future__ import annotations
 
@@ -156,3 +165,35 @@ def dtt_validity(cracks: dict, series_step, peak_record: int, *, grip_faces,
     else:
         out["dtt_valid"] = True
     return out
+
+
+#: the measure each quasi-static test reports and the series quantity of its peak, for
+#: :func:`incomplete_reason`'s message: test -> (measure, summary key of the peak, unit)
+_MEASURE = {"ucs": ("sigma_c", "ucs_MPa", "MPa"), "triaxial": ("sigma_1 at failure",
+                                                               "sigma1_MPa", "MPa"),
+            "dtt": ("sigma_t", "dtt_peak_MPa", "MPa"), "bts": ("sigma_t", "bts_peak_MPa",
+                                                              "MPa")}
+#: the stop reasons that mean the test reached what defines its measure
+COMPLETE = ("post_peak_drop",)
+
+
+def incomplete_reason(test: str, summary: dict) -> str:
+    """Why a finished run of ``test`` ("ucs", "triaxial", "dtt", "bts"; other tests: "")
+    measured nothing: its loading stopped at a cut-off (``max_strain``, ``max_steps``)
+    before the peak and the drop that define the measure (module doc); "" for a complete
+    run."""
+    if test not in _MEASURE:
+        return ""
+    stop = str(summary.get("stop_reason", ""))
+    if stop in COMPLETE:
+        return ""
+    measure, key, unit = _MEASURE[test]
+    what = {"max_strain": "its max_strain", "max_steps": "its max_steps"}.get(
+        stop, f"stop reason {stop!r}")
+    peak = summary.get(key)
+    at = (f"; {peak:.4g} {unit} is the stress at the cut-off, not a {measure}"
+          if isinstance(peak, (int, float)) and math.isfinite(peak) else "")
+    fix = ("raise max_strain" if stop == "max_strain" else "raise max_steps or load faster")
+    return (f"the loading stopped at {what} after {int(summary.get('steps', 0))} "
+            f"steps, before the peak and the drop to stop_drop that define {measure}{at}; "
+            f"{fix}")

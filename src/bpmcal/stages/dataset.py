@@ -6,7 +6,7 @@ import pandas as pd
 
 from ..io.checks import BadInput, out_file, read_model_table
 from ..io.tables import write_csv
-from ..study.design import lhs_design, validate_ranges
+from ..study.design import design_size_problem, lhs_design, validate_ranges
 from ..study.gather import gather as gather_rows
 from ..study.gather import status_report
 from .inputs import check_ids, runs_by_id
@@ -19,6 +19,9 @@ def design(ranges: dict, n: int, seed: int, out, *, optimization: str | None = "
         raise BadInput(f"--ranges {ranges!r}: expected a JSON object "
                        '{"name": [low, high], ...}')
     validate_ranges(ranges)
+    problem = design_size_problem(n, optimization)
+    if problem:
+        raise BadInput(f"--n {n}: {problem}")
     out_file(out, suffixes=(".csv",))
     df = lhs_design(ranges, n, seed, optimization=optimization)
     write_csv(df, out)

@@ -11,6 +11,11 @@ propagates. A failure record never replaces a good run file: if ``out`` already 
 run with status "ok", the record goes beside it as ``NAME.failed.h5`` and the outcome
 says so (``kept``).
 
+A run whose loading a cut-off stopped before the peak and the drop that define its measure
+(``lab.validity.incomplete_reason``) is written whole with status "incomplete" and the
+reason: it is kept for inspection but is no measurement (every reader treats any status
+other than "ok" as a failed measurement).
+
 ``lab_test_file`` and ``impact_file`` are the whole jobs of ``bpmcal ucs|bts|dtt|triaxial``
 and ``bpmcal impact``: where the parameters come from (a parameter file or material card,
 ``--set`` overrides, or a design row), the resource budget and the output, all checked
@@ -30,10 +35,12 @@ from ..dem.errors import InputError
 from ..io.card import card_parameters, check_card, is_card
 from ..io.checks import BadInput, out_dir, out_file, read_model_table, read_yaml
 from ..io.h5 import RunFileError, check_run_file, write_run
+from ..io.safe_names import clip, shown
 from ..lab.brazilian import BTSSettings
-from ..lab.budget import MAX_BALLS, BudgetError, check_budget, estimate_balls, screen_loading
+from ..lab.budget import MAX_BALLS, BudgetError, check_budget
 from ..lab.direct_tension import DTTSettings
 from ..lab.impact import ImpactSettings
+from ..lab.reach import screen_test_loading
 from ..lab.runner import (
     RUN_FAILURES,
     Geometry,
@@ -53,6 +60,7 @@ from ..lab.runner import (
 )
 from ..lab.triaxial import TriaxialSettings
 from ..lab.ucs import UCSSettings
+from ..lab.validity import incomplete_reason
 
 
 @dataclass
@@ -77,18 +85,24 @@ def file_cost() -> dict:
     return {**d, "process_cpu_s": time.process_time(), "pid": os.getpid()}
 
 
+def _not_over_a_good_run(out) -> tuple[Path, Path | None]:
+    """Where a run that did not succeed goes: ``out``, or beside it when ``out`` is a good
+    run file (never overwrite a good result with a failure); and the good file kept."""
+    out = Path(out)
+    if out.is_file():
+        try:
+            if check_run_file(out).get("status") == "ok":
+                return failed_path(out), out
+        except RunFileError:
+            pass  # not a good run: replace it
+    return out, None
+
+
 def write_failure(out, *, test: str, inputs: dict, error: str, wall_s: float = 0.0
                   ) -> RunOutcome:
     """Write a failure record (status "failed", the reason) to ``out``, or beside it if
     ``out`` is a good run file (never overwrite a good result with a failure)."""
-    out = Path(out)
-    kept = None
-    if out.is_file():
-        try:
-            if check_run_file(out).get("status") == "ok":
-                kept, out = out, failed_path(out)
-        except RunFileError:
-            pass  # not a good run: replace it
+    out, kept = _not_over_a_good_run(out)
     with phase("write"):
         write_run(out, test=test, inputs=inputs, status="failed", error=error,
                   summary={"wall_s": wall_s}, cost=file_cost)
@@ -96,13 +110,20 @@ def write_failure(out, *, test: str, inputs: dict, error: str, wall_s: float = 0
 
 
 def write_lab_run(out, r: LabRun) -> RunOutcome:
-    """Write a finished test to ``out`` (HDF5, atomically)."""
+    """Write a finished test to ``out`` (HDF5, atomically): status "ok", or "incomplete"
+    with the reason when a cut-off stopped its loading before what defines its measure
+    (``lab.validity.incomplete_reason``: the whole run is kept for inspection, but it is
+    no measurement, and it goes beside a good run file rather than over it)."""
+    reason = incomplete_reason(r.test, r.summary)
+    status, kept = ("incomplete", None) if reason else ("ok", None)
+    if reason:
+        out, kept = _not_over_a_good_run(out)
     with phase("write"):
         write_run(out, test=r.test, inputs=r.inputs, summary=r.summary, genesis=r.genesis,
                   series=r.series, cracks=r.cracks, particles_initial=r.particles_initial,
                   particles_final=r.particles_final, bonds=r.bonds, groups=r.groups,
-                  cost=file_cost)
-    return RunOutcome(status="ok", summary=r.summary, path=out)
+                  status=status, error=reason, cost=file_cost)
+    return RunOutcome(status=status, summary=r.summary, error=reason, path=out, kept=kept)
 
 
 def _run_file(out, test: str, inputs: dict, run) -> RunOutcome:
@@ -193,13 +214,13 @@ def parse_set(items) -> dict:
     out = {}
     for it in items or []:
         if "=" not in it:
-            raise P.ParameterError(f"--set {it!r}: expected NAME=VALUE")
+            raise P.ParameterError(f"--set {shown(it)}: expected NAME=VALUE")
         k, v = it.split("=", 1)
         k = k.strip()
         try:
             out[k] = float(v)
         except ValueError:
-            raise P.ParameterError(f"--set {k}={v!r}: expected a number") from None
+            raise P.ParameterError(f"--set {clip(k)}={shown(v)}: expected a number") from None
     return out
 
 
@@ -231,7 +252,7 @@ def params_from_design(path, sample_id) -> tuple[dict, int, str]:
     run: its reason is returned and its parameters (NaN strengths) are not validated."""
     d, model = read_model_table(path, "--design", lambda m: ["sample_id", *m.params, "seed"],
                                 dtype={"sample_id": str})
-    names = list(model.params)
+    names = [k for k in model.params if k in d.columns]  # (quiet keys may be absent)
     row = d[d["sample_id"] == sample_id]
     if len(row) != 1:
         raise BadInput(f"--sample {sample_id!r}: {'not in' if len(row) == 0 else 'repeated in'} "
@@ -296,25 +317,6 @@ _WHAT = {"ucs": "UCS cylinder", "bts": "Brazilian disc", "triaxial": "triaxial c
 #: the run file of each test: (inputs of the record, function writing the file)
 _TESTS = {"ucs": (ucs_inputs, run_ucs_file), "bts": (bts_inputs, run_bts_file),
           "triaxial": (triaxial_inputs, run_triaxial_file), "dtt": (dtt_inputs, run_dtt_file)}
-
-
-def screen_test_loading(test: str, params: dict, geometry, settings) -> None:
-    """``budget.screen_loading`` of lab test ``test`` (``_TESTS``' keys) of the validated
-    card ``params`` on ``geometry`` with ``settings``, before the specimen is built: a
-    ``BudgetError`` naming the cause if the loading cannot reach the card's failure."""
-    from ..dem.material import expected_failure_strain, stiffest_spring
-    from ..lab.specimen import card_material
-
-    material, _ = card_material(params)
-    g = geometry
-    loading = settings.loading_at(g.scale * (g.diameter_mm if test == "bts" else g.height_mm)
-                                  * 1e-3)
-    n = estimate_balls(params[P.RMIN], params[P.POROSITY], scale=g.scale,
-                       diameter_mm=g.diameter_mm, height_mm=g.height_mm)
-    screen_loading(loading, material, P.to_si(P.RMIN, params[P.RMIN]),
-                   max_strain=settings.max_strain, max_steps=settings.max_steps, n_balls=n,
-                   spring=stiffest_spring(material),
-                   failure_strain=expected_failure_strain(material, loading.tension))
 
 
 def lab_test_file(test: str, out, *, geometry, settings, params_file=None, sets=(),
@@ -391,7 +393,7 @@ def _checked_tests(tests, *, params_file, sets, design, sample, seed, max_balls,
                 skips[i] = str(e)  # a design row: recorded as failed, the study goes on
     seen = {}
     for (_, out, _, _), flag in zip(tests, flags):
-        key = Path(out).resolve()
+        key = Path(os.path.realpath(out))  # (no error on a symlink loop: out_file names it)
         if key in seen:
             raise BadInput(f"{flag} {out}: the same file as {seen[key]} {out}; expected one "
                            "output file per test")

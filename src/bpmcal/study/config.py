@@ -12,8 +12,8 @@ from pathlib import Path
 import yaml
 
 from .. import params as P
-from ..io.safe_names import path_problem
-from ..io.study_files import ratio_grid, ratio_id
+from ..io.safe_names import clip, outdir_problem, path_problem
+from ..io.study_files import MAX_SWEEP_RATIOS, ratio_count, ratio_grid
 from ..lab.budget import budget_problem
 from .config_doc import schema_reference
 from .errors import ConfigError
@@ -138,9 +138,11 @@ def translate_deprecated(config: dict, note=_stderr_line) -> dict:
     return config
 
 
-def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line) -> dict:
+def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line,
+                    read_files: bool = True) -> dict:
     """Validate ``config`` in place (deprecated keys renamed, :func:`translate_deprecated`,
-    with one line each to ``note``; defaults filled in) and return it.
+    with one line each to ``note``; defaults filled in) and return it. ``read_files``:
+    also read and check the lab CSVs it names (relative to ``base_dir``).
 
     Raises :class:`ConfigError` listing every problem as ``key: message``.
     """
@@ -159,12 +161,48 @@ def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line) 
             msgs.append(f"{_path(e)}: unknown key(s) {extra}; allowed: "
                         f"{sorted(e.schema.get('properties', {}))}")
         else:
-            msgs.append(f"{_path(e)}: {e.message}")
+            msgs.append(f"{_path(e)}: {clip(e.message, 300)}")
     if not msgs:
-        msgs.extend(_semantic_checks(config, Path(base_dir)))
+        msgs.extend(_semantic_checks(config, Path(base_dir), read_files))
     if msgs:
         raise ConfigError("invalid configuration:\n  " + "\n  ".join(msgs))
     return config
+
+
+#: the schema's place in a source checkout (the package is installed from one)
+_SCHEMA = Path("workflow") / "schemas" / "config.schema.yaml"
+
+
+def find_schema() -> Path | None:
+    """The config schema of the checkout bpmcal runs from, or of the working folder (a
+    study's), or None when neither has one."""
+    for root in (Path(__file__).resolve().parents[3], Path.cwd()):
+        if (root / _SCHEMA).is_file():
+            return root / _SCHEMA
+    return None
+
+
+def check_study_config(cfg: dict, flag: str) -> dict:
+    """A whole study config for a command that reads one (``bpmcal report``): validated
+    against the schema when it can be found (:func:`find_schema`; defaults filled in),
+    else at least every section present. A BadInput-like :class:`ConfigError` names what
+    is missing: an overlay alone (config/smoke.yaml) is not a study config."""
+    schema = find_schema()
+    required = ("outdir", "study", "ranges", "specimen", "compression", "lab", "resources",
+                "screening", "regression", "calibration", "verification", "ratio_sweep",
+                "impact")
+    missing = [k for k in required if k not in cfg]
+    if missing:
+        raise ConfigError(f"{flag}: not a whole study config (no {', '.join(missing)}): an "
+                          "overlay alone? Give the config as the workflow merges it "
+                          "(config/config.yaml with the overlay over it; the workflow passes "
+                          "it with --config-json)")
+    if schema is not None:  # (the lab files are not the report's inputs: not read)
+        try:
+            validate_config(cfg, schema, note=lambda line: None, read_files=False)
+        except ConfigError as e:
+            raise ConfigError(f"{flag}: {' '.join(str(e).split())}") from None
+    return cfg
 
 
 def _param_maps(config: dict, keys):
@@ -265,16 +303,12 @@ def _finite_problems(v, key="") -> list[str]:
     return []
 
 
-#: at most this many ratios in the strength-ratio sweep (one DEM job each)
-MAX_SWEEP_RATIOS = 200
-
-
-def _semantic_checks(cfg: dict, base: Path) -> list[str]:
+def _semantic_checks(cfg: dict, base: Path, read_files: bool = True) -> list[str]:
     msgs = _finite_problems(cfg) or _model_problems(cfg)
     if msgs:
         return msgs  # the checks below compare numbers of the model's parameters
     for key in ("outdir",):
-        m = path_problem(cfg[key])
+        m = path_problem(cfg[key]) or outdir_problem(cfg[key])
         if m:
             msgs.append(f"{key}: {m}")
     m = path_problem(cfg["lab"]["csv"])
@@ -302,10 +336,21 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
                         "raise bts.scale (or bts.diameter_mm and bts.thickness_mm) or set "
                         "bts.enabled: false")
     msgs.extend(_budget_checks(cfg))
+    msgs.extend(_design_checks(cfg))
+    if not msgs:
+        msgs.extend(_loading_checks(cfg))
     msgs.extend(_sweep_checks(cfg))
     msgs.extend(_fresh_seed_checks(cfg))
-    msgs.extend(_check_bts_disc(cfg, base))
-    msgs.extend(_check_tensile_tests(cfg, base))
+    if read_files:
+        msgs.extend(_lab_file_checks(cfg, base))
+    if not msgs:
+        msgs.extend(_check_calibration_space(cfg))
+    return msgs
+
+
+def _lab_file_checks(cfg: dict, base: Path) -> list[str]:
+    """The checks of the lab CSVs the config names (:func:`_semantic_checks`)."""
+    msgs = _check_bts_disc(cfg, base) + _check_tensile_tests(cfg, base)
     if not path_problem(cfg["lab"]["csv"]):
         lab = base / cfg["lab"]["csv"]
         if not lab.is_file():
@@ -316,8 +361,6 @@ def _semantic_checks(cfg: dict, base: Path) -> list[str]:
             if not lab_msgs:
                 msgs.extend(_check_reference(cfg, lab))
                 msgs.extend(_check_lab_triaxial(cfg, lab, base))
-    if not msgs:
-        msgs.extend(_check_calibration_space(cfg))
     return msgs
 
 
@@ -364,6 +407,65 @@ def _budget_checks(cfg: dict) -> list[str]:
     return out
 
 
+def _design_checks(cfg: dict) -> list[str]:
+    """``study.n_samples`` within what its ``lhs_optimization`` takes in seconds
+    (``study.design.design_size_problem``)."""
+    from .design import design_size_problem
+
+    st = cfg["study"]
+    m = design_size_problem(st["n_samples"], st.get("lhs_optimization"))
+    return [f"study.n_samples: {m}"] if m else []
+
+
+def _loading_checks(cfg: dict) -> list[str]:
+    """Every lab test of the study's samples (the compression of the cylinders, and the
+    Brazilian and direct-tension tests when on) must be able to reach the failure of some
+    card of the design space (``lab.reach.hopeless_everywhere``): a loading that none can
+    complete (``max_strain`` far too small, a hopeless step budget) is refused here,
+    before the first job, not after every sample failed."""
+    from dataclasses import fields, replace
+
+    from ..dem.errors import InputError
+    from ..lab.brazilian import BTSSettings
+    from ..lab.direct_tension import DTTSettings
+    from ..lab.reach import hopeless_everywhere
+    from ..lab.runner import Geometry, bts_geometry
+    from ..lab.ucs import UCSSettings
+
+    def of(cls, section):
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in section.items() if k in names})
+
+    sp = cfg["specimen"]
+    model = P.MODELS[cfg["contact_model"]]
+    cyl = {k: sp[k] for k in ("diameter_mm", "height_mm") if k in sp}
+    try:
+        tests = [("compression", "ucs", Geometry(scale=sp["scale"], **cyl),
+                  of(UCSSettings, cfg["compression"]))]
+        b, d = cfg.get("bts") or {}, cfg.get("dtt") or {}
+        if b.get("enabled"):
+            tests.append(("bts", "bts", bts_geometry(disc_scale(cfg)[0], b["diameter_mm"],
+                                                     b["thickness_mm"]), of(BTSSettings, b)))
+        if d.get("enabled"):
+            scale = sp["scale"] if d.get("scale") is None else d["scale"]
+            tests.append(("dtt", "dtt", Geometry(scale=scale, **cyl), of(DTTSettings, d)))
+    except (InputError, KeyError, TypeError):
+        return []  # a combination the settings refuse: their own checks say why
+    out = []
+    for key, test, geometry, settings in tests:
+        m = hopeless_everywhere(test, cfg["ranges"], model, geometry,
+                                replace(settings))
+        if m:
+            where = f"{key}.max_strain" if "max_strain =" in m else key
+            out.append(f"{where}: no card of the design space (ranges) can complete this "
+                       f"loading: {m}")
+    return out
+
+
+#: the largest packing or analysis seed (numpy's 32-bit seeds; ``bpmcal --seed``'s bound)
+MAX_SEED = 2 ** 32 - 1
+
+
 def loop_seeds(verification: dict) -> list[int]:
     """Every packing seed a closed loop of ``verification`` (the config section) may use:
     ``seed`` ... ``seed + max_seeds - 1`` (the first ``seeds_per_round`` of them, grown)."""
@@ -398,6 +500,11 @@ def _fresh_seed_checks(cfg: dict) -> list[str]:
     """``verification.fresh_seeds``: none or at least two, all fresh (no seed of the
     closed loop or of the transfer)."""
     v = cfg["verification"]
+    last = transfer_seed(v)
+    if last > MAX_SEED:  # the packing seeds the loops and the transfer derive from seed
+        return [f"verification.seed: {v['seed']} + {last - v['seed']} seeds (the closed "
+                f"loop's max_seeds and the transfer's) reach {last}, beyond the largest "
+                f"packing seed {MAX_SEED}; expected a smaller seed"]
     seeds = list(v.get("fresh_seeds") or [])
     if not seeds:
         return []
@@ -420,14 +527,14 @@ def _sweep_checks(cfg: dict) -> list[str]:
     if not (start <= stop):
         return [f"ratio_sweep.ratios: start {start:g} exceeds stop {stop:g} (expected "
                 "[start, stop, step] with start <= stop)"]
-    n = int(math.floor((stop - start) / step + 1e-9)) + 1
+    n = ratio_count(start, stop, step)
     if n > MAX_SWEEP_RATIOS:
-        return [f"ratio_sweep.ratios: {rs['ratios']} gives {n} ratios, more than "
+        return [f"ratio_sweep.ratios: {rs['ratios']} gives {n:.4g} ratios, more than "
                 f"{MAX_SWEEP_RATIOS} (one DEM run each); use a larger step"]
-    ids = [ratio_id(a) for a in ratio_grid(start, stop, step)]
-    if len(set(ids)) != len(ids):
-        return [f"ratio_sweep.ratios: step {step:g} is finer than 0.01: ratios would share "
-                "a run name (a{100 x ratio})"]
+    try:
+        ratio_grid(start, stop, step)
+    except P.ParameterError as e:
+        return [f"ratio_sweep.ratios: {e}"]
     return []
 
 

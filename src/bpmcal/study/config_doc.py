@@ -34,7 +34,13 @@ def _allowed(node: dict) -> str:
     hi = ")" if "exclusiveMaximum" in node or b is None else "]"
     if a is None and b is None:
         return ""
-    return f"{lo}{'-∞' if a is None else f'{a:g}'}, {'∞' if b is None else f'{b:g}'}{hi}"
+    return f"{lo}{'-∞' if a is None else _num(a)}, {'∞' if b is None else _num(b)}{hi}"
+
+
+def _num(x) -> str:
+    """A bound as the reference writes it: an integer in full (a seed's 4294967295), a
+    float in its shortest form."""
+    return str(x) if isinstance(x, int) and not isinstance(x, bool) else f"{x:g}"
 
 
 def _type(node: dict) -> str:

@@ -9,6 +9,13 @@ parameters (the paper's 8 for the parallel bond; :data:`bpmcal.params.MODELS`), 
 The model is the one whose names the ranges and fixed values use. An integer parameter
 (a flat joint's element counts) is designed on its integer levels: the hypercube's
 strata of [lo, hi + 1) floored, so every level between lo and hi is equally likely.
+
+A design has at most :data:`MAX_SAMPLES` samples (one DEM job each); the space-filling
+optimisations grow faster than the sample count (random-cd took 21 s for 5,000 samples and
+45 s for 10,000 on a loaded 2-core machine, lloyd 86 s for 150 in 8 dimensions), so they
+are bounded by :data:`MAX_OPTIMIZED` (``optimization: none`` draws 100,000 samples in
+well under a second): :func:`design_size_problem`, used by the config's validation and
+the ``design`` command alike.
 """
 from __future__ import annotations
 
@@ -18,6 +25,24 @@ from scipy.stats import qmc
 
 from .. import params as P
 from ..io.study_files import sample_ids
+
+#: the most samples of a design (the config's ``study.n_samples``, ``bpmcal design --n``)
+MAX_SAMPLES = 100_000
+#: the most samples each space-filling optimisation is run on (module doc)
+MAX_OPTIMIZED = {"random-cd": 5_000, "lloyd": 100}
+
+
+def design_size_problem(n, optimization: str | None) -> str | None:
+    """None if a design of ``n`` samples with ``optimization`` (None or "none": plain
+    LHS) is within the bounds, else what is wrong and what to do."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 2 <= n <= MAX_SAMPLES:
+        return f"{n!r} samples: expected an integer in [2, {MAX_SAMPLES:,}]"
+    limit = MAX_OPTIMIZED.get(optimization or "none")
+    if limit is not None and n > limit:
+        return (f"{n:,} samples with the {optimization} optimisation: it takes minutes above "
+                f"{limit:,} samples; use no optimisation (lhs_optimization: none, "
+                "--optimization none) or fewer samples")
+    return None
 
 
 def validate_ranges(ranges: dict, model: P.ContactModel | None = None) -> dict[str, tuple[float, float]]:
@@ -49,8 +74,9 @@ def lhs_design(ranges: dict, n: int, seed: int, optimization: str | None = "rand
     constant columns. Parameters with lo == hi are treated as fixed; a model's optional
     keys with neither a range nor a fixed value take its defaults. ``contact_model``:
     the model's name (default: the one whose names ``ranges`` and ``fixed`` use)."""
-    if int(n) < 2:
-        raise P.ParameterError(f"n_samples={n!r}: expected at least 2")
+    problem = design_size_problem(n, optimization)
+    if problem:
+        raise P.ParameterError(f"design: {problem}")
     fixed = dict(fixed or {})
     model = (P.contact_model(contact_model) if contact_model is not None
              else P.model_of({**ranges, **fixed}))
@@ -71,7 +97,9 @@ def lhs_design(ranges: dict, n: int, seed: int, optimization: str | None = "rand
     df = pd.DataFrame(x, columns=varied)
     for k, v in fixed.items():
         df[k] = float(v)
-    df = df[list(model.params)]
+    # the quiet keys (a strength scatter) only when the study gives one
+    df = df[[k for k in model.params if k not in model.quiet
+             or not (df[k] == (model.defaults or {})[k]).all()]]
     df.insert(0, "sample_id", sample_ids(n))
     seeds = np.random.SeedSequence(int(seed)).generate_state(int(n), dtype=np.uint32)
     df["seed"] = (seeds % 2_000_000_000).astype(np.int64)

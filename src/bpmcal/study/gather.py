@@ -10,8 +10,14 @@ responses of its UCS run, ``status`` and ``error``:
 - "unreadable": the run file is not a readable bpmcal run file (truncated, corrupt,
   another format); ``error`` says what is wrong with it.
 
+- "incomplete": the run's loading stopped at a cut-off (``max_strain``, ``max_steps``)
+  before the peak and the drop that define sigma_c (``lab.validity.incomplete_reason``);
+  its measurement columns (:data:`MEASURES`) are NaN, ``error`` says why.
+
 No sample is ever dropped; the analysis steps use the "ok" rows and say how many they left
-out.
+out. Every run file must be the run of its design row: the test, the packing seed and the
+parameters it records are checked against the row (:func:`check_run_of`), and a run file of
+another test, seed or sample under a sample's name is refused (``BadInput``).
 
 With the Brazilian run files of the samples (the study's ``bts`` job), each row also has
 :data:`BTS_COLUMNS`: ``bts_MPa`` (sigma_t), ``bts_wall_s``, ``bts_status`` /
@@ -38,13 +44,16 @@ test at the design confinement (``tri``, ``triaxial.design_sigma3_MPa``) gives
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .. import params as P
-from ..io.h5 import RunFileError, read_summary
+from ..io.checks import BadInput
+from ..io.h5 import RunFileError, check_run_file, read_inputs, read_summary
+from ..io.safe_names import clip, printable, shown
 
 #: response columns of the dataset, in order
 RESPONSE_COLUMNS = ("ucs_MPa", "E_GPa", "nu", "peak_strain", "u_pre_MJm3", "cracks_tension",
@@ -82,8 +91,71 @@ _INVALID_WHAT = {"bts": "the fracture did not start in the disc's central zone o
 _TEST_TITLE = {"bts": "Brazilian", "dtt": "Direct-tension", "tri": "Triaxial (design sigma3)"}
 
 
+#: summary keys that hold text or a verdict, not a number
+_TEXT_KEYS = ("stop_reason", "bts_invalid_reason", "dtt_invalid_reason")
+_BOOL_KEYS = ("bts_valid", "dtt_valid")
+#: the UCS responses that are measurements (NaN in a row whose run is not "ok": an
+#: incomplete run's stress at its cut-off is no sigma_c); the rest describe the run
+MEASURES = ("ucs_MPa", "E_GPa", "nu", "peak_strain", "u_pre_MJm3", "crack_init_MPa")
+#: the test a run file of each of a sample's runs records (``io.h5``'s ``test``)
+RUN_TEST = {"ucs": "ucs", "bts": "bts", "dtt": "dtt", "tri": "triaxial"}
+
+
+def _bad_value(k: str, v) -> bool:
+    """Whether summary value ``v`` of key ``k`` is not what a run file holds there (a
+    damaged or crafted file: text where a number belongs, an array)."""
+    if k in _TEXT_KEYS:
+        return not isinstance(v, str)
+    if k in _BOOL_KEYS:
+        return not isinstance(v, (bool, np.bool_))
+    return isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer,
+                                                                 np.floating))
+
+
+def _absent(v) -> bool:
+    """A design row's or run file's value that is not there (None, NaN, empty)."""
+    if v is None or (isinstance(v, str) and not v.strip()):
+        return True
+    try:
+        return math.isnan(float(v))
+    except (TypeError, ValueError):
+        return False
+
+
+def check_run_of(path, rec: dict, model: P.ContactModel, kind: str) -> None:
+    """A BadInput naming ``path`` unless its run is the one of design row ``rec`` (its
+    ``sample_id``, the ``model``'s parameters, ``seed``): test ``RUN_TEST[kind]``, the same
+    packing seed and parameters (to 1e-9). A run file of another test, seed or sample
+    under a sample's name would be gathered as that sample's response."""
+    s = check_run_file(path)
+    sid = rec["sample_id"]
+    what = f"{path}: not the {kind} run of design sample {sid}"
+    if s.get("test") != RUN_TEST[kind]:
+        raise BadInput(f"{what}: a run file of test {shown(s.get('test'))}, expected "
+                       f"{RUN_TEST[kind]!r}")
+    inp = read_inputs(path)
+    got_model = inp.get("contact_model", P.DEFAULT_CONTACT_MODEL)
+    if got_model != model.name:
+        raise BadInput(f"{what}: its card is {shown(got_model)}, the design's {model.name}")
+    quiet = {k: (model.defaults or {}).get(k) for k in model.quiet}
+    for k in ("seed", *model.params):
+        want, got = rec.get(k), inp.get(k)
+        if k in quiet:  # an optional key left out at its default (no strength scatter)
+            want = quiet[k] if _absent(want) else want
+            got = quiet[k] if _absent(got) else got
+        try:
+            same = math.isclose(float(got), float(want), rel_tol=1e-9, abs_tol=1e-12) or (
+                math.isnan(float(got)) and math.isnan(float(want)))
+        except (TypeError, ValueError):
+            same = False
+        if not same:
+            raise BadInput(f"{what}: its {k}={shown(got)}, the design row's {shown(want)} "
+                           "(run it again: the design changed, or the file is another's)")
+
+
 def _outcome(sid: str, path, keys) -> tuple[dict, str, str]:
-    """Responses (``keys`` of the summary), status and error of one run file."""
+    """Responses (``keys`` of the summary), status and error of one run file; a value of
+    the wrong kind makes the file "unreadable"."""
     if path is None or not Path(path).exists():
         return {k: np.nan for k in keys}, "missing", f"no run file for {sid}"
     try:
@@ -92,7 +164,14 @@ def _outcome(sid: str, path, keys) -> tuple[dict, str, str]:
         return {k: np.nan for k in keys}, "unreadable", str(e)
     status = s.get("status", "failed")
     vals = {k: s.get(k, np.nan) for k in keys}
-    return vals, status, s.get("error", "")
+    bad = [k for k, v in vals.items() if k in s and _bad_value(k, v)]
+    if bad:
+        return ({k: np.nan for k in keys}, "unreadable",
+                f"{path}: summary {bad[0]}={shown(vals[bad[0]])}: not a value a run file "
+                "holds there (damaged, or not written by bpmcal)")
+    if status != "ok":  # no measurement (a failure record, or an incomplete run)
+        vals.update({k: np.nan for k in MEASURES if k in vals})
+    return vals, status, str(s.get("error", ""))
 
 
 def _test_outcome(sid: str, path, test: str) -> dict:
@@ -128,16 +207,23 @@ def gather(design: pd.DataFrame, run_files: dict, bts_files: dict | None = None,
     direct-tension / design-confinement triaxial run file."""
     tests = {t: f for t, f in (("bts", bts_files), ("dtt", dtt_files), ("tri", tri_files))
              if f is not None}
+    model = P.model_of(design.columns)
     rows = []
     for rec in design.to_dict("records"):
         sid = rec["sample_id"]
+        for kind, files in (("ucs", run_files), *tests.items()):
+            f = files.get(sid)
+            if f is not None and Path(f).exists():
+                try:
+                    check_run_of(f, rec, model, kind)
+                except RunFileError:
+                    pass  # an unreadable file: its row says so
         row = dict(rec)
         vals, row["status"], row["error"] = _outcome(sid, run_files.get(sid), RESPONSE_COLUMNS)
         row.update(vals)
         for test, files in tests.items():
             row.update(_test_outcome(sid, files.get(sid), test))
         rows.append(row)
-    model = P.model_of(design.columns)
     cols = ["sample_id", *model.params, "seed", *RESPONSE_COLUMNS, "status", "error",
             *(c for t in tests for c in TEST_COLUMNS[t][1])]
     df = pd.DataFrame(rows)
@@ -172,7 +258,7 @@ def status_report(df: pd.DataFrame) -> str:
     lines = [f"{n} samples: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items()))]
     bad = df[df["status"] != "ok"]
     for r in bad.itertuples():
-        lines.append(f"  {r.sample_id}: {r.status}: {r.error}")
+        lines.append(f"  {r.sample_id}: {r.status}: {printable(clip(r.error, 500))}")
     ok = df[df["status"] == "ok"]
     for c in ("ucs_MPa", "E_GPa", "nu"):
         nonfinite = int((~np.isfinite(ok[c].astype(float))).sum())
@@ -192,7 +278,7 @@ def status_report(df: pd.DataFrame) -> str:
                         if counts.get(INVALID) else ""))
         for r in df[df[f"{test}_status"] != "ok"].itertuples():
             lines.append(f"  {r.sample_id}: {test} {getattr(r, f'{test}_status')}: "
-                         f"{getattr(r, f'{test}_error')}")
+                         f"{printable(clip(getattr(r, f'{test}_error'), 500))}")
         discs = df.get(f"{test}_discs")
         if discs is not None and (discs.astype(float) > 1).any():
             d = discs.astype(float)

@@ -7,17 +7,22 @@
   (compression positive) and sigma1 > sigma3, in MPa): :data:`LAB_TRIAXIAL_COLUMNS`,
   :func:`lab_triaxial_problems`, :func:`load_lab_triaxial`.
 
-Lines starting with ``#`` are comments (the data's source). Every problem is reported by
-row and column, all at once, before any job runs (:class:`~.errors.ConfigError`).
+Lines starting with ``#`` are comments (the data's source). The tables are schemas: a
+column that is not one of them is refused with the nearest known name (a typo such as
+``bts_Mpa`` would otherwise drop that target silently), and every value must lie within
+the physical bounds of rock (:data:`LAB_BOUNDS`; a modulus of 1e-300 GPa is a typo, not a
+rock). Every problem is reported by row and column, all at once, before any job runs
+(:class:`~.errors.ConfigError`); values quoted in messages are cut.
 ``study.config`` validates the configuration with these; ``study.lab_triaxial`` is the
 former home of the triaxial part and re-exports it.
 """
 from __future__ import annotations
 
+import difflib
 import math
 from pathlib import Path
 
-from ..io.safe_names import name_problem
+from ..io.safe_names import clip, name_problem, shown
 from .errors import ConfigError
 
 LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
@@ -31,6 +36,42 @@ LAB_COLUMNS = ("specimen", "ucs_MPa", "E_GPa", "nu")
 #: the fresh-seed check then compare two means, each with its error
 LAB_SE = tuple(f"{c}_se" for c in ("ucs_MPa", "E_GPa", "nu", "bts_MPa", "dtt_MPa", "tri_MPa"))
 LAB_OPTIONAL = ("u_pre_MJm3", "bts_MPa", "dtt_MPa", "tri_MPa", *LAB_SE)
+#: the physical bounds of each lab value (open below, closed above; a standard error is
+#: bounded by its value's upper bound): the weakest rocks' sigma_c is near 1 MPa and the
+#: strongest's 500-600 MPa, moduli range from ~0.1 to ~150 GPa, tensile strengths stay
+#: below ~50 MPa and a triaxial sigma_1 below a few GPa; the bounds leave a wide margin
+#: around these and refuse only what no rock has (a typo's 1e-300 or 1e30)
+LAB_BOUNDS = {"ucs_MPa": (0.0, 2000.0), "E_GPa": (1e-3, 500.0), "nu": (0.0, 0.5),
+              "u_pre_MJm3": (0.0, 100.0), "bts_MPa": (0.0, 200.0), "dtt_MPa": (0.0, 200.0),
+              "tri_MPa": (0.0, 10000.0)}
+#: the bounds of the lab triaxial table's stresses [MPa] (sigma3 from 0 inclusive)
+TRIAXIAL_BOUNDS = {"sigma3_MPa": (0.0, 2000.0), "sigma1_MPa": (0.0, 10000.0)}
+
+
+def _unknown_columns(df, known, where: str) -> list[str]:
+    """A problem for each column of ``df`` that is not in ``known``, with the nearest
+    known name when there is one (``bts_Mpa`` -> ``bts_MPa``)."""
+    lower = {k.lower(): k for k in known}
+    msgs = []
+    for c in df.columns:
+        if c in known:
+            continue
+        near = lower.get(str(c).lower()) or next(
+            iter(difflib.get_close_matches(str(c), list(known), n=1, cutoff=0.6)), None)
+        hint = f"; did you mean {near!r}?" if near else ""
+        msgs.append(f"{where} has an unknown column {shown(c)}{hint} (known: "
+                    f"{', '.join(known)})")
+    return msgs
+
+
+def _bounded(c: str, v: float) -> str | None:
+    """What is wrong with lab value ``v`` of column ``c`` (a finite number), or None."""
+    lo, hi = LAB_BOUNDS.get(c[:-3] if c.endswith("_se") else c, (0.0, math.inf))
+    if c.endswith("_se"):
+        return None if 0 <= v <= hi else f"expected a standard error in [0, {hi:g}]"
+    if c == "nu":
+        return None if 0 < v < 0.5 else "expected a Poisson's ratio in (0, 0.5)"
+    return None if lo < v <= hi else f"expected a value in ({lo:g}, {hi:g}] (rock)"
 
 
 def lab_problems(df, key: str) -> list[str]:
@@ -44,7 +85,7 @@ def lab_problems(df, key: str) -> list[str]:
                 f"(+ optional {', '.join(LAB_OPTIONAL)})"]
     if len(df) == 0:
         return [f"lab.csv: {key!r} has no specimen rows"]
-    msgs = []
+    msgs = _unknown_columns(df, (*LAB_COLUMNS, *LAB_OPTIONAL), f"lab.csv: {key!r}")
     for s in df["specimen"]:
         m = name_problem(s)
         if m:
@@ -62,19 +103,22 @@ def lab_problems(df, key: str) -> list[str]:
                 v = float(pd.to_numeric(pd.Series([raw]), errors="coerce").iloc[0])
             except (TypeError, ValueError):
                 v = math.nan
+            where = f"lab.csv: {key!r} specimen {clip(str(spec))} {c}={shown(raw)}"
             if c in LAB_SE:
                 value = df.loc[df["specimen"] == spec, c[:-3]]
                 if not (math.isfinite(v) and v >= 0):
-                    msgs.append(f"lab.csv: {key!r} specimen {spec} {c}={raw!r}: expected a "
-                                "standard error >= 0 (or empty)")
+                    msgs.append(f"{where}: expected a standard error >= 0 (or empty)")
                 elif c[:-3] not in df.columns or not _given(value.iloc[0]):
-                    msgs.append(f"lab.csv: {key!r} specimen {spec} {c}={raw!r}: a standard "
-                                f"error without its value {c[:-3]}")
+                    msgs.append(f"{where}: a standard error without its value {c[:-3]}")
+                elif _bounded(c, v):
+                    msgs.append(f"{where}: {_bounded(c, v)}")
             elif not (math.isfinite(v) and v > 0):
-                msgs.append(f"lab.csv: {key!r} specimen {spec} {c}={raw!r}: expected a "
-                            f"positive number{' (or empty)' if optional else ''}")
+                msgs.append(f"{where}: expected a positive number"
+                            f"{' (or empty)' if optional else ''}")
             elif c == "nu" and v >= 0.5:
-                msgs.append(f"lab.csv: {key!r} specimen {spec} nu={raw!r}: expected below 0.5")
+                msgs.append(f"{where}: expected below 0.5")
+            elif _bounded(c, v):
+                msgs.append(f"{where}: {_bounded(c, v)}")
     if "bts_MPa" in df.columns and "dtt_MPa" in df.columns:
         both = [str(sp) for sp, a, b in zip(df["specimen"], df["bts_MPa"], df["dtt_MPa"])
                 if _given(a) and _given(b)]
@@ -148,19 +192,23 @@ def lab_triaxial_problems(df, key: str, specimens=None) -> list[str]:
         return [f"{where} lacks column(s) {missing}; expected {list(LAB_TRIAXIAL_COLUMNS)}"]
     if len(df) == 0:
         return [f"{where} has no rows (expected one row per triaxial test)"]
-    msgs = []
+    msgs = _unknown_columns(df, LAB_TRIAXIAL_COLUMNS, where)
     known = None if specimens is None else [str(s) for s in specimens]
     for i, r in enumerate(df.to_dict("records"), start=1):
         spec = r["specimen"]
         if known is not None and str(spec) not in known:
-            msgs.append(f"{where} row {i}: specimen {spec!r} is not in lab.csv (specimens "
-                        f"{known})")
+            msgs.append(f"{where} row {i}: specimen {shown(spec)} is not in lab.csv (specimens "
+                        f"{shown(known)})")
         s3, s1 = _number(r["sigma3_MPa"]), _number(r["sigma1_MPa"])
+        for c, v in (("sigma3_MPa", s3), ("sigma1_MPa", s1)):
+            if math.isfinite(v) and v > TRIAXIAL_BOUNDS[c][1]:
+                msgs.append(f"{where} row {i}: {c}={shown(r[c])}: expected at most "
+                            f"{TRIAXIAL_BOUNDS[c][1]:g} MPa (rock)")
         if not (math.isfinite(s3) and s3 >= 0):
-            msgs.append(f"{where} row {i}: sigma3_MPa={r['sigma3_MPa']!r}: expected a number "
+            msgs.append(f"{where} row {i}: sigma3_MPa={shown(r['sigma3_MPa'])}: expected a number "
                         ">= 0 (confining stress in MPa, compression positive)")
         if not (math.isfinite(s1) and s1 > 0):
-            msgs.append(f"{where} row {i}: sigma1_MPa={r['sigma1_MPa']!r}: expected a "
+            msgs.append(f"{where} row {i}: sigma1_MPa={shown(r['sigma1_MPa'])}: expected a "
                         "positive number (axial stress at failure in MPa)")
         elif math.isfinite(s3) and s3 >= 0 and not s1 > s3:
             msgs.append(f"{where} row {i}: sigma1_MPa={s1:g} <= sigma3_MPa={s3:g}: expected "

@@ -314,13 +314,26 @@ def _predictions(problem: Problem, surrogates, targets, draws_free: np.ndarray, 
     return pd.DataFrame(rows).set_index("response")
 
 
-# long: the assembly of the posterior (likelihood, sampling, the summary tables, reach,
-# identifiability and its notes) in the order the module docstring gives it
 def fit_posterior(surrogates: Mapping[str, ResponseSurrogate], problem: Problem,
                   targets: Mapping[str, float], card: Mapping[str, float], *,
                   target_se: Mapping[str, float] | None = None,
                   settings: PosteriorSettings = PosteriorSettings(),
                   tests: Mapping[str, dict] | None = None) -> PosteriorResults:
+    """:func:`_fit_posterior` (its docstring) with one BLAS thread (small matrices)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return _fit_posterior(surrogates, problem, targets, card, target_se=target_se,
+                              settings=settings, tests=tests)
+
+
+# long: the assembly of the posterior (likelihood, sampling, the summary tables, reach,
+# identifiability and its notes) in the order the module docstring gives it
+def _fit_posterior(surrogates: Mapping[str, ResponseSurrogate], problem: Problem,
+                   targets: Mapping[str, float], card: Mapping[str, float], *,
+                   target_se: Mapping[str, float] | None = None,
+                   settings: PosteriorSettings = PosteriorSettings(),
+                   tests: Mapping[str, dict] | None = None) -> PosteriorResults:
     """The posterior (module docstring) of ``problem``'s free parameters given ``targets``
     (response -> lab value; each needs a surrogate; ``target_se`` their lab standard
     errors) starting from the ``card`` (its free values must lie in the box).

@@ -268,6 +268,16 @@ def _noise_sd(data: ResponseData, noise, m: BasisGP) -> float:
 
 def fit_surrogate(runs: pd.DataFrame, resp: str, params: Sequence[str], ranges, basis, *,
                   choice: str = "auto", seed: int = 0) -> ResponseSurrogate:
+    """:func:`_fit_surrogate` with one BLAS thread (its matrices are a few hundred rows: a
+    thread pool only spins, and on a loaded machine it spins for a long time)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return _fit_surrogate(runs, resp, params, ranges, basis, choice=choice, seed=seed)
+
+
+def _fit_surrogate(runs: pd.DataFrame, resp: str, params: Sequence[str], ranges, basis, *,
+                   choice: str = "auto", seed: int = 0) -> ResponseSurrogate:
     """The surrogate of ``resp`` (module docstring) on ``runs`` (rows: specimens; columns:
     ``params``, ``source``, ``resp``) with the raw basis ``basis(P)`` (DataFrame ->
     columns); ``choice``: "auto" (the better held-out prediction), "gp" or "stepwise"."""
