@@ -291,8 +291,9 @@ def add_bts_args(p, prefix: str = ""):
                             "speed of each platen [m/s] (default {d:g}; its effect on sigma_t: "
                             "docs/lab-tests.md)"),
         "approach_velocity": (number(lab("approach_velocity"), 0.0, 100.0, unit="m/s"),
-                              "speed of each platen until the first crack [m/s] (default "
-                              "{d:g}; 0: off, the whole test at the platen velocity)"),
+                              "speed of each platen until the approach's share of the "
+                              "bonds has broken [m/s] (default {d:g}; 0: off, the whole "
+                              "test at the platen velocity)"),
         "approach_damage": (number(lab("approach_damage"), 0.0, 1.0, hi_open=True),
                             "the approach ends once this fraction of the disc's bonds has "
                             "broken (default {d:g}; 0: at the first crack)"),

@@ -43,9 +43,12 @@ Stages:
 2. **Loading**: the loaders approach each other at ``platen_velocity`` each; local
    damping 0.7. With ``approach_velocity`` > ``platen_velocity`` (default 0.1 m/s; 0:
    off) they close at that speed until the first bond breaks, then at ``platen_velocity``
-   (the disc is elastic up to the first crack); with ``approach_damage`` = f > 0, until
-   ceil(f x the disc's bonds) have broken (:func:`approach_cracks`; a flat-joint disc
-   counts broken elements against its jointed contacts, so its approach ends sooner).
+   (the disc is elastic up to the first crack); with ``approach_damage`` = f > 0 (default
+   0: off), until ceil(f x the disc's bonds) have broken (:func:`approach_cracks`; a
+   flat-joint disc counts broken elements against its jointed contacts, so its approach
+   ends sooner). Against the switch at the first crack, f = 0.006 saved a third of the
+   steps and left sigma_t and the valid fraction as they were on the design samples
+   compared so far (docs/measurements/2026-12-02-loading-protocol.md).
 
 Measurements, recorded every ``record_strain`` of diametral strain (approach / D), the
 approach counted from the seated positions: load P = mean of the two loader forces (the
