@@ -1,15 +1,15 @@
 """Paired-result guards of the loading protocol of issue 53 (the ``new`` protocol of
 docs/measurements/2026-12-02-loading-protocol.md): the UCS test's fast approach until the
 first crack, ramped down over 5 wave transits, and the Brazilian test's approach until
-0.6 % of the disc's bonds have broken, give the responses of the default study's loading
-(config/config.yaml, which does not use them yet), on the same design samples and packings,
-in fewer steps.
+0.6 % of the disc's bonds have broken (the default study's loading, config/config.yaml),
+give the responses of the constant-velocity loading they replaced (the approach until the
+first crack of the Brazilian test), on the same design samples and packings, in fewer steps.
 
-The samples are three cheap ones of the default study's 150 (the fewest balls, 850-960 in
-the cylinder, one valid disc each; s085, as cheap, is left out: its disc's post-peak tail
-is longer under the new protocol, so it saves no Brazilian steps), each with its own
+The samples are three cheap ones of the default study's 150 (845-961 balls in the
+cylinder, among the fewest; one valid disc each; s085, as cheap, is left out: its disc's
+post-peak tail is longer under the new protocol, so it saves no Brazilian steps), each with its own
 packing seed and the study's specimens and settings. The tolerances are the largest sizes
-of the per-sample changes measured on the samples the record compared, with room: a change
+of the per-sample changes measured on the record's 150 samples, with room (σt: but one): a change
 of the loading that moves a response systematically (a ramp that rings through the fit
 window, an approach into the split) exceeds them."""
 from dataclasses import replace
@@ -32,8 +32,9 @@ SAMPLES = ("s106", "s029", "s089")
 #: the record's new protocol: the settings it changes
 NEW_UCS = {"approach_velocity": 0.1, "approach_ramp": 5.0}
 NEW_BTS = {"approach_damage": 0.006}
-#: per-sample tolerances [%] of the new loading against the study's (module docstring;
-#: the record's largest sizes: 3.5, 1.0, 1.4 and 2.0 %)
+#: per-sample tolerances [%] of the new loading against the old one (module docstring;
+#: the record's largest sizes on 150 samples: 3.7, 1.0, 1.4 % and, for sigma_t on the same
+#: disc, 10.4 % on one sample, s068, 2.2 % on every other)
 TOL = {"ucs_MPa": 5.0, "E_GPa": 1.5, "nu": 2.0, "bts_MPa": 2.5}
 
 
@@ -63,22 +64,22 @@ def _sample(design, sid):
     return params, int(row["seed"])
 
 
-def test_the_study_loads_at_constant_velocity_where_the_new_protocol_does_not(study):
-    """The guards compare the new protocol with the study's loading: the study's config does
-    not use the new settings (else they would compare a loading with itself)."""
+def test_the_study_loads_with_the_new_protocol(study):
+    """The guards compare the study's loading with the old one: the study's config uses the
+    new settings (else they would compare a loading with itself)."""
     _, _, _, ucs, bts = study
-    assert ucs.approach_velocity <= ucs.platen_velocity
-    assert bts.approach_damage == 0.0
-    assert NEW_UCS["approach_velocity"] > ucs.platen_velocity and NEW_BTS["approach_damage"] > 0
+    assert {k: getattr(ucs, k) for k in NEW_UCS} == NEW_UCS
+    assert {k: getattr(bts, k) for k in NEW_BTS} == NEW_BTS
+    assert ucs.approach_velocity > ucs.platen_velocity
 
 
 @pytest.mark.parametrize("sid", SAMPLES)
 def test_the_ucs_approach_keeps_sigma_c_E_and_nu(study, sid, cache):
     design, geo, _, ucs, _ = study
     params, seed = _sample(design, sid)
-    old = ucs_test(params, seed, geo, ucs, cache=cache, threads=1,
-                   keep_particles=False).summary
-    new = ucs_test(params, seed, geo, replace(ucs, **NEW_UCS), cache=cache, threads=1,
+    old = ucs_test(params, seed, geo, replace(ucs, approach_velocity=0.0), cache=cache,
+                   threads=1, keep_particles=False).summary
+    new = ucs_test(params, seed, geo, ucs, cache=cache, threads=1,
                    keep_particles=False).summary
     assert new["steps"] < 0.92 * old["steps"]
     for k in ("ucs_MPa", "E_GPa", "nu"):
@@ -89,9 +90,9 @@ def test_the_ucs_approach_keeps_sigma_c_E_and_nu(study, sid, cache):
 def test_the_brazilian_approach_keeps_sigma_t(study, sid, cache):
     design, _, disc, _, bts = study
     params, seed = _sample(design, sid)
-    old = bts_test(params, seed, disc, bts, cache=cache, threads=1,
-                   keep_particles=False).summary
-    new = bts_test(params, seed, disc, replace(bts, **NEW_BTS), cache=cache, threads=1,
+    old = bts_test(params, seed, disc, replace(bts, approach_damage=0.0), cache=cache,
+                   threads=1, keep_particles=False).summary
+    new = bts_test(params, seed, disc, bts, cache=cache, threads=1,
                    keep_particles=False).summary
     assert old["bts_valid"] and new["bts_valid"]
     assert new["disc_seed"] == old["disc_seed"]  # the same disc: the same specimen

@@ -44,11 +44,11 @@ Stages:
    damping 0.7. With ``approach_velocity`` > ``platen_velocity`` (default 0.1 m/s; 0:
    off) they close at that speed until the first bond breaks, then at ``platen_velocity``
    (the disc is elastic up to the first crack); with ``approach_damage`` = f > 0 (default
-   0: off), until ceil(f x the disc's bonds) have broken (:func:`approach_cracks`; a
+   0.006), until ceil(f x the disc's bonds) have broken (:func:`approach_cracks`; a
    flat-joint disc counts broken elements against its jointed contacts, so its approach
    ends sooner). Against the switch at the first crack, f = 0.006 saved a third of the
-   steps and left sigma_t and the valid fraction as they were on the design samples
-   compared so far (docs/measurements/2026-12-02-loading-protocol.md).
+   steps and left sigma_t and the valid fraction as they were on the default study's 150
+   design samples (docs/measurements/2026-12-02-loading-protocol.md).
 
 Measurements, recorded every ``record_strain`` of diametral strain (approach / D), the
 approach counted from the seated positions: load P = mean of the two loader forces (the
@@ -134,7 +134,7 @@ class BTSSettings:
     max_seat_steps: int = 200_000
     servo_alpha: float = 0.8  # servo relaxation factor during seating (PFC default)
     approach_velocity: float = 0.1  # m/s, each platen until the first crack (0: off)
-    approach_damage: float = 0.0  # ... until this fraction of the bonds broke (0: one)
+    approach_damage: float = 0.006  # ... until this fraction of the bonds broke (0: one)
     loading: str = "flat"  # "flat": two planar platens | "jaws": ISRM curved jaws
     jaw_ratio: float = 1.5  # jaw radius / disc radius (ISRM: 1.5)
     retests: int = 2  # discs tested after an invalid one (runner.bts_test; ISRM practice)

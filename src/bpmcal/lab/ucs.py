@@ -9,16 +9,16 @@ specimen size. Halving 0.05 m/s changes sigma_c by about a per cent and E far le
 0.4: docs/measurements/2026-11-22-loading-rate-and-size.md), so a small specimen can be
 loaded at a higher strain rate than a large one.
 
-Approach (``approach_velocity`` > the platen velocity; off by default): the
+Approach (``approach_velocity`` > the platen velocity; by default 0.1 m/s, twice it): the
 platens close at ``approach_velocity`` until the first bond breaks (the specimen is
 elastic up to there, and E and nu do not depend on the rate), then slow linearly to the
 platen velocity over ``approach_ramp`` times the time a compression wave takes to cross
 the specimen (its secant modulus and bulk density at the switch: :func:`transit_steps`),
 so that the slowing does not ring through the fit window. The axial strain is the sum of
 the stretches loaded at each speed (the platens' approach, exactly). At 0.1 m/s (twice the
-default platen velocity) and 5 transits it saved a fifth of the steps and left sigma_c, E
-and nu as they were on the design samples compared so far
-(docs/measurements/2026-12-02-loading-protocol.md); not the default until all 150 are.
+default platen velocity) and 5 transits (the defaults) it saved a fifth of the steps and
+left sigma_c, E and nu as they were on the default study's 150 design samples
+(docs/measurements/2026-12-02-loading-protocol.md).
 
 Measurements, recorded every ``record_strain`` of axial strain (compression positive):
 
@@ -137,8 +137,8 @@ class UCSSettings:
     post_peak_strain: float = 0.002  # also require this much strain past the peak to stop
     end_cap: float = END_CAP_HEIGHT  # end caps [mean ball diameters], 0: none (module docstring)
     end_cap_factor: float = END_CAP_FACTOR  # strength factor of the end caps' bonds
-    approach_velocity: float = 0.0  # m/s, each platen until the first crack (0: off)
-    approach_ramp: float = 0.0  # wave transits over which the platens slow from it to v
+    approach_velocity: float = 0.1  # m/s, each platen until the first crack (0: off)
+    approach_ramp: float = 5.0  # wave transits over which the platens slow from it to v
 
     def loading_at(self, length: float) -> Loading:
         """The loading of a cylinder of ``length`` [m] (the loaded height)."""
