@@ -227,10 +227,11 @@ def _verify(cards, d, spec, o, max_rounds=8, seeds_per_round=1):
 
 
 def test_every_seed_of_a_round_gets_its_brazilian_test(cards, d, tmp_path, dem):
-    """Seed-averaged loop: each packing seed of a round runs UCS then Brazilian with that
-    seed, and the card records σt's seed mean and n_seeds."""
+    """Seed-averaged loop: each packing seed of a round runs UCS and Brazilian with that
+    seed (each a job of its own, the round's UCS tests first: verification.seed_parts),
+    and the card records σt's seed mean and n_seeds."""
     v = _verify(cards, d, "B1", tmp_path, max_rounds=2, seeds_per_round=2)["verification"]
-    assert [(c[0], c[1]) for c in dem.calls[:4]] == [("ucs", 7), ("bts", 7), ("ucs", 8),
+    assert [(c[0], c[1]) for c in dem.calls[:4]] == [("ucs", 7), ("ucs", 8), ("bts", 7),
                                                       ("bts", 8)]
     assert v["n_seeds"] == 2 and v["closed_loop"]["n_seeds"] == 2
     assert "bts_MPa" in v["closed_loop"]["seed_sd"]

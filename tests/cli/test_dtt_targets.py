@@ -130,8 +130,9 @@ def test_verify_steers_the_direct_tension_strength_and_replaces_invalid_tests(
                  seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
                  tensile_specimens=1)["verification"]  # one specimen per seed
     # seed 7's first direct-tension test broke at a grip: the replacement seed measured it
+    # (round 1: each seed's UCS test and its specimen are jobs of their own, UCS first)
     first = dem.calls[:4]
-    assert first == [("ucs", 7), ("dtt", 7), ("dtt", 7 + BTS_REPLACEMENT_STRIDE), ("ucs", 8)]
+    assert first == [("ucs", 7), ("ucs", 8), ("dtt", 7), ("dtt", 7 + BTS_REPLACEMENT_STRIDE)]
     assert ("dtt", 8) in dem.calls and ("dtt", 8 + BTS_REPLACEMENT_STRIDE) not in dem.calls
     # the invalid tests' half-value never entered a mean: round 1 is off by the 'DEM's 6 %
     assert v["single_pass"]["errors_pct"][DTT] == pytest.approx(6.0, abs=0.5)
@@ -171,9 +172,10 @@ def test_a_seeds_tensile_strength_is_the_mean_of_its_specimens(card, d, tmp_path
                                                                 n, first_error):
     dem, v = _verify_specimens(card, d, tmp_path, monkeypatch, n)
     stride = V.TENSILE_REPLICATE_STRIDE
-    # every seed of a round: its UCS test, then specimens seed, seed + stride, ...
-    assert dem.calls[:2 + n] == [("ucs", 7), *[("dtt", 7 + j * stride) for j in range(n)],
-                                 ("ucs", 8)]
+    # a round's runs, each a job of its own (verification.seed_parts): the seeds' UCS tests, then
+    # specimen j = 0, 1, ... of every seed (packed with seed, seed + stride, ...)
+    assert dem.calls[:2 + 2 * n] == [("ucs", 7), ("ucs", 8), *[
+        ("dtt", s + j * stride) for j in range(n) for s in (7, 8)]]
     assert v["single_pass"]["errors_pct"][DTT] == pytest.approx(first_error, abs=0.5)
     assert v["status"] == "converged" and abs(v["closed_loop"]["errors_pct"][DTT]) <= 1.0
     assert v.get("tensile_specimens", 1) == n
@@ -194,7 +196,7 @@ def test_fresh_seeds_measure_sigma_t_as_the_loop_did(card, d, tmp_path, monkeypa
                        settings=UCSSettings())
     stride = V.TENSILE_REPLICATE_STRIDE
     assert [c for c in dem.calls if c[0] == "dtt"] == [
-        ("dtt", s + j * stride) for s in (101, 102) for j in range(3)]
+        ("dtt", s + j * stride) for j in range(3) for s in (101, 102)]
     assert (df["dtt_specimens"] == 3).all()
     for _, r in df.iterrows():  # the seed's σt: the mean of its specimens' values
         vals = [float(x) for x in r["dtt_specimen_MPa"].split(";")]

@@ -145,7 +145,8 @@ def test_verify_runs_the_triaxial_test_every_seed_and_steers_sigma1(card, d, tmp
     dem = FakeDEM()
     dem.install(monkeypatch, V)
     v = _verify(card, d, tmp_path, "B1")["verification"]
-    assert dem.calls[:6] == [("ucs", 7), ("bts", 7), ("tri", 7), ("ucs", 8), ("bts", 8),
+    # each test of a seed a job of its own, the round's UCS tests first (seed_parts)
+    assert dem.calls[:6] == [("ucs", 7), ("ucs", 8), ("bts", 7), ("tri", 7), ("bts", 8),
                              ("tri", 8)]
     assert set(dem.sigma3) == {S3 * 1e6}
     # round 1 is off by the 'DEM's -5 % on σ1; the loop steers it within the tolerance

@@ -204,6 +204,27 @@ def test_the_study_settings_give_the_sigma_t_of_a_careful_loading(base, careful)
     assert slow[0] / fast[0] == pytest.approx(ratio, rel=0.05)
 
 
+@pytest.mark.slow
+def test_the_approach_ends_once_its_share_of_the_bonds_has_broken(cache):
+    """approach_damage f: the platens close fast until ceil(f x the disc's bonds) cracks
+    (at least one), then at the platen velocity; f = 0 is the first crack."""
+    from bpmcal.lab.brazilian import approach_cracks
+
+    sp = make_specimen(A1, SEED, DISC, cache=cache, boundary="free")
+    n = sp.model.bond_pairs()[0].size
+    assert approach_cracks(sp.model, 0.0) == 1 and approach_cracks(sp.model, 1e-9) == 1
+    assert approach_cracks(sp.model, 0.01) == math.ceil(0.01 * n) > 5
+    res = run_bts(sp, BTSSettings(approach_damage=0.01))
+    s, ser = res.summary, res.series
+    cracks = ser["cracks_tension"] + ser["cracks_shear"]
+    k = int(np.argmax(cracks >= math.ceil(0.01 * n)))  # the switch's record
+    assert 0 < k and s["approach_strain"] == ser["diametral_strain"][k] > 0
+    assert cracks[k - 1] < math.ceil(0.01 * n) and cracks[k - 1] > 1  # past the first crack
+    dstep = np.diff(ser["step"])
+    ratio = DEFAULT.approach_velocity / DEFAULT.platen_velocity
+    assert dstep[-1] / dstep[0] == pytest.approx(ratio, rel=0.05)
+
+
 def test_analyse_against_a_closed_form_load_curve():
     """A parabolic load-displacement curve with a known peak and platen loads that differ
     by a known 1 %: sigma_t = 2 P / (pi D t), the peak position and the mismatch."""
@@ -237,6 +258,8 @@ def test_settings_refuse_bad_values():
                        (dict(stop_drop=1.5), "stop_drop=1.5"),
                        (dict(seat_stress=0.0), "seat_stress=0.0"),
                        (dict(approach_velocity=-1.0), "approach_velocity=-1.0"),
+                       (dict(approach_damage=1.0), "approach_damage=1.0"),
+                       (dict(approach_damage=float("nan")), "approach_damage=nan"),
                        (dict(loading="curved"), "loading='curved'"),
                        (dict(jaw_ratio=0.8), "jaw_ratio=0.8: expected a jaw radius larger"),
                        (dict(contact_cap=-1.0), "contact_cap=-1.0"),

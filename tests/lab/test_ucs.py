@@ -171,3 +171,63 @@ def test_end_caps_that_would_meet_are_refused_before_the_test(cache):
     with pytest.raises(InputError, match="would meet"):
         run_ucs(sp, dataclasses.replace(FAST, end_cap=6.0))
     assert sp.model.step == step
+
+
+@pytest.fixture(scope="module")
+def approached(cache):
+    """The base test with a fast approach (three times the platen velocity) until the first
+    crack, slowed over 5 wave transits: its result and specimen."""
+    return ucs(A1, cache, settings=dataclasses.replace(FAST, approach_velocity=0.3,
+                                                       approach_ramp=5.0))
+
+
+def test_the_approach_ends_at_the_first_crack_and_the_strain_is_the_platens_approach(
+        approached):
+    res, sp = approached
+    s, ser = res.summary, res.series
+    cracks = ser["cracks_tension"] + ser["cracks_shear"]
+    k = int(np.argmax(cracks > cracks[0]))  # the first record with a crack of the loading
+    assert 0 < k and s["approach_strain"] == ser["axial_strain"][k] > 0
+    # the records come 3x as many steps apart after the ramp as before the switch
+    dstep = np.diff(ser["step"])
+    assert dstep[-1] / dstep[0] == pytest.approx(3.0, rel=0.05)
+    assert (dstep[: k - 1] == dstep[0]).all()
+    # the axial strain summed over the stretches at each speed (and the ramp's pieces) is
+    # the platens' approach over the height, read from the walls themselves
+    m = sp.model
+    wb, wt = sp.platens
+    H0 = sp.z_top - sp.z_bottom
+    moved = (m.wall_position(wb)[2] - sp.z_bottom) + (sp.z_top - m.wall_position(wt)[2])
+    assert ser["axial_strain"][-1] == pytest.approx(moved / H0, rel=1e-9)
+
+
+def test_the_approach_keeps_the_responses_in_fewer_steps(base, approached):
+    """A small A1 cylinder (24 mm high): E and nu are those of the constant-velocity test
+    (they do not depend on the rate), sigma_c within its path scatter, in fewer steps."""
+    s = approached[0].summary
+    assert s["steps"] < 0.9 * base["steps"]
+    assert s["E_GPa"] == pytest.approx(base["E_GPa"], rel=0.01)
+    assert abs(s["nu"] - base["nu"]) <= 0.005
+    assert s["ucs_MPa"] == pytest.approx(base["ucs_MPa"], rel=0.03)
+
+
+def test_an_approach_not_faster_than_the_platens_is_the_constant_velocity_test(cache):
+    """approach_velocity at or below platen_velocity (FAST's 0.1 m/s) is off: the run is
+    bitwise that with approach_velocity 0."""
+    a = ucs(A1, cache, settings=dataclasses.replace(FAST, approach_velocity=0.0))[0]
+    b = ucs(A1, cache, settings=dataclasses.replace(FAST, approach_velocity=0.1,
+                                                    approach_ramp=5.0))[0]
+    for k, v in a.series.items():
+        assert np.array_equal(v, b.series[k]), k
+    assert b.summary["approach_strain"] == 0.0
+
+
+@pytest.mark.parametrize("kw, needle", [
+    (dict(approach_velocity=-0.1), "approach_velocity=-0.1"),
+    (dict(approach_velocity=math.nan), "approach_velocity=nan"),
+    (dict(approach_velocity=True), "approach_velocity=True"),
+    (dict(approach_ramp=-1.0), "approach_ramp=-1.0"),
+    (dict(approach_ramp=math.inf), "approach_ramp=inf")])
+def test_approach_settings_are_checked(kw, needle):
+    with pytest.raises(InputError, match=needle):
+        UCSSettings(**kw)

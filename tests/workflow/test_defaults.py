@@ -64,11 +64,14 @@ DEFAULTS = {
     "compression.record_strain": (UCS.record_strain, ("ucs", "record_strain", None)),
     "compression.end_cap": (UCS.end_cap, ("ucs", "end_cap", None)),
     "compression.end_cap_factor": (UCS.end_cap_factor, ("ucs", "end_cap_factor", None)),
+    "compression.approach_velocity": (UCS.approach_velocity, ("ucs", "approach_velocity", None)),
+    "compression.approach_ramp": (UCS.approach_ramp, ("ucs", "approach_ramp", None)),
     "bts.diameter_mm": (BTS_DIAMETER_MM, ("bts", "diameter", None)),
     "bts.thickness_mm": (BTS_THICKNESS_MM, ("bts", "thickness", None)),
     **{f"bts.{k}": (getattr(BTS, k), ("bts", k, None))
        for k in ("platen_velocity", "damping", "platen_fric", "stop_drop", "max_strain",
-                 "record_strain", "post_peak_strain", "approach_velocity", "loading", "jaw_ratio",
+                 "record_strain", "post_peak_strain", "approach_velocity", "approach_damage",
+                 "loading", "jaw_ratio",
                  "contact_cap", "contact_cap_factor", "central_zone", "retests")},
     **{f"dtt.{k}": (getattr(DTT, k), ("dtt", k, None))
        for k in ("grip_velocity", "grip_length", "grip_clearance", "damping", "stop_drop",

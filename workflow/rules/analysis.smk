@@ -160,6 +160,7 @@ rule verify:
         run=FILES.verification_run("{spec}"),
     log:
         FILES.log("verify", "{spec}"),
+    priority: PRIORITY["verify"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["loop_threads"]  # its seeds side by side
@@ -237,6 +238,7 @@ rule transfer:
         run=FILES.transfer_run("{spec}"),
     log:
         FILES.log("transfer", "{spec}"),
+    priority: PRIORITY["transfer"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["dem_threads"]
@@ -289,6 +291,7 @@ rule seed_scatter:
         table=FILES.seed_scatter,
     log:
         FILES.log("seed_scatter"),
+    priority: PRIORITY["seed_scatter"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["loop_threads"]  # its seeds side by side
@@ -330,6 +333,7 @@ rule fresh_seeds:
         seed_runs=FILES.fresh_seed_runs("{spec}"),
     log:
         FILES.log("fresh_seeds", "{spec}"),
+    priority: PRIORITY["fresh_seeds"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["loop_threads"]  # its seeds side by side

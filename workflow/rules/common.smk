@@ -33,6 +33,23 @@ FILES = L.StudyFiles(config["outdir"])
 # ball-steps by phase (bpmcal.cost; read by benchmarks/cost_model.py)
 os.environ.setdefault("BPMCAL_COST", "1")
 SAMPLES = L.sample_ids(config["study"]["n_samples"])
+# which ready job Snakemake starts first (a job's priority, higher first; no rule waits
+# for a lower one): the longest jobs, so that short ones fill the cores at the end instead
+# of a long one running alone - the posterior predictive (every draw's triaxial tests and
+# impact), the closed loops and transfers, the posteriors, the fresh seeds, the impacts,
+# the seed scatter, then the one-test jobs; the analysis jobs (seconds) last
+PRIORITY = {
+    "posterior_predictive": 60,
+    "verify": 50,
+    "transfer": 50,
+    "posterior": 45,
+    "fresh_seeds": 40,
+    "impact": 30,
+    "seed_scatter": 25,
+    "ucs": 20,
+    "triaxial": 20,
+    "sweep_ucs": 10,
+}
 SPECIMENS = list(_lab["specimen"])
 SWEEP_ON = bool(config["ratio_sweep"]["enabled"])
 BTS_ON = bool(config["bts"]["enabled"])  # a Brazilian test of every design sample
@@ -83,10 +100,12 @@ def beside(*files):
     return [c for f in files for c in L.companions(f)[1:]]
 
 
-def specimen_args(cfg=config, scale=None, loading=True):
+def specimen_args(cfg=config, scale=None, loading=True, ucs=True):
     """bpmcal ucs/impact options of the specimen, loading (the compression section; ``loading``
-    False for a job that does not load a cylinder axially: the impact) and resources
-    sections, as a list of arguments (for {params.opts:q}: each one is shell-quoted).
+    False for a job that does not load a cylinder axially: the impact; ``ucs`` False for
+    one that runs no UCS test, without the UCS test's approach: the triaxial tests) and
+    resources sections, as a list of arguments (for {params.opts:q}: each one is
+    shell-quoted).
     A job's params hold only what it reads, so that a changed key reruns exactly those
     jobs (tests/workflow/test_smoke.py, the rerun map)."""
     sp, u, r = cfg["specimen"], cfg["compression"], cfg["resources"]
@@ -112,6 +131,9 @@ def specimen_args(cfg=config, scale=None, loading=True):
                 "--end-cap-factor": u["end_cap_factor"],
             }
         )
+    if loading and ucs:
+        opts["--approach-velocity"] = u["approach_velocity"]
+        opts["--approach-ramp"] = u["approach_ramp"]
     opts.update(
         {
             "--specimen-cache": FILES.packings,

@@ -28,6 +28,7 @@ rule sweep_ucs:
         FILES.log("sweep", "{rid}"),
     wildcard_constraints:
         rid=r"a\d+",
+    priority: PRIORITY["sweep_ucs"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["dem_threads"]
@@ -86,6 +87,7 @@ rule impact:
         FILES.log("impact", "impact_{v}ms"),
     wildcard_constraints:
         v=r"[0-9][0-9.e+-]*",
+    priority: PRIORITY["impact"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["dem_threads"]

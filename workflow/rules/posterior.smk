@@ -37,6 +37,7 @@ rule posterior:
         ),
     log:
         FILES.log("posterior", "{spec}"),
+    priority: PRIORITY["posterior"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["loop_threads"]  # refinement seeds side by side
@@ -106,6 +107,7 @@ rule posterior_predictive:
         impact=_PRED_IMP,
     log:
         FILES.log("posterior_predictive", "{spec}"),
+    priority: PRIORITY["posterior_predictive"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["loop_threads"]  # draws side by side
@@ -139,7 +141,7 @@ rule posterior_predictive:
         card_impact=lambda wc, input: (
             ["--card-impact", input.card_impact] if input.card_impact else []
         ),
-        opts=specimen_args(),
+        opts=specimen_args(ucs=False),
     shell:
         "bpmcal predictive --draws {input.draws:q} --specimen {wildcards.spec:q} "
         "--table {output.table:q} --sigma3 {params.sigma3:q} --tri-runs {output.tri:q} "

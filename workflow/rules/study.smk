@@ -36,6 +36,7 @@ rule ucs:
         FILES.log("ucs", "{sample}"),
     wildcard_constraints:
         sample=r"s\d+",
+    priority: PRIORITY["ucs"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["dem_threads"]

@@ -12,6 +12,7 @@ rule triaxial:
     wildcard_constraints:
         kind="calibrated|verified",
         s3=r"[0-9.e+]+",
+    priority: PRIORITY["triaxial"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["dem_threads"]
@@ -20,7 +21,7 @@ rule triaxial:
         mem_mb=config["resources"]["dem_mem_mb"],
     params:
         t={k: config["triaxial"][k] for k in ("seed", "servo_alpha")},
-        opts=specimen_args(),
+        opts=specimen_args(ucs=False),
     shell:
         "bpmcal triaxial --params {input.card:q} --sigma3 {wildcards.s3:q} "
         "--seed {params.t[seed]:q} --servo-alpha {params.t[servo_alpha]:q} "

@@ -155,6 +155,20 @@ def add_run_args(p, loading=None):
                    default=ld.end_cap_factor,
                    help="strength factor of the end caps' bonds in [1, 1e6] "
                         f"(default {ld.end_cap_factor:g})")
+    if hasattr(ld, "approach_velocity"):  # the UCS test's (the triaxial test has none)
+        p.add_argument("--approach-velocity", type=number("approach-velocity", 0.0, 100.0,
+                                                          unit="m/s"),
+                       default=ld.approach_velocity,
+                       help="speed of each platen until the first crack [m/s], then "
+                            "--platen-velocity (the specimen is elastic up to there; default "
+                            f"{ld.approach_velocity:g}; 0 or a speed not above "
+                            "--platen-velocity: off)")
+        p.add_argument("--approach-ramp", type=number("approach-ramp", 0.0, 1000.0),
+                       default=ld.approach_ramp,
+                       help="the platens slow from the approach velocity to "
+                            "--platen-velocity over this many times the time a compression "
+                            "wave takes to cross the specimen (default "
+                            f"{ld.approach_ramp:g}; 0: at once)")
     add_specimen_args(p, geo)
 
 
@@ -170,11 +184,14 @@ def run_settings(args, cls=None, **extra):
     """The loading settings (``cls``: UCSSettings, the default, or TriaxialSettings)."""
     if cls is None:
         from ..lab.ucs import UCSSettings as cls
+    fields = {f.name for f in dataclasses.fields(cls)}
+    approach = {k: getattr(args, k) for k in ("approach_velocity", "approach_ramp")
+                if k in fields and hasattr(args, k)}  # the UCS test's
     return cls(platen_velocity=args.platen_velocity, strain_rate=args.strain_rate,
                damping=args.damping, stop_drop=args.stop_drop, max_strain=args.max_strain,
                platen_fric=args.platen_fric, record_strain=args.record_strain,
                end_cap=args.end_cap, end_cap_factor=args.end_cap_factor,
-               max_steps=args.max_steps, **extra)
+               max_steps=args.max_steps, **approach, **extra)
 
 
 def file_arg(p, flag, help_, nargs=None):
@@ -186,8 +203,9 @@ def file_arg(p, flag, help_, nargs=None):
 #: loop of a card with a σt target, ``bpmcal verify/transfer --bts-FIELD`` (the study
 #: passes its `bts` section to all three, so σt is measured as for the regression's model)
 BTS_OPTIONS = ("loading", "jaw_ratio", "contact_cap", "contact_cap_factor", "central_zone",
-               "retests", "platen_velocity", "approach_velocity", "platen_fric", "damping",
-               "stop_drop", "post_peak_strain", "max_strain", "record_strain")
+               "retests", "platen_velocity", "approach_velocity", "approach_damage",
+               "platen_fric", "damping", "stop_drop", "post_peak_strain", "max_strain",
+               "record_strain")
 
 #: renamed BTS_OPTIONS/DTT_OPTIONS fields, new -> old: ``--OLD`` (``--bts-OLD``,
 #: ``--dtt-OLD``) is still accepted for one release (:func:`~bpmcal.cli.args.old_spelling`)
@@ -273,8 +291,12 @@ def add_bts_args(p, prefix: str = ""):
                             "speed of each platen [m/s] (default {d:g}; its effect on sigma_t: "
                             "docs/lab-tests.md)"),
         "approach_velocity": (number(lab("approach_velocity"), 0.0, 100.0, unit="m/s"),
-                              "speed of each platen until the first crack [m/s] (default "
-                              "{d:g}; 0: off, the whole test at the platen velocity)"),
+                              "speed of each platen until the approach's share of the "
+                              "bonds has broken [m/s] (default {d:g}; 0: off, the whole "
+                              "test at the platen velocity)"),
+        "approach_damage": (number(lab("approach_damage"), 0.0, 1.0, hi_open=True),
+                            "the approach ends once this fraction of the disc's bonds has "
+                            "broken (default {d:g}; 0: at the first crack)"),
         "platen_fric": (number(lab("platen_fric"), 0.0, 10.0),
                         "platen friction coefficient (default {d:g}; with 0 the free disc "
                         "spins on the platens before it seats, and sigma_t is ~15 %% lower)"),

@@ -46,7 +46,14 @@ from . import defaults_of
 from .inputs import CSV, H5, output_dirs, outputs
 from .pool import SeedPool
 from .runs import run_ucs_file, write_failure
-from .verification import check_tri_target, disc_geometry, row_strength
+from .verification import (
+    check_tri_target,
+    combine_specimens,
+    disc_geometry,
+    specimen_run,
+    specimen_text,
+    specimens_of,
+)
 
 #: per-seed columns of the seed table besides the targets
 _EXTRA = ("u_pre_MJm3", "peak_strain")
@@ -166,14 +173,23 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
         write_table(df, seed_runs, index=False)
         return df
     output_dirs((cache, "--specimen-cache"))
-    with SeedPool(threads, progress) as pool:  # the seeds side by side on `threads` CPUs
-        rows = pool.map(_fresh_seed, [dict(
-            specimen=c["specimen"], params=params, seed=s, run=runs[i], geometry=geometry,
-            settings=settings, extra=[(e[0], None if e[1] is None else e[1][i], *e[2:])
-                                      for e in extra],
-            cache=cache, genesis_max_steps=genesis_max_steps,
-            tensile_specimens=int(v.get("tensile_specimens", 1)))
-            for i, s in enumerate(seeds)], tags=[f"seed {s}" for s in seeds])
+    ts = int(v.get("tensile_specimens", 1))
+    jobs = [dict(specimen=c["specimen"], params=params, seed=s, run=runs[i], geometry=geometry,
+                 settings=settings, extra=[(e[0], None if e[1] is None else e[1][i], *e[2:])
+                                           for e in extra],
+                 cache=cache, genesis_max_steps=genesis_max_steps, tensile_specimens=ts)
+            for i, s in enumerate(seeds)]
+    parts = [(i, p) for i, job in enumerate(jobs) for p in _fresh_parts(job)]
+    order = sorted(range(len(parts)), key=lambda k: (parts[k][1]["part"] != "ucs",
+                                                     parts[k][1].get("j", 0)))
+    with SeedPool(threads, progress) as pool:  # every test of every seed side by side
+        done = pool.map(_fresh_part, [parts[k][1] for k in order],
+                        tags=[_part_tag(parts[k][1]) for k in order])
+    by_seed = [{} for _ in jobs]
+    for k, rec in zip(order, done):
+        i, p = parts[k]
+        by_seed[i][(p["part"], p.get("j", 0))] = rec
+    rows = [_fresh_row(job, recs) for job, recs in zip(jobs, by_seed)]
     df = pd.DataFrame(rows)
     df["loop_reference"] = not other
     df["loop_reference_note"] = other
@@ -222,29 +238,59 @@ OLD_SEED_TABLE = ("a seed table of an older bpmcal, which does not say whether i
                   "repeat the loop's")
 
 
-def _fresh_seed(*, specimen, params: dict, seed: int, run, geometry, settings, extra: list,
-                cache, genesis_max_steps, threads, progress, tensile_specimens=1) -> dict:
-    """One fresh seed (run in a :class:`SeedPool` worker or in this process): its UCS test
-    into ``run`` and, for every per-sample test of ``extra`` (:func:`fresh_seeds`' list,
-    each with this seed's run file in place of the list of all), the test when it is measured
-    for this card (an invalid one run again on a replacement seed), else a failure record
-    saying why not. Returns the seed's row."""
+def _fresh_parts(job: dict) -> list[dict]:
+    """The pool jobs of one fresh seed (``job``: the seed's arguments): its UCS test, and
+    every specimen j of each per-sample test measured for this card (each run a job of
+    its own, as a closed loop's: :func:`~.verification.seed_parts`)."""
+    base = {k: job[k] for k in ("params", "seed", "cache", "genesis_max_steps")}
+    parts = [dict(base, part="ucs", out=job["run"], geometry=job["geometry"],
+                  settings=job["settings"])]
+    for resp, path, measured, test, geo, st, *_ in job["extra"]:
+        if path is not None and measured:
+            parts += [dict(base, part=resp, j=j, out=path, geometry=geo, settings=st)
+                      for j in range(specimens_of(resp, job["tensile_specimens"]))]
+    return parts
+
+
+def _part_tag(p: dict) -> str:
+    return f"seed {p['seed']} " + ("UCS" if p["part"] == "ucs"
+                                   else f"{P.SAMPLE_TESTS[p['part']]} {p['j'] + 1}")
+
+
+def _fresh_part(*, part: str, params: dict, seed: int, out, geometry, settings, cache,
+                genesis_max_steps, threads, progress, j: int = 0):
+    """One run of a fresh seed (a :class:`SeedPool` job of :func:`_fresh_parts`): its UCS
+    test into ``out`` (the outcome's status, error and the responses a seed row keeps), or
+    specimen ``j`` of the test of strength ``part`` into ``out`` (j = 0) or
+    ``<out stem>.r<j>.h5`` (a :class:`~.verification.SpecimenRun`)."""
     kw = dict(cache=cache, threads=threads, progress=progress,
-              genesis_max_steps=genesis_max_steps)
-    u = run_ucs_file(run, params, seed, geometry, settings, keep_particles=False, **kw)
-    row = {"specimen": specimen, "seed": seed, "status": u.status, "error": u.error}
-    for k in (*P.TARGETS, *_EXTRA):
-        row[k] = float(u.summary.get(k, math.nan)) if u.status == "ok" else math.nan
-    # σt (a target, or the card's prediction on fresh seeds) and σ1 at the design
-    # confinement: an invalid tensile test is run again on a replacement seed
-    for resp, path, measured, test, geo, st, inputs_of, what, target in extra:
+              genesis_max_steps=genesis_max_steps, keep_particles=False)
+    if part == "ucs":
+        u = run_ucs_file(out, params, seed, geometry, settings, **kw)
+        return {"status": u.status, "error": u.error,
+                "values": {k: float(u.summary.get(k, math.nan)) if u.status == "ok"
+                           else math.nan for k in (*P.TARGETS, *_EXTRA)}}
+    return specimen_run(part, lambda j, _s, _k: out if j == 0
+                        else Path(out).with_suffix(f".r{j}.h5"),
+                        params, seed, j, geometry, settings, **kw)
+
+
+def _fresh_row(job: dict, recs: dict) -> dict:
+    """A fresh seed's row from its runs (``recs``: (part, j) -> :func:`_fresh_part`'s
+    record), as the seed's tests run one after the other give it: its UCS responses and,
+    for every per-sample test of ``job["extra"]``, the test when it is measured for this
+    card (:func:`_fresh_test`), else a failure record saying why not."""
+    u = recs[("ucs", 0)]
+    row = {"specimen": job["specimen"], "seed": job["seed"], "status": u["status"],
+           "error": u["error"], **u["values"]}
+    for resp, path, measured, test, geo, st, inputs_of, what, target in job["extra"]:
         if path is None:
             continue
         if measured:
-            _fresh_test(row, resp, what, path, params, seed, geo, st,
-                        tensile_specimens=tensile_specimens, **kw)
+            n = specimens_of(resp, job["tensile_specimens"])
+            _fresh_test(row, resp, what, [recs[(resp, j)] for j in range(n)], n)
         else:
-            write_failure(path, test=test, inputs=inputs_of(params, seed, geo, st),
+            write_failure(path, test=test, inputs=inputs_of(job["params"], job["seed"], geo, st),
                           error=f"not run: the card has no {target} ({resp})")
     return row
 
@@ -255,18 +301,19 @@ def _tri_inputs(params: dict, seed: int, geometry, settings) -> dict:
     return triaxial_inputs(params, seed, geometry, settings or TriaxialSettings())
 
 
-def _fresh_test(row: dict, resp: str, what: str, path, params: dict, seed: int, geometry,
-                settings, *, tensile_specimens=1, **kw) -> None:
+def _fresh_test(row: dict, resp: str, what: str, runs: list, n: int) -> None:
     """One fresh seed's per-sample test of strength ``resp`` (``P.SAMPLE_TESTS``) into
-    ``path`` and ``row``: the strength (NaN for a failed run, or when no replacement seed
-    gave a valid test: the seed keeps its UCS responses), the packing seed used, the
-    invalid attempts, and the status and error of a failure; σt the mean of
-    ``tensile_specimens`` specimens (:func:`row_strength`; specimen j > 0 into
-    ``<path stem>.r<j>.h5``)."""
-    b, invalid = row_strength(
-        row, resp, lambda j, _s, _k: path if j == 0 else Path(path).with_suffix(f".r{j}.h5"),
-        params, seed, geometry, settings, tensile_specimens=tensile_specimens,
-        keep_particles=False, **kw)
+    ``row`` from its ``n`` specimens' runs (:class:`~.verification.SpecimenRun`, in
+    order): the strength (the specimens' mean, :func:`combine_specimens`; NaN for a
+    failed run, or when no replacement seed gave a valid test: the seed keeps its UCS
+    responses), the packing seed used, the invalid attempts, and the status and error of
+    a failure (the columns of :func:`~.verification.row_strength`)."""
+    test = P.SAMPLE_TESTS[resp]
+    b, used, invalid, row[resp], values = combine_specimens(runs, n)
+    row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
+    if n > 1:
+        row[f"{test}_specimens"] = len(values)
+        row[f"{test}_specimen_MPa"] = specimen_text(values)
     if b.status != "ok":
         row["status"] = "failed"
         row["error"] = "; ".join(x for x in (row["error"], f"{what}: {b.error}") if x)

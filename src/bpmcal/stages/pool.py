@@ -1,5 +1,6 @@
-"""Independent DEM runs side by side: the seeds of a closed-loop round, the fresh seeds,
-the seed-scatter seeds.
+"""Independent DEM runs side by side: the runs of a closed-loop round's seeds and of the
+fresh seeds (each seed's UCS test and each of its tensile specimens a job of its own:
+``verification.seed_parts``), the seed-scatter seeds, the posterior predictive's runs.
 
 A stage given ``threads`` = N CPUs runs its independent runs on up to N worker
 processes at once, each run with N // (runs at once) numba threads (one, when there are

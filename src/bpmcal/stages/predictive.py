@@ -4,8 +4,9 @@ the untargeted predictions of a card, run on posterior draws.
 Each draw of ``posterior/<specimen>/draws.csv`` (:func:`bpmcal.stages.posterior.pick_draws`)
 runs the triaxial tests at the study's confining stresses, whose envelope gives the
 Mohr-Coulomb c and φ and the Hoek-Brown mi (:func:`bpmcal.stages.triaxial.fit_envelopes`),
-and the drop-hammer test at the reference velocity, which gives η_f; the draws run side
-by side on the stage's CPUs (:class:`~.pool.SeedPool`), every run file kept. The table
+and the drop-hammer test at the reference velocity, which gives η_f; every run of every
+draw is a job of its own on the stage's CPUs (:class:`~.pool.SeedPool`, the longest first,
+so that no CPU idles while another finishes a draw), every run file kept. The table
 holds one row per draw and, beside them, the verified card's own values where the study
 measured them (its triaxial envelope and, for the impact's card, its reference impact),
 so the report can give each prediction's mean and interval over the posterior beside the
@@ -32,21 +33,31 @@ from .triaxial import fit_envelopes
 PREDICTIONS = ("mi", "c_MPa", "phi_deg", "eta_f")
 
 
-def _draw_job(*, params: dict, tri_runs: list, sigma3: list, impact_run, geometry, tri_settings,
-              impact_geometry, impact_settings, tri_seed: int, impact_seed: int, cache,
-              genesis_max_steps, threads, progress) -> dict:
-    """One draw (a :class:`SeedPool` job): its triaxial runs and impact run, and the
-    predictions they give (NaN where a run failed, with the reason in ``note``)."""
+def _run_job(*, kind: str, out, params: dict, seed: int, geometry, settings, cache,
+             genesis_max_steps, threads, progress) -> dict:
+    """One run of a draw (a :class:`SeedPool` job): a triaxial test (``kind`` "tri", at
+    ``settings.sigma3``) or the drop hammer ("impact") into ``out``; whether it ran, the
+    value the draw needs of it (σ1 at failure, η_f; NaN for a failed run) and the error."""
     kw = dict(cache=cache, threads=threads, progress=progress,
               genesis_max_steps=genesis_max_steps)
-    s1, notes = [], []
-    for s3, out in zip(sigma3, tri_runs):
-        st = dataclasses.replace(tri_settings, sigma3=float(s3) * 1e6)
-        r = run_triaxial_file(out, params, tri_seed, geometry, st, keep_particles=False, **kw)
-        ok = r.status == "ok"
-        s1.append(float(r.summary.get("sigma1_MPa", math.nan)) if ok else math.nan)
-        if not ok:
-            notes.append(f"triaxial at {s3:g} MPa failed: {r.summary.get('error', '')}")
+    if kind == "tri":
+        r = run_triaxial_file(out, params, seed, geometry, settings, keep_particles=False, **kw)
+        key = "sigma1_MPa"
+    else:
+        r = run_impact_file(out, params, seed, geometry, settings, **kw)
+        key = "eta_f"
+    ok = r.status == "ok"
+    return {"ok": ok, "value": float(r.summary.get(key, math.nan)) if ok else math.nan,
+            "error": r.summary.get("error", "")}
+
+
+def _draw_row(sigma3: list, tri: list[dict], impact: dict | None) -> dict:
+    """A draw's predictions from its runs (:func:`_run_job`'s records: the triaxial tests
+    in the order of ``sigma3``, the impact or None): the envelope's and η_f (NaN where a
+    run failed, with the reason in ``note``)."""
+    s1 = [t["value"] for t in tri]
+    notes = [f"triaxial at {s3:g} MPa failed: {t['error']}"
+             for s3, t in zip(sigma3, tri) if not t["ok"]]
     good = np.isfinite(s1)
     env = fit_envelopes(np.asarray(sigma3, float)[good], np.asarray(s1, float)[good])
     row = {k: env[k] for k in ("mi", "c_MPa", "phi_deg")}
@@ -54,15 +65,34 @@ def _draw_job(*, params: dict, tri_runs: list, sigma3: list, impact_run, geometr
     if env.get("fit_note"):
         notes.append(env["fit_note"])
     row["eta_f"] = math.nan
-    if impact_run is not None:
-        r = run_impact_file(impact_run, params, impact_seed, impact_geometry, impact_settings,
-                            **kw)
-        if r.status == "ok":
-            row["eta_f"] = float(r.summary["eta_f"])
+    if impact is not None:
+        if impact["ok"]:
+            row["eta_f"] = impact["value"]
         else:
-            notes.append(f"impact failed: {r.summary.get('error', '')}")
+            notes.append(f"impact failed: {impact['error']}")
     row["note"] = "; ".join(notes)
     return row
+
+
+def _draw_jobs(params: list, tri_runs: list, sigma3: list, impact_runs, *, geometry,
+               tri_settings, impact_geometry, impact_settings, tri_seed: int,
+               impact_seed: int, cache, genesis_max_steps) -> list[tuple]:
+    """Every run of every draw as its own pool job (:func:`_run_job`), the longest first so
+    that the stage's CPUs stay busy to its end: the impacts, then the triaxial tests from
+    the highest confinement down. Returns (draw, index: -1 for the impact, else the
+    stress's, job) in that order."""
+    k, common = len(sigma3), dict(cache=cache, genesis_max_steps=genesis_max_steps)
+    jobs = []
+    if impact_runs is not None:
+        jobs += [(i, -1, dict(kind="impact", out=impact_runs[i], params=p, seed=impact_seed,
+                              geometry=impact_geometry, settings=impact_settings, **common))
+                 for i, p in enumerate(params)]
+    for j in sorted(range(k), key=lambda j: -sigma3[j]):
+        st = dataclasses.replace(tri_settings, sigma3=float(sigma3[j]) * 1e6)
+        jobs += [(i, j, dict(kind="tri", out=tri_runs[i * k + j], params=p, seed=tri_seed,
+                             geometry=geometry, settings=st, **common))
+                 for i, p in enumerate(params)]
+    return jobs
 
 
 def _card_values(envelopes, specimen: str, impact_run) -> dict:
@@ -112,14 +142,17 @@ def predictive(draws, *, specimen: str, tri_runs, table, sigma3, geometry, tri_s
     params = [{k: float(r[k]) for k in names} for _, r in d.iterrows()]
     for p in params:
         P.validate_params(p)
-    k = len(sigma3)
-    jobs = [dict(params=params[i], tri_runs=tri_runs[i * k:(i + 1) * k], sigma3=sigma3,
-                 impact_run=None if impact_runs is None else impact_runs[i], geometry=geometry,
-                 tri_settings=tri_settings, impact_geometry=impact_geometry,
-                 impact_settings=impact_settings, tri_seed=tri_seed, impact_seed=impact_seed,
-                 cache=cache, genesis_max_steps=genesis_max_steps) for i in range(n)]
-    with SeedPool(threads, progress) as pool:
-        rows = pool.map(_draw_job, jobs, tags=[f"draw {int(x)}" for x in d["draw"]])
+    jobs = _draw_jobs(params, tri_runs, sigma3, impact_runs, geometry=geometry,
+                      tri_settings=tri_settings, impact_geometry=impact_geometry,
+                      impact_settings=impact_settings, tri_seed=tri_seed,
+                      impact_seed=impact_seed, cache=cache, genesis_max_steps=genesis_max_steps)
+    names_of = {-1: "impact"} | {j: f"triaxial {s3:g} MPa" for j, s3 in enumerate(sigma3)}
+    with SeedPool(threads, progress) as pool:  # every run its own job: no idle tail
+        done = pool.map(_run_job, [job for _, _, job in jobs],
+                        tags=[f"draw {int(d['draw'].iloc[i])} {names_of[j]}" for i, j, _ in jobs])
+    runs = {(i, j): r for (i, j, _), r in zip(jobs, done)}
+    rows = [_draw_row(sigma3, [runs[i, j] for j in range(len(sigma3))],
+                      runs.get((i, -1))) for i in range(n)]
     out = pd.DataFrame([{"draw": str(int(x)), **p, **r}
                         for x, p, r in zip(d["draw"], params, rows)])
     card = {"draw": "card", **_card_values(envelopes, specimen, card_impact), "note": ""}

@@ -14,8 +14,10 @@ are looked up in this module. Method: ``docs/methods/calibration.md`` ("Closed l
 """
 from __future__ import annotations
 
+import json
 import math
 import os
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +47,7 @@ from ..params import BTS, SAMPLE_TESTS
 from ..plots.calibration import fig_stress_strain
 from . import defaults_of
 from .inputs import CSV, H5, PNG, YAML, output_dirs, outputs, read_lab, read_models
-from .journal import RunJournal
+from .journal import RunJournal, plain
 from .pool import SeedPool
 from .runs import (  # noqa: F401 (the per-sample tests' runners: _TEST_RUN names them)
     run_bts_file,
@@ -227,6 +229,50 @@ def check_tensile_specimens(n, flag: str = "--tensile-specimens") -> int:
     return int(n)
 
 
+@dataclass
+class SpecimenRun:
+    """One tensile specimen of a packing seed, measured (:func:`specimen_run`): its run's
+    status, error and file (the attempt used), the packing seed that attempt ran on, the
+    invalid attempts' reasons and the strength (NaN: failed, or no valid attempt)."""
+
+    status: str
+    error: str
+    path: str | None
+    seed: int
+    invalid: list
+    value: float
+
+
+def specimen_run(resp: str, path_of, params: dict, seed: int, j: int, geometry, settings,
+                 **kw) -> SpecimenRun:
+    """Specimen ``j`` of packing ``seed``'s test of strength ``resp`` (packed with
+    ``replicate_seed(seed, j)``; an invalid run replaced: :func:`valid_tensile_run`);
+    ``path_of(j, s, k)`` names the run file of its attempt k on packing s."""
+    b, s, bad = valid_tensile_run(SAMPLE_TESTS[resp], lambda s, k: path_of(j, s, k), params,
+                                  replicate_seed(seed, j), geometry, settings, **kw)
+    return SpecimenRun(b.status, b.error, None if b.path is None else str(b.path), int(s),
+                       list(bad), test_strength(resp, b))
+
+
+def combine_specimens(runs, n: int):
+    """A seed's strength from its specimens' :class:`SpecimenRun` in order (those after a
+    failed one are not counted: a seed with a failed specimen has no strength): (the first
+    specimen's run, or the failed one's, the packing seed the first ran on, every invalid
+    attempt's reason, the mean of the ``n`` specimens or NaN, the specimens' strengths)."""
+    first, used, invalid, values = None, None, [], []
+    for r in runs:
+        invalid += r.invalid
+        values.append(r.value)
+        if first is None:
+            first, used = r, r.seed
+        if r.status != "ok":
+            first = r  # a failed specimen: the seed has no σt; the others do not count
+            break
+    v = np.array(values, float)
+    mean = float(v.mean()) if len(v) == n and np.isfinite(v).all() else math.nan
+    return first, used, invalid, mean, values
+
+
 def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, settings, *,
                   specimens: int = 1, start: int = 0, **kw):
     """The strength ``resp`` (``P.SAMPLE_TESTS``) of packing ``seed``: with ``specimens``
@@ -239,28 +285,23 @@ def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, setting
     mean is NaN when a specimen failed or had no valid test (a seed is measured on all n,
     or it has no σt). ``start`` = m > 0 runs specimens m .. n-1 only (a seed's count
     raised after its first m were measured: :class:`_LoopRuns`); the mean is then theirs.
-    Returns (the first specimen's outcome, or the failed one's, the packing seed the first
-    ran on, the invalid attempts' reasons of every specimen, the seed's strength, the
-    specimens' strengths)."""
+    Returns (the first specimen's :class:`SpecimenRun`, or the failed one's, the packing
+    seed the first ran on, the invalid attempts' reasons of every specimen, the seed's
+    strength, the specimens' strengths). The specimens run one after the other here;
+    :meth:`_LoopRuns._parts` and :mod:`.fresh_seeds` run them side by side and combine them
+    alike
+    (:func:`combine_specimens`)."""
     test = SAMPLE_TESTS[resp]
     if specimens > 1 and test not in TENSILE_TESTS:
         raise BadInput(f"tensile specimens {specimens}: only a tensile strength "
                        f"({', '.join(TENSILE_TESTS)}) is measured on several specimens, "
                        f"not {resp}")
-    first, used, invalid, values = None, None, [], []
+    runs = []
     for j in range(start, specimens):
-        b, s, bad = valid_tensile_run(test, lambda s, k, j=j: path_of(j, s, k), params,
-                                      replicate_seed(seed, j), geometry, settings, **kw)
-        invalid += bad
-        values.append(test_strength(resp, b))
-        if first is None:
-            first, used = b, s
-        if b.status != "ok":
-            first = b  # a failed specimen: the seed has no σt; the others need not run
-            break
-    v = np.array(values, float)
-    mean = float(v.mean()) if len(v) == specimens - start and np.isfinite(v).all() else math.nan
-    return first, used, invalid, mean, values
+        runs.append(specimen_run(resp, path_of, params, seed, j, geometry, settings, **kw))
+        if runs[-1].status != "ok":
+            break  # a failed specimen: the seed has no σt; the others need not run
+    return combine_specimens(runs, specimens - start)
 
 
 def valid_bts_run(path_of, params: dict, seed: int, disc, settings, **kw):
@@ -388,7 +429,7 @@ class _LoopRuns:
                               if seed - self.first_seed < self.caps.get(r, math.inf)])
                 for seed in seeds]
         k = len(self.by_round)
-        done = self._journaled(_loop_seed, jobs, [f"round {k} seed {s}" for s in seeds])
+        done = self._seed_records(jobs, f"round {k}")
         rows = [dict(done[i]["row"]) for i in range(len(seeds))]
         outs = [dict(done[i]["out"]) for i in range(len(seeds))]
         for i in range(len(seeds)):
@@ -417,6 +458,32 @@ class _LoopRuns:
                            for i in todo], tags=[tags[i] for i in todo], done=finished)
         return [done[i] for i in range(len(jobs))]
 
+    def _parts(self, jobs: list[dict], tag: str, first_specimen: int = 0) -> list:
+        """Every seed job's parts (:func:`seed_parts`: its UCS test, each
+        tensile specimen) side by side through the journal, the longest first. Returns
+        per job (its UCS record or None, resp -> its specimens' records in order)."""
+        parts = [(i, p) for i, job in enumerate(jobs) for p in seed_parts(job, first_specimen)]
+        order = longest_first([p for _, p in parts])
+        names = [f"{tag} seed {parts[i][1]['seed']} "
+                 + ("UCS" if parts[i][1]["part"] == "ucs"
+                    else f"{SAMPLE_TESTS[parts[i][1]['part']]} {parts[i][1]['j'] + 1}")
+                 for i in order]
+        recs = self._journaled(run_part, [parts[i][1] for i in order], names)
+        out = [(None, {}) for _ in jobs]
+        for i, rec in zip(order, recs):
+            job, part = parts[i]
+            if part["part"] == "ucs":
+                out[job] = (rec, out[job][1])
+            else:
+                out[job][1].setdefault(part["part"], {})[part["j"]] = rec
+        return [(u, {r: [v[j] for j in sorted(v)] for r, v in sp.items()}) for u, sp in out]
+
+    def _seed_records(self, jobs: list[dict], tag: str) -> list[dict]:
+        """The journal records of :func:`_loop_seed` for the seed ``jobs``, their tests
+        run as jobs of their own (:meth:`_parts`)."""
+        return [seed_record(job, ucs, sp) for job, (ucs, sp) in
+                zip(jobs, self._parts(jobs, tag))]
+
     def _specimen_cv(self) -> tuple[float, int]:
         """The tensile specimen CV pooled over every round so far (:func:`pooled_cv`)."""
         test = SAMPLE_TESTS[self.tensile]
@@ -444,10 +511,9 @@ class _LoopRuns:
                       if need == self.max_specimens else ""))
         self.inputs["tensile_specimens"] = need
         top = [i for i, row in enumerate(rows) if _finite(row.get(resp))]
-        jobs = [dict(self.inputs, params=params, seed=seeds[i], targets=[resp], first_specimen=k)
-                for i in top]
-        done = self._journaled(_top_up_seed, jobs, [
-            f"round {len(self.by_round)} seed {seeds[i]} top-up" for i in top])
+        jobs = [dict(self.inputs, params=params, seed=seeds[i], targets=[resp]) for i in top]
+        done = [top_up_record(sp[resp], need - k) for _, sp in
+                self._parts(jobs, f"round {len(self.by_round)} top-up", first_specimen=k)]
         for j, i in enumerate(top):
             rec, row = done[j], rows[i]
             old = specimen_values(row, resp, test)
@@ -526,6 +592,106 @@ def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, 
              "bts": None if bts_path is None else Path(bts_path).name}, run_files(stem))
 
 
+# ---- a seed's tests as pool jobs of their own ---------------------------------------
+# The UCS test and each tensile specimen (its replacements included) of every seed of a
+# closed-loop round (and of a fresh-seed check: .fresh_seeds) run side by side on the
+# stage's CPUs, not a seed per job: a round of 3 seeds run seed by seed on 2 CPUs keeps them
+# at most 75 % busy (the third seed runs alone), its UCS tests and discs as jobs of their
+# own (3 + 9 with 3 discs a seed) keep both busy to the round's last run. The numbers do
+# not change: every run is deterministic in its inputs and packing seed, wherever and
+# beside whatever it runs, and a seed's row is put together from its runs as _loop_seed
+# puts it together from the same runs one after the other (combine_specimens). The one
+# difference: a specimen after a failed one (a failure, not an invalid test) runs, and is
+# not counted, where the runs one after the other stop at the failure.
+
+
+def specimens_of(resp: str, tensile_specimens: int) -> int:
+    """How many specimens measure ``resp`` on a seed (a tensile test's count; one else)."""
+    return tensile_specimens if SAMPLE_TESTS[resp] in TENSILE_TESTS else 1
+
+
+def seed_parts(job: dict, first_specimen: int = 0) -> list[dict]:
+    """The pool jobs of one loop seed's ``job`` (:func:`_loop_seed`'s
+    arguments but the folder and the pool's): its UCS test (none with
+    ``first_specimen`` > 0: a top-up of its tensile specimens) and every specimen j of each
+    per-sample test of its targets (from ``first_specimen`` on)."""
+    base = {k: job[k] for k in ("params", "seed", "geometry", "settings", "genesis_max_steps")}
+    parts = [] if first_specimen else [dict(base, part="ucs")]
+    for resp in (r for r in SAMPLE_TESTS if r in job["targets"]):  # σt, σ1
+        geo, st = job["specimens"][SAMPLE_TESTS[resp]]
+        n = specimens_of(resp, job.get("tensile_specimens", 1))
+        parts += [dict(base, part=resp, j=j, geometry=geo, settings=st)
+                  for j in range(first_specimen, n)]
+    return parts
+
+
+def longest_first(parts: list[dict]) -> list[int]:
+    """The order to run ``parts`` in: the UCS tests, then the specimens by index (each
+    seed's first specimens before any seed's later ones)."""
+    return sorted(range(len(parts)), key=lambda i: (parts[i]["part"] != "ucs",
+                                                     parts[i].get("j", 0)))
+
+
+def run_part(*, part: str, params: dict, seed: int, geometry, settings, stem: Path, cache,
+             genesis_max_steps, threads, progress, j: int = 0):
+    """One pool job of :func:`seed_parts`: the UCS test into ``<stem>.h5``, or specimen
+    ``j`` of the test of strength ``part`` into ``<stem>.<test><k>[.r<j>].h5``
+    (:func:`specimen_path`). Returns (its record: JSON-able, every run file
+    it wrote)."""
+    kw = dict(cache=cache, threads=threads, progress=progress,
+              genesis_max_steps=genesis_max_steps)
+    if part == "ucs":
+        res = run_ucs_file(Path(f"{stem}.h5"), params, seed, geometry, settings, **kw)
+        rec = {"summary": dict(res.summary), "status": res.status,
+               "ucs": Path(res.path).name}
+    else:
+        test = SAMPLE_TESTS[part]
+        r = specimen_run(part, lambda j, s, k: specimen_path(stem, test, j, k), params,
+                           seed, j, geometry, settings, **kw)
+        rec = asdict(r)
+    return rec, run_files(stem)
+
+
+def _specimen_runs(records) -> list:
+    return [SpecimenRun(**r) for r in records]
+
+
+def seed_record(job: dict, ucs: dict, specimens: dict) -> dict:
+    """A loop seed's journal record from its parts' records (``ucs``; ``specimens``: resp
+    -> the records of its specimens in order), as :func:`_loop_seed` gives
+    it (and as the journal gives it back: JSON's types)."""
+    targets, seed = job["targets"], job["seed"]
+    row = dict(ucs["summary"], status=ucs["status"], seed=seed)
+    ok = ucs["status"] == "ok"
+    out = {r: float(ucs["summary"][r]) if ok else math.nan
+           for r in targets if r not in SAMPLE_TESTS}
+    bts_path = None
+    for resp in (r for r in SAMPLE_TESTS if r in targets):
+        test = SAMPLE_TESTS[resp]
+        n = specimens_of(resp, job.get("tensile_specimens", 1))
+        b, used, invalid, row[resp], values = combine_specimens(_specimen_runs(specimens[resp]), n)
+        row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
+        if n > 1:
+            row[f"{test}_specimens"] = len(values)
+            row[f"{test}_specimen_MPa"] = specimen_text(values)
+        if test == "bts":
+            bts_path = b.path
+        if b.status != "ok" or not math.isfinite(row[resp]):
+            row["status"] = "failed"
+        out[resp] = row[resp]
+    rec = {"row": row, "out": out, "ucs": ucs["ucs"],
+           "bts": None if bts_path is None else Path(bts_path).name}
+    return json.loads(json.dumps(rec, default=plain, allow_nan=True))
+
+
+def top_up_record(records, n: int) -> dict:
+    """The record of a seed's raised tensile specimens (their strengths, the count of
+    invalid attempts, the status: :meth:`_LoopRuns._adapt` reads it) from
+    their parts' records in order; ``n``: how many were asked for."""
+    b, _, invalid, _, values = combine_specimens(_specimen_runs(records), n)
+    return {"values": [float(v) for v in values], "invalid": len(invalid), "status": b.status}
+
+
 def specimen_path(stem, test: str, j: int, k: int) -> Path:
     """The run file of tensile specimen ``j``'s attempt ``k`` of a loop seed (``stem``):
     ``<stem>.<test><k>.h5`` for specimen 0, ``<stem>.<test><k>.r<j>.h5`` after it."""
@@ -541,24 +707,6 @@ def specimen_text(values) -> str:
     """A seed row's ``<test>_specimen_MPa``: each specimen's strength, ``;``-separated
     (:func:`specimen_values` reads it back)."""
     return ";".join(f"{v:.6g}" for v in values)
-
-
-def _top_up_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, settings,
-                 specimens: dict, cache, genesis_max_steps, threads, progress,
-                 tensile_specimens: int, first_specimen: int):
-    """The tensile specimens ``first_specimen`` .. ``tensile_specimens`` - 1 of one seed
-    whose count the closed loop raised (:meth:`_LoopRuns._adapt`; the tensile target is
-    ``targets``' only entry), into ``<stem>.<test><k>.r<j>.h5``. Returns (a record:
-    their strengths, the count of invalid attempts and the status, every run file)."""
-    resp = targets[0]
-    test = SAMPLE_TESTS[resp]
-    geo, st = specimens[test]
-    b, _, invalid, _, values = seed_strength(
-        resp, lambda j, s, k: specimen_path(stem, test, j, k), params, seed, geo, st,
-        specimens=tensile_specimens, start=first_specimen, cache=cache, threads=threads,
-        progress=progress, genesis_max_steps=genesis_max_steps)
-    return {"values": [float(v) for v in values], "invalid": len(invalid),
-            "status": b.status}, run_files(stem)
 
 
 def specimen_values(row: dict, resp: str, test: str) -> list[float]:
