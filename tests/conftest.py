@@ -18,7 +18,14 @@ cache folder is fixed when ``bpmcal.dem`` is first imported).
 session (autouse), so a specimen built without an explicit cache, in this process or in a
 ``bpmcal``/Snakemake subprocess, lands there and never in ``~/.cache/bpmcal/packings``.
 Tests that pass a cache pass this one unless they need an empty cache of their own, so an
-identical packing is relaxed once per session, not once per folder."""
+identical packing is relaxed once per session, not once per folder. With pytest-xdist
+(``-n 2``: the README's command) the workers share it (the cache writes a packing under a
+temporary name and renames it).
+
+**Order**: the test files that hold slow tests run first (they hold the long fixtures:
+whole smoke studies), the others after them in their usual order, so that under
+``-n 2 --dist loadfile`` the two workers start on the long files and fill in with the
+short ones, instead of meeting the long ones last."""
 import os
 from pathlib import Path
 
@@ -36,7 +43,17 @@ os.environ["MPLCONFIGDIR"] = str(LOCAL_CACHE / "matplotlib")
 @pytest.fixture(scope="session", autouse=True)
 def packing_cache(tmp_path_factory):
     """The session's packing cache (a folder; also ``$BPMCAL_SPECIMEN_CACHE``)."""
-    d = tmp_path_factory.mktemp("packings")
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # one cache for the workers of a run
+        d = tmp_path_factory.getbasetemp().parent / "packings"
+        d.mkdir(exist_ok=True)
+    else:
+        d = tmp_path_factory.mktemp("packings")
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("BPMCAL_SPECIMEN_CACHE", str(d))
         yield d
+
+
+def pytest_collection_modifyitems(config, items):
+    """The files with slow tests first (module docstring), otherwise the collection's order."""
+    slow_files = {it.path for it in items if it.get_closest_marker("slow") is not None}
+    items[:] = sorted(items, key=lambda it: it.path not in slow_files)  # stable

@@ -32,4 +32,4 @@ def test_the_readme_stays_short_and_starts_with_the_two_commands():
     assert len(lines) <= 200
     head = "\n".join(lines[:6])
     assert 'pip install -e ".[test]" && snakemake --cores 2' in head
-    assert 'pip install -e ".[test]" && python -m pytest -q -ra' in head
+    assert 'pip install -e ".[test]" && python -m pytest -q -ra -n 2 --dist loadfile' in head

@@ -566,7 +566,8 @@ RERUN = {
         "enabled": False, "scale": 0.43, "diameter_mm": 51.0, "thickness_mm": 26.0,
         "loading": "jaws", "jaw_ratio": 1.4, "contact_cap": 1.4,
         "contact_cap_factor": 999.0, "central_zone": 0.45, "retests": 1, "platen_velocity": 0.051,
-        "approach_velocity": 0.11, "approach_damage": 0.007, "platen_fric": 0.31, "damping": 0.71, "stop_drop": 0.21,
+        "approach_velocity": 0.11, "approach_damage": 0.007, "platen_fric": 0.31,
+        "damping": 0.71, "stop_drop": 0.21,
         "max_strain": 0.051, "record_strain": 1.1e-5, "post_peak_strain": 0.00031}.items()},
     "dtt.enabled": (True, {"ucs"}),  # the sample jobs gain the test
     **{f"dtt.{k}": (v, set()) for k, v in {  # off in the smoke study: nothing reads them
