@@ -118,14 +118,20 @@ def test_the_two_platen_forces_agree(base, careful):
     disc) at the peak and along the pre-peak curve once the load is established; only
     the stress waves of single bond breaks near one platen separate them for a moment.
     So under the careful loading from the start, and under the default (the study's) from
-    the first crack on, when its platens slow from the fast approach of the elastic disc
-    (during that approach they differ by up to a few per cent; the peak is not in it)."""
+    where its platens slow from the fast approach (``approach_strain``) to the peak. The
+    study's approach lasts until a few per mille of the bonds have broken, which on A1 is
+    a few records before the peak (at 99.98 % of its load): during it the platens differ
+    by up to about 5 % (the dynamic approach the loading-protocol record paid for its
+    steps with; sigma_t on the same discs moved by a median 0.01 %), so the pre-peak
+    balance is the careful loading's, and the study's is held at and just before the
+    peak."""
     for s in (base.summary, careful.summary):
         assert s["platen_mismatch"] < 0.005
-    cracks = base.series["cracks_tension"] + base.series["cracks_shear"]
-    for ser, first in ((careful.series, 0), (base.series, int(np.argmax(cracks > 0)))):
+    switch = int(np.flatnonzero(base.series["diametral_strain"]
+                                == base.summary["approach_strain"])[0])
+    for ser, first in ((careful.series, 0), (base.series, switch)):
         rel = _mismatch(ser, first)
-        assert rel.size > 100
+        assert rel.size > (100 if first == 0 else 2)
         assert rel.mean() < 0.005 and np.percentile(rel, 95) < 0.01, (rel.mean(), rel.max())
 
 
@@ -195,8 +201,10 @@ def test_the_study_settings_give_the_sigma_t_of_a_careful_loading(base, careful)
     assert s["steps"] < 0.7 * careful.summary["steps"]
     ser = base.series
     cracks = ser["cracks_tension"] + ser["cracks_shear"]
-    k = int(np.argmax(cracks > 0))  # the first record with a crack: the switch
-    assert s["approach_strain"] == ser["diametral_strain"][k] > 0
+    # the switch: the record where the approach's share of the bonds had broken (its count
+    # checked in test_the_approach_ends_once_its_share_of_the_bonds_has_broken)
+    k = int(np.flatnonzero(ser["diametral_strain"] == s["approach_strain"])[0])
+    assert s["approach_strain"] > 0 and cracks[k] >= 1 and cracks[k - 1] < cracks[k]
     dstep = np.diff(ser["step"])
     fast, slow = dstep[: k - 1], dstep[k + 1:]
     ratio = b["approach_velocity"] / b["platen_velocity"]
