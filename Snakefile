@@ -86,5 +86,15 @@ rule all:
         rules.impact_analyse.output,
         rules.triaxial_envelopes.output if TRIAX_ON else [],
         [FILES.posterior_card(s) for s in SPECIMENS] if POSTERIOR_ON else [],
-        [FILES.posterior_predictive(s) for s in PREDICTIVE_SPECS],
+        # the table and every run file: a new confining stress is a missing file (Snakemake
+        # reruns a job for its missing outputs only when they are requested)
+        [
+            f
+            for s in PREDICTIVE_SPECS
+            for f in (
+                FILES.posterior_predictive(s),
+                *FILES.predictive_runs(s, _PRED_N, _PRED_S3, _PRED_IMPACT)[0],
+                *FILES.predictive_runs(s, _PRED_N, _PRED_S3, _PRED_IMPACT)[1],
+            )
+        ],
         rules.report.output,

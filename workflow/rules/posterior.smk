@@ -117,6 +117,9 @@ rule posterior_predictive:
         * (len(_PRED_S3) + 2 * _PRED_IMPACT),
         mem_mb=config["resources"]["dem_mem_mb"] * config["resources"]["loop_threads"],
     params:
+        # what the job runs, as plain values (the params trigger compares them: impact
+        # off leaves fewer outputs, which alone would rerun nothing)
+        plan={"draws": _PRED_N, "sigma3": _PRED_S3, "impact": _PRED_IMPACT},
         sigma3=",".join(f"{x:g}" for x in _PRED_S3),
         t={k: config["triaxial"][k] for k in ("seed", "servo_alpha")},
         i={
