@@ -93,8 +93,7 @@ rule all:
             for s in PREDICTIVE_SPECS
             for f in (
                 FILES.posterior_predictive(s),
-                *FILES.predictive_runs(s, _PRED_N, _PRED_S3, _PRED_IMPACT)[0],
-                *FILES.predictive_runs(s, _PRED_N, _PRED_S3, _PRED_IMPACT)[1],
+                *sum(FILES.predictive_runs(s, _PRED_N, _PRED_S3, _PRED_IMPACT), []),
             )
         ],
         rules.report.output,
