@@ -200,16 +200,23 @@ def regression(rock: Rock, n: int, seed: int) -> dict:
     return design_runs(rock, n, seed)[1]
 
 
+def planted_card(rock: Rock, i: int) -> dict:
+    """Planted card ``i``: the rock's fixed values and each free parameter drawn inside the
+    middle 80 % of its range (from seed 7000 + i)."""
+    rng = np.random.default_rng(7000 + i)
+    planted = dict(rock.fixed)
+    planted.update({q: rock.ranges[q][0] + (0.1 + 0.8 * rng.random())
+                    * (rock.ranges[q][1] - rock.ranges[q][0]) for q in rock.free})
+    return planted
+
+
 def one_card(rock: Rock, i: int, models: dict, max_rounds, updates=UPDATES,
              grows: tuple = (None,)) -> list[dict]:
     """A planted card inside the ranges' middle 80 %, its lab seeds' mean as the targets
     (with their standard errors when ``rock.target_se``), the inversion, and the loop from
     it with each update rule and each ``grows`` (``grow_within``; None: the loop's
     default). A rule's label is the update rule, with ", grow g" when several are compared."""
-    rng = np.random.default_rng(7000 + i)
-    planted = dict(rock.fixed)
-    planted.update({q: rock.ranges[q][0] + (0.1 + 0.8 * rng.random())
-                    * (rock.ranges[q][1] - rock.ranges[q][0]) for q in rock.free})
+    planted = planted_card(rock, i)
     lab = pd.DataFrame([simulate(rock, planted, s) for s in rock.lab_seeds])  # other packings
     targets = {r: float(lab[r].mean()) for r in rock.responses}
     target_se = ({r: float(lab[r].std(ddof=1) / len(lab) ** 0.5) for r in rock.responses}

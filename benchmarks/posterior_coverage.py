@@ -45,6 +45,7 @@ import numpy as np
 import pandas as pd
 from _study import record_header, write_record
 from loop_convergence import ROCKS, design_runs, simulate
+from loop_convergence import planted_card as planted_of
 
 from bpmcal.analysis.calibration import ClosedLoop, invert
 from bpmcal.analysis.posterior import PosteriorSettings, Problem, fit_posterior, fit_surrogate
@@ -70,10 +71,8 @@ def design(rock, n: int, seed: int = 11):
 
 
 def planted_card(rock, i: int, ratio):
-    rng = np.random.default_rng(7000 + i)
-    p = dict(rock.fixed)
-    p.update({q: rock.ranges[q][0] + (0.1 + 0.8 * rng.random())
-              * (rock.ranges[q][1] - rock.ranges[q][0]) for q in rock.free})
+    """Card ``i`` of the closed-loop benchmark; with ``ratio``, sigma_cp = ratio x tau_cp."""
+    p = planted_of(rock, i)
     if ratio is not None:  # the card obeys the ratio: tau_cp chosen, sigma_cp follows
         lo, hi = rock.ranges["pb_ten_MPa"]
         p["pb_coh_MPa"] = min(p["pb_coh_MPa"], 0.9 * hi / ratio)
