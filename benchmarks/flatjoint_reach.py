@@ -298,12 +298,14 @@ def _same_setup(old: dict, rec: dict) -> bool:
     tests (the direct-tension settings are checked per card: ``_needs_dtt``)."""
     import copy
 
-    from bpmcal.study.config import translate_deprecated
+    renamed = {"ucs": "compression", "servo_gain": "servo_alpha"}  # keys of older records
 
-    def other(s):  # config keys renamed since the old record (RENAMED_KEYS) under new names
-        s = translate_deprecated(copy.deepcopy(s or {}), note=lambda line: None)
-        if "servo_gain" in s:  # records before the rename of triaxial.servo_gain
-            s["servo_alpha"] = s.pop("servo_gain")
+    def other(s):
+        s = {renamed.get(k, k): v for k, v in copy.deepcopy(s or {}).items()}
+        for part in s.values():
+            for o, n in (("post_peak_min", "post_peak_strain"), ("servo_gain", "servo_alpha")):
+                if isinstance(part, dict) and o in part:
+                    part[n] = part.pop(o)
         return {k: v for k, v in s.items() if k != "dtt"}
     return (all(old.get(k) == rec.get(k) for k in ("scale", "bts_scale", "seeds"))
             and other(old.get("settings")) == other(rec.get("settings")))

@@ -21,7 +21,7 @@ with mkdocs_gen_files.open("cli.md", "w") as f:
             "subcommand's `--help`. Exit codes and error messages: "
             "[troubleshooting](troubleshooting.md).\n\n")
     f.write("| command | what |\n|---|---|\n")
-    for name in helps:  # the subcommands, not their deprecated aliases (bpmcal.cli.ALIASES)
+    for name in helps:
         f.write(f"| [`{name}`](#bpmcal-{name}) | {helps[name] or ''} |\n")
     for name in helps:
         f.write(f"\n## bpmcal {name}\n\n```text\n{sub.choices[name].format_help()}```\n")

@@ -20,7 +20,6 @@ from bpmcal.io.h5 import check_run_file, write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import BTS, PARAMS
-from bpmcal.stages import analysis as A
 from bpmcal.stages import verification as V
 from bpmcal.stages.runs import RunOutcome
 
@@ -218,7 +217,7 @@ def dem(monkeypatch):
 
 
 def _verify(cards, d, spec, o, max_rounds=8, seeds_per_round=1):
-    return A.verify(cards["dir"] / f"{spec}.yaml", d / "models.json", out_card=o / f"{spec}.yaml",
+    return V.verify(cards["dir"] / f"{spec}.yaml", d / "models.json", out_card=o / f"{spec}.yaml",
                     rounds=o / f"{spec}.csv", run=o / f"{spec}.h5", bts_run=o / f"{spec}.bts.h5",
                     geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
                     rtol=0.01, max_rounds=max_rounds, seeds_per_round=seeds_per_round,
@@ -261,7 +260,7 @@ def test_verify_of_a_no_exact_fit_card_records_the_missed_target(cards, d, tmp_p
     assert BTS in missed and missed[BTS]["error_pct"] > 1.0
     assert missed[BTS]["dem"] == pytest.approx(v["closed_loop"][BTS])
     t5 = tmp_path / "t5.csv"
-    A.verification_tables([tmp_path / "B2.yaml"], [tmp_path / "B2.h5"], d / "lab.csv",
+    V.verification_tables([tmp_path / "B2.yaml"], [tmp_path / "B2.h5"], d / "lab.csv",
                           table5=t5, table6=tmp_path / "t6.csv", figure=tmp_path / "f6.png")
     row = pd.read_csv(t5, index_col=0).loc["B2"]
     assert math.isclose(row[f"closed_loop_{BTS}_err_pct"], missed[BTS]["error_pct"])
@@ -297,7 +296,7 @@ def test_the_report_names_the_missed_target_and_the_ratio_set_by_sigma_t(cards, 
     v = tmp_path / "v"
     v.mkdir()
     _verify(cards, d, "B2", v, max_rounds=2)
-    A.verification_tables([v / "B2.yaml"], [v / "B2.h5"], d / "lab.csv", table5=lay.table(L.TABLE5),
+    V.verification_tables([v / "B2.yaml"], [v / "B2.h5"], d / "lab.csv", table5=lay.table(L.TABLE5),
                           table6=lay.table(L.TABLE6), figure=tmp_path / "f6.png")
     text = _verification(lay, [])
     assert "| B2 | sigma_t |" in text and "B2: target(s) missed by the closed loop" in text
@@ -310,7 +309,7 @@ def test_a_disc_too_small_for_the_balls_is_refused_before_any_run(cards, d, tmp_
 
     o = tmp_path / "o"
     with pytest.raises(BadInput, match=r"Brazilian disc at scale 0.3 \(15 x 7.5 mm\)"):
-        A.verify(cards["dir"] / "B1.yaml", d / "models.json", out_card=o / "B1.yaml",
+        V.verify(cards["dir"] / "B1.yaml", d / "models.json", out_card=o / "B1.yaml",
                  rounds=o / "B1.csv", run=o / "B1.h5", geometry=Geometry(scale=0.3),
                  settings=UCSSettings(), seed=7, seeds_per_round=1)
     assert dem.calls == [] and not o.exists()

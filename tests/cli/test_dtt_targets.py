@@ -16,10 +16,9 @@ from bpmcal.io.h5 import write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import BTS
-from bpmcal.stages import analysis as A
 from bpmcal.stages import verification as V
-from bpmcal.stages.analysis import BTS_REPLACEMENT_STRIDE
 from bpmcal.stages.runs import RunOutcome
+from bpmcal.stages.verification import BTS_REPLACEMENT_STRIDE
 
 DTT = "dtt_MPa"
 R = RANGES
@@ -124,7 +123,7 @@ def test_verify_steers_the_direct_tension_strength_and_replaces_invalid_tests(
     dem = FakeDEM()
     monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
     monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
-    v = A.verify(card, d / "models.json", out_card=tmp_path / "B1.yaml",
+    v = V.verify(card, d / "models.json", out_card=tmp_path / "B1.yaml",
                  rounds=tmp_path / "B1.csv", run=tmp_path / "B1.h5",
                  geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
                  seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
@@ -160,7 +159,7 @@ def _verify_specimens(card, d, out, monkeypatch, n):
     dem = SpecimenDEM()
     monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
     monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
-    v = A.verify(card, d / "models.json", out_card=out / "B1.yaml", rounds=out / "B1.csv",
+    v = V.verify(card, d / "models.json", out_card=out / "B1.yaml", rounds=out / "B1.csv",
                  run=out / "B1.h5", geometry=Geometry(scale=0.4), settings=UCSSettings(),
                  seed=7, seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
                  tensile_specimens=n)["verification"]
@@ -306,7 +305,7 @@ def _verify_adaptive(card, d, out, monkeypatch, cv, **kw):
     monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
     opts = dict(seed=7, seeds_per_round=3, max_seeds=3, rtol=0.05, max_rounds=3,
                 tensile_specimens=3, tensile_seed_cv=0.05, max_tensile_specimens=8) | kw
-    v = A.verify(card, d / "models.json", out_card=out / "B1.yaml", rounds=out / "B1.csv",
+    v = V.verify(card, d / "models.json", out_card=out / "B1.yaml", rounds=out / "B1.csv",
                  run=out / "B1.h5", geometry=Geometry(scale=0.4), settings=UCSSettings(),
                  **opts)["verification"]
     return dem, v

@@ -6,7 +6,7 @@ import json
 import pandas as pd
 import pytest
 
-import bpmcal.stages.analysis as A
+import bpmcal.stages.verification as A
 from bpmcal.analysis.stepwise import FORMAT, RegressionModel
 from bpmcal.io.card import read_card, write_card
 from bpmcal.lab.runner import Geometry, bts_geometry

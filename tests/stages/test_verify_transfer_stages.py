@@ -10,10 +10,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import bpmcal.stages.analysis as A
+import bpmcal.stages.transfer as TR
 import bpmcal.stages.verification as V
 from bpmcal.analysis.stepwise import FORMAT, RegressionModel
 from bpmcal.io.card import card_parameters, read_card, write_card
+from bpmcal.io.checks import BadInput
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import table2_ranges
@@ -79,7 +80,7 @@ def study(tmp_path):
 
 
 def run_verify(tmp_path, card, models, k, max_seeds=None):
-    return A.verify(card, models, out_card=tmp_path / "v" / "card.yaml",
+    return V.verify(card, models, out_card=tmp_path / "v" / "card.yaml",
                     rounds=tmp_path / "v" / "rounds.csv", run=tmp_path / "v" / "best.h5",
                     geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
                     seeds_per_round=k, max_rounds=4, max_seeds=max_seeds or k)
@@ -141,7 +142,7 @@ def test_table5_carries_the_seed_spread(study, monkeypatch):
     monkeypatch.setattr(V, "save_figure", lambda fig, path: None)
     lab = tmp_path / "lab.csv"
     lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60.0,14.0,0.25,0.1\n")
-    t5 = A.verification_tables([tmp_path / "v" / "card.yaml"], [tmp_path / "v" / "best.h5"],
+    t5 = V.verification_tables([tmp_path / "v" / "card.yaml"], [tmp_path / "v" / "best.h5"],
                                lab, table5=tmp_path / "t5.csv", table6=tmp_path / "t6.csv",
                                figure=tmp_path / "f6.png")["table5"]
     assert t5.loc["B1", "n_seeds"] == 3
@@ -160,7 +161,7 @@ def test_transfer_corrects_only_a_miss_beyond_the_seed_scatter(study, monkeypatc
     run_verify(tmp_path, card, models, 3)
     verified = read_card(tmp_path / "v" / "card.yaml")
     n_verify = len(dem.calls)
-    t = A.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t" / "card.yaml",
+    t = TR.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t" / "card.yaml",
                    rounds=tmp_path / "t" / "rounds.csv", run=tmp_path / "t" / "best.h5",
                    geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4,
                    max_rounds=2, rtol=rtol)
@@ -187,7 +188,7 @@ def test_transfer_corrects_only_a_miss_beyond_the_seed_scatter(study, monkeypatc
         assert card_parameters(card_out) == pytest.approx(tr["parameters"])
         assert tr["parameters"]["pb_emod_GPa"] < verified["verification"]["parameters"][
             "pb_emod_GPa"]
-    table = A.transfer_table([tmp_path / "t" / "card.yaml"], table=tmp_path / "tt.csv")
+    table = TR.transfer_table([tmp_path / "t" / "card.yaml"], table=tmp_path / "tt.csv")
     row = table[table["response"] == "E_GPa"].iloc[0]
     assert row["scale"] == 1.0 and row["verified_scale"] == 0.25
     assert row["at_transfer_err_pct"] == pytest.approx(e0)
@@ -196,12 +197,12 @@ def test_transfer_corrects_only_a_miss_beyond_the_seed_scatter(study, monkeypatc
 
 def test_scatter_factor_follows_the_ball_count():
     g = Geometry(scale=0.4).to_dict()
-    assert A.scatter_factor(g, Geometry(scale=1.0)) == pytest.approx(0.4 ** 1.5)
-    assert A.scatter_factor(g, Geometry(scale=0.4)) == pytest.approx(1.0)
+    assert TR.scatter_factor(g, Geometry(scale=1.0)) == pytest.approx(0.4 ** 1.5)
+    assert TR.scatter_factor(g, Geometry(scale=0.4)) == pytest.approx(1.0)
     # a shorter specimen at the same scale holds half the balls: it scatters more
-    assert A.scatter_factor(g, Geometry(scale=0.4, height_mm=50.0)) == pytest.approx(2 ** 0.5)
-    assert A.scatter_factor(None, Geometry(scale=1.0)) == 1.0  # a card without its geometry
-    assert A.scatter_factor({"scale": 0.4, "diameter_mm": 20.0}, Geometry(scale=1.0)) == 1.0
+    assert TR.scatter_factor(g, Geometry(scale=0.4, height_mm=50.0)) == pytest.approx(2 ** 0.5)
+    assert TR.scatter_factor(None, Geometry(scale=1.0)) == 1.0  # a card without its geometry
+    assert TR.scatter_factor({"scale": 0.4, "diameter_mm": 20.0}, Geometry(scale=1.0)) == 1.0
 
 
 def test_transfer_of_a_card_whose_loop_did_not_run(study, tmp_path):
@@ -209,7 +210,7 @@ def test_transfer_of_a_card_whose_loop_did_not_run(study, tmp_path):
     c = read_card(card)
     c["verification"] = {"status": "not-run", "message": "unreachable", "closed_loop": None}
     write_card(tmp_path / "nr.yaml", c)
-    t = A.transfer(tmp_path / "nr.yaml", models, out_card=tmp_path / "o" / "card.yaml",
+    t = TR.transfer(tmp_path / "nr.yaml", models, out_card=tmp_path / "o" / "card.yaml",
                    rounds=tmp_path / "o" / "r.csv", run=tmp_path / "o" / "b.h5",
                    geometry=Geometry(scale=1.0), settings=UCSSettings())
     assert t["transfer"]["status"] == "not-run" and "calibrated_at_scale" not in t
@@ -255,7 +256,7 @@ def test_transfer_starts_from_the_jacobian_the_verification_learned(study, monke
     c["verification"]["jacobian"] = jac
     write_card(tmp_path / "planted.yaml", c)
     n = len(dem.calls)
-    A.transfer(tmp_path / "planted.yaml", models, out_card=tmp_path / "t" / "card.yaml",
+    TR.transfer(tmp_path / "planted.yaml", models, out_card=tmp_path / "t" / "card.yaml",
                rounds=tmp_path / "t" / "rounds.csv", run=tmp_path / "t" / "best.h5",
                geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4, max_rounds=1)
     full = [p for p, _, _ in dem.calls[n:]]
@@ -274,7 +275,7 @@ def test_scatter_of_a_verified_card_runs_its_verified_parameters(study, monkeypa
     n = len(dem.calls)
     monkeypatch.setattr(V, "run_ucs_file", lambda out, params, seed, *a, **k: (
         dem(out, params, seed, Geometry(scale=0.25), None)))
-    A.seed_scatter(tmp_path / "v" / "card.yaml", runs=[tmp_path / "s1.h5", tmp_path / "s2.h5"],
+    V.seed_scatter(tmp_path / "v" / "card.yaml", runs=[tmp_path / "s1.h5", tmp_path / "s2.h5"],
                    seeds=[1, 2], seed_runs=tmp_path / "sr.csv", table=tmp_path / "sc.csv",
                    geometry=Geometry(scale=0.25), settings=UCSSettings())
     ran = [p for p, _, _ in dem.calls[n:]]
@@ -298,7 +299,7 @@ def test_transfer_of_a_card_whose_jacobian_does_not_fit_starts_from_the_models(s
         c["verification"]["jacobian"] = v
         write_card(tmp_path / f"{name}.yaml", c)
         n = len(dem.calls)
-        A.transfer(tmp_path / f"{name}.yaml", models, out_card=tmp_path / name / "card.yaml",
+        TR.transfer(tmp_path / f"{name}.yaml", models, out_card=tmp_path / name / "card.yaml",
                    rounds=tmp_path / name / "rounds.csv", run=tmp_path / name / "best.h5",
                    geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4, max_rounds=1)
         if name == "partial":
@@ -320,25 +321,25 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     kw = dict(rounds=tmp_path / "v" / "rounds.csv", run=tmp_path / "v" / "best.h5",
               geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
               seeds_per_round=1, max_rounds=6, max_seeds=1)
-    v = A.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v" / "card.yaml",
+    v = V.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v" / "card.yaml",
                  **kw)["verification"]
     assert v["status"] == "converged" and v["range_margin"] == 0.25
     assert v["parameters"]["pb_kratio"] == pytest.approx(5.5, rel=0.01)
     assert v["loop_bounds"]["pb_kratio"][1] == pytest.approx(6.0)
     assert v["outside_design"]["pb_kratio"]["range"] == [1.0, 5.0]
     assert "outside the design space" in v["message"] and "pb_kratio" in v["message"]
-    inside = A.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v0" / "card.yaml",
+    inside = V.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v0" / "card.yaml",
                       range_margin=0.0, **kw)["verification"]
     assert inside["status"] != "converged" and inside["outside_design"] == {}
     assert inside["parameters"]["pb_kratio"] == pytest.approx(5.0)
     assert [m["target"] for m in inside["missed"]] == ["nu"]
     t = dict(geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4, max_rounds=1)
-    out = A.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t" / "c.yaml",
+    out = TR.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t" / "c.yaml",
                      rounds=tmp_path / "t" / "r.csv", run=tmp_path / "t" / "b.h5", **t)
     assert out["transfer"]["status"] == "within-scatter"
     assert set(out["transfer"]["outside_design"]) == {"pb_kratio"}
     with pytest.raises(ValueError, match=r"pb_kratio=5.4\d* outside \[1, 5\].*margin.*now 0\)"):
-        A.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t0" / "c.yaml",
+        TR.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t0" / "c.yaml",
                    rounds=tmp_path / "t0" / "r.csv", run=tmp_path / "t0" / "b.h5",
                    range_margin=0.0, **t)
     monkeypatch.setattr(V, "read_series", lambda run: pd.DataFrame(
@@ -350,7 +351,7 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     from bpmcal.report.build import _verification
 
     lay = L.StudyFiles(tmp_path / "study")
-    t5 = A.verification_tables([tmp_path / "v" / "card.yaml", tmp_path / "v0" / "card.yaml"],
+    t5 = V.verification_tables([tmp_path / "v" / "card.yaml", tmp_path / "v0" / "card.yaml"],
                                [tmp_path / "v" / "best.h5"] * 2, lab,
                                table5=lay.table(L.TABLE5), table6=lay.table(L.TABLE6),
                                figure=tmp_path / "f6.png")["table5"]
@@ -359,8 +360,8 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     assert notes[1] == ""
     text = _verification(lay, [])  # the report says it under Table 5, once
     assert text.count("outside the design space") == 1 and "B1: outside the design space" in text
-    with pytest.raises(A.BadInput, match="range-margin"):
-        A.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v1" / "card.yaml",
+    with pytest.raises(BadInput, match="range-margin"):
+        V.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v1" / "card.yaml",
                  range_margin=1.5, **kw)
 
 
@@ -373,7 +374,7 @@ def test_verify_polishes_a_converged_card_and_records_it(study, monkeypatch):
     for polish in (False, True):
         dem = PlantedDEM(dev=dev)
         monkeypatch.setattr(V, "run_ucs_file", dem)
-        v = A.verify(card, models, out_card=tmp_path / f"p{polish}" / "card.yaml",
+        v = V.verify(card, models, out_card=tmp_path / f"p{polish}" / "card.yaml",
                      rounds=tmp_path / f"p{polish}" / "rounds.csv",
                      run=tmp_path / f"p{polish}" / "best.h5", geometry=Geometry(scale=0.25),
                      settings=UCSSettings(), seed=1, seeds_per_round=3, max_rounds=6,
@@ -395,7 +396,7 @@ def test_verify_reports_every_round_and_records_its_update_rule(study, monkeypat
     tmp_path, card, models = study
     monkeypatch.setattr(V, "run_ucs_file", PlantedDEM())
     seen = []
-    v = A.verify(card, models, out_card=tmp_path / "h" / "card.yaml",
+    v = V.verify(card, models, out_card=tmp_path / "h" / "card.yaml",
                  rounds=tmp_path / "h" / "rounds.csv", run=tmp_path / "h" / "best.h5",
                  geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
                  seeds_per_round=3, max_rounds=4, max_seeds=3, jacobian_update="history",
@@ -404,9 +405,9 @@ def test_verify_reports_every_round_and_records_its_update_rule(study, monkeypat
     notes = [d["note"] for d in seen if "note" in d and d["note"].startswith("closed loop")]
     assert len(notes) == v["rounds"]
     assert notes[0].startswith("closed loop round 1 (3 seeds): ucs_MPa ")
-    with pytest.raises(A.BadInput, match="--jacobian-update 'newton': expected one of broyden, "
+    with pytest.raises(BadInput, match="--jacobian-update 'newton': expected one of broyden, "
                                          "history"):
-        A.verify(card, models, out_card=tmp_path / "x" / "card.yaml",
+        V.verify(card, models, out_card=tmp_path / "x" / "card.yaml",
                  rounds=tmp_path / "x" / "rounds.csv", run=tmp_path / "x" / "best.h5",
                  geometry=Geometry(scale=0.25), settings=UCSSettings(), jacobian_update="newton")
     assert not (tmp_path / "x" / "card.yaml").exists()
@@ -426,7 +427,7 @@ class StoppedDEM(PlantedDEM):
 
 
 def _verify_into(d, card, models, **kw):
-    return A.verify(card, models, out_card=d / "card.yaml", rounds=d / "rounds.csv",
+    return V.verify(card, models, out_card=d / "card.yaml", rounds=d / "rounds.csv",
                     run=d / "best.h5", geometry=Geometry(scale=0.25), settings=UCSSettings(),
                     seed=1, seeds_per_round=3, max_seeds=3, max_rounds=4, **kw)
 

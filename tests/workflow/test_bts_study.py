@@ -13,8 +13,9 @@ from support.paper import A1
 from bpmcal import params as P
 from bpmcal.cli import main
 from bpmcal.io import h5
-from bpmcal.stages.analysis import regress, screen
 from bpmcal.stages.dataset import gather
+from bpmcal.stages.regression import regress
+from bpmcal.stages.screening import screen
 
 
 def _design(tmp_path, rows) -> str:

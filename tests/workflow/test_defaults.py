@@ -24,12 +24,14 @@ from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import auto_rounds
 from bpmcal.stages import defaults_of
-from bpmcal.stages.analysis import calibrate, transfer, verify
+from bpmcal.stages.calibration import calibrate
 from bpmcal.stages.posterior import RefineSettings, posterior
 from bpmcal.stages.ratio_sweep import sweep_analyse, sweep_plan
 from bpmcal.stages.runs import impact_file
 from bpmcal.stages.screening import TENSILE_RULE
+from bpmcal.stages.transfer import transfer
 from bpmcal.stages.triaxial import DEFAULT_SIGMA3_MPA
+from bpmcal.stages.verification import verify
 from bpmcal.study.design import lhs_design
 from bpmcal.study.sweep import DEFAULT_RATIOS
 

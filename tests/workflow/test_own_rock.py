@@ -56,7 +56,7 @@ def _lab(tmp, name, **targets):
 def _calibrate(study, lab, out, **kw):
     """Calibrate the one specimen of ``lab`` to ``out/<specimen>.yaml``; the card."""
     from bpmcal.io.card import read_card
-    from bpmcal.stages.analysis import calibrate
+    from bpmcal.stages.calibration import calibrate
 
     c = study["cfg"]["calibration"]
     card = Path(out) / f"{Path(lab).stem}.yaml"
@@ -69,7 +69,7 @@ def _verify(card, models, lay, spec, **kw):
     """The closed loop of ``card`` into the study layout ``lay`` (tiny specimens)."""
     from bpmcal.lab.runner import Geometry
     from bpmcal.lab.ucs import UCSSettings
-    from bpmcal.stages.analysis import verify
+    from bpmcal.stages.verification import verify
 
     return verify(card, models, out_card=lay.verified_card(spec),
                   rounds=lay.verification_rounds(spec), run=lay.verification_run(spec),
@@ -95,7 +95,7 @@ def test_unreachable_card_names_the_configured_bound_and_what_to_widen(study, tm
     from bpmcal.io.card import read_card
     from bpmcal.io.h5 import read_summary
     from bpmcal.io.study_files import StudyFiles
-    from bpmcal.stages.analysis import verification_tables
+    from bpmcal.stages.verification import verification_tables
 
     # E = 1.2 Ecp - 1.5 kp* needs Ecp ~ 170 GPa for 200 GPa: beyond ranges.pb_emod_GPa [30, 120]
     card_dir = tmp_path / "cal"
@@ -150,7 +150,8 @@ def test_report_shows_the_paper_only_for_the_paper_study(study, tmp_path, refere
     and as another rock's."""
     from bpmcal.io import study_files as L
     from bpmcal.report.build import build
-    from bpmcal.stages.analysis import calibrate, verification_tables
+    from bpmcal.stages.calibration import calibrate
+    from bpmcal.stages.verification import verification_tables
 
     out = tmp_path / "results"
     lay = L.StudyFiles(out)

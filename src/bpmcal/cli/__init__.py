@@ -38,10 +38,6 @@ Every default comes from the settings it sets (the lab tests' settings dataclass
 literal here. Each ``_add_<cmd>`` imports what that command needs, and ``main`` builds only
 the parser of the command it runs: a DEM job (``bpmcal ucs``, 150 per study) does not load
 xgboost, statsmodels or matplotlib (tested: ``tests/cli/test_imports.py``).
-
-A renamed subcommand keeps its old name as an argparse alias (:data:`ALIASES`), so that
-scripts calling it keep working; the help lists the new name only, and its one-line help
-says what it was called before.
 """
 from __future__ import annotations
 
@@ -61,7 +57,6 @@ from .options import (
     BTS_OPTIONS,
     DTT_OPTIONS,
     GENESES,
-    OLD_OPTION_NAMES,
     add_bts_args,
     add_budget_args,
     add_dtt_args,
@@ -103,8 +98,8 @@ from .verification import (
 #: ``bpmcal.cli``'s own names and the shared options re-exported from ``cli.options`` (the
 #: workflow's ``common.smk`` reads ``BTS_OPTIONS``/``DTT_OPTIONS``, whose names are the
 #: bts/dtt config keys; tests read ``GENESES``)
-__all__ = ["ALIASES", "COMMANDS", "build_parser", "main", "BTS_OPTIONS", "DTT_OPTIONS",
-           "GENESES", "OLD_OPTION_NAMES",
+__all__ = ["COMMANDS", "build_parser", "main", "BTS_OPTIONS", "DTT_OPTIONS",
+           "GENESES",
            "add_bts_args", "add_budget_args", "add_dtt_args", "add_outcome_args", "add_run_args",
            "add_source_args", "add_specimen_args", "bts_disc_of", "bts_settings_of",
            "dtt_cylinder_of", "dtt_settings_of", "run_geometry", "run_settings"]
@@ -141,9 +136,9 @@ COMMANDS = {
     "transfer-table": ("the full-size transfer of every card, one table", _add_transfer_table,
                        False),
     "fresh-seeds": ("a verified card on fresh packing seeds (UCS and, with a sigma_t target, "
-                    "Brazilian tests; formerly holdout)", _add_fresh_seeds, False),
-    "fresh-seeds-table": ("the fresh-seed check of every card against its lab targets "
-                          "(formerly holdout-table)", _add_fresh_seeds_table, False),
+                    "Brazilian tests)", _add_fresh_seeds, False),
+    "fresh-seeds-table": ("the fresh-seed check of every card against its lab targets",
+                          _add_fresh_seeds_table, False),
     "verification-tables": ("Tables 5 and 6 and Fig. 6", _add_verification_tables, False),
     "posterior": ("a verified card's posterior: what its targets pin and leave free",
                   _add_posterior, False),
@@ -160,14 +155,6 @@ COMMANDS = {
     "vtk": ("export particles and cracks of a run for ParaView", _add_vtk, False),
 }
 
-#: deprecated subcommand name -> the subcommand it now is: still accepted (argparse
-#: aliases), so that existing scripts keep working, but listed in no help
-ALIASES = {
-    "holdout": "fresh-seeds",
-    "holdout-table": "fresh-seeds-table",
-}
-
-
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The ``bpmcal`` parser; with ``only``, the options of that subcommand alone (the
     others are listed by name)."""
@@ -177,9 +164,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     sub = ap.add_subparsers(dest="cmd", required=True, metavar="{%s}" % ",".join(COMMANDS))
     for name, (help_, add, epilog) in COMMANDS.items():
         p = sub.add_parser(name, help=help_, formatter_class=argparse.RawDescriptionHelpFormatter,
-                           epilog=_param_help() if epilog else None,
-                           aliases=[old for old, new in ALIASES.items() if new == name])
-        sub._choices_actions[-1].metavar = name  # the help lists the name, not its aliases
+                           epilog=_param_help() if epilog else None)
         if only is None or only == name:
             add(p)
     return ap
@@ -321,7 +306,6 @@ def _run(argv) -> int:
 def _main(argv) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     cmd = next((x for x in argv if not x.startswith("-")), None)
-    cmd = ALIASES.get(cmd, cmd)
     ap = build_parser(only=cmd if cmd in COMMANDS else None)
     try:
         args = ap.parse_args(argv)

@@ -26,15 +26,12 @@ Use:
 - ``type=`` converters for argparse: :func:`number`, :func:`integer`, ``SEED``,
   ``THREADS`` (NaN, inf, booleans and out-of-range values are refused by name);
 - :class:`Parser` (argparse errors as one line); ``bpmcal.io.checks.BadInput`` for
-  anything else a user can get wrong;
-- :func:`old_spelling` for a renamed option: its old spelling is still accepted for one
-  release, with one line on stderr, and listed in no help.
+  anything else a user can get wrong.
 """
 from __future__ import annotations
 
 import argparse
 import math
-import sys
 
 EXIT_OK = 0
 EXIT_BUG = 1
@@ -140,47 +137,3 @@ def choice(name: str, options):
 
 SEED = integer("seed", 0, 2 ** 32 - 1)
 THREADS = integer("threads", 1, 4096)
-
-
-# ------------------------------------------------------------------------ renamed options
-class _OldSpelling(argparse.Action):
-    """The deprecated spelling of an option: stores into the new option's ``dest`` and
-    prints one line, ``PROG: --OLD is deprecated: use --NEW (...)``, to stderr."""
-
-    def __init__(self, option_strings, dest, new: str = "", **kw):
-        self.new = new
-        super().__init__(option_strings, dest, **kw)
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        print(f"{parser.prog}: {option_string} is deprecated: use {self.new} (it will be "
-              "removed in the next release)", file=sys.stderr)
-        setattr(namespace, self.dest, values)
-
-
-def _named(conv, new: str, old: str):
-    """``conv`` whose error messages name the option as the user spelled it (``old``)."""
-    if conv is None:
-        return None
-
-    def f(s):
-        try:
-            return conv(s)
-        except argparse.ArgumentTypeError as e:
-            msg = str(e)
-            raise argparse.ArgumentTypeError(
-                old + msg[len(new):] if msg.startswith(new + "=") else msg) from None
-    f.__name__ = old
-    return f
-
-
-def old_spelling(p, old: str, new: argparse.Action) -> argparse.Action:
-    """Accept ``old`` (e.g. ``"--servo-gain"``) on ``p`` (a parser or an argument group)
-    as the deprecated spelling of the option ``new`` (what ``add_argument`` returned):
-    the same destination, type, choices and default; the value given is used and one line on
-    stderr names the new spelling. Listed in no help; remove one release after the
-    rename."""
-    return p.add_argument(old, dest=new.dest, action=_OldSpelling, new=new.option_strings[0],
-                          type=_named(new.type, new.option_strings[0].lstrip("-"),
-                                      old.lstrip("-")),
-                          choices=new.choices, nargs=new.nargs, metavar=new.metavar,
-                          default=new.default, help=argparse.SUPPRESS)

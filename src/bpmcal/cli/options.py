@@ -17,7 +17,7 @@ import dataclasses
 
 from ..lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
 from ..params import CONTACT_MODELS
-from .args import SEED, THREADS, choice, fraction, integer, number, old_spelling, positive
+from .args import SEED, THREADS, choice, fraction, integer, number, positive
 
 
 def add_source_args(p):
@@ -207,19 +207,12 @@ BTS_OPTIONS = ("loading", "jaw_ratio", "contact_cap", "contact_cap_factor", "cen
                "platen_fric", "damping", "stop_drop", "post_peak_strain", "max_strain",
                "record_strain")
 
-#: renamed BTS_OPTIONS/DTT_OPTIONS fields, new -> old: ``--OLD`` (``--bts-OLD``,
-#: ``--dtt-OLD``) is still accepted for one release (:func:`~bpmcal.cli.args.old_spelling`)
-OLD_OPTION_NAMES = {"post_peak_strain": "post_peak_min"}  # a strain, not minutes
-
-
 def _add_options(g, spec: dict, defaults, lab) -> None:
     """The options of ``spec`` (field -> (type, help with ``{d}`` for the default)) on
-    ``g``, named ``--lab(field)``, with the old spellings of :data:`OLD_OPTION_NAMES`."""
+    ``g``, named ``--lab(field)``."""
     for f, (kind, text) in spec.items():
         d = getattr(defaults, f)
-        a = g.add_argument("--" + lab(f), type=kind, default=d, help=text.format(d=d))
-        if f in OLD_OPTION_NAMES:
-            old_spelling(g, "--" + lab(OLD_OPTION_NAMES[f]), a)
+        g.add_argument("--" + lab(f), type=kind, default=d, help=text.format(d=d))
 
 
 def _stop_spec(lab) -> dict:

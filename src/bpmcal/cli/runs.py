@@ -14,7 +14,7 @@ from ..cost import phase
 from ..io.checks import BadInput
 from ..stages import defaults_of
 from ..stages.progress import Progress
-from .args import EXIT_OK, EXIT_RUN_FAILED, SEED, integer, number, old_spelling, positive
+from .args import EXIT_OK, EXIT_RUN_FAILED, SEED, integer, number, positive
 from .options import (
     add_bts_args,
     add_dtt_args,
@@ -231,11 +231,10 @@ def _add_triaxial(p):
                    type=number("sigma3", 0.0, 1000.0, unit="MPa"),
                    help="confining stress [MPa] in [0, 1000], held by a servo-controlled "
                         "lateral wall")
-    alpha = p.add_argument("--servo-alpha", type=number("servo-alpha", 0.0, 1.0, lo_open=True),
+    p.add_argument("--servo-alpha", type=number("servo-alpha", 0.0, 1.0, lo_open=True),
                            default=td.servo_alpha,
                            help="servo relaxation factor alpha in (0, 1] (default "
                                 f"{td.servo_alpha:g}, as PFC)")
-    old_spelling(p, "--servo-gain", alpha)
     p.add_argument("--servo-interval", type=integer("servo-interval", 1, 1000),
                    default=td.servo_interval,
                    help=f"steps between servo updates (default {td.servo_interval})")

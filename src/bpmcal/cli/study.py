@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from ..io.checks import BadInput, parse_json
 from ..stages import defaults_of
-from .args import SEED, integer, number, old_spelling
+from .args import SEED, integer, number
 from .options import file_arg
 
 
@@ -93,12 +93,10 @@ def _add_screen(p):
                         f"shadow share) (default {d['rule']})")
     p.add_argument("--tensile-rule", default=TENSILE_RULE, choices=RULES,
                    help=f"selection rule of σt (default {TENSILE_RULE})")
-    old_spelling(p, "--splits", p.add_argument(
-        "--n-splits", type=integer("n-splits", 2, 100), default=d["n_splits"],
-        help=f"CV folds (default {d['n_splits']})"))
-    old_spelling(p, "--repeats", p.add_argument(
-        "--n-repeats", type=integer("n-repeats", 1, 1000), default=d["n_repeats"],
-        help=f"permutation repeats (default {d['n_repeats']})"))
+    p.add_argument("--n-splits", type=integer("n-splits", 2, 100), default=d["n_splits"],
+                   help=f"CV folds (default {d['n_splits']})")
+    p.add_argument("--n-repeats", type=integer("n-repeats", 1, 1000), default=d["n_repeats"],
+                   help=f"permutation repeats (default {d['n_repeats']})")
     p.add_argument("--seed", type=SEED, default=d["seed"])
     p.set_defaults(func=cmd_screen)
 

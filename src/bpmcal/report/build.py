@@ -30,7 +30,7 @@ from ..io.provenance import git_commit
 from ..io.tables import markdown_table, write_table
 from ..stages.fresh_seeds import check_level, false_alarm
 from ..study import paper
-from ..study.config import check_study_config, translate_deprecated
+from ..study.config import check_study_config
 from .posterior import section as posterior_section
 
 #: tables and figures of the report (stem -> caption)
@@ -116,7 +116,6 @@ def report(outdir=None, *, config=None, config_json=None, config_out=None) -> Pa
         cfg = read_yaml(config, "--config")
     if not isinstance(cfg, dict) or not isinstance(cfg.get("study"), dict):
         raise BadInput("--config: not a study config (no 'study' section)")
-    translate_deprecated(cfg)  # a config file with keys renamed since (one line each)
     check_study_config(cfg, "--config" if config is not None else "--config-json")
     if outdir is None:
         if not isinstance(cfg.get("outdir"), str):

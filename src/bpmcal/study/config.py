@@ -89,66 +89,21 @@ def with_model_parameters(schema: dict) -> dict:
     return schema
 
 
-#: config keys renamed, old -> new (each a path of keys; a key keeps its section). The old
-#: name is accepted for one release: :func:`translate_deprecated` prints one line for it and
-#: renames it before the schema validation. Remove an entry one release after it was added.
-RENAMED_KEYS = {
-    ("ucs",): ("compression",),  # the loading of every cylinder test, not just the UCS
-    ("resources", "ucs_threads"): ("resources", "dem_threads"),  # size every DEM job
-    ("resources", "ucs_runtime_min"): ("resources", "dem_runtime_min"),
-    ("resources", "ucs_mem_mb"): ("resources", "dem_mem_mb"),
-    ("bts", "post_peak_min"): ("bts", "post_peak_strain"),  # a strain, not minutes
-    ("dtt", "post_peak_min"): ("dtt", "post_peak_strain"),
-    ("calibration", "ratio"): ("calibration", "strength_ratio"),
-    ("verification", "holdout_seeds"): ("verification", "fresh_seeds"),  # the fresh-seed check
-    ("triaxial", "servo_gain"): ("triaxial", "servo_alpha"),  # PFC's relaxation factor alpha
-}
-assert all(old[:-1] == new[:-1] for old, new in RENAMED_KEYS.items())
-
-
 def _stderr_line(line: str) -> None:
     print(line, file=sys.stderr)
 
 
-def translate_deprecated(config: dict, note=_stderr_line) -> dict:
-    """Rename the deprecated keys of ``config`` (:data:`RENAMED_KEYS`) in place, in their
-    place in the section, calling ``note`` with one line per old key found; return
-    ``config``. Raises :class:`ConfigError` naming both keys when a config gives an old
-    key and its new name."""
-    both = []
-    for old, new in RENAMED_KEYS.items():
-        section = config
-        for k in old[:-1]:
-            section = section.get(k) if isinstance(section, dict) else None
-        if not isinstance(section, dict) or old[-1] not in section:
-            continue
-        o, n = ".".join(old), ".".join(new)
-        if new[-1] in section:
-            both.append(f"{o} and {n} both given: {o} is the deprecated name of {n}; keep "
-                        f"only {n} (a config file with {o} merged over one with {n}, e.g. "
-                        f"config/config.yaml, gives both: rename {o} there)")
-            continue
-        note(f"config key {o} is deprecated: use {n} ({o} will be removed in the next "
-             "release)")
-        items = [(new[-1] if k == old[-1] else k, v) for k, v in section.items()]
-        section.clear()
-        section.update(items)
-    if both:
-        raise ConfigError("invalid configuration:\n  " + "\n  ".join(both))
-    return config
-
-
 def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line,
                     read_files: bool = True) -> dict:
-    """Validate ``config`` in place (deprecated keys renamed, :func:`translate_deprecated`,
-    with one line each to ``note``; defaults filled in) and return it. ``read_files``:
-    also read and check the lab CSVs it names (relative to ``base_dir``).
+    """Validate ``config`` in place (unset keys dropped and the contact model's
+    parameters applied, with one line each to ``note``; defaults filled in) and return
+    it. ``read_files``: also read and check the lab CSVs it names (relative to
+    ``base_dir``).
 
     Raises :class:`ConfigError` listing every problem as ``key: message``.
     """
     import jsonschema
 
-    translate_deprecated(config, note)
     _drop_unset(config, note)
     _apply_contact_model(config, note)
     schema = load_schema(schema_path)

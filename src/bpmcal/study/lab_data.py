@@ -13,8 +13,7 @@ column that is not one of them is refused with the nearest known name (a typo su
 the physical bounds of rock (:data:`LAB_BOUNDS`; a modulus of 1e-300 GPa is a typo, not a
 rock). Every problem is reported by row and column, all at once, before any job runs
 (:class:`~.errors.ConfigError`); values quoted in messages are cut.
-``study.config`` validates the configuration with these; ``study.lab_triaxial`` is the
-former home of the triaxial part and re-exports it.
+``study.config`` validates the configuration with these.
 """
 from __future__ import annotations
 
