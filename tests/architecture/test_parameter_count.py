@@ -1,0 +1,122 @@
+"""No function in src/bpmcal takes more than :data:`MAX_PARAMETERS` parameters (``self``
+and ``cls`` not counted; ``*args``/``**kwargs`` count one each), outside the numba
+kernels (decorated ``@jit``, ``@jit_parallel``, ``@njit`` or the inlined ``@_inl``: their arguments are the
+engine's arrays, structure-of-arrays by design), unless it is in :data:`ALLOWED` with
+its reason. A setting that crosses several functions travels as one settings value
+(a frozen dataclass), not as one more parameter of each: a new long signature fails
+this test (issue 54)."""
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[2] / "src" / "bpmcal"
+MAX_PARAMETERS = 12
+KERNEL_DECORATORS = {"jit", "jit_parallel", "njit", "_inl"}
+
+#: the reason of a stage function's entry
+_STAGE = ("a stage function: its arguments are the CLI's options one to one; to take a "
+          "settings value with the CLI options generated from it (issue 54 item 1)")
+
+#: "path:qualified name" -> why it still takes more (each entry is a candidate for a
+#: settings value; the test below fails when an entry's function is gone or fits)
+ALLOWED = {
+    'analysis/calibration/bootstrap.py:bootstrap_intervals': (
+        "the bootstrap's data, models and resampling settings; to take a settings value"),
+    'analysis/calibration/closed_loop.py:ClosedLoop.__init__': (
+        "the loop's settings as keywords; to become one LoopSettings value"),
+    'analysis/calibration/inversion.py:invert': (
+        "the inversion's models, targets, box and options; to take a settings value"),
+    'analysis/calibration/inversion.py:_verdict': (
+        "the inversion's verdict from its many results; to take the result object"),
+    'io/h5.py:write_run': (
+        "a run file's parts (summary, series, arrays, cost, provenance) as keywords"),
+    'io/h5.py:_fill': (
+        "write_run's parts passed on"),
+    'lab/morphology.py:run_summary': (
+        "the failure morphology's inputs from the model and the test"),
+    'lab/runner.py:_lab_test': (
+        "the runner's specimen, settings and context; to take a RunContext (issue 54 item 1)"),
+    'lab/runner.py:_lab_test_run': (
+        'as _lab_test'),
+    'stages/calibration.py:calibrate': _STAGE,
+    'stages/fresh_seeds.py:fresh_seeds': _STAGE,
+    'stages/posterior.py:posterior': _STAGE,
+    'stages/posterior.py:_posterior': (
+        "posterior's arguments passed on"),
+    'stages/predictive.py:predictive': _STAGE,
+    'stages/regression.py:regress': _STAGE,
+    'stages/runs.py:lab_test_file': (
+        "a lab test's run file from the CLI's options; to take a RunContext"),
+    'stages/runs.py:lab_test_files': (
+        'as lab_test_file'),
+    'stages/screening.py:screen': _STAGE,
+    'stages/transfer.py:transfer': _STAGE,
+    'stages/verification.py:verify': _STAGE,
+    'stages/verification.py:_dem_loop': (
+        "verify's DEM settings passed on; to take a LoopSettings and a RunContext"),
+    'stages/verification.py:_LoopRuns.__init__': (
+        "the loop runner's geometry, settings and context; to take a RunContext"),
+    'stages/verification.py:_not_run': (
+        "verify's arguments passed on to write a not-run card"),
+    'stages/verification.py:_verification_section': (
+        "the card's verification section from the loop's results"),
+    'stages/verification.py:seed_scatter': _STAGE,
+}
+
+
+def _decorator_name(d) -> str:
+    node = d.func if isinstance(d, ast.Call) else d
+    return node.attr if isinstance(node, ast.Attribute) else getattr(node, "id", "")
+
+
+def parameter_counts(text: str) -> list[tuple[str, int]]:
+    """(qualified name, parameters) of every function in ``text`` that is no numba kernel,
+    nested functions and methods included."""
+    out = []
+
+    def visit(node, prefix):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                name = f"{prefix}{child.name}"
+                if not isinstance(child, ast.ClassDef) and not (
+                        {_decorator_name(d) for d in child.decorator_list} & KERNEL_DECORATORS):
+                    a = child.args
+                    names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs]
+                    n = len(names) - (1 if names[:1] in (["self"], ["cls"]) else 0)
+                    n += (a.vararg is not None) + (a.kwarg is not None)
+                    out.append((name, n))
+                visit(child, f"{name}.")
+            else:
+                visit(child, prefix)
+
+    visit(ast.parse(text), "")
+    return out
+
+
+SOURCES = sorted(SRC.rglob("*.py"))
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=[str(f.relative_to(SRC)) for f in SOURCES])
+def test_no_long_signature_without_a_reason(path):
+    rel = path.relative_to(SRC).as_posix()
+    bad = [f"{name} ({n})" for name, n in parameter_counts(path.read_text())
+           if n > MAX_PARAMETERS and f"{rel}:{name}" not in ALLOWED]
+    assert not bad, (f"{rel}: functions with more than {MAX_PARAMETERS} parameters: "
+                     f"{', '.join(bad)} (pass a settings value instead)")
+
+
+def test_every_allowed_function_exists_and_still_takes_more():
+    """An entry of ALLOWED whose function now fits (or was renamed) goes."""
+    for key in ALLOWED:
+        rel, name = key.split(":")
+        counts = dict(parameter_counts((SRC / rel).read_text()))
+        assert counts.get(name, 0) > MAX_PARAMETERS, (
+            f"ALLOWED[{key!r}]: no such function over {MAX_PARAMETERS} parameters any more")
+
+
+def test_the_check_can_fail():
+    args = ", ".join(f"a{i}" for i in range(13))
+    text = (f"def f({args}):\n    pass\n\nclass C:\n    def m(self, {args}):\n        pass\n"
+            f"\n@jit\ndef k({args}):\n    pass\n\ndef g(*a, **k):\n    pass\n")
+    assert parameter_counts(text) == [("f", 13), ("C.m", 13), ("g", 2)]
