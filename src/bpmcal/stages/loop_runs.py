@@ -1,6 +1,6 @@
 """The closed loop's DEM runs and their journal (:func:`.verification._dem_loop`; the
-transfer runs its loop through it, the posterior's refinement runs a seed as
-:func:`loop_seed` does).
+transfer runs its loop through it, the posterior's refinement its seeds with
+:func:`loop_seed`).
 
 :class:`LoopRuns` runs every round's seeds side by side on the stage's CPUs, journals each
 finished run (:class:`~.journal.RunJournal`: a loop stopped part way reads them again) and

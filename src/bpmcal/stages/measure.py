@@ -7,14 +7,15 @@ replaced (:func:`valid_tensile_run`), a tensile strength the mean of several spe
 (:func:`row_strength`); and the checks of those settings.
 
 The one seed scheme of these measurements is here: specimen j of packing seed s is packed
-with :func:`replicate_seed` (s + j x ``TENSILE_REPLICATE_STRIDE``), an invalid run's
-replacement m with + m x ``BTS_REPLACEMENT_STRIDE`` (m <= ``BTS_MAX_REPLACEMENTS``), and a
-Brazilian disc's own ISRM retests, which the lab runs within one test, step by
+with :func:`replicate_seed` (s + j x ``TENSILE_REPLICATE_STRIDE``), the m-th replacement
+of an invalid run adds m x ``BTS_REPLACEMENT_STRIDE`` (m <= ``BTS_MAX_REPLACEMENTS``), and
+a Brazilian disc's own ISRM retests, which the lab runs within one test, step by
 ``lab.brazilian.RETEST_SEED_STEP``; :func:`packing_seed_gap` shows that no two of them
 share a packing.
 
-Every DEM run of the measuring stages goes through :data:`RUNNERS`, looked up at the call:
-the one seam through which a test replaces the DEM.
+Every DEM run of the closed loop, the transfer, the seed scatter, the fresh-seed check and
+the posterior's refinement goes through :data:`RUNNERS`, looked up at the call: the one
+seam through which a test replaces the DEM.
 """
 from __future__ import annotations
 
@@ -73,7 +74,7 @@ def packing_seed_gap(max_retests: int = 10) -> tuple[int, int]:
     return gap, sum(r * s for r, s in zip(reach, steps))
 
 
-#: the DEM runner of every test the measuring stages run, by test: the UCS test (a
+#: the DEM runner of each test, by the test's name: the UCS test (a
 #: closed-loop seed's, a seed scatter's, a fresh seed's) and the per-sample tests
 #: (``P.SAMPLE_TESTS``' tests: :func:`valid_tensile_run`). Looked up here at every call,
 #: never bound at import: the seam through which tests replace the DEM
