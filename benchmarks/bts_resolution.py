@@ -18,7 +18,7 @@ Three parts, each a JSON record (date, commit, CPU model, load average, the comm
   cards: the parameters the card stands for) and of A1, on packing ``--seeds``, with the
   config's ``bts`` settings: valid fraction, mean and seed CV per card. With
   ``--specimens N`` each seed is measured as the study's closed loop and fresh-seed check
-  measure it (``verification.seed_strength``: N discs on packings seed + j x the
+  measure it (``stages.measure.seed_strength``: N discs on packings seed + j x the
   replicate stride,
   an invalid disc replaced), and the seed CV is given for a seed's sigma_t as the mean of
   its first k = 1 .. N discs (``verification.tensile_specimens`` = k).
@@ -57,7 +57,7 @@ from _study import A1, CONFIG, REPO, bts_disc_and_settings, cpu_model, study_des
 # the σt seed CV a card must meet over 5 seeds (issue 24), the chance of missing it that
 # the choice of ``verification.tensile_specimens`` accepts: the closed loop's own rule
 from bpmcal.analysis.calibration.specimens import CV_TARGET, MISS_ACCEPTED, N_CHECK, expected_cv
-from bpmcal.stages.verification import TENSILE_REPLICATE_STRIDE
+from bpmcal.stages.measure import TENSILE_REPLICATE_STRIDE
 
 #: loading variants of the ``loadings`` part: name -> BTSSettings overrides
 VARIANTS = {
@@ -96,7 +96,7 @@ def _run_seed(job):
     cache, cfg) -> its N discs' sigma_t (each valid, or replaced as the study replaces an
     invalid disc; NaN when no replacement was valid) and the CPU time of them all."""
     label, params, seed, n, cache, cfg = job
-    from bpmcal.stages.verification import seed_strength
+    from bpmcal.stages.measure import seed_strength
 
     disc, st = bts_disc_and_settings(cfg)
     c0 = time.process_time()

@@ -310,7 +310,7 @@ def markdown(rec: dict) -> str:
                      f"{rec['tolerance_pct'][k]:.2f} % | "
                      f"{'–' if cv is None else f'{100 * cv:.1f} %'} |")
     if rec.get("tensile"):  # the loop adapted its discs per seed to the card
-        from bpmcal.stages.verification import tensile_note
+        from bpmcal.stages.verification_tables import tensile_note
 
         t = rec["tensile"]
         note = tensile_note({"tensile": t, "tensile_specimens": rec["own_tensile_specimens"]})

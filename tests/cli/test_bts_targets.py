@@ -20,7 +20,9 @@ from bpmcal.io.h5 import check_run_file, write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import BTS, PARAMS
+from bpmcal.stages import measure as M
 from bpmcal.stages import verification as V
+from bpmcal.stages import verification_tables as VT
 from bpmcal.stages.runs import RunOutcome
 
 R = RANGES
@@ -211,8 +213,8 @@ class FakeDEM:
 @pytest.fixture()
 def dem(monkeypatch):
     f = FakeDEM()
-    monkeypatch.setattr(V, "run_ucs_file", f.ucs)
-    monkeypatch.setattr(V, "run_bts_file", f.bts)
+    monkeypatch.setitem(M.RUNNERS, "ucs", f.ucs)
+    monkeypatch.setitem(M.RUNNERS, "bts", f.bts)
     return f
 
 
@@ -260,7 +262,7 @@ def test_verify_of_a_no_exact_fit_card_records_the_missed_target(cards, d, tmp_p
     assert BTS in missed and missed[BTS]["error_pct"] > 1.0
     assert missed[BTS]["dem"] == pytest.approx(v["closed_loop"][BTS])
     t5 = tmp_path / "t5.csv"
-    V.verification_tables([tmp_path / "B2.yaml"], [tmp_path / "B2.h5"], d / "lab.csv",
+    VT.verification_tables([tmp_path / "B2.yaml"], [tmp_path / "B2.h5"], d / "lab.csv",
                           table5=t5, table6=tmp_path / "t6.csv", figure=tmp_path / "f6.png")
     row = pd.read_csv(t5, index_col=0).loc["B2"]
     assert math.isclose(row[f"closed_loop_{BTS}_err_pct"], missed[BTS]["error_pct"])
@@ -296,7 +298,7 @@ def test_the_report_names_the_missed_target_and_the_ratio_set_by_sigma_t(cards, 
     v = tmp_path / "v"
     v.mkdir()
     _verify(cards, d, "B2", v, max_rounds=2)
-    V.verification_tables([v / "B2.yaml"], [v / "B2.h5"], d / "lab.csv", table5=lay.table(L.TABLE5),
+    VT.verification_tables([v / "B2.yaml"], [v / "B2.h5"], d / "lab.csv", table5=lay.table(L.TABLE5),
                           table6=lay.table(L.TABLE6), figure=tmp_path / "f6.png")
     text = _verification(lay, [])
     assert "| B2 | sigma_t |" in text and "B2: target(s) missed by the closed loop" in text

@@ -12,13 +12,17 @@ import yaml
 from _synthetic import FIXED, RANGES, TRUTH, calibrate_b1, dem_response, models, predict, write_models
 
 from bpmcal.analysis.stepwise import RegressionModel
+from bpmcal.io.checks import BadInput
 from bpmcal.io.h5 import write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import BTS
+from bpmcal.stages import loop_runs as LR
+from bpmcal.stages import measure as M
 from bpmcal.stages import verification as V
+from bpmcal.stages import verification_tables as VT
+from bpmcal.stages.measure import BTS_REPLACEMENT_STRIDE
 from bpmcal.stages.runs import RunOutcome
-from bpmcal.stages.verification import BTS_REPLACEMENT_STRIDE
 
 DTT = "dtt_MPa"
 R = RANGES
@@ -121,8 +125,8 @@ class FakeDEM:
 def test_verify_steers_the_direct_tension_strength_and_replaces_invalid_tests(
         card, d, tmp_path, monkeypatch):
     dem = FakeDEM()
-    monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
-    monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem.ucs)
+    monkeypatch.setitem(M.RUNNERS, "dtt", dem.dtt)
     v = V.verify(card, d / "models.json", out_card=tmp_path / "B1.yaml",
                  rounds=tmp_path / "B1.csv", run=tmp_path / "B1.h5",
                  geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
@@ -148,7 +152,7 @@ class SpecimenDEM(FakeDEM):
 
     def dtt(self, out, params, seed, geometry, settings, **kw):
         self.calls.append(("dtt", seed))
-        j = seed // V.TENSILE_REPLICATE_STRIDE
+        j = seed // M.TENSILE_REPLICATE_STRIDE
         v = predict(dtt_models(), params)[DTT] * (1.04 + 0.02 * j)
         s = {"dtt_peak_MPa": v, "dtt_MPa": v, "dtt_valid": True, "dtt_invalid_reason": ""}
         write_run(out, test="dtt", inputs={"seed": seed}, summary=s)
@@ -157,8 +161,8 @@ class SpecimenDEM(FakeDEM):
 
 def _verify_specimens(card, d, out, monkeypatch, n):
     dem = SpecimenDEM()
-    monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
-    monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem.ucs)
+    monkeypatch.setitem(M.RUNNERS, "dtt", dem.dtt)
     v = V.verify(card, d / "models.json", out_card=out / "B1.yaml", rounds=out / "B1.csv",
                  run=out / "B1.h5", geometry=Geometry(scale=0.4), settings=UCSSettings(),
                  seed=7, seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
@@ -170,7 +174,7 @@ def _verify_specimens(card, d, out, monkeypatch, n):
 def test_a_seeds_tensile_strength_is_the_mean_of_its_specimens(card, d, tmp_path, monkeypatch,
                                                                 n, first_error):
     dem, v = _verify_specimens(card, d, tmp_path, monkeypatch, n)
-    stride = V.TENSILE_REPLICATE_STRIDE
+    stride = M.TENSILE_REPLICATE_STRIDE
     # a round's runs, each a job of its own (verification.seed_parts): the seeds' UCS tests, then
     # specimen j = 0, 1, ... of every seed (packed with seed, seed + stride, ...)
     assert dem.calls[:2 + 2 * n] == [("ucs", 7), ("ucs", 8), *[
@@ -186,14 +190,14 @@ def test_fresh_seeds_measure_sigma_t_as_the_loop_did(card, d, tmp_path, monkeypa
 
     _verify_specimens(card, d, tmp_path, monkeypatch, 3)
     dem = SpecimenDEM()
-    monkeypatch.setattr(H, "run_ucs_file", dem.ucs)
-    monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem.ucs)
+    monkeypatch.setitem(M.RUNNERS, "dtt", dem.dtt)
     runs = [tmp_path / f"f{s}.h5" for s in (101, 102)]
     dtt = [tmp_path / f"f{s}.dtt.h5" for s in (101, 102)]
     df = H.fresh_seeds(tmp_path / "B1.yaml", seeds=[101, 102], runs=runs, dtt_runs=dtt,
                        seed_runs=tmp_path / "seeds.csv", geometry=Geometry(scale=0.4),
                        settings=UCSSettings())
-    stride = V.TENSILE_REPLICATE_STRIDE
+    stride = M.TENSILE_REPLICATE_STRIDE
     assert [c for c in dem.calls if c[0] == "dtt"] == [
         ("dtt", s + j * stride) for j in range(3) for s in (101, 102)]
     assert (df["dtt_specimens"] == 3).all()
@@ -207,13 +211,13 @@ def test_fresh_seeds_measure_sigma_t_as_the_loop_did(card, d, tmp_path, monkeypa
 
 @pytest.mark.parametrize("n", [0, 51, 1.5, True, "3"])
 def test_a_bad_tensile_specimen_count_names_the_value(n):
-    with pytest.raises(V.BadInput, match=r"--tensile-specimens .*expected an integer in 1 \.\. 50"):
-        V.check_tensile_specimens(n)
+    with pytest.raises(BadInput, match=r"--tensile-specimens .*expected an integer in 1 \.\. 50"):
+        M.check_tensile_specimens(n)
 
 
 def test_a_triaxial_strength_is_not_measured_on_several_specimens(tmp_path):
-    with pytest.raises(V.BadInput, match="only a tensile strength"):
-        V.seed_strength("tri_MPa", lambda j, s, k: tmp_path / "x.h5", {}, 1, None, None,
+    with pytest.raises(BadInput, match="only a tensile strength"):
+        M.seed_strength("tri_MPa", lambda j, s, k: tmp_path / "x.h5", {}, 1, None, None,
                         specimens=2)
 
 
@@ -244,7 +248,7 @@ def test_the_cli_refuses_a_bad_round_budget_in_one_line(card, d, tmp_path, capsy
 
 @pytest.mark.parametrize("rounds", [0, "Auto", 2.5])
 def test_verify_refuses_a_bad_round_budget_naming_it(rounds):
-    with pytest.raises(V.BadInput, match=r"--max-rounds: max_rounds=.*or 'auto'"):
+    with pytest.raises(BadInput, match=r"--max-rounds: max_rounds=.*or 'auto'"):
         V._check_rounds(rounds)
 
 
@@ -256,7 +260,7 @@ def test_the_cli_refuses_a_bad_grow_within_in_one_line(card, d, tmp_path, capsys
 
 @pytest.mark.parametrize("factor", [0.99, 0, True, "2"])
 def test_verify_refuses_a_bad_grow_within_naming_it(factor):
-    with pytest.raises(V.BadInput, match=r"--grow-within: grow_within=.*factor >= 1"):
+    with pytest.raises(BadInput, match=r"--grow-within: grow_within=.*factor >= 1"):
         V._check_grow(factor)
     assert V._check_grow(1) == 1.0 and V._check_grow(2.5) == 2.5
 
@@ -270,16 +274,16 @@ def test_no_two_specimens_of_seeds_below_100000_share_a_packing(monkeypatch):
     specimen 1 of seed 104 (a planted-card run shared two discs that way)."""
     from bpmcal.lab.brazilian import retest_seed
 
-    gap, reach = V.packing_seed_gap()
+    gap, reach = M.packing_seed_gap()
     assert gap >= 100_000 and 100_000 + reach < 2 ** 32
     seeds = [*range(1, 21), *range(101, 106)]
-    used = [V.replicate_seed(s, j) + m * V.BTS_REPLACEMENT_STRIDE + k * 1_000_003
-            for s in seeds for j in range(4) for m in range(V.BTS_MAX_REPLACEMENTS + 1)
+    used = [M.replicate_seed(s, j) + m * M.BTS_REPLACEMENT_STRIDE + k * 1_000_003
+            for s in seeds for j in range(4) for m in range(M.BTS_MAX_REPLACEMENTS + 1)
             for k in range(3)]
     assert len(set(used)) == len(used)
-    assert retest_seed(101, 1) != V.replicate_seed(104, 1)
-    monkeypatch.setattr(V, "TENSILE_REPLICATE_STRIDE", 1_000_000)
-    assert V.packing_seed_gap()[0] == 3 and retest_seed(101, 1) == V.replicate_seed(104, 1)
+    assert retest_seed(101, 1) != M.replicate_seed(104, 1)
+    monkeypatch.setattr(M, "TENSILE_REPLICATE_STRIDE", 1_000_000)
+    assert M.packing_seed_gap()[0] == 3 and retest_seed(101, 1) == M.replicate_seed(104, 1)
 
 
 class ScatterDEM(SpecimenDEM):
@@ -301,8 +305,8 @@ class ScatterDEM(SpecimenDEM):
 
 def _verify_adaptive(card, d, out, monkeypatch, cv, **kw):
     dem = ScatterDEM(cv)
-    monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
-    monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem.ucs)
+    monkeypatch.setitem(M.RUNNERS, "dtt", dem.dtt)
     opts = dict(seed=7, seeds_per_round=3, max_seeds=3, rtol=0.05, max_rounds=3,
                 tensile_specimens=3, tensile_seed_cv=0.05, max_tensile_specimens=8) | kw
     v = V.verify(card, d / "models.json", out_card=out / "B1.yaml", rounds=out / "B1.csv",
@@ -313,7 +317,7 @@ def _verify_adaptive(card, d, out, monkeypatch, cv, **kw):
 
 def _specimens_by_seed(dem):
     """Packing seed -> how many distinct specimens ran for it (a round's seeds in order)."""
-    stride = V.TENSILE_REPLICATE_STRIDE
+    stride = M.TENSILE_REPLICATE_STRIDE
     out = {}
     for test, s in dem.calls:
         if test == "dtt":
@@ -336,7 +340,7 @@ def test_a_card_whose_specimens_scatter_gets_more_of_them_per_seed(card, d, tmp_
     assert _specimens_by_seed(dem) == {7: 8, 8: 8, 9: 8}
     assert len([c for c in dem.calls if c[0] == "dtt"]) == 8 * 3 * v["rounds"]
     assert "verification.max_tensile_specimens" in v["message"]
-    note = V.tensile_note(v)  # Table 5's note and the report's line
+    note = VT.tensile_note(v)  # Table 5's note and the report's line
     assert "the mean of 8 specimens (from round 1; 3 before)" in note
     assert f"scatter {100 * t['specimen_cv']:.1f} %" in note and "max_tensile_specimens" in note
     assert f"aimed at {100 * t['chance_above']:.0f} % of the time" in note
@@ -354,7 +358,7 @@ def test_a_card_whose_specimens_agree_keeps_its_count(card, d, tmp_path, monkeyp
     assert v["tensile_specimens"] == 3 and t["raised"] == [] and t["start"] == 3
     assert t["specimen_cv"] < 0.03 and t["chance_above"] < 0.01
     assert set(_specimens_by_seed(dem).values()) == {3}
-    assert "tensile specimens per seed" not in v["message"] and V.tensile_note(v) == ""
+    assert "tensile specimens per seed" not in v["message"] and VT.tensile_note(v) == ""
 
 
 def test_without_a_seed_cv_target_the_count_is_fixed(card, d, tmp_path, monkeypatch):
@@ -367,15 +371,15 @@ def test_the_topped_up_seed_mean_is_that_of_all_its_specimens(tmp_path, monkeypa
     """The loop's runner alone: a raise after round 1 tops each seed up and its σt becomes
     the mean of every specimen (the first ones' exact values, not their 6-digit record)."""
     dem = ScatterDEM(0.2)
-    monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
-    monkeypatch.setattr(V, "run_dtt_file", dem.dtt)
-    runs = V._LoopRuns(tmp_path / "j", [DTT, "ucs_MPa"], geometry=Geometry(scale=0.4),
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem.ucs)
+    monkeypatch.setitem(M.RUNNERS, "dtt", dem.dtt)
+    runs = LR.LoopRuns(tmp_path / "j", [DTT, "ucs_MPa"], geometry=Geometry(scale=0.4),
                        settings=UCSSettings(), specimens={"dtt": (Geometry(scale=0.4), None)},
                        genesis_max_steps=None, cache=None, threads=1, progress=None,
                        tensile_specimens=3, seed_cv=0.05, max_specimens=6)
     params = dict(PLANTED)
     outs = runs.simulate_seeds(params, [1, 2, 3])
-    stride = V.TENSILE_REPLICATE_STRIDE
+    stride = M.TENSILE_REPLICATE_STRIDE
     base = predict(dtt_models(), params)[DTT]
     for seed, out, row in zip([1, 2, 3], outs, runs.by_round[0]):
         vals = [base * (1 + 0.2 * np.random.default_rng(seed + j * stride).standard_normal())
@@ -386,7 +390,7 @@ def test_the_topped_up_seed_mean_is_that_of_all_its_specimens(tmp_path, monkeypa
     # a second attempt with the same inputs reads every run, the top-ups too, from the journal
     runs.close(False)  # the first attempt stopped: its runs are kept
     calls = len(dem.calls)
-    again = V._LoopRuns(tmp_path / "j", [DTT, "ucs_MPa"], geometry=Geometry(scale=0.4),
+    again = LR.LoopRuns(tmp_path / "j", [DTT, "ucs_MPa"], geometry=Geometry(scale=0.4),
                         settings=UCSSettings(), specimens={"dtt": (Geometry(scale=0.4), None)},
                         genesis_max_steps=None, cache=None, threads=1, progress=None,
                         tensile_specimens=3, seed_cv=0.05, max_specimens=6)
@@ -396,5 +400,5 @@ def test_the_topped_up_seed_mean_is_that_of_all_its_specimens(tmp_path, monkeypa
 
 @pytest.mark.parametrize("cv", [0, 1, -0.1, float("nan"), True, "0.05"])
 def test_a_bad_seed_cv_names_the_value(cv):
-    with pytest.raises(V.BadInput, match=r"--tensile-seed-cv .*expected a fraction in \(0, 1\)"):
-        V.check_seed_cv(cv)
+    with pytest.raises(BadInput, match=r"--tensile-seed-cv .*expected a fraction in \(0, 1\)"):
+        M.check_seed_cv(cv)

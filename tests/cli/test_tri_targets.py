@@ -14,12 +14,14 @@ from support.repo import REPO, SCHEMA, merged_config
 
 from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.cli import main
+from bpmcal.io.checks import BadInput
 from bpmcal.io.h5 import write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import BTS, TRI
 from bpmcal.stages import fresh_seeds as F
+from bpmcal.stages import measure as M
 from bpmcal.stages import verification as V
 from bpmcal.stages.runs import RunOutcome
 from bpmcal.study.config import ConfigError, validate_config
@@ -124,10 +126,10 @@ class FakeDEM:
         write_run(out, test="triaxial", inputs={"seed": seed}, summary=s)
         return RunOutcome(status="ok", summary=s, path=out)
 
-    def install(self, monkeypatch, module):
-        monkeypatch.setattr(module, "run_ucs_file", self.ucs)
-        monkeypatch.setattr(V, "run_bts_file", self.bts)
-        monkeypatch.setattr(V, "run_triaxial_file", self.tri)
+    def install(self, monkeypatch):
+        monkeypatch.setitem(M.RUNNERS, "ucs", self.ucs)
+        monkeypatch.setitem(M.RUNNERS, "bts", self.bts)
+        monkeypatch.setitem(M.RUNNERS, "tri", self.tri)
 
 
 def _verify(card, d, tmp_path, name):
@@ -143,7 +145,7 @@ def _verify(card, d, tmp_path, name):
 def test_verify_runs_the_triaxial_test_every_seed_and_steers_sigma1(card, d, tmp_path,
                                                                       monkeypatch):
     dem = FakeDEM()
-    dem.install(monkeypatch, V)
+    dem.install(monkeypatch)
     v = _verify(card, d, tmp_path, "B1")["verification"]
     # each test of a seed a job of its own, the round's UCS tests first (seed_parts)
     assert dem.calls[:6] == [("ucs", 7), ("ucs", 8), ("bts", 7), ("tri", 7), ("bts", 8),
@@ -162,7 +164,7 @@ def test_verify_runs_the_triaxial_test_on_the_first_seeds_only(card, d, tmp_path
     seeds 7 and 8, never 9; the loop still steers σ1 (on those two), the rounds table
     counts them and the card records the cap."""
     dem = FakeDEM()
-    dem.install(monkeypatch, V)
+    dem.install(monkeypatch)
     v = V.verify(card, d / "models.json", out_card=tmp_path / "C.yaml",
                  rounds=tmp_path / "C.csv", run=tmp_path / "C.h5",
                  geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
@@ -193,8 +195,8 @@ def test_a_bad_triaxial_seed_count_is_one_line_exit_2(card, d, tmp_path, capsys,
 
 @pytest.mark.parametrize("n", [1, 0, 2.0, True])
 def test_the_stage_refuses_a_bad_triaxial_seed_count(n):
-    with pytest.raises(V.BadInput, match="--triaxial-seeds"):
-        V.check_triaxial_seeds(n)
+    with pytest.raises(BadInput, match="--triaxial-seeds"):
+        M.check_triaxial_seeds(n)
 
 
 def test_verify_of_a_triaxial_target_needs_the_design_confinement(card, d, tmp_path, capsys):
@@ -209,10 +211,9 @@ def test_verify_of_a_triaxial_target_needs_the_design_confinement(card, d, tmp_p
 
 def test_fresh_seeds_run_the_triaxial_test_of_a_triaxial_target(card, d, tmp_path, monkeypatch):
     dem = FakeDEM()
-    dem.install(monkeypatch, V)
+    dem.install(monkeypatch)
     v = _verify(card, d, tmp_path, "V")
     assert v["verification"]["status"] == "converged"
-    monkeypatch.setattr(F, "run_ucs_file", dem.ucs)
     dem.calls.clear()
     seeds = [101, 102]
     runs = [tmp_path / f"f{s}.h5" for s in seeds]

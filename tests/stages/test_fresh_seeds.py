@@ -17,7 +17,7 @@ from test_verify_transfer_stages import (  # noqa: F401
 )
 
 import bpmcal.stages.fresh_seeds as H
-import bpmcal.stages.verification as V
+import bpmcal.stages.measure as M
 from bpmcal.io.card import read_card, write_card
 from bpmcal.io.checks import BadInput
 from bpmcal.lab.runner import Geometry
@@ -125,7 +125,7 @@ def test_table_refuses_a_seed_table_without_a_target_column(tmp_path):
 def verified(study, monkeypatch):  # noqa: F811
     tmp_path, card, models = study
     dem = PlantedDEM()
-    monkeypatch.setattr(V, "run_ucs_file", dem)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
     run_verify(tmp_path, card, models, 3)  # seeds 1, 2, 3
     return tmp_path, tmp_path / "v" / "card.yaml", dem
 
@@ -155,7 +155,7 @@ def run_fresh_seeds(tmp_path, card, seeds, **kw):
 def test_the_stage_runs_the_verified_parameters_on_every_fresh_seed(verified, monkeypatch):
     tmp_path, card, _ = verified
     dem = FreshDEM()
-    monkeypatch.setattr(H, "run_ucs_file", dem)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
     df = run_fresh_seeds(tmp_path, card, [101, 102, 103, 9])
     params = read_card(card)["verification"]["parameters"]
     assert [c[1] for c in dem.calls] == [101, 102, 103, 9]
@@ -172,7 +172,7 @@ def test_the_stage_runs_the_verified_parameters_on_every_fresh_seed(verified, mo
 
 def test_seeds_of_the_closed_loop_are_refused(verified, monkeypatch):
     tmp_path, card, _ = verified
-    monkeypatch.setattr(H, "run_ucs_file", FreshDEM())
+    monkeypatch.setitem(M.RUNNERS, "ucs", FreshDEM())
     with pytest.raises(BadInput, match=r"--seeds: 2, 3 already used"):
         run_fresh_seeds(tmp_path, card, [2, 3, 101])
     assert not (tmp_path / "h").exists()
@@ -184,7 +184,7 @@ def test_a_card_whose_loop_did_not_run_leaves_records_not_gaps(study, tmp_path, 
 
     _, card, _ = study
     dem = FreshDEM()
-    monkeypatch.setattr(H, "run_ucs_file", dem)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
     c = read_card(card)
     c["verification"] = {"status": "not-run", "message": "unreachable: widen E",
                          "parameters": None, "seeds": [1, 2, 3]}
@@ -419,7 +419,7 @@ def test_the_table_judges_against_the_closed_loop_only_when_the_runs_repeat_it(
     another cylinder the loop's mean is no reference and the lab-referenced verdict
     decides."""
     tmp_path, card, _ = verified
-    monkeypatch.setattr(H, "run_ucs_file", FreshDEM())
+    monkeypatch.setitem(M.RUNNERS, "ucs", FreshDEM())
     run_fresh_seeds(tmp_path, card, [101, 102, 103])
     seeds = pd.read_csv(tmp_path / "h" / "seeds.csv")
     assert seeds["loop_reference"].all()
@@ -476,7 +476,7 @@ def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkey
     tmp_path, card, _ = verified
     lay = L.StudyFiles(tmp_path / "study")
     table = Path(lay.table(L.FRESH_SEEDS))
-    monkeypatch.setattr(H, "run_ucs_file", FreshDEM())
+    monkeypatch.setitem(M.RUNNERS, "ucs", FreshDEM())
     run_fresh_seeds(tmp_path, card, [101, 102, 103])
     H.fresh_seeds_table([card], [tmp_path / "h" / "seeds.csv"], table=table)
     text = _fresh_seeds(lay)

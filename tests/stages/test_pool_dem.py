@@ -6,13 +6,14 @@ import json
 import pandas as pd
 import pytest
 
-import bpmcal.stages.verification as A
 from bpmcal.analysis.stepwise import FORMAT, RegressionModel
 from bpmcal.io.card import read_card, write_card
 from bpmcal.lab.runner import Geometry, bts_geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import table2_ranges
 from bpmcal.stages.fresh_seeds import fresh_seeds
+from bpmcal.stages.seed_scatter import seed_scatter
+from bpmcal.stages.verification import verify
 
 pytestmark = pytest.mark.slow
 
@@ -47,7 +48,7 @@ def study(tmp_path_factory):
 
 def _run_all(d, card, models, threads):
     out = d / f"t{threads}"
-    A.verify(card, models, out_card=out / "card.yaml", rounds=out / "rounds.csv",
+    verify(card, models, out_card=out / "card.yaml", rounds=out / "rounds.csv",
              run=out / "best.h5", geometry=GEO, settings=UCSSettings(), seed=1,
              seeds_per_round=2, max_seeds=2, max_rounds=2, threads=threads)
     fresh_seeds(out / "card.yaml", seeds=[101, 102],
@@ -55,7 +56,7 @@ def _run_all(d, card, models, threads):
                 bts_runs=[out / f"fresh{s}.bts.h5" for s in (101, 102)],
                 seed_runs=out / "fresh.csv", geometry=GEO, settings=UCSSettings(),
                 threads=threads)
-    A.seed_scatter(out / "card.yaml", runs=[out / f"sc{s}.h5" for s in (201, 202)],
+    seed_scatter(out / "card.yaml", runs=[out / f"sc{s}.h5" for s in (201, 202)],
                    seeds=[201, 202], seed_runs=out / "sc_runs.csv", table=out / "sc.csv",
                    geometry=GEO, settings=UCSSettings(), threads=threads)
     return out

@@ -1,6 +1,6 @@
-"""A seed's tests as pool jobs of their own (``verification.seed_parts``, issue 53): the
+"""A seed's tests as pool jobs of their own (``loop_runs.seed_parts``, issue 53): the
 record a closed loop keeps of a seed put together from its runs run apart is the record of
-the same runs one after the other (``verification._loop_seed``), for valid, replaced,
+the same runs one after the other (``loop_runs.loop_seed``), for valid, replaced,
 never-valid and failed specimens. No DEM: a synthetic 'DEM' whose strengths depend on the
 packing seed only, so any run that went to another packing, or a specimen counted twice,
 or missed, changes the record."""
@@ -14,12 +14,14 @@ from bpmcal.lab.brazilian import BTSSettings
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import BTS
-from bpmcal.stages import verification as V
+from bpmcal.stages import loop_runs as LR
+from bpmcal.stages import measure as M
+from bpmcal.stages.journal import plain
 from bpmcal.stages.runs import RunOutcome
 
 PARAMS = {"rmin_mm": 0.8, "porosity": 0.3, "pb_emod_GPa": 20.0, "pb_kratio": 2.0,
           "pb_ten_MPa": 30.0, "pb_coh_MPa": 30.0, "pb_fa_deg": 35.0, "fric": 0.35}
-STRIDE = V.BTS_REPLACEMENT_STRIDE
+STRIDE = M.BTS_REPLACEMENT_STRIDE
 
 
 class SeedDEM:
@@ -62,25 +64,25 @@ def _job(n):
 def _apart(job, tmp_path):
     """The seed's parts run one by one (each with its own stem, as the journal gives
     them), in the pool's order, and the record put together from them."""
-    parts = V.seed_parts(job)
+    parts = LR.seed_parts(job)
     ucs, sp = None, {}
-    for i in V.longest_first(parts):
+    for i in LR.longest_first(parts):
         p = parts[i]
-        rec, files = V.run_part(**p, stem=tmp_path / f"part{i}", cache=None, threads=None,
-                                progress=None)
-        rec = json.loads(json.dumps(rec, default=V.plain, allow_nan=True))  # the journal's
+        rec, files = LR.run_part(**p, stem=tmp_path / f"part{i}", cache=None, threads=None,
+                                 progress=None)
+        rec = json.loads(json.dumps(rec, default=plain, allow_nan=True))  # the journal's
         assert files and all(f.exists() for f in files)
         if p["part"] == "ucs":
             ucs = rec
         else:
             sp.setdefault(p["part"], {})[p["j"]] = rec
-    return V.seed_record(job, ucs, {r: [v[j] for j in sorted(v)] for r, v in sp.items()})
+    return LR.seed_record(job, ucs, {r: [v[j] for j in sorted(v)] for r, v in sp.items()})
 
 
 def _whole(job, tmp_path):
-    rec, _ = V._loop_seed(**job, stem=tmp_path / "whole", cache=None, threads=None,
+    rec, _ = LR.loop_seed(**job, stem=tmp_path / "whole", cache=None, threads=None,
                           progress=None)
-    return json.loads(json.dumps(rec, default=V.plain, allow_nan=True))
+    return json.loads(json.dumps(rec, default=plain, allow_nan=True))
 
 
 def _same(a, b):
@@ -97,21 +99,21 @@ def _same(a, b):
     assert (a["bts"] is None) == (b["bts"] is None)
 
 
-R1 = V.TENSILE_REPLICATE_STRIDE
+R1 = M.TENSILE_REPLICATE_STRIDE
 
 
 @pytest.mark.parametrize("n, invalid, failed", [
     (1, (), ()),                              # one valid disc
     (3, (7, 7 + R1), ()),                     # disc 0 and disc 1 invalid: replaced
-    (3, (7 + 2 * R1 + k * STRIDE for k in range(V.BTS_MAX_REPLACEMENTS + 1)), ()),  # never valid
+    (3, (7 + 2 * R1 + k * STRIDE for k in range(M.BTS_MAX_REPLACEMENTS + 1)), ()),  # never valid
     (3, (), (7 + R1,)),                       # disc 1 fails: the seed has no σt
 ])
 def test_a_seed_put_together_from_its_runs_is_the_seed_run_whole(tmp_path, monkeypatch, n,
                                                                  invalid, failed):
     invalid = tuple(invalid)
     dem = SeedDEM(invalid, failed)
-    monkeypatch.setattr(V, "run_ucs_file", dem.ucs)
-    monkeypatch.setattr(V, "run_bts_file", dem.bts)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem.ucs)
+    monkeypatch.setitem(M.RUNNERS, "bts", dem.bts)
     job = _job(n)
     whole = _whole(job, tmp_path)
     whole_calls, dem.calls = list(dem.calls), []
@@ -127,7 +129,7 @@ def test_a_seed_put_together_from_its_runs_is_the_seed_run_whole(tmp_path, monke
         assert row["status"] == "failed" and math.isnan(row[BTS])
     elif n == 3 and len(invalid) > 2:
         assert row["status"] == "failed" and math.isnan(row[BTS])  # disc 2 never valid
-        assert row["bts_invalid"] == V.BTS_MAX_REPLACEMENTS + 1
+        assert row["bts_invalid"] == M.BTS_MAX_REPLACEMENTS + 1
     else:
         assert row["status"] == "ok" and math.isfinite(row[BTS])
         assert row["bts_invalid"] == len(invalid)
@@ -135,11 +137,11 @@ def test_a_seed_put_together_from_its_runs_is_the_seed_run_whole(tmp_path, monke
 
 def test_the_parts_run_the_ucs_tests_first_then_each_seeds_specimens_in_turn():
     jobs = [dict(_job(3), seed=s) for s in (1, 2)]
-    parts = [p for job in jobs for p in V.seed_parts(job)]
+    parts = [p for job in jobs for p in LR.seed_parts(job)]
     order = [(parts[i]["part"], parts[i]["seed"], parts[i].get("j"))
-             for i in V.longest_first(parts)]
+             for i in LR.longest_first(parts)]
     assert order == [("ucs", 1, None), ("ucs", 2, None),
                      *[(BTS, s, j) for j in range(3) for s in (1, 2)]]
     # a top-up runs the raised specimens only, no UCS test
-    top = V.seed_parts(dict(_job(5), seed=1), first_specimen=3)
+    top = LR.seed_parts(dict(_job(5), seed=1), first_specimen=3)
     assert [(p["part"], p["j"]) for p in top] == [(BTS, 3), (BTS, 4)]

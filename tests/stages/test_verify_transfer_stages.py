@@ -10,8 +10,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import bpmcal.stages.measure as M
+import bpmcal.stages.seed_scatter as S
 import bpmcal.stages.transfer as TR
 import bpmcal.stages.verification as V
+import bpmcal.stages.verification_tables as VT
 from bpmcal.analysis.stepwise import FORMAT, RegressionModel
 from bpmcal.io.card import card_parameters, read_card, write_card
 from bpmcal.io.checks import BadInput
@@ -89,7 +92,7 @@ def run_verify(tmp_path, card, models, k, max_seeds=None):
 def test_verify_runs_k_seeds_per_round_and_records_mean_cv_and_n(study, monkeypatch):
     tmp_path, card, models = study
     dem = PlantedDEM()
-    monkeypatch.setattr(V, "run_ucs_file", dem)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
     v = run_verify(tmp_path, card, models, 3)["verification"]
     n_rounds = v["rounds"]
     assert len(dem.calls) == 3 * n_rounds == v["runs"]
@@ -124,7 +127,7 @@ def test_verify_runs_k_seeds_per_round_and_records_mean_cv_and_n(study, monkeypa
 def test_one_seed_per_round_has_no_spread(study, monkeypatch):
     tmp_path, card, models = study
     dem = PlantedDEM()
-    monkeypatch.setattr(V, "run_ucs_file", dem)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
     v = run_verify(tmp_path, card, models, 1)["verification"]
     assert {c[1] for c in dem.calls} == {1} and v["n_seeds"] == 1
     assert math.isnan(v["closed_loop"]["seed_cv"]["ucs_MPa"])
@@ -135,14 +138,14 @@ def test_one_seed_per_round_has_no_spread(study, monkeypatch):
 
 def test_table5_carries_the_seed_spread(study, monkeypatch):
     tmp_path, card, models = study
-    monkeypatch.setattr(V, "run_ucs_file", PlantedDEM())
+    monkeypatch.setitem(M.RUNNERS, "ucs", PlantedDEM())
     run_verify(tmp_path, card, models, 3)
-    monkeypatch.setattr(V, "read_series", lambda run: pd.DataFrame(
+    monkeypatch.setattr(VT, "read_series", lambda run: pd.DataFrame(
         {"strain": [0.0, 0.01], "stress_MPa": [0.0, 60.0]}))
-    monkeypatch.setattr(V, "save_figure", lambda fig, path: None)
+    monkeypatch.setattr(VT, "save_figure", lambda fig, path: None)
     lab = tmp_path / "lab.csv"
     lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60.0,14.0,0.25,0.1\n")
-    t5 = V.verification_tables([tmp_path / "v" / "card.yaml"], [tmp_path / "v" / "best.h5"],
+    t5 = VT.verification_tables([tmp_path / "v" / "card.yaml"], [tmp_path / "v" / "best.h5"],
                                lab, table5=tmp_path / "t5.csv", table6=tmp_path / "t6.csv",
                                figure=tmp_path / "f6.png")["table5"]
     assert t5.loc["B1", "n_seeds"] == 3
@@ -157,7 +160,7 @@ def test_transfer_corrects_only_a_miss_beyond_the_seed_scatter(study, monkeypatc
                                                                rtol, corrected):
     tmp_path, card, models = study
     dem = PlantedDEM(e_full=e_full)
-    monkeypatch.setattr(V, "run_ucs_file", dem)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
     run_verify(tmp_path, card, models, 3)
     verified = read_card(tmp_path / "v" / "card.yaml")
     n_verify = len(dem.calls)
@@ -224,7 +227,7 @@ def test_verify_grows_the_seed_set_and_records_it(study, monkeypatch):
     tmp_path, card, models = study
     dev = {1: 0.0, 2: 0.04, 3: 0.02, 4: -0.03, 5: -0.02, 6: -0.01}
     dem = PlantedDEM(dev=dev)
-    monkeypatch.setattr(V, "run_ucs_file", dem)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
     v = run_verify(tmp_path, card, models, 3, max_seeds=6)["verification"]
     assert v["seeds_per_round"] == 3 and v["max_seeds"] == 6
     assert v["n_seeds"] == 6 and v["seeds"] == [1, 2, 3, 4, 5, 6]
@@ -248,7 +251,7 @@ def test_transfer_starts_from_the_jacobian_the_verification_learned(study, monke
     pb_emod_GPa, so it followed the card's Jacobian, not the regression's."""
     tmp_path, card, models = study
     dem = PlantedDEM(e_full=1.10)
-    monkeypatch.setattr(V, "run_ucs_file", dem)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
     run_verify(tmp_path, card, models, 3)
     c = read_card(tmp_path / "v" / "card.yaml")
     jac = {r: dict(row) for r, row in c["verification"]["jacobian"].items()}
@@ -269,13 +272,13 @@ def test_scatter_of_a_verified_card_runs_its_verified_parameters(study, monkeypa
     the card stands for), not the regression's starting point it also records."""
     tmp_path, card, models = study
     dem = PlantedDEM()
-    monkeypatch.setattr(V, "run_ucs_file", dem)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
     v = run_verify(tmp_path, card, models, 3)["verification"]
     assert v["parameters"]["pb_emod_GPa"] != pytest.approx(start_params()["pb_emod_GPa"])
     n = len(dem.calls)
-    monkeypatch.setattr(V, "run_ucs_file", lambda out, params, seed, *a, **k: (
+    monkeypatch.setitem(M.RUNNERS, "ucs", lambda out, params, seed, *a, **k: (
         dem(out, params, seed, Geometry(scale=0.25), None)))
-    V.seed_scatter(tmp_path / "v" / "card.yaml", runs=[tmp_path / "s1.h5", tmp_path / "s2.h5"],
+    S.seed_scatter(tmp_path / "v" / "card.yaml", runs=[tmp_path / "s1.h5", tmp_path / "s2.h5"],
                    seeds=[1, 2], seed_runs=tmp_path / "sr.csv", table=tmp_path / "sc.csv",
                    geometry=Geometry(scale=0.25), settings=UCSSettings())
     ran = [p for p, _, _ in dem.calls[n:]]
@@ -290,7 +293,7 @@ def test_transfer_of_a_card_whose_jacobian_does_not_fit_starts_from_the_models(s
     card without one."""
     tmp_path, card, models = study
     dem = PlantedDEM(e_full=1.10)
-    monkeypatch.setattr(V, "run_ucs_file", dem)
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
     run_verify(tmp_path, card, models, 3)
     c = read_card(tmp_path / "v" / "card.yaml")
     jac = {r: {p: x for p, x in row.items() if p != "pb_coh_MPa"}
@@ -317,7 +320,7 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     c = read_card(card)
     c["targets"] = {**TARGETS, "nu": 0.336}
     write_card(tmp_path / "far.yaml", c)
-    monkeypatch.setattr(V, "run_ucs_file", PlantedDEM(dev={s: 0.0 for s in range(1, 12)}))
+    monkeypatch.setitem(M.RUNNERS, "ucs", PlantedDEM(dev={s: 0.0 for s in range(1, 12)}))
     kw = dict(rounds=tmp_path / "v" / "rounds.csv", run=tmp_path / "v" / "best.h5",
               geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
               seeds_per_round=1, max_rounds=6, max_seeds=1)
@@ -342,16 +345,16 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
         TR.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t0" / "c.yaml",
                    rounds=tmp_path / "t0" / "r.csv", run=tmp_path / "t0" / "b.h5",
                    range_margin=0.0, **t)
-    monkeypatch.setattr(V, "read_series", lambda run: pd.DataFrame(
+    monkeypatch.setattr(VT, "read_series", lambda run: pd.DataFrame(
         {"strain": [0.0, 0.01], "stress_MPa": [0.0, 60.0]}))
-    monkeypatch.setattr(V, "save_figure", lambda fig, path: None)
+    monkeypatch.setattr(VT, "save_figure", lambda fig, path: None)
     lab = tmp_path / "lab.csv"
     lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60.0,14.0,0.336,0.1\n")
     from bpmcal.io import study_files as L
     from bpmcal.report.build import _verification
 
     lay = L.StudyFiles(tmp_path / "study")
-    t5 = V.verification_tables([tmp_path / "v" / "card.yaml", tmp_path / "v0" / "card.yaml"],
+    t5 = VT.verification_tables([tmp_path / "v" / "card.yaml", tmp_path / "v0" / "card.yaml"],
                                [tmp_path / "v" / "best.h5"] * 2, lab,
                                table5=lay.table(L.TABLE5), table6=lay.table(L.TABLE6),
                                figure=tmp_path / "f6.png")["table5"]
@@ -373,7 +376,7 @@ def test_verify_polishes_a_converged_card_and_records_it(study, monkeypatch):
     out = {}
     for polish in (False, True):
         dem = PlantedDEM(dev=dev)
-        monkeypatch.setattr(V, "run_ucs_file", dem)
+        monkeypatch.setitem(M.RUNNERS, "ucs", dem)
         v = V.verify(card, models, out_card=tmp_path / f"p{polish}" / "card.yaml",
                      rounds=tmp_path / f"p{polish}" / "rounds.csv",
                      run=tmp_path / f"p{polish}" / "best.h5", geometry=Geometry(scale=0.25),
@@ -394,7 +397,7 @@ def test_verify_reports_every_round_and_records_its_update_rule(study, monkeypat
     """The history rule reaches the loop and the card; every judged round is a progress
     note (a loop of many rounds runs for an hour); a rule it does not know is refused."""
     tmp_path, card, models = study
-    monkeypatch.setattr(V, "run_ucs_file", PlantedDEM())
+    monkeypatch.setitem(M.RUNNERS, "ucs", PlantedDEM())
     seen = []
     v = V.verify(card, models, out_card=tmp_path / "h" / "card.yaml",
                  rounds=tmp_path / "h" / "rounds.csv", run=tmp_path / "h" / "best.h5",
@@ -435,12 +438,12 @@ def _verify_into(d, card, models, **kw):
 def test_a_loop_stopped_part_way_resumes_from_its_journal(study, monkeypatch):
     tmp_path, card, models = study
     whole = PlantedDEM()
-    monkeypatch.setattr(V, "run_ucs_file", whole)
+    monkeypatch.setitem(M.RUNNERS, "ucs", whole)
     ref = _verify_into(tmp_path / "ref", card, models)["verification"]
     n = len(whole.calls)
     assert n >= 6  # at least two rounds of three seeds: the stop falls inside the loop
     d = tmp_path / "v"
-    monkeypatch.setattr(V, "run_ucs_file", StoppedDEM(stop=5))  # round 2, its second seed
+    monkeypatch.setitem(M.RUNNERS, "ucs", StoppedDEM(stop=5))  # round 2, its second seed
     with pytest.raises(KeyboardInterrupt):
         _verify_into(d, card, models)
     journal = d / ".best.rounds" / "journal.jsonl"
@@ -449,7 +452,7 @@ def test_a_loop_stopped_part_way_resumes_from_its_journal(study, monkeypatch):
     with open(journal, "a") as fh:
         fh.write('{"key": "cut short by the ki')  # a line a kill cut short is skipped
     again = PlantedDEM()
-    monkeypatch.setattr(V, "run_ucs_file", again)
+    monkeypatch.setitem(M.RUNNERS, "ucs", again)
     notes = []
     v = _verify_into(d, card, models, progress=lambda e: notes.append(e.get("note", "")))
     assert len(again.calls) == n - 4  # only the runs the stopped attempt had not finished
@@ -466,13 +469,13 @@ def test_a_loop_stopped_part_way_resumes_from_its_journal(study, monkeypatch):
 def test_a_journal_of_other_inputs_is_not_read(study, monkeypatch):
     tmp_path, card, models = study
     d = tmp_path / "v"
-    monkeypatch.setattr(V, "run_ucs_file", StoppedDEM(stop=5))
+    monkeypatch.setitem(M.RUNNERS, "ucs", StoppedDEM(stop=5))
     with pytest.raises(KeyboardInterrupt):
         _verify_into(d, card, models)
     again = PlantedDEM()
-    monkeypatch.setattr(V, "run_ucs_file", again)
+    monkeypatch.setitem(M.RUNNERS, "ucs", again)
     _verify_into(d, card, models, genesis_max_steps=40_000)  # another setting: every run anew
     whole = PlantedDEM()
-    monkeypatch.setattr(V, "run_ucs_file", whole)
+    monkeypatch.setitem(M.RUNNERS, "ucs", whole)
     _verify_into(tmp_path / "ref", card, models, genesis_max_steps=40_000)
     assert len(again.calls) == len(whole.calls)  # nothing read from the other inputs' journal

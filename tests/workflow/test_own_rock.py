@@ -95,7 +95,7 @@ def test_unreachable_card_names_the_configured_bound_and_what_to_widen(study, tm
     from bpmcal.io.card import read_card
     from bpmcal.io.h5 import read_summary
     from bpmcal.io.study_files import StudyFiles
-    from bpmcal.stages.verification import verification_tables
+    from bpmcal.stages.verification_tables import verification_tables
 
     # E = 1.2 Ecp - 1.5 kp* needs Ecp ~ 170 GPa for 200 GPa: beyond ranges.pb_emod_GPa [30, 120]
     card_dir = tmp_path / "cal"
@@ -151,7 +151,7 @@ def test_report_shows_the_paper_only_for_the_paper_study(study, tmp_path, refere
     from bpmcal.io import study_files as L
     from bpmcal.report.build import build
     from bpmcal.stages.calibration import calibrate
-    from bpmcal.stages.verification import verification_tables
+    from bpmcal.stages.verification_tables import verification_tables
 
     out = tmp_path / "results"
     lay = L.StudyFiles(out)

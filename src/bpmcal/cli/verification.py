@@ -75,7 +75,8 @@ def _seeds(text) -> list[int]:
 
 def _add_verify(p):
     from ..params import AUTO_ROUNDS, ROUNDS_PER_FREE
-    from ..stages.verification import MAX_TENSILE_SPECIMENS, TENSILE_REPLICATE_STRIDE, verify
+    from ..stages.measure import MAX_TENSILE_SPECIMENS, TENSILE_REPLICATE_STRIDE
+    from ..stages.verification import verify
 
     d = defaults_of(verify)
     p.add_argument("--card", required=True)
@@ -227,7 +228,7 @@ def cmd_transfer_table(args) -> int:
 
 
 def _add_scatter(p):
-    from ..stages.verification import seed_scatter
+    from ..stages.seed_scatter import seed_scatter
 
     d = defaults_of(seed_scatter)
     p.add_argument("--card", required=True)
@@ -241,7 +242,7 @@ def _add_scatter(p):
 
 
 def cmd_scatter(args) -> int:
-    from ..stages.verification import seed_scatter
+    from ..stages.seed_scatter import seed_scatter
 
     sc = seed_scatter(args.card, runs=args.runs, seeds=_seeds(args.seeds),
                       seed_runs=args.seed_runs, table=args.table, geometry=run_geometry(args),
@@ -323,7 +324,7 @@ def _add_verification_tables(p):
 
 
 def cmd_verification_tables(args) -> int:
-    from ..stages.verification import verification_tables
+    from ..stages.verification_tables import verification_tables
 
     r = verification_tables(args.cards, args.runs, args.lab, table5=args.table5,
                             table6=args.table6, figure=args.figure)

@@ -8,7 +8,15 @@ A stage reads the files it is given, checks them and its output paths before any
 - :mod:`.runs` — DEM run files (``ucs``, ``bts``, ``dtt``, ``triaxial``, ``impact``) and failure
   records;
 - :mod:`.dataset` — the design and the gathered dataset (``study.smk``);
-- :mod:`.analysis` — screening, regression, calibration, verification (``analysis.smk``);
+- :mod:`.screening`, :mod:`.regression`, :mod:`.calibration` — Tables 3 and 4, the cards
+  (``analysis.smk``);
+- :mod:`.verification` (the closed loop), :mod:`.seed_scatter`, :mod:`.verification_tables`
+  (Tables 5, 6), :mod:`.transfer`, :mod:`.fresh_seeds` — the cards checked on the DEM
+  (``analysis.smk``); :mod:`.loop_runs` — the closed loop's runs and their journal;
+  :mod:`.measure` — a seed's measurements, the seed scheme and the DEM runners
+  (``RUNNERS``) of all of them;
+- :mod:`.posterior`, :mod:`.posterior_data`, :mod:`.predictive` — a card's posterior and
+  its predictive runs (``posterior.smk``);
 - :mod:`.ratio_sweep` — the strength-ratio sweep; :mod:`.impact_energy` — the impact
   analysis (both ``fracture.smk``);
 - :mod:`.triaxial` — the cards' triaxial strength envelopes (``triaxial.smk``);

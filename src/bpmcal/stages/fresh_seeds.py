@@ -44,16 +44,17 @@ from ..lab.triaxial import TriaxialSettings
 from ..params import BTS
 from . import defaults_of
 from .inputs import CSV, H5, output_dirs, outputs
-from .pool import SeedPool
-from .runs import run_ucs_file, write_failure
-from .verification import (
-    check_tri_target,
+from .measure import (
+    RUNNERS,
     combine_specimens,
     disc_geometry,
     specimen_run,
     specimen_text,
     specimens_of,
 )
+from .pool import SeedPool
+from .runs import write_failure
+from .verification import check_tri_target
 
 #: per-seed columns of the seed table besides the targets
 _EXTRA = ("u_pre_MJm3", "peak_strain")
@@ -87,11 +88,11 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
     test of every seed into ``dtt_runs[i]`` (the cylinder ``dtt_geometry``, default the
     UCS cylinder, with ``dtt_settings``); a card with a triaxial-strength target
     (``tri_MPa``) the triaxial test of ``tri_settings`` (its design confinement) on the UCS
-    cylinder into ``tri_runs[i]``. An invalid tensile test is run again on
-    replacement seeds (``valid_tensile_run``); when none is valid the seed has no σt (NaN,
-    the reasons in ``error``) and keeps its UCS responses. σt is measured as the card's
+    cylinder into ``tri_runs[i]``. An invalid tensile test is run again on replacement
+    seeds (:func:`~.measure.valid_tensile_run`); when none is valid the seed has no σt
+    (NaN, the reasons in ``error``) and keeps its UCS responses. σt is measured as the card's
     closed loop measured it: the mean of ``verification.tensile_specimens`` specimens per
-    seed (default 1; :func:`~bpmcal.stages.verification.seed_strength`), specimen j > 0
+    seed (default 1; :func:`~bpmcal.stages.measure.seed_strength`), specimen j > 0
     written beside the seed's run file as ``<run>.r<j>.h5``. ``seed_runs``: one row per seed
     with its status, failure reason and responses. The parameters are the card's
     (:func:`card_parameters`: the closed loop's, or the transfer's when it ran). A card
@@ -241,7 +242,7 @@ OLD_SEED_TABLE = ("a seed table of an older bpmcal, which does not say whether i
 def _fresh_parts(job: dict) -> list[dict]:
     """The pool jobs of one fresh seed (``job``: the seed's arguments): its UCS test, and
     every specimen j of each per-sample test measured for this card (each run a job of
-    its own, as a closed loop's: :func:`~.verification.seed_parts`)."""
+    its own, as a closed loop's: :func:`~.loop_runs.seed_parts`)."""
     base = {k: job[k] for k in ("params", "seed", "cache", "genesis_max_steps")}
     parts = [dict(base, part="ucs", out=job["run"], geometry=job["geometry"],
                   settings=job["settings"])]
@@ -262,11 +263,11 @@ def _fresh_part(*, part: str, params: dict, seed: int, out, geometry, settings, 
     """One run of a fresh seed (a :class:`SeedPool` job of :func:`_fresh_parts`): its UCS
     test into ``out`` (the outcome's status, error and the responses a seed row keeps), or
     specimen ``j`` of the test of strength ``part`` into ``out`` (j = 0) or
-    ``<out stem>.r<j>.h5`` (a :class:`~.verification.SpecimenRun`)."""
+    ``<out stem>.r<j>.h5`` (a :class:`~.measure.SpecimenRun`)."""
     kw = dict(cache=cache, threads=threads, progress=progress,
               genesis_max_steps=genesis_max_steps, keep_particles=False)
     if part == "ucs":
-        u = run_ucs_file(out, params, seed, geometry, settings, **kw)
+        u = RUNNERS["ucs"](out, params, seed, geometry, settings, **kw)
         return {"status": u.status, "error": u.error,
                 "values": {k: float(u.summary.get(k, math.nan)) if u.status == "ok"
                            else math.nan for k in (*P.TARGETS, *_EXTRA)}}
@@ -303,11 +304,11 @@ def _tri_inputs(params: dict, seed: int, geometry, settings) -> dict:
 
 def _fresh_test(row: dict, resp: str, what: str, runs: list, n: int) -> None:
     """One fresh seed's per-sample test of strength ``resp`` (``P.SAMPLE_TESTS``) into
-    ``row`` from its ``n`` specimens' runs (:class:`~.verification.SpecimenRun`, in
+    ``row`` from its ``n`` specimens' runs (:class:`~.measure.SpecimenRun`, in
     order): the strength (the specimens' mean, :func:`combine_specimens`; NaN for a
     failed run, or when no replacement seed gave a valid test: the seed keeps its UCS
     responses), the packing seed used, the invalid attempts, and the status and error of
-    a failure (the columns of :func:`~.verification.row_strength`)."""
+    a failure (the columns of :func:`~.measure.row_strength`)."""
     test = P.SAMPLE_TESTS[resp]
     b, used, invalid, row[resp], values = combine_specimens(runs, n)
     row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)

@@ -250,10 +250,10 @@ def refine_point(res) -> dict:
 def _measure(point: dict, seeds: list[int], targets: list[str], dem: DemRuns, folder: Path,
              it: int, tensile_specimens: int, progress) -> list[dict]:
     """The card measured at ``point`` on ``seeds`` as the closed loop measures a seed
-    (:func:`bpmcal.stages.verification._loop_seed`), side by side on the stage's CPUs;
+    (:func:`bpmcal.stages.loop_runs.loop_seed`), side by side on the stage's CPUs;
     the seed rows (the loop's seeds.csv columns, ``round`` = the refinement's step)."""
+    from .loop_runs import loop_seed
     from .pool import SeedPool
-    from .verification import _loop_seed
 
     folder.mkdir(parents=True, exist_ok=True)
     jobs = [dict(params=point, seed=s, stem=folder / f"refine{it}.seed{s}", targets=targets,
@@ -261,7 +261,7 @@ def _measure(point: dict, seeds: list[int], targets: list[str], dem: DemRuns, fo
                  cache=dem.cache, genesis_max_steps=dem.genesis_max_steps,
                  tensile_specimens=tensile_specimens) for s in seeds]
     with SeedPool(dem.threads, progress) as pool:
-        done = pool.map(_loop_seed, jobs, tags=[f"refine {it} seed {s}" for s in seeds])
+        done = pool.map(loop_seed, jobs, tags=[f"refine {it} seed {s}" for s in seeds])
     rows = []
     for rec, files in done:
         row = {"round": it, "seed": int(rec["row"]["seed"]), **point}

@@ -20,6 +20,7 @@ from ..lab.brazilian import BTSSettings
 from ..lab.budget import check_budget
 from ..lab.direct_tension import DTTSettings
 from .inputs import CSV, H5, YAML, output_dirs, outputs, read_models
+from .measure import disc_geometry
 from .verification import (
     _LOOP,
     _check_margin,
@@ -30,7 +31,6 @@ from .verification import (
     _outside_text,
     _responses,
     check_tri_target,
-    disc_geometry,
 )
 
 

@@ -1,61 +1,41 @@
-"""The verification stages (``workflow/rules/analysis.smk``): re-run the DEM with a card.
+"""The ``verify`` job (``workflow/rules/analysis.smk``, ``bpmcal verify``): the closed
+loop (Newton-Broyden, seed-averaged) on the DEM from a calibrated card until every
+response is within the tolerance of the lab value or the rounds are used up -> verified
+card, rounds table, the best round's run files (:func:`verify`), and the checks of its
+options.
 
-- :func:`verify`: the closed loop (Newton-Broyden, seed-averaged) from a calibrated card
-  until every response is within the tolerance of the lab value or the rounds are used
-  up -> verified card, rounds table, the best round's run files;
-- :func:`seed_scatter`: one card, several packing seeds -> run files and the scatter
-  table (:func:`bpmcal.analysis.calibration.scatter_table`);
-- :func:`verification_tables`: Tables 5 and 6 and Fig. 6 from the verified cards.
-
-:func:`_dem_loop` runs the closed loop on the DEM (the UCS test, and the tensile test of
-a σt target: :func:`valid_tensile_run`); :mod:`.transfer` and :mod:`.fresh_seeds` reuse it and
-the helpers here. The DEM runners (``run_ucs_file``, ``run_bts_file``, ``run_dtt_file``)
-are looked up in this module. Method: ``docs/methods/calibration.md`` ("Closed loop").
+:func:`_dem_loop` runs the closed loop on the DEM (its runs and their journal:
+:mod:`.loop_runs`; a seed's measurements: :mod:`.measure`); :mod:`.transfer` reuses it and
+the helpers here. The seed scatter of a card is :mod:`.seed_scatter`'s job, Tables 5 and 6
+:mod:`.verification_tables`'. Method: ``docs/methods/calibration.md`` ("Closed loop").
 """
 from __future__ import annotations
 
-import json
 import math
 import os
-from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .. import params as P
-from ..analysis import ClosedLoop, scatter_table
+from ..analysis import ClosedLoop
 from ..analysis.calibration import UPDATES
 from ..analysis.calibration.closed_loop import check_grow_within, check_max_rounds
-from ..analysis.calibration.specimens import (
-    MISS_ACCEPTED,
-    expected_cv,
-    pooled_cv,
-    specimens_needed,
-)
-from ..io.card import card_parameters, read_card, write_card
+from ..analysis.calibration.specimens import MISS_ACCEPTED
+from ..io.card import read_card, write_card
 from ..io.checks import BadInput
-from ..io.figures import save_figure
-from ..io.h5 import read_series
 from ..io.tables import write_table
 from ..lab.brazilian import BTSSettings
 from ..lab.budget import check_budget
 from ..lab.direct_tension import DTTSettings
-from ..lab.runner import bts_geometry as _isrm_disc
 from ..lab.runner import bts_inputs, ucs_inputs
 from ..params import BTS, SAMPLE_TESTS
-from ..plots.calibration import fig_stress_strain
 from . import defaults_of
-from .inputs import CSV, H5, PNG, YAML, output_dirs, outputs, read_lab, read_models
-from .journal import RunJournal, plain
-from .pool import SeedPool
-from .runs import (  # noqa: F401 (the per-sample tests' runners: _TEST_RUN names them)
-    run_bts_file,
-    run_dtt_file,
-    run_triaxial_file,
-    run_ucs_file,
-    write_failure,
-)
+from .inputs import CSV, H5, YAML, output_dirs, outputs, read_models
+from .loop_runs import LoopRuns, seed_runs_table
+from .measure import check_seed_cv, check_tensile_specimens, check_triaxial_seeds, disc_geometry
+from .runs import write_failure
 
 #: the defaults of the stages are those of the analysis they run
 _LOOP = defaults_of(ClosedLoop)
@@ -101,214 +81,6 @@ def _missed(resp: dict, targets: dict, rtol: float) -> list[dict]:
             if not abs(resp["errors_pct"][k]) <= 100 * rtol]  # NaN (a failed run) is missed
 
 
-def disc_geometry(geometry):
-    """The Brazilian disc (ISRM 50 x 25 mm) at the scale and with the genesis options of
-    the UCS cylinder ``geometry``."""
-    return _isrm_disc(scale=geometry.scale, sigma0_MPa=geometry.sigma0_MPa,
-                      install_gap_mm=geometry.install_gap_mm,
-                      relax_ratio=geometry.relax_ratio, genesis=geometry.genesis)
-
-
-#: an invalid Brazilian test (its fracture did not start in the central zone) is no
-#: measurement: the closed loop and the fresh-seed check run the disc again on the next
-#: replacement seeds, seed + k x BTS_REPLACEMENT_STRIDE (k = 1, 2, ...), at most
-#: BTS_MAX_REPLACEMENTS times, before σt of that seed counts as a failed measurement
-BTS_REPLACEMENT_STRIDE = 100_000
-BTS_MAX_REPLACEMENTS = 3
-
-
-#: the runner of each per-sample test (``P.SAMPLE_TESTS``' tests), looked up in this
-#: module at the call, so tests can replace it
-_TEST_RUN = {"bts": "run_bts_file", "dtt": "run_dtt_file", "tri": "run_triaxial_file"}
-
-
-def test_strength(resp: str, outcome) -> float:
-    """The strength ``resp`` (``P.SAMPLE_TESTS``' responses: ``bts_MPa``, ``dtt_MPa``,
-    ``tri_MPa``) of a finished run's outcome, NaN for a failed one: the summary key the
-    dataset reads it from (``study.gather.TEST_COLUMNS``)."""
-    from ..study.gather import TEST_COLUMNS
-
-    keys = TEST_COLUMNS[SAMPLE_TESTS[resp]][0]
-    key = next(k for k, col in keys.items() if col == resp)
-    return float(outcome.summary[key]) if outcome.status == "ok" else math.nan
-
-
-def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, settings, *,
-                      max_replacements: int = BTS_MAX_REPLACEMENTS, **kw):
-    """A per-sample test (``test``: "bts", the Brazilian disc ``geometry``; "dtt", the
-    direct-tension cylinder; "tri", the triaxial test at the design confinement, whose
-    runs have no validity check) of ``params`` on packing ``seed`` that measures its
-    strength: an invalid run (``<test>_valid`` false) is replaced by the specimen of the
-    next replacement seed (``seed + k x BTS_REPLACEMENT_STRIDE``), up to
-    ``max_replacements`` times; a failed run (instability, genesis) is not replaced (it is
-    a failure, not a measurement of the wrong thing). ``path_of(seed, k)`` names the run
-    file of attempt k. Returns (the outcome used, the packing seed it ran on, the reasons
-    of the invalid attempts); the outcome has ``<test>_MPa`` NaN when every attempt was
-    invalid."""
-    run_file = globals()[_TEST_RUN[test]]
-    invalid = []
-    for k in range(max_replacements + 1):
-        s = int(seed) + k * BTS_REPLACEMENT_STRIDE
-        b = run_file(path_of(s, k), params, s, geometry, settings, **kw)
-        if b.status != "ok" or b.summary.get(f"{test}_valid", True):
-            return b, s, invalid
-        invalid.append(f"seed {s}: {b.summary.get(f'{test}_invalid_reason', 'invalid')}")
-    return b, s, invalid
-
-
-#: the tensile tests (``P.SAMPLE_TESTS``) whose strength a seed may measure on several
-#: specimens (``tensile_specimens``): specimen j of packing seed s is packed with
-#: ``replicate_seed(s, j)`` = s + j x TENSILE_REPLICATE_STRIDE (j = 0: s itself, the UCS
-#: test's packing). Its packing may move on twice: a replacement as above (+ m x
-#: BTS_REPLACEMENT_STRIDE, m <= BTS_MAX_REPLACEMENTS) and, for a Brazilian disc, the
-#: test's own ISRM retests (+ k x ``lab.brazilian.RETEST_SEED_STEP``, k <= 10). The stride
-#: keeps every such packing seed of every seed below 100,000 apart from every other
-#: (:func:`packing_seed_gap`: the smallest difference of two offsets is the replacement
-#: stride, 100,000) and below 2**32. (It was 1,000,000: then a retest of seed s, s +
-#: 1,000,003, was specimen 1 of seed s + 3, and two seeds shared that disc.)
-TENSILE_TESTS = ("bts", "dtt")
-TENSILE_REPLICATE_STRIDE = 20_000_003
-MAX_TENSILE_SPECIMENS = 50
-#: the degrees of freedom of the pooled specimen CV before the loop raises a seed's count
-#: on it (:class:`_LoopRuns`): 3 seeds x 3 discs give 8, 3 seeds x 1 disc 2 (not enough)
-MIN_SPECIMEN_DOF = 6
-
-
-def replicate_seed(seed: int, j: int) -> int:
-    """The packing seed of specimen ``j`` (0, 1, ...) of packing ``seed``'s tensile test."""
-    return int(seed) + int(j) * TENSILE_REPLICATE_STRIDE
-
-
-def packing_seed_gap(max_retests: int = 10) -> tuple[int, int]:
-    """(the smallest nonzero difference between two offsets from a packing seed, the
-    largest offset) over every tensile specimen j < MAX_TENSILE_SPECIMENS, replacement
-    m <= BTS_MAX_REPLACEMENTS and ISRM retest k <= ``max_retests`` (the offset j x
-    TENSILE_REPLICATE_STRIDE + m x BTS_REPLACEMENT_STRIDE + k x RETEST_SEED_STEP): two
-    seeds closer than the gap never share a packing, and a seed below 2**32 minus the
-    largest offset stays a valid packing seed."""
-    from ..lab.brazilian import RETEST_SEED_STEP
-
-    steps = (TENSILE_REPLICATE_STRIDE, BTS_REPLACEMENT_STRIDE, RETEST_SEED_STEP)
-    reach = (MAX_TENSILE_SPECIMENS - 1, BTS_MAX_REPLACEMENTS, max_retests)
-    gap = min(abs(a * steps[0] + b * steps[1] + c * steps[2])
-              for a in range(-reach[0], reach[0] + 1) for b in range(-reach[1], reach[1] + 1)
-              for c in range(-reach[2], reach[2] + 1) if (a, b, c) != (0, 0, 0))
-    return gap, sum(r * s for r, s in zip(reach, steps))
-
-
-def check_triaxial_seeds(n, flag: str = "--triaxial-seeds"):
-    """The closed loop's triaxial seed cap: None (every seed) or an integer >= 2 (a
-    standard error needs two), else BadInput naming the value."""
-    if n is None:
-        return None
-    if isinstance(n, bool) or not isinstance(n, int) or n < 2:
-        raise BadInput(f"{flag} {n!r}: expected an integer >= 2 (how many of the closed "
-                       "loop's seeds run the triaxial test), or none for every seed")
-    return n
-
-
-def check_seed_cv(cv, flag: str = "--tensile-seed-cv"):
-    """The σt seed CV a closed loop aims at (None: a fixed count of specimens), a number
-    in (0, 1), else BadInput naming the value."""
-    if cv is None:
-        return None
-    if isinstance(cv, bool) or not isinstance(cv, (int, float)) \
-            or not (math.isfinite(cv) and 0 < cv < 1):
-        raise BadInput(f"{flag} {cv!r}: expected a fraction in (0, 1) (the seed CV of σt "
-                       "to aim at, e.g. 0.05), or none for a fixed count of specimens")
-    return float(cv)
-
-
-def check_tensile_specimens(n, flag: str = "--tensile-specimens") -> int:
-    """``n`` as the number of tensile specimens per seed: an integer in 1 ..
-    MAX_TENSILE_SPECIMENS, else BadInput naming ``flag`` and the value."""
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) \
-            or not 1 <= int(n) <= MAX_TENSILE_SPECIMENS:
-        raise BadInput(f"{flag} {n!r}: expected an integer in 1 .. {MAX_TENSILE_SPECIMENS} "
-                       "(tensile specimens per packing seed)")
-    return int(n)
-
-
-@dataclass
-class SpecimenRun:
-    """One tensile specimen of a packing seed, measured (:func:`specimen_run`): its run's
-    status, error and file (the attempt used), the packing seed that attempt ran on, the
-    invalid attempts' reasons and the strength (NaN: failed, or no valid attempt)."""
-
-    status: str
-    error: str
-    path: str | None
-    seed: int
-    invalid: list
-    value: float
-
-
-def specimen_run(resp: str, path_of, params: dict, seed: int, j: int, geometry, settings,
-                 **kw) -> SpecimenRun:
-    """Specimen ``j`` of packing ``seed``'s test of strength ``resp`` (packed with
-    ``replicate_seed(seed, j)``; an invalid run replaced: :func:`valid_tensile_run`);
-    ``path_of(j, s, k)`` names the run file of its attempt k on packing s."""
-    b, s, bad = valid_tensile_run(SAMPLE_TESTS[resp], lambda s, k: path_of(j, s, k), params,
-                                  replicate_seed(seed, j), geometry, settings, **kw)
-    return SpecimenRun(b.status, b.error, None if b.path is None else str(b.path), int(s),
-                       list(bad), test_strength(resp, b))
-
-
-def combine_specimens(runs, n: int):
-    """A seed's strength from its specimens' :class:`SpecimenRun` in order (those after a
-    failed one are not counted: a seed with a failed specimen has no strength): (the first
-    specimen's run, or the failed one's, the packing seed the first ran on, every invalid
-    attempt's reason, the mean of the ``n`` specimens or NaN, the specimens' strengths)."""
-    first, used, invalid, values = None, None, [], []
-    for r in runs:
-        invalid += r.invalid
-        values.append(r.value)
-        if first is None:
-            first, used = r, r.seed
-        if r.status != "ok":
-            first = r  # a failed specimen: the seed has no σt; the others do not count
-            break
-    v = np.array(values, float)
-    mean = float(v.mean()) if len(v) == n and np.isfinite(v).all() else math.nan
-    return first, used, invalid, mean, values
-
-
-def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, settings, *,
-                  specimens: int = 1, start: int = 0, **kw):
-    """The strength ``resp`` (``P.SAMPLE_TESTS``) of packing ``seed``: with ``specimens``
-    = 1 its test's (:func:`valid_tensile_run`); a tensile strength (σt: Brazilian or
-    direct tension, ``TENSILE_TESTS``) with ``specimens`` = n > 1 the mean of n specimens,
-    packed with ``replicate_seed(seed, j)``, j = 0 .. n-1, each valid or replaced as one
-    test is, as a laboratory states σt as the mean of several specimens: the seed's σt
-    then scatters sqrt(n) times less from packing to packing, at n tests' cost.
-    ``path_of(j, s, k)`` names the run file of specimen j's attempt k on packing s. The
-    mean is NaN when a specimen failed or had no valid test (a seed is measured on all n,
-    or it has no σt). ``start`` = m > 0 runs specimens m .. n-1 only (a seed's count
-    raised after its first m were measured: :class:`_LoopRuns`); the mean is then theirs.
-    Returns (the first specimen's :class:`SpecimenRun`, or the failed one's, the packing
-    seed the first ran on, the invalid attempts' reasons of every specimen, the seed's
-    strength, the specimens' strengths). The specimens run one after the other here;
-    :meth:`_LoopRuns._parts` and :mod:`.fresh_seeds` run them side by side and combine them
-    alike
-    (:func:`combine_specimens`)."""
-    test = SAMPLE_TESTS[resp]
-    if specimens > 1 and test not in TENSILE_TESTS:
-        raise BadInput(f"tensile specimens {specimens}: only a tensile strength "
-                       f"({', '.join(TENSILE_TESTS)}) is measured on several specimens, "
-                       f"not {resp}")
-    runs = []
-    for j in range(start, specimens):
-        runs.append(specimen_run(resp, path_of, params, seed, j, geometry, settings, **kw))
-        if runs[-1].status != "ok":
-            break  # a failed specimen: the seed has no σt; the others need not run
-    return combine_specimens(runs, specimens - start)
-
-
-def valid_bts_run(path_of, params: dict, seed: int, disc, settings, **kw):
-    """:func:`valid_tensile_run` of the Brazilian test."""
-    return valid_tensile_run("bts", path_of, params, seed, disc, settings, **kw)
-
-
 def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, geometry,
               settings, rtol, max_rounds, cache, threads, progress, genesis_max_steps,
               free=None, disc=None, bts_settings=None, bts_run=None, max_seeds=None,
@@ -323,20 +95,20 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
     ``tri_MPa`` is one, the triaxial test with ``tri_settings`` on the UCS cylinder; the
     first seed's run files of the best round become
     ``run`` and ``bts_run``). A round's seeds run side by side on up to ``threads``
-    processes (:class:`SeedPool`); a seed's σt is the mean of ``tensile_specimens``
-    specimens (:func:`seed_strength`), raised up to ``max_tensile_specimens`` for a card
-    whose σt scatters too much for ``tensile_seed_cv`` (:class:`_LoopRuns`); with
+    processes (:class:`~.pool.SeedPool`); a seed's σt is the mean of ``tensile_specimens``
+    specimens (:func:`~.measure.seed_strength`), raised up to ``max_tensile_specimens`` for a card
+    whose σt scatters too much for ``tensile_seed_cv`` (:class:`LoopRuns`); with
     ``triaxial_seeds`` = m only a round's first m
     seeds run the triaxial test (:class:`ClosedLoop`'s ``seed_caps``). The first step
     follows the regression models' Jacobian, or ``jacobian`` (responses x free
     parameters, physical units) when given; the measured
     rounds correct it by ``jacobian_update`` (:class:`ClosedLoop`'s ``update``).
     Returns (ClosedLoopResult, per-round list of seed summaries, best round index, the
-    tensile specimens per seed: :meth:`_LoopRuns.specimen_record`)."""
+    tensile specimens per seed: :meth:`LoopRuns.specimen_record`)."""
     ratio = c.get("ratio_ten_coh")
     with_bts = BTS in targets
     caps = {P.TRI: int(triaxial_seeds)} if triaxial_seeds and P.TRI in targets else {}
-    runs = _LoopRuns(Path(run).parent / f".{Path(run).stem}.rounds", list(targets),
+    runs = LoopRuns(Path(run).parent / f".{Path(run).stem}.rounds", list(targets),
                      geometry=geometry, settings=settings, genesis_max_steps=genesis_max_steps,
                      specimens={"bts": (disc, bts_settings), "dtt": (cylinder, dtt_settings),
                                 "tri": (geometry, tri_settings)},
@@ -369,396 +141,6 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, seeds, ge
     finally:
         runs.close(ok)
     return res, runs.by_round, best, runs.specimen_record()
-
-
-class _LoopRuns:
-    """The DEM runs of a closed loop (:func:`_dem_loop`): every round's seeds side by side
-    on up to ``threads`` processes (:class:`SeedPool`), each finished run journaled in
-    ``folder`` (:class:`RunJournal`: a loop stopped part way and started again with the
-    same inputs reads the runs it had finished); per round the seeds' rows (``by_round``),
-    UCS run files (``paths``) and Brazilian run files (``bts_paths``). ``caps``: target ->
-    how many of the seed set's first seeds (from ``first_seed`` on) measure it; a seed
-    past a target's cap does not run its test.
-
-    With ``seed_cv`` (config ``verification.tensile_seed_cv``) and a σt target, the count
-    of tensile specimens per seed adapts to the card: when a round starts, the specimen
-    CV pooled over every specimen measured so far (:func:`pooled_cv`; at least
-    ``MIN_SPECIMEN_DOF`` degrees of freedom) sets the count its seeds need
-    (:func:`specimens_needed`: the chance of reading a seed CV above ``seed_cv`` over 5
-    seeds below 10 %), never fewer than now nor more than ``max_specimens``. A raise
-    tops up that round's seeds (specimens m .. n-1 only, journaled like a run) and holds
-    for every later round and seed, so a round's seeds are all measured alike."""
-
-    def __init__(self, folder: Path, targets: list, *, geometry, settings, specimens: dict,
-                 genesis_max_steps, cache, threads, progress, tensile_specimens=1,
-                 caps=None, first_seed=1, seed_cv=None, max_specimens=None):
-        self.journal = RunJournal(folder)
-        self.inputs = dict(targets=targets, geometry=geometry, settings=settings,
-                           specimens=specimens, genesis_max_steps=genesis_max_steps,
-                           tensile_specimens=tensile_specimens)
-        self.cache, self.progress = cache, progress
-        self.pool = SeedPool(threads, progress)
-        self.by_round: list[list[dict]] = []
-        self.paths: list[list[Path]] = []
-        self.bts_paths: list[list[Path]] = []
-        self._last: dict | None = None
-        self.caps, self.first_seed = dict(caps or {}), int(first_seed)
-        self.tensile = next((r for r in targets if SAMPLE_TESTS.get(r) in TENSILE_TESTS), None)
-        self.seed_cv = seed_cv if self.tensile is not None else None
-        self.max_specimens = max(int(max_specimens or tensile_specimens), tensile_specimens)
-        self.start_specimens = int(tensile_specimens)
-        self.raised: list[dict] = []
-        if self.journal.resumable:
-            self._note(f"{self.journal.resumable} finished run(s) of an earlier attempt in "
-                       f"{folder}: a run with the same inputs is read, not run again")
-
-    def _note(self, text: str) -> None:
-        if self.progress is not None:
-            self.progress({"note": text})
-
-    def simulate_seeds(self, params: dict, seeds: list) -> list[dict]:
-        """:class:`ClosedLoop`'s ``simulate_seeds``: the responses of ``params`` on each seed."""
-        new_round = params != self._last
-        if new_round:  # a new point: a new round (grown seeds join theirs)
-            self._last = dict(params)
-            self.by_round.append([])
-            self.paths.append([])
-            self.bts_paths.append([])
-        jobs = [dict(self.inputs, params=params, seed=seed,
-                     targets=[r for r in self.inputs["targets"]
-                              if seed - self.first_seed < self.caps.get(r, math.inf)])
-                for seed in seeds]
-        k = len(self.by_round)
-        done = self._seed_records(jobs, f"round {k}")
-        rows = [dict(done[i]["row"]) for i in range(len(seeds))]
-        outs = [dict(done[i]["out"]) for i in range(len(seeds))]
-        for i in range(len(seeds)):
-            self.paths[-1].append(self.journal.folder / done[i]["ucs"])
-            if done[i]["bts"] is not None:
-                self.bts_paths[-1].append(self.journal.folder / done[i]["bts"])
-            rows[i]["round"], rows[i]["params"] = k, dict(params)
-            self.by_round[-1].append(rows[i])
-        if new_round and self.seed_cv is not None:
-            self._adapt(params, seeds, rows, outs)
-        return outs
-
-    def _journaled(self, fn, jobs: list[dict], tags: list[str]) -> list[dict]:
-        """``fn`` (returning (record, run files)) over ``jobs`` through the journal: a job
-        whose inputs it holds is read back, the others run side by side, each journaled as
-        soon as it ends. Returns every job's record, in order, as a reused run reads it."""
-        keys = [RunJournal.key(**job) for job in jobs]
-        done = {i: self.journal.get(key) for i, key in enumerate(keys)}
-        todo = [i for i, rec in done.items() if rec is None]
-
-        def finished(j, res):
-            rec, files = res
-            done[todo[j]] = self.journal.add(keys[todo[j]], rec, files)
-
-        self.pool.map(fn, [dict(jobs[i], cache=self.cache, stem=self.journal.stem(keys[i]))
-                           for i in todo], tags=[tags[i] for i in todo], done=finished)
-        return [done[i] for i in range(len(jobs))]
-
-    def _parts(self, jobs: list[dict], tag: str, first_specimen: int = 0) -> list:
-        """Every seed job's parts (:func:`seed_parts`: its UCS test, each
-        tensile specimen) side by side through the journal, the longest first. Returns
-        per job (its UCS record or None, resp -> its specimens' records in order)."""
-        parts = [(i, p) for i, job in enumerate(jobs) for p in seed_parts(job, first_specimen)]
-        order = longest_first([p for _, p in parts])
-        names = [f"{tag} seed {parts[i][1]['seed']} "
-                 + ("UCS" if parts[i][1]["part"] == "ucs"
-                    else f"{SAMPLE_TESTS[parts[i][1]['part']]} {parts[i][1]['j'] + 1}")
-                 for i in order]
-        recs = self._journaled(run_part, [parts[i][1] for i in order], names)
-        out = [(None, {}) for _ in jobs]
-        for i, rec in zip(order, recs):
-            job, part = parts[i]
-            if part["part"] == "ucs":
-                out[job] = (rec, out[job][1])
-            else:
-                out[job][1].setdefault(part["part"], {})[part["j"]] = rec
-        return [(u, {r: [v[j] for j in sorted(v)] for r, v in sp.items()}) for u, sp in out]
-
-    def _seed_records(self, jobs: list[dict], tag: str) -> list[dict]:
-        """The journal records of :func:`_loop_seed` for the seed ``jobs``, their tests
-        run as jobs of their own (:meth:`_parts`)."""
-        return [seed_record(job, ucs, sp) for job, (ucs, sp) in
-                zip(jobs, self._parts(jobs, tag))]
-
-    def _specimen_cv(self) -> tuple[float, int]:
-        """The tensile specimen CV pooled over every round so far (:func:`pooled_cv`)."""
-        test = SAMPLE_TESTS[self.tensile]
-        return pooled_cv([v for row in rnd for v in specimen_values(row, self.tensile, test)]
-                         for rnd in self.by_round)
-
-    def _adapt(self, params: dict, seeds: list, rows: list, outs: list) -> None:
-        """Raise the tensile specimens per seed when the pooled specimen CV asks for more
-        (class docs), topping up this round's ``rows`` and ``outs`` in place."""
-        cv, dof = self._specimen_cv()
-        k = self.inputs["tensile_specimens"]
-        if dof < MIN_SPECIMEN_DOF:
-            return
-        need = specimens_needed(cv, self.seed_cv, least=k, most=self.max_specimens)
-        if need <= k:
-            return
-        resp, test = self.tensile, SAMPLE_TESTS[self.tensile]
-        self.raised.append({"round": len(self.by_round), "from": k, "to": need,
-                            "specimen_cv": round(cv, 6), "dof": dof})
-        self._note(f"tensile specimens per seed {k} -> {need} from round {len(self.by_round)}"
-                   f": the {test} specimens scatter {100 * cv:.1f} % ({dof} degrees of "
-                   f"freedom), and {k} per seed would read a seed CV above "
-                   f"{100 * self.seed_cv:g} % over 5 seeds too often"
-                   + (f" ({need} is verification.max_tensile_specimens)"
-                      if need == self.max_specimens else ""))
-        self.inputs["tensile_specimens"] = need
-        top = [i for i, row in enumerate(rows) if _finite(row.get(resp))]
-        jobs = [dict(self.inputs, params=params, seed=seeds[i], targets=[resp]) for i in top]
-        done = [top_up_record(sp[resp], need - k) for _, sp in
-                self._parts(jobs, f"round {len(self.by_round)} top-up", first_specimen=k)]
-        for j, i in enumerate(top):
-            rec, row = done[j], rows[i]
-            old = specimen_values(row, resp, test)
-            vals = old + [float(v) for v in rec["values"]]
-            row[f"{test}_specimens"] = len(vals)
-            row[f"{test}_specimen_MPa"] = specimen_text(vals)
-            row[f"{test}_invalid"] = int(row.get(f"{test}_invalid", 0)) + int(rec["invalid"])
-            ok = rec["status"] == "ok" and len(vals) == need and all(map(_finite, vals))
-            # the old specimens' exact sum (their mean x k), not their 6-digit record
-            row[resp] = (float(row[resp]) * k + sum(rec["values"])) / need if ok else math.nan
-            if not ok:
-                row["status"] = "failed"
-            outs[i][resp] = row[resp]
-
-    def specimen_record(self) -> dict:
-        """The tensile specimens per seed of the loop: ``count`` (the last rounds'), and
-        with a ``seed_cv`` target the pooled specimen CV (``specimen_cv``, ``dof``), the
-        seed CV expected at ``count`` and its chance of reading above the target over 5
-        seeds, and every raise (``raised``: round, from, to, CV, dof)."""
-        out = {"count": int(self.inputs["tensile_specimens"])}
-        if self.seed_cv is None:
-            return out
-        cv, dof = self._specimen_cv()
-        out.update(seed_cv_target=float(self.seed_cv), start=self.start_specimens,
-                   max=self.max_specimens, raised=list(self.raised))
-        if dof:
-            cvk, p = expected_cv(cv, out["count"], self.seed_cv)
-            out.update(specimen_cv=round(cv, 6), dof=dof, seed_cv_expected=round(cvk, 6),
-                       chance_above=round(p, 4))
-        return out
-
-    def simulate(self, params: dict, seed: int) -> dict:
-        """:class:`ClosedLoop`'s ``simulate``: one seed."""
-        return self.simulate_seeds(params, [seed])[0]
-
-    def close(self, ok: bool) -> None:
-        """Stop the workers; remove the journal when the loop's outputs are written (``ok``),
-        else keep its finished runs for the next attempt."""
-        self.pool.close()
-        if ok:
-            self.journal.remove()
-        else:
-            self.journal.keep_or_remove()
-        if self.journal.reused:
-            self._note(f"{self.journal.reused} run(s) read from the journal of an earlier "
-                       "attempt, not run again")
-
-
-def _loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, settings,
-               specimens: dict, cache, genesis_max_steps, threads, progress,
-               tensile_specimens: int = 1):
-    """One seed of a closed-loop round (:func:`_dem_loop`; run in a :class:`SeedPool`
-    worker or in this process): the UCS test into ``<stem>.h5`` and every per-sample test
-    of the ``targets`` (``specimens``: test -> (specimen, settings)), an invalid one
-    replaced, σt the mean of ``tensile_specimens`` specimens (:func:`seed_strength`).
-    Returns (its journal record: the seed's row, its responses, the names of the UCS run
-    file and of the Brazilian one or None; every run file it wrote)."""
-    kw = dict(cache=cache, threads=threads, progress=progress,
-              genesis_max_steps=genesis_max_steps)
-    res = run_ucs_file(Path(f"{stem}.h5"), params, seed, geometry, settings, **kw)
-    row = dict(res.summary, status=res.status, seed=seed)
-    out = ({r: float(res.summary[r]) for r in targets if r not in SAMPLE_TESTS}
-           if res.status == "ok" else {r: math.nan for r in targets if r not in SAMPLE_TESTS})
-    bts_path = None
-    for resp in (r for r in SAMPLE_TESTS if r in targets):  # σt, σ1: a valid test, or NaN
-        test = SAMPLE_TESTS[resp]
-        geo, st = specimens[test]
-        b, _ = row_strength(row, resp, lambda j, s, k, t=test: specimen_path(stem, t, j, k),
-                            params, seed, geo, st, tensile_specimens=tensile_specimens, **kw)
-        if test == "bts":
-            bts_path = b.path
-        if b.status != "ok" or not math.isfinite(row[resp]):
-            row["status"] = "failed"
-        out[resp] = row[resp]
-    return ({"row": row, "out": out, "ucs": Path(res.path).name,
-             "bts": None if bts_path is None else Path(bts_path).name}, run_files(stem))
-
-
-# ---- a seed's tests as pool jobs of their own ---------------------------------------
-# The UCS test and each tensile specimen (its replacements included) of every seed of a
-# closed-loop round (and of a fresh-seed check: .fresh_seeds) run side by side on the
-# stage's CPUs, not a seed per job: a round of 3 seeds run seed by seed on 2 CPUs keeps them
-# at most 75 % busy (the third seed runs alone), its UCS tests and discs as jobs of their
-# own (3 + 9 with 3 discs a seed) keep both busy to the round's last run. The numbers do
-# not change: every run is deterministic in its inputs and packing seed, wherever and
-# beside whatever it runs, and a seed's row is put together from its runs as _loop_seed
-# puts it together from the same runs one after the other (combine_specimens). The one
-# difference: a specimen after a failed one (a failure, not an invalid test) runs, and is
-# not counted, where the runs one after the other stop at the failure.
-
-
-def specimens_of(resp: str, tensile_specimens: int) -> int:
-    """How many specimens measure ``resp`` on a seed (a tensile test's count; one else)."""
-    return tensile_specimens if SAMPLE_TESTS[resp] in TENSILE_TESTS else 1
-
-
-def seed_parts(job: dict, first_specimen: int = 0) -> list[dict]:
-    """The pool jobs of one loop seed's ``job`` (:func:`_loop_seed`'s
-    arguments but the folder and the pool's): its UCS test (none with
-    ``first_specimen`` > 0: a top-up of its tensile specimens) and every specimen j of each
-    per-sample test of its targets (from ``first_specimen`` on)."""
-    base = {k: job[k] for k in ("params", "seed", "geometry", "settings", "genesis_max_steps")}
-    parts = [] if first_specimen else [dict(base, part="ucs")]
-    for resp in (r for r in SAMPLE_TESTS if r in job["targets"]):  # σt, σ1
-        geo, st = job["specimens"][SAMPLE_TESTS[resp]]
-        n = specimens_of(resp, job.get("tensile_specimens", 1))
-        parts += [dict(base, part=resp, j=j, geometry=geo, settings=st)
-                  for j in range(first_specimen, n)]
-    return parts
-
-
-def longest_first(parts: list[dict]) -> list[int]:
-    """The order to run ``parts`` in: the UCS tests, then the specimens by index (each
-    seed's first specimens before any seed's later ones)."""
-    return sorted(range(len(parts)), key=lambda i: (parts[i]["part"] != "ucs",
-                                                     parts[i].get("j", 0)))
-
-
-def run_part(*, part: str, params: dict, seed: int, geometry, settings, stem: Path, cache,
-             genesis_max_steps, threads, progress, j: int = 0):
-    """One pool job of :func:`seed_parts`: the UCS test into ``<stem>.h5``, or specimen
-    ``j`` of the test of strength ``part`` into ``<stem>.<test><k>[.r<j>].h5``
-    (:func:`specimen_path`). Returns (its record: JSON-able, every run file
-    it wrote)."""
-    kw = dict(cache=cache, threads=threads, progress=progress,
-              genesis_max_steps=genesis_max_steps)
-    if part == "ucs":
-        res = run_ucs_file(Path(f"{stem}.h5"), params, seed, geometry, settings, **kw)
-        rec = {"summary": dict(res.summary), "status": res.status,
-               "ucs": Path(res.path).name}
-    else:
-        test = SAMPLE_TESTS[part]
-        r = specimen_run(part, lambda j, s, k: specimen_path(stem, test, j, k), params,
-                           seed, j, geometry, settings, **kw)
-        rec = asdict(r)
-    return rec, run_files(stem)
-
-
-def _specimen_runs(records) -> list:
-    return [SpecimenRun(**r) for r in records]
-
-
-def seed_record(job: dict, ucs: dict, specimens: dict) -> dict:
-    """A loop seed's journal record from its parts' records (``ucs``; ``specimens``: resp
-    -> the records of its specimens in order), as :func:`_loop_seed` gives
-    it (and as the journal gives it back: JSON's types)."""
-    targets, seed = job["targets"], job["seed"]
-    row = dict(ucs["summary"], status=ucs["status"], seed=seed)
-    ok = ucs["status"] == "ok"
-    out = {r: float(ucs["summary"][r]) if ok else math.nan
-           for r in targets if r not in SAMPLE_TESTS}
-    bts_path = None
-    for resp in (r for r in SAMPLE_TESTS if r in targets):
-        test = SAMPLE_TESTS[resp]
-        n = specimens_of(resp, job.get("tensile_specimens", 1))
-        b, used, invalid, row[resp], values = combine_specimens(_specimen_runs(specimens[resp]), n)
-        row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
-        if n > 1:
-            row[f"{test}_specimens"] = len(values)
-            row[f"{test}_specimen_MPa"] = specimen_text(values)
-        if test == "bts":
-            bts_path = b.path
-        if b.status != "ok" or not math.isfinite(row[resp]):
-            row["status"] = "failed"
-        out[resp] = row[resp]
-    rec = {"row": row, "out": out, "ucs": ucs["ucs"],
-           "bts": None if bts_path is None else Path(bts_path).name}
-    return json.loads(json.dumps(rec, default=plain, allow_nan=True))
-
-
-def top_up_record(records, n: int) -> dict:
-    """The record of a seed's raised tensile specimens (their strengths, the count of
-    invalid attempts, the status: :meth:`_LoopRuns._adapt` reads it) from
-    their parts' records in order; ``n``: how many were asked for."""
-    b, _, invalid, _, values = combine_specimens(_specimen_runs(records), n)
-    return {"values": [float(v) for v in values], "invalid": len(invalid), "status": b.status}
-
-
-def specimen_path(stem, test: str, j: int, k: int) -> Path:
-    """The run file of tensile specimen ``j``'s attempt ``k`` of a loop seed (``stem``):
-    ``<stem>.<test><k>.h5`` for specimen 0, ``<stem>.<test><k>.r<j>.h5`` after it."""
-    return Path(f"{stem}.{test}{k}{f'.r{j}' if j else ''}.h5")
-
-
-def run_files(stem) -> list[Path]:
-    """Every run file a loop job wrote under ``stem`` (the journal keeps them)."""
-    return [Path(f) for f in Path(stem).parent.glob(f"{Path(stem).name}*.h5")]
-
-
-def specimen_text(values) -> str:
-    """A seed row's ``<test>_specimen_MPa``: each specimen's strength, ``;``-separated
-    (:func:`specimen_values` reads it back)."""
-    return ";".join(f"{v:.6g}" for v in values)
-
-
-def specimen_values(row: dict, resp: str, test: str) -> list[float]:
-    """The strengths of a seed row's tensile specimens (``<test>_specimen_MPa``, or the
-    seed's one value ``row[resp]``)."""
-    text = row.get(f"{test}_specimen_MPa")
-    if isinstance(text, str) and text:
-        return [float(v) for v in text.split(";")]
-    return [float(row.get(resp, math.nan))]
-
-
-def seed_runs_table(by_round: list[list[dict]]) -> pd.DataFrame:
-    """One row per DEM seed of a closed loop (``verification/<specimen>/seeds.csv``): the
-    round (1-based), the seed, every card parameter of that round (paper units), the run's
-    status and every response it measured (a tensile seed's specimens in
-    ``<test>_specimen_MPa``). The posterior's surrogate learns from these runs near the
-    card (:mod:`bpmcal.stages.posterior`)."""
-    recs = []
-    for rnd in by_round:
-        for row in rnd:
-            rec = {"round": int(row["round"]), "seed": int(row["seed"]), **row["params"]}
-            rec.update({k: v for k, v in row.items() if k not in ("round", "seed", "params")
-                        and (v is None or isinstance(v, (str, bool, int, float, np.number)))})
-            recs.append(rec)
-    return pd.DataFrame(recs, columns=None if recs else ["round", "seed", "status"])
-
-
-def _finite(x) -> bool:
-    try:
-        return math.isfinite(float(x))
-    except (TypeError, ValueError):
-        return False
-
-
-def row_strength(row: dict, resp: str, path_of, params: dict, seed: int, geometry, settings,
-                 *, tensile_specimens: int = 1, **kw):
-    """:func:`seed_strength` of ``resp`` into a seed's ``row`` (the closed loop's and the
-    fresh-seed check's): the strength, the packing seed used (``<test>_seed``), the count
-    of invalid attempts (``<test>_invalid``) and, when σt is measured on
-    ``tensile_specimens`` > 1 specimens (a tensile test's count; any other test has one),
-    how many ran and each one's strength (``<test>_specimens``, ``<test>_specimen_MPa``:
-    ``;``-separated, MPa; NaN: failed or no valid test). Returns (the outcome
-    :func:`seed_strength` returns, the invalid attempts' reasons)."""
-    test = SAMPLE_TESTS[resp]
-    n = tensile_specimens if test in TENSILE_TESTS else 1
-    b, used, invalid, row[resp], values = seed_strength(resp, path_of, params, seed, geometry,
-                                                        settings, specimens=n, **kw)
-    row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
-    if n > 1:
-        row[f"{test}_specimens"] = len(values)
-        row[f"{test}_specimen_MPa"] = specimen_text(values)
-    return b, invalid
 
 
 # long: the stage's reference docstring (54 lines, the card's verification section); the code is ~60 lines
@@ -830,13 +212,13 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     direct-tension test instead, on the cylinder ``dtt_geometry`` (default the UCS
     cylinder) with ``dtt_settings``. An invalid tensile test (its fracture at a contact
     or a grip) is no measurement: that seed's test is run again on replacement seeds
-    (:func:`valid_tensile_run`), and the round fails only when none is valid. With
+    (:func:`~.measure.valid_tensile_run`), and the round fails only when none is valid. With
     ``tensile_specimens`` = n > 1 (config ``verification.tensile_specimens``) a seed's σt
-    is the mean of n specimens (:func:`seed_strength`; the card records n, and the
+    is the mean of n specimens (:func:`~.measure.seed_strength`; the card records n, and the
     transfer and the fresh-seed check measure σt the same way). With ``tensile_seed_cv``
     (config ``verification.tensile_seed_cv``) that n is where the loop starts: a card
     whose specimens scatter more than n of them can average to that seed CV gets more,
-    up to ``max_tensile_specimens`` (:class:`_LoopRuns`); the card records the count its
+    up to ``max_tensile_specimens`` (:class:`LoopRuns`); the card records the count its
     last rounds used, the specimen CV, the seed CV expected and every raise
     (``verification.tensile``). A card with
     a triaxial-strength target (``tri_MPa``, σ1 at the study's design confinement) runs
@@ -876,7 +258,7 @@ def verify(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     grow_within = _check_grow(grow_within)
     tensile_specimens = check_tensile_specimens(tensile_specimens)
     tensile_seed_cv = check_seed_cv(tensile_seed_cv)
-    max_tensile_specimens = check_tensile_specimens(  # never below the start: _LoopRuns
+    max_tensile_specimens = check_tensile_specimens(  # never below the start: LoopRuns
         max_tensile_specimens or tensile_specimens, "--max-tensile-specimens")
     triaxial_seeds = check_triaxial_seeds(triaxial_seeds)
     seeds = [int(seed) + i for i in range(seeds_per_round)]
@@ -982,7 +364,7 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
                           tensile=None, triaxial_seeds=None, grow_within=_LOOP_GROW) -> dict:
     """The verified card's ``verification`` section from the closed loop's result ``res``
     and its rounds' seed summaries ``by_round`` (``best``: the card's round; ``tensile``:
-    :meth:`_LoopRuns.specimen_record`)."""
+    :meth:`LoopRuns.specimen_record`)."""
     message = res.message + _outside_text(res.outside, range_margin)
     if c.get("status") == "unreachable":
         message = ("started from an unreachable calibration at the user's request "
@@ -1021,7 +403,7 @@ def _verification_section(c: dict, res, by_round: list, best: int, targets: dict
             v["message"] += (
                 f"; σt seed CV expected {100 * tensile['seed_cv_expected']:.1f} % at "
                 f"{tensile['count']} tensile specimens per seed ({why}): "
-                + _shortfall(tensile))
+                + seed_cv_shortfall(tensile))
     if P.TRI in targets:
         v["tri_sigma3_MPa"] = tri_settings.sigma3 / 1e6
         if triaxial_seeds and triaxial_seeds < max_seeds:  # σ1 judged on the first m seeds
@@ -1091,7 +473,7 @@ def _loop_box(res, margin: float) -> dict:
             "outside_design": {p: dict(v) for p, v in res.outside.items()}}
 
 
-def _outside_items(outside: dict) -> str:
+def outside_items(outside: dict) -> str:
     """``pb_kratio 5.58 outside its range 1-5; ...`` for a card's ``outside_design``."""
     return "; ".join(f"{p} {v['value']:.3g} outside its range {v['range'][0]:g}-{v['range'][1]:g}"
                      for p, v in outside.items())
@@ -1100,147 +482,11 @@ def _outside_items(outside: dict) -> str:
 def _outside_text(outside: dict, margin: float) -> str:
     if not outside:
         return ""
-    return (f"; outside the design space (range margin {margin:g}): {_outside_items(outside)}"
+    return (f"; outside the design space (range margin {margin:g}): {outside_items(outside)}"
             " - the DEM was run there, the regression never sampled it")
 
 
-def seed_scatter(card, *, runs, seeds, seed_runs, table, geometry, settings, rtol=_LOOP["rtol"],
-                 cache=None, threads=None, max_balls=None, mem_budget_mb=None,
-                 genesis_max_steps=None) -> pd.DataFrame:
-    """One parameter set (a card's: :func:`card_parameters`, i.e. the closed loop's of a
-    verified card, the transfer's of a transferred one), several packing seeds
-    (``runs[i]`` is the run file of ``seeds[i]``): the scatter of the DEM responses
-    (``seed_runs``: one row per seed; ``table``: coefficient of variation and noise floor
-    per response), and whether the closed-loop tolerance is below it. The seeds run side
-    by side on up to ``threads`` processes (:class:`SeedPool`)."""
-    c = read_card(card, "--card", need=("parameters", "specimen"))
-    params = card_parameters(c)
-    if len(runs) != len(seeds):
-        raise BadInput(f"--runs: {len(runs)} run file(s) for {len(seeds)} seed(s); expected "
-                       "one per seed, in the order of --seeds")
-    if max_balls is not None:
-        check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
-    outputs(*((r, "--runs", H5) for r in runs), (seed_runs, "--seed-runs", CSV),
-            (table, "--table", CSV))
-    output_dirs((cache, "--specimen-cache"))
-    with SeedPool(threads) as pool:  # the seeds side by side on `threads` CPUs
-        rows = pool.map(_scatter_seed, [dict(params=params, seed=int(s), run=f,
-                                             geometry=geometry, settings=settings, cache=cache,
-                                             genesis_max_steps=genesis_max_steps)
-                                        for s, f in zip(seeds, runs)],
-                        tags=[f"seed {s}" for s in seeds])
-    done = pd.DataFrame(rows)
-    write_table(done, seed_runs, index=False)
-    sc = scatter_table(done[done["status"] == "ok"], rtol=rtol)
-    sc.insert(0, "specimen", c["specimen"])
-    write_table(sc, table)
-    return sc
-
-
-def _scatter_seed(*, params: dict, seed: int, run, geometry, settings, cache,
-                  genesis_max_steps, threads, progress) -> dict:
-    """One seed of :func:`seed_scatter` (a :class:`SeedPool` job): its UCS test into
-    ``run``; returns the seed's row."""
-    out = run_ucs_file(run, params, seed, geometry, settings, cache=cache, threads=threads,
-                       progress=progress, keep_particles=False,
-                       genesis_max_steps=genesis_max_steps)
-    r = dict(out.summary, status=out.status)
-    return {"seed": seed, "status": r["status"],
-            **{k: r.get(k, math.nan) for k in (*P.TARGETS, "u_pre_MJm3")}}
-
-
-def tensile_note(v: dict) -> str:
-    """What a card's ``verification.tensile`` says of its tensile specimens per seed when
-    the loop raised their count or could not reach the seed CV it aims at ("" else)."""
-    t = v.get("tensile") or {}
-    if not t.get("raised") and t.get("chance_above", 0) < MISS_ACCEPTED:
-        return ""
-    n = int(v.get("tensile_specimens", 1))
-    text = f"σt of a seed: the mean of {n} specimens"
-    if t.get("raised"):
-        r = t["raised"][0]
-        text += f" (from round {r['round']}; {r['from']} before)"
-    if "specimen_cv" in t:
-        text += (f"; the specimens scatter {100 * t['specimen_cv']:.1f} % ({t['dof']} degrees "
-                 f"of freedom), a seed's σt {100 * t['seed_cv_expected']:.1f} % expected")
-    if t.get("chance_above", 0) >= MISS_ACCEPTED:
-        text += ("; " + _shortfall(t) + (" (the count is verification.max_tensile_specimens)"
-                                         if n >= t.get("max", n) else ""))
-    return text
-
-
-def _shortfall(t: dict) -> str:
+def seed_cv_shortfall(t: dict) -> str:
     """How often 5 seeds read σt's seed CV above the target (``verification.tensile``)."""
     return (f"5 seeds read it above the {100 * t['seed_cv_target']:g} % aimed at "
             f"{100 * t['chance_above']:.0f} % of the time")
-
-
-def verification_tables(cards, runs, lab, *, table5, table6, figure) -> dict:
-    """Tables 5 and 6 and Fig. 6 from the verified cards and their best rounds' run files
-    (``runs[i]`` belongs to ``cards[i]``). Table 5 holds the seed mean of every response
-    (single pass and closed loop), its seed standard deviation (``_sd``) and CV
-    (``_cv_pct``), the error of the mean and ``n_seeds``. A card whose closed loop did not run
-    (``not-run``) keeps its row, with empty responses, status ``not-run`` and the reason in
-    ``note``; its Fig. 6 panel says why it has no curve. When some card has a tensile
-    strength target, Table 5 also has the σt columns (empty for the specimens without
-    one), ``missed``: every target the closed loop misses by more than its tolerance,
-    with the error in %, ``tensile_specimens`` (per seed) and ``tensile_note``
-    (:func:`tensile_note`)."""
-    if len(runs) != len(cards):
-        raise BadInput(f"--runs: {len(runs)} run file(s) for {len(cards)} card(s); expected "
-                       "one per card, in the same order")
-    loaded = [read_card(c, "--cards", need=("specimen", "parameters", "targets",
-                                            "verification", "lab")) for c in cards]
-    lab_df = read_lab(lab)
-    outputs((table5, "--table5", CSV), (table6, "--table6", CSV), (figure, "--figure", PNG))
-    t5, t6, curves = [], [], {}
-    tensile = [r for r in SAMPLE_TESTS if any(r in c["targets"] for c in loaded)]
-    for c, run in zip(loaded, runs):
-        spec = str(c["specimen"])
-        v = c["verification"]
-        row = {"specimen": spec}
-        ran = v["status"] != "not-run"
-        for which in ("single_pass", "closed_loop"):
-            r = v[which] if ran else None
-            for k in P.TARGETS:
-                row[f"{which}_{k}"] = r[k] if ran else math.nan
-                sd = (r.get("seed_sd") or {}).get(k) if ran else None
-                cv = (r.get("seed_cv") or {}).get(k) if ran else None  # None: one seed (NaN)
-                row[f"{which}_{k}_sd"] = math.nan if sd is None else float(sd)
-                row[f"{which}_{k}_cv_pct"] = math.nan if cv is None else 100 * float(cv)
-                row[f"{which}_{k}_err_pct"] = r["errors_pct"][k] if ran else math.nan
-        for k in P.TARGETS:
-            row[f"lab_{k}"] = c["targets"][k]
-        row["n_seeds"] = v.get("n_seeds", 1)
-        row["rounds"] = v["rounds"]
-        row["status"] = v["status"]
-        row["calibration_status"] = c.get("status")
-        row["note"] = v["message"] if not ran else _outside_items(v.get("outside_design") or {})
-        for resp in tensile:
-            has = resp in c["targets"]
-            for which in ("single_pass", "closed_loop"):
-                row[f"{which}_{resp}"] = v[which][resp] if ran and has else math.nan
-                row[f"{which}_{resp}_err_pct"] = (v[which]["errors_pct"][resp] if ran and has
-                                                  else math.nan)
-                cv = (v[which].get("seed_cv") or {}).get(resp) if ran and has else None
-                row[f"{which}_{resp}_cv_pct"] = math.nan if cv is None else 100 * float(cv)
-            row[f"lab_{resp}"] = c["targets"][resp] if has else math.nan
-        if tensile:
-            row["missed"] = "; ".join(f"{m['target']} {m['error_pct']:+.2f} %"
-                                      for m in v.get("missed") or [])
-            row["tensile_specimens"] = int(v.get("tensile_specimens", 1))
-            row["tensile_note"] = tensile_note(v)
-        t5.append(row)
-        up_lab = c["lab"].get("u_pre_MJm3")
-        up_sim = v["closed_loop"]["u_pre_MJm3"] if ran else math.nan
-        t6.append({"specimen": spec, "sim_Up_MJm3": up_sim, "lab_Up_MJm3": up_lab,
-                   "rel_error_pct": (100 * abs(up_sim - up_lab) / up_lab
-                                     if up_lab and ran else math.nan),
-                   "sim_peak_strain": v["closed_loop"]["peak_strain"] if ran else math.nan})
-        curves[spec] = read_series(run) if ran else f"not run: {c.get('status')} calibration"
-    t5 = pd.DataFrame(t5).set_index("specimen")
-    t6 = pd.DataFrame(t6).set_index("specimen")
-    write_table(t5, table5)
-    write_table(t6, table6)
-    save_figure(fig_stress_strain(curves, lab_df), figure)
-    return {"table5": t5, "table6": t6}

@@ -3,7 +3,7 @@
 One parameter set simulated with several packing seeds: per response the coefficient of
 variation, the standard error of one closed-loop evaluation and the noise floor 2 SE;
 a tolerance below that floor would make the loop chase packing noise. The stage that
-runs the DEM for it is ``bpmcal.stages.verification.seed_scatter``; this is the pure
+runs the DEM for it is ``bpmcal.stages.seed_scatter.seed_scatter``; this is the pure
 table (formerly also named ``seed_scatter``, still importable under that name). With
 ``n_per_round`` seeds averaged per round the standard error shrinks by sqrt(n).
 

@@ -1,0 +1,278 @@
+"""Per-seed measurement: the strength of a per-sample test (``P.SAMPLE_TESTS``: σt on a
+Brazilian disc or a direct-tension cylinder, σ1 of the triaxial test) on one packing seed,
+as the closed loop (:mod:`.loop_runs`), the transfer, the fresh-seed check
+(:mod:`.fresh_seeds`) and the posterior's refinement runs measure it: an invalid run
+replaced (:func:`valid_tensile_run`), a tensile strength the mean of several specimens
+(:func:`seed_strength`, :func:`combine_specimens`), written into a seed's row
+(:func:`row_strength`); and the checks of those settings.
+
+The one seed scheme of these measurements is here: specimen j of packing seed s is packed
+with :func:`replicate_seed` (s + j x ``TENSILE_REPLICATE_STRIDE``), the m-th replacement
+of an invalid run adds m x ``BTS_REPLACEMENT_STRIDE`` (m <= ``BTS_MAX_REPLACEMENTS``), and
+a Brazilian disc's own ISRM retests, which the lab runs within one test, step by
+``lab.brazilian.RETEST_SEED_STEP``; :func:`packing_seed_gap` shows that no two of them
+share a packing.
+
+Every DEM run of the closed loop, the transfer, the seed scatter, the fresh-seed check and
+the posterior's refinement goes through :data:`RUNNERS`, looked up at the call: the one
+seam through which a test replaces the DEM.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..io.checks import BadInput
+from ..lab.runner import bts_geometry as _isrm_disc
+from ..params import SAMPLE_TESTS
+from .runs import run_bts_file, run_dtt_file, run_triaxial_file, run_ucs_file
+
+#: an invalid Brazilian test (its fracture did not start in the central zone) is no
+#: measurement: the closed loop and the fresh-seed check run the disc again on the next
+#: replacement seeds, seed + k x BTS_REPLACEMENT_STRIDE (k = 1, 2, ...), at most
+#: BTS_MAX_REPLACEMENTS times, before σt of that seed counts as a failed measurement
+BTS_REPLACEMENT_STRIDE = 100_000
+BTS_MAX_REPLACEMENTS = 3
+
+
+#: the tensile tests (``P.SAMPLE_TESTS``) whose strength a seed may measure on several
+#: specimens (``tensile_specimens``): specimen j of packing seed s is packed with
+#: ``replicate_seed(s, j)`` = s + j x TENSILE_REPLICATE_STRIDE (j = 0: s itself, the UCS
+#: test's packing). Its packing may move on twice: a replacement as above (+ m x
+#: BTS_REPLACEMENT_STRIDE, m <= BTS_MAX_REPLACEMENTS) and, for a Brazilian disc, the
+#: test's own ISRM retests (+ k x ``lab.brazilian.RETEST_SEED_STEP``, k <= 10). The stride
+#: keeps every such packing seed of every seed below 100,000 apart from every other
+#: (:func:`packing_seed_gap`: the smallest difference of two offsets is the replacement
+#: stride, 100,000) and below 2**32. (It was 1,000,000: then a retest of seed s, s +
+#: 1,000,003, was specimen 1 of seed s + 3, and two seeds shared that disc.)
+TENSILE_TESTS = ("bts", "dtt")
+TENSILE_REPLICATE_STRIDE = 20_000_003
+MAX_TENSILE_SPECIMENS = 50
+
+
+def replicate_seed(seed: int, j: int) -> int:
+    """The packing seed of specimen ``j`` (0, 1, ...) of packing ``seed``'s tensile test."""
+    return int(seed) + int(j) * TENSILE_REPLICATE_STRIDE
+
+
+def packing_seed_gap(max_retests: int = 10) -> tuple[int, int]:
+    """(the smallest nonzero difference between two offsets from a packing seed, the
+    largest offset) over every tensile specimen j < MAX_TENSILE_SPECIMENS, replacement
+    m <= BTS_MAX_REPLACEMENTS and ISRM retest k <= ``max_retests`` (the offset j x
+    TENSILE_REPLICATE_STRIDE + m x BTS_REPLACEMENT_STRIDE + k x RETEST_SEED_STEP): two
+    seeds closer than the gap never share a packing, and a seed below 2**32 minus the
+    largest offset stays a valid packing seed."""
+    from ..lab.brazilian import RETEST_SEED_STEP
+
+    steps = (TENSILE_REPLICATE_STRIDE, BTS_REPLACEMENT_STRIDE, RETEST_SEED_STEP)
+    reach = (MAX_TENSILE_SPECIMENS - 1, BTS_MAX_REPLACEMENTS, max_retests)
+    gap = min(abs(a * steps[0] + b * steps[1] + c * steps[2])
+              for a in range(-reach[0], reach[0] + 1) for b in range(-reach[1], reach[1] + 1)
+              for c in range(-reach[2], reach[2] + 1) if (a, b, c) != (0, 0, 0))
+    return gap, sum(r * s for r, s in zip(reach, steps))
+
+
+#: the DEM runner of each test, by the test's name: the UCS test (a
+#: closed-loop seed's, a seed scatter's, a fresh seed's) and the per-sample tests
+#: (``P.SAMPLE_TESTS``' tests: :func:`valid_tensile_run`). Looked up here at every call,
+#: never bound at import: the seam through which tests replace the DEM
+#: (``monkeypatch.setitem(measure.RUNNERS, "bts", fake)``)
+RUNNERS = {"ucs": run_ucs_file, "bts": run_bts_file, "dtt": run_dtt_file,
+           "tri": run_triaxial_file}
+
+
+def disc_geometry(geometry):
+    """The Brazilian disc (ISRM 50 x 25 mm) at the scale and with the genesis options of
+    the UCS cylinder ``geometry``."""
+    return _isrm_disc(scale=geometry.scale, sigma0_MPa=geometry.sigma0_MPa,
+                      install_gap_mm=geometry.install_gap_mm,
+                      relax_ratio=geometry.relax_ratio, genesis=geometry.genesis)
+
+
+def test_strength(resp: str, outcome) -> float:
+    """The strength ``resp`` (``P.SAMPLE_TESTS``' responses: ``bts_MPa``, ``dtt_MPa``,
+    ``tri_MPa``) of a finished run's outcome, NaN for a failed one: the summary key the
+    dataset reads it from (``study.gather.TEST_COLUMNS``)."""
+    from ..study.gather import TEST_COLUMNS
+
+    keys = TEST_COLUMNS[SAMPLE_TESTS[resp]][0]
+    key = next(k for k, col in keys.items() if col == resp)
+    return float(outcome.summary[key]) if outcome.status == "ok" else math.nan
+
+
+def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, settings, *,
+                      max_replacements: int = BTS_MAX_REPLACEMENTS, **kw):
+    """A per-sample test (``test``: "bts", the Brazilian disc ``geometry``; "dtt", the
+    direct-tension cylinder; "tri", the triaxial test at the design confinement, whose
+    runs have no validity check) of ``params`` on packing ``seed`` that measures its
+    strength: an invalid run (``<test>_valid`` false) is replaced by the specimen of the
+    next replacement seed (``seed + k x BTS_REPLACEMENT_STRIDE``), up to
+    ``max_replacements`` times; a failed run (instability, genesis) is not replaced (it is
+    a failure, not a measurement of the wrong thing). ``path_of(seed, k)`` names the run
+    file of attempt k. Returns (the outcome used, the packing seed it ran on, the reasons
+    of the invalid attempts); the outcome has ``<test>_MPa`` NaN when every attempt was
+    invalid."""
+    run_file = RUNNERS[test]
+    invalid = []
+    for k in range(max_replacements + 1):
+        s = int(seed) + k * BTS_REPLACEMENT_STRIDE
+        b = run_file(path_of(s, k), params, s, geometry, settings, **kw)
+        if b.status != "ok" or b.summary.get(f"{test}_valid", True):
+            return b, s, invalid
+        invalid.append(f"seed {s}: {b.summary.get(f'{test}_invalid_reason', 'invalid')}")
+    return b, s, invalid
+
+
+def valid_bts_run(path_of, params: dict, seed: int, disc, settings, **kw):
+    """:func:`valid_tensile_run` of the Brazilian test."""
+    return valid_tensile_run("bts", path_of, params, seed, disc, settings, **kw)
+
+
+@dataclass
+class SpecimenRun:
+    """One tensile specimen of a packing seed, measured (:func:`specimen_run`): its run's
+    status, error and file (the attempt used), the packing seed that attempt ran on, the
+    invalid attempts' reasons and the strength (NaN: failed, or no valid attempt)."""
+
+    status: str
+    error: str
+    path: str | None
+    seed: int
+    invalid: list
+    value: float
+
+
+def specimen_run(resp: str, path_of, params: dict, seed: int, j: int, geometry, settings,
+                 **kw) -> SpecimenRun:
+    """Specimen ``j`` of packing ``seed``'s test of strength ``resp`` (packed with
+    ``replicate_seed(seed, j)``; an invalid run replaced: :func:`valid_tensile_run`);
+    ``path_of(j, s, k)`` names the run file of its attempt k on packing s."""
+    b, s, bad = valid_tensile_run(SAMPLE_TESTS[resp], lambda s, k: path_of(j, s, k), params,
+                                  replicate_seed(seed, j), geometry, settings, **kw)
+    return SpecimenRun(b.status, b.error, None if b.path is None else str(b.path), int(s),
+                       list(bad), test_strength(resp, b))
+
+
+def combine_specimens(runs, n: int):
+    """A seed's strength from its specimens' :class:`SpecimenRun` in order (those after a
+    failed one are not counted: a seed with a failed specimen has no strength): (the first
+    specimen's run, or the failed one's, the packing seed the first ran on, every invalid
+    attempt's reason, the mean of the ``n`` specimens or NaN, the specimens' strengths)."""
+    first, used, invalid, values = None, None, [], []
+    for r in runs:
+        invalid += r.invalid
+        values.append(r.value)
+        if first is None:
+            first, used = r, r.seed
+        if r.status != "ok":
+            first = r  # a failed specimen: the seed has no σt; the others do not count
+            break
+    v = np.array(values, float)
+    mean = float(v.mean()) if len(v) == n and np.isfinite(v).all() else math.nan
+    return first, used, invalid, mean, values
+
+
+def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, settings, *,
+                  specimens: int = 1, start: int = 0, **kw):
+    """The strength ``resp`` (``P.SAMPLE_TESTS``) of packing ``seed``: with ``specimens``
+    = 1 its test's (:func:`valid_tensile_run`); a tensile strength (σt: Brazilian or
+    direct tension, ``TENSILE_TESTS``) with ``specimens`` = n > 1 the mean of n specimens,
+    packed with ``replicate_seed(seed, j)``, j = 0 .. n-1, each valid or replaced as one
+    test is, as a laboratory states σt as the mean of several specimens: the seed's σt
+    then scatters sqrt(n) times less from packing to packing, at n tests' cost.
+    ``path_of(j, s, k)`` names the run file of specimen j's attempt k on packing s. The
+    mean is NaN when a specimen failed or had no valid test (a seed is measured on all n,
+    or it has no σt). ``start`` = m > 0 runs specimens m .. n-1 only (a seed's count
+    raised after its first m were measured: :class:`~.loop_runs.LoopRuns`); the mean is then theirs.
+    Returns (the first specimen's :class:`SpecimenRun`, or the failed one's, the packing
+    seed the first ran on, the invalid attempts' reasons of every specimen, the seed's
+    strength, the specimens' strengths). The specimens run one after the other here;
+    :meth:`~.loop_runs.LoopRuns._parts` and :mod:`.fresh_seeds` run them side by side and combine them
+    alike
+    (:func:`combine_specimens`)."""
+    test = SAMPLE_TESTS[resp]
+    if specimens > 1 and test not in TENSILE_TESTS:
+        raise BadInput(f"tensile specimens {specimens}: only a tensile strength "
+                       f"({', '.join(TENSILE_TESTS)}) is measured on several specimens, "
+                       f"not {resp}")
+    runs = []
+    for j in range(start, specimens):
+        runs.append(specimen_run(resp, path_of, params, seed, j, geometry, settings, **kw))
+        if runs[-1].status != "ok":
+            break  # a failed specimen: the seed has no σt; the others need not run
+    return combine_specimens(runs, specimens - start)
+
+
+def specimens_of(resp: str, tensile_specimens: int) -> int:
+    """How many specimens measure ``resp`` on a seed (a tensile test's count; one else)."""
+    return tensile_specimens if SAMPLE_TESTS[resp] in TENSILE_TESTS else 1
+
+
+def specimen_text(values) -> str:
+    """A seed row's ``<test>_specimen_MPa``: each specimen's strength, ``;``-separated
+    (:func:`specimen_values` reads it back)."""
+    return ";".join(f"{v:.6g}" for v in values)
+
+
+def specimen_values(row: dict, resp: str, test: str) -> list[float]:
+    """The strengths of a seed row's tensile specimens (``<test>_specimen_MPa``, or the
+    seed's one value ``row[resp]``)."""
+    text = row.get(f"{test}_specimen_MPa")
+    if isinstance(text, str) and text:
+        return [float(v) for v in text.split(";")]
+    return [float(row.get(resp, math.nan))]
+
+
+def row_strength(row: dict, resp: str, path_of, params: dict, seed: int, geometry, settings,
+                 *, tensile_specimens: int = 1, **kw):
+    """:func:`seed_strength` of ``resp`` into a seed's ``row`` (the closed loop's and the
+    fresh-seed check's): the strength, the packing seed used (``<test>_seed``), the count
+    of invalid attempts (``<test>_invalid``) and, when σt is measured on
+    ``tensile_specimens`` > 1 specimens (a tensile test's count; any other test has one),
+    how many ran and each one's strength (``<test>_specimens``, ``<test>_specimen_MPa``:
+    ``;``-separated, MPa; NaN: failed or no valid test). Returns (the outcome
+    :func:`seed_strength` returns, the invalid attempts' reasons)."""
+    test = SAMPLE_TESTS[resp]
+    n = tensile_specimens if test in TENSILE_TESTS else 1
+    b, used, invalid, row[resp], values = seed_strength(resp, path_of, params, seed, geometry,
+                                                        settings, specimens=n, **kw)
+    row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)
+    if n > 1:
+        row[f"{test}_specimens"] = len(values)
+        row[f"{test}_specimen_MPa"] = specimen_text(values)
+    return b, invalid
+
+
+def check_triaxial_seeds(n, flag: str = "--triaxial-seeds"):
+    """The closed loop's triaxial seed cap: None (every seed) or an integer >= 2 (a
+    standard error needs two), else BadInput naming the value."""
+    if n is None:
+        return None
+    if isinstance(n, bool) or not isinstance(n, int) or n < 2:
+        raise BadInput(f"{flag} {n!r}: expected an integer >= 2 (how many of the closed "
+                       "loop's seeds run the triaxial test), or none for every seed")
+    return n
+
+
+def check_seed_cv(cv, flag: str = "--tensile-seed-cv"):
+    """The σt seed CV a closed loop aims at (None: a fixed count of specimens), a number
+    in (0, 1), else BadInput naming the value."""
+    if cv is None:
+        return None
+    if isinstance(cv, bool) or not isinstance(cv, (int, float)) \
+            or not (math.isfinite(cv) and 0 < cv < 1):
+        raise BadInput(f"{flag} {cv!r}: expected a fraction in (0, 1) (the seed CV of σt "
+                       "to aim at, e.g. 0.05), or none for a fixed count of specimens")
+    return float(cv)
+
+
+def check_tensile_specimens(n, flag: str = "--tensile-specimens") -> int:
+    """``n`` as the number of tensile specimens per seed: an integer in 1 ..
+    MAX_TENSILE_SPECIMENS, else BadInput naming ``flag`` and the value."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) \
+            or not 1 <= int(n) <= MAX_TENSILE_SPECIMENS:
+        raise BadInput(f"{flag} {n!r}: expected an integer in 1 .. {MAX_TENSILE_SPECIMENS} "
+                       "(tensile specimens per packing seed)")
+    return int(n)
