@@ -82,34 +82,44 @@ def section(lay, comp, ref=False) -> str:
          + markdown_table(rows, header) + "\n")
     if notes:
         s += "\n" + "\n".join(notes) + "\n"
+    return s + _table6(lay, comp, ref) + _seed_scatter(lay) + fresh_seeds_section(lay)
+
+
+def _table6(lay, comp, ref=False) -> str:
+    """Table 6: the pre-peak energy density, DEM against the lab (and the paper's)."""
     f6 = Path(lay.table(L.TABLE6))
-    if f6.exists():
-        t6 = pd.read_csv(f6, index_col=0)
-        rows = []
-        for spec, r in t6.iterrows():
-            th = paper.PREPEAK.get(spec, {}) if ref else {}
-            if th:
-                compare(comp, "Table 6", f"{spec} Up, DEM", r["sim_Up_MJm3"], th["sim"], "MJ/m³")
-                compare(comp, "Table 6", f"{spec} Up error %", r["rel_error_pct"], th["err_pct"],
-                        "%")
-            row = [spec, num(r["lab_Up_MJm3"]), num(r["sim_Up_MJm3"]), num(r["rel_error_pct"], ".1f")]
-            if ref:
-                row += [num(th.get("sim")), num(th.get("err_pct"), ".1f")]
-            rows.append(row)
-        header = ["specimen", "lab", "DEM (ours)" if ref else "DEM", "error %"]
+    if not f6.exists():
+        return ""
+    t6 = pd.read_csv(f6, index_col=0)
+    rows = []
+    for spec, r in t6.iterrows():
+        th = paper.PREPEAK.get(spec, {}) if ref else {}
+        if th:
+            compare(comp, "Table 6", f"{spec} Up, DEM", r["sim_Up_MJm3"], th["sim"], "MJ/m³")
+            compare(comp, "Table 6", f"{spec} Up error %", r["rel_error_pct"], th["err_pct"],
+                    "%")
+        row = [spec, num(r["lab_Up_MJm3"]), num(r["sim_Up_MJm3"]), num(r["rel_error_pct"], ".1f")]
         if ref:
-            header += ["paper PFC3D", "paper error %"]
-        s += ("\n## Table 6: pre-peak energy density Up (MJ/m³)\n\n"
-              + markdown_table(rows, header) + "\n")
+            row += [num(th.get("sim")), num(th.get("err_pct"), ".1f")]
+        rows.append(row)
+    header = ["specimen", "lab", "DEM (ours)" if ref else "DEM", "error %"]
+    if ref:
+        header += ["paper PFC3D", "paper error %"]
+    return ("\n## Table 6: pre-peak energy density Up (MJ/m³)\n\n"
+            + markdown_table(rows, header) + "\n")
+
+
+def _seed_scatter(lay) -> str:
+    """The packing-seed scatter of one calibrated set (``seed_scatter``), if it ran."""
     sc = Path(lay.seed_scatter)
-    if sc.exists():
-        t = pd.read_csv(sc)
-        rows = [[r["response"], num(r["cv"] * 100, ".2f"), num(r["noise_floor"] * 100, ".2f"),
-                 "yes" if r["noise_limited"] else "no"] for _, r in t.iterrows()]
-        s += ("\n### Packing-seed scatter of one calibrated set\n\n"
-              + markdown_table(rows, ["response", "CV of one run (%)", "noise floor 2 se (%)",
-                           "1 % tolerance below the noise?"]) + "\n")
-    return s + fresh_seeds_section(lay)
+    if not sc.exists():
+        return ""
+    t = pd.read_csv(sc)
+    rows = [[r["response"], num(r["cv"] * 100, ".2f"), num(r["noise_floor"] * 100, ".2f"),
+             "yes" if r["noise_limited"] else "no"] for _, r in t.iterrows()]
+    return ("\n### Packing-seed scatter of one calibrated set\n\n"
+            + markdown_table(rows, ["response", "CV of one run (%)", "noise floor 2 se (%)",
+                                    "1 % tolerance below the noise?"]) + "\n")
 
 
 def _loop_seeds(lay, specs) -> int | None:
