@@ -73,7 +73,7 @@ PARAM_NAMES: tuple[str, ...] = tuple(PARAMS)
 #: ``pbm_ten_sd``, ``pbm_coh_sd``): the standard deviations of the per-contact tensile
 #: strength ``pb_ten`` and cohesion ``pb_coh``, whose means are ``pb_ten_MPa`` and
 #: ``pb_coh_MPa``. Each bond draws its own pair at installation from a Gaussian truncated
-#: at zero (``lab.specimen.install_strength_scatter``). Optional keys, default 0 (every
+#: at zero (``lab.microstructure.install_strength_scatter``). Optional keys, default 0 (every
 #: bond at the mean, as the paper); not Table 2 parameters.
 PB_SCATTER: dict[str, Param] = {p.name: p for p in [
     Param("pb_ten_sd_MPa", "sd(sigma_cp)", r"$s(\sigma_c^p)$", "MPa", 1e6, 0.0, 0.0, 0.0,
@@ -164,7 +164,7 @@ class ContactModel:
     parameter -> the engine material fields it sets (``dem.material``: SI units, through
     :func:`to_si`; an integer parameter as an integer); ``material_fixed``, engine fields
     the model fixes; ``microstructure``, card parameter -> field of the flat-jointed
-    microstructure (``lab.specimen.Microstructure``), empty for a model without one.
+    microstructure (``lab.microstructure.Microstructure``), empty for a model without one.
     """
 
     name: str

@@ -638,7 +638,7 @@ def test_a_change_within_its_noise_barely_moves_the_jacobian_row():
     u0, u1 = np.array([0.3, 0.3, 0.3]), np.array([0.3, 0.3, 0.312])
     e0 = prev_ys.mean(axis=0) / t - 1
     e1 = ys.mean(axis=0) / t - 1
-    J1, rows = loop._broyden(J, (u0, e0, prev_ys), u1, e1, ys)
+    J1, rows = loop.step_rule.broyden_update(J, (u0, e0, prev_ys), u1, e1, ys)
     s = u1 - u0
     i_ucs = list(loop.responses).index("ucs_MPa")
     full = J + np.outer((e1 - e0) - J @ s, s) / (s @ s)  # the plain Broyden update
@@ -648,18 +648,19 @@ def test_a_change_within_its_noise_barely_moves_the_jacobian_row():
     assert "ucs_MPa" in rows and "nu" not in rows
     # one seed: no standard error, the plain update
     e1_one = ys[0] / t - 1
-    J2, rows2 = loop._broyden(J, (u0, e0, prev_ys[:1]), u1, e1_one, ys[:1])
+    J2, rows2 = loop.step_rule.broyden_update(J, (u0, e0, prev_ys[:1]), u1, e1_one, ys[:1])
     np.testing.assert_allclose(J2, J + np.outer((e1_one - e0) - J @ s, s) / (s @ s))
     assert rows2 == list(loop.responses)  # no standard error: every row, fully
     # other seeds (a grown set): no update
-    assert loop._broyden(J, (u0, e0, prev_ys[:3]), u1, e1, ys)[1] == []
+    assert loop.step_rule.broyden_update(J, (u0, e0, prev_ys[:3]), u1, e1, ys)[1] == []
 
 
 def test_the_trust_region_grows_again_after_good_capped_steps():
     """The rule, round by round: a worse round halves the cap (to half the step that led
     to it); a better round reached by a step the cap cut doubles it, up to max_step; a
     better round reached by a smaller step leaves it."""
-    from bpmcal.analysis.calibration.closed_loop import _Round, _TrustRegion
+    from bpmcal.analysis.calibration.seed_policy import Round
+    from bpmcal.analysis.calibration.step_rule import TrustRegion
 
     loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=3,
                       max_step=0.2)
@@ -667,13 +668,13 @@ def test_the_trust_region_grows_again_after_good_capped_steps():
                          "pb_coh_MPa": 20.0, "pb_ten_MPa": 28.0})
     box = space.loop_box(0.0)
     J = np.eye(3)
-    trust = _TrustRegion(0.2, 3)
+    trust = TrustRegion(0.2, 3)
     tol = np.full(3, 0.01)
 
     def rnd(u, err):
         e = np.full(3, err)
         rec = {}
-        _, u_new = loop._next_point(space, box, J, np.array(u), _Round(
+        _, u_new = loop.step_rule.next_point(space, box, J, np.array(u), Round(
             np.zeros((3, 3)), [1, 2, 3], [], 0, [], None, None, None, tol, e), False, trust, rec)
         return rec, u_new
 
@@ -724,11 +725,11 @@ def test_a_target_with_its_own_standard_error_is_met_within_both_errors(start):
 # -- the history update: every judged round at once -----------------------------------------
 def _judged(e, se):
     """A judged round with relative errors ``e`` and standard errors ``se`` (tolerance 2 SE,
-    at least 1 %), as :meth:`ClosedLoop._run_round` returns it."""
-    from bpmcal.analysis.calibration.closed_loop import _Round
+    at least 1 %), as :meth:`SeedPolicy.run_round` returns it."""
+    from bpmcal.analysis.calibration.seed_policy import Round
 
     e, se = np.asarray(e, float), np.asarray(se, float)
-    return _Round(np.zeros((3, len(e))), [1, 2, 3], [], 0, [], e, np.zeros(len(e)), se,
+    return Round(np.zeros((3, len(e))), [1, 2, 3], [], 0, [], e, np.zeros(len(e)), se,
                   np.maximum(0.01, 2 * se), e)
 
 
@@ -744,12 +745,12 @@ def test_history_update_recovers_a_linear_response_once_the_steps_span_the_space
     us = [np.array([0.4, 0.5, 0.5]), np.array([0.5, 0.5, 0.5]), np.array([0.45, 0.6, 0.5]),
           np.array([0.45, 0.55, 0.42])]
     memory = [(u, _judged(J_true @ (u - 0.5) + 0.02, np.full(3, 1e-6))) for u in us]
-    (_, _, J), moved = loop._history_jacobian(J0, memory)
+    (_, _, J), moved = loop.step_rule.history_jacobian(J0, memory)
     np.testing.assert_allclose(J, J_true, atol=2e-3)
     assert set(moved) <= set(loop.responses)
     Jb = J0
     for (u0, r0), (u1, r1) in zip(memory, memory[1:]):
-        Jb, _ = loop._broyden(Jb, (u0, r0.e, r0.ys), u1, r1.e, r1.ys)
+        Jb, _ = loop.step_rule.broyden_update(Jb, (u0, r0.e, r0.ys), u1, r1.e, r1.ys)
     assert np.abs(Jb - J_true).max() > 0.1
 
 
@@ -761,8 +762,8 @@ def test_history_update_of_two_rounds_is_broydens_least_change_update():
     J0 = np.array([[1.0, 0.2, 0.0], [0.0, 1.0, 0.3], [0.1, 0.0, 1.0]])
     u0, u1 = np.array([0.5, 0.5, 0.5]), np.array([0.55, 0.47, 0.5])
     e0, e1 = np.array([0.1, -0.05, 0.08]), np.array([0.02, 0.01, 0.2])
-    (_, _, J), _ = loop._history_jacobian(J0, [(u0, _judged(e0, np.full(3, 1e-6))),
-                                       (u1, _judged(e1, np.full(3, 1e-6)))])
+    (_, _, J), _ = loop.step_rule.history_jacobian(J0, [(u0, _judged(e0, np.full(3, 1e-6))),
+                                                        (u1, _judged(e1, np.full(3, 1e-6)))])
     s = u1 - u0
     np.testing.assert_allclose(J @ s, e1 - e0, atol=1e-4)
     broyden = J0 + np.outer((e1 - e0) - J0 @ s, s) / (s @ s)
@@ -777,10 +778,10 @@ def test_history_update_weighs_each_round_by_its_noise():
     J0 = np.eye(3)
     u0, u1 = np.array([0.5, 0.5, 0.5]), np.array([0.5, 0.5, 0.52])
     e0, e1 = np.zeros(3), np.array([0.0, 0.0, 0.05])  # the third: 2.5 per unit, not 1
-    quiet = loop._history_jacobian(J0, [(u0, _judged(e0, np.full(3, 1e-4))),
-                                        (u1, _judged(e1, np.full(3, 1e-4)))])[0][2]
-    noisy = loop._history_jacobian(J0, [(u0, _judged(e0, np.full(3, 0.05))),
-                                        (u1, _judged(e1, np.full(3, 0.05)))])[0][2]
+    quiet = loop.step_rule.history_jacobian(J0, [(u0, _judged(e0, np.full(3, 1e-4))),
+                                                 (u1, _judged(e1, np.full(3, 1e-4)))])[0][2]
+    noisy = loop.step_rule.history_jacobian(J0, [(u0, _judged(e0, np.full(3, 0.05))),
+                                                 (u1, _judged(e1, np.full(3, 0.05)))])[0][2]
     assert quiet[2, 2] == pytest.approx(2.5, rel=1e-3)
     # the secant's slope 2.5 has variance 2 · 0.05² / 0.02² = 12.5 against the prior's 1²:
     # the posterior moves 1 / 13.5 of the way

@@ -280,7 +280,8 @@ def test_the_report_names_the_missed_target_and_the_ratio_set_by_sigma_t(cards, 
     import shutil
 
     from bpmcal.io import study_files as L
-    from bpmcal.report.build import _calibration, _verification
+    from bpmcal.report.build import _calibration
+    from bpmcal.report.verification import section
 
     lay = L.StudyFiles(tmp_path / "study")
     for s in ("B1", "B2"):
@@ -300,7 +301,7 @@ def test_the_report_names_the_missed_target_and_the_ratio_set_by_sigma_t(cards, 
     _verify(cards, d, "B2", v, max_rounds=2)
     VT.verification_tables([v / "B2.yaml"], [v / "B2.h5"], d / "lab.csv", table5=lay.table(L.TABLE5),
                           table6=lay.table(L.TABLE6), figure=tmp_path / "f6.png")
-    text = _verification(lay, [])
+    text = section(lay, [])
     assert "| B2 | sigma_t |" in text and "B2: target(s) missed by the closed loop" in text
 
 

@@ -368,7 +368,8 @@ def test_a_lab_table_is_a_schema(tmp_path):
 
 def test_packing_cache_heals(tmp_path, capsys):
     """A damaged cached packing is removed with one line and relaxed again."""
-    from bpmcal.lab.specimen import SpecimenSpec, get_packing
+    from bpmcal.lab.packing_cache import get_packing
+    from bpmcal.lab.specimen import SpecimenSpec
 
     spec = SpecimenSpec.from_paper_units(0.8, 0.34, 1, scale=0.2)
     good = get_packing(spec, cache=tmp_path)

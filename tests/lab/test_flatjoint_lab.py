@@ -70,8 +70,9 @@ def test_genesis_installs_the_microstructure_asked_for(cache):
 def test_installation_is_force_free(cache):
     """Right after installation every flat joint carries no force (docs/flatjoint-spec.md T9)."""
     from bpmcal.dem import Model
+    from bpmcal.lab.packing_cache import get_packing
     from bpmcal.lab.runner import specimen_spec
-    from bpmcal.lab.specimen import card_material, get_packing
+    from bpmcal.lab.specimen import card_material
     p = P.validate_params(FJ1)
     pk = get_packing(specimen_spec(p, 3, SMALL), cache=cache)
     mat, _ = card_material(p)

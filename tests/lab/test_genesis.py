@@ -3,8 +3,9 @@ import numpy as np
 import pytest
 from lab_util import A1, SMALL
 
+from bpmcal.lab.packing_cache import get_packing
 from bpmcal.lab.runner import make_specimen
-from bpmcal.lab.specimen import SpecimenSpec, get_packing
+from bpmcal.lab.specimen import SpecimenSpec
 
 
 @pytest.mark.parametrize("rmin, n", [(0.6, 0.20), (1.0, 0.20), (0.6, 0.36), (1.0, 0.36)])

@@ -9,6 +9,7 @@ from lab_util import A1, FAST, SMALL
 
 from bpmcal.dem.errors import InputError
 from bpmcal.io import h5
+from bpmcal.lab.packing_cache import get_packing
 from bpmcal.lab.runner import Geometry, make_specimen
 from bpmcal.lab.specimen import (
     DEFAULT_GENESIS,
@@ -16,7 +17,6 @@ from bpmcal.lab.specimen import (
     SpecimenSpec,
     build_specimen,
     default_install_gap,
-    get_packing,
     paper_material,
 )
 from bpmcal.lab.ucs import run_ucs

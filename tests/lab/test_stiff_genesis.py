@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from bpmcal.dem.errors import InstabilityError
-from bpmcal.lab.specimen import SpecimenSpec, build_specimen, get_packing, paper_material, speed_guard
+from bpmcal.lab.packing_cache import get_packing
+from bpmcal.lab.specimen import SpecimenSpec, build_specimen, paper_material, speed_guard
 
 STIFF = dict(pb_emod_GPa=106.05817664944726, pb_kratio=5.695527088761074,
              pb_ten_MPa=61.107161474749645, pb_coh_MPa=129.1826816199465, pb_fa_deg=35.0,

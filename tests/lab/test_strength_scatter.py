@@ -24,8 +24,8 @@ from support.repo import REPO, SCHEMA
 
 from bpmcal import params as P
 from bpmcal.cli import main
+from bpmcal.lab.microstructure import truncated_normal
 from bpmcal.lab.runner import make_specimen
-from bpmcal.lab.specimen import truncated_normal
 from bpmcal.lab.ucs import run_ucs
 from bpmcal.study.config import ConfigError, validate_config
 

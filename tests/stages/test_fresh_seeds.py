@@ -281,7 +281,7 @@ def test_the_report_counts_the_triaxial_targets_own_loop_seeds(tmp_path):
 
     from bpmcal.io import study_files as L
     from bpmcal.io.card import CARD_FORMAT
-    from bpmcal.report.build import _fresh_seeds
+    from bpmcal.report.verification import fresh_seeds_section
     from bpmcal.stages.fresh_seeds import false_alarm
 
     lay = L.StudyFiles(tmp_path)
@@ -301,7 +301,7 @@ def test_the_report_counts_the_triaxial_targets_own_loop_seeds(tmp_path):
                                         "parameters": {**FIXED, **TRUTH,
                                                        "pb_ten_MPa": 1.4 * TRUTH["pb_coh_MPa"]},
                                         "verification": verification}))
-        return _fresh_seeds(lay)
+        return fresh_seeds_section(lay)
 
     p20, p10 = false_alarm(5, loop_seeds=20), false_alarm(5, loop_seeds=10)
     capped = text({"n_seeds": 20, "triaxial_seeds": 10})
@@ -471,7 +471,7 @@ def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkey
     against the lab as a measurement; a card whose fresh seeds read 30 % above its loop is
     named as not reproduced."""
     from bpmcal.io import study_files as L
-    from bpmcal.report.build import _fresh_seeds
+    from bpmcal.report.verification import fresh_seeds_section
 
     tmp_path, card, _ = verified
     lay = L.StudyFiles(tmp_path / "study")
@@ -479,14 +479,14 @@ def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkey
     monkeypatch.setitem(M.RUNNERS, "ucs", FreshDEM())
     run_fresh_seeds(tmp_path, card, [101, 102, 103])
     H.fresh_seeds_table([card], [tmp_path / "h" / "seeds.csv"], table=table)
-    text = _fresh_seeds(lay)
+    text = fresh_seeds_section(lay)
     assert "Every card reproduces its closed loop." in text
     assert "tell a difference of" in text and "A measurement, not the check" in text
     high = pd.read_csv(tmp_path / "h" / "seeds.csv")
     high["E_GPa"] *= 1.3
     high.to_csv(tmp_path / "h" / "high.csv", index=False)
     H.fresh_seeds_table([card], [tmp_path / "h" / "high.csv"], table=table)
-    text = _fresh_seeds(lay)
+    text = fresh_seeds_section(lay)
     assert "**Not reproduced**: B1 E (+" in text and "off the loop's mean" in text
     assert "did not converge" not in text
     # a card whose loop ended without meeting the lab: named, not verified by the check
@@ -494,10 +494,10 @@ def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkey
     c["verification"]["status"] = "max_rounds"
     write_card(tmp_path / "mr.yaml", c)
     H.fresh_seeds_table([tmp_path / "mr.yaml"], [tmp_path / "h" / "seeds.csv"], table=table)
-    assert "The closed loops of B1 (max_rounds) did not converge" in _fresh_seeds(lay)
+    assert "The closed loops of B1 (max_rounds) did not converge" in fresh_seeds_section(lay)
     # judged against the lab: the report says why
     old = pd.read_csv(tmp_path / "h" / "seeds.csv").drop(columns=["loop_reference"])
     old.to_csv(tmp_path / "h" / "old.csv", index=False)
     H.fresh_seeds_table([card], [tmp_path / "h" / "old.csv"], table=table)
     assert (f"Judged against the lab instead (no closed-loop mean of the same runs): "
-            f"B1 ({H.OLD_SEED_TABLE})") in _fresh_seeds(lay)
+            f"B1 ({H.OLD_SEED_TABLE})") in fresh_seeds_section(lay)

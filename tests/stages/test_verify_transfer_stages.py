@@ -351,7 +351,7 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     lab = tmp_path / "lab.csv"
     lab.write_text("specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3\nB1,60.0,14.0,0.336,0.1\n")
     from bpmcal.io import study_files as L
-    from bpmcal.report.build import _verification
+    from bpmcal.report.verification import section
 
     lay = L.StudyFiles(tmp_path / "study")
     t5 = VT.verification_tables([tmp_path / "v" / "card.yaml", tmp_path / "v0" / "card.yaml"],
@@ -361,7 +361,7 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     notes = list(t5["note"])
     assert "pb_kratio 5.4" in notes[0] and "outside its range 1-5" in notes[0]
     assert notes[1] == ""
-    text = _verification(lay, [])  # the report says it under Table 5, once
+    text = section(lay, [])  # the report says it under Table 5, once
     assert text.count("outside the design space") == 1 and "B1: outside the design space" in text
     with pytest.raises(BadInput, match="range-margin"):
         V.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v1" / "card.yaml",

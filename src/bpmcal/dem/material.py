@@ -14,7 +14,7 @@ Strength scatter (PFC's material-modeling package, fistPkg: ``pbm_ten_sd``,
 ``fj_ten_sd``, ``fj_coh_sd`` are the standard deviations of the per-contact strengths,
 whose means are ``pb_ten`` ... ``fj_coh``. The engine keeps one tensile strength and one
 cohesion per contact (``Model.set_bond_strengths``), set to the means at installation;
-the lab draws the scatter (``lab.specimen.install_strength_scatter``). Default 0.
+the lab draws the scatter (``lab.microstructure.install_strength_scatter``). Default 0.
 """
 from __future__ import annotations
 

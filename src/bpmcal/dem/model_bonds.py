@@ -160,7 +160,7 @@ class BondsMixin:
         """Each contact's own tensile strength and cohesion [Pa] (PFC's per-contact
         ``pb_ten`` / ``pb_coh``, or ``fj_ten`` / ``fj_coh`` shared by a flat joint's
         elements), in the order of :meth:`bond_pairs`: a strength scatter
-        (``lab.specimen.install_strength_scatter``). Bonds get the material's means at
+        (``lab.microstructure.install_strength_scatter``). Bonds get the material's means at
         installation; a strength factor (:meth:`set_bond_strength_factors`) multiplies
         these. A scalar applies to every contact."""
         nb = self.n_bonds

@@ -34,6 +34,7 @@ from .direct_tension import DTTSettings, run_dtt
 from .direct_tension import settings_dict as dtt_dict
 from .impact import ImpactSettings, run_impact
 from .impact import settings_dict as impact_dict
+from .packing_cache import get_packing
 from .servo import ServoError
 from .specimen import (
     DEFAULT_GENESIS,
@@ -43,7 +44,6 @@ from .specimen import (
     build_specimen,
     card_material,
     default_install_gap,
-    get_packing,
 )
 from .triaxial import TriaxialSettings, run_triaxial
 from .triaxial import settings_dict as tx_dict

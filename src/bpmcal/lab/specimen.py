@@ -15,8 +15,8 @@ Procedure (after Potyondy & Cundall 2004 and PFC's ``ball distribute``):
    scaled down by ~1e-3 in step 4, and so is any residual imbalance; a tighter ratio costs
    2-10x the steps while the overcompressed pack keeps rearranging. The relaxed geometry
    does not depend on the contact modulus (the same number of steps at dt ~ sqrt(m/k)), so
-   it is computed once at a reference modulus and cached: a packing depends only on
-   geometry, Rmin, ratio, density, n, seed.
+   it is computed once at a reference modulus and cached (``lab.packing_cache``:
+   ``get_packing``): a packing depends only on geometry, Rmin, ratio, density, n, seed.
 3. **Floaters**: balls with fewer than 3 contacts are enlarged until they touch three
    neighbours (if that needs less than +25 % radius; the rest are reported).
 4. **Install the material** (``build_specimen``): the linear contacts get E* = Ecp and
@@ -72,23 +72,18 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
-import sys
 import time
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from .. import params as P
-from ..cost import phase
 from ..dem import FlatJointMaterial, Material, Model
-from ..dem import flatjoint as FJ
 from ..dem.errors import InputError
 from ..dem.material import stiffest_modulus
 from ..dem.order import morton_order
 from ..exact_math import libm_pow
-from ..io.atomic import atomic_path
+from .microstructure import Microstructure, install_microstructure, install_strength_scatter
 from .stepping import cycle
 
 #: modulus used while relaxing the packing (the relaxed geometry does not depend on it)
@@ -409,150 +404,6 @@ def relax_packing(spec: SpecimenSpec, progress=None, threads=None) -> Packing:
     return Packing(spec=spec, pos=m.positions.copy(), radius=r2, report=report)
 
 
-def cache_dir() -> Path:
-    return Path(os.environ.get("BPMCAL_SPECIMEN_CACHE",
-                               Path.home() / ".cache" / "bpmcal" / "packings"))
-
-
-def get_packing(spec: SpecimenSpec, cache: str | os.PathLike | None = None,
-                progress=None, threads=None) -> Packing:
-    """The relaxed packing for ``spec``, from the cache directory when it is there
-    (written atomically: temporary name, then rename); relaxed with ``threads`` numba
-    threads when it is not."""
-    d = Path(cache) if cache is not None else cache_dir()
-    f = d / f"packing_{spec.key()}.npz"
-    if f.exists():
-        pk = _cached_packing(f, spec)
-        if pk is not None:
-            return pk
-    with phase("relax"):  # the cost ledger: a packing relaxed, not read (bpmcal.cost)
-        pk = relax_packing(spec, progress=progress, threads=threads)
-    try:
-        with atomic_path(f) as tmp, open(tmp, "wb") as fh:  # a file object: no ".npz" added
-            np.savez(fh, pos=pk.pos, radius=pk.radius, report=json.dumps(pk.report),
-                     spec=json.dumps(asdict(spec)))
-    except OSError as e:  # a cache that cannot be written (full, read-only) is no failure
-        _note(f"bpmcal: the packing cache {f} could not be written "
-              f"({e.strerror or e}); going on without it")
-    return pk
-
-
-def _note(line: str) -> None:
-    print(line, file=sys.stderr)
-
-
-def _cached_packing(f: Path, spec: SpecimenSpec) -> Packing | None:
-    """The packing cached in ``f``, or None when the file is damaged (truncated by a full
-    disk, not a zip, arrays of the wrong shape or not finite): then it is removed with
-    one line on stderr and the caller relaxes the packing again (a cache heals)."""
-    import zipfile
-
-    try:
-        with np.load(f, allow_pickle=False) as z:
-            pos, radius = np.asarray(z["pos"], float), np.asarray(z["radius"], float)
-            report = json.loads(str(z["report"]))
-        n = radius.shape[0] if radius.ndim == 1 else -1
-        if n < 1 or pos.shape != (n, 3) or not (np.isfinite(pos).all()
-                                                 and np.isfinite(radius).all()
-                                                 and (radius > 0).all()):
-            raise ValueError(f"arrays of shapes {pos.shape} and {radius.shape}, or not finite")
-        if not isinstance(report, dict):
-            raise ValueError("its report is not a mapping")
-    except (OSError, EOFError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as e:
-        _note(f"bpmcal: the cached packing {f} is damaged ({type(e).__name__}: "
-              f"{' '.join(str(e).split())[:120]}); it was removed and is built again")
-        try:
-            f.unlink()
-        except OSError:
-            pass
-        return None
-    return Packing(spec=spec, pos=pos, radius=radius, report=report)
-
-
-@dataclass(frozen=True)
-class Microstructure:
-    """A flat-jointed material's microstructure (docs/flatjoint-spec.md §6; the card's ``fj_gi_ratio``,
-    ``fj_slit_frac``, ``fj_gap_frac``, ``fj_gap0_ratio``): flat joints are installed on
-    every pair whose surface gap is at most ``gi_ratio`` x the mean ball radius; of the N
-    joints, round(``gap_frac`` N) are gapped (all elements unbonded, surfaces
-    ``gap0_ratio`` x the mean radius apart), round(``slit_frac`` N) slit (unbonded,
-    touching) and the rest bonded, on a random order of the contacts drawn from the
-    packing seed (``install_microstructure``; Itasca's fistPkg takes exact counts too)."""
-
-    gi_ratio: float = 0.0
-    slit_frac: float = 0.0
-    gap_frac: float = 0.0
-    gap0_ratio: float = 0.0
-
-    def __post_init__(self):
-        for name in ("gi_ratio", "slit_frac", "gap_frac", "gap0_ratio"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise InputError(f"fj_{name}={v!r}: expected a finite number >= 0")
-        if self.slit_frac + self.gap_frac > 1.0:
-            raise InputError(f"fj_slit_frac + fj_gap_frac = {self.slit_frac + self.gap_frac:g}:"
-                             " expected at most 1")
-
-
-def install_microstructure(m: Model, micro: Microstructure, seed: int, rmean: float) -> dict:
-    """Draw each installed flat joint's type (``Microstructure``) from the packing seed,
-    in contact order, and install it. Returns the fractions actually installed."""
-    nb = m.n_bonds
-    # exact counts, as Itasca's fistPkg (round(phi_G N) gapped, round(phi_S N) slit, the
-    # rest bonded), on a seeded random order of the contacts (bpmcal's contact order
-    # follows the balls' space-filling order: taking it as it is would cluster each type)
-    n_g = int(round(micro.gap_frac * nb))
-    n_s = min(int(round(micro.slit_frac * nb)), nb - n_g)
-    order = np.random.default_rng([int(seed), 0x464A]).permutation(nb)
-    t = np.full(nb, FJ.MT_BONDED)
-    t[order[:n_g]] = FJ.MT_GAPPED
-    t[order[n_g:n_g + n_s]] = FJ.MT_SLIT
-    m.set_flatjoint_types(t, gap0=micro.gap0_ratio * rmean)
-    frac = np.bincount(t, minlength=3) / max(nb, 1)
-    return {"fj_bonded_frac": float(frac[FJ.MT_BONDED]),
-            "fj_gapped_frac": float(frac[FJ.MT_GAPPED]),
-            "fj_slit_frac_installed": float(frac[FJ.MT_SLIT]),
-            "fj_gi_mm": float(micro.gi_ratio * rmean * 1e3),
-            "fj_gap0_mm": float(micro.gap0_ratio * rmean * 1e3)}
-
-
-def truncated_normal(rng: np.random.Generator, mean: float, sd: float, n: int) -> np.ndarray:
-    """``n`` values of a Gaussian of ``mean`` and ``sd`` truncated at zero as PFC's
-    material-modeling package draws strengths (fistPkg ``ft_valNormDist``: a negative draw
-    is drawn again), i.e. the Gaussian conditioned on >= 0. ``sd`` = 0 gives ``mean``
-    exactly, without touching ``rng``."""
-    if sd == 0.0:
-        return np.full(n, float(mean))
-    x = mean + sd * rng.standard_normal(n)
-    bad = np.flatnonzero(x < 0.0)
-    while bad.size:  # in order, so the result depends on the seed only
-        x[bad] = mean + sd * rng.standard_normal(bad.size)
-        bad = bad[x[bad] < 0.0]
-    return x
-
-
-def install_strength_scatter(m: Model, material, seed: int) -> dict:
-    """The strength scatter (``pb_ten_sd``/``pb_coh_sd``, ``fj_ten_sd``/``fj_coh_sd``):
-    every installed contact draws its own tensile strength and cohesion, independently,
-    from the material's means and standard deviations (``truncated_normal``; PFC assigns
-    ``pb_ten``/``pb_coh`` per bond and ``fj_ten``/``fj_coh`` per flat joint, which its
-    elements share), in contact order, from a stream of the packing seed. Without scatter
-    (both sd 0) nothing is drawn or set: the contacts keep the means, bit for bit.
-    Returns what was drawn (empty without scatter)."""
-    ten, ten_sd, coh, coh_sd = material.strengths()
-    if ten_sd == 0.0 and coh_sd == 0.0:
-        return {}
-    rng = np.random.default_rng([int(seed), 0x5343])  # "SC": the scatter's own stream
-    nb = m.n_bonds
-    t = truncated_normal(rng, ten, ten_sd, nb)
-    c = truncated_normal(rng, coh, coh_sd, nb)
-    m.set_bond_strengths(t, c)
-    return {"strength_ten_mean_MPa": float(t.mean() / 1e6) if nb else math.nan,
-            "strength_ten_sd_MPa": float(t.std() / 1e6) if nb else math.nan,
-            "strength_coh_mean_MPa": float(c.mean() / 1e6) if nb else math.nan,
-            "strength_coh_sd_MPa": float(c.std() / 1e6) if nb else math.nan}
-
-
 @dataclass
 class Specimen:
     """A bonded specimen ready for testing."""
@@ -614,9 +465,9 @@ def build_specimen(packing: Packing, material: Material | FlatJointMaterial, *,
     With a :class:`FlatJointMaterial` the pairs get flat joints instead of parallel
     bonds (force-free), on every pair within ``microstructure.gi_ratio`` x the mean ball
     radius (``install_gap`` does not apply), with the microstructure's types drawn from
-    the packing seed (``install_microstructure``). A material with a strength scatter
-    gives every contact its own strengths, drawn from the packing seed
-    (``install_strength_scatter``)."""
+    the packing seed (``lab.microstructure.install_microstructure``). A material with a
+    strength scatter gives every contact its own strengths, drawn from the packing seed
+    (``lab.microstructure.install_strength_scatter``)."""
     spec = packing.spec
     flat = isinstance(material, FlatJointMaterial)
     rmean = float(np.mean(packing.radius))

@@ -14,7 +14,6 @@ import json
 import math
 import os
 import shutil
-import statistics
 from pathlib import Path
 
 import pandas as pd
@@ -28,10 +27,11 @@ from ..io.checks import BadInput, out_file, parse_json, read_json, read_yaml
 from ..io.h5 import read_summary
 from ..io.provenance import git_commit
 from ..io.tables import markdown_table, write_table
-from ..stages.fresh_seeds import check_level, false_alarm
 from ..study import paper
 from ..study.config import check_study_config
+from .cells import compare, num, pct_diff
 from .posterior import section as posterior_section
+from .verification import section as verification_section
 
 #: tables and figures of the report (stem -> caption)
 TABLES = {
@@ -59,20 +59,6 @@ FIGURES = {
     L.FIG_T10: "t10 vs specific energy with the JK breakage model",
     L.FIG_ENVELOPES: "Triaxial strength envelopes (σ1 vs σ3) of the cards",
 }
-
-
-def _pct(ours, theirs):
-    if ours is None or theirs is None or not math.isfinite(float(ours)) or float(theirs) == 0:
-        return "–"
-    return f"{100 * (float(ours) - float(theirs)) / abs(float(theirs)):+.1f} %"
-
-
-def _f(v, fmt=".3f"):
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return str(v)
-    return "–" if not math.isfinite(x) else format(x, fmt)
 
 
 def _copy(lay: L.StudyFiles, src: str) -> bool:
@@ -157,7 +143,7 @@ def build(outdir, config: dict) -> Path:
     S.append(_table3(lay, comp, ref))
     S.append(_regression(lay, comp, ref))
     S.append(_calibration(lay, cfg, comp, ref))
-    S.append(_verification(lay, comp, ref))
+    S.append(verification_section(lay, comp, ref))
     S.append(_ratio(lay, comp, ref) if sweep else "")
     S.append(_impact(lay, cfg, comp, ref))
     S.append(_triaxial(lay, cfg, ref) if triax else "")
@@ -272,18 +258,6 @@ def _disc_note(cfg: dict, ds: pd.DataFrame) -> str:
             "asks for a stronger card than this comparison shows")
 
 
-def _cmp(comp, section, item, ours, theirs, unit=""):
-    """Record one comparison with a published value."""
-    try:
-        o = float(ours)
-    except (TypeError, ValueError):
-        o = math.nan
-    t = float(theirs)
-    comp.append({"section": section, "quantity": item, "unit": unit, "ours": o, "paper": t,
-                 "difference": o - t if math.isfinite(o) else math.nan,
-                 "difference_pct": 100 * (o - t) / abs(t) if math.isfinite(o) and t else math.nan})
-
-
 def _table3(lay, comp, ref=False) -> str:
     f = Path(lay.table(L.TABLE3))
     if not f.exists():
@@ -298,13 +272,13 @@ def _table3(lay, comp, ref=False) -> str:
             ours = t3.loc[p, resp] if resp in t3.columns else math.nan
             if ref:
                 theirs = paper.TABLE3[p][resp]
-                _cmp(comp, "Table 3", f"importance of {p} for {resp}", ours, theirs, "%")
-                r.append(f"{_f(ours, '.1f')} ({theirs:.1f})")
+                compare(comp, "Table 3", f"importance of {p} for {resp}", ours, theirs, "%")
+                r.append(f"{num(ours, '.1f')} ({theirs:.1f})")
             else:
-                r.append(_f(ours, ".1f"))
+                r.append(num(ours, ".1f"))
         for resp in P.SAMPLE_TESTS:  # a tensile or triaxial test of every sample (none in the paper)
             if resp in t3.columns:
-                r.append(_f(t3.loc[p, resp], ".1f") + (" (–)" if ref else ""))
+                r.append(num(t3.loc[p, resp], ".1f") + (" (–)" if ref else ""))
         rows.append(r)
     head = ("## Table 3: XGBoost screening (ours, paper in brackets, % of gain)\n\n" if ref
             else "## Table 3: XGBoost screening (% of gain)\n\n")
@@ -326,13 +300,13 @@ def _regression(lay, comp, ref=False) -> str:
     rows = []
     for r in fit.itertuples():
         if not ref:
-            rows.append([r.response, r.stage, _f(r.adj_r2), _f(r.cv_r2_mean)])
+            rows.append([r.response, r.stage, num(r.adj_r2), num(r.cv_r2_mean)])
             continue
         theirs = paper.ADJ_R2.get(r.response, {}).get(r.stage)
         if theirs:
-            _cmp(comp, "Regression", f"adjusted R² of {r.response}, {r.stage}", r.adj_r2, theirs)
-        rows.append([r.response, r.stage, _f(r.adj_r2), _f(theirs) if theirs else "–",
-                     (f"{r.adj_r2 - theirs:+.3f}" if theirs else "–"), _f(r.cv_r2_mean)])
+            compare(comp, "Regression", f"adjusted R² of {r.response}, {r.stage}", r.adj_r2, theirs)
+        rows.append([r.response, r.stage, num(r.adj_r2), num(theirs) if theirs else "–",
+                     (f"{r.adj_r2 - theirs:+.3f}" if theirs else "–"), num(r.cv_r2_mean)])
     eq = Path(lay.equations)
     header = (["response", "stage", "ours", "paper", "difference", "CV R² (ours)"] if ref
               else ["response", "stage", "adjusted R²", "CV R²"])
@@ -371,17 +345,17 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
         for k in shown:
             ci = next((i for i in card["bootstrap"]["intervals"] if i.get("quantity") == k),
                       None)
-            ci_s = (f"[{_f(ci.get('lower'))}, {_f(ci.get('upper'))}] (n={ci.get('n')})"
+            ci_s = (f"[{num(ci.get('lower'))}, {num(ci.get('upper'))}] (n={ci.get('n')})"
                     if ci else "–")
             b = bounds.get(k)
-            b_s = f"[{_f(b['lower'], '.4g')}, {_f(b['upper'], '.4g')}]" if b else "–"
-            row = [spec, P.ALL_PARAMS[k].symbol, _f(p[k]), ci_s, b_s]
+            b_s = f"[{num(b['lower'], '.4g')}, {num(b['upper'], '.4g')}]" if b else "–"
+            row = [spec, P.ALL_PARAMS[k].symbol, num(p[k]), ci_s, b_s]
             if ref:
                 th = theirs.get(k) if theirs else None
                 if th is not None:
-                    _cmp(comp, "Calibration", f"{spec} {k}", p[k], th, P.ALL_PARAMS[k].unit)
-                row += [_f(th) if th is not None else "–",
-                        _pct(p[k], th) if th is not None else "–"]
+                    compare(comp, "Calibration", f"{spec} {k}", p[k], th, P.ALL_PARAMS[k].unit)
+                row += [num(th) if th is not None else "–",
+                        pct_diff(p[k], th) if th is not None else "–"]
             rows.append(row + [card["status"]])
         if card["status"] != "ok":
             notes.append(f"- **{spec}: {card['status']}** — {card['message']}")
@@ -389,13 +363,13 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
         for resp in P.TENSILE_TESTS:
             if sr.get("set_by") == f"{resp} target":
                 notes.append(f"- {spec}: the lab tensile strength "
-                             f"{P.RESPONSES[resp].unicode} = {_f(card['targets'][resp])} MPa "
-                             f"sets the {ratio_name}: {_f(sr['value'])} (not the ratio "
+                             f"{P.RESPONSES[resp].unicode} = {num(card['targets'][resp])} MPa "
+                             f"sets the {ratio_name}: {num(sr['value'])} (not the ratio "
                              "in the title)")
         for m in card.get("missed") or []:
             notes.append(f"- {spec}: target {m['target']} missed by the calibration: lab "
-                         f"{_f(m['value'])}, regression {_f(m['predicted'])} "
-                         f"({_f(m['error_pct'], '+.2f')} %)")
+                         f"{num(m['value'])}, regression {num(m['predicted'])} "
+                         f"({num(m['error_pct'], '+.2f')} %)")
     chosen = Path(lay.sweep_chosen)
     sweep = bool(cfg.get("ratio_sweep", {}).get("enabled", True))
     ratio = (json.loads(chosen.read_text())["chosen_ratio"] if sweep and chosen.exists()
@@ -418,268 +392,6 @@ def _calibration(lay, cfg, comp, ref=False) -> str:
     return out
 
 
-def _pm(r, col: str) -> str:
-    """A Table 5 cell: the seed mean ± the seed standard deviation (the mean alone with
-    one seed)."""
-    sd = r.get(f"{col}_sd", math.nan)
-    return _f(r[col]) + (f" ± {_f(sd)}" if pd.notna(sd) else "")
-
-
-def _verification(lay, comp, ref=False) -> str:
-    f = Path(lay.table(L.TABLE5))
-    if not f.exists():
-        return ""
-    t5 = pd.read_csv(f, index_col=0)
-    rows, notes = [], []
-    for spec, r in t5.iterrows():
-        th = paper.VERIFIED.get(spec) if ref else None
-        ran = r.get("status") != "not-run"
-        if not ran:
-            notes.append(f"- **{spec}: closed loop not run** — {r.get('note', '')}")
-        tens = [resp for resp in P.SAMPLE_TESTS  # σt (σ1 at the design σ3) a target
-                if f"lab_{resp}" in t5.columns and pd.notna(r.get(f"lab_{resp}"))]
-        if ran and isinstance(r.get("note"), str) and r["note"]:
-            notes.append(f"- **{spec}: outside the design space** — {r['note']} (the closed "
-                         "loop ran the DEM there, within verification.range_margin; the "
-                         "regression never sampled it)")
-        if ran and isinstance(r.get("tensile_note"), str) and r["tensile_note"]:
-            notes.append(f"- **{spec}: tensile specimens per seed** — {r['tensile_note']}")
-        if ran and isinstance(r.get("missed"), str) and r["missed"]:
-            notes.append(f"- **{spec}: target(s) missed by the closed loop** — {r['missed']} "
-                         "(error of the DEM in % of the lab value; no target is left out)")
-        for k in (*P.TARGETS, *tens):
-            if th and ran and k in P.TARGETS:
-                _cmp(comp, "Table 5", f"{spec} {k}, DEM (closed loop vs paper's PFC3D)",
-                     r[f"closed_loop_{k}"], th[k], P.RESPONSES[k].unit)
-                _cmp(comp, "Table 5", f"{spec} {k} error % (closed loop vs paper)",
-                     r[f"closed_loop_{k}_err_pct"], th["err_pct"][k], "%")
-            if ran:
-                row = [spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]),
-                       _pm(r, f"single_pass_{k}"), _f(r[f"single_pass_{k}_err_pct"], "+.2f"),
-                       _pm(r, f"closed_loop_{k}"), _f(r[f"closed_loop_{k}_err_pct"], "+.2f"),
-                       _f(r.get("n_seeds", 1), ".0f")]
-            else:
-                row = [spec, P.RESPONSES[k].symbol, _f(r[f"lab_{k}"]), "not run", "", "not run", "",
-                       ""]
-            if ref:
-                row += ([_f(th[k]) if th else "–", _f(th["err_pct"][k], ".2f") if th else "–"]
-                        if k in P.TARGETS else ["–", "–"])
-            rows.append(row)
-    header = ["specimen", "response", "lab", "DEM, single pass", "error", "DEM, closed loop", "error",
-              "seeds"]
-    if ref:
-        header += ["paper (PFC3D)", "paper error"]
-    s = ("## Table 5: verification (errors in % of the lab value)\n\n"
-         "DEM values are the mean of the packing seeds of the round ± their standard deviation "
-         "(the scatter of one run); the error is that of the mean.\n\n"
-         + markdown_table(rows, header) + "\n")
-    if notes:
-        s += "\n" + "\n".join(notes) + "\n"
-    f6 = Path(lay.table(L.TABLE6))
-    if f6.exists():
-        t6 = pd.read_csv(f6, index_col=0)
-        rows = []
-        for spec, r in t6.iterrows():
-            th = paper.PREPEAK.get(spec, {}) if ref else {}
-            if th:
-                _cmp(comp, "Table 6", f"{spec} Up, DEM", r["sim_Up_MJm3"], th["sim"], "MJ/m³")
-                _cmp(comp, "Table 6", f"{spec} Up error %", r["rel_error_pct"], th["err_pct"],
-                     "%")
-            row = [spec, _f(r["lab_Up_MJm3"]), _f(r["sim_Up_MJm3"]), _f(r["rel_error_pct"], ".1f")]
-            if ref:
-                row += [_f(th.get("sim")), _f(th.get("err_pct"), ".1f")]
-            rows.append(row)
-        header = ["specimen", "lab", "DEM (ours)" if ref else "DEM", "error %"]
-        if ref:
-            header += ["paper PFC3D", "paper error %"]
-        s += ("\n## Table 6: pre-peak energy density Up (MJ/m³)\n\n"
-              + markdown_table(rows, header) + "\n")
-    sc = Path(lay.seed_scatter)
-    if sc.exists():
-        t = pd.read_csv(sc)
-        rows = [[r["response"], _f(r["cv"] * 100, ".2f"), _f(r["noise_floor"] * 100, ".2f"),
-                 "yes" if r["noise_limited"] else "no"] for _, r in t.iterrows()]
-        s += ("\n### Packing-seed scatter of one calibrated set\n\n"
-              + markdown_table(rows, ["response", "CV of one run (%)", "noise floor 2 se (%)",
-                           "1 % tolerance below the noise?"]) + "\n")
-    return s + _fresh_seeds(lay)
-
-
-def _loop_seeds(lay, specs) -> int | None:
-    """The median number of packing seeds the verified cards of ``specs`` were judged on
-    (their closed loops' ``n_seeds``, Table 5), None when Table 5 does not say."""
-    f = Path(lay.table(L.TABLE5))
-    if not f.exists():
-        return None
-    t = pd.read_csv(f)
-    if "n_seeds" not in t.columns or "specimen" not in t.columns:
-        return None
-    ks = [int(k) for k in t.loc[t["specimen"].astype(str).isin(specs), "n_seeds"].dropna()
-          if int(k) > 1]
-    return int(statistics.median_low(ks)) if ks else None
-
-
-def _triaxial_seeds(lay, spec: str, k: int) -> int | None:
-    """The seeds of a closed loop that ran the triaxial test (``verification.triaxial_seeds``
-    of the verified card of ``spec``, below ``k``; a study-wide setting, so one card
-    says it for all: the first judged specimen's, read only for a σ1 target), None when
-    every seed did."""
-    f = Path(lay.verified_card(spec))
-    v = (read_card(f).get("verification") or {}) if f.exists() else {}
-    m = int(v["triaxial_seeds"]) if v.get("triaxial_seeds") else None
-    return m if m and m < k else None
-
-
-def _fresh_seeds(lay) -> str:
-    """The verified cards on fresh packing seeds (``fresh_seeds_table``), if it ran: the
-    check against each card's closed loop, then the same seeds against the lab."""
-    f = Path(lay.table(L.FRESH_SEEDS))
-    if not f.exists():
-        return ""
-    t = pd.read_csv(f)
-    pred = t[t["role"] == "prediction"] if "role" in t.columns else t.iloc[:0]
-    t = t[t["role"] != "prediction"] if "role" in t.columns else t
-    if "passed" not in t.columns:  # a table of an older bpmcal: judged against the lab only
-        t = t.assign(passed=t["within_z_se"], judged_by="lab",
-                     lab_because="a table of an older bpmcal, which judged against the lab only")
-    notes = (t["note"].astype(object).fillna("").astype(str) if "note" in t.columns
-             else pd.Series("", t.index))
-    z = float(t["z"].iloc[0]) if len(t) else 2.0
-    seeds = t["seeds"].iloc[0] if len(t) else ""
-    by_loop = t[(t["judged_by"] == "closed loop") & (notes == "")]
-    return ("\n### The verified cards on fresh packing seeds\n\n"
-            f"Each verified card re-run on packing seeds its closed loop never saw ({seeds}). "
-            + _fresh_check(t, notes, by_loop, z) + _fresh_against_lab(lay, t, notes, z)
-            + _predicted_tension(pred))
-
-
-def _fresh_check(t: pd.DataFrame, notes: pd.Series, by_loop: pd.DataFrame, z: float) -> str:
-    """The fresh-seed check: the fresh seeds' mean against the closed loop's (same card,
-    same specimens, other packings), its verdict and table; a card whose closed loop did
-    not converge is named (the check does not verify it)."""
-    alpha = 100 * check_level(z)
-    judged = t[notes == ""]
-    miss = judged[~judged["passed"].astype(bool)]
-    text = ("**The check**: do the fresh seeds read as the card's closed loop read on its own "
-            "seeds? The same parameters on the same specimens differ between two sets of "
-            "packings by sampling alone, so Student's two-sample t of the two means is judged "
-            f"at the level of {z:g} normal standard errors ({alpha:.2f} %) shared among a "
-            "card's targets: a card that generalises fails one target or more with that "
-            "probability, whatever its number of targets and seeds. The closed loop judged "
-            "its own mean against the lab (Table 5): together, the card meets the lab on "
-            "packings it never saw. ")
-    if len(by_loop):
-        lo, hi = by_loop["mdd_pct"].min(), by_loop["mdd_pct"].max()
-        text += (f"These seeds tell a difference of {lo:.1f}–{hi:.1f} % from noise (found "
-                 "half the time). ")
-    other = judged[judged["judged_by"] != "closed loop"]
-    if len(other):
-        why = (other.groupby("specimen")["lab_because"].first() if "lab_because" in other
-               else pd.Series("", index=sorted(set(other["specimen"]))))
-        text += ("Judged against the lab instead (no closed-loop mean of the same runs): "
-                 + ", ".join(f"{sp} ({w})" if isinstance(w, str) and w else sp
-                             for sp, w in why.items()) + ". ")
-    text += ("Every card reproduces its closed loop." if miss.empty else
-             "**Not reproduced**: " + ", ".join(
-                 f"{r.specimen} {P.RESPONSES[r.response].symbol} "
-                 + (f"({r.diff_pct:+.2f} % off the loop's mean, t = {r.t_loop:+.2f}, limit "
-                    f"{r.t_crit:.2f})" if r.judged_by == "closed loop"
-                    else f"({r.err_pct:+.2f} % off the lab, z = {r.z_score:+.2f})")
-                 for r in miss.itertuples()) + ".")
-    unverified = []
-    if "loop_status" in by_loop.columns:  # the table says each card's loop status
-        for sp, st in by_loop.groupby("specimen")["loop_status"].first().items():
-            if isinstance(st, str) and st and st != "converged":
-                unverified.append(f"{sp} ({st})")
-    if unverified:
-        text += (" The closed loops of " + ", ".join(unverified) + " did not converge: those "
-                 "cards are checked against means that miss the lab (Table 5), and passing "
-                 "here does not verify them.")
-    skipped = sorted(set(t.loc[notes != "", "specimen"]))
-    if skipped:
-        text += " Not run: " + "; ".join(
-            f"{sp} ({notes[t['specimen'] == sp].iloc[0]})" for sp in skipped) + "."
-    rows = []
-    for _, r in t.iterrows():
-        loop = r["judged_by"] == "closed loop"
-        rows.append([r["specimen"], P.RESPONSES[r["response"]].symbol,
-                     f"{_f(r['loop_mean'])} ± {_f(r['loop_se'])} ({int(r['loop_n'])})"
-                     if loop else "–",
-                     f"{_f(r['mean'])} ± {_f(r['se'])}" + (
-                         f" ({int(r['n'])}" + (f", {int(r['n_failed'])} failed)"
-                                               if r["n_failed"] else ")")),
-                     _f(r["diff_pct"], "+.2f") if loop else "–",
-                     f"{_f(r['t_loop'], '+.2f')} ({_f(r['t_crit'], '.2f')})" if loop else "–",
-                     _f(r["mdd_pct"], ".1f") if loop else "–",
-                     "yes" if r["passed"] else "**no**"])
-    return (text + "\n\n" + markdown_table(rows, [
-        "specimen", "response", "closed loop: mean ± se (seeds)", "fresh seeds: mean ± se (seeds)",
-        "fresh − loop %", "t (limit)", "detectable %", "passed"]) + "\n")
-
-
-def _fresh_against_lab(lay, t: pd.DataFrame, notes: pd.Series, z: float) -> str:
-    """The same fresh seeds against the lab value: the error, its z-score (the fresh
-    seeds' and the lab's standard errors), ``within_z_se`` and the loop's own tolerance,
-    with the odds that a card exactly on its targets misses them."""
-    rows = [[r["specimen"], P.RESPONSES[r["response"]].symbol, _f(r["lab"]),
-             f"{_f(r['mean'])} ± {_f(r['se'])}", _f(r["err_pct"], "+.2f"),
-             _f(r["z_score"], "+.2f"), "yes" if r["within_z_se"] else "no",
-             "yes" if r["met"] else "no"] for _, r in t.iterrows()]
-    miss = t[~t["within_z_se"].astype(bool) & (notes == "")]
-    verdict = ("Every target lies within "
-               f"{z:g} standard errors of the fresh seeds' mean." if miss.empty else
-               "Outside " f"{z:g} standard errors: " + ", ".join(
-                   f"{r.specimen} {P.RESPONSES[r.response].symbol} ({r.err_pct:+.2f} %, "
-                   f"z = {r.z_score:+.2f})" for r in miss.itertuples()) + ".")
-    judged = t[notes == ""]
-    if len(judged):
-        n = int(judged["n"].median())
-        verdict += (f" A card exactly on its targets still misses this comparison with "
-                    f"probability {100 * false_alarm(n, z):.1f} % per target on {n} seeds "
-                    "(the standard error comes from the same seeds: Student's t with "
-                    f"{n - 1} degrees of freedom), so one miss or more among these "
-                    f"{len(judged)} targets has probability "
-                    f"{100 * false_alarm(n, z, len(judged)):.0f} % even then.")
-        specs = sorted(set(judged["specimen"]))
-        k = _loop_seeds(lay, specs)
-        if k:
-            m = (_triaxial_seeds(lay, specs[0], k)
-                 if P.TRI in set(judged["response"]) else None)
-            ks = [m if r == P.TRI and m else k for r in judged["response"]]
-            p_any = (1 - math.prod(1 - false_alarm(n, z, loop_seeds=kr) for kr in ks) if m
-                     else false_alarm(n, z, len(judged), loop_seeds=k))
-            fewer = (f" ({P.RESPONSES[P.TRI].symbol} on the first {m} of them: "
-                     f"{100 * false_alarm(n, z, loop_seeds=m):.1f} %)" if m else "")
-            verdict += (f" A card fitted exactly to the mean of its closed loop's {k} seeds "
-                        "carries that mean's own error onto the fresh seeds, which their "
-                        "standard error does not count: "
-                        f"{100 * false_alarm(n, z, loop_seeds=k):.1f} % per target{fewer}, "
-                        f"{100 * p_any:.0f} % for one miss or more. That is why the check "
-                        "above compares with the closed loop's mean.")
-    return ("\nThe same seeds against the lab value: the error of their mean, its z-score "
-            "(the fresh seeds' and the lab's standard errors), whether the lab value lies "
-            f"within {z:g} standard errors and whether the mean meets the loop's own "
-            f"tolerance max(rtol, {z:g} standard errors). A measurement, not the check: "
-            + verdict + "\n\n"
-            + markdown_table(rows, ["specimen", "response", "lab", "fresh seeds: mean ± se",
-                                    "error %", "z", f"within {z:g} se", "met"]) + "\n")
-
-
-def _predicted_tension(pred: pd.DataFrame) -> str:
-    """σt of the cards that have no tensile target, on the fresh seeds: the prediction
-    and its seed scatter (the precision one disc of the study's size gives)."""
-    if not len(pred):
-        return ""
-    rows = [[r["specimen"], P.RESPONSES[r["response"]].unicode, f"{_f(r['mean'])} ± {_f(r['se'])}",
-             _f(r["cv_pct"], ".1f"), f"{int(r['n'])}"] for _, r in pred.iterrows()]
-    return ("\nσt of each card on the same fresh seeds (the lab gives none for it: a "
-            "prediction; valid tests only, an invalid disc rerun on a replacement seed). "
-            "The CV is the scatter of one disc between packings: a single disc of the study's "
-            "size measures σt to about that, the mean of n discs to CV/√n.\n\n"
-            + markdown_table(rows, ["specimen", "response", "fresh seeds: mean ± se",
-                                    "seed CV %", "valid seeds"]) + "\n")
-
-
 def _ratio(lay, comp, ref=False) -> str:
     f = Path(lay.sweep_chosen)
     if not f.exists():
@@ -700,13 +412,13 @@ def _ratio(lay, comp, ref=False) -> str:
              "calibration used the configured ratio (calibration.strength_ratio)")
         if not ref:
             return s + ".\n" + failed
-        _cmp(comp, "Ratio sweep", "bond-strength ratio a", None, paper.RATIO)
+        compare(comp, "Ratio sweep", "bond-strength ratio a", None, paper.RATIO)
         return s + f"; the paper chose {paper.RATIO:g}.\n" + failed
     s = (f"## Bond-strength ratio\n\nChosen a = σcp/τcp = {ch['chosen_ratio']:g} "
-         f"({ch['criterion']} {_f(ch['value'])} vs target {ch['target']:g})")
+         f"({ch['criterion']} {num(ch['value'])} vs target {ch['target']:g})")
     if not ref:
         return s + ".\n" + failed
-    _cmp(comp, "Ratio sweep", "bond-strength ratio a", ch["chosen_ratio"], paper.RATIO)
+    compare(comp, "Ratio sweep", "bond-strength ratio a", ch["chosen_ratio"], paper.RATIO)
     return (s + f"; the paper chose {paper.RATIO:g} (difference "
             f"{ch['chosen_ratio'] - paper.RATIO:+.1f}).\n" + failed)
 
@@ -719,29 +431,29 @@ def _impact(lay, cfg, comp, ref=False) -> str:
     s = read_summary(f)
     if s.get("status") != "ok":
         if ref:
-            _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", None,
-                 paper.IMPACT["W_in_J"], "J")
-            _cmp(comp, "Impact", "eta_f = G_f / W_in", None, paper.IMPACT["eta_f"])
+            compare(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", None,
+                    paper.IMPACT["W_in_J"], "J")
+            compare(comp, "Impact", "eta_f = G_f / W_in", None, paper.IMPACT["eta_f"])
         return (f"## Drop-hammer impact at {v} m/s\n\nThe impact run failed: "
                 f"{s.get('error', '')}\n")
     sc = float(cfg["impact"]["scale"]) ** 3
     w_full = s["W_in_J"] / sc
     if ref:
-        _cmp(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", w_full,
-             paper.IMPACT["W_in_J"], "J")
-        _cmp(comp, "Impact", "eta_f = G_f / W_in", s["eta_f"], paper.IMPACT["eta_f"])
-        rows = [["W_in (J), scaled to full size", _f(w_full, ".1f"),
-                 _f(paper.IMPACT["W_in_J"], ".1f"), _pct(w_full, paper.IMPACT["W_in_J"])],
-                ["η_f = G_f / W_in", _f(100 * s["eta_f"], ".1f") + " %",
-                 _f(100 * paper.IMPACT["eta_f"], ".1f") + " %",
-                 _pct(s["eta_f"], paper.IMPACT["eta_f"])],
-                ["energy closure (max over time)", _f(100 * s["closure_rel_max"], ".3f") + " %",
+        compare(comp, "Impact", f"W_in at {v} m/s, full-size equivalent", w_full,
+                paper.IMPACT["W_in_J"], "J")
+        compare(comp, "Impact", "eta_f = G_f / W_in", s["eta_f"], paper.IMPACT["eta_f"])
+        rows = [["W_in (J), scaled to full size", num(w_full, ".1f"),
+                 num(paper.IMPACT["W_in_J"], ".1f"), pct_diff(w_full, paper.IMPACT["W_in_J"])],
+                ["η_f = G_f / W_in", num(100 * s["eta_f"], ".1f") + " %",
+                 num(100 * paper.IMPACT["eta_f"], ".1f") + " %",
+                 pct_diff(s["eta_f"], paper.IMPACT["eta_f"])],
+                ["energy closure (max over time)", num(100 * s["closure_rel_max"], ".3f") + " %",
                  "–", "–"]]
         header = ["quantity", "ours", "paper", "difference"]
     else:
-        rows = [["W_in (J), scaled to full size", _f(w_full, ".1f")],
-                ["η_f = G_f / W_in", _f(100 * s["eta_f"], ".1f") + " %"],
-                ["energy closure (max over time)", _f(100 * s["closure_rel_max"], ".3f") + " %"]]
+        rows = [["W_in (J), scaled to full size", num(w_full, ".1f")],
+                ["η_f = G_f / W_in", num(100 * s["eta_f"], ".1f") + " %"],
+                ["energy closure (max over time)", num(100 * s["closure_rel_max"], ".3f") + " %"]]
         header = ["quantity", "value"]
     out = f"## Drop-hammer impact at {v} m/s\n\n" + markdown_table(rows, header) + "\n"
     out += _impact_card_note(lay)
@@ -798,19 +510,19 @@ def _triaxial(lay, cfg, ref=False) -> str:
     rows = []
 
     def src(v, s):
-        return f"{_f(v, '.2f')} ({s})" if isinstance(s, str) and s else _f(v, ".2f")
+        return f"{num(v, '.2f')} ({s})" if isinstance(s, str) and s else num(v, ".2f")
 
     for r in env.itertuples():
         rows.append([r.specimen, r.card, src(r.sigma_c_MPa, getattr(r, "sigma_c_source", "")),
                      src(getattr(r, "sigma_t_MPa", math.nan),
                          getattr(r, "sigma_t_source", ""))
-                     + (f"; lab {_f(r.lab_sigma_t_MPa, '.2f')}"
-                        if _f(getattr(r, "lab_sigma_t_MPa", math.nan)) != "–" else ""),
-                     _f(getattr(r, "sigma_c_over_sigma_t", math.nan), ".1f"),
-                     f"{_f(r.c_MPa, '.2f')} ± {_f(r.c_se_MPa, '.2f')}",
-                     f"{_f(r.phi_deg, '.1f')} ± {_f(r.phi_se_deg, '.1f')}",
-                     f"{_f(r.mi, '.2f')} ± {_f(r.mi_se, '.2f')}",
-                     _f(r.mc_rms_MPa, ".2f"), _f(r.hb_rms_MPa, ".2f"),
+                     + (f"; lab {num(r.lab_sigma_t_MPa, '.2f')}"
+                        if num(getattr(r, "lab_sigma_t_MPa", math.nan)) != "–" else ""),
+                     num(getattr(r, "sigma_c_over_sigma_t", math.nan), ".1f"),
+                     f"{num(r.c_MPa, '.2f')} ± {num(r.c_se_MPa, '.2f')}",
+                     f"{num(r.phi_deg, '.1f')} ± {num(r.phi_se_deg, '.1f')}",
+                     f"{num(r.mi, '.2f')} ± {num(r.mi_se, '.2f')}",
+                     num(r.mc_rms_MPa, ".2f"), num(r.hb_rms_MPa, ".2f"),
                      f"{r.runs_ok}/{r.runs}"])
     out.append(markdown_table(rows, ["specimen", "card", "σc (MPa)", "σt (MPa)", "σc/σt",
                                      "c (MPa)", "φ (°)", "mi", "MC rms (MPa)",
@@ -824,9 +536,9 @@ def _triaxial(lay, cfg, ref=False) -> str:
     lt = Path(lay.table(L.TRIAXIAL_LAB))
     if tx.get("lab_csv") and lt.exists():
         comp = pd.read_csv(lt, dtype={"specimen": str})
-        rows = [[r.specimen, r.card, _f(r.sigma3_MPa, "g"), _f(r.lab_sigma1_MPa, ".1f"),
-                 _f(r.mc_sigma1_MPa, ".1f"), _f(r.mc_err_pct, "+.1f"),
-                 _f(r.hb_sigma1_MPa, ".1f"), _f(r.hb_err_pct, "+.1f")]
+        rows = [[r.specimen, r.card, num(r.sigma3_MPa, "g"), num(r.lab_sigma1_MPa, ".1f"),
+                 num(r.mc_sigma1_MPa, ".1f"), num(r.mc_err_pct, "+.1f"),
+                 num(r.hb_sigma1_MPa, ".1f"), num(r.hb_err_pct, "+.1f")]
                 for r in comp.itertuples()]
         out.append(f"### Lab triaxial points (`{tx['lab_csv']}`) against the cards' "
                    "envelopes\n\n" + markdown_table(rows, [

@@ -11,7 +11,10 @@ The package holds one concept per module:
 - :mod:`.inversion` — :func:`invert` → :class:`InversionResult`;
 - :mod:`.widen` — which configured limit to widen when the targets are out of reach;
 - :mod:`.bootstrap` — :func:`bootstrap_intervals` → :class:`BootstrapResults`;
-- :mod:`.closed_loop` — :class:`ClosedLoop` → :class:`ClosedLoopResult`;
+- :mod:`.closed_loop` — :class:`ClosedLoop` → :class:`ClosedLoopResult`, the loop's
+  driver; its step rule (the Jacobian, its updates, the step and the trust region) in
+  :mod:`.step_rule`, its seed-set policy (the seeds a round runs, its judgement, when
+  the set grows) in :mod:`.seed_policy`;
 - :mod:`.scatter` — :func:`scatter_table` (formerly ``seed_scatter``), the packing-seed
   noise floor of a tolerance.
 
@@ -19,11 +22,8 @@ Every name importers used from the former single module ``calibration.py`` is
 re-exported here (``_Space`` is the former name of :class:`CalibrationSpace`).
 """
 from .bootstrap import BootstrapResults, bootstrap_intervals
-from .closed_loop import UPDATES, ClosedLoop, ClosedLoopResult
-from .closed_loop import _lm_step as _lm_step
+from .closed_loop import ClosedLoop, ClosedLoopResult
 from .closed_loop import _outside as _outside
-from .closed_loop import _round_seeds as _round_seeds
-from .closed_loop import _takes_seed as _takes_seed
 from .fit import _fit as _fit
 from .fit import _fmt_pct as _fmt_pct
 from .fit import _lhs as _lhs
@@ -46,6 +46,7 @@ from .space import _check_ranges as _check_ranges
 from .space import _check_targets as _check_targets
 from .space import _default_free as _default_free
 from .space import _inside as _inside
+from .step_rule import UPDATES
 from .widen import _EXTEND as _EXTEND
 from .widen import _what_to_widen as _what_to_widen
 
