@@ -55,13 +55,13 @@ ALLOWED = {
     'stages/verification.py:verify': _STAGE,
     'stages/verification.py:_dem_loop': (
         "verify's DEM settings passed on; to take a LoopSettings and a RunContext"),
-    'stages/verification.py:_LoopRuns.__init__': (
+    'stages/loop_runs.py:LoopRuns.__init__': (
         "the loop runner's geometry, settings and context; to take a RunContext"),
     'stages/verification.py:_not_run': (
         "verify's arguments passed on to write a not-run card"),
     'stages/verification.py:_verification_section': (
         "the card's verification section from the loop's results"),
-    'stages/verification.py:seed_scatter': _STAGE,
+    'stages/seed_scatter.py:seed_scatter': _STAGE,
 }
 
 
