@@ -216,3 +216,14 @@ def test_the_cost_model_records_are_their_json_rendered():
         assert rec["date"] == date[:10], raw.name  # a second record of a day: DATEb, DATEc
         md = REPO / "docs" / "measurements" / f"{date}-cost-model-{name}.md"
         assert md.read_text() == cost_model.markdown(rec), (md.name, "regenerate from", raw.name)
+
+
+def test_the_posterior_study_records_are_their_json_rendered():
+    import posterior_study
+
+    for raw in (REPO / "benchmarks").glob("results_posterior_study_*.json"):
+        rec = json.loads(raw.read_text())
+        tag = raw.stem.rsplit("_", 1)[-1]  # the date, a letter for a second record that day
+        assert tag.startswith(rec["date"]), raw.name
+        md = REPO / "docs" / "measurements" / f"{tag}-posterior-study.md"
+        assert md.read_text() == posterior_study.markdown(rec), (md.name, "regenerate from", raw.name)

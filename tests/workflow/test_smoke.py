@@ -762,3 +762,29 @@ def test_a_changed_config_key_reruns_exactly_the_jobs_that_read_it(smoke):
             wrong.append(f"{key}={value!r}: scheduled {got}, expected "
                          f"{sorted(want) if not isinstance(want, dict) else want}")
     assert not wrong, "\n".join(wrong)
+
+
+def test_the_posterior_record_reads_every_card_of_the_study(smoke):
+    """benchmarks/posterior_study.py on the smoke study: every lab specimen's posterior is
+    read (its parameters' HDIs hold their means; the learning curve's runs grow), the
+    predictive draws of the first specimen are summarised, and the record renders."""
+    import sys
+
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    import posterior_study
+
+    res = smoke / OUTDIR
+    specs = list(pd.read_csv(smoke / "config" / "lab" / "green_sandstone.csv")["specimen"])
+    rec = posterior_study.record(res, specs, None, "test", "", [])
+    assert [c["specimen"] for c in rec["cards"]] == specs
+    for c in rec["cards"]:
+        assert c["parameters"] and c["identifiability"]
+        for p, d in c["parameters"].items():
+            lo, hi = d["hdi"]
+            assert lo <= d["mean"] <= hi, (c["specimen"], p)
+        runs = [p["dem_runs"] for p in c["learning_curve"]]
+        assert runs == sorted(runs) and len(runs) >= 2
+    first = rec["cards"][0]["predictive"]
+    assert first["mi"]["draws"] >= 1 and first["mi"]["low"] <= first["mi"]["mean"] <= first["mi"]["high"]
+    text = posterior_study.markdown(rec)
+    assert all(f"## {s}:" in text for s in specs)
