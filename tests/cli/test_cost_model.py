@@ -1,6 +1,6 @@
 """The cost model's bookkeeping (``bpmcal.cost``, ``benchmarks/cost_model.py``): a sample
-job run as the workflow runs it (``bpmcal ucs --bts-out`` with ``BPMCAL_COST`` set, its
-log in a study's ``logs/ucs/``) books its CPU seconds to phases that account for the
+job run as the workflow runs it (``bpmcal sample --bts-out`` with ``BPMCAL_COST`` set, its
+log in a study's ``logs/sample/``) books its CPU seconds to phases that account for the
 process as the kernel measures it from outside, counts the engine's ball-steps as the
 run counts its steps, and its run files' shares add up to the process."""
 import json
@@ -36,8 +36,8 @@ def study(tmp_path_factory, packing_cache):
     pf = d / "a1.yaml"
     pf.write_text(yaml.safe_dump(A1))
     res = d / "results"
-    (res / "logs" / "ucs").mkdir(parents=True)
-    argv = [sys.executable, "-m", "bpmcal.cli", "ucs", "--params", str(pf),
+    (res / "logs" / "sample").mkdir(parents=True)
+    argv = [sys.executable, "-m", "bpmcal.cli", "sample", "--params", str(pf),
             "--out", str(res / "ucs" / "s000.h5"), "--bts-out", str(res / "bts" / "s000.h5"),
             *UCS, *DISC, "--quiet", "--specimen-cache"]
     env = {**os.environ, "BPMCAL_COST": "1"}
@@ -45,7 +45,7 @@ def study(tmp_path_factory, packing_cache):
     # empty specimen cache), as a study's sample job does
     subprocess.run([*argv, str(packing_cache)], env=env, check=True, capture_output=True)
     c0 = _children_cpu()
-    with open(res / "logs" / "ucs" / "s000.log", "w") as log:
+    with open(res / "logs" / "sample" / "s000.log", "w") as log:
         subprocess.run([*argv, str(d / "packings")], env=env, check=True, stdout=log,
                        stderr=subprocess.STDOUT)
     return res, _children_cpu() - c0
@@ -55,7 +55,7 @@ def study(tmp_path_factory, packing_cache):
 def test_the_phases_of_a_sample_job_account_for_its_cpu_time(study):
     res, outside = study
     jobs = cost_model.read_jobs(res)
-    assert [j["rule"] for j in jobs] == ["ucs"]
+    assert [j["rule"] for j in jobs] == ["sample"]
     job = jobs[0]
     phases = cost_model.job_phases(job)
     assert sum(phases.values()) == pytest.approx(job["cpu_s"], abs=1e-4)  # rounded
