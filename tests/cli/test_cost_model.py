@@ -112,6 +112,24 @@ def test_phase_paths_fall_into_the_model_categories():
     assert not cost_model.test_steps("ucs/genesis/packing/engine")
 
 
+def test_the_sample_jobs_of_a_study_before_the_rules_rename_are_read_too(tmp_path):
+    """The rule of the sample jobs is ``sample``; a study finished before its rename has
+    their logs in ``logs/ucs/``. Both are the sample jobs; another rule's jobs are not."""
+    cost = {"cpu_s": 2.0, "children_cpu_s": 0.0, "phases": {"ucs/test/engine": 1.5,
+                                                             "other": 0.5},
+            "ball_steps": {"ucs/test/engine": 3000}}
+    for rule in ("sample", "ucs", "impact"):
+        (tmp_path / "logs" / rule).mkdir(parents=True)
+        (tmp_path / "logs" / rule / "s000.log").write_text(
+            f"bpmcal {rule}: cost {json.dumps(cost)}\n")
+    jobs = cost_model.read_jobs(tmp_path)
+    assert sorted(j["rule"] for j in jobs) == ["impact", "sample", "ucs"]
+    s = cost_model.sample_jobs(jobs, [])
+    assert s["jobs"] == 2 and s["total"]["test_ball_steps"] == 6000
+    assert s["ps_per_cpu_s"] == 6000 / 4.0
+    assert cost_model.per_phase(jobs, set(cost_model.SAMPLE_RULES))["jobs"] == 2
+
+
 def test_the_ledger_books_nested_phases_once(monkeypatch):
     from bpmcal import cost
 
