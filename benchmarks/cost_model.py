@@ -63,6 +63,10 @@ CATEGORIES = ("start", "imports", "inputs", "kernels: numba's set-up", "kernels:
               "genesis: packing (rest)", "genesis: build (engine)", "genesis: build (rest)",
               "test: engine", "test: records", "results", "write", "retests",
               "engine (elsewhere)", "other", "work (no DEM)")
+#: the rule of the sample jobs: ``sample``; studies finished before its rename call it
+#: ``ucs`` (their logs are in ``logs/ucs/``, their records name rule ``ucs``), so both are
+#: read as the sample jobs
+SAMPLE_RULES = ("sample", "ucs")
 #: the cost line in a job's log
 _LINE = re.compile(r"^bpmcal (\S+): cost (\{.*\})\s*$", re.M)
 
@@ -287,10 +291,11 @@ def per_phase(jobs: list[dict], rules=None) -> dict:
 
 
 def sample_jobs(jobs: list[dict], runs: list[dict]) -> dict:
-    """The sample jobs (rule ``ucs``): particle-steps per CPU-second, by job."""
+    """The sample jobs (rule ``sample``, or ``ucs`` in an older study: ``SAMPLE_RULES``):
+    particle-steps per CPU-second, by job."""
     rows = []
     for j in jobs:
-        if j["rule"] != "ucs":
+        if j["rule"] not in SAMPLE_RULES:
             continue
         ph, st = job_phases(j), job_steps(j)
         cpu = job_cpu(j)
@@ -363,7 +368,8 @@ def record(study: Path, label: str, snakemake_log, bench_n, bench_steps, argv,
            "phases_all": per_phase(jobs),
            "phases_dem": per_phase(jobs, {j["rule"] for j in jobs
                                           if sum(job_steps(j).values())}),
-           "phases_samples": per_phase(jobs, {"ucs"}), "samples": sample_jobs(jobs, runs),
+           "phases_samples": per_phase(jobs, set(SAMPLE_RULES)),
+           "samples": sample_jobs(jobs, runs),
            "run_files": len(runs)}
     if bench_n:
         b = bench(bench_n, bench_steps)
@@ -407,7 +413,10 @@ def markdown(rec: dict) -> str:
             busy = f"{100 * r['busy']:.0f} %" if "busy" in r else "–"
             line += f" {r.get('job_wall_s', float('nan')):.1f} | {busy} |"
         L.append(line)
-    for key, title in (("phases_samples", "The sample jobs (rule `ucs`) by phase"),
+    # the sample jobs' rule as the record names it (``ucs`` in a record made before the
+    # rename: its page renders as it was written)
+    rule = next((r["rule"] for r in rec["rules"] if r["rule"] in SAMPLE_RULES), "sample")
+    for key, title in (("phases_samples", f"The sample jobs (rule `{rule}`) by phase"),
                        ("phases_dem", "Every DEM job by phase"),
                        ("phases_all", "Every job by phase")):
         p = rec[key]

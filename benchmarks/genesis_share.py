@@ -4,8 +4,8 @@
         --samples s000 s017 s050 s096 s110 [--src new=src old=/path/to/other/src] \
         [--repeat 1] [--json out.json]
 
-The sample job is what the workflow's rule ``ucs`` runs for one design row: ``bpmcal ucs
---design ... --sample sNNN --out U.h5 --bts-out B.h5`` with the default study's options
+The sample job is what the workflow's rule ``sample`` runs for one design row: ``bpmcal
+sample --design ... --sample sNNN --out U.h5 --bts-out B.h5`` with the default study's options
 (``STUDY_ARGS``: scale 0.4, pfc genesis, one thread, the bts section of config.yaml): a
 UCS test on a 20 x 40 mm cylinder and a Brazilian test on a 20 x 10 mm disc, each with
 its own genesis. Every job runs in a fresh process (numba's kernels come from its on-disk
@@ -49,7 +49,7 @@ import tempfile
 import time
 from pathlib import Path
 
-#: the default study's options of the sample job (workflow rule ucs, config/config.yaml)
+#: the default study's options of the sample job (workflow rule sample, config/config.yaml)
 STUDY_ARGS = [
     "--threads", "1", "--failed-ok", "--scale", "0.4", "--diameter", "50.0",
     "--height", "100.0", "--sigma0", "0.1", "--genesis", "pfc", "--relax-ratio", "0.01",
@@ -161,7 +161,9 @@ def child(a) -> int:
     tm.wrap(CPUContext, "load_additional_registries", "numba_init")
     tm.wrap(Dispatcher, "_compile_for_args", "numba_load")
     out = Path(a.out)
-    argv = ["ucs", "--design", a.design, "--sample", a.sample, "--out", str(out / "ucs.h5"),
+    # the sample job's command: ``sample``; a --src older than its rename calls it ``ucs``
+    cmd = "sample" if "sample" in cli.COMMANDS else "ucs"
+    argv = [cmd, "--design", a.design, "--sample", a.sample, "--out", str(out / "ucs.h5"),
             "--bts-out", str(out / "bts.h5"), "--specimen-cache", str(out / "cache"),
             *STUDY_ARGS]
     c0, t0 = time.process_time(), time.perf_counter()

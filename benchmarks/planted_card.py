@@ -117,7 +117,7 @@ def main(argv=None) -> int:
                 if same and (tmp / f"lab{s}.h5").exists() and (tmp / f"lab{s}.bts.h5").exists():
                     reused.append(s)
                 else:
-                    _run(["bpmcal", "ucs", "--params", str(pf), "--seed", str(s), "--out",
+                    _run(["bpmcal", "sample", "--params", str(pf), "--seed", str(s), "--out",
                           str(tmp / f"lab{s}.h5"), "--bts-out", str(tmp / f"lab{s}.bts.h5"),
                           *common, *bts_opts, *cache], log)
                 us = read_summary(tmp / f"lab{s}.h5")

@@ -3,7 +3,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bpmcal.analysis.calibration import ClosedLoop, invert, seed_scatter
+from bpmcal.analysis.calibration import ClosedLoop, invert, scatter_table
 from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.params import table2_ranges
 
@@ -94,18 +94,18 @@ def test_explicit_jacobian_and_input_checks(start):
         ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2).run({**start, "pb_ten_MPa": 20.0})
 
 
-def test_seed_scatter_flags_tolerances_below_noise():
+def test_the_scatter_table_flags_tolerances_below_noise():
     sims = pd.DataFrame({"ucs_MPa": [60.0, 62.0, 61.0, 63.0], "E_GPa": [14.0, 14.01, 13.99, 14.0],
                          "nu": [0.25, 0.26, 0.24, 0.25]})
-    out = seed_scatter(sims, rtol=0.01)
+    out = scatter_table(sims, rtol=0.01)
     cv = sims.std(ddof=1) / sims.mean()
     np.testing.assert_allclose(out["cv"], cv[list(out.index)], rtol=1e-12)
     assert out.loc["ucs_MPa", "noise_limited"] and not out.loc["E_GPa", "noise_limited"]
-    four = seed_scatter(sims, rtol=0.025, n_per_round=4)  # averaging 4 seeds halves the noise floor
+    four = scatter_table(sims, rtol=0.025, n_per_round=4)  # averaging 4 seeds halves the noise floor
     np.testing.assert_allclose(four["noise_floor"], out["noise_floor"] / 2)
     assert not four.loc["ucs_MPa", "noise_limited"]
     with pytest.raises(ValueError, match="at least 2"):
-        seed_scatter(sims.iloc[:1])
+        scatter_table(sims.iloc[:1])
 
 
 # -- seed-averaged loop ---------------------------------------------------------------------

@@ -1,6 +1,6 @@
 """The cost model's bookkeeping (``bpmcal.cost``, ``benchmarks/cost_model.py``): a sample
-job run as the workflow runs it (``bpmcal ucs --bts-out`` with ``BPMCAL_COST`` set, its
-log in a study's ``logs/ucs/``) books its CPU seconds to phases that account for the
+job run as the workflow runs it (``bpmcal sample --bts-out`` with ``BPMCAL_COST`` set, its
+log in a study's ``logs/sample/``) books its CPU seconds to phases that account for the
 process as the kernel measures it from outside, counts the engine's ball-steps as the
 run counts its steps, and its run files' shares add up to the process."""
 import json
@@ -36,8 +36,8 @@ def study(tmp_path_factory, packing_cache):
     pf = d / "a1.yaml"
     pf.write_text(yaml.safe_dump(A1))
     res = d / "results"
-    (res / "logs" / "ucs").mkdir(parents=True)
-    argv = [sys.executable, "-m", "bpmcal.cli", "ucs", "--params", str(pf),
+    (res / "logs" / "sample").mkdir(parents=True)
+    argv = [sys.executable, "-m", "bpmcal.cli", "sample", "--params", str(pf),
             "--out", str(res / "ucs" / "s000.h5"), "--bts-out", str(res / "bts" / "s000.h5"),
             *UCS, *DISC, "--quiet", "--specimen-cache"]
     env = {**os.environ, "BPMCAL_COST": "1"}
@@ -45,7 +45,7 @@ def study(tmp_path_factory, packing_cache):
     # empty specimen cache), as a study's sample job does
     subprocess.run([*argv, str(packing_cache)], env=env, check=True, capture_output=True)
     c0 = _children_cpu()
-    with open(res / "logs" / "ucs" / "s000.log", "w") as log:
+    with open(res / "logs" / "sample" / "s000.log", "w") as log:
         subprocess.run([*argv, str(d / "packings")], env=env, check=True, stdout=log,
                        stderr=subprocess.STDOUT)
     return res, _children_cpu() - c0
@@ -55,7 +55,7 @@ def study(tmp_path_factory, packing_cache):
 def test_the_phases_of_a_sample_job_account_for_its_cpu_time(study):
     res, outside = study
     jobs = cost_model.read_jobs(res)
-    assert [j["rule"] for j in jobs] == ["ucs"]
+    assert [j["rule"] for j in jobs] == ["sample"]
     job = jobs[0]
     phases = cost_model.job_phases(job)
     assert sum(phases.values()) == pytest.approx(job["cpu_s"], abs=1e-4)  # rounded
@@ -110,6 +110,24 @@ def test_phase_paths_fall_into_the_model_categories():
     assert cost_model.test_steps("ucs/test/engine")
     assert not cost_model.test_steps("bts_retest/test/engine")
     assert not cost_model.test_steps("ucs/genesis/packing/engine")
+
+
+def test_the_sample_jobs_of_a_study_before_the_rules_rename_are_read_too(tmp_path):
+    """The rule of the sample jobs is ``sample``; a study finished before its rename has
+    their logs in ``logs/ucs/``. Both are the sample jobs; another rule's jobs are not."""
+    cost = {"cpu_s": 2.0, "children_cpu_s": 0.0, "phases": {"ucs/test/engine": 1.5,
+                                                             "other": 0.5},
+            "ball_steps": {"ucs/test/engine": 3000}}
+    for rule in ("sample", "ucs", "impact"):
+        (tmp_path / "logs" / rule).mkdir(parents=True)
+        (tmp_path / "logs" / rule / "s000.log").write_text(
+            f"bpmcal {rule}: cost {json.dumps(cost)}\n")
+    jobs = cost_model.read_jobs(tmp_path)
+    assert sorted(j["rule"] for j in jobs) == ["impact", "sample", "ucs"]
+    s = cost_model.sample_jobs(jobs, [])
+    assert s["jobs"] == 2 and s["total"]["test_ball_steps"] == 6000
+    assert s["ps_per_cpu_s"] == 6000 / 4.0
+    assert cost_model.per_phase(jobs, set(cost_model.SAMPLE_RULES))["jobs"] == 2
 
 
 def test_the_ledger_books_nested_phases_once(monkeypatch):

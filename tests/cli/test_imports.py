@@ -1,5 +1,5 @@
 """``bpmcal`` loads only what the command it runs needs (the promise of ``bpmcal.cli``'s
-module doc): importing the command and setting up a DEM job (``bpmcal ucs``, 150 per
+module doc): importing the command and setting up a DEM job (``bpmcal sample``, 150 per
 study: its parser, its settings and the stage that runs it) loads no xgboost, statsmodels
 or matplotlib, and importing ``bpmcal.cli`` alone loads neither pandas nor the engine.
 Checked in a fresh interpreter through ``sys.modules``."""
@@ -20,15 +20,16 @@ WATCH = {watch!r}
 import bpmcal.cli as cli
 out = {{"import": loaded(WATCH)}}
 with contextlib.redirect_stdout(io.StringIO()) as text:
-    rc = cli.main(["ucs", "--help"])
+    rc = cli.main(["sample", "--help"])
 assert rc == 0 and "--bts-out" in text.getvalue(), rc
-args = cli.build_parser(only="ucs").parse_args(["ucs", "--params", "p.yaml", "--out", "o.h5",
-                                                "--bts-out", "b.h5", "--dtt-out", "d.h5"])
+args = cli.build_parser(only="sample").parse_args(["sample", "--params", "p.yaml", "--out",
+                                                   "o.h5", "--bts-out", "b.h5", "--dtt-out",
+                                                   "d.h5"])
 cli.run_geometry(args), cli.run_settings(args)
 cli.bts_disc_of(args, "bts_"), cli.bts_settings_of(args, "bts_")
 cli.dtt_cylinder_of(args, "dtt_"), cli.dtt_settings_of(args, "dtt_")
 out["parser"] = loaded(WATCH)
-import bpmcal.stages.runs  # what cmd_ucs imports to run the tests
+import bpmcal.stages.runs  # what cmd_sample imports to run the tests
 {extra}
 out["job"] = loaded(WATCH)
 print(json.dumps(out))
@@ -36,7 +37,7 @@ print(json.dumps(out))
 
 
 def probe(extra: str = "") -> dict:
-    """The watched modules loaded at each step of a ``bpmcal ucs`` set-up, in a fresh
+    """The watched modules loaded at each step of a ``bpmcal sample`` set-up, in a fresh
     interpreter (``extra``: a statement run before the last step)."""
     watch = HEAVY + ("pandas", "numba")
     r = subprocess.run([sys.executable, "-c", PROBE.format(watch=watch, extra=extra)],

@@ -1,4 +1,4 @@
-"""The study's sample job: ``bpmcal ucs --bts-out`` runs the sample's UCS test and then its
+"""The study's sample job: ``bpmcal sample --bts-out`` runs the sample's UCS test and then its
 Brazilian test in one process (one start-up instead of two). Each file must be exactly
 what the single-test commands write, every input of both tests is checked before the
 first runs, and each test records its own failure."""
@@ -35,7 +35,7 @@ def runs(tmp_path_factory, packing_cache):
     cache = ["--specimen-cache", str(packing_cache)]
     both = [f"--bts-{k}={v}" for k, v in DISC.items()]
     one = [f"--{k}={v}" for k, v in DISC.items()]
-    assert main(["ucs", "--params", str(pf), "--out", str(d / "u.h5"), "--bts-out",
+    assert main(["sample", "--params", str(pf), "--out", str(d / "u.h5"), "--bts-out",
                  str(d / "b.h5"), *UCS, *both, *cache, "--quiet"]) == 0
     assert main(["ucs", "--params", str(pf), "--out", str(d / "u1.h5"), *UCS, *cache,
                  "--quiet"]) == 0
@@ -65,7 +65,7 @@ def test_bad_input_of_either_test_is_refused_before_any_work(tmp_path, capsys, e
     pf.write_text(yaml.safe_dump(A1))
     disc = [f"--bts-{k}={v}" for k, v in DISC.items()]
     extra = [x.format(d=tmp_path) for x in extra]
-    rc = main(["ucs", "--params", str(pf), "--out", str(tmp_path / "u.h5"), *UCS, *disc,
+    rc = main(["sample", "--params", str(pf), "--out", str(tmp_path / "u.h5"), *UCS, *disc,
                *extra])
     assert rc == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -80,13 +80,13 @@ def test_a_failed_ucs_test_does_not_stop_the_samples_brazilian_test(tmp_path, ca
     test still runs and writes its run file, and --failed-ok lets the study go on."""
     pf = tmp_path / "a1.yaml"
     pf.write_text(yaml.safe_dump(A1))
-    rc = main(["ucs", "--params", str(pf), "--out", str(tmp_path / "u.h5"), "--bts-out",
+    rc = main(["sample", "--params", str(pf), "--out", str(tmp_path / "u.h5"), "--bts-out",
                str(tmp_path / "b.h5"), *UCS, *[f"--bts-{k}={v}" for k, v in DISC.items()],
                "--genesis", "bpmcal", "--genesis-max-steps", "1000", "--quiet",
                "--failed-ok"])
     assert rc == 0  # --failed-ok: the study goes on
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("bpmcal ucs: FAILED: ") and "u.h5" in err[0]
+    assert len(err) == 1 and err[0].startswith("bpmcal sample: FAILED: ") and "u.h5" in err[0]
     with h5py.File(tmp_path / "u.h5") as h:
         assert h.attrs["status"] == "failed" and h.attrs["test"] == "ucs"
         assert "GenesisError" in h.attrs["error"]
@@ -94,6 +94,25 @@ def test_a_failed_ucs_test_does_not_stop_the_samples_brazilian_test(tmp_path, ca
         assert h.attrs["status"] == "ok" and h.attrs["test"] == "bts"
         assert h["summary"].attrs["bts_MPa"] > 0
     # without --failed-ok the failure is the job's exit code
-    assert main(["ucs", "--params", str(pf), "--out", str(tmp_path / "u2.h5"), "--bts-out",
+    assert main(["sample", "--params", str(pf), "--out", str(tmp_path / "u2.h5"), "--bts-out",
                  str(tmp_path / "b2.h5"), *UCS, *[f"--bts-{k}={v}" for k, v in DISC.items()],
                  "--genesis", "bpmcal", "--genesis-max-steps", "1000", "--quiet"]) == 3
+
+
+@pytest.mark.parametrize("extra", [["--bts-out", "b.h5"], ["--dtt-out", "d.h5"],
+                                   ["--tri-out", "t.h5", "--design-sigma3", "5"]])
+def test_the_ucs_command_is_one_ucs_test_and_runs_no_other(tmp_path, capsys, extra):
+    """``bpmcal ucs`` runs one UCS test; the sample job's other tests are ``bpmcal sample``'s:
+    given to ``bpmcal ucs`` they are unknown options (one line, exit 2, nothing written)."""
+    from bpmcal.cli import build_parser
+
+    pf = tmp_path / "a1.yaml"
+    pf.write_text(yaml.safe_dump(A1))
+    argv = ["--params", str(pf), "--out", str(tmp_path / "u.h5"),
+            *[str(tmp_path / x) if x.endswith(".h5") else x for x in extra]]
+    assert main(["ucs", *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unrecognized arguments" in err[0] and extra[0] in err[0], err
+    assert not list(tmp_path.glob("*.h5"))
+    args = build_parser(only="sample").parse_args(["sample", *argv])  # the sample job's option
+    assert getattr(args, extra[0][2:].replace("-", "_")) == str(tmp_path / extra[1])

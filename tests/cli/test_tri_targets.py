@@ -260,7 +260,7 @@ def test_gather_reads_the_triaxial_run_files(tmp_path):
 def test_the_sample_job_refuses_a_triaxial_output_without_its_confinement(tmp_path, capsys):
     p = tmp_path / "p.yaml"
     p.write_text(yaml.safe_dump({**FIXED, **TRUTH, "pb_ten_MPa": 30.0}))
-    rc = main(["ucs", "--params", str(p), "--out", str(tmp_path / "u.h5"),
+    rc = main(["sample", "--params", str(p), "--out", str(tmp_path / "u.h5"),
                "--tri-out", str(tmp_path / "t.h5"), "--scale", "0.2", "--quiet"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "--design-sigma3" in err[0], err
@@ -296,7 +296,7 @@ def test_the_design_confinement_is_a_positive_stress(s3):
 
 
 def test_the_sample_job_runs_the_triaxial_test_on_the_dem(tmp_path):
-    """``bpmcal ucs --tri-out --design-sigma3`` on a real (tiny) specimen: the triaxial run
+    """``bpmcal sample --tri-out --design-sigma3`` on a real (tiny) specimen: the triaxial run
     file holds σ1 at the confinement asked, above the same packing's σc, and the dataset
     reads it."""
     from bpmcal.io.h5 import read_inputs, read_summary
@@ -305,7 +305,7 @@ def test_the_sample_job_runs_the_triaxial_test_on_the_dem(tmp_path):
     p.write_text(yaml.safe_dump({**FIXED, **TRUTH, "pb_ten_MPa": 30.0}))
     u, t = tmp_path / "s000.h5", tmp_path / "tri" / "s000.h5"
     t.parent.mkdir()
-    assert main(["ucs", "--params", str(p), "--out", str(u), "--tri-out", str(t),
+    assert main(["sample", "--params", str(p), "--out", str(u), "--tri-out", str(t),
                  "--design-sigma3", "5", "--scale", "0.2", "--platen-velocity", "0.2",
                  "--threads", "1", "--quiet"]) == 0
     su, st = read_summary(u), read_summary(t)
@@ -324,7 +324,7 @@ def test_the_design_triaxial_test_stops_at_its_own_drop(capsys):
     from bpmcal.cli import build_parser
     from bpmcal.cli.options import DESIGN_STOP_DROP, run_settings, tri_settings_of
 
-    base = ["ucs", "--params", "p.yaml", "--out", "u.h5", "--stop-drop", "0.7"]
+    base = ["sample", "--params", "p.yaml", "--out", "u.h5", "--stop-drop", "0.7"]
     a = build_parser().parse_args([*base, "--design-sigma3", "10"])
     st = tri_settings_of(a)
     assert st.stop_drop == DESIGN_STOP_DROP == 0.9 and st.sigma3 == 10e6

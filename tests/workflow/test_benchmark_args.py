@@ -23,12 +23,12 @@ def test_genesis_share_runs_the_sample_job_with_the_default_study_options(tmp_pa
     r = run_snakemake(wf, "-n", "-p", timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     line = next(ln for ln in (r.stdout + r.stderr).splitlines()
-                if "Shell command: bpmcal ucs " in ln)
+                if "Shell command: bpmcal sample " in ln)
     argv = shlex.split(line.split("Shell command: ", 1)[1])
     argv = argv[1:argv.index(">")]
-    parser = build_parser(only="ucs")
+    parser = build_parser(only="sample")
     study = vars(parser.parse_args(argv))
-    bench = vars(parser.parse_args(["ucs", "--design", "d.csv", "--sample", "s000",
+    bench = vars(parser.parse_args(["sample", "--design", "d.csv", "--sample", "s000",
                                     "--out", "u.h5", *genesis_share.STUDY_ARGS]))
     differ = {k: (study[k], bench.get(k)) for k in study
               if k not in PER_JOB and study[k] != bench.get(k)}

@@ -1,5 +1,5 @@
 """Every key of the config's specimen, compression and bts sections reaches the DEM jobs that use
-it (the sample job ``bpmcal ucs`` with its Brazilian test, verify, transfer): the commands
+it (the sample job ``bpmcal sample`` with its Brazilian test, verify, transfer): the commands
 of a dry run are parsed by the ``bpmcal`` parser itself and each option's value is
 compared with the config. (A Brazilian option the rule forgot to pass runs the
 study's discs at the command's default, silently: the approach speed and post-peak stop of
@@ -71,18 +71,18 @@ def _expect(a, section, keys, prefix=""):
         assert got == want, f"{section}.{k} = {want!r} reaches `bpmcal {a.cmd}` as {got!r}"
 
 
-def test_the_ucs_job_gets_every_specimen_and_compression_key(commands):
-    a = commands["ucs"]
+def test_the_sample_job_gets_every_specimen_and_compression_key(commands):
+    a = commands["sample"]
     _expect(a, "specimen", OVERLAY["specimen"])
     _expect(a, "compression", OVERLAY["compression"])
 
 
-@pytest.mark.parametrize("cmd", ["ucs", "verify", "transfer"])
+@pytest.mark.parametrize("cmd", ["sample", "verify", "transfer"])
 def test_every_brazilian_test_runs_with_the_studys_bts_section(commands, cmd):
-    """The sample job's Brazilian test (``bpmcal ucs --bts-out``, its disc with the
+    """The sample job's Brazilian test (``bpmcal sample --bts-out``, its disc with the
     cylinder's genesis options) and the closed loops' (a card with a σt target)."""
     a = commands[cmd]
-    if cmd == "ucs":
+    if cmd == "sample":
         assert a.bts_out is not None and a.bts_out.endswith(".h5")
     _expect(a, "bts", [k for k in OVERLAY["bts"] if k != "enabled"], prefix="bts_")
     _expect(a, "specimen", OVERLAY["specimen"])

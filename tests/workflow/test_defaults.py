@@ -138,8 +138,8 @@ DEFAULTS = {
     "triaxial.sigma3_MPa": (list(DEFAULT_SIGMA3_MPA), ("envelopes", "sigma3", None)),
     "triaxial.servo_alpha": (TriaxialSettings().servo_alpha,
                              ("triaxial", "servo_alpha", None)),
-    "triaxial.design_sigma3_MPa": (None, ("ucs", "design_sigma3", None)),
-    "triaxial.design_stop_drop": (DESIGN_STOP_DROP, ("ucs", "design_stop_drop", None)),
+    "triaxial.design_sigma3_MPa": (None, ("sample", "design_sigma3", None)),
+    "triaxial.design_stop_drop": (DESIGN_STOP_DROP, ("sample", "design_stop_drop", None)),
     "posterior.surrogate": (POST.surrogate, ("posterior", "surrogate", None)),
     "posterior.seed": (POST.seed, ("posterior", "posterior_seed", None)),
     "posterior.hdi_prob": (POST.hdi_prob, ("posterior", "hdi_prob", None)),
@@ -186,9 +186,9 @@ STUDY_ONLY = {
     "ratio_sweep.enabled",  # whether the DAG has the sweep
     "transfer.enabled",  # whether the DAG has the full-size transfer
     "bts", "bts.enabled",  # whether the DAG has the Brazilian jobs ({}: the defaults)
-    "bts.scale",  # null: the disc at the cylinder's scale (bpmcal ucs --bts-scale: the same)
+    "bts.scale",  # null: the disc at the cylinder's scale (bpmcal sample --bts-scale: the same)
     "dtt", "dtt.enabled",  # whether the DAG has the direct-tension jobs
-    "dtt.scale",  # null: the UCS cylinder's scale (bpmcal ucs --dtt-scale: the same)
+    "dtt.scale",  # null: the UCS cylinder's scale (bpmcal sample --dtt-scale: the same)
     "impact.sweep_velocities",  # the velocity sweep's extra runs
     "triaxial",  # the section itself ({}: a config without it gets the defaults below)
     "triaxial.enabled", "triaxial.cards",  # whether and which cards the DAG tests
@@ -292,7 +292,7 @@ STUDY_DIFFERS = {
     # the study shrinks its specimens to run on a laptop; Geometry(), bts_geometry() and
     # the lab commands test the laboratory's full-size ones (lab.runner.STUDY_SCALES)
     "specimen.scale": GEO.scale,
-    "bts.scale": None,  # null: the disc at the cylinder's scale (bpmcal ucs --bts-scale)
+    "bts.scale": None,  # null: the disc at the cylinder's scale (bpmcal sample --bts-scale)
     "impact.scale": GEO.scale,
     # the report compares the default study with the paper; another rock's study has
     # no published values (a study-only key, no library default)
@@ -371,10 +371,10 @@ def test_the_study_scales_are_the_default_studys():
     assert STUDY_SCALES == {"cylinder": CONFIG["specimen"]["scale"],
                             "disc": CONFIG["bts"]["scale"], "impact": CONFIG["impact"]["scale"]}
     at = {k: Geometry(scale=v) for k, v in STUDY_SCALES.items()}
-    assert study_scale_note("ucs", [("ucs", at["cylinder"]), ("bts", at["disc"])]) is None
+    assert study_scale_note("sample", [("ucs", at["cylinder"]), ("bts", at["disc"])]) is None
     assert study_scale_note("impact", [("impact", at["impact"])]) is None
-    line = study_scale_note("ucs", [("ucs", Geometry()), ("bts", bts_geometry())])
-    assert "\n" not in line and line.startswith("bpmcal ucs: note: ")
+    line = study_scale_note("sample", [("ucs", Geometry()), ("bts", bts_geometry())])
+    assert "\n" not in line and line.startswith("bpmcal sample: note: ")
     assert "scale 1 (the default study's specimen.scale 0.4)" in line
     assert "scale 1 (the default study's bts.scale 0.55)" in line and "size effect" in line
     line = study_scale_note("bts", [("bts", bts_geometry(scale=0.4))])

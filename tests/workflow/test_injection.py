@@ -23,7 +23,7 @@ def test_every_command_of_the_dag_quotes_config_text(tmp_path):
     commands = [ln.split("Shell command: ", 1)[1] for ln in text.splitlines()
                 if "Shell command: " in ln and not ln.endswith("Shell command: None")]
     rules = {c.split()[1] for c in commands}
-    assert {"design", "ucs", "gather", "screen", "regress", "calibrate", "verify", "scatter",
+    assert {"design", "sample", "ucs", "gather", "screen", "regress", "calibrate", "verify", "scatter",
             "verification-tables", "sweep-plan", "sweep-analyse", "impact", "impact-analyse",
             "report"} <= rules, rules
     for c in commands:

@@ -38,6 +38,6 @@ def test_every_priority_is_its_rules_own_and_used():
 def test_the_loops_start_before_the_one_test_jobs():
     pri = _priority()
     loops = ("posterior_predictive", "verify", "transfer", "posterior", "fresh_seeds")
-    single = ("ucs", "triaxial", "sweep_ucs")
+    single = ("sample", "triaxial", "sweep_ucs")
     assert min(pri[k] for k in loops) > max(pri[k] for k in single), pri
     assert all(v > 0 for v in pri.values())  # above the analysis jobs' default 0

@@ -2,7 +2,7 @@
 
 Runs the bpmcal smoke study (4 samples) with
 ``snakemake --executor slurm --workflow-profile workflow/profiles/slurm`` and checks that
-the ``ucs`` jobs really went through sbatch (the job id is in each run file's provenance),
+the ``sample`` jobs really went through sbatch (the job id is in each run file's provenance),
 grouped, that the cheap rules ran locally, and that the cluster is gone afterwards.
 """
 
@@ -34,8 +34,8 @@ def test_profile_keys_are_valid_snakemake_options():
     assert not set(profile) - known, f"unknown profile keys: {set(profile) - known}"
     assert profile["executor"] == "slurm"
     assert profile["slurm-status-command"] == "squeue"
-    assert profile["groups"] == {"ucs": "ucs_batch"}  # a sample job: UCS and Brazilian test
-    assert profile["group-components"]["ucs_batch"] > 1
+    assert profile["groups"] == {"sample": "sample_batch"}  # a sample job: UCS and Brazilian test
+    assert profile["group-components"]["sample_batch"] > 1
     assert "slurm_partition" not in profile["default-resources"]  # left to the user
     assert "slurm_account" not in profile["default-resources"]
 
@@ -101,8 +101,8 @@ def test_smoke_study_runs_through_sbatch(local_slurm, tmp_path):
         [
             "results/dataset.csv",  # the sample stage: the part that goes to the cluster
             "--jobs", "4",
-            # two batches of two ucs jobs: several submissions, each holding several jobs
-            "--group-components", "ucs_batch=2",
+            # two batches of two sample jobs: several submissions, each holding several jobs
+            "--group-components", "sample_batch=2",
             # first status check after 2 s instead of the profile's 5 s
             "--slurm-init-seconds-before-status-checks", "2",
             "--seconds-between-status-checks", "2",
@@ -134,7 +134,7 @@ def test_smoke_study_runs_through_sbatch(local_slurm, tmp_path):
     submitted = run.slurm_job_ids
     assert submitted, "no 'has been submitted with SLURM jobid' lines" + diagnostics
     assert set(ids_in_outputs.values()) == set(submitted), diagnostics
-    # grouping: fewer submissions than ucs jobs (2 batches of 2 here)
+    # grouping: fewer submissions than sample jobs (2 batches of 2 here)
     assert len(submitted) < N_SAMPLES, diagnostics
     assert len(set(submitted)) == len(submitted) == 2, diagnostics
     # each batch was sized for serial execution inside its allocation (profile `cores: 1`):
@@ -144,10 +144,10 @@ def test_smoke_study_runs_through_sbatch(local_slurm, tmp_path):
         info = cluster.run("scontrol", "show", "job", "-o", jobid).stdout
         assert "NumCPUs=1 " in info and "TimeLimit=00:10:00 " in info, info
 
-    # only the ucs batches went to Slurm (gather is a local rule)
+    # only the sample batches went to Slurm (gather is a local rule)
     slurm_logs = wf / ".snakemake" / "slurm_logs"
     log_dirs = [p.name for p in slurm_logs.iterdir()]  # group_<group>_<rules>
-    assert log_dirs and all(name.startswith("group_ucs_batch") for name in log_dirs), diagnostics
+    assert log_dirs and all(name.startswith("group_sample_batch") for name in log_dirs), diagnostics
 
     # the cluster goes away completely
     pids = dict(cluster.pids)
@@ -162,5 +162,5 @@ def test_smoke_study_runs_through_sbatch(local_slurm, tmp_path):
     print(
         f"Slurm part: bring-up {cluster.bringup_seconds:.1f} s + snakemake {run.seconds:.1f} s"
         f" + tear-down {stop_seconds:.1f} s = {cluster.bringup_seconds + run.seconds + stop_seconds:.1f} s;"
-        f" {len(submitted)} submissions for {N_SAMPLES} ucs jobs"
+        f" {len(submitted)} submissions for {N_SAMPLES} sample jobs"
     )

@@ -99,7 +99,7 @@ def test_smoke_study_gathers_every_sample(smoke):
     for c in ("rmin_mm", "porosity", "pb_emod_GPa", "seed"):
         assert (ds[c].to_numpy() == design[c].to_numpy()).all()
     for sid in ds["sample_id"]:
-        log = (out / "logs" / "ucs" / f"{sid}.log").read_text()  # the sample job: both tests
+        log = (out / "logs" / "sample" / f"{sid}.log").read_text()  # the sample job: both tests
         assert f"ucs/{sid}.h5" in log and f"bts/{sid}.h5" in log, log[-2000:]
 
 
@@ -524,9 +524,9 @@ def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
 
 # -- a changed config key reruns exactly the jobs that read it -------------------------------
 #: DEM rules and the config sections they read (their params: specimen_args, --bts-*)
-_DEM = {"ucs", "sweep_ucs", "verify", "transfer", "seed_scatter", "fresh_seeds", "impact",
+_DEM = {"sample", "sweep_ucs", "verify", "transfer", "seed_scatter", "fresh_seeds", "impact",
         "triaxial"}
-_AXIAL = _DEM - {"impact"}  # the ucs section: the rules that load a cylinder axially
+_AXIAL = _DEM - {"impact"}  # the compression section: the rules that load a cylinder axially
 _CAL = {"calibrate_initial", "calibrate"}
 _VERIFY = {"verify"}
 #: config key -> (a changed value, the rules whose jobs read it). A dry run after the change
@@ -562,14 +562,14 @@ RERUN = {
     # the UCS test's approach: the jobs that run a UCS test (not the triaxial ones)
     "compression.approach_velocity": (0.09, _AXIAL - {"triaxial"}),
     "compression.approach_ramp": (4.0, _AXIAL - {"triaxial"}),
-    **{f"bts.{k}": (v, {"ucs", "fresh_seeds"}) for k, v in {  # fresh_seeds: every card's σt
+    **{f"bts.{k}": (v, {"sample", "fresh_seeds"}) for k, v in {  # fresh_seeds: every card's σt
         "enabled": False, "scale": 0.43, "diameter_mm": 51.0, "thickness_mm": 26.0,
         "loading": "jaws", "jaw_ratio": 1.4, "contact_cap": 1.4,
         "contact_cap_factor": 999.0, "central_zone": 0.45, "retests": 1, "platen_velocity": 0.051,
         "approach_velocity": 0.11, "approach_damage": 0.007, "platen_fric": 0.31,
         "damping": 0.71, "stop_drop": 0.21,
         "max_strain": 0.051, "record_strain": 1.1e-5, "post_peak_strain": 0.00031}.items()},
-    "dtt.enabled": (True, {"ucs"}),  # the sample jobs gain the test
+    "dtt.enabled": (True, {"sample"}),  # the sample jobs gain the test
     **{f"dtt.{k}": (v, set()) for k, v in {  # off in the smoke study: nothing reads them
         "scale": 0.31, "grip_velocity": 0.011, "grip_length": 0.21, "grip_clearance": 1.1,
         "damping": 0.71, "stop_drop": 0.21, "post_peak_strain": 0.00011, "max_strain": 0.021,
@@ -646,7 +646,7 @@ RERUN = {
     "triaxial.servo_alpha": (0.7, {"triaxial", "posterior_predictive"}),
     "triaxial.seed": (2, {"triaxial", "posterior_predictive"}),
     "triaxial.lab_csv": ("config/lab/gs_triaxial.csv", {"triaxial_envelopes"}),
-    "triaxial.design_sigma3_MPa": (10.0, {"ucs"}),  # the sample jobs gain the test
+    "triaxial.design_sigma3_MPa": (10.0, {"sample"}),  # the sample jobs gain the test
     "triaxial.design_stop_drop": (0.85, set()),  # no design triaxial test in the smoke study
     "posterior.enabled": (False, set()),  # its jobs leave the DAG: the report only
     **{f"posterior.{k}": (v, {"posterior"}) for k, v in {

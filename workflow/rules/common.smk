@@ -46,7 +46,7 @@ PRIORITY = {
     "fresh_seeds": 40,
     "impact": 30,
     "seed_scatter": 25,
-    "ucs": 20,
+    "sample": 20,
     "triaxial": 20,
     "sweep_ucs": 10,
 }
@@ -101,11 +101,11 @@ def beside(*files):
 
 
 def specimen_args(cfg=config, scale=None, loading=True, ucs=True):
-    """bpmcal ucs/impact options of the specimen, loading (the compression section; ``loading``
-    False for a job that does not load a cylinder axially: the impact; ``ucs`` False for
-    one that runs no UCS test, without the UCS test's approach: the triaxial tests) and
-    resources sections, as a list of arguments (for {params.opts:q}: each one is
-    shell-quoted).
+    """bpmcal sample/ucs/impact options of the specimen, loading (the compression section;
+    ``loading`` False for a job that does not load a cylinder axially: the impact; ``ucs``
+    False for one that runs no UCS test, without the UCS test's approach: the triaxial
+    tests) and resources sections, as a list of arguments (for {params.opts:q}: each one
+    is shell-quoted).
     A job's params hold only what it reads, so that a changed key reruns exactly those
     jobs (tests/workflow/test_smoke.py, the rerun map)."""
     sp, u, r = cfg["specimen"], cfg["compression"], cfg["resources"]
@@ -148,7 +148,7 @@ def specimen_args(cfg=config, scale=None, loading=True, ucs=True):
 
 
 def bts_args(cfg=config):
-    """The --bts-* options of bpmcal ucs/verify/transfer from the bts section: every
+    """The --bts-* options of bpmcal sample/verify/transfer from the bts section: every
     Brazilian test of the study (the samples' and, for a card with a tensile strength
     target, the closed loops') runs with the same disc and loading."""
     b = cfg["bts"]
@@ -162,7 +162,7 @@ def bts_args(cfg=config):
 
 
 def tri_args(cfg=config):
-    """The --tri-* options of bpmcal ucs/verify/transfer/fresh-seeds: the triaxial test at
+    """The --tri-* options of bpmcal sample/verify/transfer/fresh-seeds: the triaxial test at
     the design confinement (triaxial.design_sigma3_MPa) on the UCS cylinder and loading.
     """
     t = cfg["triaxial"]
@@ -177,7 +177,7 @@ def tri_args(cfg=config):
 
 
 def dtt_args(cfg=config):
-    """The --dtt-* options of bpmcal ucs/verify/transfer/fresh-seeds from the dtt section: the
+    """The --dtt-* options of bpmcal sample/verify/transfer/fresh-seeds from the dtt section: the
     direct-tension test of every sample and, for a card with a dtt_MPa target, of the
     closed loops (the UCS cylinder at dtt.scale)."""
     d = cfg["dtt"]

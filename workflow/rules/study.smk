@@ -1,4 +1,4 @@
-# The spine of the study: design -> one job per sample (its UCS test and, with
+# The spine of the study: design -> one job per sample (rule sample: its UCS test and, with
 # bts.enabled / dtt.enabled, its Brazilian / direct-tension test, with
 # triaxial.design_sigma3_MPa its triaxial test at that confinement) -> gathered dataset.
 # A sample whose DEM run fails writes a failure record (--failed-ok: exit 0), so the DAG
@@ -22,21 +22,21 @@ rule design:
         "--optimization {params.opt:q} --out {output:q} > {log:q} 2>&1"
 
 
-rule ucs:
+rule sample:
     input:
         FILES.design,
     output:
         ucs=FILES.ucs_run("{sample}"),
         # with bts.enabled, the sample's Brazilian test runs in the same job (one process
-        # start-up for both; `bpmcal ucs --bts-out`): a sample job writes both run files
+        # start-up for both; `bpmcal sample --bts-out`): a sample job writes both run files
         bts=FILES.bts_run("{sample}") if BTS_ON else [],
         dtt=FILES.dtt_run("{sample}") if DTT_ON else [],
         tri=FILES.tri_run("{sample}") if TRI_ON else [],
     log:
-        FILES.log("ucs", "{sample}"),
+        FILES.log("sample", "{sample}"),
     wildcard_constraints:
         sample=r"s\d+",
-    priority: PRIORITY["ucs"]
+    priority: PRIORITY["sample"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["dem_threads"]
@@ -54,7 +54,7 @@ rule ucs:
         tri_opts=tri_args() if TRI_ON else [],
         tri_out=lambda wc, output: ["--tri-out", output.tri] if TRI_ON else [],
     shell:
-        "bpmcal ucs --design {input:q} --sample {wildcards.sample:q} --out {output.ucs:q} "
+        "bpmcal sample --design {input:q} --sample {wildcards.sample:q} --out {output.ucs:q} "
         "--threads {threads} --failed-ok {params.opts:q} {params.bts_out:q} "
         "{params.bts_opts:q} {params.dtt_out:q} {params.dtt_opts:q} "
         "{params.tri_out:q} {params.tri_opts:q} > {log:q} 2>&1"

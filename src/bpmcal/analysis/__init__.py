@@ -7,8 +7,9 @@
   :class:`StepwiseResults` of :class:`RegressionModel` objects.
 - :mod:`.calibration` — inversion of the models for lab targets (:func:`invert`),
   bootstrap intervals (:func:`bootstrap_intervals`), Newton-Broyden closed loop with the
-  simulator (:class:`ClosedLoop`) and the seed-scatter check (:func:`scatter_table`, formerly
-  ``seed_scatter``); a package, its method in ``docs/methods/calibration.md``.
+  simulator (:class:`ClosedLoop`) and the scatter table of a tolerance against the
+  packing-seed noise (:func:`scatter_table`); a package, its method in
+  ``docs/methods/calibration.md``.
 
 Each analysis uses only dataset rows with ``status == "ok"`` and reports how many it dropped.
 """
@@ -23,7 +24,6 @@ from .calibration import (
     bootstrap_intervals,
     invert,
     scatter_table,
-    seed_scatter,
 )
 from .screening import (
     DEFAULT_XGB_PARAMS,
@@ -47,5 +47,5 @@ __all__ = [
     "XGBScreening", "ScreeningResults", "table3", "table3_markdown", "IMPORTANCE_TYPES", "DEFAULT_XGB_PARAMS",
     "StepwiseRegression", "StepwiseResults", "RegressionModel", "fit_terms", "models_from_dict", "vif",
     "STAGES", "invert", "InversionResult", "bootstrap_intervals", "BootstrapResults", "ClosedLoop",
-    "ClosedLoopResult", "scatter_table", "seed_scatter", "PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE",
+    "ClosedLoopResult", "scatter_table", "PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE",
 ]

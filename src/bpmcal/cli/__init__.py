@@ -1,6 +1,7 @@
 """The ``bpmcal`` command: one subcommand per job of the study (workflow rules call these).
 
     bpmcal ucs --params FILE.yaml --out RUN.h5 [--set NAME=VALUE ...] [--scale S] [--seed N]
+    bpmcal sample --design DESIGN.csv --sample ID --out UCS.h5 [--bts-out BTS.h5] [--dtt-out ...]
     bpmcal bts --params FILE.yaml --out RUN.h5 [--scale S] [--seed N] [--platen-velocity V]
     bpmcal dtt --params FILE.yaml --out RUN.h5 [--scale S] [--seed N] [--grip-velocity V]
     bpmcal triaxial --params FILE.yaml --sigma3 MPA --out RUN.h5 [--scale S] [--seed N]
@@ -22,8 +23,8 @@ one I/O helper. This module holds ``main``, the registry ``COMMANDS`` and
 ``build_parser``; the subcommands are grouped by family, each ``_add_<cmd>`` (its options)
 directly above its ``cmd_<cmd>`` (its handler):
 
-- ``cli.runs``: the DEM runs ``ucs``, ``bts``, ``dtt``, ``triaxial``, ``impact``, and
-  ``summary``, ``vtk``;
+- ``cli.runs``: the DEM runs ``ucs``, ``bts``, ``dtt``, ``triaxial``, ``impact``, the
+  study's sample job ``sample``, and ``summary``, ``vtk``;
 - ``cli.study``: ``design``, ``gather``, ``screen``, ``regress``, ``calibrate``,
   ``sweep-plan``, ``sweep-analyse``, ``report``;
 - ``cli.verification``: ``verify``, ``transfer``, ``transfer-table``, ``scatter``,
@@ -36,7 +37,7 @@ directly above its ``cmd_<cmd>`` (its handler):
 Every default comes from the settings it sets (the lab tests' settings dataclasses,
 ``Geometry``, the analysis classes and the stage functions: :func:`defaults_of`), never a
 literal here. Each ``_add_<cmd>`` imports what that command needs, and ``main`` builds only
-the parser of the command it runs: a DEM job (``bpmcal ucs``, 150 per study) does not load
+the parser of the command it runs: a DEM job (``bpmcal sample``, 150 per study) does not load
 xgboost, statsmodels or matplotlib (tested: ``tests/cli/test_imports.py``).
 """
 from __future__ import annotations
@@ -72,7 +73,16 @@ from .options import (
     run_settings,
 )
 from .posterior import _add_posterior, _add_predictive
-from .runs import _add_bts, _add_dtt, _add_impact, _add_summary, _add_triaxial, _add_ucs, _add_vtk
+from .runs import (
+    _add_bts,
+    _add_dtt,
+    _add_impact,
+    _add_sample,
+    _add_summary,
+    _add_triaxial,
+    _add_ucs,
+    _add_vtk,
+)
 from .study import (
     _add_calibrate,
     _add_design,
@@ -124,6 +134,9 @@ COMMANDS = {
     "dtt": ("one virtual direct-tension test -> HDF5", _add_dtt, True),
     "triaxial": ("one virtual triaxial compression test -> HDF5", _add_triaxial, True),
     "impact": ("drop-hammer impact of a calibrated specimen", _add_impact, False),
+    "sample": ("the study's sample job: a design sample's UCS test and, in the same process, "
+               "its Brazilian, direct-tension and triaxial tests -> HDF5 each", _add_sample,
+               True),
     "design": ("Latin-hypercube design over parameter ranges -> CSV", _add_design, False),
     "gather": ("collect per-sample run files into one dataset CSV", _add_gather, False),
     "screen": ("XGBoost screening of the dataset (Table 3)", _add_screen, False),

@@ -1,5 +1,7 @@
 """Subcommands that run one DEM test and write its run file: ``ucs``, ``bts``, ``dtt``,
-``triaxial``, ``impact``; and the two that read a run file: ``summary``, ``vtk``.
+``triaxial``, ``impact``; the study's sample job, ``sample`` (a UCS test and, in the same
+process, the sample's Brazilian, direct-tension and triaxial tests); and the two that read
+a run file: ``summary``, ``vtk``.
 
 Each ``_add_<cmd>`` (its options) stands directly above its ``cmd_<cmd>`` (the handler).
 A failed run writes its failure record and exits 3 (0 with ``--failed-ok``).
@@ -93,13 +95,14 @@ def _note(args, cmd: str, tests) -> None:
 def _lab_test(args, test: str, geometry, settings, done_line) -> int:
     """``ucs``, ``bts``, ``dtt`` and ``triaxial``: the run file
     (``stages.runs.lab_test_file``), its one-line result and the exit code."""
-    return _lab_tests(args, [(test, args.out, geometry, settings, done_line)])
+    return _lab_tests(args, test, [(test, args.out, geometry, settings, done_line)])
 
 
-def _lab_tests(args, tests, flags=None) -> int:
+def _lab_tests(args, cmd: str, tests, flags=None) -> int:
     """Lab tests of one parameter set in one process (``stages.runs.lab_test_files``;
-    ``tests``: (test, out, geometry, settings, done_line)): their run files, a one-line
-    result each, and the exit code (that of the first test that did not succeed)."""
+    ``tests``: (test, out, geometry, settings, done_line)) for the command ``cmd``: their
+    run files, a one-line result each, and the exit code (that of the first test that did
+    not succeed)."""
     from ..stages.runs import lab_test_files
 
     progs = [Progress(f"{t} {Path(o).name}", enabled=not args.quiet) for t, o, *_ in tests]
@@ -112,33 +115,15 @@ def _lab_tests(args, tests, flags=None) -> int:
     for (test, path, _, _, done_line), prog, out in zip(tests, progs, outs):
         prog.done(f"{path}: {done_line(out.summary)}" if out.status == "ok" and out.summary
                   else "")
-        r = _run_done(args, test, out, path)
+        r = _run_done(args, cmd, out, path)
         rc = r if rc == EXIT_OK else rc
-    _note(args, tests[0][0], [(t, g) for t, _, g, *_ in tests])
+    _note(args, cmd, [(t, g) for t, _, g, *_ in tests])
     return rc
 
 
 def _add_ucs(p):
     add_source_args(p)
     add_run_args(p)
-    p.add_argument("--bts-out", default=None,
-                   help="also run the Brazilian test of the same parameters and packing seed "
-                        "(the --bts-* options below; the disc at --scale with the cylinder's "
-                        "genesis options) into this HDF5 file, in the same process after the "
-                        "UCS test: the study's sample job (one start-up instead of two); each "
-                        "test writes its run file or failure record")
-    add_bts_args(p, "bts_")
-    p.add_argument("--dtt-out", default=None,
-                   help="also run the direct-tension test of the same parameters and packing "
-                        "seed (the --dtt-* options below; the cylinder of --diameter x "
-                        "--height at --dtt-scale) into this HDF5 file, after the other tests")
-    add_dtt_args(p, "dtt_")
-    p.add_argument("--tri-out", default=None,
-                   help="also run a triaxial test of the same parameters and packing seed at "
-                        "--design-sigma3 (the UCS cylinder and loading) into this HDF5 file, "
-                        "after the other tests: the study's triaxial strength of every "
-                        "sample (triaxial.design_sigma3_MPa)")
-    add_tri_args(p)
     add_outcome_args(p)
     p.set_defaults(func=cmd_ucs)
 
@@ -152,9 +137,42 @@ def _ucs_line(s):
 
 def cmd_ucs(args) -> int:
     _import_runs()
+    return _lab_test(args, "ucs", run_geometry(args), run_settings(args), _ucs_line)
+
+
+def _add_sample(p):
+    add_source_args(p)
+    add_run_args(p)
+    p.add_argument("--bts-out", default=None,
+                   help="also run the Brazilian test of the same parameters and packing seed "
+                        "(the --bts-* options below; the disc at --scale with the cylinder's "
+                        "genesis options) into this HDF5 file, in the same process after the "
+                        "UCS test (one start-up instead of two); each test writes its run "
+                        "file or failure record")
+    add_bts_args(p, "bts_")
+    p.add_argument("--dtt-out", default=None,
+                   help="also run the direct-tension test of the same parameters and packing "
+                        "seed (the --dtt-* options below; the cylinder of --diameter x "
+                        "--height at --dtt-scale) into this HDF5 file, after the other tests")
+    add_dtt_args(p, "dtt_")
+    p.add_argument("--tri-out", default=None,
+                   help="also run a triaxial test of the same parameters and packing seed at "
+                        "--design-sigma3 (the UCS cylinder and loading) into this HDF5 file, "
+                        "after the other tests: the study's triaxial strength of every "
+                        "sample (triaxial.design_sigma3_MPa)")
+    add_tri_args(p)
+    add_outcome_args(p)
+    p.set_defaults(func=cmd_sample)
+
+
+def cmd_sample(args) -> int:
+    """The study's sample job (the workflow's rule ``sample``): the UCS test into --out and,
+    in the same process on the same packing seed, the Brazilian, direct-tension and
+    triaxial tests asked for (--bts-out, --dtt-out, --tri-out)."""
+    _import_runs()
     tests = [("ucs", args.out, run_geometry(args), run_settings(args), _ucs_line)]
     flags = ["--out"]
-    if args.bts_out is not None:  # the study's sample job: the Brazilian test in this process
+    if args.bts_out is not None:  # the Brazilian test in this process
         tests.append(("bts", args.bts_out, bts_disc_of(args, "bts_"),
                       bts_settings_of(args, "bts_"), _bts_line))
         flags.append("--bts-out")
@@ -169,7 +187,7 @@ def cmd_ucs(args) -> int:
         tests.append(("triaxial", args.tri_out, run_geometry(args), tri_settings_of(args),
                       _tri_line))
         flags.append("--tri-out")
-    return _lab_tests(args, tests, flags=flags)
+    return _lab_tests(args, "sample", tests, flags=flags)
 
 
 def _add_bts(p):

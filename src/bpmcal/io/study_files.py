@@ -196,7 +196,7 @@ class StudyFiles:
         return self.path("cache", "packings")
 
     def log(self, *name: str) -> str:
-        """``logs/<name>.log`` (``log("ucs", "s007")`` -> ``logs/ucs/s007.log``)."""
+        """``logs/<name>.log`` (``log("sample", "s007")`` -> ``logs/sample/s007.log``)."""
         return self.path("logs", *name[:-1], f"{name[-1]}.log")
 
     # ---------------------------------------------------------------- tables, figures

@@ -24,7 +24,7 @@ from ..params import SAMPLE_TESTS
 from .journal import RunJournal, plain
 from .measure import (
     RUNNERS,
-    TENSILE_TESTS,
+    TENSILE_TEST_NAMES,
     SpecimenRun,
     combine_specimens,
     row_strength,
@@ -72,7 +72,7 @@ class LoopRuns:
         self.bts_paths: list[list[Path]] = []
         self._last: dict | None = None
         self.caps, self.first_seed = dict(caps or {}), int(first_seed)
-        self.tensile = next((r for r in targets if SAMPLE_TESTS.get(r) in TENSILE_TESTS), None)
+        self.tensile = next((r for r in targets if SAMPLE_TESTS.get(r) in TENSILE_TEST_NAMES), None)
         self.seed_cv = seed_cv if self.tensile is not None else None
         self.max_specimens = max(int(max_specimens or tensile_specimens), tensile_specimens)
         self.start_specimens = int(tensile_specimens)

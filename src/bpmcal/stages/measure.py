@@ -26,7 +26,7 @@ import numpy as np
 
 from ..io.checks import BadInput
 from ..lab.runner import bts_geometry as _isrm_disc
-from ..params import SAMPLE_TESTS
+from ..params import SAMPLE_TESTS, TENSILE_TESTS
 from .runs import run_bts_file, run_dtt_file, run_triaxial_file, run_ucs_file
 
 #: an invalid Brazilian test (its fracture did not start in the central zone) is no
@@ -37,7 +37,8 @@ BTS_REPLACEMENT_STRIDE = 100_000
 BTS_MAX_REPLACEMENTS = 3
 
 
-#: the tensile tests (``P.SAMPLE_TESTS``) whose strength a seed may measure on several
+#: the tensile tests by their test names (``bts``, ``dtt``: the values of
+#: ``params.TENSILE_TESTS``, response -> test), whose strength a seed may measure on several
 #: specimens (``tensile_specimens``): specimen j of packing seed s is packed with
 #: ``replicate_seed(s, j)`` = s + j x TENSILE_REPLICATE_STRIDE (j = 0: s itself, the UCS
 #: test's packing). Its packing may move on twice: a replacement as above (+ m x
@@ -47,7 +48,7 @@ BTS_MAX_REPLACEMENTS = 3
 #: (:func:`packing_seed_gap`: the smallest difference of two offsets is the replacement
 #: stride, 100,000) and below 2**32. (It was 1,000,000: then a retest of seed s, s +
 #: 1,000,003, was specimen 1 of seed s + 3, and two seeds shared that disc.)
-TENSILE_TESTS = ("bts", "dtt")
+TENSILE_TEST_NAMES: tuple[str, ...] = tuple(TENSILE_TESTS.values())
 TENSILE_REPLICATE_STRIDE = 20_000_003
 MAX_TENSILE_SPECIMENS = 50
 
@@ -178,10 +179,10 @@ def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, setting
                   specimens: int = 1, start: int = 0, **kw):
     """The strength ``resp`` (``P.SAMPLE_TESTS``) of packing ``seed``: with ``specimens``
     = 1 its test's (:func:`valid_tensile_run`); a tensile strength (σt: Brazilian or
-    direct tension, ``TENSILE_TESTS``) with ``specimens`` = n > 1 the mean of n specimens,
-    packed with ``replicate_seed(seed, j)``, j = 0 .. n-1, each valid or replaced as one
-    test is, as a laboratory states σt as the mean of several specimens: the seed's σt
-    then scatters sqrt(n) times less from packing to packing, at n tests' cost.
+    direct tension, ``TENSILE_TEST_NAMES``) with ``specimens`` = n > 1 the mean of n
+    specimens, packed with ``replicate_seed(seed, j)``, j = 0 .. n-1, each valid or
+    replaced as one test is, as a laboratory states σt as the mean of several specimens:
+    the seed's σt then scatters sqrt(n) times less from packing to packing, at n tests' cost.
     ``path_of(j, s, k)`` names the run file of specimen j's attempt k on packing s. The
     mean is NaN when a specimen failed or had no valid test (a seed is measured on all n,
     or it has no σt). ``start`` = m > 0 runs specimens m .. n-1 only (a seed's count
@@ -193,9 +194,9 @@ def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, setting
     alike
     (:func:`combine_specimens`)."""
     test = SAMPLE_TESTS[resp]
-    if specimens > 1 and test not in TENSILE_TESTS:
+    if specimens > 1 and test not in TENSILE_TEST_NAMES:
         raise BadInput(f"tensile specimens {specimens}: only a tensile strength "
-                       f"({', '.join(TENSILE_TESTS)}) is measured on several specimens, "
+                       f"({', '.join(TENSILE_TEST_NAMES)}) is measured on several specimens, "
                        f"not {resp}")
     runs = []
     for j in range(start, specimens):
@@ -207,7 +208,7 @@ def seed_strength(resp: str, path_of, params: dict, seed: int, geometry, setting
 
 def specimens_of(resp: str, tensile_specimens: int) -> int:
     """How many specimens measure ``resp`` on a seed (a tensile test's count; one else)."""
-    return tensile_specimens if SAMPLE_TESTS[resp] in TENSILE_TESTS else 1
+    return tensile_specimens if SAMPLE_TESTS[resp] in TENSILE_TEST_NAMES else 1
 
 
 def specimen_text(values) -> str:
@@ -235,7 +236,7 @@ def row_strength(row: dict, resp: str, path_of, params: dict, seed: int, geometr
     ``;``-separated, MPa; NaN: failed or no valid test). Returns (the outcome
     :func:`seed_strength` returns, the invalid attempts' reasons)."""
     test = SAMPLE_TESTS[resp]
-    n = tensile_specimens if test in TENSILE_TESTS else 1
+    n = tensile_specimens if test in TENSILE_TEST_NAMES else 1
     b, used, invalid, row[resp], values = seed_strength(resp, path_of, params, seed, geometry,
                                                         settings, specimens=n, **kw)
     row[f"{test}_seed"], row[f"{test}_invalid"] = used, len(invalid)

@@ -1,25 +1,25 @@
 """DEM run files: one virtual lab test (``bpmcal.lab.runner``) written to one HDF5 file
 (``bpmcal.io.h5``), or its failure record.
 
-``run_ucs_file`` is what ``bpmcal ucs`` and the workflow's ``ucs`` and ``sweep_ucs`` rules
-call; ``run_bts_file``, ``run_dtt_file``, ``run_triaxial_file`` and ``run_impact_file`` the
-same for the other tests. A run that failed (one of ``lab.runner.RUN_FAILURES``: numerical
-instability, a specimen that cannot be built or does not settle, a servo that does not
-converge) produces a *failure record* (status "failed" and the message) instead of an
-exception, so a study is not stopped by one bad sample; any other exception is a bug and
-propagates. A failure record never replaces a good run file: if ``out`` already holds a
-run with status "ok", the record goes beside it as ``NAME.failed.h5`` and the outcome
-says so (``kept``).
+``run_ucs_file`` is what ``bpmcal ucs`` and ``bpmcal sample`` and the workflow's
+``sample`` and ``sweep_ucs`` rules call; ``run_bts_file``, ``run_dtt_file``,
+``run_triaxial_file`` and ``run_impact_file`` the same for the other tests. A run that
+failed (one of ``lab.runner.RUN_FAILURES``: numerical instability, a specimen that cannot
+be built or does not settle, a servo that does not converge) produces a *failure record*
+(status "failed" and the message) instead of an exception, so a study is not stopped by
+one bad sample; any other exception is a bug and propagates. A failure record never
+replaces a good run file: if ``out`` already holds a run with status "ok", the record goes
+beside it as ``NAME.failed.h5`` and the outcome says so (``kept``).
 
 A run whose loading a cut-off stopped before the peak and the drop that define its measure
 (``lab.validity.incomplete_reason``) is written whole with status "incomplete" and the
 reason: it is kept for inspection but is no measurement (every reader treats any status
 other than "ok" as a failed measurement).
 
-``lab_test_file`` and ``impact_file`` are the whole jobs of ``bpmcal ucs|bts|dtt|triaxial``
-and ``bpmcal impact``: where the parameters come from (a parameter file or material card,
-``--set`` overrides, or a design row), the resource budget and the output, all checked
-before any work.
+``lab_test_file``, ``lab_test_files`` and ``impact_file`` are the whole jobs of
+``bpmcal ucs|bts|dtt|triaxial``, ``bpmcal sample`` and ``bpmcal impact``: where the
+parameters come from (a parameter file or material card, ``--set`` overrides, or a design
+row), the resource budget and the output, all checked before any work.
 """
 from __future__ import annotations
 
@@ -341,7 +341,7 @@ def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None
                    flags=None, contact_model=None) -> list[RunOutcome]:
     """Several lab tests of one parameter set and packing seed in one process, one after
     the other: ``tests`` is a list of ``(test, out, geometry, settings)``. The study's
-    sample job runs the UCS test and the Brazilian test this way (``bpmcal ucs
+    sample job runs the UCS test and the Brazilian test this way (``bpmcal sample
     --bts-out``): one process start-up (imports, numba's cached kernels) instead of two,
     about 1 s of a ~2.5 s Brazilian job. Every input of every test (budget, output path)
     is checked before the first one runs; each test writes its own run file or failure

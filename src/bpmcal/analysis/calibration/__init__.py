@@ -15,24 +15,13 @@ The package holds one concept per module:
   driver; its step rule (the Jacobian, its updates, the step and the trust region) in
   :mod:`.step_rule`, its seed-set policy (the seeds a round runs, its judgement, when
   the set grows) in :mod:`.seed_policy`;
-- :mod:`.scatter` — :func:`scatter_table` (formerly ``seed_scatter``), the packing-seed
-  noise floor of a tolerance.
-
-Every name importers used from the former single module ``calibration.py`` is
-re-exported here (``_Space`` is the former name of :class:`CalibrationSpace`).
+- :mod:`.scatter` — :func:`scatter_table`, the packing-seed noise floor of a tolerance
+  (the seed scatter job that runs the DEM for it is ``bpmcal.stages.seed_scatter``).
 """
 from .bootstrap import BootstrapResults, bootstrap_intervals
 from .closed_loop import ClosedLoop, ClosedLoopResult
-from .closed_loop import _outside as _outside
-from .fit import _fit as _fit
-from .fit import _fmt_pct as _fmt_pct
-from .fit import _lhs as _lhs
 from .inversion import InversionResult, invert
-from .inversion import _bts_reach as _bts_reach
-from .scatter import scatter_table, seed_scatter
-from .space import _COH as _COH
-from .space import _EDGE as _EDGE
-from .space import _TEN as _TEN
+from .scatter import scatter_table
 from .space import (
     DEFAULT_FREE,
     PAPER_FIXED,
@@ -42,17 +31,8 @@ from .space import (
     check_calibration_space,
     tensile_target,
 )
-from .space import _check_ranges as _check_ranges
-from .space import _check_targets as _check_targets
-from .space import _default_free as _default_free
-from .space import _inside as _inside
 from .step_rule import UPDATES
-from .widen import _EXTEND as _EXTEND
-from .widen import _what_to_widen as _what_to_widen
-
-#: the former name of :class:`CalibrationSpace`
-_Space = CalibrationSpace
 
 __all__ = ["UPDATES", "PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "tensile_target", "bts_strengths",
            "CalibrationSpace", "check_calibration_space", "InversionResult", "invert", "BootstrapResults",
-           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "scatter_table", "seed_scatter"]
+           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "scatter_table"]

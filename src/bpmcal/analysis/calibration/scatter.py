@@ -2,10 +2,10 @@
 
 One parameter set simulated with several packing seeds: per response the coefficient of
 variation, the standard error of one closed-loop evaluation and the noise floor 2 SE;
-a tolerance below that floor would make the loop chase packing noise. The stage that
-runs the DEM for it is ``bpmcal.stages.seed_scatter.seed_scatter``; this is the pure
-table (formerly also named ``seed_scatter``, still importable under that name). With
-``n_per_round`` seeds averaged per round the standard error shrinks by sqrt(n).
+a tolerance below that floor would make the loop chase packing noise. The job that runs
+the DEM for it, the seed scatter, is ``bpmcal.stages.seed_scatter.seed_scatter``; this is
+the pure table. With ``n_per_round`` seeds averaged per round the standard error shrinks
+by sqrt(n).
 
 The method: ``docs/methods/calibration.md`` (section "Closed loop").
 """
@@ -54,8 +54,3 @@ def scatter_table(sims: pd.DataFrame | Sequence[Mapping[str, float]],
         recs.append({"response": r, "n": len(v), "mean": mean, "std": std, "cv": cv, "se": se,
                      "noise_floor": 2 * se, "rtol": tol, "noise_limited": tol < 2 * se})
     return pd.DataFrame.from_records(recs).set_index("response")
-
-
-
-#: the former name of :func:`scatter_table`
-seed_scatter = scatter_table
