@@ -81,6 +81,7 @@ class Ledger:
         self.worker_steps: dict[str, int] = {}
         self.worker_calls: dict[str, int] = {}
         self.begun = False
+        self._loose_kids = 0.0  # time of the phases closed with none open around them
 
     def path(self) -> str:
         """The path of the innermost open phase ("" when none is open)."""
@@ -110,6 +111,8 @@ class Ledger:
             self.calls[ph.path] = self.calls.get(ph.path, 0) + 1
         if stack:
             stack[-1].kids += dt
+        else:
+            self._loose_kids += dt  # booked at the top level (engine_end reads it)
 
     def engine(self, ball_steps: int) -> _Phase:
         """The phase ``engine`` inside the open one, booking ``ball_steps`` (a model's
@@ -118,18 +121,24 @@ class Ledger:
         ph.steps = int(ball_steps)
         return ph
 
-    @staticmethod
-    def engine_start() -> float:
+    def engine_start(self) -> tuple:
         """The clock before a call of the engine (:meth:`engine_end` books it): the same
         booking as a :meth:`engine` phase for less work (``lab.stepping.cycle`` calls the
-        engine thousands of times in a test)."""
-        return _clock()
-
-    def engine_end(self, c0: float, ball_steps: int) -> None:
-        """Book a call of the engine that began at ``c0`` (:meth:`engine_start`) and ran
-        ``ball_steps`` ball-steps to the phase ``engine`` inside the open one."""
-        dt = _clock() - c0
+        engine thousands of times in a test). Opaque to the caller: the clock and the time
+        the open phase's children had booked so far."""
         top = self.stack[-1] if self.stack else None
+        return (_clock(), top.kids if top is not None else self._loose_kids)
+
+    def engine_end(self, c0: tuple, ball_steps: int) -> None:
+        """Book a call of the engine that began at ``c0`` (:meth:`engine_start`) and ran
+        ``ball_steps`` ball-steps to the phase ``engine`` inside the open one. A phase
+        that ran and closed inside the call (numba compiling or loading a kernel at its
+        first call: the flat phase ``kernels``) keeps its own time: the engine is booked
+        the call's time less that, so no second is booked twice."""
+        t0, kids0 = c0
+        top = self.stack[-1] if self.stack else None
+        inner = (top.kids if top is not None else self._loose_kids) - kids0
+        dt = _clock() - t0 - inner
         path = top.engine if top is not None else "engine"
         self.cpu[path] = self.cpu.get(path, 0.0) + dt
         self.ball_steps[path] = self.ball_steps.get(path, 0) + ball_steps

@@ -157,3 +157,31 @@ def test_the_ledger_books_nested_phases_once(monkeypatch):
     assert second == {"cpu_s": 4.0, "phases": {"ucs": 4.0, "other": 0.0}, "ball_steps": {},
                       "calls": {"ucs": 1}}
     json.dumps(first)
+
+
+def test_a_kernel_compiled_inside_an_engine_call_is_booked_once(monkeypatch):
+    """numba compiles (or loads) a kernel at its first call, inside the engine's call of
+    lab.stepping: the flat phase ``kernels`` keeps that time, the engine the rest, and
+    the phases still sum to the process's time (a cold cache booked it twice)."""
+    from bpmcal import cost
+
+    t = [0.0]
+    monkeypatch.setattr(cost, "_clock", lambda: t[0])
+    led = cost.Ledger()
+    with led.phase("test"):
+        t[0] += 1.0
+        c0 = led.engine_start()
+        t[0] += 0.25
+        with led.phase("kernels", flat=True):  # the first call compiles
+            t[0] += 30.0
+        t[0] += 2.0
+        led.engine_end(c0, 500)
+    c0 = led.engine_start()  # outside any phase: the same
+    with led.phase("kernels", flat=True):
+        t[0] += 5.0
+    t[0] += 1.0
+    led.engine_end(c0, 100)
+    got = led.take("job")
+    assert got["phases"] == {"test": 1.0, "kernels": 35.0, "test/engine": 2.25,
+                             "engine": 1.0, "other": 0.0}
+    assert got["cpu_s"] == sum(v for k, v in got["phases"].items() if k != "other")
