@@ -11,6 +11,8 @@ The package holds one concept per module:
 - :mod:`.inversion` — :func:`invert` → :class:`InversionResult`;
 - :mod:`.widen` — which configured limit to widen when the targets are out of reach;
 - :mod:`.bootstrap` — :func:`bootstrap_intervals` → :class:`BootstrapResults`;
+- :mod:`.loop_settings` — :class:`LoopSettings`, every option of a closed loop on the
+  DEM as one validated value, and the one table of their limits;
 - :mod:`.closed_loop` — :class:`ClosedLoop` → :class:`ClosedLoopResult`, the loop's
   driver; its step rule (the Jacobian, its updates, the step and the trust region) in
   :mod:`.step_rule`, its seed-set policy (the seeds a round runs, its judgement, when
@@ -29,6 +31,7 @@ from .fit import _fmt_pct as _fmt_pct
 from .fit import _lhs as _lhs
 from .inversion import InversionResult, invert
 from .inversion import _bts_reach as _bts_reach
+from .loop_settings import UPDATES, LoopSettings
 from .scatter import scatter_table, seed_scatter
 from .space import _COH as _COH
 from .space import _EDGE as _EDGE
@@ -46,7 +49,6 @@ from .space import _check_ranges as _check_ranges
 from .space import _check_targets as _check_targets
 from .space import _default_free as _default_free
 from .space import _inside as _inside
-from .step_rule import UPDATES
 from .widen import _EXTEND as _EXTEND
 from .widen import _what_to_widen as _what_to_widen
 
@@ -55,4 +57,5 @@ _Space = CalibrationSpace
 
 __all__ = ["UPDATES", "PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "tensile_target", "bts_strengths",
            "CalibrationSpace", "check_calibration_space", "InversionResult", "invert", "BootstrapResults",
-           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "scatter_table", "seed_scatter"]
+           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "LoopSettings", "scatter_table",
+           "seed_scatter"]
