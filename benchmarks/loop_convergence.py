@@ -55,7 +55,7 @@ import pandas as pd
 from _study import record_header, write_record
 
 from bpmcal.analysis.calibration import ClosedLoop, invert
-from bpmcal.analysis.calibration.step_rule import UPDATES
+from bpmcal.analysis.calibration.loop_settings import UPDATES
 from bpmcal.analysis.stepwise import StepwiseRegression
 
 

@@ -33,6 +33,8 @@ import pandas as pd
 import yaml
 from _study import CONFIG, REPO, cpu_model, fresh_seed_lines
 
+from bpmcal.cli.options import loop_argv
+
 #: the planted card by default: Table 2 interior, strength ratio 0.8 (the study's 1.4-1.5)
 PLANTED = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=25.0, pb_kratio=2.5, pb_ten_MPa=30.0,
                pb_coh_MPa=37.5, pb_fa_deg=35.0, fric=0.35)
@@ -151,19 +153,12 @@ def main(argv=None) -> int:
               "--free", ",".join(c["free"]), "--ranges", json.dumps(cfg["ranges"]),
               "--ratio", str(c["strength_ratio"]), "--n-boot", "0", "--seed", str(c["seed"])], log)
         verified = tmp / "P1.verified.yaml"
-        # the study's adaptive tensile specimens per seed (verification.tensile_seed_cv)
-        adapt = (["--tensile-seed-cv", str(v["tensile_seed_cv"]), "--max-tensile-specimens",
-                  str(v.get("max_tensile_specimens") or v["tensile_specimens"])]
-                 if v.get("tensile_seed_cv") else [])
+        # every loop setting of the study's verification section, as the workflow passes
+        # them for a card with a σt target (the adaptive tensile specimens per seed too)
         _run(["bpmcal", "verify", "--card", str(card), "--models",
               str(study / "regression" / "models.json"), "--out-card", str(verified),
               "--rounds", str(tmp / "rounds.csv"), "--run", str(tmp / "best.h5"),
-              "--seed", str(v["seed"]), "--seeds-per-round", str(v["seeds_per_round"]),
-              "--max-seeds", str(v["max_seeds"]), "--grow-within", str(v["grow_within"]),
-              "--range-margin", str(v["range_margin"]),
-              "--rtol", str(v["rtol"]), "--max-rounds", str(v["max_rounds"]),
-              "--jacobian-update", v["jacobian_update"],
-              "--tensile-specimens", str(v["tensile_specimens"]), *adapt, *common, *bts_opts,
+              *loop_argv(v, tensile=True), *common, *bts_opts,
               *cache, *loop_threads], log)  # the fresh-seed check measures σt as the card's loop did
         seeds = [int(s) for s in v["fresh_seeds"]]
         _run(["bpmcal", "fresh-seeds", "--card", str(verified), "--seeds",

@@ -47,16 +47,19 @@ def planted_cards(n: int, cfg: dict, seed: int = 2026) -> list[dict]:
 
 
 def dem_of(cfg: dict, threads: int, cache):
+    """The DEM of the refinement runs: (the tests a seed runs, how they run)."""
+    from bpmcal.lab.run_context import RunContext
     from bpmcal.lab.runner import Geometry
-    from bpmcal.stages.posterior import DemRuns
+    from bpmcal.stages.measure import SeedTests
 
     sp = cfg["specimen"]
     geo = Geometry(scale=sp["scale"], diameter_mm=sp["diameter_mm"], height_mm=sp["height_mm"],
                    sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
                    relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
     disc, bts = bts_disc_and_settings(cfg)
-    return DemRuns(geo, ucs_settings(cfg), {"bts": (disc, bts)}, cache=cache, threads=threads,
-                   genesis_max_steps=cfg["resources"]["genesis_max_steps"])
+    return (SeedTests(geo, ucs_settings(cfg), bts_geometry=disc, bts_settings=bts),
+            RunContext(cache=cache, threads=threads,
+                       genesis_max_steps=cfg["resources"]["genesis_max_steps"]))
 
 
 def lab_targets(card: dict, dem, seeds, discs: int, folder: Path) -> tuple[dict, dict, float]:
@@ -65,8 +68,8 @@ def lab_targets(card: dict, dem, seeds, discs: int, folder: Path) -> tuple[dict,
     from bpmcal.stages.posterior import _measure
 
     t = time.time()
-    rows = pd.DataFrame(_measure(card, list(seeds), ["ucs_MPa", "E_GPa", "nu", "bts_MPa"], dem,
-                                 folder, 0, discs, None))
+    rows = pd.DataFrame(_measure(card, list(seeds), ["ucs_MPa", "E_GPa", "nu", "bts_MPa"], *dem,
+                                 folder, 0, discs))
     rows = rows[rows["status"] == "ok"]
     out, se = {}, {}
     for r in ("ucs_MPa", "E_GPa", "nu"):
@@ -112,7 +115,7 @@ def one_card(i: int, planted: dict, cfg: dict, study: Path, dem, a, folder: Path
     post = fit(runs)
 
     def measure(p, s, step):
-        return _measure(p, s, list(targets), dem, folder, step, 1, None)
+        return _measure(p, s, list(targets), *dem, folder, step, 1)
 
     post, runs, rows, hist = refine_posterior(
         post, runs, fit, RefineSettings(max_runs=a.refine, seed=7000 + 100 * i), measure, params)

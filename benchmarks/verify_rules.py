@@ -11,7 +11,9 @@ tolerances, and the CPU time; per setting, the totals.
         --markdown docs/measurements/DATE-verify-rules.md
 
 A setting is ``label:key=value,key=value`` over the config's ``verification`` keys that
-``bpmcal verify`` takes (grow_within, jacobian_update, max_rounds, max_seeds, ...). The
+``bpmcal verify`` takes (the fields of ``LoopSettings``: grow_within, jacobian_update,
+max_rounds, max_seeds, ...; each value checked as the field checks it), and the command's
+loop options are the section's (``bpmcal.cli.options.loop_argv``, as the workflow's). The
 loops are deterministic, so their rounds and runs are figures; the CPU times are those of
 one run each on the recording host, with whatever ran beside it (the load is recorded).
 """
@@ -27,22 +29,23 @@ import pandas as pd
 import yaml
 from _study import CONFIG, REPO, record_header, write_record
 
-#: config verification key -> bpmcal verify option (the keys a setting may change)
-OPTIONS = {"seed": "--seed", "seeds_per_round": "--seeds-per-round", "max_seeds": "--max-seeds",
-           "grow_within": "--grow-within", "range_margin": "--range-margin",
-           "jacobian_update": "--jacobian-update", "tensile_specimens": "--tensile-specimens",
-           "rtol": "--rtol", "max_rounds": "--max-rounds"}
+from bpmcal.analysis.calibration.loop_settings import LIMITS
+from bpmcal.cli.options import loop_argv
 
 
 def setting(text: str) -> tuple[str, dict]:
-    """``label:key=value,...`` -> (label, {key: value}); an unknown key is refused."""
+    """``label:key=value,...`` -> (label, {key: value}); an unknown key (a key that is no
+    ``LoopSettings`` field) or a bad value is refused."""
     label, _, body = text.partition(":")
     kv = dict(x.split("=", 1) for x in body.split(",") if x)
-    bad = [k for k in kv if k not in OPTIONS]
+    bad = [k for k in kv if k not in LIMITS or LIMITS[k].kind == "bool"]
     if not label or bad:
         raise SystemExit(f"--setting {text!r}: expected label:key=value,... with keys among "
-                         f"{sorted(OPTIONS)}")
-    return label, kv
+                         f"{sorted(k for k, lim in LIMITS.items() if lim.kind != 'bool')}")
+    try:
+        return label, {k: LIMITS[k].parse(v, k) for k, v in kv.items()}
+    except ValueError as e:
+        raise SystemExit(f"--setting {text!r}: {e}") from None
 
 
 def verify_cmd(cfg: dict, card: Path, models: Path, out: Path, over: dict) -> list[str]:
@@ -52,15 +55,12 @@ def verify_cmd(cfg: dict, card: Path, models: Path, out: Path, over: dict) -> li
     v = {**cfg["verification"], **over}
     cmd = ["bpmcal", "verify", "--card", str(card), "--models", str(models),
            "--out-card", str(out / "card.yaml"), "--rounds", str(out / "rounds.csv"),
-           "--run", str(out / "best_round.h5"),
-           "--polish" if v["polish"] else "--no-polish",
+           "--run", str(out / "best_round.h5"), *loop_argv(v),
            "--threads", str(cfg["resources"]["loop_threads"]),
            "--scale", str(cfg["specimen"]["scale"]),
            "--platen-velocity", str(cfg["compression"]["platen_velocity"]),
            "--record-strain", str(cfg["compression"]["record_strain"]),
            "--specimen-cache", str(out.parent.parent / "packings"), "--quiet"]
-    for k, opt in OPTIONS.items():
-        cmd += [opt, str(v[k])]
     return cmd
 
 

@@ -44,3 +44,13 @@ def burns(*, x, threads, progress):
         while time.process_time() - t < x:
             pass
     return x
+
+
+def context(*, x, ctx):
+    """A job of a RunContext's pool: x, and the context it got (its threads and progress
+    label; its cache and genesis budget, the stage's)."""
+    if ctx.progress is not None:
+        ctx.progress({"note": f"job {x}"})
+    return {"x": x, "pid": os.getpid(), "threads": ctx.threads, "cache": ctx.cache,
+            "steps": ctx.genesis_max_steps,
+            "label": getattr(ctx.progress, "label", None)}

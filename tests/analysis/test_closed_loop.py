@@ -969,7 +969,10 @@ def test_the_auto_budget_is_two_rounds_per_free_parameter(start):
     assert fixed.n_rounds == 3 == fixed.max_rounds
 
 
-@pytest.mark.parametrize("bad", ["Auto", "", 0, -2, 2.5, True, None])
+@pytest.mark.parametrize("bad", ["Auto", "", 0, -2, 2.5, True, None, 51])
 def test_a_bad_round_budget_is_refused_naming_it(bad):
-    with pytest.raises(ValueError, match=r"max_rounds=.*expected an integer >= 1 or 'auto'"):
+    """ClosedLoop checks its keywords as LoopSettings checks its fields: one set of limits
+    (the round budget at most bpmcal.analysis.calibration.loop_settings.MAX_ROUNDS)."""
+    with pytest.raises(ValueError, match=r"max_rounds=.*expected an integer in 1 \.\. 50, "
+                                         "or 'auto'"):
         ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, max_rounds=bad, ranges=T2)

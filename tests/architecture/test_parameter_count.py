@@ -24,7 +24,8 @@ ALLOWED = {
     'analysis/calibration/bootstrap.py:bootstrap_intervals': (
         "the bootstrap's data, models and resampling settings; to take a settings value"),
     'analysis/calibration/closed_loop.py:ClosedLoop.__init__': (
-        "the loop's settings as keywords; to become one LoopSettings value"),
+        "the loop's public keywords (the simulator, the step rule's, the seed policy's); "
+        "those that are LoopSettings fields are checked by LoopSettings' limits"),
     'analysis/calibration/inversion.py:invert': (
         "the inversion's models, targets, box and options; to take a settings value"),
     'analysis/calibration/inversion.py:_verdict': (
@@ -36,32 +37,21 @@ ALLOWED = {
     'lab/morphology.py:run_summary': (
         "the failure morphology's inputs from the model and the test"),
     'lab/runner.py:_lab_test': (
-        "the runner's specimen, settings and context; to take a RunContext (issue 54 item 1)"),
+        "the runner's specimen, settings and the individual values of a RunContext "
+        "(RunContext.lab_kw), which the lab's public test functions take as keywords"),
     'lab/runner.py:_lab_test_run': (
         'as _lab_test'),
     'stages/calibration.py:calibrate': _STAGE,
-    'stages/fresh_seeds.py:fresh_seeds': _STAGE,
-    'stages/posterior.py:posterior': _STAGE,
+    'stages/posterior.py:posterior': (
+        "nine output files and the posterior's settings (its DEM: one SeedTests and one "
+        "RunContext); to take a settings value"),
     'stages/posterior.py:_posterior': (
         "posterior's arguments passed on"),
-    'stages/predictive.py:predictive': _STAGE,
+    'stages/predictive.py:predictive': (
+        "the draws' triaxial and impact runs (files, specimens, settings, seeds; its DEM: one "
+        "RunContext); to take a settings value"),
     'stages/regression.py:regress': _STAGE,
-    'stages/runs.py:lab_test_file': (
-        "a lab test's run file from the CLI's options; to take a RunContext"),
-    'stages/runs.py:lab_test_files': (
-        'as lab_test_file'),
     'stages/screening.py:screen': _STAGE,
-    'stages/transfer.py:transfer': _STAGE,
-    'stages/verification.py:verify': _STAGE,
-    'stages/verification.py:_dem_loop': (
-        "verify's DEM settings passed on; to take a LoopSettings and a RunContext"),
-    'stages/loop_runs.py:LoopRuns.__init__': (
-        "the loop runner's geometry, settings and context; to take a RunContext"),
-    'stages/verification.py:_not_run': (
-        "verify's arguments passed on to write a not-run card"),
-    'stages/verification.py:_verification_section': (
-        "the card's verification section from the loop's results"),
-    'stages/seed_scatter.py:seed_scatter': _STAGE,
 }
 
 

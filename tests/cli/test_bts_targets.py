@@ -14,7 +14,7 @@ import pytest
 import yaml
 from _synthetic import FIXED, RANGES, TRUTH, dem_response, models, predict, write_models
 
-from bpmcal.analysis.calibration import invert
+from bpmcal.analysis.calibration import LoopSettings, invert
 from bpmcal.cli import main
 from bpmcal.io.h5 import check_run_file, write_run
 from bpmcal.lab.runner import Geometry
@@ -221,9 +221,10 @@ def dem(monkeypatch):
 def _verify(cards, d, spec, o, max_rounds=8, seeds_per_round=1):
     return V.verify(cards["dir"] / f"{spec}.yaml", d / "models.json", out_card=o / f"{spec}.yaml",
                     rounds=o / f"{spec}.csv", run=o / f"{spec}.h5", bts_run=o / f"{spec}.bts.h5",
-                    geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
-                    rtol=0.01, max_rounds=max_rounds, seeds_per_round=seeds_per_round,
-                    tensile_specimens=1)  # one disc per seed: its
+                    tests=M.SeedTests(Geometry(scale=0.4), UCSSettings()),
+                    loop=LoopSettings(seed=7, rtol=0.01, max_rounds=max_rounds,
+                                      seeds_per_round=seeds_per_round,
+                                      tensile_specimens=1))  # one disc per seed: its
     # order of runs is what these tests read (several: tests/cli/test_dtt_targets.py)
 
 
@@ -313,8 +314,9 @@ def test_a_disc_too_small_for_the_balls_is_refused_before_any_run(cards, d, tmp_
     o = tmp_path / "o"
     with pytest.raises(BadInput, match=r"Brazilian disc at scale 0.3 \(15 x 7.5 mm\)"):
         V.verify(cards["dir"] / "B1.yaml", d / "models.json", out_card=o / "B1.yaml",
-                 rounds=o / "B1.csv", run=o / "B1.h5", geometry=Geometry(scale=0.3),
-                 settings=UCSSettings(), seed=7, seeds_per_round=1)
+                 rounds=o / "B1.csv", run=o / "B1.h5",
+                 tests=M.SeedTests(Geometry(scale=0.3), UCSSettings()),
+                 loop=LoopSettings(seed=7, seeds_per_round=1))
     assert dem.calls == [] and not o.exists()
 
 

@@ -11,9 +11,11 @@ import pytest
 import yaml
 from _synthetic import FIXED, RANGES, TRUTH, calibrate_b1, dem_response, models, predict, write_models
 
+from bpmcal.analysis.calibration import LoopSettings
 from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.io.checks import BadInput
 from bpmcal.io.h5 import write_run
+from bpmcal.lab.run_context import RunContext
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import BTS
@@ -25,6 +27,8 @@ from bpmcal.stages.measure import BTS_REPLACEMENT_STRIDE
 from bpmcal.stages.runs import RunOutcome
 
 DTT = "dtt_MPa"
+#: the tests of a seed: the cylinder at scale 0.4 (the direct-tension test's too)
+TESTS = M.SeedTests(Geometry(scale=0.4), UCSSettings())
 R = RANGES
 HEAD = "specimen,ucs_MPa,E_GPa,nu,u_pre_MJm3"
 
@@ -129,9 +133,9 @@ def test_verify_steers_the_direct_tension_strength_and_replaces_invalid_tests(
     monkeypatch.setitem(M.RUNNERS, "dtt", dem.dtt)
     v = V.verify(card, d / "models.json", out_card=tmp_path / "B1.yaml",
                  rounds=tmp_path / "B1.csv", run=tmp_path / "B1.h5",
-                 geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
-                 seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
-                 tensile_specimens=1)["verification"]  # one specimen per seed
+                 tests=TESTS, loop=LoopSettings(seed=7, seeds_per_round=2, max_seeds=2, rtol=0.01,
+                                                max_rounds=8, tensile_specimens=1)
+                 )["verification"]  # one specimen per seed
     # seed 7's first direct-tension test broke at a grip: the replacement seed measured it
     # (round 1: each seed's UCS test and its specimen are jobs of their own, UCS first)
     first = dem.calls[:4]
@@ -164,9 +168,9 @@ def _verify_specimens(card, d, out, monkeypatch, n):
     monkeypatch.setitem(M.RUNNERS, "ucs", dem.ucs)
     monkeypatch.setitem(M.RUNNERS, "dtt", dem.dtt)
     v = V.verify(card, d / "models.json", out_card=out / "B1.yaml", rounds=out / "B1.csv",
-                 run=out / "B1.h5", geometry=Geometry(scale=0.4), settings=UCSSettings(),
-                 seed=7, seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
-                 tensile_specimens=n)["verification"]
+                 run=out / "B1.h5", tests=TESTS,
+                 loop=LoopSettings(seed=7, seeds_per_round=2, max_seeds=2, rtol=0.01,
+                                   max_rounds=8, tensile_specimens=n))["verification"]
     return dem, v
 
 
@@ -195,8 +199,7 @@ def test_fresh_seeds_measure_sigma_t_as_the_loop_did(card, d, tmp_path, monkeypa
     runs = [tmp_path / f"f{s}.h5" for s in (101, 102)]
     dtt = [tmp_path / f"f{s}.dtt.h5" for s in (101, 102)]
     df = H.fresh_seeds(tmp_path / "B1.yaml", seeds=[101, 102], runs=runs, dtt_runs=dtt,
-                       seed_runs=tmp_path / "seeds.csv", geometry=Geometry(scale=0.4),
-                       settings=UCSSettings())
+                       seed_runs=tmp_path / "seeds.csv", tests=TESTS)
     stride = M.TENSILE_REPLICATE_STRIDE
     assert [c for c in dem.calls if c[0] == "dtt"] == [
         ("dtt", s + j * stride) for j in range(3) for s in (101, 102)]
@@ -211,8 +214,8 @@ def test_fresh_seeds_measure_sigma_t_as_the_loop_did(card, d, tmp_path, monkeypa
 
 @pytest.mark.parametrize("n", [0, 51, 1.5, True, "3"])
 def test_a_bad_tensile_specimen_count_names_the_value(n):
-    with pytest.raises(BadInput, match=r"--tensile-specimens .*expected an integer in 1 \.\. 50"):
-        M.check_tensile_specimens(n)
+    with pytest.raises(BadInput, match=r"tensile_specimens=.*expected an integer in 1 \.\. 50"):
+        LoopSettings(tensile_specimens=n)
 
 
 def test_a_triaxial_strength_is_not_measured_on_several_specimens(tmp_path):
@@ -246,10 +249,10 @@ def test_the_cli_refuses_a_bad_round_budget_in_one_line(card, d, tmp_path, capsy
     assert f"max-rounds={rounds!r}" in line and "or 'auto'" in line
 
 
-@pytest.mark.parametrize("rounds", [0, "Auto", 2.5])
-def test_verify_refuses_a_bad_round_budget_naming_it(rounds):
-    with pytest.raises(BadInput, match=r"--max-rounds: max_rounds=.*or 'auto'"):
-        V._check_rounds(rounds)
+@pytest.mark.parametrize("rounds", [0, "Auto", 2.5, 51])
+def test_the_settings_refuse_a_bad_round_budget_naming_it(rounds):
+    with pytest.raises(BadInput, match=r"max_rounds=.*expected an integer in 1 \.\. 50, or 'auto'"):
+        LoopSettings(max_rounds=rounds)
 
 
 @pytest.mark.parametrize("factor", ["0.5", "two", "nan", "-1"])
@@ -259,10 +262,11 @@ def test_the_cli_refuses_a_bad_grow_within_in_one_line(card, d, tmp_path, capsys
 
 
 @pytest.mark.parametrize("factor", [0.99, 0, True, "2"])
-def test_verify_refuses_a_bad_grow_within_naming_it(factor):
-    with pytest.raises(BadInput, match=r"--grow-within: grow_within=.*factor >= 1"):
-        V._check_grow(factor)
-    assert V._check_grow(1) == 1.0 and V._check_grow(2.5) == 2.5
+def test_the_settings_refuse_a_bad_grow_within_naming_it(factor):
+    with pytest.raises(BadInput, match=r"grow_within=.*expected a number in \[1, inf\)"):
+        LoopSettings(grow_within=factor)
+    assert LoopSettings(grow_within=1).grow_within == 1.0
+    assert LoopSettings(grow_within=2.5).grow_within == 2.5
 
 
 def test_no_two_specimens_of_seeds_below_100000_share_a_packing(monkeypatch):
@@ -310,8 +314,7 @@ def _verify_adaptive(card, d, out, monkeypatch, cv, **kw):
     opts = dict(seed=7, seeds_per_round=3, max_seeds=3, rtol=0.05, max_rounds=3,
                 tensile_specimens=3, tensile_seed_cv=0.05, max_tensile_specimens=8) | kw
     v = V.verify(card, d / "models.json", out_card=out / "B1.yaml", rounds=out / "B1.csv",
-                 run=out / "B1.h5", geometry=Geometry(scale=0.4), settings=UCSSettings(),
-                 **opts)["verification"]
+                 run=out / "B1.h5", tests=TESTS, loop=LoopSettings(**opts))["verification"]
     return dem, v
 
 
@@ -373,10 +376,10 @@ def test_the_topped_up_seed_mean_is_that_of_all_its_specimens(tmp_path, monkeypa
     dem = ScatterDEM(0.2)
     monkeypatch.setitem(M.RUNNERS, "ucs", dem.ucs)
     monkeypatch.setitem(M.RUNNERS, "dtt", dem.dtt)
-    runs = LR.LoopRuns(tmp_path / "j", [DTT, "ucs_MPa"], geometry=Geometry(scale=0.4),
-                       settings=UCSSettings(), specimens={"dtt": (Geometry(scale=0.4), None)},
-                       genesis_max_steps=None, cache=None, threads=1, progress=None,
-                       tensile_specimens=3, seed_cv=0.05, max_specimens=6)
+    loop = LoopSettings(seed=1, tensile_specimens=3, tensile_seed_cv=0.05,
+                        max_tensile_specimens=6)
+    runs = LR.LoopRuns(tmp_path / "j", [DTT, "ucs_MPa"], tests=TESTS,
+                       ctx=RunContext(threads=1), loop=loop)
     params = dict(PLANTED)
     outs = runs.simulate_seeds(params, [1, 2, 3])
     stride = M.TENSILE_REPLICATE_STRIDE
@@ -390,15 +393,13 @@ def test_the_topped_up_seed_mean_is_that_of_all_its_specimens(tmp_path, monkeypa
     # a second attempt with the same inputs reads every run, the top-ups too, from the journal
     runs.close(False)  # the first attempt stopped: its runs are kept
     calls = len(dem.calls)
-    again = LR.LoopRuns(tmp_path / "j", [DTT, "ucs_MPa"], geometry=Geometry(scale=0.4),
-                        settings=UCSSettings(), specimens={"dtt": (Geometry(scale=0.4), None)},
-                        genesis_max_steps=None, cache=None, threads=1, progress=None,
-                        tensile_specimens=3, seed_cv=0.05, max_specimens=6)
+    again = LR.LoopRuns(tmp_path / "j", [DTT, "ucs_MPa"], tests=TESTS,
+                        ctx=RunContext(threads=1), loop=loop)
     assert again.simulate_seeds(params, [1, 2, 3]) == outs and len(dem.calls) == calls
     again.close(True)
 
 
 @pytest.mark.parametrize("cv", [0, 1, -0.1, float("nan"), True, "0.05"])
 def test_a_bad_seed_cv_names_the_value(cv):
-    with pytest.raises(BadInput, match=r"--tensile-seed-cv .*expected a fraction in \(0, 1\)"):
-        M.check_seed_cv(cv)
+    with pytest.raises(BadInput, match=r"tensile_seed_cv=.*expected a number in \(0, 1\)"):
+        LoopSettings(tensile_seed_cv=cv)

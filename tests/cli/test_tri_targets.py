@@ -12,6 +12,7 @@ import yaml
 from _synthetic import FIXED, RANGES, TRUTH, calibrate_b1, dem_response, models, predict, write_models
 from support.repo import REPO, SCHEMA, merged_config
 
+from bpmcal.analysis.calibration import LoopSettings
 from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.cli import main
 from bpmcal.io.checks import BadInput
@@ -132,14 +133,18 @@ class FakeDEM:
         monkeypatch.setitem(M.RUNNERS, "tri", self.tri)
 
 
+#: the tests of a seed: the cylinder at scale 0.4, the triaxial test at the design S3
+TESTS = M.SeedTests(Geometry(scale=0.4), UCSSettings(),
+                    tri_settings=TriaxialSettings(sigma3=S3 * 1e6))
+
+
 def _verify(card, d, tmp_path, name):
     """The closed loop of ``card`` on seeds 7 and 8 with the design confinement S3."""
     return V.verify(card, d / "models.json", out_card=tmp_path / f"{name}.yaml",
                     rounds=tmp_path / f"{name}.csv", run=tmp_path / f"{name}.h5",
-                    geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
-                    seeds_per_round=2, max_seeds=2, rtol=0.01, max_rounds=8,
-                    tri_settings=TriaxialSettings(sigma3=S3 * 1e6),
-                    tensile_specimens=1)  # one disc per seed
+                    tests=TESTS, loop=LoopSettings(seed=7, seeds_per_round=2, max_seeds=2,
+                                                   rtol=0.01, max_rounds=8,
+                                                   tensile_specimens=1))  # one disc per seed
 
 
 def test_verify_runs_the_triaxial_test_every_seed_and_steers_sigma1(card, d, tmp_path,
@@ -167,10 +172,9 @@ def test_verify_runs_the_triaxial_test_on_the_first_seeds_only(card, d, tmp_path
     dem.install(monkeypatch)
     v = V.verify(card, d / "models.json", out_card=tmp_path / "C.yaml",
                  rounds=tmp_path / "C.csv", run=tmp_path / "C.h5",
-                 geometry=Geometry(scale=0.4), settings=UCSSettings(), seed=7,
-                 seeds_per_round=3, max_seeds=3, rtol=0.01, max_rounds=8,
-                 tri_settings=TriaxialSettings(sigma3=S3 * 1e6),
-                 triaxial_seeds=2)["verification"]
+                 tests=TESTS, loop=LoopSettings(seed=7, seeds_per_round=3, max_seeds=3,
+                                                rtol=0.01, max_rounds=8,
+                                                triaxial_seeds=2))["verification"]
     tri = [s for t, s in dem.calls if t == "tri"]
     ucs = [s for t, s in dem.calls if t == "ucs"]
     assert set(tri) == {7, 8} and set(ucs) == {7, 8, 9}
@@ -193,10 +197,10 @@ def test_a_bad_triaxial_seed_count_is_one_line_exit_2(card, d, tmp_path, capsys,
     assert not any(tmp_path.iterdir())
 
 
-@pytest.mark.parametrize("n", [1, 0, 2.0, True])
-def test_the_stage_refuses_a_bad_triaxial_seed_count(n):
-    with pytest.raises(BadInput, match="--triaxial-seeds"):
-        M.check_triaxial_seeds(n)
+@pytest.mark.parametrize("n", [1, 0, 2.0, True, 201])
+def test_the_settings_refuse_a_bad_triaxial_seed_count(n):
+    with pytest.raises(BadInput, match=r"triaxial_seeds=.*expected an integer in 2 \.\. 200"):
+        LoopSettings(triaxial_seeds=n)
 
 
 def test_verify_of_a_triaxial_target_needs_the_design_confinement(card, d, tmp_path, capsys):
@@ -221,12 +225,9 @@ def test_fresh_seeds_run_the_triaxial_test_of_a_triaxial_target(card, d, tmp_pat
     tri = [tmp_path / f"f{s}.tri.h5" for s in seeds]
     with pytest.raises(Exception, match="--tri-runs"):
         F.fresh_seeds(tmp_path / "V.yaml", seeds=seeds, runs=runs, bts_runs=bts,
-                      seed_runs=tmp_path / "fs.csv", geometry=Geometry(scale=0.4),
-                      settings=UCSSettings(), tri_settings=TriaxialSettings(sigma3=S3 * 1e6))
+                      seed_runs=tmp_path / "fs.csv", tests=TESTS)
     df = F.fresh_seeds(tmp_path / "V.yaml", seeds=seeds, runs=runs, bts_runs=bts,
-                       tri_runs=tri, seed_runs=tmp_path / "fs.csv",
-                       geometry=Geometry(scale=0.4), settings=UCSSettings(),
-                       tri_settings=TriaxialSettings(sigma3=S3 * 1e6))
+                       tri_runs=tri, seed_runs=tmp_path / "fs.csv", tests=TESTS)
     assert [c for c in dem.calls if c[0] == "tri"] == [("tri", 101), ("tri", 102)]
     assert (df["status"] == "ok").all() and df[TRI].notna().all()
     table = F.fresh_seeds_table([tmp_path / "V.yaml"], [tmp_path / "fs.csv"],

@@ -148,8 +148,8 @@ class FreshDEM(PlantedDEM):
 def run_fresh_seeds(tmp_path, card, seeds, **kw):
     d = tmp_path / "h"
     return H.fresh_seeds(card, seeds=seeds, runs=[d / f"seed{s}.h5" for s in seeds],
-                         seed_runs=d / "seeds.csv", geometry=Geometry(scale=0.25),
-                         settings=UCSSettings(), **kw)
+                         seed_runs=d / "seeds.csv",
+                         tests=M.SeedTests(Geometry(scale=0.25), UCSSettings()), **kw)
 
 
 def test_the_stage_runs_the_verified_parameters_on_every_fresh_seed(verified, monkeypatch):
@@ -432,7 +432,7 @@ def test_the_table_judges_against_the_closed_loop_only_when_the_runs_repeat_it(
         assert r["passed"] == r["reproduces_loop"]
     d = tmp_path / "h2"
     H.fresh_seeds(card, seeds=[101, 102, 103], runs=[d / f"s{s}.h5" for s in (101, 102, 103)],
-                  seed_runs=d / "seeds.csv", geometry=Geometry(scale=0.3), settings=UCSSettings())
+                  seed_runs=d / "seeds.csv", tests=M.SeedTests(Geometry(scale=0.3), UCSSettings()))
     other = pd.read_csv(d / "seeds.csv")
     assert not other["loop_reference"].any()
     assert (other["loop_reference_note"] == "the fresh seeds run another UCS specimen than "

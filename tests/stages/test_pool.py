@@ -47,6 +47,25 @@ def test_a_run_that_raises_raises_here_and_a_dead_worker_is_named():
             pool.map(dies, [{"x": 5}, {"x": 6}], tags=["seed 5", "seed 6"])
 
 
+def test_a_pool_of_a_context_passes_each_run_its_context():
+    """SeedPool.of(ctx): every run gets ``ctx=``, the stage's context with the run's own
+    threads and progress (in a worker: its share of the CPUs, its labelled progress)."""
+    from bpmcal.lab.run_context import RunContext
+
+    ctx = RunContext(cache="/tmp/packings", threads=2, genesis_max_steps=3000,
+                     progress=Progress("fresh-seeds B1", enabled=False))
+    with SeedPool.of(ctx) as pool:
+        out = pool.map(_pool_jobs.context, [{"x": x} for x in range(3)],
+                       tags=[f"seed {x}" for x in range(3)])
+        one = pool.map(_pool_jobs.context, [{"x": 9}])
+    assert [o["x"] for o in out] == [0, 1, 2] and all(o["pid"] != os.getpid() for o in out)
+    assert all(o["threads"] == 1 and o["cache"] == "/tmp/packings" and o["steps"] == 3000
+               for o in out)
+    assert [o["label"] for o in out] == [f"fresh-seeds B1 [seed {x}]" for x in range(3)]
+    assert one[0]["pid"] == os.getpid() and one[0]["threads"] == 2
+    assert one[0]["label"] == "fresh-seeds B1"  # in this process: the stage's own
+
+
 @pytest.mark.parametrize("bad", [0, -1, True])
 def test_a_pool_of_no_cpus_is_refused(bad):
     with pytest.raises(ValueError, match=f"threads={bad!r}: expected an integer >= 1"):

@@ -6,12 +6,15 @@ import json
 import pandas as pd
 import pytest
 
+from bpmcal.analysis.calibration import LoopSettings
 from bpmcal.analysis.stepwise import FORMAT, RegressionModel
 from bpmcal.io.card import read_card, write_card
+from bpmcal.lab.run_context import RunContext
 from bpmcal.lab.runner import Geometry, bts_geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import table2_ranges
 from bpmcal.stages.fresh_seeds import fresh_seeds
+from bpmcal.stages.measure import SeedTests
 from bpmcal.stages.seed_scatter import seed_scatter
 from bpmcal.stages.verification import verify
 
@@ -48,17 +51,18 @@ def study(tmp_path_factory):
 
 def _run_all(d, card, models, threads):
     out = d / f"t{threads}"
+    ctx = RunContext(threads=threads)
     verify(card, models, out_card=out / "card.yaml", rounds=out / "rounds.csv",
-             run=out / "best.h5", geometry=GEO, settings=UCSSettings(), seed=1,
-             seeds_per_round=2, max_seeds=2, max_rounds=2, threads=threads)
+           run=out / "best.h5", tests=SeedTests(GEO, UCSSettings()),
+           loop=LoopSettings(seed=1, seeds_per_round=2, max_seeds=2, max_rounds=2), ctx=ctx)
     fresh_seeds(out / "card.yaml", seeds=[101, 102],
-                runs=[out / f"fresh{s}.h5" for s in (101, 102)], bts_geometry=DISC,
+                runs=[out / f"fresh{s}.h5" for s in (101, 102)],
                 bts_runs=[out / f"fresh{s}.bts.h5" for s in (101, 102)],
-                seed_runs=out / "fresh.csv", geometry=GEO, settings=UCSSettings(),
-                threads=threads)
+                seed_runs=out / "fresh.csv",
+                tests=SeedTests(GEO, UCSSettings(), bts_geometry=DISC), ctx=ctx)
     seed_scatter(out / "card.yaml", runs=[out / f"sc{s}.h5" for s in (201, 202)],
-                   seeds=[201, 202], seed_runs=out / "sc_runs.csv", table=out / "sc.csv",
-                   geometry=GEO, settings=UCSSettings(), threads=threads)
+                 seeds=[201, 202], seed_runs=out / "sc_runs.csv", table=out / "sc.csv",
+                 geometry=GEO, settings=UCSSettings(), ctx=ctx)
     return out
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from bpmcal.io.h5 import write_run
 from bpmcal.lab.brazilian import BTSSettings
+from bpmcal.lab.run_context import RunContext
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import BTS
@@ -56,9 +57,9 @@ class SeedDEM:
 
 def _job(n):
     return dict(params=PARAMS, seed=7, targets=["ucs_MPa", "E_GPa", "nu", BTS],
-                geometry=Geometry(scale=0.3), settings=UCSSettings(),
-                specimens={"bts": (Geometry(scale=0.3), BTSSettings())},
-                genesis_max_steps=None, tensile_specimens=n)
+                tests=M.SeedTests(Geometry(scale=0.3), UCSSettings(),
+                                  bts_geometry=Geometry(scale=0.3), bts_settings=BTSSettings()),
+                tensile_specimens=n)
 
 
 def _apart(job, tmp_path):
@@ -68,8 +69,7 @@ def _apart(job, tmp_path):
     ucs, sp = None, {}
     for i in LR.longest_first(parts):
         p = parts[i]
-        rec, files = LR.run_part(**p, stem=tmp_path / f"part{i}", cache=None, threads=None,
-                                 progress=None)
+        rec, files = LR.run_part(**p, stem=tmp_path / f"part{i}", ctx=RunContext())
         rec = json.loads(json.dumps(rec, default=plain, allow_nan=True))  # the journal's
         assert files and all(f.exists() for f in files)
         if p["part"] == "ucs":
@@ -80,8 +80,7 @@ def _apart(job, tmp_path):
 
 
 def _whole(job, tmp_path):
-    rec, _ = LR.loop_seed(**job, stem=tmp_path / "whole", cache=None, threads=None,
-                          progress=None)
+    rec, _ = LR.loop_seed(**job, stem=tmp_path / "whole", ctx=RunContext())
     return json.loads(json.dumps(rec, default=plain, allow_nan=True))
 
 

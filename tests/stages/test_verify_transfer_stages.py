@@ -5,6 +5,7 @@ checked against values computed by hand. (The stages with the real DEM run in th
 study, tests/workflow/test_smoke.py.)"""
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -15,12 +16,15 @@ import bpmcal.stages.seed_scatter as S
 import bpmcal.stages.transfer as TR
 import bpmcal.stages.verification as V
 import bpmcal.stages.verification_tables as VT
+from bpmcal.analysis.calibration import LoopSettings
 from bpmcal.analysis.stepwise import FORMAT, RegressionModel
 from bpmcal.io.card import card_parameters, read_card, write_card
 from bpmcal.io.checks import BadInput
+from bpmcal.lab.run_context import RunContext
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import table2_ranges
+from bpmcal.stages.measure import SeedTests
 from bpmcal.stages.runs import RunOutcome
 
 T2 = {k: list(v) for k, v in table2_ranges().items()}
@@ -34,6 +38,9 @@ TARGETS = {"ucs_MPa": 60.0, "E_GPa": 14.0, "nu": 0.25}
 #: the planted packing scatter: seed -> relative deviation of every response (mean 0 over
 #: seeds 1-3, sample standard deviation exactly 0.02; seed 4, the transfer's, 1 % high)
 DEV = {1: -0.02, 2: 0.02, 3: 0.0, 4: 0.01}
+#: the cylinder of the verification (scale 0.25) and of the full-size transfer
+SMALL = SeedTests(Geometry(scale=0.25), UCSSettings())
+FULL = SeedTests(Geometry(scale=1.0), UCSSettings())
 
 
 def start_params():
@@ -85,8 +92,8 @@ def study(tmp_path):
 def run_verify(tmp_path, card, models, k, max_seeds=None):
     return V.verify(card, models, out_card=tmp_path / "v" / "card.yaml",
                     rounds=tmp_path / "v" / "rounds.csv", run=tmp_path / "v" / "best.h5",
-                    geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
-                    seeds_per_round=k, max_rounds=4, max_seeds=max_seeds or k)
+                    tests=SMALL, loop=LoopSettings(seed=1, seeds_per_round=k, max_rounds=4,
+                                                   max_seeds=max_seeds or k))
 
 
 def test_verify_runs_k_seeds_per_round_and_records_mean_cv_and_n(study, monkeypatch):
@@ -166,8 +173,7 @@ def test_transfer_corrects_only_a_miss_beyond_the_seed_scatter(study, monkeypatc
     n_verify = len(dem.calls)
     t = TR.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t" / "card.yaml",
                    rounds=tmp_path / "t" / "rounds.csv", run=tmp_path / "t" / "best.h5",
-                   geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4,
-                   max_rounds=2, rtol=rtol)
+                   tests=FULL, loop=LoopSettings(seed=4, rtol=rtol), max_rounds=2)
     full = dem.calls[n_verify:]
     assert all(c[1] == 4 and c[2] == 1.0 for c in full)  # one seed, full size
     assert full[0][0] == pytest.approx(card_parameters(verified))  # starts from the card
@@ -214,8 +220,7 @@ def test_transfer_of_a_card_whose_loop_did_not_run(study, tmp_path):
     c["verification"] = {"status": "not-run", "message": "unreachable", "closed_loop": None}
     write_card(tmp_path / "nr.yaml", c)
     t = TR.transfer(tmp_path / "nr.yaml", models, out_card=tmp_path / "o" / "card.yaml",
-                   rounds=tmp_path / "o" / "r.csv", run=tmp_path / "o" / "b.h5",
-                   geometry=Geometry(scale=1.0), settings=UCSSettings())
+                   rounds=tmp_path / "o" / "r.csv", run=tmp_path / "o" / "b.h5", tests=FULL)
     assert t["transfer"]["status"] == "not-run" and "calibrated_at_scale" not in t
     assert (tmp_path / "o" / "b.h5").exists()
 
@@ -261,7 +266,7 @@ def test_transfer_starts_from_the_jacobian_the_verification_learned(study, monke
     n = len(dem.calls)
     TR.transfer(tmp_path / "planted.yaml", models, out_card=tmp_path / "t" / "card.yaml",
                rounds=tmp_path / "t" / "rounds.csv", run=tmp_path / "t" / "best.h5",
-               geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4, max_rounds=1)
+               tests=FULL, loop=LoopSettings(seed=4), max_rounds=1)
     full = [p for p, _, _ in dem.calls[n:]]
     assert len(full) == 2
     assert full[1]["pb_emod_GPa"] > full[0]["pb_emod_GPa"]
@@ -304,7 +309,7 @@ def test_transfer_of_a_card_whose_jacobian_does_not_fit_starts_from_the_models(s
         n = len(dem.calls)
         TR.transfer(tmp_path / f"{name}.yaml", models, out_card=tmp_path / name / "card.yaml",
                    rounds=tmp_path / name / "rounds.csv", run=tmp_path / name / "best.h5",
-                   geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4, max_rounds=1)
+                   tests=FULL, loop=LoopSettings(seed=4), max_rounds=1)
         if name == "partial":
             partial = [p for p, _, _ in dem.calls[n:]]
     full = [p for p, _, _ in dem.calls[n:]]
@@ -322,29 +327,30 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     write_card(tmp_path / "far.yaml", c)
     monkeypatch.setitem(M.RUNNERS, "ucs", PlantedDEM(dev={s: 0.0 for s in range(1, 12)}))
     kw = dict(rounds=tmp_path / "v" / "rounds.csv", run=tmp_path / "v" / "best.h5",
-              geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
-              seeds_per_round=1, max_rounds=6, max_seeds=1)
+              tests=SMALL)
+    loop = LoopSettings(seed=1, seeds_per_round=1, max_rounds=6, max_seeds=1)
     v = V.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v" / "card.yaml",
-                 **kw)["verification"]
+                 loop=loop, **kw)["verification"]
     assert v["status"] == "converged" and v["range_margin"] == 0.25
     assert v["parameters"]["pb_kratio"] == pytest.approx(5.5, rel=0.01)
     assert v["loop_bounds"]["pb_kratio"][1] == pytest.approx(6.0)
     assert v["outside_design"]["pb_kratio"]["range"] == [1.0, 5.0]
     assert "outside the design space" in v["message"] and "pb_kratio" in v["message"]
     inside = V.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v0" / "card.yaml",
-                      range_margin=0.0, **kw)["verification"]
+                      loop=replace(loop, range_margin=0.0), **kw)["verification"]
     assert inside["status"] != "converged" and inside["outside_design"] == {}
     assert inside["parameters"]["pb_kratio"] == pytest.approx(5.0)
     assert [m["target"] for m in inside["missed"]] == ["nu"]
-    t = dict(geometry=Geometry(scale=1.0), settings=UCSSettings(), seed=4, max_rounds=1)
+    t = dict(tests=FULL, max_rounds=1)
     out = TR.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t" / "c.yaml",
-                     rounds=tmp_path / "t" / "r.csv", run=tmp_path / "t" / "b.h5", **t)
+                     rounds=tmp_path / "t" / "r.csv", run=tmp_path / "t" / "b.h5",
+                     loop=LoopSettings(seed=4), **t)
     assert out["transfer"]["status"] == "within-scatter"
     assert set(out["transfer"]["outside_design"]) == {"pb_kratio"}
     with pytest.raises(ValueError, match=r"pb_kratio=5.4\d* outside \[1, 5\].*margin.*now 0\)"):
         TR.transfer(tmp_path / "v" / "card.yaml", models, out_card=tmp_path / "t0" / "c.yaml",
                    rounds=tmp_path / "t0" / "r.csv", run=tmp_path / "t0" / "b.h5",
-                   range_margin=0.0, **t)
+                   loop=LoopSettings(seed=4, range_margin=0.0), **t)
     monkeypatch.setattr(VT, "read_series", lambda run: pd.DataFrame(
         {"strain": [0.0, 0.01], "stress_MPa": [0.0, 60.0]}))
     monkeypatch.setattr(VT, "save_figure", lambda fig, path: None)
@@ -363,9 +369,8 @@ def test_verify_follows_a_target_past_a_design_range_and_says_so(study, monkeypa
     assert notes[1] == ""
     text = section(lay, [])  # the report says it under Table 5, once
     assert text.count("outside the design space") == 1 and "B1: outside the design space" in text
-    with pytest.raises(BadInput, match="range-margin"):
-        V.verify(tmp_path / "far.yaml", models, out_card=tmp_path / "v1" / "card.yaml",
-                 range_margin=1.5, **kw)
+    with pytest.raises(BadInput, match=r"range_margin=1.5: expected a number in \[0, 1\]"):
+        replace(loop, range_margin=1.5)  # refused where the settings are built
 
 
 def test_verify_polishes_a_converged_card_and_records_it(study, monkeypatch):
@@ -379,9 +384,9 @@ def test_verify_polishes_a_converged_card_and_records_it(study, monkeypatch):
         monkeypatch.setitem(M.RUNNERS, "ucs", dem)
         v = V.verify(card, models, out_card=tmp_path / f"p{polish}" / "card.yaml",
                      rounds=tmp_path / f"p{polish}" / "rounds.csv",
-                     run=tmp_path / f"p{polish}" / "best.h5", geometry=Geometry(scale=0.25),
-                     settings=UCSSettings(), seed=1, seeds_per_round=3, max_rounds=6,
-                     max_seeds=3, polish=polish)["verification"]
+                     run=tmp_path / f"p{polish}" / "best.h5", tests=SMALL,
+                     loop=LoopSettings(seed=1, seeds_per_round=3, max_rounds=6, max_seeds=3,
+                                       polish=polish))["verification"]
         truth = dem.truth(v["parameters"], 0.25)
         out[polish] = (v, max(abs(truth[r] / t - 1) for r, t in TARGETS.items()))
     (plain, e0), (pol, e1) = out[False], out[True]
@@ -401,19 +406,16 @@ def test_verify_reports_every_round_and_records_its_update_rule(study, monkeypat
     seen = []
     v = V.verify(card, models, out_card=tmp_path / "h" / "card.yaml",
                  rounds=tmp_path / "h" / "rounds.csv", run=tmp_path / "h" / "best.h5",
-                 geometry=Geometry(scale=0.25), settings=UCSSettings(), seed=1,
-                 seeds_per_round=3, max_rounds=4, max_seeds=3, jacobian_update="history",
-                 progress=seen.append)["verification"]
+                 tests=SMALL, loop=LoopSettings(seed=1, seeds_per_round=3, max_rounds=4,
+                                                max_seeds=3, jacobian_update="history"),
+                 ctx=RunContext(progress=seen.append))["verification"]
     assert v["jacobian_update"] == "history" and v["status"] == "converged"
     notes = [d["note"] for d in seen if "note" in d and d["note"].startswith("closed loop")]
     assert len(notes) == v["rounds"]
     assert notes[0].startswith("closed loop round 1 (3 seeds): ucs_MPa ")
-    with pytest.raises(BadInput, match="--jacobian-update 'newton': expected one of broyden, "
+    with pytest.raises(BadInput, match="jacobian_update='newton': expected one of broyden, "
                                          "history"):
-        V.verify(card, models, out_card=tmp_path / "x" / "card.yaml",
-                 rounds=tmp_path / "x" / "rounds.csv", run=tmp_path / "x" / "best.h5",
-                 geometry=Geometry(scale=0.25), settings=UCSSettings(), jacobian_update="newton")
-    assert not (tmp_path / "x" / "card.yaml").exists()
+        LoopSettings(jacobian_update="newton")  # refused where the settings are built
 
 
 class StoppedDEM(PlantedDEM):
@@ -431,8 +433,9 @@ class StoppedDEM(PlantedDEM):
 
 def _verify_into(d, card, models, **kw):
     return V.verify(card, models, out_card=d / "card.yaml", rounds=d / "rounds.csv",
-                    run=d / "best.h5", geometry=Geometry(scale=0.25), settings=UCSSettings(),
-                    seed=1, seeds_per_round=3, max_seeds=3, max_rounds=4, **kw)
+                    run=d / "best.h5", tests=SMALL,
+                    loop=LoopSettings(seed=1, seeds_per_round=3, max_seeds=3, max_rounds=4),
+                    ctx=RunContext(**kw))
 
 
 def test_a_loop_stopped_part_way_resumes_from_its_journal(study, monkeypatch):

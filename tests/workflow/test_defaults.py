@@ -12,6 +12,7 @@ from support.repo import SCHEMA as SCHEMA_FILE
 
 from bpmcal import params as P
 from bpmcal.analysis import PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
+from bpmcal.analysis.calibration.loop_settings import LIMITS, LoopSettings
 from bpmcal.analysis.posterior import PosteriorSettings
 from bpmcal.cli import build_parser
 from bpmcal.cli.options import DESIGN_STOP_DROP
@@ -31,7 +32,6 @@ from bpmcal.stages.runs import impact_file
 from bpmcal.stages.screening import TENSILE_RULE
 from bpmcal.stages.transfer import transfer
 from bpmcal.stages.triaxial import DEFAULT_SIGMA3_MPA
-from bpmcal.stages.verification import verify
 from bpmcal.study.design import lhs_design
 from bpmcal.study.sweep import DEFAULT_RATIOS
 
@@ -41,7 +41,7 @@ POST, REFINE = PosteriorSettings(), RefineSettings()
 GEO, UCS, IMP, BTS = Geometry(), UCSSettings(), ImpactSettings(), BTSSettings()
 DTT = DTTSettings()
 SCR, REG, LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
-CAL, VER = defaults_of(calibrate), defaults_of(verify)
+CAL, VER = defaults_of(calibrate), defaults_of(LoopSettings)
 
 
 def _ratios(text):
@@ -100,24 +100,9 @@ DEFAULTS = {
     "calibration.strength_ratio": (PAPER_RATIO, ("calibrate", "ratio", None)),
     "calibration.n_boot": (CAL["n_boot"], ("calibrate", "n_boot", None)),
     "calibration.seed": (CAL["seed"], ("calibrate", "seed", None)),
-    "verification.rtol": (LOOP["rtol"], ("verify", "rtol", None)),
-    "verification.max_rounds": (LOOP["max_rounds"], ("verify", "max_rounds", None)),
-    "verification.seed": (VER["seed"], ("verify", "seed", None)),
-    "verification.seeds_per_round": (VER["seeds_per_round"], ("verify", "seeds_per_round", None)),
-    "verification.max_seeds": (VER["max_seeds"], ("verify", "max_seeds", None)),
-    "verification.grow_within": (LOOP["grow_within"], ("verify", "grow_within", None)),
-    "verification.range_margin": (VER["range_margin"], ("verify", "range_margin", None)),
-    "verification.polish": (VER["polish"], ("verify", "polish", None)),
-    "verification.jacobian_update": (VER["jacobian_update"], ("verify", "jacobian_update", None)),
-    "verification.tensile_specimens": (VER["tensile_specimens"],
-                                       ("verify", "tensile_specimens", None)),
-    "verification.triaxial_seeds": (VER["triaxial_seeds"], None),  # null: no option
-    "verification.tensile_seed_cv": (VER["tensile_seed_cv"],
-                                     ("verify", "tensile_seed_cv", None)),
-    "verification.max_tensile_specimens": (VER["max_tensile_specimens"],
-                                           ("verify", "max_tensile_specimens", None)),
-    "verification.from_unreachable": (VER["from_unreachable"],
-                                      ("verify", "from_unreachable", None)),
+    # the closed loop's settings: LoopSettings' fields, bpmcal verify's options generated
+    # from them (their names, defaults and bounds: test_a_loop_setting_is_one_field below)
+    **{f"verification.{k}": (v, ("verify", k, None)) for k, v in VER.items()},
     "transfer.scale": (GEO.scale, ("transfer", "scale", None)),
     "transfer.max_rounds": (defaults_of(transfer)["max_rounds"],
                             ("transfer", "max_rounds", None)),
@@ -458,3 +443,74 @@ def test_what_the_config_allows_the_command_accepts(key):
     assert _inside((lo, lo_open, hi, hi_open), bounds), (
         f"{key}: the schema allows {(lo, lo_open, hi, hi_open)}, bpmcal {cmd} --"
         f"{dest.replace('_', '-')} {bounds}")
+
+
+# ------------------------------------------------------------ the closed loop's settings
+#: keys of the config's verification section that are no closed-loop setting: the seeds
+#: of other jobs (STUDY_ONLY)
+NOT_LOOP = {"scatter_seeds", "fresh_seeds"}
+
+
+def _schema_limit(item: dict) -> dict:
+    """What a schema property of the verification section accepts, in the terms of a
+    ``loop_settings.Limit``: kind, bounds, null allowed, words (an enum, or "auto")."""
+    types = item["type"] if isinstance(item["type"], list) else [item["type"]]
+    kind = {"integer": "int", "number": "float", "boolean": "bool"}.get(
+        next(t for t in types if t not in ("null", "string")) if set(types) - {"null", "string"}
+        else "string", "choice")
+    words = tuple(item.get("enum", ()))
+    if "string" in types and "pattern" in item:  # "^auto$": one word besides the numbers
+        words = (item["pattern"].strip("^$"),)
+    return {"kind": kind, "bounds": _limits(item), "null": "null" in types, "words": words}
+
+
+def _limit_of(limit) -> dict:
+    bounds = limit.bounds if limit.kind in ("int", "float") else (None, False, None, False)
+    return {"kind": limit.kind, "bounds": bounds, "null": limit.null, "words": limit.words}
+
+
+def _verify_action(dest):
+    p = build_parser(only="verify")._subparsers._group_actions[0].choices["verify"]
+    return next((a for a in p._actions if a.dest == dest), None)
+
+
+def test_a_loop_setting_is_one_field_one_key_and_one_option():
+    """One source for the closed loop's settings: every key of the config's verification
+    section (but the other jobs' seeds) is a field of LoopSettings and every field a key,
+    under the same name, with the same default and the same bounds (kind, limits, null,
+    words); and ``bpmcal verify`` has the option of every field, ``--FIELD``, with that
+    default and those bounds (its type checks a value as the field does)."""
+    props = SCHEMA["properties"]["verification"]["properties"]
+    keys = set(props) - NOT_LOOP
+    assert keys == set(LIMITS), ("config keys without a field", keys - set(LIMITS),
+                                 "fields without a config key", set(LIMITS) - keys)
+    for k in sorted(keys):
+        item, limit = props[k], LIMITS[k]
+        assert same(item["default"], VER[k]), f"verification.{k}: schema {item['default']!r}, " \
+                                               f"LoopSettings {VER[k]!r}"
+        assert _schema_limit(item) == _limit_of(limit), f"verification.{k}: schema and field"
+        a = _verify_action(k)
+        assert a is not None and a.option_strings[0] == "--" + k.replace("_", "-"), k
+        assert same(a.default, VER[k]), f"bpmcal verify --{k}: default {a.default!r}"
+        if limit.kind in ("int", "float"):
+            assert a.type.bounds == limit.bounds, f"bpmcal verify --{k}: bounds {a.type.bounds}"
+        elif limit.kind == "choice":
+            assert tuple(a.choices) == limit.words, k
+        else:  # a switch: --polish / --no-polish
+            assert "--no-" + k.replace("_", "-") in a.option_strings, k
+
+
+def test_the_loop_setting_check_can_fail(monkeypatch):
+    import bpmcal.analysis.calibration.loop_settings as LS
+
+    monkeypatch.setitem(LIMITS, "max_rounds", LS.Limit("int", 1, 40, words=("auto",)))
+    with pytest.raises(AssertionError, match="verification.max_rounds: schema and field"):
+        test_a_loop_setting_is_one_field_one_key_and_one_option()
+    monkeypatch.undo()
+    monkeypatch.setitem(VER, "rtol", 0.02)
+    with pytest.raises(AssertionError, match="verification.rtol: schema 0.01, LoopSettings 0.02"):
+        test_a_loop_setting_is_one_field_one_key_and_one_option()
+    monkeypatch.undo()
+    monkeypatch.setitem(LIMITS, "extra_knob", LS.Limit("bool"))
+    with pytest.raises(AssertionError, match="fields without a config key"):
+        test_a_loop_setting_is_one_field_one_key_and_one_option()

@@ -67,13 +67,15 @@ def _calibrate(study, lab, out, **kw):
 
 def _verify(card, models, lay, spec, **kw):
     """The closed loop of ``card`` into the study layout ``lay`` (tiny specimens)."""
+    from bpmcal.analysis.calibration import LoopSettings
     from bpmcal.lab.runner import Geometry
     from bpmcal.lab.ucs import UCSSettings
+    from bpmcal.stages.measure import SeedTests
     from bpmcal.stages.verification import verify
 
     return verify(card, models, out_card=lay.verified_card(spec),
                   rounds=lay.verification_rounds(spec), run=lay.verification_run(spec),
-                  geometry=Geometry(scale=0.25), settings=UCSSettings(), **kw)
+                  tests=SeedTests(Geometry(scale=0.25), UCSSettings()), loop=LoopSettings(**kw))
 
 
 def test_card_bounds_are_the_configured_ranges_and_reachable_inside(study):

@@ -170,60 +170,17 @@ rule verify:
         * config["verification"]["max_seeds"],
         mem_mb=config["resources"]["dem_mem_mb"] * config["resources"]["loop_threads"],
     params:
-        # only the keys verify reads: changing another verification key (fresh_seeds,
-        # scatter_seeds) must not rerun the closed loops
-        v={
-            k: config["verification"][k]
-            for k in (
-                "seed",
-                "seeds_per_round",
-                "max_seeds",
-                "grow_within",
-                "rtol",
-                "max_rounds",
-                "range_margin",
-                "polish",
-                "jacobian_update",
-                "tensile_specimens",
-            )
-        },
-        # the adaptive count only for a σt target: otherwise it reruns nothing
-        tcv=(
-            [
-                "--tensile-seed-cv",
-                config["verification"]["tensile_seed_cv"],
-                "--max-tensile-specimens",
-                config["verification"]["max_tensile_specimens"]
-                or config["verification"]["tensile_specimens"],
-            ]
-            if (LAB_BTS or LAB_DTT) and config["verification"]["tensile_seed_cv"]
-            else []
-        ),
+        # the closed loop's settings only (LoopSettings' fields): changing another
+        # verification key (fresh_seeds, scatter_seeds) must not rerun the closed loops
+        loop=loop_args(),
         opts=specimen_args(),
         bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
         dtt=dtt_args() if LAB_DTT else [],
         tri=tri_args() if LAB_TRI else [],
-        polish="--polish" if config["verification"]["polish"] else "--no-polish",
-        # the triaxial seed cap only for a σ1 target: otherwise it reruns nothing
-        tseeds=(
-            ["--triaxial-seeds", config["verification"]["triaxial_seeds"]]
-            if LAB_TRI and config["verification"]["triaxial_seeds"]
-            else []
-        ),
-        unreachable=(
-            ["--from-unreachable"]
-            if config["verification"]["from_unreachable"]
-            else []
-        ),
     shell:
         "bpmcal verify --card {input.card:q} --models {input.models:q} "
         "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
-        "--seed-runs {output.seeds:q} --seed {params.v[seed]:q} --seeds-per-round {params.v[seeds_per_round]:q} "
-        "--max-seeds {params.v[max_seeds]:q} --grow-within {params.v[grow_within]:q} "
-        "--range-margin {params.v[range_margin]:q} "
-        "--jacobian-update {params.v[jacobian_update]:q} {params.polish:q} "
-        "--tensile-specimens {params.v[tensile_specimens]:q} {params.tcv:q} {params.tseeds:q} "
-        "--rtol {params.v[rtol]:q} --max-rounds {params.v[max_rounds]:q} {params.unreachable:q} --threads {threads} "
+        "--seed-runs {output.seeds:q} {params.loop:q} --threads {threads} "
         "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
 
 

@@ -13,6 +13,7 @@ import json
 import os
 
 from bpmcal.cli import BTS_OPTIONS, DTT_OPTIONS
+from bpmcal.cli.options import loop_argv
 from bpmcal.io import study_files as L
 from bpmcal.study.config import (
     ConfigError,
@@ -188,6 +189,14 @@ def dtt_args(cfg=config):
     for f in DTT_OPTIONS:
         opts[f"--dtt-{f.replace('_', '-')}"] = d[f]
     return [str(x) for k, v in opts.items() for x in (k, v)]
+
+
+def loop_args(cfg=config):
+    """The closed loop's options of bpmcal verify from the verification section: one per
+    LoopSettings field (bpmcal.cli.options.loop_argv: names, checks and switches from the
+    fields); the tensile-specimen count's adaptation only for a sigma_t target, the
+    triaxial seed cap only for a sigma_1 one, so that those keys rerun nothing else."""
+    return loop_argv(cfg["verification"], tensile=LAB_BTS or LAB_DTT, triaxial=LAB_TRI)
 
 
 # ---- the posterior predictive (workflow/rules/posterior.smk)

@@ -2,10 +2,16 @@
 
 An ``add_*_args(p)`` function adds one group of options to a subparser; a reader
 (``run_geometry``, ``run_settings``, ``bts_settings_of``, ``bts_disc_of``,
-``dtt_settings_of``, ``dtt_cylinder_of``, ``budget_of``) turns the parsed namespace back
-into the settings object a stage takes. Every default is the settings' own (the lab tests'
-settings dataclasses, ``Geometry``, the resource budget), never a literal here. The lab
-modules are imported inside the functions, so that importing this module loads no engine.
+``dtt_settings_of``, ``dtt_cylinder_of``, ``seed_tests_of``, ``loop_settings_of``) turns the
+parsed namespace back into the settings object a stage takes, and :func:`run_context`
+builds the one ``RunContext`` of a DEM command (cache, threads, budgets, progress). Every
+default is the settings' own (the lab tests' settings dataclasses, ``Geometry``,
+``RunContext``, ``LoopSettings``), never a literal here. The lab modules are imported
+inside the functions, so that importing this module loads no engine.
+
+The closed loop's options are generated from the fields of ``LoopSettings`` (their
+names, defaults, limits and help lines: :func:`add_loop_args`), and so is the workflow's
+command line of a config's ``verification`` section (:func:`loop_argv`).
 
 ``BTS_OPTIONS`` and ``DTT_OPTIONS`` name the settings fields that are options, under the
 same names as the keys of the study config's ``bts`` and ``dtt`` sections; the workflow
@@ -13,9 +19,10 @@ same names as the keys of the study config's ``bts`` and ``dtt`` sections; the w
 """
 from __future__ import annotations
 
+import argparse
 import dataclasses
 
-from ..lab.budget import GENESIS_MAX_STEPS, MAX_BALLS
+from ..lab.run_context import MIN_GENESIS_STEPS, RunContext
 from ..params import CONTACT_MODELS
 from .args import SEED, THREADS, choice, fraction, integer, number, positive
 
@@ -51,23 +58,29 @@ def add_outcome_args(p):
 
 
 def add_budget_args(p):
-    """Resource guards of a DEM command (checked before any work)."""
-    p.add_argument("--max-balls", type=integer("max-balls", 1), default=MAX_BALLS,
+    """Resource guards of a DEM command (checked before any work; defaults:
+    ``RunContext``'s)."""
+    d = RunContext()
+    p.add_argument("--max-balls", type=integer("max-balls", 1), default=d.max_balls,
                    help="refuse a specimen estimated to hold more balls than this "
-                        f"(default {MAX_BALLS:,})")
+                        f"(default {d.max_balls:,})")
     p.add_argument("--mem-budget-mb", type=positive("mem-budget-mb", "MB"), default=None,
                    help="refuse a run estimated to need more memory than this [MB] "
                         "(default 80 %% of this machine's memory)")
-    p.add_argument("--genesis-max-steps", type=integer("genesis-max-steps", 1000),
-                   default=GENESIS_MAX_STEPS,
+    p.add_argument("--genesis-max-steps",
+                   type=integer("genesis-max-steps", MIN_GENESIS_STEPS),
+                   default=d.genesis_max_steps,
                    help="a specimen that has not settled after this many steps is a failed "
-                        f"run (default {GENESIS_MAX_STEPS:,})")
+                        f"run (default {d.genesis_max_steps:,})")
 
 
-def budget_of(args) -> dict:
-    """The resource guards of :func:`add_budget_args` as a stage's keyword arguments."""
-    return {"max_balls": args.max_balls, "mem_budget_mb": args.mem_budget_mb,
-            "genesis_max_steps": args.genesis_max_steps}
+def run_context(args, progress=None) -> RunContext:
+    """The one ``RunContext`` of a DEM command: its ``--specimen-cache``, ``--threads``,
+    ``--max-balls``, ``--mem-budget-mb`` and ``--genesis-max-steps``
+    (:func:`add_specimen_args`), and ``progress`` (the command's progress line, or None)."""
+    return RunContext(cache=args.specimen_cache, threads=args.threads, max_balls=args.max_balls,
+                      mem_budget_mb=args.mem_budget_mb,
+                      genesis_max_steps=args.genesis_max_steps, progress=progress)
 
 
 GENESES = ("bpmcal", "pfc")  # = lab.specimen.GENESES (tested equal)
@@ -438,3 +451,94 @@ def tri_settings_of(args):
     st = run_settings(args, TriaxialSettings, sigma3=args.design_sigma3 * 1e6,
                       servo_alpha=args.tri_servo_alpha)
     return dataclasses.replace(st, stop_drop=args.design_stop_drop)
+
+
+def seed_tests_of(args, cylinder: bool = True):
+    """The tests a card's seed runs (``stages.measure.SeedTests``) from the options of
+    ``verify``, ``transfer``, ``fresh-seeds`` and ``posterior``: the cylinder and its
+    loading, the ``--bts-*`` disc, the ``--dtt-*`` test (its cylinder; ``cylinder``
+    False: the UCS cylinder, as the transfer's) and the triaxial test at
+    ``--design-sigma3``."""
+    from ..stages.measure import SeedTests
+
+    return SeedTests(geometry=run_geometry(args), settings=run_settings(args),
+                     bts_geometry=bts_disc_of(args, "bts_"),
+                     bts_settings=bts_settings_of(args, "bts_"),
+                     dtt_geometry=dtt_cylinder_of(args, "dtt_") if cylinder else None,
+                     dtt_settings=dtt_settings_of(args, "dtt_"),
+                     tri_settings=tri_settings_of(args))
+
+
+# ------------------------------------------------------------------ the closed loop's options
+def _loop_fields(names=None) -> list:
+    from ..analysis.calibration.loop_settings import LoopSettings
+
+    return [f for f in dataclasses.fields(LoopSettings) if names is None or f.name in names]
+
+
+def _loop_type(name: str, limit):
+    """An argparse type of the option ``name`` of a ``LoopSettings`` field of ``limit``:
+    its value checked by the field's own check (one set of limits), refused naming the
+    option."""
+    def conv(s):
+        try:
+            return limit.parse(s, name)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+    conv.__name__ = name
+    conv.bounds = limit.bounds  # compared with the config schema's (tests)
+    return conv
+
+
+def add_loop_args(p, names=None):
+    """The closed loop's options (``bpmcal verify``; ``transfer`` the ``names`` it takes):
+    one ``--FIELD`` per field of ``LoopSettings``, its default, its limits and its help
+    line the field's; a bool an on/off switch (``--polish``/``--no-polish``); read back by
+    :func:`loop_settings_of`."""
+    from ..stages.measure import TENSILE_REPLICATE_STRIDE
+
+    for f in _loop_fields(names):
+        limit, text, d = f.metadata["limit"], f.metadata["help"], f.default
+        opt = "--" + f.name.replace("_", "-")
+        if limit.kind == "bool":
+            p.add_argument(opt, action=argparse.BooleanOptionalAction, default=d,
+                           help=text.format(d="on" if d else "off"))
+        elif limit.kind == "choice":
+            p.add_argument(opt, choices=limit.words, default=d, help=text.format(d=d))
+        else:
+            p.add_argument(opt, type=_loop_type(opt[2:], limit), default=d,
+                           help=text.format(d=d, stride=TENSILE_REPLICATE_STRIDE))
+
+
+def loop_settings_of(args, names=None):
+    """``LoopSettings`` from the options of :func:`add_loop_args` (those of ``names``; the
+    other fields keep their defaults)."""
+    from ..analysis.calibration.loop_settings import LoopSettings
+
+    return LoopSettings(**{f.name: getattr(args, f.name) for f in _loop_fields(names)})
+
+
+def loop_argv(section: dict, *, tensile: bool = False, triaxial: bool = False) -> list[str]:
+    """The ``bpmcal verify`` options of a config's ``verification`` section (the workflow's
+    ``verify`` rule, the benchmarks): ``--FIELD VALUE`` for every ``LoopSettings`` field,
+    a bool as its switch, the section's values checked as ``LoopSettings`` checks them.
+    Left out: a null (the option's default is the same none) and a field that cannot act
+    on this study (its ``needs``: ``tensile``, a σt target; ``triaxial``, a σ1 target; a
+    field's name, that field set), so that changing it reruns nothing."""
+    from ..analysis.calibration.loop_settings import LoopSettings
+
+    fs = _loop_fields()
+    LoopSettings(**{f.name: section[f.name] for f in fs if f.name in section})  # checked
+    have = {"tensile": tensile, "triaxial": triaxial}
+    out = []
+    for f in fs:
+        v = section.get(f.name, f.default)
+        if v is None or not all(have[n] if n in have else section.get(n) is not None
+                                for n in f.metadata["needs"]):
+            continue
+        name = f.name.replace("_", "-")
+        if f.metadata["limit"].kind == "bool":
+            out.append(f"--{name}" if v else f"--no-{name}")
+        else:
+            out += [f"--{name}", str(v)]
+    return out

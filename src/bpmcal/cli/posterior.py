@@ -11,16 +11,7 @@ from pathlib import Path
 from ..stages import defaults_of
 from ..stages.progress import Progress
 from .args import SEED, integer, number
-from .options import (
-    bts_disc_of,
-    bts_settings_of,
-    dtt_cylinder_of,
-    dtt_settings_of,
-    file_arg,
-    run_geometry,
-    run_settings,
-    tri_settings_of,
-)
+from .options import file_arg, run_context, run_geometry, run_settings, seed_tests_of
 from .verification import _add_card_run_args
 
 
@@ -85,7 +76,7 @@ def _add_posterior(p):
 
 def cmd_posterior(args) -> int:
     from ..analysis.posterior import PosteriorSettings
-    from ..stages.posterior import DemRuns, RefineSettings, posterior
+    from ..stages.posterior import RefineSettings, posterior
 
     prog = Progress(f"posterior {Path(args.card).parent.name}", enabled=not args.quiet)
     settings = PosteriorSettings(surrogate=args.surrogate, seed=args.posterior_seed,
@@ -93,20 +84,14 @@ def cmd_posterior(args) -> int:
                                  ess_min=args.ess_min, max_steps=args.sampler_max_steps)
     refine = RefineSettings(max_runs=args.refine_max_runs, ratio=args.refine_ratio,
                             seeds=args.refine_seeds, seed=args.refine_seed)
-    geometry = run_geometry(args)
-    specimens = {"bts": (bts_disc_of(args, "bts_"), bts_settings_of(args, "bts_")),
-                 "dtt": (dtt_cylinder_of(args, "dtt_"), dtt_settings_of(args, "dtt_")),
-                 "tri": (geometry, tri_settings_of(args))}
-    dem = DemRuns(geometry, run_settings(args), specimens, cache=args.specimen_cache,
-                  threads=args.threads, genesis_max_steps=args.genesis_max_steps)
     out = posterior(args.card, args.dataset, args.models, out_card=args.out_card,
                     table=args.table, predictions=args.predictions, netcdf=args.netcdf,
                     figure=args.figure, loop_seeds=args.loop_seeds, fresh_seeds=args.fresh_seeds,
                     learning=args.learning, learning_figure=args.learning_figure,
                     refine_runs=args.refine_runs, draws=args.draws, n_draws=args.n_draws,
                     settings=settings, refine=refine,
-                    dem=dem if args.refine_max_runs else None,
-                    design_sigma3=args.design_sigma3, progress=prog)["posterior"]
+                    tests=seed_tests_of(args) if args.refine_max_runs else None,
+                    design_sigma3=args.design_sigma3, ctx=run_context(args, prog))["posterior"]
     prog.done(f"{out['status']}: {out['identifiability']} {out['reach']['text']}")
     return 0
 
@@ -189,7 +174,6 @@ def cmd_predictive(args) -> int:
                    impact_runs=args.impact_runs, impact_geometry=igeo, impact_settings=ist,
                    tri_seed=args.triaxial_seed, impact_seed=args.impact_seed,
                    envelopes=args.envelopes, card_impact=args.card_impact,
-                   cache=args.specimen_cache, threads=args.threads,
-                   genesis_max_steps=args.genesis_max_steps, progress=prog)
+                   ctx=run_context(args, prog))
     prog.done(summarise(t).to_string())
     return 0

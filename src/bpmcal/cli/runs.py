@@ -27,9 +27,9 @@ from .options import (
     add_tri_args,
     bts_disc_of,
     bts_settings_of,
-    budget_of,
     dtt_cylinder_of,
     dtt_settings_of,
+    run_context,
     run_geometry,
     run_settings,
     tri_settings_of,
@@ -109,8 +109,7 @@ def _lab_tests(args, cmd: str, tests, flags=None) -> int:
     outs = lab_test_files([(t, o, g, st) for t, o, g, st, _ in tests], params_file=args.params,
                           sets=args.set, design=args.design, sample=args.sample, seed=args.seed,
                           contact_model=args.contact_model,
-                          cache=args.specimen_cache, threads=args.threads, progress=progs,
-                          flags=flags, **budget_of(args))
+                          ctx=run_context(args), progress=progs, flags=flags)
     rc = EXIT_OK
     for (test, path, _, _, done_line), prog, out in zip(tests, progs, outs):
         prog.done(f"{path}: {done_line(out.summary)}" if out.status == "ok" and out.summary
@@ -322,8 +321,7 @@ def cmd_impact(args) -> int:
                         duration=args.duration_ms * 1e-3, record_dt=args.record_us * 1e-6)
     prog = Progress(f"impact {Path(args.out).name}", enabled=not args.quiet)
     out = impact_file(args.card, args.out, geometry=run_geometry(args), settings=st,
-                      seed=args.seed, cache=args.specimen_cache, threads=args.threads,
-                      progress=prog, **budget_of(args))
+                      seed=args.seed, ctx=run_context(args, prog))
     if out.status == "ok":
         s = out.summary
         prog.done(f"{args.out}: W_in = {s['W_in_J']:.3f} J, G_f = {s['G_f_J']:.3f} J, eta_f = "

@@ -5,7 +5,10 @@ triaxial ``envelopes`` and ``impact-analyse``.
 
 Each ``_add_<cmd>`` (its options) stands directly above its ``cmd_<cmd>`` (the handler).
 ``verify``, ``transfer`` and ``fresh-seeds`` share the cylinder, the ``--bts-*`` disc, the
-``--dtt-*`` test and the ``--tri-*`` triaxial test (:func:`_add_card_run_args`).
+``--dtt-*`` test and the ``--tri-*`` triaxial test (:func:`_add_card_run_args`; read back
+as one ``SeedTests``: ``options.seed_tests_of``); the closed loop's options are generated
+from ``LoopSettings`` (``options.add_loop_args``), and every DEM command builds one
+``RunContext`` (``options.run_context``).
 """
 from __future__ import annotations
 
@@ -15,21 +18,19 @@ from pathlib import Path
 from ..io.checks import BadInput
 from ..stages import defaults_of
 from ..stages.progress import Progress
-from .args import SEED, integer, integer_or, number
+from .args import integer, number
 from .options import (
     add_bts_args,
     add_dtt_args,
+    add_loop_args,
     add_run_args,
     add_tri_args,
-    bts_disc_of,
-    bts_settings_of,
-    budget_of,
-    dtt_cylinder_of,
-    dtt_settings_of,
     file_arg,
+    loop_settings_of,
+    run_context,
     run_geometry,
     run_settings,
-    tri_settings_of,
+    seed_tests_of,
 )
 
 
@@ -45,23 +46,6 @@ def _add_card_run_args(p, func):
     p.set_defaults(func=func)
 
 
-def _add_range_margin(p, d):
-    from ..analysis.calibration import UPDATES
-
-    p.add_argument("--range-margin", type=number("range-margin", 0.0, 1.0),
-                   default=d["range_margin"],
-                   help="the closed loop may leave each design range (the card's ranges) by "
-                        "this fraction of its width, inside the parameter's physical domain "
-                        "and never past the card's calibration bounds; the card lists what "
-                        f"ends outside (default {d['range_margin']:g}; 0: stay inside)")
-    p.add_argument("--jacobian-update", choices=UPDATES, default=d["jacobian_update"],
-                   help="how the measured rounds correct the closed loop's Jacobian: "
-                        "broyden (the secant between consecutive rounds) or history (a local "
-                        "linear fit to every round, the regression's Jacobian its prior; "
-                        "docs/methods/calibration.md) (default "
-                        f"{d['jacobian_update']})")
-
-
 def _seeds(text) -> list[int]:
     try:
         seeds = [int(x) for x in text.split(",")]
@@ -73,12 +57,11 @@ def _seeds(text) -> list[int]:
     return seeds
 
 
-def _add_verify(p):
-    from ..params import AUTO_ROUNDS, ROUNDS_PER_FREE
-    from ..stages.measure import MAX_TENSILE_SPECIMENS, TENSILE_REPLICATE_STRIDE
-    from ..stages.verification import verify
+#: the closed loop's settings the transfer takes (its --max-rounds are its own)
+TRANSFER_LOOP = ("seed", "rtol", "range_margin", "jacobian_update")
 
-    d = defaults_of(verify)
+
+def _add_verify(p):
     p.add_argument("--card", required=True)
     p.add_argument("--models", required=True)
     file_arg(p, "--out-card", "output: the verified card")
@@ -92,66 +75,7 @@ def _add_verify(p):
                    help="output (optional): the Brazilian run file of the best round when the "
                         "card has a tensile-strength target (bts_MPa), else a failure record "
                         "saying so; the disc is the ISRM 50 x 25 mm one at --scale")
-    p.add_argument("--seed", type=SEED, default=d["seed"],
-                   help=f"first packing seed of the DEM runs (default {d['seed']})")
-    p.add_argument("--seeds-per-round", type=integer("seeds-per-round", 1, 50),
-                   default=d["seeds_per_round"],
-                   help="packing seeds per round (--seed, --seed + 1, ...); the loop steers "
-                        f"their mean (default {d['seeds_per_round']})")
-    p.add_argument("--max-seeds", type=integer("max-seeds", 1, 200), default=d["max_seeds"],
-                   help="the seed set may grow to this many seeds once the means are within "
-                        "--grow-within tolerances but their standard errors are too large to "
-                        f"state them to --rtol (default {d['max_seeds']}; at most "
-                        "--seeds-per-round: no growth)")
-    p.add_argument("--grow-within", type=number("grow-within", 1.0),
-                   default=d["grow_within"],
-                   help="the seed set grows once every mean is within this many tolerances "
-                        "(a few seeds' spread can understate the scatter, so close to the "
-                        "targets the loop steers the grown set, not those seeds; "
-                        f"1: only once within tolerance; default {d['grow_within']:g})")
-    p.add_argument("--tensile-specimens",
-                   type=integer("tensile-specimens", 1, MAX_TENSILE_SPECIMENS),
-                   default=d["tensile_specimens"],
-                   help="a seed's sigma_t (Brazilian or direct tension) is the mean of this "
-                        "many valid specimens, packed with seed + j x "
-                        f"{TENSILE_REPLICATE_STRIDE:,}; the card records it and the transfer "
-                        "and the fresh-seed check measure sigma_t "
-                        f"the same way (default {d['tensile_specimens']})")
-    p.add_argument("--tensile-seed-cv",
-                   type=number("tensile-seed-cv", 0.0, 1.0, lo_open=True, hi_open=True),
-                   default=d["tensile_seed_cv"],
-                   help="adapt the tensile specimens per seed to the card: once the "
-                        "specimens measured scatter too much for --tensile-specimens of "
-                        "them to average to this seed CV (read over 5 seeds, missed at "
-                        "most 1 time in 10), later seeds and the round just started get "
-                        "more, up to --max-tensile-specimens (default: a fixed count)")
-    p.add_argument("--max-tensile-specimens",
-                   type=integer("max-tensile-specimens", 1, MAX_TENSILE_SPECIMENS),
-                   default=d["max_tensile_specimens"],
-                   help="the most tensile specimens per seed --tensile-seed-cv may ask for "
-                        "(default: --tensile-specimens, no raise)")
-    p.add_argument("--triaxial-seeds", type=integer("triaxial-seeds", 2, 200),
-                   default=d["triaxial_seeds"],
-                   help="with a triaxial-strength target (tri_MPa), only the first N seeds of "
-                        "the loop's seed set run the triaxial test, so a set grown to "
-                        "--max-seeds judges the other targets on more packings (default: "
-                        "every seed)")
-    p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
-                   help=f"relative tolerance (default {d['rtol']:g})")
-    p.add_argument("--max-rounds", type=integer_or(AUTO_ROUNDS, "max-rounds", 1, 50),
-                   default=d["max_rounds"],
-                   help=f"rounds at most, each of --seeds-per-round DEM runs, or "
-                        f"{AUTO_ROUNDS} ({ROUNDS_PER_FREE} per free parameter: 6 for the "
-                        f"paper's three, 8 with both strengths free; default {d['max_rounds']})")
-    p.add_argument("--from-unreachable", action="store_true",
-                   help="run the closed loop even when the card's inversion is unreachable "
-                        "(default: do not; the verified card says why)")
-    p.add_argument("--polish", action=argparse.BooleanOptionalAction, default=d["polish"],
-                   help="when the loop converges with a mean more than one standard error "
-                        "from its target and a round is left, take one more full Newton step "
-                        "towards the targets on the same seeds; kept if within tolerance "
-                        f"(default {'on' if d['polish'] else 'off'})")
-    _add_range_margin(p, d)
+    add_loop_args(p)
     _add_card_run_args(p, cmd_verify)
 
 
@@ -160,25 +84,15 @@ def cmd_verify(args) -> int:
 
     prog = Progress(f"verify {Path(args.card).stem}", enabled=not args.quiet)
     v = verify(args.card, args.models, out_card=args.out_card, rounds=args.rounds, run=args.run,
-               geometry=run_geometry(args), settings=run_settings(args), seed=args.seed,
-               seeds_per_round=args.seeds_per_round, max_seeds=args.max_seeds, rtol=args.rtol,
-               max_rounds=args.max_rounds, cache=args.specimen_cache,
-               threads=args.threads, progress=prog, from_unreachable=args.from_unreachable,
-               bts_run=args.bts_run, bts_geometry=bts_disc_of(args, "bts_"),
-               bts_settings=bts_settings_of(args, "bts_"), range_margin=args.range_margin,
-               polish=args.polish, dtt_geometry=dtt_cylinder_of(args, "dtt_"),
-               jacobian_update=args.jacobian_update, tensile_specimens=args.tensile_specimens,
-               triaxial_seeds=args.triaxial_seeds, tensile_seed_cv=args.tensile_seed_cv,
-               max_tensile_specimens=args.max_tensile_specimens,
-               grow_within=args.grow_within, seed_runs=args.seed_runs,
-               dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
-               **budget_of(args))["verification"]
+               tests=seed_tests_of(args), loop=loop_settings_of(args),
+               ctx=run_context(args, prog), bts_run=args.bts_run,
+               seed_runs=args.seed_runs)["verification"]
     prog.done(f"{v['status']} after {v['rounds']} round(s): {v['message']}")
     return 0
 
 
 def _add_transfer(p):
-    from ..stages.transfer import transfer
+    from ..stages.transfer import MAX_CORRECTIONS, transfer
 
     d = defaults_of(transfer)
     p.add_argument("--card", required=True, help="a verified card (bpmcal verify)")
@@ -186,15 +100,11 @@ def _add_transfer(p):
     file_arg(p, "--out-card", "output: the transferred card (calibrated_at_scale = --scale)")
     file_arg(p, "--rounds", "output table: one row per DEM round at this size")
     file_arg(p, "--run", "output: the run file of the best round")
-    p.add_argument("--seed", type=SEED, default=d["seed"],
-                   help=f"packing seed of the run(s) (default {d['seed']})")
-    p.add_argument("--max-rounds", type=integer("max-rounds", 0, 50), default=d["max_rounds"],
+    p.add_argument("--max-rounds", type=integer("max-rounds", 0, MAX_CORRECTIONS),
+                   default=d["max_rounds"],
                    help="correction rounds at most after the transfer run, one DEM run "
                         f"each (default {d['max_rounds']})")
-    p.add_argument("--rtol", type=number("rtol", 0.0, 1.0, lo_open=True), default=d["rtol"],
-                   help="relative tolerance; a response within max(rtol, 2 x its seed CV "
-                        f"from the verification) needs no correction (default {d['rtol']:g})")
-    _add_range_margin(p, d)
+    add_loop_args(p, TRANSFER_LOOP)  # a response within max(rtol, 2 x its seed CV): as is
     _add_card_run_args(p, cmd_transfer)
 
 
@@ -203,12 +113,9 @@ def cmd_transfer(args) -> int:
 
     prog = Progress(f"transfer {Path(args.card).stem}", enabled=not args.quiet)
     t = transfer(args.card, args.models, out_card=args.out_card, rounds=args.rounds, run=args.run,
-                 geometry=run_geometry(args), settings=run_settings(args), seed=args.seed,
-                 max_rounds=args.max_rounds, rtol=args.rtol, cache=args.specimen_cache,
-                 threads=args.threads, progress=prog, bts_geometry=bts_disc_of(args, "bts_"),
-                 bts_settings=bts_settings_of(args, "bts_"), range_margin=args.range_margin,
-                 dtt_settings=dtt_settings_of(args, "dtt_"), tri_settings=tri_settings_of(args),
-                 jacobian_update=args.jacobian_update, **budget_of(args))["transfer"]
+                 tests=seed_tests_of(args, cylinder=False),
+                 loop=loop_settings_of(args, TRANSFER_LOOP), ctx=run_context(args, prog),
+                 max_rounds=args.max_rounds)["transfer"]
     prog.done(f"{t['status']} after {t['rounds']} round(s) at scale {t['scale']:g}: "
               f"{t['message']}")
     return 0
@@ -246,8 +153,7 @@ def cmd_scatter(args) -> int:
 
     sc = seed_scatter(args.card, runs=args.runs, seeds=_seeds(args.seeds),
                       seed_runs=args.seed_runs, table=args.table, geometry=run_geometry(args),
-                      settings=run_settings(args), rtol=args.rtol, cache=args.specimen_cache,
-                      threads=args.threads, **budget_of(args))
+                      settings=run_settings(args), rtol=args.rtol, ctx=run_context(args))
     print(sc.to_string())
     return 0
 
@@ -276,14 +182,9 @@ def cmd_fresh_seeds(args) -> int:
 
     prog = Progress(f"fresh-seeds {Path(args.card).stem}", enabled=not args.quiet)
     df = fresh_seeds(args.card, seeds=_seeds(args.seeds), runs=args.runs,
-                     seed_runs=args.seed_runs, bts_runs=args.bts_runs,
-                     geometry=run_geometry(args), settings=run_settings(args),
-                     bts_geometry=bts_disc_of(args, "bts_"),
-                     bts_settings=bts_settings_of(args, "bts_"),
-                     dtt_runs=args.dtt_runs, dtt_geometry=dtt_cylinder_of(args, "dtt_"),
-                     dtt_settings=dtt_settings_of(args, "dtt_"), tri_runs=args.tri_runs,
-                     tri_settings=tri_settings_of(args), cache=args.specimen_cache,
-                     threads=args.threads, progress=prog, **budget_of(args))
+                     seed_runs=args.seed_runs, tests=seed_tests_of(args),
+                     ctx=run_context(args, prog), bts_runs=args.bts_runs,
+                     dtt_runs=args.dtt_runs, tri_runs=args.tri_runs)
     prog.done(f"{int((df['status'] == 'ok').sum())} of {len(df)} seed(s) ok")
     print(df.to_string(index=False))
     return 0

@@ -32,22 +32,18 @@ import numpy as np
 import pandas as pd
 
 from .. import params as P
-from ..analysis import ClosedLoop
+from ..analysis.calibration.loop_settings import LoopSettings
 from ..io.card import card_parameters, read_card
 from ..io.checks import BadInput
 from ..io.tables import write_table
-from ..lab.brazilian import BTSSettings
-from ..lab.budget import check_budget
-from ..lab.direct_tension import DTTSettings
+from ..lab.run_context import RunContext
 from ..lab.runner import bts_inputs, dtt_inputs, triaxial_inputs, ucs_inputs
 from ..lab.triaxial import TriaxialSettings
 from ..params import BTS
-from . import defaults_of
 from .inputs import CSV, H5, output_dirs, outputs
 from .measure import (
     RUNNERS,
     combine_specimens,
-    disc_geometry,
     specimen_run,
     specimen_text,
     specimens_of,
@@ -59,7 +55,7 @@ from .verification import check_tri_target
 #: per-seed columns of the seed table besides the targets
 _EXTRA = ("u_pre_MJm3", "peak_strain")
 #: the closed loop's relative tolerance (the ``met`` verdict uses the loop's own rule)
-_RTOL = defaults_of(ClosedLoop)["rtol"]
+_RTOL = LoopSettings().rtol
 
 
 def used_seeds(card: dict) -> set[int]:
@@ -73,22 +69,20 @@ def used_seeds(card: dict) -> set[int]:
     return seeds
 
 
-def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=None,
-                bts_geometry=None, bts_settings=None, cache=None, threads=None, progress=None,
-                max_balls=None, mem_budget_mb=None, genesis_max_steps=None, dtt_runs=None,
-                dtt_geometry=None, dtt_settings=None, tri_runs=None,
-                tri_settings=None) -> pd.DataFrame:
+def fresh_seeds(card, *, seeds, runs, seed_runs, tests, ctx: RunContext = RunContext(),
+                bts_runs=None, dtt_runs=None, tri_runs=None) -> pd.DataFrame:
     """Run a verified card on fresh packing ``seeds`` (none of them one its closed loop or
-    transfer used: BadInput naming them otherwise): the UCS test of every seed into
-    ``runs[i]`` and, with ``bts_runs``, the Brazilian test of the same seed (the disc
-    ``bts_geometry``, default the ISRM disc at the cylinder's scale, loaded with
-    ``bts_settings``) into ``bts_runs[i]``: σt judged against the lab's when it is a
-    target (``bts_runs`` is then required), else the card's prediction and its seed
-    scatter. A card with a direct-tension target (``dtt_MPa``) runs the direct-tension
-    test of every seed into ``dtt_runs[i]`` (the cylinder ``dtt_geometry``, default the
-    UCS cylinder, with ``dtt_settings``); a card with a triaxial-strength target
-    (``tri_MPa``) the triaxial test of ``tri_settings`` (its design confinement) on the UCS
-    cylinder into ``tri_runs[i]``. An invalid tensile test is run again on replacement
+    transfer used: BadInput naming them otherwise) with the tests of ``tests``
+    (:class:`~.measure.SeedTests`): the UCS test of every seed into ``runs[i]`` and, with
+    ``bts_runs``, the Brazilian test of the same seed (its disc, default the ISRM disc at
+    the cylinder's scale, and loading) into ``bts_runs[i]``: σt judged against the lab's
+    when it is a target (``bts_runs`` is then required), else the card's prediction and
+    its seed scatter. A card with a direct-tension target (``dtt_MPa``) runs the
+    direct-tension test of every seed into ``dtt_runs[i]`` (its cylinder, default the UCS
+    cylinder); a card with a triaxial-strength target (``tri_MPa``) the triaxial test of
+    ``tests.tri_settings`` (its design confinement) on the UCS cylinder into
+    ``tri_runs[i]``. ``ctx``: how the DEM runs (:class:`~bpmcal.lab.run_context.RunContext`).
+    An invalid tensile test is run again on replacement
     seeds (:func:`~.measure.valid_tensile_run`); when none is valid the seed has no σt
     (NaN, the reasons in ``error``) and keeps its UCS responses. σt is measured as the card's
     closed loop measured it: the mean of ``verification.tensile_specimens`` specimens per
@@ -98,7 +92,7 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
     (:func:`card_parameters`: the closed loop's, or the transfer's when it ran). A card
     whose closed loop did not run (``not-run``: an unreachable calibration) is not run on
     any seed: every run file is a failure record with the reason and every seed a row with
-    status ``not-run``. The seeds run side by side on up to ``threads`` processes
+    status ``not-run``. The seeds run side by side on up to ``ctx.threads`` processes
     (:class:`SeedPool`; the rows do not depend on how many)."""
     c = read_card(card, "--card", need=("parameters", "specimen", "targets", "verification"))
     seeds = [int(s) for s in seeds]
@@ -128,33 +122,31 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
         raise BadInput(f"--card {card} has a triaxial-strength target (tri_MPa): give "
                        "--tri-runs, one triaxial run file per seed")
     if ran:
-        check_tri_target(card, c["targets"], tri_settings)
+        check_tri_target(card, c["targets"], tests.tri_settings)
     for flag, files in (("--dtt-runs", dtt_runs), ("--tri-runs", tri_runs)):
         if files is not None and len(files) != len(seeds):
             raise BadInput(f"{flag}: {len(files)} run file(s) for {len(seeds)} seed(s); "
                            "expected one per seed, in the order of --seeds")
-    cylinder = dtt_geometry or geometry
-    dtt_settings = dtt_settings or DTTSettings()
+    geometry, settings = tests.geometry, tests.settings
+    cylinder, disc = tests.cylinder, tests.disc
     params = card_parameters(c)
-    disc = bts_geometry or disc_geometry(geometry)
-    bts_settings = bts_settings or BTSSettings()
     # the loop's mean is this card's on other seeds only if these runs repeat the loop's
     other = _loop_reference(c, geometry, disc if with_bts else None,
                             cylinder if with_dtt else None)
-    if ran and max_balls is not None:
-        for g in (geometry, *([disc] if bts_runs is not None else []),
-                  *([cylinder] if with_dtt else [])):
-            check_budget(params, g, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    if ran:
+        ctx.check_budget(params, geometry, *([disc] if bts_runs is not None else []),
+                         *([cylinder] if with_dtt else []))
     outputs(*((r, "--runs", H5) for r in runs), *((r, "--bts-runs", H5) for r in bts_runs or ()),
             *((r, "--dtt-runs", H5) for r in dtt_runs or ()),
             *((r, "--tri-runs", H5) for r in tri_runs or ()), (seed_runs, "--seed-runs", CSV))
     # the per-sample tests besides the UCS test: (strength, run files, measured for this
     # card - σt always, as a target or the card's prediction -, run test, specimen,
     # settings, inputs of its record, what it is, the target it needs)
-    extra = [(BTS, bts_runs, True, "bts", disc, bts_settings, bts_inputs, "Brazilian test", ""),
-             ("dtt_MPa", dtt_runs, with_dtt, "dtt", cylinder, dtt_settings, dtt_inputs,
+    extra = [(BTS, bts_runs, True, "bts", disc, tests.bts_settings, bts_inputs,
+              "Brazilian test", ""),
+             ("dtt_MPa", dtt_runs, with_dtt, "dtt", cylinder, tests.dtt_settings, dtt_inputs,
               "direct-tension test", "direct-tension target"),
-             (P.TRI, tri_runs, with_tri, "triaxial", geometry, tri_settings, _tri_inputs,
+             (P.TRI, tri_runs, with_tri, "triaxial", geometry, tests.tri_settings, _tri_inputs,
               "triaxial test", "triaxial-strength target")]
     if not ran:
         # no verified parameters: every run is a failure record saying why, every seed a row
@@ -173,17 +165,16 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, geometry, settings, bts_runs=No
                            for s in seeds])
         write_table(df, seed_runs, index=False)
         return df
-    output_dirs((cache, "--specimen-cache"))
+    output_dirs((ctx.cache, "--specimen-cache"))
     ts = int(v.get("tensile_specimens", 1))
     jobs = [dict(specimen=c["specimen"], params=params, seed=s, run=runs[i], geometry=geometry,
                  settings=settings, extra=[(e[0], None if e[1] is None else e[1][i], *e[2:])
-                                           for e in extra],
-                 cache=cache, genesis_max_steps=genesis_max_steps, tensile_specimens=ts)
+                                           for e in extra], tensile_specimens=ts)
             for i, s in enumerate(seeds)]
     parts = [(i, p) for i, job in enumerate(jobs) for p in _fresh_parts(job)]
     order = sorted(range(len(parts)), key=lambda k: (parts[k][1]["part"] != "ucs",
                                                      parts[k][1].get("j", 0)))
-    with SeedPool(threads, progress) as pool:  # every test of every seed side by side
+    with SeedPool.of(ctx) as pool:  # every test of every seed side by side
         done = pool.map(_fresh_part, [parts[k][1] for k in order],
                         tags=[_part_tag(parts[k][1]) for k in order])
     by_seed = [{} for _ in jobs]
@@ -243,7 +234,7 @@ def _fresh_parts(job: dict) -> list[dict]:
     """The pool jobs of one fresh seed (``job``: the seed's arguments): its UCS test, and
     every specimen j of each per-sample test measured for this card (each run a job of
     its own, as a closed loop's: :func:`~.loop_runs.seed_parts`)."""
-    base = {k: job[k] for k in ("params", "seed", "cache", "genesis_max_steps")}
+    base = {k: job[k] for k in ("params", "seed")}
     parts = [dict(base, part="ucs", out=job["run"], geometry=job["geometry"],
                   settings=job["settings"])]
     for resp, path, measured, test, geo, st, *_ in job["extra"]:
@@ -258,14 +249,14 @@ def _part_tag(p: dict) -> str:
                                    else f"{P.SAMPLE_TESTS[p['part']]} {p['j'] + 1}")
 
 
-def _fresh_part(*, part: str, params: dict, seed: int, out, geometry, settings, cache,
-                genesis_max_steps, threads, progress, j: int = 0):
-    """One run of a fresh seed (a :class:`SeedPool` job of :func:`_fresh_parts`): its UCS
+def _fresh_part(*, part: str, params: dict, seed: int, out, geometry, settings, ctx,
+                j: int = 0):
+    """One run of a fresh seed (a :class:`SeedPool` job of :func:`_fresh_parts`, with its
+    :class:`~bpmcal.lab.run_context.RunContext` ``ctx``): its UCS
     test into ``out`` (the outcome's status, error and the responses a seed row keeps), or
     specimen ``j`` of the test of strength ``part`` into ``out`` (j = 0) or
     ``<out stem>.r<j>.h5`` (a :class:`~.measure.SpecimenRun`)."""
-    kw = dict(cache=cache, threads=threads, progress=progress,
-              genesis_max_steps=genesis_max_steps, keep_particles=False)
+    kw = dict(ctx.lab_kw(), keep_particles=False)
     if part == "ucs":
         u = RUNNERS["ucs"](out, params, seed, geometry, settings, **kw)
         return {"status": u.status, "error": u.error,

@@ -42,40 +42,41 @@ MIN_SPECIMEN_DOF = 6
 
 class LoopRuns:
     """The DEM runs of a closed loop (:func:`.verification._dem_loop`): every round's seeds
-    side by side on up to ``threads`` processes (:class:`SeedPool`), each finished run journaled in
+    run the tests ``tests`` (:class:`~.measure.SeedTests`) side by side on up to
+    ``ctx.threads`` processes (:class:`SeedPool` of the stage's
+    :class:`~bpmcal.lab.run_context.RunContext` ``ctx``), each finished run journaled in
     ``folder`` (:class:`RunJournal`: a loop stopped part way and started again with the
     same inputs reads the runs it had finished); per round the seeds' rows (``by_round``),
     UCS run files (``paths``) and Brazilian run files (``bts_paths``). ``caps``: target ->
-    how many of the seed set's first seeds (from ``first_seed`` on) measure it; a seed
-    past a target's cap does not run its test.
+    how many of the seed set's first seeds (from ``loop.seed`` on) measure it; a seed
+    past a target's cap does not run its test. A seed's σt is the mean of
+    ``loop.tensile_specimens`` specimens (:class:`~bpmcal.analysis.calibration.LoopSettings`).
 
-    With ``seed_cv`` (config ``verification.tensile_seed_cv``) and a σt target, the count
-    of tensile specimens per seed adapts to the card: when a round starts, the specimen
-    CV pooled over every specimen measured so far (:func:`pooled_cv`; at least
-    ``MIN_SPECIMEN_DOF`` degrees of freedom) sets the count its seeds need
-    (:func:`specimens_needed`: the chance of reading a seed CV above ``seed_cv`` over 5
-    seeds below 10 %), never fewer than now nor more than ``max_specimens``. A raise
+    With ``loop.tensile_seed_cv`` (config ``verification.tensile_seed_cv``) and a σt
+    target, the count of tensile specimens per seed adapts to the card: when a round
+    starts, the specimen CV pooled over every specimen measured so far (:func:`pooled_cv`;
+    at least ``MIN_SPECIMEN_DOF`` degrees of freedom) sets the count its seeds need
+    (:func:`specimens_needed`: the chance of reading a seed CV above the aim over 5
+    seeds below 10 %), never fewer than now nor more than
+    ``loop.max_tensile_specimens``. A raise
     tops up that round's seeds (specimens m .. n-1 only, journaled like a run) and holds
     for every later round and seed, so a round's seeds are all measured alike."""
 
-    def __init__(self, folder: Path, targets: list, *, geometry, settings, specimens: dict,
-                 genesis_max_steps, cache, threads, progress, tensile_specimens=1,
-                 caps=None, first_seed=1, seed_cv=None, max_specimens=None):
+    def __init__(self, folder: Path, targets: list, *, tests, ctx, loop, caps=None):
         self.journal = RunJournal(folder)
-        self.inputs = dict(targets=targets, geometry=geometry, settings=settings,
-                           specimens=specimens, genesis_max_steps=genesis_max_steps,
-                           tensile_specimens=tensile_specimens)
-        self.cache, self.progress = cache, progress
-        self.pool = SeedPool(threads, progress)
+        self.inputs = dict(targets=targets, tests=tests,
+                           tensile_specimens=loop.tensile_specimens)
+        self.ctx, self.progress = ctx, ctx.progress
+        self.pool = SeedPool.of(ctx)
         self.by_round: list[list[dict]] = []
         self.paths: list[list[Path]] = []
         self.bts_paths: list[list[Path]] = []
         self._last: dict | None = None
-        self.caps, self.first_seed = dict(caps or {}), int(first_seed)
+        self.caps, self.first_seed = dict(caps or {}), int(loop.seed)
         self.tensile = next((r for r in targets if SAMPLE_TESTS.get(r) in TENSILE_TEST_NAMES), None)
-        self.seed_cv = seed_cv if self.tensile is not None else None
-        self.max_specimens = max(int(max_specimens or tensile_specimens), tensile_specimens)
-        self.start_specimens = int(tensile_specimens)
+        self.seed_cv = loop.tensile_seed_cv if self.tensile is not None else None
+        self.max_specimens = loop.most_tensile_specimens
+        self.start_specimens = loop.tensile_specimens
         self.raised: list[dict] = []
         if self.journal.resumable:
             self._note(f"{self.journal.resumable} finished run(s) of an earlier attempt in "
@@ -115,7 +116,10 @@ class LoopRuns:
         """``fn`` (returning (record, run files)) over ``jobs`` through the journal: a job
         whose inputs it holds is read back, the others run side by side, each journaled as
         soon as it ends. Returns every job's record, in order, as a reused run reads it."""
-        keys = [RunJournal.key(**job) for job in jobs]
+        # a run's key: its inputs and the genesis's step budget (a specimen that does not
+        # settle within it is a failed run)
+        keys = [RunJournal.key(**job, genesis_max_steps=self.ctx.genesis_max_steps)
+                for job in jobs]
         done = {i: self.journal.get(key) for i, key in enumerate(keys)}
         todo = [i for i, rec in done.items() if rec is None]
 
@@ -123,8 +127,8 @@ class LoopRuns:
             rec, files = res
             done[todo[j]] = self.journal.add(keys[todo[j]], rec, files)
 
-        self.pool.map(fn, [dict(jobs[i], cache=self.cache, stem=self.journal.stem(keys[i]))
-                           for i in todo], tags=[tags[i] for i in todo], done=finished)
+        self.pool.map(fn, [dict(jobs[i], stem=self.journal.stem(keys[i])) for i in todo],
+                      tags=[tags[i] for i in todo], done=finished)
         return [done[i] for i in range(len(jobs))]
 
     def _parts(self, jobs: list[dict], tag: str, first_specimen: int = 0) -> list:
@@ -231,19 +235,19 @@ class LoopRuns:
                        "attempt, not run again")
 
 
-def loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, settings,
-              specimens: dict, cache, genesis_max_steps, threads, progress,
+def loop_seed(*, params: dict, seed: int, stem: Path, targets: list, tests, ctx,
               tensile_specimens: int = 1):
     """One seed of a closed-loop round (:func:`.verification._dem_loop`; run in a
-    :class:`SeedPool` worker or in this process): the UCS test into ``<stem>.h5`` and every
-    per-sample test of the ``targets`` (``specimens``: test -> (specimen, settings)), an
-    invalid one replaced, σt the mean of ``tensile_specimens`` specimens
-    (:func:`~.measure.seed_strength`). Returns (its journal record: the seed's row, its
-    responses, the names of the UCS run file and of the Brazilian one or None; every run
-    file it wrote)."""
-    kw = dict(cache=cache, threads=threads, progress=progress,
-              genesis_max_steps=genesis_max_steps)
-    res = RUNNERS["ucs"](Path(f"{stem}.h5"), params, seed, geometry, settings, **kw)
+    :class:`SeedPool` worker or in this process, with its
+    :class:`~bpmcal.lab.run_context.RunContext` ``ctx``): the UCS test into ``<stem>.h5``
+    and every per-sample test of the ``targets`` (``tests``: the
+    :class:`~.measure.SeedTests`), an invalid one replaced, σt the mean of
+    ``tensile_specimens`` specimens (:func:`~.measure.seed_strength`). Returns (its
+    journal record: the seed's row, its responses, the names of the UCS run file and of
+    the Brazilian one or None; every run file it wrote)."""
+    kw = ctx.lab_kw()
+    specimens = tests.specimens()
+    res = RUNNERS["ucs"](Path(f"{stem}.h5"), params, seed, tests.geometry, tests.settings, **kw)
     row = dict(res.summary, status=res.status, seed=seed)
     out = ({r: float(res.summary[r]) for r in targets if r not in SAMPLE_TESTS}
            if res.status == "ok" else {r: math.nan for r in targets if r not in SAMPLE_TESTS})
@@ -277,13 +281,16 @@ def loop_seed(*, params: dict, seed: int, stem: Path, targets: list, geometry, s
 
 def seed_parts(job: dict, first_specimen: int = 0) -> list[dict]:
     """The pool jobs of one loop seed's ``job`` (:func:`loop_seed`'s
-    arguments but the folder and the pool's): its UCS test (none with
+    arguments but the folder and the context): its UCS test (none with
     ``first_specimen`` > 0: a top-up of its tensile specimens) and every specimen j of each
     per-sample test of its targets (from ``first_specimen`` on)."""
-    base = {k: job[k] for k in ("params", "seed", "geometry", "settings", "genesis_max_steps")}
+    tests = job["tests"]
+    base = {"params": job["params"], "seed": job["seed"], "geometry": tests.geometry,
+            "settings": tests.settings}
     parts = [] if first_specimen else [dict(base, part="ucs")]
+    specimens = tests.specimens()
     for resp in (r for r in SAMPLE_TESTS if r in job["targets"]):  # σt, σ1
-        geo, st = job["specimens"][SAMPLE_TESTS[resp]]
+        geo, st = specimens[SAMPLE_TESTS[resp]]
         n = specimens_of(resp, job.get("tensile_specimens", 1))
         parts += [dict(base, part=resp, j=j, geometry=geo, settings=st)
                   for j in range(first_specimen, n)]
@@ -297,14 +304,14 @@ def longest_first(parts: list[dict]) -> list[int]:
                                                      parts[i].get("j", 0)))
 
 
-def run_part(*, part: str, params: dict, seed: int, geometry, settings, stem: Path, cache,
-             genesis_max_steps, threads, progress, j: int = 0):
-    """One pool job of :func:`seed_parts`: the UCS test into ``<stem>.h5``, or specimen
-    ``j`` of the test of strength ``part`` into ``<stem>.<test><k>[.r<j>].h5``
-    (:func:`specimen_path`). Returns (its record: JSON-able, every run file
-    it wrote)."""
-    kw = dict(cache=cache, threads=threads, progress=progress,
-              genesis_max_steps=genesis_max_steps)
+def run_part(*, part: str, params: dict, seed: int, geometry, settings, stem: Path, ctx,
+             j: int = 0):
+    """One pool job of :func:`seed_parts` (with its
+    :class:`~bpmcal.lab.run_context.RunContext` ``ctx``): the UCS test into
+    ``<stem>.h5``, or specimen ``j`` of the test of strength ``part`` into
+    ``<stem>.<test><k>[.r<j>].h5`` (:func:`specimen_path`). Returns (its record: JSON-able,
+    every run file it wrote)."""
+    kw = ctx.lab_kw()
     if part == "ucs":
         res = RUNNERS["ucs"](Path(f"{stem}.h5"), params, seed, geometry, settings, **kw)
         rec = {"summary": dict(res.summary), "status": res.status,

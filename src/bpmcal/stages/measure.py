@@ -4,7 +4,7 @@ as the closed loop (:mod:`.loop_runs`), the transfer, the fresh-seed check
 (:mod:`.fresh_seeds`) and the posterior's refinement runs measure it: an invalid run
 replaced (:func:`valid_tensile_run`), a tensile strength the mean of several specimens
 (:func:`seed_strength`, :func:`combine_specimens`), written into a seed's row
-(:func:`row_strength`); and the checks of those settings.
+(:func:`row_strength`); the tests a seed runs (:class:`SeedTests`).
 
 The one seed scheme of these measurements is here: specimen j of packing seed s is packed
 with :func:`replicate_seed` (s + j x ``TENSILE_REPLICATE_STRIDE``), the m-th replacement
@@ -20,12 +20,18 @@ seam through which a test replaces the DEM.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..analysis.calibration.loop_settings import MAX_TENSILE_SPECIMENS
 from ..io.checks import BadInput
+from ..lab.brazilian import BTSSettings
+from ..lab.direct_tension import DTTSettings
+from ..lab.runner import Geometry
 from ..lab.runner import bts_geometry as _isrm_disc
+from ..lab.triaxial import TriaxialSettings
+from ..lab.ucs import UCSSettings
 from ..params import SAMPLE_TESTS, TENSILE_TESTS
 from .runs import run_bts_file, run_dtt_file, run_triaxial_file, run_ucs_file
 
@@ -50,7 +56,6 @@ BTS_MAX_REPLACEMENTS = 3
 #: 1,000,003, was specimen 1 of seed s + 3, and two seeds shared that disc.)
 TENSILE_TEST_NAMES: tuple[str, ...] = tuple(TENSILE_TESTS.values())
 TENSILE_REPLICATE_STRIDE = 20_000_003
-MAX_TENSILE_SPECIMENS = 50
 
 
 def replicate_seed(seed: int, j: int) -> int:
@@ -90,6 +95,43 @@ def disc_geometry(geometry):
     return _isrm_disc(scale=geometry.scale, sigma0_MPa=geometry.sigma0_MPa,
                       install_gap_mm=geometry.install_gap_mm,
                       relax_ratio=geometry.relax_ratio, genesis=geometry.genesis)
+
+
+@dataclass(frozen=True)
+class SeedTests:
+    """The tests a packing seed of a card runs, and how (the closed loop's, the
+    transfer's, the fresh seeds', the posterior's refinement runs): the UCS cylinder
+    ``geometry`` loaded with ``settings``; the Brazilian disc ``bts_geometry`` (None: the
+    ISRM disc at the cylinder's scale and genesis, :func:`disc_geometry`) loaded with
+    ``bts_settings``; the direct-tension cylinder ``dtt_geometry`` (None: the UCS
+    cylinder) with ``dtt_settings``; the triaxial test at the design confinement,
+    ``tri_settings`` (its ``sigma3``), on the UCS cylinder (None: none, and a card with a
+    triaxial-strength target cannot be run). Which of them a seed runs is its card's
+    targets'."""
+
+    geometry: Geometry = field(default_factory=Geometry)
+    settings: UCSSettings = field(default_factory=UCSSettings)
+    bts_geometry: Geometry | None = None
+    bts_settings: BTSSettings = field(default_factory=BTSSettings)
+    dtt_geometry: Geometry | None = None
+    dtt_settings: DTTSettings = field(default_factory=DTTSettings)
+    tri_settings: TriaxialSettings | None = None
+
+    @property
+    def disc(self) -> Geometry:
+        """The Brazilian disc (``bts_geometry``, or the ISRM disc at the cylinder's scale)."""
+        return self.bts_geometry or disc_geometry(self.geometry)
+
+    @property
+    def cylinder(self) -> Geometry:
+        """The direct-tension cylinder (``dtt_geometry``, or the UCS cylinder)."""
+        return self.dtt_geometry or self.geometry
+
+    def specimens(self) -> dict:
+        """Per-sample test -> (its specimen, its settings): what a seed's ``bts``, ``dtt``
+        and ``tri`` runs take."""
+        return {"bts": (self.disc, self.bts_settings), "dtt": (self.cylinder, self.dtt_settings),
+                "tri": (self.geometry, self.tri_settings)}
 
 
 def test_strength(resp: str, outcome) -> float:
@@ -244,36 +286,3 @@ def row_strength(row: dict, resp: str, path_of, params: dict, seed: int, geometr
         row[f"{test}_specimens"] = len(values)
         row[f"{test}_specimen_MPa"] = specimen_text(values)
     return b, invalid
-
-
-def check_triaxial_seeds(n, flag: str = "--triaxial-seeds"):
-    """The closed loop's triaxial seed cap: None (every seed) or an integer >= 2 (a
-    standard error needs two), else BadInput naming the value."""
-    if n is None:
-        return None
-    if isinstance(n, bool) or not isinstance(n, int) or n < 2:
-        raise BadInput(f"{flag} {n!r}: expected an integer >= 2 (how many of the closed "
-                       "loop's seeds run the triaxial test), or none for every seed")
-    return n
-
-
-def check_seed_cv(cv, flag: str = "--tensile-seed-cv"):
-    """The σt seed CV a closed loop aims at (None: a fixed count of specimens), a number
-    in (0, 1), else BadInput naming the value."""
-    if cv is None:
-        return None
-    if isinstance(cv, bool) or not isinstance(cv, (int, float)) \
-            or not (math.isfinite(cv) and 0 < cv < 1):
-        raise BadInput(f"{flag} {cv!r}: expected a fraction in (0, 1) (the seed CV of σt "
-                       "to aim at, e.g. 0.05), or none for a fixed count of specimens")
-    return float(cv)
-
-
-def check_tensile_specimens(n, flag: str = "--tensile-specimens") -> int:
-    """``n`` as the number of tensile specimens per seed: an integer in 1 ..
-    MAX_TENSILE_SPECIMENS, else BadInput naming ``flag`` and the value."""
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) \
-            or not 1 <= int(n) <= MAX_TENSILE_SPECIMENS:
-        raise BadInput(f"{flag} {n!r}: expected an integer in 1 .. {MAX_TENSILE_SPECIMENS} "
-                       "(tensile specimens per packing seed)")
-    return int(n)

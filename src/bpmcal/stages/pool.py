@@ -77,18 +77,27 @@ def _worker_init() -> None:
         os._exit(130)
 
 
-def _call(fn: Callable, job: dict, threads: int, spec: tuple | None, tag: str):
-    """One run in a worker: ``fn(**job, threads=threads, progress=...)``, its progress
-    lines labelled with ``tag`` (the run's seed). An interrupted run (Ctrl-C reaches the
-    whole process group; a stopped pool or a dead parent sends SIGTERM) ends the worker:
-    it must not go on to the next queued run."""
+def _run_args(ctx, threads, progress) -> dict:
+    """A run's own keywords: ``ctx=`` (its :class:`~bpmcal.lab.run_context.RunContext`
+    with the run's threads and progress) for a pool of a context, else ``threads=`` and
+    ``progress=``."""
+    if ctx is not None:
+        return {"ctx": ctx.with_run(threads, progress)}
+    return {"threads": threads, "progress": progress}
+
+
+def _call(fn: Callable, job: dict, threads: int, spec: tuple | None, tag: str, ctx=None):
+    """One run in a worker: ``fn(**job, threads=threads, progress=...)`` (or ``ctx=``,
+    :func:`_run_args`), its progress lines labelled with ``tag`` (the run's seed). An
+    interrupted run (Ctrl-C reaches the whole process group; a stopped pool or a dead
+    parent sends SIGTERM) ends the worker: it must not go on to the next queued run."""
     progress = None
     if spec is not None:
         label, every, enabled = spec
         progress = Progress(f"{label} [{tag}]", every=every, enabled=enabled)
     try:
         # with what the worker spent on it (its share of the stage's cost, bpmcal.cost)
-        return fn(**job, threads=threads, progress=progress), LEDGER.take("worker")
+        return fn(**job, **_run_args(ctx, threads, progress)), LEDGER.take("worker")
     except KeyboardInterrupt:
         os._exit(130)
 
@@ -97,14 +106,27 @@ class SeedPool:
     """Runs ``fn(**job, threads=..., progress=...)`` for a list of jobs on up to
     ``threads`` processes (module docs); a context manager that shuts its workers down on
     exit. ``map`` may be called many times (a closed loop: once per round); the workers
-    are started at the first call that runs more than one job at once and kept."""
+    are started at the first call that runs more than one job at once and kept.
+
+    The pool of a stage's :class:`~bpmcal.lab.run_context.RunContext` (:meth:`of`) runs
+    ``fn(**job, ctx=...)`` instead: the context with the run's own threads and progress
+    (sent to a worker without its progress, which the worker builds again)."""
 
     def __init__(self, threads: int | None, progress=None):
         if threads is not None and (isinstance(threads, bool) or int(threads) < 1):
             raise ValueError(f"threads={threads!r}: expected an integer >= 1 or None")
         self.threads = None if threads is None else int(threads)
         self.progress = progress
+        self.ctx = None
         self._ex: ProcessPoolExecutor | None = None
+
+    @classmethod
+    def of(cls, ctx) -> "SeedPool":
+        """The pool of a stage's RunContext ``ctx``: its threads as CPUs, its progress,
+        and ``ctx=`` for every run (class docs)."""
+        pool = cls(ctx.threads, ctx.progress)
+        pool.ctx = ctx
+        return pool
 
     def __enter__(self) -> "SeedPool":
         return self
@@ -149,7 +171,8 @@ class SeedPool:
 
     def map(self, fn: Callable, jobs: Sequence[dict], tags: Sequence[str] | None = None,
             done: Callable[[int, object], None] | None = None) -> list:
-        """``[fn(**job, threads=t, progress=p) for job in jobs]``, the jobs side by side
+        """``[fn(**job, threads=t, progress=p) for job in jobs]`` (or ``ctx=``: class docs),
+        the jobs side by side
         when there are CPUs for it; ``tags`` name each job in progress lines and errors
         (default its index). ``done(i, result)``, when given, is called as soon as job i
         has finished (in the order they finish; a journal of finished runs)."""
@@ -159,7 +182,7 @@ class SeedPool:
         if n <= 1:
             out = []
             for i, job in enumerate(jobs):
-                out.append(fn(**job, threads=self.threads, progress=self.progress))
+                out.append(fn(**job, **_run_args(self.ctx, self.threads, self.progress)))
                 if done is not None:
                     done(i, out[-1])
             return out
@@ -168,7 +191,9 @@ class SeedPool:
             self._ex = ProcessPoolExecutor(self.threads, mp_context=mp.get_context("spawn"),
                                            initializer=_worker_init)
         spec = _progress_spec(self.progress)
-        futures = [self._ex.submit(_call, fn, job, each, spec, tag) for job, tag in zip(jobs, tags)]
+        sent = None if self.ctx is None else self.ctx.with_run(None, None)  # picklable
+        futures = [self._ex.submit(_call, fn, job, each, spec, tag, sent)
+                   for job, tag in zip(jobs, tags)]
         index = {f: i for i, f in enumerate(futures)}
         results: dict[int, object] = {}
         try:

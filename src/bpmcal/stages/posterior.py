@@ -18,7 +18,7 @@ Method: ``docs/methods/posterior.md``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +38,7 @@ from ..io.card import card_parameters, read_card, write_card
 from ..io.checks import BadInput, read_csv
 from ..io.figures import save_figure
 from ..io.tables import write_table
+from ..lab.run_context import RunContext
 from ..plots.posterior import fig_learning, fig_pairs
 from .inputs import CSV, PNG, YAML, outputs, read_dataset, read_models
 from .posterior_data import RESPONSES, design_runs, problem_of, seed_rows
@@ -65,20 +66,6 @@ class RefineSettings:
         if not (isinstance(self.ratio, (int, float)) and math.isfinite(self.ratio)
                 and self.ratio > 0):
             raise BadInput(f"refine ratio={self.ratio!r}: expected a number > 0")
-
-
-@dataclass(frozen=True)
-class DemRuns:
-    """What a refinement run needs to measure a card as the closed loop does: the UCS
-    ``geometry`` and ``settings``, ``specimens`` (per-sample test -> (specimen, settings)),
-    the packing ``cache``, ``threads`` and the genesis step budget."""
-
-    geometry: object
-    settings: object
-    specimens: dict = field(default_factory=dict)
-    cache: object = None
-    threads: int | None = None
-    genesis_max_steps: int | None = None
 
 
 def _basis(models: dict, resp: str, params):
@@ -191,13 +178,14 @@ def _fit(runs, c, se, model_set, prob, params, point, settings, design_sigma3):
     return res
 
 
-def _check_geometry(c: dict, dem: DemRuns, card) -> None:
+def _check_geometry(c: dict, tests, card) -> None:
     """A refinement run must measure the card as its closed loop did: the same cylinder
-    (scale, size, genesis). BadInput naming the difference."""
+    (scale, size, genesis; ``tests``: the :class:`~.measure.SeedTests` of the runs).
+    BadInput naming the difference."""
     loop = (c.get("verification") or {}).get("geometry")
     if not loop:
         return
-    mine = dem.geometry.to_dict()
+    mine = tests.geometry.to_dict()
 
     def same(a, b):
         if isinstance(a, str) or isinstance(b, str):
@@ -247,20 +235,19 @@ def refine_point(res) -> dict:
     return {k: float(v[0]) for k, v in full.items()}
 
 
-def _measure(point: dict, seeds: list[int], targets: list[str], dem: DemRuns, folder: Path,
-             it: int, tensile_specimens: int, progress) -> list[dict]:
+def _measure(point: dict, seeds: list[int], targets: list[str], tests, ctx: RunContext,
+             folder: Path, it: int, tensile_specimens: int) -> list[dict]:
     """The card measured at ``point`` on ``seeds`` as the closed loop measures a seed
-    (:func:`bpmcal.stages.loop_runs.loop_seed`), side by side on the stage's CPUs;
-    the seed rows (the loop's seeds.csv columns, ``round`` = the refinement's step)."""
+    (:func:`bpmcal.stages.loop_runs.loop_seed`: the tests of ``tests``, a
+    :class:`~.measure.SeedTests`), side by side on the CPUs of ``ctx``; the seed rows (the
+    loop's seeds.csv columns, ``round`` = the refinement's step)."""
     from .loop_runs import loop_seed
     from .pool import SeedPool
 
     folder.mkdir(parents=True, exist_ok=True)
     jobs = [dict(params=point, seed=s, stem=folder / f"refine{it}.seed{s}", targets=targets,
-                 geometry=dem.geometry, settings=dem.settings, specimens=dem.specimens,
-                 cache=dem.cache, genesis_max_steps=dem.genesis_max_steps,
-                 tensile_specimens=tensile_specimens) for s in seeds]
-    with SeedPool(dem.threads, progress) as pool:
+                 tests=tests, tensile_specimens=tensile_specimens) for s in seeds]
+    with SeedPool.of(ctx) as pool:
         done = pool.map(loop_seed, jobs, tags=[f"refine {it} seed {s}" for s in seeds])
     rows = []
     for rec, files in done:
@@ -419,8 +406,8 @@ def posterior(card, dataset, models, *, out_card, table, predictions, netcdf, fi
               loop_seeds=None, fresh_seeds=None, learning=None, learning_figure=None,
               refine_runs=None, draws=None,
               n_draws: int = 8, settings: PosteriorSettings = PosteriorSettings(),
-              refine: RefineSettings = RefineSettings(), dem: DemRuns | None = None,
-              design_sigma3=None, progress=None) -> dict:
+              refine: RefineSettings = RefineSettings(), tests=None,
+              design_sigma3=None, ctx: RunContext = RunContext()) -> dict:
     """The posterior of one verified card (module docstring). Inputs: the card, the
     dataset and the regression's models (the surrogates' basis), the loop's and the fresh
     seeds' tables (optional). Outputs: ``out_card`` (the card with its ``posterior``
@@ -428,7 +415,10 @@ def posterior(card, dataset, models, *, out_card, table, predictions, netcdf, fi
     ``figure`` (pair plot); optional ``learning`` (the learning curve) and
     ``learning_figure`` (its plot), ``refine_runs`` (the refinement's seed rows) and
     ``draws`` (``n_draws`` posterior draws for the predictive DEM runs). ``refine`` needs
-    ``dem`` to run; without it the surrogate's error is only reported. Returns the card."""
+    ``tests`` to run (the :class:`~.measure.SeedTests` of the card's closed loop; its DEM
+    runs as ``ctx`` says, :class:`~bpmcal.lab.run_context.RunContext`, which also takes
+    the stage's notes); without it the surrogate's error is only reported. Returns the
+    card."""
     outputs((out_card, "--out-card", YAML), (table, "--table", CSV),
             (predictions, "--predictions", CSV), (netcdf, "--netcdf", NC),
             (figure, "--figure", PNG), (learning, "--learning", CSV),
@@ -441,19 +431,19 @@ def posterior(card, dataset, models, *, out_card, table, predictions, netcdf, fi
                           predictions=predictions, netcdf=netcdf, figure=figure,
                           loop_seeds=loop_seeds, fresh_seeds=fresh_seeds, learning=learning,
                           learning_figure=learning_figure, refine_runs=refine_runs, draws=draws,
-                          n_draws=n_draws, settings=settings, refine=refine, dem=dem,
-                          design_sigma3=design_sigma3, progress=progress)
+                          n_draws=n_draws, settings=settings, refine=refine, tests=tests,
+                          design_sigma3=design_sigma3, ctx=ctx)
 
 
 # long: the stage's job in its order (the fit, refinement, curve, every output); each step
 # is one call
 def _posterior(card, dataset, models, *, out_card, table, predictions, netcdf, figure,
                loop_seeds, fresh_seeds, learning, learning_figure, refine_runs, draws, n_draws,
-               settings, refine, dem, design_sigma3, progress) -> dict:
+               settings, refine, tests, design_sigma3, ctx) -> dict:
     c, se, model_set, prob, params, runs, point = _inputs(card, dataset, models, loop_seeds,
                                                           fresh_seeds)
-    if dem is not None and refine.max_runs:
-        _check_geometry(c, dem, card)
+    if tests is not None and refine.max_runs:
+        _check_geometry(c, tests, card)
 
     def fit(r, s=settings):
         return _fit(r, c, se, model_set, prob, params, point, s, design_sigma3)
@@ -462,20 +452,20 @@ def _posterior(card, dataset, models, *, out_card, table, predictions, netcdf, f
     folder = Path(out_card).parent / f".{Path(out_card).stem}.refine"
     tensile_n = int((c.get("verification") or {}).get("tensile_specimens", 1))
     measure = None
-    if dem is not None and refine.max_runs:
+    if tests is not None and refine.max_runs:
         targets = list(c["targets"])
 
         def measure(point, seeds, it):
-            return _measure(point, seeds, targets, dem, folder, it, tensile_n, progress)
+            return _measure(point, seeds, targets, tests, ctx, folder, it, tensile_n)
 
     res, runs, rows, history = refine_posterior(res, runs, fit, refine, measure, params,
-                                                progress)
+                                                ctx.progress)
     curve = None
     if learning is not None:
         cheap = PosteriorSettings(**{**settings.__dict__, **CURVE_SETTINGS})
         curve = learning_curve(runs, lambda r: fit(r, cheap))
     ref = {"max_runs": refine.max_runs, "ratio_limit": refine.ratio, "runs": len(rows),
-           "ran": dem is not None, "history": history}
+           "ran": tests is not None, "history": history}
     out = dict(c)
     out["posterior"] = card_section(res, refine=ref, curve=curve)
     write_table(res.summary, table)

@@ -24,6 +24,7 @@ from .. import params as P
 from ..io.checks import BadInput, read_csv
 from ..io.h5 import RunFileError, read_summary
 from ..io.tables import write_table
+from ..lab.run_context import RunContext
 from .inputs import CSV, H5, outputs
 from .pool import SeedPool
 from .runs import run_impact_file, run_triaxial_file
@@ -33,13 +34,12 @@ from .triaxial import fit_envelopes
 PREDICTIONS = ("mi", "c_MPa", "phi_deg", "eta_f")
 
 
-def _run_job(*, kind: str, out, params: dict, seed: int, geometry, settings, cache,
-             genesis_max_steps, threads, progress) -> dict:
-    """One run of a draw (a :class:`SeedPool` job): a triaxial test (``kind`` "tri", at
-    ``settings.sigma3``) or the drop hammer ("impact") into ``out``; whether it ran, the
+def _run_job(*, kind: str, out, params: dict, seed: int, geometry, settings, ctx) -> dict:
+    """One run of a draw (a :class:`SeedPool` job, with its
+    :class:`~bpmcal.lab.run_context.RunContext` ``ctx``): a triaxial test (``kind`` "tri",
+    at ``settings.sigma3``) or the drop hammer ("impact") into ``out``; whether it ran, the
     value the draw needs of it (σ1 at failure, η_f; NaN for a failed run) and the error."""
-    kw = dict(cache=cache, threads=threads, progress=progress,
-              genesis_max_steps=genesis_max_steps)
+    kw = ctx.lab_kw()
     if kind == "tri":
         r = run_triaxial_file(out, params, seed, geometry, settings, keep_particles=False, **kw)
         key = "sigma1_MPa"
@@ -76,21 +76,20 @@ def _draw_row(sigma3: list, tri: list[dict], impact: dict | None) -> dict:
 
 def _draw_jobs(params: list, tri_runs: list, sigma3: list, impact_runs, *, geometry,
                tri_settings, impact_geometry, impact_settings, tri_seed: int,
-               impact_seed: int, cache, genesis_max_steps) -> list[tuple]:
+               impact_seed: int) -> list[tuple]:
     """Every run of every draw as its own pool job (:func:`_run_job`), the longest first so
     that the stage's CPUs stay busy to its end: the impacts, then the triaxial tests from
     the highest confinement down. Returns (draw, index: -1 for the impact, else the
     stress's, job) in that order."""
-    k, common = len(sigma3), dict(cache=cache, genesis_max_steps=genesis_max_steps)
-    jobs = []
+    k, jobs = len(sigma3), []
     if impact_runs is not None:
         jobs += [(i, -1, dict(kind="impact", out=impact_runs[i], params=p, seed=impact_seed,
-                              geometry=impact_geometry, settings=impact_settings, **common))
+                              geometry=impact_geometry, settings=impact_settings))
                  for i, p in enumerate(params)]
     for j in sorted(range(k), key=lambda j: -sigma3[j]):
         st = dataclasses.replace(tri_settings, sigma3=float(sigma3[j]) * 1e6)
         jobs += [(i, j, dict(kind="tri", out=tri_runs[i * k + j], params=p, seed=tri_seed,
-                             geometry=geometry, settings=st, **common))
+                             geometry=geometry, settings=st))
                  for i, p in enumerate(params)]
     return jobs
 
@@ -118,11 +117,12 @@ def _card_values(envelopes, specimen: str, impact_run) -> dict:
 
 def predictive(draws, *, specimen: str, tri_runs, table, sigma3, geometry, tri_settings,
                impact_runs=None, impact_geometry=None, impact_settings=None, tri_seed=1,
-               impact_seed=1, envelopes=None, card_impact=None, cache=None, threads=None,
-               genesis_max_steps=None, progress=None) -> pd.DataFrame:
+               impact_seed=1, envelopes=None, card_impact=None,
+               ctx: RunContext = RunContext()) -> pd.DataFrame:
     """Run every draw of ``draws`` (module docstring): ``tri_runs`` are the triaxial run
     files draw by draw, ``sigma3`` (MPa) within each; ``impact_runs`` one per draw (None:
-    no impact). ``envelopes`` (the study's triaxial envelope table) and ``card_impact``
+    no impact); ``ctx``: how the DEM runs (:class:`~bpmcal.lab.run_context.RunContext`).
+    ``envelopes`` (the study's triaxial envelope table) and ``card_impact``
     (the card's reference impact run) give the card's own row. Writes ``table``: one row
     per draw (its parameters and predictions) and the card's row (``draw`` = card)."""
     d = read_csv(draws, "--draws", ["draw"], min_rows=1)
@@ -145,9 +145,9 @@ def predictive(draws, *, specimen: str, tri_runs, table, sigma3, geometry, tri_s
     jobs = _draw_jobs(params, tri_runs, sigma3, impact_runs, geometry=geometry,
                       tri_settings=tri_settings, impact_geometry=impact_geometry,
                       impact_settings=impact_settings, tri_seed=tri_seed,
-                      impact_seed=impact_seed, cache=cache, genesis_max_steps=genesis_max_steps)
+                      impact_seed=impact_seed)
     names_of = {-1: "impact"} | {j: f"triaxial {s3:g} MPa" for j, s3 in enumerate(sigma3)}
-    with SeedPool(threads, progress) as pool:  # every run its own job: no idle tail
+    with SeedPool.of(ctx) as pool:  # every run its own job: no idle tail
         done = pool.map(_run_job, [job for _, _, job in jobs],
                         tags=[f"draw {int(d['draw'].iloc[i])} {names_of[j]}" for i, j, _ in jobs])
     runs = {(i, j): r for (i, j, _), r in zip(jobs, done)}

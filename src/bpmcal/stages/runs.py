@@ -37,10 +37,11 @@ from ..io.checks import BadInput, out_dir, out_file, read_model_table, read_yaml
 from ..io.h5 import RunFileError, check_run_file, write_run
 from ..io.safe_names import clip, shown
 from ..lab.brazilian import BTSSettings
-from ..lab.budget import MAX_BALLS, BudgetError, check_budget
+from ..lab.budget import BudgetError
 from ..lab.direct_tension import DTTSettings
 from ..lab.impact import ImpactSettings
 from ..lab.reach import screen_test_loading
+from ..lab.run_context import RunContext
 from ..lab.runner import (
     RUN_FAILURES,
     Geometry,
@@ -320,24 +321,19 @@ _TESTS = {"ucs": (ucs_inputs, run_ucs_file), "bts": (bts_inputs, run_bts_file),
 
 
 def lab_test_file(test: str, out, *, geometry, settings, params_file=None, sets=(),
-                  design=None, sample=None, seed=None, max_balls=MAX_BALLS,
-                  mem_budget_mb=None, cache=None, threads=None, progress=None,
-                  genesis_max_steps=None, keep_particles: bool = True) -> RunOutcome:
+                  design=None, sample=None, seed=None, ctx: RunContext = RunContext(),
+                  keep_particles: bool = True) -> RunOutcome:
     """The job of ``bpmcal ucs|bts|dtt|triaxial``: parameters and seed (a parameter file or a
-    design row), the resource budget, the output path and the cache folder, all checked
-    before any work; then the run file, or the failure record of a failed run or of a plan
-    row that is not to be run."""
+    design row), the resource budget (``ctx``, :class:`~bpmcal.lab.run_context.RunContext`),
+    the output path and the cache folder, all checked before any work; then the run file,
+    or the failure record of a failed run or of a plan row that is not to be run."""
     return lab_test_files([(test, out, geometry, settings)], params_file=params_file,
-                          sets=sets, design=design, sample=sample, seed=seed,
-                          max_balls=max_balls, mem_budget_mb=mem_budget_mb, cache=cache,
-                          threads=threads, progress=progress,
-                          genesis_max_steps=genesis_max_steps,
+                          sets=sets, design=design, sample=sample, seed=seed, ctx=ctx,
                           keep_particles=keep_particles)[0]
 
 
 def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None, seed=None,
-                   max_balls=MAX_BALLS, mem_budget_mb=None, cache=None, threads=None,
-                   progress=None, genesis_max_steps=None, keep_particles: bool = True,
+                   ctx: RunContext = RunContext(), progress=None, keep_particles: bool = True,
                    flags=None, contact_model=None) -> list[RunOutcome]:
     """Several lab tests of one parameter set and packing seed in one process, one after
     the other: ``tests`` is a list of ``(test, out, geometry, settings)``. The study's
@@ -346,15 +342,14 @@ def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None
     about 1 s of a ~2.5 s Brazilian job. Every input of every test (budget, output path)
     is checked before the first one runs; each test writes its own run file or failure
     record, whatever happened to the others. ``flags``: the option naming each output in
-    error messages (default ``--out``); ``progress``: one callable for all tests or a list,
-    one per test."""
+    error messages (default ``--out``); ``ctx``: how the runs go (cache, threads, budgets,
+    :class:`~bpmcal.lab.run_context.RunContext`); ``progress``: a list of one progress
+    callable per test (default: ``ctx.progress`` for all)."""
     with phase("inputs"):  # the cost ledger (bpmcal.cost)
         params, seed, skips = _checked_tests(tests, params_file=params_file, sets=sets,
-                                             design=design, sample=sample, seed=seed,
-                                             max_balls=max_balls, mem_budget_mb=mem_budget_mb,
-                                             cache=cache, flags=flags,
-                                             contact_model=contact_model)
-    progs = progress if isinstance(progress, (list, tuple)) else [progress] * len(tests)
+                                             design=design, sample=sample, seed=seed, ctx=ctx,
+                                             flags=flags, contact_model=contact_model)
+    progs = list(progress) if progress is not None else [ctx.progress] * len(tests)
     done = []
     for (test, out, geometry, settings), prog, skip in zip(tests, progs, skips):
         inputs_of, run_file = _TESTS[test]
@@ -363,15 +358,14 @@ def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None
                             settings)
             done.append(write_failure(out, test=test, inputs=inp, error=skip))
             continue
-        done.append(run_file(out, params, seed, geometry, settings, cache=cache,
-                             threads=threads, progress=prog,
+        done.append(run_file(out, params, seed, geometry, settings,
                              keep_particles=keep_particles,
-                             genesis_max_steps=genesis_max_steps))
+                             **dict(ctx.lab_kw(), progress=prog)))
     return done
 
 
-def _checked_tests(tests, *, params_file, sets, design, sample, seed, max_balls,
-                   mem_budget_mb, cache, flags, contact_model) -> tuple[dict, int, list]:
+def _checked_tests(tests, *, params_file, sets, design, sample, seed, ctx, flags,
+                   contact_model) -> tuple[dict, int, list]:
     """``lab_test_files``' inputs, all checked before any work: the parameters, the
     packing seed and, per test, the reason not to run it ("" to run)."""
     params, seed, skip = run_source(params_file=params_file, sets=sets, design=design,
@@ -380,7 +374,7 @@ def _checked_tests(tests, *, params_file, sets, design, sample, seed, max_balls,
     skips = [skip] * len(tests)
     if not skip:
         for i, (test, _, geometry, settings) in enumerate(tests):
-            check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+            ctx.check_budget(params, geometry)
             try:  # buildable at all (e.g. 3 ball diameters across)
                 specimen_spec(P.validate_params(params), seed, geometry)
             except InputError as e:
@@ -399,17 +393,17 @@ def _checked_tests(tests, *, params_file, sets, design, sample, seed, max_balls,
                            "output file per test")
         seen[key] = flag
         out_file(out, flag)
-    if cache is not None:
-        out_dir(cache, "--specimen-cache")
+    if ctx.cache is not None:
+        out_dir(ctx.cache, "--specimen-cache")
     return params, seed, skips
 
 
-def impact_file(card, out, *, geometry, settings, seed=1, max_balls=MAX_BALLS,
-                mem_budget_mb=None, cache=None, threads=None, progress=None,
-                genesis_max_steps=None) -> RunOutcome:
+def impact_file(card, out, *, geometry, settings, seed=1,
+                ctx: RunContext = RunContext()) -> RunOutcome:
     """The job of ``bpmcal impact``: the parameters of ``card`` (a verified card's closed
     loop, else its calibration, or a flat mapping of the 8 parameters), checked with the
-    budget, the output and the cache folder before any work; then the run file."""
+    budget (``ctx``, :class:`~bpmcal.lab.run_context.RunContext`), the output and the cache
+    folder before any work; then the run file."""
     d = read_yaml(card, "--card")
     if is_card(d) or "verification" in d:
         d = card_parameters(check_card(d, f"--card {card}"))
@@ -417,9 +411,8 @@ def impact_file(card, out, *, geometry, settings, seed=1, max_balls=MAX_BALLS,
         params = P.validate_params(d)
     except P.ParameterError as e:
         raise P.ParameterError(f"--card {card}: {e}") from None
-    check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    ctx.check_budget(params, geometry)
     out_file(out)
-    if cache is not None:
-        out_dir(cache, "--specimen-cache")
-    return run_impact_file(out, params, seed, geometry, settings, cache=cache, threads=threads,
-                           progress=progress, genesis_max_steps=genesis_max_steps)
+    if ctx.cache is not None:
+        out_dir(ctx.cache, "--specimen-cache")
+    return run_impact_file(out, params, seed, geometry, settings, **ctx.lab_kw())

@@ -8,23 +8,19 @@ and writes exactly the files it is given (``bpmcal.io.study_files``).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pandas as pd
 
 from .. import params as P
+from ..analysis.calibration.loop_settings import MAX_ROUNDS, LoopSettings
 from ..io.card import card_parameters, read_card, write_card
 from ..io.checks import BadInput
 from ..io.tables import write_table
-from ..lab.brazilian import BTSSettings
-from ..lab.budget import check_budget
-from ..lab.direct_tension import DTTSettings
+from ..lab.run_context import RunContext
 from .inputs import CSV, H5, YAML, output_dirs, outputs, read_models
-from .measure import disc_geometry
 from .verification import (
-    _LOOP,
-    _check_margin,
-    _check_update,
     _dem_loop,
     _loop_box,
     _not_run,
@@ -33,23 +29,24 @@ from .verification import (
     check_tri_target,
 )
 
+#: the most correction rounds of a transfer (its first round is the transfer run itself)
+MAX_CORRECTIONS = MAX_ROUNDS - 1
 
-def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
-             max_rounds=2, rtol=_LOOP["rtol"], z=2.0, cache=None, threads=None, progress=None,
-             max_balls=None, mem_budget_mb=None, genesis_max_steps=None, bts_geometry=None,
-             bts_settings=None, range_margin=0.25, dtt_settings=None,
-             tri_settings=None, jacobian_update="broyden") -> dict:
-    """Full-size transfer of a verified card: run its parameters once (packing ``seed``)
-    on the specimen of ``geometry`` (the study's ``transfer.scale``, 1.0 = the lab's
-    50 x 100 mm) and, when a response misses its lab target by more than the seed scatter
-    of one run at that size (max(``rtol``, ``z`` x the seed CV the verification measured x
-    :func:`scatter_factor`, which shrinks it with the larger specimen's ball count)),
-    continue the closed loop at that size for at most ``max_rounds`` more rounds of one
-    run each: Newton-Broyden as in :func:`verify`, starting from the Jacobian the
-    verification's loop had learned from the DEM (``verification.jacobian``; the
-    regression's at the card's point for a card without one). The regression's Jacobian
-    can be wrong where the loop ended - at a model's vertex its sign flips - while the
-    DEM's relative sensitivities change little with the specimen size.
+
+def transfer(card, models, *, out_card, rounds, run, tests, loop: LoopSettings = LoopSettings(),
+             ctx: RunContext = RunContext(), max_rounds=2, z=2.0) -> dict:
+    """Full-size transfer of a verified card: run its parameters once (packing
+    ``loop.seed``) on the specimen of ``tests`` (:class:`~.measure.SeedTests`; the study's
+    ``transfer.scale``, 1.0 = the lab's 50 x 100 mm) and, when a response misses its lab
+    target by more than the seed scatter of one run at that size (max(``loop.rtol``, ``z``
+    x the seed CV the verification measured x :func:`scatter_factor`, which shrinks it
+    with the larger specimen's ball count)), continue the closed loop at that size for at
+    most ``max_rounds`` more rounds of one run each: Newton-Broyden as in :func:`verify`,
+    starting from the Jacobian the verification's loop had learned from the DEM
+    (``verification.jacobian``; the regression's at the card's point for a card without
+    one). The regression's Jacobian can be wrong where the loop ended - at a model's
+    vertex its sign flips - while the DEM's relative sensitivities change little with the
+    specimen size. ``ctx``: how its DEM runs (:class:`~bpmcal.lab.run_context.RunContext`).
 
     Writes the transferred card (``out_card``: the verified card with a ``transfer``
     section - status ``within-scatter`` (no correction needed), ``corrected`` (met after
@@ -58,32 +55,32 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
     tolerances, the parameters; and ``calibrated_at_scale``: the transfer's scale when the
     loop ran), the rounds table and ``run`` (the best round's run file). Readers take the
     transfer's parameters (:func:`bpmcal.io.card.card_parameters`). A card with a
-    tensile-strength target runs its Brazilian test as :func:`verify` does: the disc
-    ``bts_geometry`` (default the ISRM disc at the transfer's scale, :func:`disc_geometry`)
-    loaded with ``bts_settings`` (default ``BTSSettings()``; the study passes its `bts`
-    section, as to the verification); a direct-tension target runs its test on the
-    transfer's cylinder with ``dtt_settings``, a triaxial-strength target (``tri_MPa``) the
-    triaxial test of ``tri_settings`` on it; σt is the mean of as many specimens per
-    seed as the verification's (``verification.tensile_specimens``, default 1). The loop's
-    bounds are the verification's:
-    the design ranges widened by ``range_margin`` of their width
-    (``verification.range_margin``); ``jacobian_update`` its Jacobian update rule
-    (``verification.jacobian_update``, as :func:`verify`)."""
+    tensile-strength target runs its Brazilian test as :func:`verify` does, on the disc
+    and with the loading of ``tests`` (default the ISRM disc at the transfer's scale; the
+    study passes its `bts` section, as to the verification); a direct-tension target runs
+    its test on the transfer's cylinder, a triaxial-strength target (``tri_MPa``) the
+    triaxial test of ``tests.tri_settings`` on it; σt is the mean of as many specimens
+    per seed as the verification's (``verification.tensile_specimens``, default 1). Of
+    ``loop`` (:class:`~bpmcal.analysis.calibration.LoopSettings`) the transfer takes the
+    seed, the tolerance, the bounds (the design ranges widened by ``loop.range_margin``
+    of their width, as the verification's) and the Jacobian update rule
+    (``loop.jacobian_update``); its loop runs one seed, so its rounds do not grow, polish
+    or adapt the tensile specimens."""
     c = read_card(card, "--card", need=("parameters", "targets", "roles", "ranges",
                                         "verification"))
-    if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) or max_rounds < 0:
-        raise BadInput(f"--max-rounds {max_rounds!r}: expected an integer >= 0")
-    range_margin = _check_margin(range_margin)
-    jacobian_update = _check_update(jacobian_update)
+    if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) \
+            or not 0 <= max_rounds <= MAX_CORRECTIONS:
+        raise BadInput(f"--max-rounds {max_rounds!r}: expected an integer in 0 .. "
+                       f"{MAX_CORRECTIONS} (correction rounds after the transfer run)")
     model_set = read_models(models)
     params = card_parameters(c)
-    check_tri_target(card, c["targets"], tri_settings)
-    if max_balls is not None:
-        check_budget(params, geometry, max_balls=max_balls, mem_budget_mb=mem_budget_mb)
+    check_tri_target(card, c["targets"], tests.tri_settings)
+    ctx.check_budget(params, tests.geometry)
     outputs((out_card, "--out-card", YAML), (rounds, "--rounds", CSV), (run, "--run", H5))
-    output_dirs((cache, "--specimen-cache"))
+    output_dirs((ctx.cache, "--specimen-cache"))
     targets = {k: float(v) for k, v in c["targets"].items()}
     v = c["verification"]
+    geometry, seed = tests.geometry, loop.seed
     base = {"scale": float(geometry.scale), "seed": int(seed), "max_rounds": max_rounds,
             "from_scale": c.get("calibrated_at_scale", (v.get("geometry") or {}).get("scale")),
             "geometry": geometry.to_dict()}
@@ -92,23 +89,21 @@ def transfer(card, models, *, out_card, rounds, run, geometry, settings, seed=1,
         return _not_run(c, out_card, "transfer", {
             "status": "not-run", "message": reason, "rounds": 0, **base, "tolerance_pct": None,
             "at_transfer": None, "final": None, "parameters": None}, rounds=rounds, run=run,
-            error=reason, params=params, seed=seed, geometry=geometry, settings=settings)
+            error=reason, params=params, seed=seed, tests=tests)
     shrink = scatter_factor(v.get("geometry"), geometry)
-    tol = _tolerances(v, targets, rtol, z, shrink)
-    res, by_round, best, _ = _dem_loop(
-        c, model_set, targets, params=params, run=run, seeds=[int(seed)],
-        geometry=geometry, settings=settings, rtol=tol, max_rounds=1 + max_rounds,
-        cache=cache, threads=threads, progress=progress,
-        genesis_max_steps=genesis_max_steps, disc=bts_geometry or disc_geometry(geometry),
-        bts_settings=bts_settings or BTSSettings(), jacobian=v.get("jacobian"),
-        range_margin=range_margin, cylinder=geometry,
-        dtt_settings=dtt_settings or DTTSettings(), tri_settings=tri_settings,
-        jacobian_update=jacobian_update,
-        tensile_specimens=int(v.get("tensile_specimens", 1)))  # σt measured as the loop did
+    tol = _tolerances(v, targets, loop.rtol, z, shrink)
+    # one seed, 1 + max_rounds rounds; σt measured as the verification's loop measured it
+    one = dataclasses.replace(loop, seeds_per_round=1, max_seeds=1, max_rounds=1 + max_rounds,
+                              tensile_specimens=int(v.get("tensile_specimens", 1)),
+                              tensile_seed_cv=None, max_tensile_specimens=None,
+                              triaxial_seeds=None)
+    res, by_round, best, _ = _dem_loop(c, model_set, targets, params=params, run=run,
+                                       tests=tests, loop=one, ctx=ctx, rtol=tol,
+                                       jacobian=v.get("jacobian"))
     write_table(res.history, rounds, index=False)
     out = dict(c)
     section = _transfer_section(res, by_round, best, targets, base=base, tol=tol, shrink=shrink,
-                                range_margin=range_margin)
+                                range_margin=loop.range_margin)
     if section["status"] != "failed":
         out["calibrated_at_scale"] = float(geometry.scale)
     out["transfer"] = section

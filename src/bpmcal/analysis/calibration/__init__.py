@@ -11,6 +11,8 @@ The package holds one concept per module:
 - :mod:`.inversion` — :func:`invert` → :class:`InversionResult`;
 - :mod:`.widen` — which configured limit to widen when the targets are out of reach;
 - :mod:`.bootstrap` — :func:`bootstrap_intervals` → :class:`BootstrapResults`;
+- :mod:`.loop_settings` — :class:`LoopSettings`, every option of a closed loop on the
+  DEM as one validated value, and the one table of their limits;
 - :mod:`.closed_loop` — :class:`ClosedLoop` → :class:`ClosedLoopResult`, the loop's
   driver; its step rule (the Jacobian, its updates, the step and the trust region) in
   :mod:`.step_rule`, its seed-set policy (the seeds a round runs, its judgement, when
@@ -21,6 +23,7 @@ The package holds one concept per module:
 from .bootstrap import BootstrapResults, bootstrap_intervals
 from .closed_loop import ClosedLoop, ClosedLoopResult
 from .inversion import InversionResult, invert
+from .loop_settings import UPDATES, LoopSettings
 from .scatter import scatter_table
 from .space import (
     DEFAULT_FREE,
@@ -31,8 +34,7 @@ from .space import (
     check_calibration_space,
     tensile_target,
 )
-from .step_rule import UPDATES
 
 __all__ = ["UPDATES", "PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "tensile_target", "bts_strengths",
            "CalibrationSpace", "check_calibration_space", "InversionResult", "invert", "BootstrapResults",
-           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "scatter_table"]
+           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "LoopSettings", "scatter_table"]

@@ -29,9 +29,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from bpmcal.params import AUTO_ROUNDS, ROUNDS_PER_FREE, ParameterError, auto_rounds
+from bpmcal.params import AUTO_ROUNDS, ParameterError, auto_rounds
 
 from ..stepwise import RegressionModel
+from .loop_settings import check_loop_value
 from .seed_policy import (
     Round,
     SeedPolicy,
@@ -51,25 +52,7 @@ from .space import (
     _inside,
     space_model,
 )
-from .step_rule import HISTORY_MIN_STEP, UPDATES, StepRule, TrustRegion, initial_jacobian
-
-
-def check_max_rounds(max_rounds) -> None:
-    """A ValueError naming ``max_rounds`` unless it is an integer >= 1 or ``"auto"``."""
-    whole = isinstance(max_rounds, (int, np.integer)) and not isinstance(max_rounds, bool)
-    if not ((whole and max_rounds >= 1) or max_rounds == AUTO_ROUNDS):
-        raise ValueError(f"max_rounds={max_rounds!r}: expected an integer >= 1 or "
-                         f"{AUTO_ROUNDS!r} ({ROUNDS_PER_FREE} per free parameter)")
-
-
-def check_grow_within(grow_within) -> float:
-    """``grow_within`` as a float, or a ValueError naming it unless it is a number >= 1."""
-    if isinstance(grow_within, (bool, np.bool_)) or not isinstance(
-            grow_within, (int, float, np.integer, np.floating)) \
-            or not (math.isfinite(float(grow_within)) and float(grow_within) >= 1):
-        raise ValueError(f"grow_within={grow_within!r}: expected a factor >= 1 on the tolerance "
-                         "(1: the seed set grows once every mean is within its tolerance)")
-    return float(grow_within)
+from .step_rule import HISTORY_MIN_STEP, StepRule, TrustRegion, initial_jacobian
 
 
 @dataclass
@@ -132,6 +115,25 @@ class ClosedLoopResult:
         head = (f"Closed loop: {self.status} after {self.n_rounds} round(s) of {self.n_seeds} "
                 f"seed(s) - {self.message}")
         return "\n".join([head, "", self.history.to_string(index=False)])
+
+
+def _loop_options(responses, rtol, max_rounds, margin, polish, update, grow_within) -> tuple:
+    """:class:`ClosedLoop`'s keywords that are :class:`LoopSettings` fields, checked as it
+    checks them (``check_loop_value``: one set of limits; a ValueError naming the keyword):
+    (rtol per response, max_rounds, margin, polish, update, grow_within). A mapping
+    ``rtol`` (a tolerance of each target, e.g. the transfer's, derived from the seed
+    scatter) needs positive values only."""
+    if isinstance(rtol, Mapping):
+        rt = {r: float(rtol[r]) for r in responses}
+        if not all(v > 0 for v in rt.values()):
+            raise ValueError(f"rtol={rtol!r}: expected positive relative tolerance(s)")
+    else:
+        rt = dict.fromkeys(responses, check_loop_value("rtol", rtol))
+    return (rt, check_loop_value("max_rounds", max_rounds),
+            check_loop_value("range_margin", margin, "margin"),
+            check_loop_value("polish", polish),
+            check_loop_value("jacobian_update", update, "update"),
+            check_loop_value("grow_within", grow_within))
 
 
 class ClosedLoop:
@@ -278,13 +280,11 @@ class ClosedLoop:
         self.responses, self.t = _check_targets(targets, models)
         self.target_se = relative_target_se(target_se, self.responses, self.t)
         self.seed_caps = check_seed_caps(seed_caps, self.responses)
-        grow_within = check_grow_within(grow_within)
         if (models is None) == (jacobian is None):
             raise ValueError("give exactly one of models (analytic Jacobian) or jacobian")
-        rt = {r: float(rtol[r] if isinstance(rtol, Mapping) else rtol) for r in self.responses}
-        if not all(v > 0 for v in rt.values()):
-            raise ValueError(f"rtol={rtol!r}: expected positive relative tolerance(s)")
-        check_max_rounds(max_rounds)
+        # the loop's settings, checked as LoopSettings checks them (one set of limits)
+        rt, self.max_rounds, self.margin, self.polish, update, grow_within = _loop_options(
+            self.responses, rtol, max_rounds, margin, polish, update, grow_within)
         if not 0 < damping <= 1:
             raise ValueError(f"damping={damping!r}: expected a factor in (0, 1]")
         if not 0 < max_step <= 1:
@@ -296,9 +296,6 @@ class ClosedLoop:
         self.free, self.ratio, self.ranges, self.bounds = free, ratio, _check_ranges(ranges), bounds
         self.models, self.jacobian = models, jacobian
         rtol = np.array([rt[r] for r in self.responses])
-        self.max_rounds = max_rounds if max_rounds == AUTO_ROUNDS else int(max_rounds)
-        if update not in UPDATES:
-            raise ValueError(f"update={update!r}: expected one of {list(UPDATES)}")
         if min_step is None:
             min_step = HISTORY_MIN_STEP * max_step if update == "history" else 0.0
         if not (isinstance(min_step, (int, float, np.integer, np.floating))
@@ -306,13 +303,6 @@ class ClosedLoop:
             raise ValueError(f"min_step={min_step!r}: expected a fraction of the range in "
                              f"[0, max_step = {max_step!r}]")
         self.report = report
-        if isinstance(margin, bool) or not isinstance(margin, (int, float, np.integer, np.floating)) \
-                or not (math.isfinite(float(margin)) and 0 <= float(margin) <= 1):
-            raise ValueError(f"margin={margin!r}: expected a fraction of the range width in [0, 1]")
-        self.margin = float(margin)
-        if not isinstance(polish, (bool, np.bool_)):
-            raise ValueError(f"polish={polish!r}: expected True or False")
-        self.polish = bool(polish)
         self.sign_held: list[dict] = []  # the starting Jacobian's entries held to their sign
         #: where the next round goes, and which seeds it runs on
         self.step_rule = StepRule(self.responses, self.t, rtol, self.z, float(damping),

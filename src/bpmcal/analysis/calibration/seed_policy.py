@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .loop_settings import check_loop_value
+
 
 def takes_seed(simulate: Callable) -> bool:
     """Whether ``simulate`` accepts a keyword ``seed`` (a parameter of that name or
@@ -39,10 +41,8 @@ def takes_seed(simulate: Callable) -> bool:
 
 def round_seeds(simulate: Callable, seeds_per_round: int | None, seeds: Sequence[int] | None) -> tuple:
     """The packing seeds of every closed-loop round (``(None,)``: a single-seed simulator)."""
-    if seeds_per_round is not None and (isinstance(seeds_per_round, bool)
-                                        or not isinstance(seeds_per_round, (int, np.integer))
-                                        or seeds_per_round < 1):
-        raise ValueError(f"seeds_per_round={seeds_per_round!r}: expected an integer >= 1")
+    if seeds_per_round is not None:  # as LoopSettings checks it
+        seeds_per_round = check_loop_value("seeds_per_round", seeds_per_round)
     if not takes_seed(simulate):
         if (seeds_per_round or 1) > 1 or seeds is not None:
             raise ValueError("simulate(params) takes no seed argument, so it cannot run several packing "
@@ -65,9 +65,8 @@ def round_seeds(simulate: Callable, seeds_per_round: int | None, seeds: Sequence
 def growth_seeds(seeds: tuple, max_seeds: int | None) -> tuple:
     """The spare seeds a round's set ``seeds`` (:func:`round_seeds`) may grow by: the
     next integers after the largest, up to ``max_seeds`` seeds in all (none without it)."""
-    whole = isinstance(max_seeds, (int, np.integer)) and not isinstance(max_seeds, bool)
-    if max_seeds is not None and not (whole and max_seeds >= 1):
-        raise ValueError(f"max_seeds={max_seeds!r}: expected an integer >= 1")
+    if max_seeds is not None:  # as LoopSettings checks it
+        max_seeds = check_loop_value("max_seeds", max_seeds)
     n_more = 0 if max_seeds is None else max(0, int(max_seeds) - len(seeds))
     if n_more and seeds == (None,):
         raise ValueError("simulate(params) takes no seed argument, so the seed set cannot grow: "

@@ -31,7 +31,6 @@ from .space import _EDGE, CalibrationSpace
 if TYPE_CHECKING:
     from .seed_policy import Round
 
-UPDATES = ("broyden", "history")  # how the measured rounds correct the Jacobian
 #: the trust region's smallest cap with update="history", as a fraction of max_step
 HISTORY_MIN_STEP = 0.125
 
