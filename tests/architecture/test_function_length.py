@@ -3,10 +3,10 @@ decorator to its last line, docstring included, as a reader scrolls it) unless a
 ``# long: <reason>`` stands on the line above it (above its first decorator), or it is in
 :data:`ALLOWED` with its reason. A long function that is neither fails this test: split
 it along its steps, or say beside it why it stays whole."""
-import ast
 from pathlib import Path
 
 import pytest
+from support.source import functions
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "bpmcal"
 MAX_LINES = 80
@@ -44,22 +44,12 @@ def long_functions(text: str, max_lines: int = MAX_LINES) -> list[tuple[str, int
     ``text`` longer than ``max_lines``, nested ones included."""
     lines = text.splitlines()
     out = []
-
-    def visit(node, prefix):
-        for child in ast.iter_child_nodes(node):
-            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
-                name = f"{prefix}{child.name}"
-                if not isinstance(child, ast.ClassDef):
-                    first = min([child.lineno] + [d.lineno for d in child.decorator_list])
-                    n = child.end_lineno - first + 1
-                    above = lines[first - 2].strip() if first >= 2 else ""
-                    if n > max_lines:
-                        out.append((name, n, above.startswith("# long:") and len(above) > 10))
-                visit(child, f"{name}.")
-            else:
-                visit(child, prefix)
-
-    visit(ast.parse(text), "")
+    for name, fn in functions(text):
+        first = min([fn.lineno] + [d.lineno for d in fn.decorator_list])
+        n = fn.end_lineno - first + 1
+        above = lines[first - 2].strip() if first >= 2 else ""
+        if n > max_lines:
+            out.append((name, n, above.startswith("# long:") and len(above) > 10))
     return out
 
 

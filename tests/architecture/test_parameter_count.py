@@ -9,6 +9,7 @@ import ast
 from pathlib import Path
 
 import pytest
+from support.source import functions
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "bpmcal"
 MAX_PARAMETERS = 12
@@ -64,23 +65,13 @@ def parameter_counts(text: str) -> list[tuple[str, int]]:
     """(qualified name, parameters) of every function in ``text`` that is no numba kernel,
     nested functions and methods included."""
     out = []
-
-    def visit(node, prefix):
-        for child in ast.iter_child_nodes(node):
-            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
-                name = f"{prefix}{child.name}"
-                if not isinstance(child, ast.ClassDef) and not (
-                        {_decorator_name(d) for d in child.decorator_list} & KERNEL_DECORATORS):
-                    a = child.args
-                    names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs]
-                    n = len(names) - (1 if names[:1] in (["self"], ["cls"]) else 0)
-                    n += (a.vararg is not None) + (a.kwarg is not None)
-                    out.append((name, n))
-                visit(child, f"{name}.")
-            else:
-                visit(child, prefix)
-
-    visit(ast.parse(text), "")
+    for name, fn in functions(text):
+        if {_decorator_name(d) for d in fn.decorator_list} & KERNEL_DECORATORS:
+            continue
+        a = fn.args
+        names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs]
+        n = len(names) - (1 if names[:1] in (["self"], ["cls"]) else 0)
+        out.append((name, n + (a.vararg is not None) + (a.kwarg is not None)))
     return out
 
 

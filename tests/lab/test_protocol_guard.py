@@ -64,6 +64,14 @@ def _sample(design, sid):
     return params, int(row["seed"])
 
 
+def _paired(test, params, seed, where, old, new, cache):
+    """The summaries of one sample's test under the old and the new loading settings."""
+    def run(settings):
+        return test(params, seed, where, settings, cache=cache, threads=1,
+                    keep_particles=False).summary
+    return run(old), run(new)
+
+
 def test_the_study_loads_with_the_new_protocol(study):
     """The guards compare the study's loading with the old one: the study's config uses the
     new settings (else they would compare a loading with itself)."""
@@ -77,10 +85,8 @@ def test_the_study_loads_with_the_new_protocol(study):
 def test_the_ucs_approach_keeps_sigma_c_E_and_nu(study, sid, cache):
     design, geo, _, ucs, _ = study
     params, seed = _sample(design, sid)
-    old = ucs_test(params, seed, geo, replace(ucs, approach_velocity=0.0), cache=cache,
-                   threads=1, keep_particles=False).summary
-    new = ucs_test(params, seed, geo, ucs, cache=cache, threads=1,
-                   keep_particles=False).summary
+    old, new = _paired(ucs_test, params, seed, geo, replace(ucs, approach_velocity=0.0), ucs,
+                       cache)
     assert new["steps"] < 0.92 * old["steps"]
     for k in ("ucs_MPa", "E_GPa", "nu"):
         assert new[k] == pytest.approx(old[k], rel=TOL[k] / 100), k
@@ -90,10 +96,8 @@ def test_the_ucs_approach_keeps_sigma_c_E_and_nu(study, sid, cache):
 def test_the_brazilian_approach_keeps_sigma_t(study, sid, cache):
     design, _, disc, _, bts = study
     params, seed = _sample(design, sid)
-    old = bts_test(params, seed, disc, replace(bts, approach_damage=0.0), cache=cache,
-                   threads=1, keep_particles=False).summary
-    new = bts_test(params, seed, disc, bts, cache=cache, threads=1,
-                   keep_particles=False).summary
+    old, new = _paired(bts_test, params, seed, disc, replace(bts, approach_damage=0.0), bts,
+                       cache)
     assert old["bts_valid"] and new["bts_valid"]
     assert new["disc_seed"] == old["disc_seed"]  # the same disc: the same specimen
     assert new["steps"] < 0.85 * old["steps"]

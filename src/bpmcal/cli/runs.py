@@ -127,11 +127,16 @@ def _add_ucs(p):
     p.set_defaults(func=cmd_ucs)
 
 
+def _run_tail(s, balls: bool = True) -> str:
+    """The end every test's one-line result shares: balls, steps, time and why it stopped."""
+    head = f"{s['n_balls']} balls, " if balls else ""
+    return f"{head}{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})"
+
+
 def _ucs_line(s):
     return (f"sigma_c = {s['ucs_MPa']:.3f} MPa, E = {s['E_GPa']:.3f} GPa, "
             f"nu = {s['nu']:.3f}, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
-            f"{s['n_balls']} balls, {s['steps']} steps, {s['wall_s']:.1f} s "
-            f"({s['stop_reason']})")
+            f"{_run_tail(s)}")
 
 
 def cmd_ucs(args) -> int:
@@ -202,12 +207,10 @@ def _add_bts(p):
 def _bts_line(s):
     if not s.get("bts_valid", True):
         return (f"INVALID ({s.get('bts_invalid_reason', '')}); peak stress "
-                f"{s['bts_peak_MPa']:.3f} MPa is no sigma_t, {s['n_balls']} balls, "
-                f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+                f"{s['bts_peak_MPa']:.3f} MPa is no sigma_t, {_run_tail(s)}")
     return (f"sigma_t = {s['bts_MPa']:.3f} MPa (peak load {s['peak_load_N']:.1f} N, "
             f"platen forces differ by {100 * s['platen_mismatch']:.2f} %), cracks "
-            f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
-            f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+            f"{s['cracks_tension']}+{s['cracks_shear']}, {_run_tail(s)}")
 
 
 def cmd_bts(args) -> int:
@@ -230,8 +233,7 @@ def _dtt_line(s):
           else f"INVALID ({s.get('dtt_invalid_reason', '')}); peak stress "
                f"{s['dtt_peak_MPa']:.3f} MPa is no sigma_t")
     return (f"{st}, fracture at {s['fracture_height']:.2f} of the gauge length, cracks "
-            f"{s['cracks_tension']}+{s['cracks_shear']}, {s['n_balls']} balls, "
-            f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+            f"{s['cracks_tension']}+{s['cracks_shear']}, {_run_tail(s)}")
 
 
 def cmd_dtt(args) -> int:
@@ -266,7 +268,7 @@ def _tri_line(s):
     return (f"sigma3 = {s['sigma3_MPa']:g} MPa, sigma1 = {s['sigma1_MPa']:.3f} MPa, "
             f"E = {s['E_GPa']:.3f} GPa, nu = {s['nu']:.3f}, sigma3 held within {dev} "
             f"up to the peak, cracks {s['cracks_tension']}+{s['cracks_shear']}, "
-            f"{s['steps']} steps, {s['wall_s']:.1f} s ({s['stop_reason']})")
+            f"{_run_tail(s, balls=False)}")
 
 
 def cmd_triaxial(args) -> int:

@@ -29,7 +29,7 @@ from ..io.provenance import git_commit
 from ..io.tables import markdown_table, write_table
 from ..study import paper
 from ..study.config import check_study_config
-from .cells import compare, num, pct_diff
+from .cells import compare, num, pct_diff, read_table
 from .posterior import section as posterior_section
 from .verification import section as verification_section
 
@@ -259,10 +259,9 @@ def _disc_note(cfg: dict, ds: pd.DataFrame) -> str:
 
 
 def _table3(lay, comp, ref=False) -> str:
-    f = Path(lay.table(L.TABLE3))
-    if not f.exists():
+    t3 = read_table(lay, L.TABLE3, index_col=0)
+    if t3 is None:
         return ""
-    t3 = pd.read_csv(f, index_col=0)
     rows = []
     for p in P.ALL_PARAMS:
         if p not in t3.index:
@@ -293,10 +292,9 @@ def _table3(lay, comp, ref=False) -> str:
 
 
 def _regression(lay, comp, ref=False) -> str:
-    f = Path(lay.table(L.REGRESSION_FIT))
-    if not f.exists():
+    fit = read_table(lay, L.REGRESSION_FIT)
+    if fit is None:
         return ""
-    fit = pd.read_csv(f)
     rows = []
     for r in fit.itertuples():
         if not ref:
@@ -495,10 +493,9 @@ def _impact_card_note(lay) -> str:
 def _triaxial(lay, cfg, ref=False) -> str:
     """σt, σc/σt, c, φ and mi of every tested card, the runs left out, the lab triaxial
     comparison, and (paper study) what the paper does not publish."""
-    f = Path(lay.table(L.TRIAXIAL_ENVELOPES))
-    if not f.exists():
+    env = read_table(lay, L.TRIAXIAL_ENVELOPES, dtype={"specimen": str})
+    if env is None:
         return ""
-    env = pd.read_csv(f, dtype={"specimen": str})
     tx = cfg.get("triaxial") or {}
     s3 = ", ".join(f"{x:g}" for x in tx.get("sigma3_MPa", []))
     out = ["## Tension and confinement: σt, σc/σt, Mohr–Coulomb and Hoek–Brown\n",

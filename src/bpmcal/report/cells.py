@@ -33,3 +33,15 @@ def compare(comp: list, section, item, ours, theirs, unit="") -> None:
     comp.append({"section": section, "quantity": item, "unit": unit, "ours": o, "paper": t,
                  "difference": o - t if math.isfinite(o) else math.nan,
                  "difference_pct": 100 * (o - t) / abs(t) if math.isfinite(o) and t else math.nan})
+
+
+def read_table(lay, name: str, **kw):
+    """The study's table ``name`` (``StudyFiles.table``) as a DataFrame (``kw``: pandas'
+    ``read_csv`` options), ``None`` when a partial study has not written it: each
+    section then leaves itself out."""
+    from pathlib import Path
+
+    import pandas as pd
+
+    f = Path(lay.table(name))
+    return pd.read_csv(f, **kw) if f.exists() else None

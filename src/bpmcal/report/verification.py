@@ -18,7 +18,7 @@ from ..io.card import read_card
 from ..io.tables import markdown_table
 from ..stages.fresh_seeds import check_level, false_alarm
 from ..study import paper
-from .cells import compare, num
+from .cells import compare, num, read_table
 
 
 def _pm(r, col: str) -> str:
@@ -33,10 +33,9 @@ def section(lay, comp, ref=False) -> str:
     pre-peak energy), the packing-seed scatter and the fresh seeds
     (:func:`fresh_seeds_section`); with ``ref`` (the paper's study) the paper's values
     beside ours, each recorded in ``comp`` (:func:`~bpmcal.report.cells.compare`)."""
-    f = Path(lay.table(L.TABLE5))
-    if not f.exists():
+    t5 = read_table(lay, L.TABLE5, index_col=0)
+    if t5 is None:
         return ""
-    t5 = pd.read_csv(f, index_col=0)
     rows, notes = [], []
     for spec, r in t5.iterrows():
         th = paper.VERIFIED.get(spec) if ref else None
@@ -87,10 +86,9 @@ def section(lay, comp, ref=False) -> str:
 
 def _table6(lay, comp, ref=False) -> str:
     """Table 6: the pre-peak energy density, DEM against the lab (and the paper's)."""
-    f6 = Path(lay.table(L.TABLE6))
-    if not f6.exists():
+    t6 = read_table(lay, L.TABLE6, index_col=0)
+    if t6 is None:
         return ""
-    t6 = pd.read_csv(f6, index_col=0)
     rows = []
     for spec, r in t6.iterrows():
         th = paper.PREPEAK.get(spec, {}) if ref else {}
@@ -125,10 +123,9 @@ def _seed_scatter(lay) -> str:
 def _loop_seeds(lay, specs) -> int | None:
     """The median number of packing seeds the verified cards of ``specs`` were judged on
     (their closed loops' ``n_seeds``, Table 5), None when Table 5 does not say."""
-    f = Path(lay.table(L.TABLE5))
-    if not f.exists():
+    t = read_table(lay, L.TABLE5)
+    if t is None:
         return None
-    t = pd.read_csv(f)
     if "n_seeds" not in t.columns or "specimen" not in t.columns:
         return None
     ks = [int(k) for k in t.loc[t["specimen"].astype(str).isin(specs), "n_seeds"].dropna()
@@ -150,10 +147,9 @@ def _triaxial_seeds(lay, spec: str, k: int) -> int | None:
 def fresh_seeds_section(lay) -> str:
     """The verified cards on fresh packing seeds (``fresh_seeds_table``), if it ran: the
     check against each card's closed loop, then the same seeds against the lab."""
-    f = Path(lay.table(L.FRESH_SEEDS))
-    if not f.exists():
+    t = read_table(lay, L.FRESH_SEEDS)
+    if t is None:
         return ""
-    t = pd.read_csv(f)
     pred = t[t["role"] == "prediction"] if "role" in t.columns else t.iloc[:0]
     t = t[t["role"] != "prediction"] if "role" in t.columns else t
     if "passed" not in t.columns:  # a table of an older bpmcal: judged against the lab only
