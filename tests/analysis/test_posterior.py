@@ -272,3 +272,28 @@ def test_the_packing_share_is_fitted_where_points_share_packings():
     s = fit_surrogate(both, "y1", NAMES, RANGES, _basis, choice="gp")
     assert 0.55 < s.model.rho < 0.95
     assert fit_surrogate(runs, "y1", NAMES, RANGES, _basis, choice="gp").model.rho == 0.0
+
+
+def test_an_hdi_the_prior_box_cuts_is_flagged_and_named_in_the_note():
+    """y1 = u1 at its target 1.0 sits on the box's upper bound: the posterior of
+    pb_emod_GPa piles against it and its HDI ends there (cut by the prior, not the data);
+    the interior parameters' HDIs are not flagged, and the note names the bound and the
+    range to widen."""
+    res = _fit_linear({"y1": 1.0, "y2": 0.5, "y3": 0.5}, [0.05] * 3)
+    cut = res.summary["hdi_cut_by_prior"]
+    assert cut["pb_emod_GPa"] == "high"
+    assert cut["pb_kratio"] == "" and cut["pb_coh_MPa"] == ""
+    note = " ".join(res.notes)
+    assert "upper bound 50" in note and "widen ranges.pb_emod_GPa" in note
+    inside = _fit_linear({"y1": 0.5, "y2": 0.5, "y3": 0.5}, [0.05] * 3)
+    assert not inside.summary["hdi_cut_by_prior"].astype(bool).any()
+    assert not any("prior cuts" in n for n in inside.notes)
+
+
+def test_hdi_at_bound_reads_each_end():
+    from bpmcal.analysis.posterior.posterior import hdi_at_bound
+    assert hdi_at_bound(0.0, 0.5, 0.0, 1.0) == "low"
+    assert hdi_at_bound(0.3, 0.995, 0.0, 1.0) == "high"
+    assert hdi_at_bound(0.001, 0.999, 0.0, 1.0) == "both"
+    assert hdi_at_bound(0.02, 0.98, 0.0, 1.0) == ""
+    assert hdi_at_bound(float("nan"), 0.5, 0.0, 1.0) == ""

@@ -64,7 +64,7 @@ Format 1 (keys in this order; paper units)::
                         tolerance_pct, at_transfer and final responses, parameters
     posterior           (posterior cards, ``bpmcal posterior``) status, note, identifiability,
                         hdi_prob, parameters (card, mean, sd, hdi, card_quantile,
-                        card_in_hdi, role), directions, suggestions, predictions, reach,
+                        card_in_hdi, role, hdi_cut_by_prior), directions, suggestions, predictions, reach,
                         lab_sd, surrogates, sampler, refine, learning_curve
                         (docs/methods/posterior.md)
 

@@ -45,6 +45,11 @@ def _num(v, fmt=".3g") -> str:
     return format(x, fmt) if math.isfinite(x) else "–"
 
 
+#: which end of an HDI the prior box cuts (a card's ``hdi_cut_by_prior``), in the table
+_CUT = {"": "no", "low": "**at its lower bound**", "high": "**at its upper bound**",
+        "both": "**at both bounds**"}
+
+
 def _parameters(post: dict) -> str:
     rows = []
     for p, d in post["parameters"].items():
@@ -52,6 +57,7 @@ def _parameters(post: dict) -> str:
         rows.append({"parameter": p, "card": _num(d["card"], ".4g"), "mean": _num(d["mean"], ".4g"),
                      f"{100 * post['hdi_prob']:.0f} % HDI": f"{_num(lo, '.4g')} – {_num(hi, '.4g')}",
                      "card in HDI": "yes" if d["card_in_hdi"] else "**no**",
+                     "HDI cut by the prior": _CUT.get(d.get("hdi_cut_by_prior", ""), "–"),
                      "role": d["role"]})
     return markdown_table(pd.DataFrame(rows), index=False)
 

@@ -347,7 +347,8 @@ def card_section(res, *, refine: dict, curve: pd.DataFrame | None) -> dict:
                 "sd": float(s.loc[p, "sd"]),
                 "hdi": [float(s.loc[p, "hdi_low"]), float(s.loc[p, "hdi_high"])],
                 "card_quantile": float(s.loc[p, "card_quantile"]),
-                "card_in_hdi": bool(s.loc[p, "card_in_hdi"]), "role": s.loc[p, "role"]}
+                "card_in_hdi": bool(s.loc[p, "card_in_hdi"]), "role": s.loc[p, "role"],
+                "hdi_cut_by_prior": str(s.loc[p, "hdi_cut_by_prior"])}
             for p in s.index}
     preds = {r: {"targeted": bool(row["targeted"]), "card": float(row["card"]),
                  "mean": float(row["mean"]), "interval": [float(row["low"]), float(row["high"])],

@@ -46,6 +46,9 @@ from .surrogate import (
 )
 
 REACH_ALPHA = 0.05
+#: an HDI end within this share of the prior box's width from the box's bound is cut by
+#: the prior (:func:`hdi_at_bound`)
+AT_BOUND = 0.01
 #: a prediction that moves by more than this across the posterior's 90 % interval (in
 #: its own unit; the tensile crack share: 10 points) is called moved by the free direction
 FAILURE_MODE_SPAN = 0.10
@@ -273,6 +276,21 @@ def _hdi(x: np.ndarray, prob: float) -> tuple[float, float]:
     return float(s[i]), float(s[i + m - 1])
 
 
+def hdi_at_bound(lo: float, hi: float, box_lo: float, box_hi: float,
+                 tol: float = AT_BOUND) -> str:
+    """Which end of the interval [``lo``, ``hi``] the prior box [``box_lo``, ``box_hi``]
+    cuts: "low", "high", "both" or "" (an end within ``tol`` of the box's width from its
+    bound). An HDI that ends at a bound of the box ends there because the prior does, not
+    the lab data: the density is still high at the bound, and cards beyond it would meet
+    the targets as well."""
+    w = box_hi - box_lo
+    if not (math.isfinite(lo) and math.isfinite(hi)) or not w > 0:
+        return ""
+    low = lo - box_lo <= tol * w
+    high = box_hi - hi <= tol * w
+    return "both" if low and high else "low" if low else "high" if high else ""
+
+
 def _summary(problem: Problem, draws: pd.DataFrame, card: dict, prob: float, chains: Chains
              ) -> pd.DataFrame:
     rows = []
@@ -281,6 +299,8 @@ def _summary(problem: Problem, draws: pd.DataFrame, card: dict, prob: float, cha
         x = draws[p].to_numpy(float)
         lo, hi = _hdi(x, prob)
         rlo, rhi = problem.ranges[p]
+        cut = (hdi_at_bound(lo, hi, float(problem.lo[j]), float(problem.hi[j]))
+               if p in problem.free else "")
         cv = float(card.get(p, math.nan))
         rows.append({"parameter": p, "symbol": symbol(p), "card": cv, "mean": float(x.mean()),
                      "sd": float(x.std(ddof=1)), "hdi_low": lo, "hdi_high": hi,
@@ -290,8 +310,28 @@ def _summary(problem: Problem, draws: pd.DataFrame, card: dict, prob: float, cha
                      "rhat": float(chains.rhat[j]) if j < len(chains.rhat) else math.nan,
                      "ess_bulk": float(chains.ess_bulk[j]) if j < len(chains.rhat) else math.nan,
                      "ess_tail": float(chains.ess_tail[j]) if j < len(chains.rhat) else math.nan,
-                     "role": "free" if p in problem.free else "derived"})
+                     "role": "free" if p in problem.free else "derived",
+                     "hdi_cut_by_prior": cut})
     return pd.DataFrame(rows).set_index("parameter")
+
+
+def prior_cut_note(problem: Problem, summary: pd.DataFrame, prob: float) -> str:
+    """One sentence per parameter whose HDI the prior box cuts (:func:`hdi_at_bound`):
+    its interval shows the box's limit there, not the lab data's, and which range to
+    widen to see how far the data allow ("" when none is cut)."""
+    out = []
+    for j, p in enumerate(problem.free):
+        cut = summary.loc[p, "hdi_cut_by_prior"] if "hdi_cut_by_prior" in summary else ""
+        if not cut:
+            continue
+        ends = {"low": [("lower", problem.lo[j])], "high": [("upper", problem.hi[j])],
+                "both": [("lower", problem.lo[j]), ("upper", problem.hi[j])]}[cut]
+        where = " and ".join(f"its {side} bound {v:.4g}" for side, v in ends)
+        out.append(f"The {100 * prob:.0f} % HDI of {symbol(p)} ends at {where}: the prior cuts "
+                   "it there, not the lab data (cards beyond it would meet the targets as "
+                   f"well); widen ranges.{p} (the prior is the closed loop's box: the "
+                   "design range and its margin) to see how far the data allow.")
+    return " ".join(out)
 
 
 def _predictions(problem: Problem, surrogates, targets, draws_free: np.ndarray, card: dict,
@@ -389,6 +429,9 @@ def _fit_posterior(surrogates: Mapping[str, ResponseSurrogate], problem: Problem
                          f"of a UCS run spans {100 * row['low']:.0f}-{100 * row['high']:.0f} % "
                          f"({100 * settings.hdi_prob:.0f} % of the cards that meet the targets;"
                          f" this card {100 * row['card']:.0f} %).")
+    cut = prior_cut_note(problem, summary, settings.hdi_prob)
+    if cut:
+        notes.append(cut)
     if freest["class"] != "pinned" and sugg and freest["ratio"] >= FREE:
         b = sugg[0]
         notes.append(f"{b['what']} would narrow the freest direction ({freest['text']}) "
