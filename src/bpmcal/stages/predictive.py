@@ -6,7 +6,12 @@ runs the triaxial tests at the study's confining stresses, whose envelope gives 
 Mohr-Coulomb c and φ and the Hoek-Brown mi (:func:`bpmcal.stages.triaxial.fit_envelopes`),
 and the drop-hammer test at the reference velocity, which gives η_f; every run of every
 draw is a job of its own on the stage's CPUs (:class:`~.pool.SeedPool`, the longest first,
-so that no CPU idles while another finishes a draw), every run file kept. The table
+so that no CPU idles while another finishes a draw), every run file kept. Every finished
+run is journaled (:class:`~.journal.RunJournal`, in ``.<table's stem>.runs`` beside the
+table) as soon as it ends: a stage stopped part way (a time limit, a kill; a flat-jointed
+impact can take a quarter of an hour) and started again with the same inputs reads the
+runs it had finished instead of running them again; the journal goes once the table is
+written. The table
 holds one row per draw and, beside them, the verified card's own values where the study
 measured them (its triaxial envelope and, for the impact's card, its reference impact),
 so the report can give each prediction's mean and interval over the posterior beside the
@@ -16,6 +21,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -26,6 +34,7 @@ from ..io.h5 import RunFileError, read_summary
 from ..io.tables import write_table
 from ..lab.run_context import RunContext
 from .inputs import CSV, H5, outputs
+from .journal import RunJournal
 from .pool import SeedPool
 from .runs import run_impact_file, run_triaxial_file
 from .triaxial import fit_envelopes
@@ -34,12 +43,15 @@ from .triaxial import fit_envelopes
 PREDICTIONS = ("mi", "c_MPa", "phi_deg", "eta_f")
 
 
-def _run_job(*, kind: str, out, params: dict, seed: int, geometry, settings, ctx) -> dict:
+def _run_job(*, kind: str, stem, params: dict, seed: int, geometry, settings, ctx
+             ) -> tuple[dict, list]:
     """One run of a draw (a :class:`SeedPool` job, with its
     :class:`~bpmcal.lab.run_context.RunContext` ``ctx``): a triaxial test (``kind`` "tri",
-    at ``settings.sigma3``) or the drop hammer ("impact") into ``out``; whether it ran, the
-    value the draw needs of it (σ1 at failure, η_f; NaN for a failed run) and the error."""
+    at ``settings.sigma3``) or the drop hammer ("impact") into ``<stem>.h5`` (in the
+    journal's folder); its record (whether it ran, the value the draw needs of it: σ1 at
+    failure, η_f, NaN for a failed run; the error; the file's name) and the file."""
     kw = ctx.lab_kw()
+    out = Path(f"{stem}.h5")
     if kind == "tri":
         r = run_triaxial_file(out, params, seed, geometry, settings, keep_particles=False, **kw)
         key = "sigma1_MPa"
@@ -47,8 +59,54 @@ def _run_job(*, kind: str, out, params: dict, seed: int, geometry, settings, ctx
         r = run_impact_file(out, params, seed, geometry, settings, **kw)
         key = "eta_f"
     ok = r.status == "ok"
-    return {"ok": ok, "value": float(r.summary.get(key, math.nan)) if ok else math.nan,
-            "error": r.summary.get("error", "")}
+    path = Path(r.path) if r.path is not None else out
+    return ({"ok": ok, "value": float(r.summary.get(key, math.nan)) if ok else math.nan,
+             "error": r.error or r.summary.get("error", ""), "file": path.name},
+            [path] if path.exists() else [])
+
+
+def _place(src: Path, dst) -> None:
+    """The journaled run file ``src`` at its output path ``dst`` (a hard link where the
+    file system allows, else a copy; through a temporary name, so ``dst`` appears only
+    complete)."""
+    dst = Path(dst)
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    tmp = dst.with_name(f".{dst.name}.part")
+    tmp.unlink(missing_ok=True)
+    try:
+        os.link(src, tmp)
+    except OSError:
+        shutil.copy2(src, tmp)
+    os.replace(tmp, dst)
+
+
+def _run_journaled(jobs: list[dict], tags: list[str], folder: Path, ctx: RunContext
+                   ) -> list[dict]:
+    """Every job (:func:`_run_job`'s arguments but ``stem``) through the journal in
+    ``folder`` (module docstring): a job it holds is read back, the others run side by
+    side, each journaled as it ends. Returns every job's record, in order. The journal
+    stays when a run raises (the finished ones are read back next time)."""
+    journal = RunJournal(folder)
+    if journal.resumable:
+        print(f"predictive: {journal.resumable} finished run(s) of an earlier attempt in "
+              f"{folder}: read back, not run again", flush=True)
+    try:
+        keys = [RunJournal.key(**job, genesis_max_steps=ctx.genesis_max_steps) for job in jobs]
+        done = {i: journal.get(k) for i, k in enumerate(keys)}
+        todo = [i for i, rec in done.items() if rec is None]
+
+        def finished(j, res):
+            rec, files = res
+            done[todo[j]] = journal.add(keys[todo[j]], rec, files)
+
+        with SeedPool.of(ctx) as pool:  # every run its own job: no idle tail
+            pool.map(_run_job, [dict(jobs[i], stem=journal.stem(keys[i])) for i in todo],
+                     tags=[tags[i] for i in todo], done=finished)
+    except BaseException:
+        journal.keep_or_remove()
+        raise
+    journal.release()
+    return [dict(done[i], path=folder / done[i]["file"]) for i in range(len(jobs))]
 
 
 def _draw_row(sigma3: list, tri: list[dict], impact: dict | None) -> dict:
@@ -80,16 +138,17 @@ def _draw_jobs(params: list, tri_runs: list, sigma3: list, impact_runs, *, geome
     """Every run of every draw as its own pool job (:func:`_run_job`), the longest first so
     that the stage's CPUs stay busy to its end: the impacts, then the triaxial tests from
     the highest confinement down. Returns (draw, index: -1 for the impact, else the
-    stress's, job) in that order."""
+    stress's, its output file, job) in that order."""
     k, jobs = len(sigma3), []
     if impact_runs is not None:
-        jobs += [(i, -1, dict(kind="impact", out=impact_runs[i], params=p, seed=impact_seed,
-                              geometry=impact_geometry, settings=impact_settings))
+        jobs += [(i, -1, impact_runs[i], dict(kind="impact", params=p, seed=impact_seed,
+                                              geometry=impact_geometry,
+                                              settings=impact_settings))
                  for i, p in enumerate(params)]
     for j in sorted(range(k), key=lambda j: -sigma3[j]):
         st = dataclasses.replace(tri_settings, sigma3=float(sigma3[j]) * 1e6)
-        jobs += [(i, j, dict(kind="tri", out=tri_runs[i * k + j], params=p, seed=tri_seed,
-                             geometry=geometry, settings=st))
+        jobs += [(i, j, tri_runs[i * k + j], dict(kind="tri", params=p, seed=tri_seed,
+                                                  geometry=geometry, settings=st))
                  for i, p in enumerate(params)]
     return jobs
 
@@ -147,10 +206,13 @@ def predictive(draws, *, specimen: str, tri_runs, table, sigma3, geometry, tri_s
                       impact_settings=impact_settings, tri_seed=tri_seed,
                       impact_seed=impact_seed)
     names_of = {-1: "impact"} | {j: f"triaxial {s3:g} MPa" for j, s3 in enumerate(sigma3)}
-    with SeedPool.of(ctx) as pool:  # every run its own job: no idle tail
-        done = pool.map(_run_job, [job for _, _, job in jobs],
-                        tags=[f"draw {int(d['draw'].iloc[i])} {names_of[j]}" for i, j, _ in jobs])
-    runs = {(i, j): r for (i, j, _), r in zip(jobs, done)}
+    folder = Path(table).parent / f".{Path(table).stem}.runs"
+    done = _run_journaled([job for *_, job in jobs],
+                          [f"draw {int(d['draw'].iloc[i])} {names_of[j]}" for i, j, *_ in jobs],
+                          folder, ctx)
+    for (_, _, out, _), rec in zip(jobs, done):
+        _place(rec["path"], out)
+    runs = {(i, j): r for (i, j, *_), r in zip(jobs, done)}
     rows = [_draw_row(sigma3, [runs[i, j] for j in range(len(sigma3))],
                       runs.get((i, -1))) for i in range(n)]
     out = pd.DataFrame([{"draw": str(int(x)), **p, **r}
@@ -158,6 +220,7 @@ def predictive(draws, *, specimen: str, tri_runs, table, sigma3, geometry, tri_s
     card = {"draw": "card", **_card_values(envelopes, specimen, card_impact), "note": ""}
     out = pd.concat([out, pd.DataFrame([card])], ignore_index=True)
     write_table(out, table, index=False)
+    RunJournal(folder).remove()
     return out
 
 
