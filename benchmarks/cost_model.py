@@ -40,7 +40,7 @@ thread, run in the same invocation: its particle-steps per CPU-second).
 
 Bookkeeping: a job's phases sum to its process's CPU seconds by construction (``other``
 is the rest); how much ``other`` holds, and how the jobs' CPU compares with an outside
-measure of the process (``tests/cli/test_cost_model.py``), say whether the phases
+measure of the process (``tests/unit/test_cost.py``), say whether the phases
 account for the job.
 """
 from __future__ import annotations

@@ -9,7 +9,7 @@
 - Snakemake's and matplotlib's caches (``XDG_CACHE_HOME``, ``MPLCONFIGDIR``) go to
   ``<repo>/.cache/test/`` too, for this process and every ``bpmcal``/Snakemake subprocess;
 - the Slurm tests, which install and start system services, run only with
-  ``BPMCAL_TEST_SLURM=1`` (tests/workflow/slurm_cluster.py).
+  ``BPMCAL_TEST_SLURM=1`` (tests/support/slurm_cluster.py).
 
 These are set here, at import, before any test module imports ``bpmcal`` (its numba
 cache folder is fixed when ``bpmcal.dem`` is first imported).

@@ -1,7 +1,7 @@
 """Hostile and unlucky inputs (issue 55), as data: the cases, the files they need, how to
 run one ``bpmcal`` command in a fresh process, and how its ending is judged.
 
-Used by ``tests/cli/test_hostile.py`` (every case, as a test) and by
+Used by ``tests/integration/test_hostile.py`` (every case, as a test) and by
 ``benchmarks/hostile_inputs.py`` (every case in a fresh process against any checkout of
 bpmcal, counted by class: the record of how many end cleanly, before and after a change).
 

@@ -1,7 +1,7 @@
 """Fixtures for the workflow tests: a real private single-node Slurm cluster."""
 
 import pytest
-from slurm_cluster import cluster_or_skip  # beside this file (pytest puts the folder on sys.path)
+from support.slurm_cluster import cluster_or_skip
 
 
 @pytest.fixture

@@ -3,7 +3,7 @@ Lac du Bonnet flat-joint example's overlay runs the design, the sample jobs (UCS
 direct tension), screening, regression, calibration, the closed loop and the fresh-seed
 check on flat-joint cards, with the flat joint's names throughout. (The impact and
 triaxial jobs run flat-joint cards through the same run files as the lab tests: tests/lab;
-the config rules: tests/study/test_config.py.)"""
+the config rules: tests/unit/study/test_config.py.)"""
 import pandas as pd
 import pytest
 import yaml

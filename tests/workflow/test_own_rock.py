@@ -1,7 +1,7 @@
 """Calibrating a rock other than the paper's: the design space bounds the calibration, what
 an unreachable card says and does, the report without the paper, and the Lac du Bonnet
 example end to end at smoke size. (Its config, lab CSV and bounds rules:
-tests/study/test_config.py.)"""
+tests/unit/study/test_config.py.)"""
 import json
 import math
 import subprocess

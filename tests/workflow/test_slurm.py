@@ -11,8 +11,8 @@ import re
 import time
 
 import pytest
-import slurm_cluster as sc
 import yaml
+from support import slurm_cluster as sc
 from support.repo import REPO, copy_workflow
 
 PROFILE = REPO / "workflow" / "profiles" / "slurm"

@@ -38,7 +38,7 @@ Every default comes from the settings it sets (the lab tests' settings dataclass
 ``Geometry``, the analysis classes and the stage functions: :func:`defaults_of`), never a
 literal here. Each ``_add_<cmd>`` imports what that command needs, and ``main`` builds only
 the parser of the command it runs: a DEM job (``bpmcal sample``, 150 per study) does not load
-xgboost, statsmodels or matplotlib (tested: ``tests/cli/test_imports.py``).
+xgboost, statsmodels or matplotlib (tested: ``tests/architecture/test_imports.py``).
 """
 from __future__ import annotations
 

@@ -22,7 +22,7 @@ of the disc"; a test whose fracture starts at a loading contact is invalid):
   from under a loader and reaches the centre only at the peak started at the contact,
   though the burst itself starts near the centre (a planted weak zone under a platen:
   20-54 % of the burst grew there before the peak; valid capped discs of 9-23 balls
-  across: 1-14 %, tests/lab/test_bts.py and docs/measurements); otherwise invalid:
+  across: 1-14 %, tests/unit/lab/test_brazilian.py and docs/measurements); otherwise invalid:
   "a fracture grew from the top platen before the peak".
 - *split along the loaded diameter*: at least ``SPLIT_FRACTION`` of the burst's cracks lie
   within the band |x - x_c| <= max(D/8, 1.5 mean ball diameters) around the loaded

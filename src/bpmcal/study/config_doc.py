@@ -1,6 +1,6 @@
 """The configuration reference in Markdown, generated from the config schema
 (:func:`schema_reference`): the reference part of config/README.md, so that the two
-cannot disagree (tests/study/test_config_doc.py). Regenerate it with
+cannot disagree (tests/unit/study/test_config_doc.py). Regenerate it with
 ``python -m bpmcal.study.config workflow/schemas/config.schema.yaml``.
 """
 from __future__ import annotations
@@ -73,7 +73,7 @@ def _nested(prefix: str, node: dict) -> list[str]:
 def schema_reference(schema: dict) -> str:
     """Every section and key of the config schema as Markdown tables (type, default,
     allowed values, meaning): the reference part of config/README.md, generated from the
-    schema so that the two cannot disagree (tests/study/test_config_doc.py)."""
+    schema so that the two cannot disagree (tests/unit/study/test_config_doc.py)."""
     out = []
     top = schema["properties"]
     for sec, node in top.items():

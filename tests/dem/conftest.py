@@ -1,9 +1,0 @@
-"""Fixtures of the engine tests."""
-import pytest
-from dem_util import material
-
-
-@pytest.fixture
-def mat():
-    """The default test material (``dem_util.material()``)."""
-    return material()
