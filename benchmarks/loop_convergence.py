@@ -1,5 +1,5 @@
 """How often the closed loop converges, in how many rounds and runs, and how near the
-planted card it ends, with each Jacobian update rule (``ClosedLoop(update=...)``) and seed
+planted card it ends, with each Jacobian update rule (``LoopSteps(update=...)``) and seed
 growth rule (``grow_within``), on a synthetic rock whose responses are known formulas.
 
 No DEM. Two rocks (``--rock``):
@@ -54,7 +54,7 @@ import numpy as np
 import pandas as pd
 from _study import record_header, write_record
 
-from bpmcal.analysis.calibration import ClosedLoop, invert
+from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps, invert
 from bpmcal.analysis.calibration.loop_settings import UPDATES
 from bpmcal.analysis.stepwise import StepwiseRegression
 
@@ -232,10 +232,14 @@ def one_card(rock: Rock, i: int, models: dict, max_rounds, updates=UPDATES,
             runs.append(seed)
             return simulate(rock, params, seed)
 
-        loop = ClosedLoop(sim, targets, free=rock.free, ratio=None, ranges=rock.ranges,
-                          models=models, max_rounds=max_rounds, seeds_per_round=3, max_seeds=10,
-                          margin=0.25, update=update, target_se=target_se,
-                          **({} if grow is None else {"grow_within": grow}))
+        loop = ClosedLoop(sim,
+                          targets,
+                          space=LoopSpace(ranges=rock.ranges, free=rock.free, ratio=None),
+                          steps=LoopSteps(max_rounds=max_rounds, margin=0.25, update=update),
+                          seeding=LoopSeeds(seeds_per_round=3, max_seeds=10),
+                          models=models,
+                          target_se=target_se,
+                          **{} if grow is None else {"grow_within": grow})
         res = loop.run(inv.solution)
         h = res.history
         worst = float(np.nanmax([abs(h[f"err_{r}"].iloc[res.best_round])

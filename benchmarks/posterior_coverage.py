@@ -47,7 +47,7 @@ from _study import record_header, write_record
 from loop_convergence import ROCKS, design_runs, simulate
 from loop_convergence import planted_card as planted_of
 
-from bpmcal.analysis.calibration import ClosedLoop, invert
+from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps, invert
 from bpmcal.analysis.posterior import PosteriorSettings, Problem, fit_posterior, fit_surrogate
 from bpmcal.analysis.stepwise import design_matrix
 from bpmcal.stages.posterior import RefineSettings, refine_posterior
@@ -123,9 +123,13 @@ def one_case(case: str, i: int, se_factor: float, n_design: int, refine_max: int
         runs.append({**{q: params[q] for q in names}, **y, "seed": seed})
         return y
 
-    loop = ClosedLoop(sim, targets, free=free, ratio=ratio, ranges=rock.ranges,
-                      models={r: models[r] for r in targets_r}, seeds_per_round=3, max_seeds=10,
-                      margin=0.25, target_se=se)
+    loop = ClosedLoop(sim,
+                      targets,
+                      space=LoopSpace(ranges=rock.ranges, free=free, ratio=ratio),
+                      steps=LoopSteps(margin=0.25),
+                      seeding=LoopSeeds(seeds_per_round=3, max_seeds=10),
+                      models={r: models[r] for r in targets_r},
+                      target_se=se)
     res = loop.run(inv.solution)
     near = pd.DataFrame(runs)
     near["source"] = "loop"

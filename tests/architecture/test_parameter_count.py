@@ -24,9 +24,6 @@ _STAGE = ("a stage function: its arguments are the CLI's options one to one; to 
 ALLOWED = {
     'analysis/calibration/bootstrap.py:bootstrap_intervals': (
         "the bootstrap's data, models and resampling settings; to take a settings value"),
-    'analysis/calibration/closed_loop.py:ClosedLoop.__init__': (
-        "the loop's public keywords (the simulator, the step rule's, the seed policy's); "
-        "those that are LoopSettings fields are checked by LoopSettings' limits"),
     'analysis/calibration/inversion.py:invert': (
         "the inversion's models, targets, box and options; to take a settings value"),
     'analysis/calibration/inversion.py:_verdict': (

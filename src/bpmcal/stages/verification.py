@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from .. import params as P
-from ..analysis import ClosedLoop
+from ..analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps
 from ..analysis.calibration.loop_settings import LoopSettings
 from ..analysis.calibration.specimens import MISS_ACCEPTED
 from ..io.card import read_card, write_card
@@ -109,15 +109,17 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, bts_run=N
                                     and np.isfinite(jac.loc[list(targets), list(free)]
                                                     .to_numpy(float)).all()):
             jac = None  # learned for other targets or parameters: start from the models
-        cl = ClosedLoop(runs.simulate, targets, free=free, ratio=ratio,
+        space = LoopSpace(ranges=c["ranges"], free=free, ratio=ratio,
+                          bounds=c.get("calibration_bounds") or None)
+        steps = LoopSteps(rtol=loop.rtol if rtol is None else rtol, max_rounds=loop.max_rounds,
+                          margin=loop.range_margin, polish=loop.polish,
+                          update=loop.jacobian_update)
+        seeding = LoopSeeds(seeds=loop.seeds, max_seeds=max(loop.max_seeds, loop.seeds_per_round),
+                            grow_within=loop.grow_within, seed_caps=caps or None)
+        cl = ClosedLoop(runs.simulate, targets, space=space, steps=steps, seeding=seeding,
                         models=model_set if jac is None else None, jacobian=jac,
-                        rtol=loop.rtol if rtol is None else rtol, max_rounds=loop.max_rounds,
-                        ranges=c["ranges"], bounds=c.get("calibration_bounds") or None,
-                        seeds=loop.seeds, max_seeds=max(loop.max_seeds, loop.seeds_per_round),
-                        margin=loop.range_margin, polish=loop.polish,
-                        target_se=c.get("target_se") or None, update=loop.jacobian_update,
-                        report=_notes(ctx.progress), simulate_seeds=runs.simulate_seeds,
-                        seed_caps=caps or None, grow_within=loop.grow_within)
+                        target_se=c.get("target_se") or None, report=_notes(ctx.progress),
+                        simulate_seeds=runs.simulate_seeds)
         res = cl.run(params)
         best = res.best_round  # converged, else the smallest max |error| of the seed mean
         os.replace(runs.paths[best][0], run)  # the best round's first seed is the run file

@@ -21,7 +21,7 @@ The package holds one concept per module:
   (the seed scatter job that runs the DEM for it is ``bpmcal.stages.seed_scatter``).
 """
 from .bootstrap import BootstrapResults, bootstrap_intervals
-from .closed_loop import ClosedLoop, ClosedLoopResult
+from .closed_loop import ClosedLoop, ClosedLoopResult, LoopSeeds, LoopSpace, LoopSteps
 from .inversion import InversionResult, invert
 from .loop_settings import UPDATES, LoopSettings
 from .scatter import scatter_table
@@ -37,4 +37,5 @@ from .space import (
 
 __all__ = ["UPDATES", "PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "tensile_target", "bts_strengths",
            "CalibrationSpace", "check_calibration_space", "InversionResult", "invert", "BootstrapResults",
-           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "LoopSettings", "scatter_table"]
+           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "LoopSeeds", "LoopSpace", "LoopSteps",
+           "LoopSettings", "scatter_table"]

@@ -136,8 +136,58 @@ def _loop_options(responses, rtol, max_rounds, margin, polish, update, grow_with
             check_loop_value("grow_within", grow_within))
 
 
+@dataclass(frozen=True)
+class LoopSpace:
+    """Where a :class:`ClosedLoop` may go: the design ``ranges`` (required), the ``free``
+    parameters (None: the contact model's default set), the bond-strength ``ratio`` (None:
+    both strengths free) and optional narrower ``bounds``; as for :func:`invert`."""
+
+    ranges: Mapping[str, Sequence[float]]
+    free: Sequence[str] | None = None
+    ratio: float | None = PAPER_RATIO
+    bounds: Mapping[str, Sequence[float]] | None = None
+
+
+@dataclass(frozen=True)
+class LoopSteps:
+    """How a :class:`ClosedLoop` judges and takes its rounds: ``rtol``, ``max_rounds``,
+    ``margin``, ``polish``, ``update``, ``damping``, ``max_step``, ``min_step``,
+    ``broyden`` and ``z`` (each as :class:`ClosedLoop`'s docstring gives it; those that
+    are :class:`LoopSettings` fields checked with its limits when the loop starts)."""
+
+    rtol: float | Mapping[str, float] = 0.01
+    max_rounds: int | str = "auto"
+    margin: float = 0.0
+    polish: bool = True
+    update: str = "broyden"
+    damping: float = 0.8
+    max_step: float = 0.25
+    min_step: float | None = None
+    broyden: bool = True
+    z: float = 2.0
+
+
+@dataclass(frozen=True)
+class LoopSeeds:
+    """Which packing seeds a :class:`ClosedLoop`'s rounds run and how the set grows:
+    ``seeds_per_round``, ``seeds``, ``max_seeds``, ``grow_within`` and ``seed_caps``
+    (as :class:`ClosedLoop`'s docstring gives them)."""
+
+    seeds_per_round: int | None = None
+    seeds: Sequence[int] | None = None
+    max_seeds: int | None = None
+    grow_within: float = 2.0
+    seed_caps: Mapping[str, int] | None = None
+
+
 class ClosedLoop:
     """Newton-Broyden closed-loop correction of a calibration with the simulator itself.
+
+    Its options come in three values: ``space`` (:class:`LoopSpace`: ``free``, ``ratio``,
+    ``ranges``, ``bounds``), ``steps`` (:class:`LoopSteps`: ``rtol``, ``max_rounds``,
+    ``margin``, ``polish``, ``update``, ``damping``, ``max_step``, ``min_step``,
+    ``broyden``, ``z``) and ``seeding`` (:class:`LoopSeeds`: ``seeds_per_round``,
+    ``seeds``, ``max_seeds``, ``grow_within``, ``seed_caps``).
 
     Parameters
     ----------
@@ -257,19 +307,17 @@ class ClosedLoop:
     """
 
     def __init__(self, simulate: Callable[[dict], Mapping[str, float]], targets: Mapping[str, float], *,
-                 free: Sequence[str] | None = None, ratio: float | None = PAPER_RATIO,
-                 ranges: Mapping[str, Sequence[float]],
-                 bounds: Mapping[str, Sequence[float]] | None = None,
-                 models: Mapping[str, RegressionModel] | None = None, jacobian: pd.DataFrame | None = None,
-                 rtol: float | Mapping[str, float] = 0.01, max_rounds: int | str = "auto",
-                 damping: float = 0.8,
-                 max_step: float = 0.25, broyden: bool = True, seeds_per_round: int | None = None,
-                 seeds: Sequence[int] | None = None, z: float = 2.0, max_seeds: int | None = None,
-                 margin: float = 0.0, polish: bool = True,
-                 target_se: Mapping[str, float] | None = None, update: str = "broyden",
-                 min_step: float | None = None, report: Callable[[str], None] | None = None,
-                 simulate_seeds: Callable[[dict, list], Sequence[Mapping[str, float]]] | None = None,
-                 seed_caps: Mapping[str, int] | None = None, grow_within: float = 2.0):
+                 space: LoopSpace, models: Mapping[str, RegressionModel] | None = None,
+                 jacobian: pd.DataFrame | None = None, steps: LoopSteps = LoopSteps(),
+                 seeding: LoopSeeds = LoopSeeds(), target_se: Mapping[str, float] | None = None,
+                 report: Callable[[str], None] | None = None,
+                 simulate_seeds: Callable[[dict, list], Sequence[Mapping[str, float]]] | None = None):
+        free, ratio, ranges, bounds = space.free, space.ratio, space.ranges, space.bounds
+        rtol, max_rounds, margin, polish = steps.rtol, steps.max_rounds, steps.margin, steps.polish
+        update, damping, max_step, min_step = steps.update, steps.damping, steps.max_step, steps.min_step
+        broyden, z = steps.broyden, steps.z
+        seeds_per_round, seeds, max_seeds = seeding.seeds_per_round, seeding.seeds, seeding.max_seeds
+        seed_caps, grow_within = seeding.seed_caps, seeding.grow_within
         if not callable(simulate):
             raise TypeError(f"simulate={simulate!r}: expected a callable (params, seed) -> responses")
         self.seeds = round_seeds(simulate, seeds_per_round, seeds)

@@ -3,7 +3,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bpmcal.analysis.calibration import ClosedLoop, invert, scatter_table
+from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps, invert, scatter_table
 from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.params import table2_ranges
 
@@ -43,7 +43,11 @@ def start():
 
 def test_converges_within_a_few_rounds(start):
     dem = BiasedDEM()
-    res = ClosedLoop(dem, TARGETS, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2).run(start)
+    res = ClosedLoop(dem,
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8),
+                     models=MODELS).run(start)
     assert res.converged and res.n_rounds <= 4
     h = res.history
     assert h.loc[0, "max_abs_err"] > 0.05  # the bias is real: the regression answer is off
@@ -59,8 +63,11 @@ def test_converges_within_a_few_rounds(start):
 
 
 def test_broyden_update_satisfies_the_secant_condition(start):
-    res = ClosedLoop(BiasedDEM(noise=0.0), TARGETS, models=MODELS, rtol=1e-4, max_rounds=3,
-                     ranges=T2).run(start)
+    res = ClosedLoop(BiasedDEM(noise=0.0),
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=1e-4, max_rounds=3),
+                     models=MODELS).run(start)
     h = res.history
     assert h["broyden_update"].iloc[-1]
     free = list(res.jacobian.columns)
@@ -70,8 +77,11 @@ def test_broyden_update_satisfies_the_secant_condition(start):
 
 
 def test_unreachable_target_does_not_converge(start):
-    res = ClosedLoop(BiasedDEM(), {**TARGETS, "ucs_MPa": 400.0}, models=MODELS, max_rounds=6,
-                     ranges=T2).run(start)
+    res = ClosedLoop(BiasedDEM(),
+                     {**TARGETS, "ucs_MPa": 400.0},
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(max_rounds=6),
+                     models=MODELS).run(start)
     assert not res.converged and res.status in ("stalled", "max_rounds")
     assert "pb_coh_MPa" in res.message
     assert res.params["pb_coh_MPa"] <= 50 / 1.4 + 1e-9
@@ -79,19 +89,31 @@ def test_unreachable_target_does_not_converge(start):
 
 def test_failed_simulation_stops_the_loop(start):
     broken = lambda p: {"ucs_MPa": np.nan, "E_GPa": 14.0, "nu": 0.2}
-    res = ClosedLoop(broken, TARGETS, models=MODELS, ranges=T2).run(start)
+    res = ClosedLoop(broken,
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     models=MODELS).run(start)
     assert res.status == "failed" and res.n_rounds == 1
 
 
 def test_explicit_jacobian_and_input_checks(start):
     J = pd.DataFrame(np.diag([1.3, 0.04, 2.0]), index=["E_GPa", "nu", "ucs_MPa"],
                      columns=["pb_emod_GPa", "pb_kratio", "pb_coh_MPa"])
-    res = ClosedLoop(BiasedDEM(), TARGETS, jacobian=J, max_rounds=12, ranges=T2).run(start)
+    res = ClosedLoop(BiasedDEM(),
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(max_rounds=12),
+                     jacobian=J).run(start)
     assert res.converged
     with pytest.raises(ValueError, match="exactly one"):
-        ClosedLoop(BiasedDEM(), TARGETS, ranges=T2)
+        ClosedLoop(BiasedDEM(),
+                   TARGETS,
+                   space=LoopSpace(ranges=T2))
     with pytest.raises(ValueError, match="pb_ten_MPa"):
-        ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2).run({**start, "pb_ten_MPa": 20.0})
+        ClosedLoop(BiasedDEM(),
+                   TARGETS,
+                   space=LoopSpace(ranges=T2),
+                   models=MODELS).run({**start, "pb_ten_MPa": 20.0})
 
 
 def test_the_scatter_table_flags_tolerances_below_noise():
@@ -145,7 +167,11 @@ def _truth_errors(res):
 
 def test_seed_averaged_round_records_mean_cv_se_and_tolerance(start):
     dem = SeedDEM(3)
-    res = ClosedLoop(dem, TARGETS, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2).run(start)
+    res = ClosedLoop(dem,
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8),
+                     models=MODELS).run(start)
     assert res.n_seeds == 3 and res.seeds == (1, 2, 3)  # the default: 3 seeds per round
     assert res.n_simulations == 3 * res.n_rounds == len(dem.calls)
     assert [s for _, s in dem.calls] == [1, 2, 3] * res.n_rounds  # the same seeds every round
@@ -179,8 +205,12 @@ def test_seed_averaged_loop_brackets_the_planted_truth_single_seed_does_not(star
     def coverage(k):
         inside = []
         for rs in range(60):
-            res = ClosedLoop(SeedDEM(rs), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
-                             ranges=T2, seeds_per_round=k).run(start)
+            res = ClosedLoop(SeedDEM(rs),
+                             TARGETS,
+                             space=LoopSpace(ranges=T2),
+                             steps=LoopSteps(rtol=0.01, max_rounds=8),
+                             seeding=LoopSeeds(seeds_per_round=k),
+                             models=MODELS).run(start)
             h = res.history.set_index("round").loc[int(res.history["max_abs_err"].idxmin())]
             t = planted_truth(res.params)
             inside += [abs(res.responses[r] - t[r]) / TARGETS[r] <= 2 * h[f"se_{r}"] + 1e-15
@@ -195,9 +225,12 @@ def test_more_seeds_converge_closer_to_the_planted_truth(start):
     """The error of the planted truth at the returned parameters shrinks with the seeds per
     round (the loop fits the mean of k packings, not one packing)."""
     def errors(k):
-        return np.array([_truth_errors(ClosedLoop(SeedDEM(rs), TARGETS, models=MODELS, rtol=0.01,
-                                                  max_rounds=8, ranges=T2,
-                                                  seeds_per_round=k).run(start))
+        return np.array([_truth_errors(ClosedLoop(SeedDEM(rs),
+                                                  TARGETS,
+                                                  space=LoopSpace(ranges=T2),
+                                                  steps=LoopSteps(rtol=0.01, max_rounds=8),
+                                                  seeding=LoopSeeds(seeds_per_round=k),
+                                                  models=MODELS).run(start))
                          for rs in range(150)])
     e1, e8 = errors(1), errors(8)
     rms1, rms8 = np.sqrt((e1 ** 2).mean(axis=0)), np.sqrt((e8 ** 2).mean(axis=0))
@@ -213,26 +246,51 @@ def test_more_seeds_converge_closer_to_the_planted_truth(start):
 def test_seed_arguments_are_checked():
     one_arg = lambda p: {"ucs_MPa": 1.0, "E_GPa": 1.0, "nu": 0.2}  # noqa: E731
     with pytest.raises(ValueError, match="takes no seed"):
-        ClosedLoop(one_arg, TARGETS, models=MODELS, ranges=T2, seeds_per_round=3)
+        ClosedLoop(one_arg,
+                   TARGETS,
+                   space=LoopSpace(ranges=T2),
+                   seeding=LoopSeeds(seeds_per_round=3),
+                   models=MODELS)
     with pytest.raises(ValueError, match="takes no seed"):
-        ClosedLoop(one_arg, TARGETS, models=MODELS, ranges=T2, seeds=[1, 2])
-    assert ClosedLoop(one_arg, TARGETS, models=MODELS, ranges=T2).seeds == (None,)
+        ClosedLoop(one_arg,
+                   TARGETS,
+                   space=LoopSpace(ranges=T2),
+                   seeding=LoopSeeds(seeds=[1, 2]),
+                   models=MODELS)
+    assert ClosedLoop(one_arg,
+                      TARGETS,
+                      space=LoopSpace(ranges=T2),
+                      models=MODELS).seeds == (None,)
     dem = SeedDEM()
-    assert ClosedLoop(dem, TARGETS, models=MODELS, ranges=T2, seeds=[7, 9]).seeds == (7, 9)
-    assert ClosedLoop(dem, TARGETS, models=MODELS, ranges=T2, seeds_per_round=5).seeds_per_round == 5
-    for bad in ({"seeds_per_round": 0}, {"seeds_per_round": 2.0}, {"seeds": [1, 1]},
-                {"seeds": []}, {"seeds": [1, -2]}, {"seeds": [1, 2], "seeds_per_round": 3},
-                {"z": -1.0}, {"max_seeds": 0}, {"max_seeds": 4.0}, {"max_seeds": True},
-                {"max_seeds": "10"}):
+    assert ClosedLoop(dem,
+                      TARGETS,
+                      space=LoopSpace(ranges=T2),
+                      seeding=LoopSeeds(seeds=[7, 9]),
+                      models=MODELS).seeds == (7, 9)
+    assert ClosedLoop(dem,
+                      TARGETS,
+                      space=LoopSpace(ranges=T2),
+                      seeding=LoopSeeds(seeds_per_round=5),
+                      models=MODELS).seeds_per_round == 5
+    for bad in (LoopSeeds(seeds_per_round=0), LoopSeeds(seeds_per_round=2.0),
+                LoopSeeds(seeds=[1, 1]), LoopSeeds(seeds=[]), LoopSeeds(seeds=[1, -2]),
+                LoopSeeds(seeds=[1, 2], seeds_per_round=3), LoopSeeds(max_seeds=0),
+                LoopSeeds(max_seeds=4.0), LoopSeeds(max_seeds=True), LoopSeeds(max_seeds="10")):
         with pytest.raises(ValueError):
-            ClosedLoop(dem, TARGETS, models=MODELS, ranges=T2, **bad)
+            ClosedLoop(dem, TARGETS, space=LoopSpace(ranges=T2), models=MODELS, seeding=bad)
+    with pytest.raises(ValueError):
+        ClosedLoop(dem, TARGETS, space=LoopSpace(ranges=T2), models=MODELS,
+                   steps=LoopSteps(z=-1.0))
 
 
 def test_a_failed_seed_fails_the_round_and_names_the_seed(start):
     def flaky(params, seed):
         out = planted_truth(params)
         return {**out, "ucs_MPa": np.nan} if seed == 2 else out
-    res = ClosedLoop(flaky, TARGETS, models=MODELS, ranges=T2).run(start)
+    res = ClosedLoop(flaky,
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     models=MODELS).run(start)
     assert res.status == "failed" and "seed 2" in res.message and res.n_rounds == 1
     assert len(res.samples) == 3
 
@@ -244,8 +302,11 @@ def test_a_parameter_held_at_its_bound_lets_the_others_meet_their_targets(start)
     σc and E still reach their targets; a Newton step for all three, cut at the bound
     afterwards, would keep moving them to make up for a kratio move that never happens."""
     targets = {**TARGETS, "nu": 0.34}
-    res = ClosedLoop(BiasedDEM(noise=0.0), targets, models=MODELS, rtol=0.01, max_rounds=8,
-                     ranges=T2).run(start)
+    res = ClosedLoop(BiasedDEM(noise=0.0),
+                     targets,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8),
+                     models=MODELS).run(start)
     assert not res.converged and res.status in ("max_rounds", "stalled")
     assert res.params["pb_kratio"] == pytest.approx(5.0)
     h = res.history
@@ -262,8 +323,11 @@ def test_a_margin_lets_the_loop_follow_a_target_just_outside_the_design_space(st
     it is held at 5 (the test above)."""
     targets = {**TARGETS, "nu": 0.34}
     dem = BiasedDEM(noise=0.0)
-    res = ClosedLoop(dem, targets, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2,
-                     margin=0.25).run(start)
+    res = ClosedLoop(dem,
+                     targets,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8, margin=0.25),
+                     models=MODELS).run(start)
     assert res.converged
     assert res.params["pb_kratio"] == pytest.approx((0.34 / 1.06 - 0.1) / 0.04, rel=0.01)
     assert set(res.outside) == {"pb_kratio"}
@@ -277,8 +341,11 @@ def test_a_margin_lets_the_loop_follow_a_target_just_outside_the_design_space(st
 
 def test_a_target_beyond_the_margin_is_held_at_the_widened_bound_and_named(start):
     targets = {**TARGETS, "nu": 0.37}  # pb_kratio 6.23 > 5 + 0.25 x 4
-    res = ClosedLoop(BiasedDEM(noise=0.0), targets, models=MODELS, rtol=0.01, max_rounds=8,
-                     ranges=T2, margin=0.25).run(start)
+    res = ClosedLoop(BiasedDEM(noise=0.0),
+                     targets,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8, margin=0.25),
+                     models=MODELS).run(start)
     assert not res.converged
     assert res.params["pb_kratio"] == pytest.approx(6.0)
     last = res.history.iloc[-1]
@@ -290,8 +357,11 @@ def test_a_target_beyond_the_margin_is_held_at_the_widened_bound_and_named(start
 def test_the_margin_never_widens_a_configured_narrowing(start):
     """``bounds`` are the user's limits, not the sampled space: the margin leaves them."""
     targets = {**TARGETS, "nu": 0.34}
-    res = ClosedLoop(BiasedDEM(noise=0.0), targets, models=MODELS, rtol=0.01, max_rounds=8,
-                     ranges=T2, bounds={"pb_kratio": [1.0, 4.5]}, margin=0.25).run(start)
+    res = ClosedLoop(BiasedDEM(noise=0.0),
+                     targets,
+                     space=LoopSpace(ranges=T2, bounds={"pb_kratio": [1.0, 4.5]}),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8, margin=0.25),
+                     models=MODELS).run(start)
     assert not res.converged
     assert res.params["pb_kratio"] == pytest.approx(4.5)
     assert res.loop_bounds["pb_kratio"][1] == pytest.approx(4.5)
@@ -302,15 +372,29 @@ def test_a_start_outside_the_design_space_needs_the_margin(start):
     """A transfer starts from a verified card that may lie past a range (inside the margin)."""
     outside = {**start, "pb_kratio": 5.4}
     with pytest.raises(ValueError, match="pb_kratio=5.4 outside"):
-        ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2).run(outside)
-    res = ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2, margin=0.25,
-                     max_rounds=1).run(outside)
+        ClosedLoop(BiasedDEM(),
+                   TARGETS,
+                   space=LoopSpace(ranges=T2),
+                   models=MODELS).run(outside)
+    res = ClosedLoop(BiasedDEM(),
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(max_rounds=1, margin=0.25),
+                     models=MODELS).run(outside)
     assert res.history.loc[0, "pb_kratio"] == 5.4
     with pytest.raises(ValueError, match=r"outside \[0.8, 5.2\].*widened by the margin 0.05"):
-        ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2, margin=0.05).run(outside)
+        ClosedLoop(BiasedDEM(),
+                   TARGETS,
+                   space=LoopSpace(ranges=T2),
+                   steps=LoopSteps(margin=0.05),
+                   models=MODELS).run(outside)
     for bad in (-0.1, 1.5, float("nan"), True, "0.2"):
         with pytest.raises(ValueError, match="margin"):
-            ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2, margin=bad)
+            ClosedLoop(BiasedDEM(),
+                       TARGETS,
+                       space=LoopSpace(ranges=T2),
+                       steps=LoopSteps(margin=bad),
+                       models=MODELS)
 
 
 class OffsetDEM(SeedDEM):
@@ -326,14 +410,21 @@ class OffsetDEM(SeedDEM):
 def test_a_grown_seed_set_removes_the_bias_of_the_first_seeds(start):
     assert np.mean([OffsetDEM.DEV[s] for s in (1, 2, 3)]) == pytest.approx(0.02)
     assert np.mean(list(OffsetDEM.DEV.values())) == pytest.approx(0.0, abs=1e-15)
-    fixed = ClosedLoop(OffsetDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
-                       ranges=T2).run(start)
+    fixed = ClosedLoop(OffsetDEM(),
+                       TARGETS,
+                       space=LoopSpace(ranges=T2),
+                       steps=LoopSteps(rtol=0.01, max_rounds=8),
+                       models=MODELS).run(start)
     assert fixed.converged and fixed.n_seeds == 3
     # the three packings are fitted: the rock (planted truth) sits ~2 % below the targets
     assert all(-0.045 < e < -0.005 for e in _truth_errors(fixed))
     dem = OffsetDEM()
-    grown = ClosedLoop(dem, TARGETS, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2,
-                       max_seeds=10).run(start)
+    grown = ClosedLoop(dem,
+                       TARGETS,
+                       space=LoopSpace(ranges=T2),
+                       steps=LoopSteps(rtol=0.01, max_rounds=8),
+                       seeding=LoopSeeds(max_seeds=10),
+                       models=MODELS).run(start)
     assert grown.converged and grown.n_seeds == 10 and grown.seeds == tuple(range(1, 11))
     h = grown.history
     g = h.index[h["grown"] > 0]
@@ -356,8 +447,12 @@ def test_growing_the_seed_set_brings_fresh_packings_closer_to_the_targets(start)
     def errors(**kw):
         out, runs = [], []
         for rs in range(100):
-            res = ClosedLoop(SeedDEM(rs), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
-                             ranges=T2, **kw).run(start)
+            res = ClosedLoop(SeedDEM(rs),
+                             TARGETS,
+                             space=LoopSpace(ranges=T2),
+                             steps=LoopSteps(rtol=0.01, max_rounds=8),
+                             models=MODELS,
+                             seeding=LoopSeeds(**kw)).run(start)
             out.append(_truth_errors(res))
             runs.append(res.n_simulations)
         return np.sqrt((np.array(out) ** 2).mean(axis=0)), np.mean(runs)
@@ -378,12 +473,18 @@ class TinyScatterDEM(SeedDEM):
 
 
 def test_a_converged_loop_polishes_towards_the_targets(start):
-    plain = ClosedLoop(TinyScatterDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
-                       ranges=T2, polish=False).run(start)
+    plain = ClosedLoop(TinyScatterDEM(),
+                       TARGETS,
+                       space=LoopSpace(ranges=T2),
+                       steps=LoopSteps(rtol=0.01, max_rounds=8, polish=False),
+                       models=MODELS).run(start)
     assert plain.converged and "polish" not in plain.message
     assert np.max(np.abs(_truth_errors(plain))) > 0.003  # inside 1 %, but well off
-    res = ClosedLoop(TinyScatterDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
-                     ranges=T2).run(start)
+    res = ClosedLoop(TinyScatterDEM(),
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8),
+                     models=MODELS).run(start)
     h = res.history
     assert res.converged and "polishing step" in res.message
     assert res.n_rounds == plain.n_rounds + 1 and res.best_round == res.n_rounds - 1
@@ -404,8 +505,11 @@ def test_a_polishing_step_that_leaves_the_tolerance_keeps_the_converged_round(st
                 out["E_GPa"] *= 1.03
             return out
 
-    res = ClosedLoop(Step(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
-                     ranges=T2).run(start)
+    res = ClosedLoop(Step(),
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8),
+                     models=MODELS).run(start)
     h = res.history
     assert res.converged and res.best_round == len(h) - 2
     assert h["err_E_GPa"].iloc[-1] > 0.02 and bool(h["polish"].iloc[-2])
@@ -422,8 +526,11 @@ def test_a_failed_polishing_round_leaves_the_converged_card(start):
                 out["ucs_MPa"] = float("nan")
             return out
 
-    res = ClosedLoop(Fails(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
-                     ranges=T2).run(start)
+    res = ClosedLoop(Fails(),
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8),
+                     models=MODELS).run(start)
     h = res.history
     assert res.converged and res.best_round == len(h) - 2 and bool(h["polish"].iloc[-2])
     assert "polishing round" in res.message and "seed 2" in res.message
@@ -431,14 +538,24 @@ def test_a_failed_polishing_round_leaves_the_converged_card(start):
 
 
 def test_no_polishing_without_a_round_left_or_a_standard_error(start):
-    last = ClosedLoop(TinyScatterDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=3,
-                      ranges=T2).run(start)  # converges in round 3 of 3
+    last = ClosedLoop(TinyScatterDEM(),
+                      TARGETS,
+                      space=LoopSpace(ranges=T2),
+                      steps=LoopSteps(rtol=0.01, max_rounds=3),
+                      models=MODELS).run(start)  # converges in round 3 of 3
     assert last.converged and last.n_rounds == 3 and "polish" not in last.message
-    one = ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
-                     ranges=T2).run(start)  # one seed: no standard error to judge a miss by
+    one = ClosedLoop(BiasedDEM(),
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8),
+                     models=MODELS).run(start)  # one seed: no standard error to judge a miss by
     assert one.converged and not one.history["polish"].fillna(False).any()
     with pytest.raises(ValueError, match="polish"):
-        ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, ranges=T2, polish="yes")
+        ClosedLoop(BiasedDEM(),
+                   TARGETS,
+                   space=LoopSpace(ranges=T2),
+                   steps=LoopSteps(polish="yes"),
+                   models=MODELS)
 
 
 def test_polishing_brings_the_rock_closer_to_the_targets(start):
@@ -450,9 +567,12 @@ def test_polishing_brings_the_rock_closer_to_the_targets(start):
     def errors(polish):
         out, runs = [], []
         for rs in range(100):
-            res = ClosedLoop(SeedDEM(rs), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
-                             ranges=T2, seeds_per_round=3, max_seeds=10, grow_within=1,
-                             polish=polish).run(start)
+            res = ClosedLoop(SeedDEM(rs),
+                             TARGETS,
+                             space=LoopSpace(ranges=T2),
+                             steps=LoopSteps(rtol=0.01, max_rounds=8, polish=polish),
+                             seeding=LoopSeeds(seeds_per_round=3, max_seeds=10, grow_within=1),
+                             models=MODELS).run(start)
             out.append(_truth_errors(res))
             runs.append(res.n_simulations)
         return np.sqrt((np.array(out) ** 2).mean(axis=0)), np.mean(runs)
@@ -471,9 +591,12 @@ def test_growing_near_the_targets_brings_the_rock_closer_than_growing_at_them(st
     def errors(grow_within):
         out, runs = [], []
         for rs in range(100):
-            res = ClosedLoop(SeedDEM(rs), TARGETS, models=MODELS, rtol=0.01, max_rounds=8,
-                             ranges=T2, seeds_per_round=3, max_seeds=10, polish=False,
-                             grow_within=grow_within).run(start)
+            res = ClosedLoop(SeedDEM(rs),
+                             TARGETS,
+                             space=LoopSpace(ranges=T2),
+                             steps=LoopSteps(rtol=0.01, max_rounds=8, polish=False),
+                             seeding=LoopSeeds(seeds_per_round=3, max_seeds=10, grow_within=grow_within),
+                             models=MODELS).run(start)
             assert res.converged
             out.append(_truth_errors(res))
             runs.append(res.n_simulations)
@@ -501,19 +624,30 @@ def test_the_seed_set_grows_within_grow_within_tolerances(start):
     tolerance 2 SE = 1.73 %: 1.15 tolerances off. With grow_within 2 the seed set grows in
     round 1 (judged then on the 10 seeds, mean +0.6 %: converged); with 1 it does not."""
     dem = OffsetSeeds({1: 0.005, 2: 0.020, 3: 0.035})
-    kw = dict(models=MODELS, rtol=0.01, max_rounds=2, ranges=T2, max_seeds=10, polish=False)
-    near = ClosedLoop(dem, TARGETS, grow_within=2.0, **kw).run(start)
+    kw = dict(models=MODELS, space=LoopSpace(ranges=T2),
+              steps=LoopSteps(rtol=0.01, max_rounds=2, polish=False))
+    near = ClosedLoop(dem,
+                      TARGETS,
+                      seeding=LoopSeeds(grow_within=2.0, max_seeds=10),
+                      **kw).run(start)
     h = near.history
     assert h["grown"].iloc[0] == 7 and h["n_seeds"].iloc[0] == 10
     assert near.converged and near.n_rounds == 1
-    at = ClosedLoop(dem, TARGETS, grow_within=1.0, **kw).run(start)
+    at = ClosedLoop(dem,
+                    TARGETS,
+                    seeding=LoopSeeds(grow_within=1.0, max_seeds=10),
+                    **kw).run(start)
     assert at.history["grown"].iloc[0] == 0 and at.history["n_seeds"].iloc[0] == 3
 
 
 @pytest.mark.parametrize("bad", [0.5, 0, -2, float("nan"), float("inf"), True, "2"])
 def test_a_bad_grow_within_is_refused(start, bad):
     with pytest.raises(ValueError, match="grow_within"):
-        ClosedLoop(SeedDEM(0), TARGETS, models=MODELS, ranges=T2, grow_within=bad)
+        ClosedLoop(SeedDEM(0),
+                   TARGETS,
+                   space=LoopSpace(ranges=T2),
+                   seeding=LoopSeeds(grow_within=bad),
+                   models=MODELS)
 
 
 # -- four targets with a noisy sigma_t: weighted steps, trust region, probing ----------------
@@ -552,12 +686,16 @@ class NoisyDEM:
                 for k, v in t.items()}
 
 
-def _loop4(rs, **kw):
+def _loop4(rs, seeding=LoopSeeds(seeds_per_round=3, max_seeds=10), **kw):
     start = {**FIXED, "pb_emod_GPa": 14.0 * 0.93, "pb_kratio": 3.2 * 1.08,
              "pb_ten_MPa": 30.0 * 1.12, "pb_coh_MPa": 20.0 * 0.9}
-    kw = {"rtol": 0.01, "max_rounds": 8, "seeds_per_round": 3, "max_seeds": 10, **kw}
-    return ClosedLoop(NoisyDEM(rs), TARGETS4, models=MODELS4, free=FREE4, ratio=None,
-                      ranges=T2, **kw).run(start)
+    steps = LoopSteps(**{"rtol": 0.01, "max_rounds": 8, **kw})
+    return ClosedLoop(NoisyDEM(rs),
+                      TARGETS4,
+                      space=LoopSpace(ranges=T2, free=FREE4, ratio=None),
+                      models=MODELS4,
+                      steps=steps,
+                      seeding=seeding).run(start)
 
 
 def test_four_targets_with_a_noisy_sigma_t_converge(start):
@@ -607,9 +745,12 @@ def test_a_parameter_held_at_its_bound_is_probed(start):
     box, and the loop then meets all four targets (at pb_ten 10 it cannot: sigma_t stays
     10 % high, measured)."""
     s = {**FIXED, "pb_emod_GPa": 13.2, "pb_kratio": 3.4, "pb_ten_MPa": 10.0, "pb_coh_MPa": 39.7}
-    res = ClosedLoop(NoisyDEM(0, rho=1.0), TARGETS4, models=MODELS4, free=FREE4, ratio=None,
-                     ranges=T2, rtol=0.01, max_rounds=10, seeds_per_round=3,
-                     max_seeds=10).run(s)
+    res = ClosedLoop(NoisyDEM(0, rho=1.0),
+                     TARGETS4,
+                     space=LoopSpace(ranges=T2, free=FREE4, ratio=None),
+                     steps=LoopSteps(rtol=0.01, max_rounds=10),
+                     seeding=LoopSeeds(seeds_per_round=3, max_seeds=10),
+                     models=MODELS4).run(s)
     h = res.history
     probed = h.index[h["probed"].fillna("").str.contains("pb_ten_MPa")]
     assert len(probed) >= 1
@@ -620,7 +761,11 @@ def test_a_parameter_held_at_its_bound_is_probed(start):
 
 # -- the Jacobian and the trust region under noise -----------------------------------------
 def _loop_for_broyden():
-    loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=4)
+    loop = ClosedLoop(SeedDEM(),
+                      TARGETS,
+                      space=LoopSpace(ranges=T2),
+                      seeding=LoopSeeds(seeds_per_round=4),
+                      models=MODELS)
     return loop, np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
 
 
@@ -662,8 +807,12 @@ def test_the_trust_region_grows_again_after_good_capped_steps():
     from bpmcal.analysis.calibration.seed_policy import Round
     from bpmcal.analysis.calibration.step_rule import TrustRegion
 
-    loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=3,
-                      max_step=0.2)
+    loop = ClosedLoop(SeedDEM(),
+                      TARGETS,
+                      space=LoopSpace(ranges=T2),
+                      steps=LoopSteps(max_step=0.2),
+                      seeding=LoopSeeds(seeds_per_round=3),
+                      models=MODELS)
     space = loop._space({**FIXED, "pb_emod_GPa": 14.0, "pb_kratio": 3.0,
                          "pb_coh_MPa": 20.0, "pb_ten_MPa": 28.0})
     box = space.loop_box(0.0)
@@ -703,8 +852,12 @@ def test_a_target_with_its_own_standard_error_is_met_within_both_errors(start):
     se = {"ucs_MPa": 0.02 * targets["ucs_MPa"]}
 
     def loop(**kw):
-        return ClosedLoop(TinyScatterDEM(), targets, models=MODELS, rtol=0.01, max_rounds=4,
-                          ranges=T2, polish=False, **kw).run(truth)
+        return ClosedLoop(TinyScatterDEM(),
+                          targets,
+                          space=LoopSpace(ranges=T2),
+                          steps=LoopSteps(rtol=0.01, max_rounds=4, polish=False),
+                          models=MODELS,
+                          **kw).run(truth)
 
     both = loop(target_se=se)
     h = both.history
@@ -715,10 +868,16 @@ def test_a_target_with_its_own_standard_error_is_met_within_both_errors(start):
     assert exact.history.loc[0, "tol_ucs_MPa"] == pytest.approx(0.01)
     assert exact.n_rounds > 1 and exact.params != truth
     with pytest.raises(ValueError, match="target_se.ucs_MPa"):
-        ClosedLoop(TinyScatterDEM(), targets, models=MODELS, ranges=T2,
+        ClosedLoop(TinyScatterDEM(),
+                   targets,
+                   space=LoopSpace(ranges=T2),
+                   models=MODELS,
                    target_se={"ucs_MPa": -1.0})
     with pytest.raises(ValueError, match="'bts_MPa' is not a target"):
-        ClosedLoop(TinyScatterDEM(), targets, models=MODELS, ranges=T2,
+        ClosedLoop(TinyScatterDEM(),
+                   targets,
+                   space=LoopSpace(ranges=T2),
+                   models=MODELS,
                    target_se={"bts_MPa": 1.0})
 
 
@@ -737,8 +896,12 @@ def test_history_update_recovers_a_linear_response_once_the_steps_span_the_space
     """A linear simulator without noise (SE 1e-6), n + 1 rounds whose steps span the n parameters: the
     fit is the true Jacobian, whatever the (wrong) starting estimate; Broyden, from the same
     rounds taken in turn, is not (it knows the last step's secant only)."""
-    loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=3,
-                      update="history")
+    loop = ClosedLoop(SeedDEM(),
+                      TARGETS,
+                      space=LoopSpace(ranges=T2),
+                      steps=LoopSteps(update="history"),
+                      seeding=LoopSeeds(seeds_per_round=3),
+                      models=MODELS)
     rng = np.random.default_rng(5)
     J_true = rng.normal(size=(3, 3))
     J0 = J_true + rng.normal(scale=0.8, size=(3, 3))
@@ -757,8 +920,12 @@ def test_history_update_recovers_a_linear_response_once_the_steps_span_the_space
 def test_history_update_of_two_rounds_is_broydens_least_change_update():
     """Two rounds, no noise (SE 1e-6): the secant condition holds and the change of each row lies
     along the step (Broyden's least-change update from the starting estimate)."""
-    loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=3,
-                      update="history")
+    loop = ClosedLoop(SeedDEM(),
+                      TARGETS,
+                      space=LoopSpace(ranges=T2),
+                      steps=LoopSteps(update="history"),
+                      seeding=LoopSeeds(seeds_per_round=3),
+                      models=MODELS)
     J0 = np.array([[1.0, 0.2, 0.0], [0.0, 1.0, 0.3], [0.1, 0.0, 1.0]])
     u0, u1 = np.array([0.5, 0.5, 0.5]), np.array([0.55, 0.47, 0.5])
     e0, e1 = np.array([0.1, -0.05, 0.08]), np.array([0.02, 0.01, 0.2])
@@ -773,8 +940,12 @@ def test_history_update_of_two_rounds_is_broydens_least_change_update():
 def test_history_update_weighs_each_round_by_its_noise():
     """A change within its response's scatter barely moves the row; the same change
     measured precisely moves it fully."""
-    loop = ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seeds_per_round=3,
-                      update="history")
+    loop = ClosedLoop(SeedDEM(),
+                      TARGETS,
+                      space=LoopSpace(ranges=T2),
+                      steps=LoopSteps(update="history"),
+                      seeding=LoopSeeds(seeds_per_round=3),
+                      models=MODELS)
     J0 = np.eye(3)
     u0, u1 = np.array([0.5, 0.5, 0.5]), np.array([0.5, 0.5, 0.52])
     e0, e1 = np.zeros(3), np.array([0.0, 0.0, 0.05])  # the third: 2.5 per unit, not 1
@@ -789,22 +960,33 @@ def test_history_update_weighs_each_round_by_its_noise():
 
 
 def test_history_loop_converges_on_the_biased_dem(start):
-    res = ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2,
-                     update="history").run(start)
+    res = ClosedLoop(BiasedDEM(),
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8, update="history"),
+                     models=MODELS).run(start)
     assert res.converged and res.n_rounds <= 4
     assert res.history.loc[0, "max_abs_err"] > 0.05
 
 
 def test_unknown_update_rule_is_refused():
     with pytest.raises(ValueError, match="update='secant'"):
-        ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, update="secant")
+        ClosedLoop(SeedDEM(),
+                   TARGETS,
+                   space=LoopSpace(ranges=T2),
+                   steps=LoopSteps(update="secant"),
+                   models=MODELS)
 
 
 def test_every_judged_round_is_reported(start):
     """A loop whose rounds take minutes tells its progress: one line per round with every
     response's error and tolerance."""
     lines = []
-    res = ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2,
+    res = ClosedLoop(BiasedDEM(),
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8),
+                     models=MODELS,
                      report=lines.append).run(start)
     assert len(lines) == res.n_rounds
     h = res.history
@@ -817,7 +999,8 @@ def test_every_judged_round_is_reported(start):
 def test_a_rounds_seeds_run_at_once_take_the_same_path(start):
     """simulate_seeds (a round's seeds in one call, e.g. side by side on several CPUs)
     gives the loop the same rounds, steps, seed growth and card as one seed at a time."""
-    kw = dict(models=MODELS, rtol=0.01, max_rounds=8, ranges=T2, seeds_per_round=3, max_seeds=10)
+    kw = dict(models=MODELS, steps=LoopSteps(rtol=0.01, max_rounds=8), space=LoopSpace(ranges=T2),
+              seeding=LoopSeeds(seeds_per_round=3, max_seeds=10))
     one = ClosedLoop(SeedDEM(2), TARGETS, **kw).run(start)
     dem, batches = SeedDEM(2), []
 
@@ -857,8 +1040,12 @@ def test_a_seed_cap_judges_that_response_on_its_first_seeds_only(start):
     the cap is no failure), every other response is judged on all ten, and the history
     records the capped response's seed count."""
     dem = CappedDEM(5)
-    res = ClosedLoop(dem, TARGETS, models=MODELS, rtol=0.01, max_rounds=8, ranges=T2,
-                     max_seeds=10, seed_caps={"ucs_MPa": 4}).run(start)
+    res = ClosedLoop(dem,
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     steps=LoopSteps(rtol=0.01, max_rounds=8),
+                     seeding=LoopSeeds(max_seeds=10, seed_caps={"ucs_MPa": 4}),
+                     models=MODELS).run(start)
     assert res.status != "failed"
     h, smp = res.history, res.samples
     grown = h[h["n_seeds"] == 10]
@@ -890,9 +1077,12 @@ def test_a_seed_cap_does_not_grow_the_set_for_the_capped_response(start):
         g = np.random.default_rng([11, seed]).standard_normal()
         return {**t, "ucs_MPa": t["ucs_MPa"] * (1 + 0.06 * g)}
 
-    kw = dict(models=MODELS, rtol=0.02, max_rounds=8, ranges=T2, max_seeds=10)
-    free = ClosedLoop(dem, TARGETS, **kw).run(start)
-    capped = ClosedLoop(dem, TARGETS, seed_caps={"ucs_MPa": 3}, **kw).run(start)
+    kw = dict(models=MODELS, steps=LoopSteps(rtol=0.02, max_rounds=8), space=LoopSpace(ranges=T2))
+    free = ClosedLoop(dem, TARGETS, seeding=LoopSeeds(max_seeds=10), **kw).run(start)
+    capped = ClosedLoop(dem,
+                        TARGETS,
+                        seeding=LoopSeeds(seed_caps={"ucs_MPa": 3}, max_seeds=10),
+                        **kw).run(start)
     assert free.history["grown"].sum() > 0
     assert capped.history["grown"].sum() == 0 and (capped.history["n_seeds"] == 3).all()
 
@@ -901,14 +1091,22 @@ def test_a_failed_run_within_the_cap_still_fails_the_round(start):
     def dem(params, seed):
         out = planted_truth(params)
         return {**out, "ucs_MPa": np.nan} if seed == 2 else out
-    res = ClosedLoop(dem, TARGETS, models=MODELS, ranges=T2, seed_caps={"ucs_MPa": 2}).run(start)
+    res = ClosedLoop(dem,
+                     TARGETS,
+                     space=LoopSpace(ranges=T2),
+                     seeding=LoopSeeds(seed_caps={"ucs_MPa": 2}),
+                     models=MODELS).run(start)
     assert res.status == "failed" and "seed 2" in res.message
 
 
 def test_bad_seed_caps_are_refused(start):
     for bad in ({"sigma_t": 3}, {"ucs_MPa": 0}, {"ucs_MPa": 2.5}, {"ucs_MPa": True}, [3]):
         with pytest.raises(ValueError, match="seed_caps"):
-            ClosedLoop(SeedDEM(), TARGETS, models=MODELS, ranges=T2, seed_caps=bad)
+            ClosedLoop(SeedDEM(),
+                       TARGETS,
+                       space=LoopSpace(ranges=T2),
+                       seeding=LoopSeeds(seed_caps=bad),
+                       models=MODELS)
 
 
 # -- the starting Jacobian's signs ---------------------------------------------------------
@@ -927,8 +1125,13 @@ def test_a_strength_falling_with_a_bond_strength_starts_the_loop_flat():
     s = {**FIXED, "pb_emod_GPa": 14.0, "pb_kratio": 3.2, "pb_ten_MPa": 30.0, "pb_coh_MPa": 45.0}
     assert TURNED["ucs_MPa"].gradient(s)["pb_coh_MPa"] < 0
     notes = []
-    loop = ClosedLoop(NoisyDEM(0), TARGETS4, models=TURNED, free=FREE4, ratio=None, ranges=T2,
-                      seeds_per_round=3, max_rounds=1, report=notes.append)
+    loop = ClosedLoop(NoisyDEM(0),
+                      TARGETS4,
+                      space=LoopSpace(ranges=T2, free=FREE4, ratio=None),
+                      steps=LoopSteps(max_rounds=1),
+                      seeding=LoopSeeds(seeds_per_round=3),
+                      models=TURNED,
+                      report=notes.append)
     space = loop._space(s)
     J = loop._initial_jacobian(space, space.x(space.u(space.free_values(s))))
     i, j = list(loop.responses).index("ucs_MPa"), list(space.free).index("pb_coh_MPa")
@@ -944,8 +1147,12 @@ def test_a_strength_falling_with_a_bond_strength_starts_the_loop_flat():
     # the same slopes given as a Jacobian: measured, not held
     jac = pd.DataFrame({p: [TURNED[r].gradient(s).get(p, 0.0) for r in TARGETS4] for p in FREE4},
                        index=list(TARGETS4))
-    given = ClosedLoop(NoisyDEM(0), TARGETS4, jacobian=jac, free=FREE4, ratio=None, ranges=T2,
-                       seeds_per_round=3, max_rounds=1)
+    given = ClosedLoop(NoisyDEM(0),
+                       TARGETS4,
+                       space=LoopSpace(ranges=T2, free=FREE4, ratio=None),
+                       steps=LoopSteps(max_rounds=1),
+                       seeding=LoopSeeds(seeds_per_round=3),
+                       jacobian=jac)
     Jg = given._initial_jacobian(space, space.x(space.u(space.free_values(s))))
     assert Jg[i, j] < 0 and given.sign_held == []
 
@@ -958,14 +1165,21 @@ def test_the_auto_budget_is_two_rounds_per_free_parameter(start):
     result states the budget. On the four-target synthetic rock above, 6 rounds met the
     targets in 40 of 50 realisations, 8 in 46 (docs/calibration.md)."""
     dem = BiasedDEM()
-    three = ClosedLoop(dem, TARGETS, models=MODELS, rtol=1e-7, ranges=T2).run(start)
+    three = ClosedLoop(dem,
+                       TARGETS,
+                       space=LoopSpace(ranges=T2),
+                       steps=LoopSteps(rtol=1e-7),
+                       models=MODELS).run(start)
     assert three.status == "max_rounds" and three.n_rounds == 6 == three.max_rounds
     assert len(dem.calls) == 6 and "within 6 rounds" in three.message
-    four = _loop4(0, rtol=1e-7, max_rounds="auto", seeds_per_round=1, max_seeds=None)
+    four = _loop4(0, LoopSeeds(seeds_per_round=1), rtol=1e-7, max_rounds="auto")
     assert four.status == "max_rounds" and four.n_rounds == 8 == four.max_rounds
     assert len(four.jacobian.columns) == 4
-    fixed = ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, rtol=1e-7, max_rounds=3,
-                       ranges=T2).run(start)
+    fixed = ClosedLoop(BiasedDEM(),
+                       TARGETS,
+                       space=LoopSpace(ranges=T2),
+                       steps=LoopSteps(rtol=1e-7, max_rounds=3),
+                       models=MODELS).run(start)
     assert fixed.n_rounds == 3 == fixed.max_rounds
 
 
@@ -975,4 +1189,8 @@ def test_a_bad_round_budget_is_refused_naming_it(bad):
     (the round budget at most bpmcal.analysis.calibration.loop_settings.MAX_ROUNDS)."""
     with pytest.raises(ValueError, match=r"max_rounds=.*expected an integer in 1 \.\. 50, "
                                          "or 'auto'"):
-        ClosedLoop(BiasedDEM(), TARGETS, models=MODELS, max_rounds=bad, ranges=T2)
+        ClosedLoop(BiasedDEM(),
+                   TARGETS,
+                   space=LoopSpace(ranges=T2),
+                   steps=LoopSteps(max_rounds=bad),
+                   models=MODELS)

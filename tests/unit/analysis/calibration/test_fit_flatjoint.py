@@ -4,7 +4,14 @@ inversion and the closed loop solve a planted flat-joint card back."""
 import pytest
 
 from bpmcal import params as P
-from bpmcal.analysis.calibration import CalibrationSpace, ClosedLoop, bts_strengths, invert
+from bpmcal.analysis.calibration import (
+    CalibrationSpace,
+    ClosedLoop,
+    LoopSeeds,
+    LoopSpace,
+    bts_strengths,
+    invert,
+)
 from bpmcal.analysis.stepwise import RegressionModel
 
 RANGES = {"rmin_mm": (0.6, 1.0), "porosity": (0.2, 0.36), "fj_emod_GPa": (40.0, 100.0),
@@ -51,8 +58,11 @@ def test_a_planted_flat_joint_card_is_solved_back_and_the_loop_meets_it():
         return {"ucs_MPa": 1.05 * y["ucs_MPa"], "E_GPa": 0.97 * y["E_GPa"], "nu": y["nu"],
                 P.BTS: 1.04 * y[P.BTS]}
 
-    res = ClosedLoop(dem, t, models=MODELS, free=(*P.FLATJOINT.free, "fj_ten_MPa"),
-                     ratio=None, ranges=RANGES, seeds_per_round=1).run(inv.solution)
+    res = ClosedLoop(dem,
+                     t,
+                     space=LoopSpace(ranges=RANGES, free=(*P.FLATJOINT.free, "fj_ten_MPa"), ratio=None),
+                     seeding=LoopSeeds(seeds_per_round=1),
+                     models=MODELS).run(inv.solution)
     assert res.converged
     assert set(res.params) == set(FIXED) | {"fj_emod_GPa", "fj_kratio", "fj_ten_MPa", "fj_coh_MPa"}
     got = dem(res.params, 1)

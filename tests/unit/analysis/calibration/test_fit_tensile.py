@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from support.synthetic import FIXED, TRUTH, dem_response, models, predict
 
-from bpmcal.analysis.calibration import ClosedLoop, bts_strengths, invert
+from bpmcal.analysis.calibration import ClosedLoop, LoopSpace, LoopSteps, bts_strengths, invert
 from bpmcal.params import BTS, table2_ranges
 
 T2 = table2_ranges()  # pb_ten_MPa, pb_coh_MPa in [10, 50]
@@ -114,8 +114,11 @@ def test_closed_loop_steers_sigma_t_with_the_ratio_free():
     targets = sim(truth)  # the planted truth, as the 'DEM' sees it
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)
     start = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3).solution
-    loop = ClosedLoop(sim, targets, free=free, ratio=ratio, models=ms, ranges=T2, rtol=1e-3,
-                      max_rounds=8)
+    loop = ClosedLoop(sim,
+                      targets,
+                      space=LoopSpace(ranges=T2, free=free, ratio=ratio),
+                      steps=LoopSteps(rtol=1e-3, max_rounds=8),
+                      models=ms)
     res = loop.run(start)
     assert res.converged, res.summary()
     assert f"err_{BTS}" in res.history and abs(res.history[f"err_{BTS}"].iloc[0]) > 1e-3
@@ -130,8 +133,11 @@ def test_closed_loop_with_an_unreachable_sigma_t_records_the_miss():
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)
     start = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3,
                    diagnose=False).solution
-    res = ClosedLoop(sim, targets, free=free, ratio=ratio, models=ms, ranges=T2,
-                     max_rounds=4).run(start)
+    res = ClosedLoop(sim,
+                     targets,
+                     space=LoopSpace(ranges=T2, free=free, ratio=ratio),
+                     steps=LoopSteps(max_rounds=4),
+                     models=ms).run(start)
     assert not res.converged
     assert res.responses[BTS] / targets[BTS] - 1 > 0.05  # σt stays too high, and it is recorded
     assert (res.history[f"err_{BTS}"].abs() > 0.05).all()

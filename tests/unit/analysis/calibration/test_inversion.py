@@ -176,7 +176,7 @@ def test_no_exact_fit_says_when_widening_cannot_help():
 
 
 def test_closed_loop_runs_outside_table2_inside_the_configured_ranges():
-    from bpmcal.analysis.calibration import ClosedLoop
+    from bpmcal.analysis.calibration import ClosedLoop, LoopSpace, LoopSteps
 
     models = known_models()
     truth = {**FIXED, **STRONG, "pb_ten_MPa": 1.4 * STRONG["pb_coh_MPa"]}
@@ -187,8 +187,15 @@ def test_closed_loop_runs_outside_table2_inside_the_configured_ranges():
         out = targets_at(models, p)
         return {**out, "ucs_MPa": 0.9 * out["ucs_MPa"]}
 
-    res = ClosedLoop(dem, targets, models=models, ranges=WIDE, max_rounds=8).run(start)
+    res = ClosedLoop(dem,
+                     targets,
+                     space=LoopSpace(ranges=WIDE),
+                     steps=LoopSteps(max_rounds=8),
+                     models=models).run(start)
     assert res.converged and res.params["pb_coh_MPa"] > 150.0 > 50 / 1.4
     with pytest.raises(ParameterError, match=r"pb_coh_MPa=150 outside \[10, 35.7143\] \(ranges.pb_coh_MPa .. "
                                                  r"ranges.pb_ten_MPa / ratio 1.4\)"):
-        ClosedLoop(dem, targets, models=models, ranges=T2).run(start)
+        ClosedLoop(dem,
+                   targets,
+                   space=LoopSpace(ranges=T2),
+                   models=models).run(start)

@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from bpmcal.analysis.calibration import ClosedLoop
+from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps
 from bpmcal.analysis.calibration.loop_settings import LIMITS, Limit, LoopSettings, check_loop_value
 from bpmcal.cli import build_parser
 from bpmcal.cli.options import loop_argv, loop_settings_of
@@ -64,9 +64,12 @@ def test_closed_loop_keywords_are_checked_by_the_same_limits():
     for name, field, bad in (("margin", "range_margin", 1.5), ("update", "jacobian_update", "x"),
                              ("max_rounds", "max_rounds", 51), ("rtol", "rtol", 2.0),
                              ("grow_within", "grow_within", 0.5)):
+        where = ({"seeding": LoopSeeds(grow_within=bad)} if name == "grow_within"
+                 else {"steps": LoopSteps(**{name: bad})})
         with pytest.raises(ValueError, match=f"{name}={bad!r}: expected") as e:
-            ClosedLoop(lambda p, seed: {}, {"ucs_MPa": 1.0}, jacobian=object(),
-                       ranges={"pb_coh_MPa": [1, 2]}, **{name: bad})
+            ClosedLoop(lambda p, seed: {}, {"ucs_MPa": 1.0},
+                       space=LoopSpace(ranges={"pb_coh_MPa": [1, 2]}), jacobian=object(),
+                       **where)
         assert str(e.value).endswith(LIMITS[field].expected())
     assert check_loop_value("range_margin", 0.5, "margin") == 0.5
 
