@@ -22,6 +22,27 @@ A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467,
           pb_ten_MPa=27.670, pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
 
 
+def study_config(path=CONFIG) -> dict:
+    """A study config as the workflow reads it: validated against the schema, its defaults
+    filled in (what ``bpmcal.cli.jobs.job_argv`` builds a job's command from)."""
+    import yaml
+
+    from bpmcal.study.config import validate_config
+
+    cfg = yaml.safe_load(Path(path).read_text())
+    validate_config(cfg, REPO / "workflow" / "schemas" / "config.schema.yaml", base_dir=REPO)
+    return cfg
+
+
+def study_targets(cfg: dict) -> frozenset:
+    """The lab targets of a study config (``bpmcal.cli.jobs.lab_targets``), its lab CSV
+    read from the repository wherever the script runs."""
+    from bpmcal.cli.jobs import lab_targets
+    from bpmcal.study.lab_data import load_lab
+
+    return lab_targets(cfg, load_lab(REPO / cfg["lab"]["csv"]))
+
+
 def cpu_model() -> str:
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():

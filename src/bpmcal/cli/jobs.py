@@ -61,8 +61,8 @@ def _out(flag, key, optional=False):
     return _Ref(flag, "output", key, optional)
 
 
-def _wc(flag, key):
-    return _Ref(flag, "wildcards", key)
+def _wc(flag, key, optional=False):
+    return _Ref(flag, "wildcards", key, optional)
 
 
 THREADS = _Ref("--threads", "threads")
@@ -161,7 +161,8 @@ def _design(c, t, cache):
 def _sample(c, t, cache):
     on = {k: bool(c[k]["enabled"]) for k in ("bts", "dtt")}
     tri = c["triaxial"]["design_sigma3_MPa"] is not None
-    return ["sample", _in("--design", "design"), _wc("--sample", "sample"),
+    # a benchmark without a design passes --params and --seed instead
+    return ["sample", _in("--design", "design", True), _wc("--sample", "sample", True),
             _out("--out", "ucs"), THREADS, "--failed-ok", *specimen_args(c, cache=cache),
             _out("--bts-out", "bts", True), *(bts_args(c) if on["bts"] else []),
             _out("--dtt-out", "dtt", True), *(dtt_args(c) if on["dtt"] else []),
@@ -396,10 +397,16 @@ JOBS = {
 }
 
 
+#: the jobs whose tests follow the lab targets (a card's runs)
+TARGETED = ("verify", "transfer", "fresh_seeds", "posterior")
+
+
 def _tokens(config: dict, job: str, targets, cache) -> list:
     if job not in JOBS:
         raise KeyError(f"job {job!r}: expected one of {', '.join(JOBS)}")
-    t = lab_targets(config) if targets is None else frozenset(targets)
+    if targets is None:  # the study's own lab, read only by the jobs whose tests it sets
+        targets = lab_targets(config) if job in TARGETED else ()
+    t = frozenset(targets)
     bad = t - set(TARGETS)
     if bad:
         raise ValueError(f"targets {sorted(bad)}: expected some of {', '.join(TARGETS)}")
