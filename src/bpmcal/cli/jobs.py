@@ -65,7 +65,7 @@ def _wc(flag, key, optional=False):
     return _Ref(flag, "wildcards", key, optional)
 
 
-THREADS = _Ref("--threads", "threads")
+THREADS = _Ref("--threads", "threads", optional=True)  # none: the command chooses
 
 
 def _pairs(opts: dict) -> list[str]:
