@@ -2,7 +2,7 @@
 and another busy process) share the machine.
 
     python benchmarks/concurrent_runs.py [--scale 0.4] [--repeat 3] [--skip-forced]
-        [--json benchmarks/results_concurrent_runs_DATE.json]
+        [--json benchmarks/results/results_concurrent_runs_DATE.json]
 
 Each scenario starts ``bpmcal ucs`` processes at the same moment (the paper's A1 card,
 ``tests/support/paper.py``, at ``--scale``; cached packings, warmed first) and takes each

@@ -16,7 +16,7 @@ Two parts, one JSON record (date, commit, CPU model, load average, the command):
   nu over the whole 40-60 % window (the rule before), with ``nu_window_lo``/``_hi``.
 
     python benchmarks/flatjoint_brazilian.py --scales 0.55,0.8 --seeds 1,2,3,4,5 \\
-        --out benchmarks/results_flatjoint_brazilian_DATE.json
+        --out benchmarks/results/results_flatjoint_brazilian_DATE.json
 
 Runs go two at a time (``--jobs``, one numba thread each).
 """

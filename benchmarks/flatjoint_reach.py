@@ -25,7 +25,7 @@ study's verified cards B1-B3: sigma_c/sigma_t and m_i), not typed in here.
 
     python benchmarks/flatjoint_reach.py run --scale 0.4 --seeds 1 [--quick] \\
         [--bts-contact-cap 0] [--budget-min 40] [--reuse OLD.json] \\
-        --out benchmarks/results_flatjoint_reach.json \\
+        --out benchmarks/results/results_flatjoint_reach.json \\
         --markdown docs/measurements/DATE-flatjoint-reach.md \\
         --figure docs/measurements/DATE-flatjoint-reach.png
     python benchmarks/flatjoint_reach.py markdown RECORD.json [--update] [--note TEXT] \\
@@ -446,7 +446,7 @@ def _reused(c: dict) -> str:
 
 
 def markdown(rec: dict, figure: str | None = None,
-             raw: str = "benchmarks/results_flatjoint_reach.json") -> str:
+             raw: str = "benchmarks/results/results_flatjoint_reach.json") -> str:
     """The measurement record (docs/measurements) from the JSON record (``raw``: its
     path, as the page names it)."""
     pb = rec["pb_span"]

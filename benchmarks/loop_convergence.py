@@ -34,7 +34,7 @@ every card, and the RMS error of the returned card's seed-free responses against
 planted card's (how near the rock itself the card ends, which no loop can see).
 
     python benchmarks/loop_convergence.py --rock pb --cards 60 --grow-within 1,2 \
-        --commit SHA --out benchmarks/results_loop_convergence_DATE.json \
+        --commit SHA --out benchmarks/results/results_loop_convergence_DATE.json \
         --markdown docs/measurements/DATE-loop-convergence.md
 
 A synthetic rock is not the DEM: the record compares the rules on one family of response

@@ -13,7 +13,7 @@ fresh-seed verdicts, the planted card itself judged on the loop's seeds (how far
 seeds' mean lies from the loop seeds' mean of the true card), the runs and the CPU time.
 
     python benchmarks/planted_card.py --study CLONE/results --set pb_coh_MPa=37.5 \\
-        --set pb_ten_MPa=30 --out benchmarks/results_planted_card_DATE.json \\
+        --set pb_ten_MPa=30 --out benchmarks/results/results_planted_card_DATE.json \\
         --markdown docs/measurements/DATE-planted-card.md
 """
 from __future__ import annotations
@@ -210,8 +210,9 @@ def main(argv=None) -> int:
         "cpu_s_self": time.process_time() - cpu0, "commands": log,
     }
     # the loop's rounds (parameters, means, errors, tolerances, steps) beside the record
-    rec["rounds_csv"] = rounds_name(a.out)
-    rounds.to_csv(Path(a.out).with_name(rec["rounds_csv"]), index=False)
+    rounds_csv = Path(a.out).with_name(rounds_name(a.out))
+    rec["rounds_csv"] = os.path.relpath(rounds_csv.resolve(), REPO)
+    rounds.to_csv(rounds_csv, index=False)
     Path(a.out).write_text(json.dumps(rec, indent=1, default=float) + "\n")
     text = markdown(rec)
     if a.markdown:
@@ -247,6 +248,13 @@ def own_runs(verified: Path, planted: dict, seeds: list, tmp: Path, job, threads
 def rounds_name(out: str) -> str:
     """The file name of a record's closed-loop rounds (CSV, beside the record ``out``)."""
     return Path(out).stem.replace("results_planted_card_", "results_planted_card_rounds_") + ".csv"
+
+
+def _rounds_path(rounds_csv: str) -> str:
+    """The path of a record's rounds CSV: the record's own (relative to the repository);
+    a bare name, from a record written before they moved to benchmarks/results/, lay in
+    benchmarks/."""
+    return rounds_csv if "/" in rounds_csv else f"benchmarks/{rounds_csv}"
 
 
 def _loop_tensile_specimens(rec: dict) -> int:
@@ -298,7 +306,7 @@ def markdown(rec: dict) -> str:
     v = rec["verification"]
     lines += ["", f"Closed loop: {v['status']} after {v['rounds']} round(s), {v['runs']} runs "
                   f"({v['n_seeds']} seeds in the card's round): {v['message']}"
-              + (f" (every round: `benchmarks/{rec['rounds_csv']}`)" if rec.get("rounds_csv")
+              + (f" (every round: `{_rounds_path(rec['rounds_csv'])}`)" if rec.get("rounds_csv")
                  else ""), "",
               "| target | lab | closed-loop mean | error | tolerance "
               + ("max(1 %, 2 sqrt(SE² + SE_lab²))" if rec.get("lab_se") else "max(1 %, 2 SE)")

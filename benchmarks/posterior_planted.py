@@ -15,7 +15,7 @@ planted value lies in the HDI, the HDI widths and the identifiability. No closed
 runs: the refinement alone brings runs near the card.
 
     python benchmarks/posterior_planted.py --study CLONE/results --cards 8 \\
-        --out benchmarks/results_posterior_planted_DATE.json \\
+        --out benchmarks/results/results_posterior_planted_DATE.json \\
         --markdown docs/measurements/DATE-posterior-planted.md
 """
 from __future__ import annotations

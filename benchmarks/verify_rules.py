@@ -7,7 +7,7 @@ tolerances, and the CPU time; per setting, the totals.
 
     python benchmarks/verify_rules.py --study CLONE/results \\
         --setting "grow 1:grow_within=1" --setting "grow 2:grow_within=2" \\
-        --commit SHA --out benchmarks/results_verify_rules_DATE.json \\
+        --commit SHA --out benchmarks/results/results_verify_rules_DATE.json \\
         --markdown docs/measurements/DATE-verify-rules.md
 
 A setting is ``label:key=value,key=value`` over the config's ``verification`` keys that
