@@ -17,9 +17,6 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config" / "config.yaml"
 
-#: the paper's calibrated specimen A1 (phi_p and mu at the Table 2 midpoints)
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467,
-          pb_ten_MPa=27.670, pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
 
 
 def study_config(path=CONFIG) -> dict:
@@ -72,6 +69,8 @@ def design_samples(design, ids, a1_seeds, label="A1 s{seed}"):
     import csv
 
     if design is None:
+        from bpmcal.study.paper import A1  # the paper's card
+
         return [(label.format(seed=s), dict(A1), s) for s in a1_seeds]
     with open(design) as f:
         rows = {r["sample_id"]: r for r in csv.DictReader(f)}
