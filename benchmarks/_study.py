@@ -83,13 +83,15 @@ def design_samples(design, ids, a1_seeds, label="A1 s{seed}"):
 
 
 def ucs_settings(cfg: dict):
-    """The UCS test settings of a config's ``compression`` section."""
+    """The UCS test settings of a config's ``compression`` section: every key that is a
+    field of this bpmcal's ``UCSSettings`` (a key is its field's name:
+    tests/workflow/test_settings_sections.py)."""
+    from dataclasses import fields
+
     from bpmcal.lab.ucs import UCSSettings
 
     u = cfg["compression"]
-    return UCSSettings(platen_velocity=u["platen_velocity"], damping=u["damping"],
-                       stop_drop=u["stop_drop"], max_strain=u["max_strain"],
-                       platen_fric=u["platen_fric"], record_strain=u["record_strain"])
+    return UCSSettings(**{f.name: u[f.name] for f in fields(UCSSettings) if f.name in u})
 
 
 def bts_disc_and_settings(cfg: dict, scale: float | None = None, **over):

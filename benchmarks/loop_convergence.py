@@ -55,8 +55,12 @@ import pandas as pd
 from _study import record_header, write_record
 
 from bpmcal.analysis.calibration import ClosedLoop, invert
-from bpmcal.analysis.calibration.loop_settings import UPDATES
+from bpmcal.analysis.calibration.loop_settings import UPDATES, LoopSettings
 from bpmcal.analysis.stepwise import StepwiseRegression
+
+#: the study's closed loop (LoopSettings' defaults: 3 seeds a round, growing to 10, range
+#: margin 0.25); the update rule, growth rule and rounds are the record's
+LOOP = LoopSettings()
 
 
 @dataclass(frozen=True)
@@ -233,8 +237,9 @@ def one_card(rock: Rock, i: int, models: dict, max_rounds, updates=UPDATES,
             return simulate(rock, params, seed)
 
         loop = ClosedLoop(sim, targets, free=rock.free, ratio=None, ranges=rock.ranges,
-                          models=models, max_rounds=max_rounds, seeds_per_round=3, max_seeds=10,
-                          margin=0.25, update=update, target_se=target_se,
+                          models=models, max_rounds=max_rounds,
+                          seeds_per_round=LOOP.seeds_per_round, max_seeds=LOOP.max_seeds,
+                          margin=LOOP.range_margin, update=update, target_se=target_se,
                           **({} if grow is None else {"grow_within": grow}))
         res = loop.run(inv.solution)
         h = res.history
