@@ -11,7 +11,6 @@
 # command only through Snakemake's quoting ({params.argv:q}: element by element), never
 # spliced as text. outdir, lab.csv and specimen names are also checked against safe
 # patterns at validation (bpmcal.io.safe_names).
-import json
 import os
 
 from bpmcal.cli.jobs import job_argv, job_options, lab_targets, predictive_sigma3
@@ -20,7 +19,6 @@ from bpmcal.study.config import (
     ConfigError,
     load_lab,
     loop_rounds_bound,
-    transfer_seed,
     validate_config,
 )
 
