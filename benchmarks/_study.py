@@ -82,16 +82,31 @@ def design_samples(design, ids, a1_seeds, label="A1 s{seed}"):
     return out
 
 
-def ucs_settings(cfg: dict):
-    """The UCS test settings of a config's ``compression`` section: every key that is a
-    field of this bpmcal's ``UCSSettings`` (a key is its field's name:
-    tests/workflow/test_settings_sections.py)."""
+def section_settings(cfg: dict, section: str, cls, **over):
+    """The settings object ``cls`` of a config's ``section``: every key that is a field of
+    this bpmcal's ``cls`` (a key is its field's name: tests/workflow/
+    test_settings_sections.py), ``over`` replacing some; a section the config lacks gives
+    the class's defaults."""
     from dataclasses import fields
 
+    sec = cfg.get(section) or {}
+    return cls(**{**{f.name: sec[f.name] for f in fields(cls) if f.name in sec}, **over})
+
+
+def ucs_settings(cfg: dict):
+    """The UCS test settings of a config's ``compression`` section."""
     from bpmcal.lab.ucs import UCSSettings
 
-    u = cfg["compression"]
-    return UCSSettings(**{f.name: u[f.name] for f in fields(UCSSettings) if f.name in u})
+    return section_settings(cfg, "compression", UCSSettings)
+
+
+def study_geometry(cfg: dict, scale: float | None = None):
+    """The study's cylinder (``Geometry`` of a config's ``specimen`` section), at ``scale``
+    instead of the section's when given."""
+    from bpmcal.lab.runner import Geometry
+
+    return section_settings(cfg, "specimen", Geometry,
+                            **({} if scale is None else {"scale": scale}))
 
 
 def bts_disc_and_settings(cfg: dict, scale: float | None = None, **over):

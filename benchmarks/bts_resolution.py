@@ -52,7 +52,15 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import yaml
-from _study import CONFIG, REPO, bts_disc_and_settings, cpu_model, study_design
+from _study import (
+    CONFIG,
+    REPO,
+    bts_disc_and_settings,
+    cpu_model,
+    section_settings,
+    study_design,
+    study_geometry,
+)
 
 # the σt seed CV a card must meet over 5 seeds (issue 24), the chance of missing it that
 # the choice of ``verification.tensile_specimens`` accepts: the closed loop's own rule
@@ -134,16 +142,11 @@ def _stats_k(rows, n):
 def _run_dtt(job):
     """One direct-tension test: (params, seed, scale, cfg) -> its summary numbers."""
     params, seed, scale, cfg, cache = job
-    from dataclasses import fields
-
     from bpmcal.lab.direct_tension import DTTSettings
-    from bpmcal.lab.runner import Geometry, dtt_test
+    from bpmcal.lab.runner import dtt_test
 
-    sp, d = cfg["specimen"], cfg["dtt"]
-    st = DTTSettings(**{f.name: d[f.name] for f in fields(DTTSettings) if f.name in d})
-    geo = Geometry(scale=scale, diameter_mm=sp["diameter_mm"], height_mm=sp["height_mm"],
-                   sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
-                   relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
+    st = section_settings(cfg, "dtt", DTTSettings)
+    geo = study_geometry(cfg, scale)
     c0 = time.process_time()
     s = dtt_test(params, seed, geo, st, cache=cache, threads=1, keep_particles=False).summary
     r = {"label": "A1", "seed": seed, "scale": scale, "variant": "dtt",
