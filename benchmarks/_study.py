@@ -17,9 +17,27 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "config" / "config.yaml"
 
-#: the paper's calibrated specimen A1 (phi_p and mu at the Table 2 midpoints)
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467,
-          pb_ten_MPa=27.670, pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
+
+
+def study_config(path=CONFIG) -> dict:
+    """A study config as the workflow reads it: validated against the schema, its defaults
+    filled in (what ``bpmcal.cli.jobs.job_argv`` builds a job's command from)."""
+    import yaml
+
+    from bpmcal.study.config import validate_config
+
+    cfg = yaml.safe_load(Path(path).read_text())
+    validate_config(cfg, REPO / "workflow" / "schemas" / "config.schema.yaml", base_dir=REPO)
+    return cfg
+
+
+def study_targets(cfg: dict) -> frozenset:
+    """The lab targets of a study config (``bpmcal.cli.jobs.lab_targets``), its lab CSV
+    read from the repository wherever the script runs."""
+    from bpmcal.cli.jobs import lab_targets
+    from bpmcal.study.lab_data import load_lab
+
+    return lab_targets(cfg, load_lab(REPO / cfg["lab"]["csv"]))
 
 
 def cpu_model() -> str:
@@ -51,6 +69,8 @@ def design_samples(design, ids, a1_seeds, label="A1 s{seed}"):
     import csv
 
     if design is None:
+        from bpmcal.study.paper import A1  # the paper's card
+
         return [(label.format(seed=s), dict(A1), s) for s in a1_seeds]
     with open(design) as f:
         rows = {r["sample_id"]: r for r in csv.DictReader(f)}
@@ -62,14 +82,31 @@ def design_samples(design, ids, a1_seeds, label="A1 s{seed}"):
     return out
 
 
+def section_settings(cfg: dict, section: str, cls, **over):
+    """The settings object ``cls`` of a config's ``section``: every key that is a field of
+    this bpmcal's ``cls`` (a key is its field's name: tests/workflow/
+    test_settings_sections.py), ``over`` replacing some; a section the config lacks gives
+    the class's defaults."""
+    from dataclasses import fields
+
+    sec = cfg.get(section) or {}
+    return cls(**{**{f.name: sec[f.name] for f in fields(cls) if f.name in sec}, **over})
+
+
 def ucs_settings(cfg: dict):
     """The UCS test settings of a config's ``compression`` section."""
     from bpmcal.lab.ucs import UCSSettings
 
-    u = cfg["compression"]
-    return UCSSettings(platen_velocity=u["platen_velocity"], damping=u["damping"],
-                       stop_drop=u["stop_drop"], max_strain=u["max_strain"],
-                       platen_fric=u["platen_fric"], record_strain=u["record_strain"])
+    return section_settings(cfg, "compression", UCSSettings)
+
+
+def study_geometry(cfg: dict, scale: float | None = None):
+    """The study's cylinder (``Geometry`` of a config's ``specimen`` section), at ``scale``
+    instead of the section's when given."""
+    from bpmcal.lab.runner import Geometry
+
+    return section_settings(cfg, "specimen", Geometry,
+                            **({} if scale is None else {"scale": scale}))
 
 
 def bts_disc_and_settings(cfg: dict, scale: float | None = None, **over):

@@ -9,7 +9,7 @@ cache per sample: genesis once, then every velocity), and reports per sample and
 velocity: σt's change on the samples valid at both with the same disc, the steps' ratio.
 
     python benchmarks/bts_approach.py --samples 0:40 --approach 0.05 0.1 0.2 \
-        --json benchmarks/results_bts_approach_DATE.json
+        --json benchmarks/results/results_bts_approach_DATE.json
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 and another busy process) share the machine.
 
     python benchmarks/concurrent_runs.py [--scale 0.4] [--repeat 3] [--skip-forced]
-        [--json benchmarks/results_concurrent_runs_DATE.json]
+        [--json benchmarks/results/results_concurrent_runs_DATE.json]
 
 Each scenario starts ``bpmcal ucs`` processes at the same moment (the paper's A1 card,
 ``tests/support/paper.py``, at ``--scale``; cached packings, warmed first) and takes each
@@ -36,7 +36,6 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(REPO / "tests"))
 
 from peers import host_info  # noqa: E402
 
@@ -45,7 +44,8 @@ BUSY = "import time\nt = time.time() + {s}\nwhile time.time() < t:\n    pass\n"
 
 def _card(tmp: Path) -> Path:
     import yaml
-    from support.paper import A1
+
+    from bpmcal.study.paper import A1  # the paper's card
     p = tmp / "a1.yaml"
     p.write_text(yaml.safe_dump({k: float(v) for k, v in A1.items()}))
     return p

@@ -2,9 +2,9 @@
 phase, from the jobs' logs and the run files.
 
     python benchmarks/cost_model.py --study CLONE/results [--snakemake-log study.log] \\
-        [--bench-n 10000] [--label LABEL] --out benchmarks/results_cost_model_DATE_NAME.json \\
+        [--bench-n 10000] [--label LABEL] --out benchmarks/results/results_cost_model_DATE_NAME.json \\
         --markdown docs/measurements/DATE-cost-model-NAME.md
-    python benchmarks/cost_model.py --render benchmarks/results_cost_model_DATE_NAME.json \\
+    python benchmarks/cost_model.py --render benchmarks/results/results_cost_model_DATE_NAME.json \\
         --markdown docs/measurements/DATE-cost-model-NAME.md
 
 What it reads (``bpmcal.cost`` books it; the workflow sets ``BPMCAL_COST``):

@@ -3,7 +3,7 @@ run (``python -m snakemake -n``) against a fork of a process that has Snakemake 
 (``tests/support/repo.py``: ``run_snakemake`` does this for a command that runs no job).
 The workflow tests make a few hundred dry runs (the rerun-map test one per config key).
 
-    python benchmarks/dry_runs.py --runs 60 --out benchmarks/results_dry_runs_DATE.json
+    python benchmarks/dry_runs.py --runs 60 --out benchmarks/results/results_dry_runs_DATE.json
 
 Each way runs ``--runs`` dry runs of the smoke config in the repository, two at a time as
 the rerun-map test does; the ways alternate in blocks of 20 so a change of load hits both.

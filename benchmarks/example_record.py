@@ -3,7 +3,7 @@ what each lab specimen's card reached and at what cost, for either contact model
 
     python benchmarks/example_record.py CLONE --configfile config/examples/X.yaml \\
         --time CLONE.time --load CLONE.load --commit COMMIT --note "..." \\
-        --out benchmarks/results_example_NAME_DATE.json \\
+        --out benchmarks/results/results_example_NAME_DATE.json \\
         --markdown docs/measurements/DATE-NAME.md
 
 ``CLONE`` holds the finished study (``snakemake --cores 2 --configfile ...`` run under

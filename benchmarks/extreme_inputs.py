@@ -29,8 +29,8 @@ CASES = (("pb_kratio 1e-9", ["--set", "pb_kratio=1e-9", "--scale", "0.2"]),
 
 
 def a1() -> dict:
-    sys.path.insert(0, str(ROOT / "tests"))
-    from support.paper import A1
+    from bpmcal.study.paper import A1  # the paper's card
+
     return dict(A1)
 
 

@@ -1,6 +1,6 @@
 """The one source of every measured figure the README and the docs quote:
 ``docs/measurements/figures.json``, generated from the benchmarks' JSON records
-(``benchmarks/results_*.json``), never written by hand.
+(``benchmarks/results/results_*.json``), never written by hand.
 
 A page quotes a figure with an inline marker that renders on GitHub and in the docs site
 as the bare value::
@@ -36,7 +36,8 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-BENCH = REPO / "benchmarks"
+#: the benchmarks' JSON records (the scripts are in benchmarks/)
+BENCH = REPO / "benchmarks" / "results"
 OUT = REPO / "docs" / "measurements" / "figures.json"
 #: a marked figure: <!--fig:KEY-->VALUE<!--/fig-->
 MARK = re.compile(r"<!--fig:([a-z][a-z0-9_]*(?:\.[A-Za-z0-9_]+)+)-->(.*?)<!--/fig-->")
@@ -72,7 +73,7 @@ def newest(kind: str) -> tuple[Path, dict]:
     pattern = SOURCES[kind][0]
     files = sorted(BENCH.glob(pattern))
     if not files:
-        raise FileNotFoundError(f"no benchmarks/{pattern}")
+        raise FileNotFoundError(f"no {BENCH.relative_to(REPO)}/{pattern}")
     return files[-1], json.loads(files[-1].read_text())
 
 
@@ -234,7 +235,7 @@ def figures() -> dict:
         page = SOURCES[kind][1].format(tag=path.stem.rsplit("_", 1)[-1])
         for key, (text, value, unit) in fn(rec).items():
             out[key] = {"text": text, "value": value, "unit": unit,
-                        "source": f"benchmarks/{path.name}",
+                        "source": str(path.relative_to(REPO)),
                         "record": f"docs/measurements/{page}"}
     return dict(sorted(out.items()))
 

@@ -16,7 +16,7 @@ Two parts, one JSON record (date, commit, CPU model, load average, the command):
   nu over the whole 40-60 % window (the rule before), with ``nu_window_lo``/``_hi``.
 
     python benchmarks/flatjoint_brazilian.py --scales 0.55,0.8 --seeds 1,2,3,4,5 \\
-        --out benchmarks/results_flatjoint_brazilian_DATE.json
+        --out benchmarks/results/results_flatjoint_brazilian_DATE.json
 
 Runs go two at a time (``--jobs``, one numba thread each).
 """
@@ -35,6 +35,8 @@ import numpy as np
 import yaml
 from _study import CONFIG, REPO, bts_disc_and_settings, record_header
 
+from bpmcal.study.paper import A1
+
 #: the verified card of the Lac du Bonnet flat-joint example (record 2026-11-29d) and a
 #: flat-joint card with slits and an installation gap (fj_slit_frac 0.2, fj_gi_ratio 0.2)
 LDB_FJ = {"contact_model": "flatjoint", "rmin_mm": 0.8, "porosity": 0.3,
@@ -44,9 +46,8 @@ FJ_SLIT = {"contact_model": "flatjoint", "rmin_mm": 0.8, "porosity": 0.3,
            "fj_emod_GPa": 60.0, "fj_kratio": 2.0, "fj_ten_MPa": 10.0, "fj_coh_MPa": 100.0,
            "fj_fa_deg": 30.0, "fj_fric": 0.6, "fj_slit_frac": 0.2, "fj_gi_ratio": 0.2}
 CARDS = {"ldb_fj": LDB_FJ, "fj_slit02_gi02": FJ_SLIT}
-#: the paper's A1 (parallel bond) and flat-joint cards with and without slits
-A1 = {"rmin_mm": 0.8, "porosity": 0.34, "pb_emod_GPa": 10.396, "pb_kratio": 3.467,
-      "pb_ten_MPa": 27.67, "pb_coh_MPa": 19.689, "pb_fa_deg": 35.0, "fric": 0.35}
+#: the paper's A1 (parallel bond: bpmcal.study.paper) and flat-joint cards with and
+#: without slits
 UCS_CARDS = {"a1": (A1, 0.4), "ldb_fj": (LDB_FJ, 0.3),
              "fj_slit02_gi0": ({**FJ_SLIT, "fj_gi_ratio": 0.0}, 0.3),
              "fj_slit04_gi02": ({**FJ_SLIT, "fj_slit_frac": 0.4}, 0.3)}

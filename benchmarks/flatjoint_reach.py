@@ -25,7 +25,7 @@ study's verified cards B1-B3: sigma_c/sigma_t and m_i), not typed in here.
 
     python benchmarks/flatjoint_reach.py run --scale 0.4 --seeds 1 [--quick] \\
         [--bts-contact-cap 0] [--budget-min 40] [--reuse OLD.json] \\
-        --out benchmarks/results_flatjoint_reach.json \\
+        --out benchmarks/results/results_flatjoint_reach.json \\
         --markdown docs/measurements/DATE-flatjoint-reach.md \\
         --figure docs/measurements/DATE-flatjoint-reach.png
     python benchmarks/flatjoint_reach.py markdown RECORD.json [--update] [--note TEXT] \\
@@ -61,7 +61,7 @@ import sys
 import time
 from pathlib import Path
 
-from _study import CONFIG, REPO, bts_disc_and_settings
+from _study import CONFIG, REPO, bts_disc_and_settings, section_settings, study_geometry
 from bts_resolution import _config, _meta
 
 #: the base card (a Lac du Bonnet-like granite, written out here in full)
@@ -139,14 +139,11 @@ def pb_span(path: Path = REPO / PB_RECORD) -> dict:
 
 # ------------------------------------------------------------------ the runs
 def _settings(cfg: dict, scale: float, bts_scale: float, bts_over: dict):
-    from bpmcal.lab.runner import Geometry
     from bpmcal.lab.triaxial import TriaxialSettings
     from bpmcal.lab.ucs import UCSSettings
 
-    sp, u = cfg["specimen"], cfg["compression"]
-    geo = Geometry(scale=scale, diameter_mm=sp["diameter_mm"], height_mm=sp["height_mm"],
-                   sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
-                   relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
+    u = cfg["compression"]
+    geo = study_geometry(cfg, scale)
     load = dict(platen_velocity=u["platen_velocity"], damping=u["damping"],
                 stop_drop=u["stop_drop"], max_strain=u["max_strain"],
                 platen_fric=u["platen_fric"], record_strain=u["record_strain"],
@@ -161,14 +158,9 @@ def _settings(cfg: dict, scale: float, bts_scale: float, bts_over: dict):
 def _dtt_settings(cfg: dict):
     """The study's direct-tension settings: the config's ``dtt`` section (validated: the
     schema's defaults filled in), else ``DTTSettings()``; its ``scale`` is not used."""
-    from dataclasses import fields
-
     from bpmcal.lab.direct_tension import DTTSettings
 
-    d = cfg.get("dtt")
-    if not d:
-        return DTTSettings()
-    return DTTSettings(**{f.name: d[f.name] for f in fields(DTTSettings) if f.name in d})
+    return section_settings(cfg, "dtt", DTTSettings)
 
 
 def _dtt_dict(st) -> dict:
@@ -446,7 +438,7 @@ def _reused(c: dict) -> str:
 
 
 def markdown(rec: dict, figure: str | None = None,
-             raw: str = "benchmarks/results_flatjoint_reach.json") -> str:
+             raw: str = "benchmarks/results/results_flatjoint_reach.json") -> str:
     """The measurement record (docs/measurements) from the JSON record (``raw``: its
     path, as the page names it)."""
     pb = rec["pb_span"]

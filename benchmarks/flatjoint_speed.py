@@ -1,7 +1,7 @@
 """Flat joints beside parallel bonds: throughput on the same pack, side by side.
 
     python benchmarks/flatjoint_speed.py --n 10000 --threads 1 --steps 1000 --repeat 3 \
-        [--json benchmarks/results_flatjoint_speed.json]
+        [--json benchmarks/results/results_flatjoint_speed.json]
 
 The pack and loading are ``dem_throughput.py``'s (N balls, radii 0.8-1.328 mm, relaxed in
 a box, every touching pair bonded, a small-strain compression, strengths high enough

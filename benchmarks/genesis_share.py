@@ -6,7 +6,8 @@
 
 The sample job is what the workflow's rule ``sample`` runs for one design row: ``bpmcal
 sample --design ... --sample sNNN --out U.h5 --bts-out B.h5`` with the default study's options
-(``STUDY_ARGS``: scale 0.4, pfc genesis, one thread, the bts section of config.yaml): a
+(``study_args()``: the workflow's command of config/config.yaml, built by the parent with
+``bpmcal.cli.jobs.job_argv``: scale 0.4, pfc genesis, one thread, the bts section): a
 UCS test on a 20 x 40 mm cylinder and a Brazilian test on a 20 x 10 mm disc, each with
 its own genesis. Every job runs in a fresh process (numba's kernels come from its on-disk
 cache, as in a study) with a fresh, empty specimen cache, so each genesis packs and
@@ -49,21 +50,32 @@ import tempfile
 import time
 from pathlib import Path
 
-#: the default study's options of the sample job (workflow rule sample, config/config.yaml)
-STUDY_ARGS = [
-    "--threads", "1", "--failed-ok", "--scale", "0.4", "--diameter", "50.0",
-    "--height", "100.0", "--sigma0", "0.1", "--genesis", "pfc", "--relax-ratio", "0.01",
-    "--platen-velocity", "0.05", "--damping", "0.7", "--stop-drop", "0.7",
-    "--max-strain", "0.03", "--platen-fric", "0.0", "--record-strain", "1e-05",
-    "--end-cap", "0.0", "--end-cap-factor", "1000.0",
-    "--max-balls", "2000000", "--mem-budget-mb", "2000", "--genesis-max-steps", "50000",
-    "--bts-diameter", "50.0", "--bts-thickness", "25.0", "--bts-scale", "0.55",
-    "--bts-loading", "flat", "--bts-jaw-ratio", "1.5", "--bts-contact-cap", "1.5",
-    "--bts-contact-cap-factor", "1000.0", "--bts-central-zone", "0.5", "--bts-retests", "2",
-    "--bts-platen-velocity", "0.025", "--bts-approach-velocity", "0.1",
-    "--bts-platen-fric", "0.3", "--bts-damping", "0.7", "--bts-stop-drop", "0.5",
-    "--bts-post-peak-strain", "0.0003", "--bts-max-strain", "0.05", "--bts-record-strain",
-    "1e-05"]
+#: the sample job's options that name its files, which the child sets itself
+FILE_OPTIONS = ("--design", "--sample", "--out", "--bts-out", "--specimen-cache")
+
+
+def study_args(config=None) -> list[str]:
+    """The default study's options of the sample job (the workflow's command:
+    ``bpmcal.cli.jobs.job_argv`` of config/config.yaml, or ``config``) without the
+    subcommand and the options naming files, which the child sets per job."""
+    from _study import CONFIG, study_config, study_targets
+
+    from bpmcal.cli.jobs import job_argv
+
+    cfg = study_config(config or CONFIG)
+    argv = job_argv(cfg, "sample", input={"design": "D"}, wildcards={"sample": "S"},
+                    output={"ucs": "U", "bts": "B"}, threads=cfg["resources"]["dem_threads"],
+                    targets=study_targets(cfg))
+    out, skip = [], False
+    for a in argv[1:]:
+        if skip:
+            skip = False
+        elif a in FILE_OPTIONS:
+            skip = True
+        else:
+            out.append(a)
+    return out
+
 
 #: the summary values compared and printed
 RESULTS = {"ucs": ("ucs_MPa", "E_GPa", "nu"), "bts": ("bts_MPa",)}
@@ -165,7 +177,7 @@ def child(a) -> int:
     cmd = "sample" if "sample" in cli.COMMANDS else "ucs"
     argv = [cmd, "--design", a.design, "--sample", a.sample, "--out", str(out / "ucs.h5"),
             "--bts-out", str(out / "bts.h5"), "--specimen-cache", str(out / "cache"),
-            *STUDY_ARGS]
+            *json.loads(a.study_args)]
     c0, t0 = time.process_time(), time.perf_counter()
     rc = cli.main(argv)
     res = {"rc": rc, "job_cpu": time.process_time() - c0, "imports_cpu": c0 - c_start,
@@ -184,7 +196,8 @@ def run_job(src, design, sample) -> dict:
         r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         p = subprocess.run([sys.executable, __file__, "--child", "--design", design,
-                            "--sample", sample, "--out", tmp], env=env,
+                            "--sample", sample, "--out", tmp,
+                            "--study-args", json.dumps(study_args())], env=env,
                            capture_output=True, text=True)
         wall = time.perf_counter() - t0
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -233,6 +246,7 @@ def main(argv=None):
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--sample", help=argparse.SUPPRESS)
     ap.add_argument("--out", help=argparse.SUPPRESS)
+    ap.add_argument("--study-args", help=argparse.SUPPRESS)  # the parent's study_args()
     a = ap.parse_args(argv)
     if a.child:
         return child(a)

@@ -34,7 +34,7 @@ every card, and the RMS error of the returned card's seed-free responses against
 planted card's (how near the rock itself the card ends, which no loop can see).
 
     python benchmarks/loop_convergence.py --rock pb --cards 60 --grow-within 1,2 \
-        --commit SHA --out benchmarks/results_loop_convergence_DATE.json \
+        --commit SHA --out benchmarks/results/results_loop_convergence_DATE.json \
         --markdown docs/measurements/DATE-loop-convergence.md
 
 A synthetic rock is not the DEM: the record compares the rules on one family of response
@@ -55,8 +55,12 @@ import pandas as pd
 from _study import record_header, write_record
 
 from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps, invert
-from bpmcal.analysis.calibration.loop_settings import UPDATES
+from bpmcal.analysis.calibration.loop_settings import UPDATES, LoopSettings
 from bpmcal.analysis.stepwise import StepwiseRegression
+
+#: the study's closed loop (LoopSettings' defaults: 3 seeds a round, growing to 10, range
+#: margin 0.25); the update rule, growth rule and rounds are the record's
+LOOP = LoopSettings()
 
 
 @dataclass(frozen=True)
@@ -232,14 +236,13 @@ def one_card(rock: Rock, i: int, models: dict, max_rounds, updates=UPDATES,
             runs.append(seed)
             return simulate(rock, params, seed)
 
-        loop = ClosedLoop(sim,
-                          targets,
+        seeding = LoopSeeds(seeds_per_round=LOOP.seeds_per_round, max_seeds=LOOP.max_seeds,
+                            **({} if grow is None else {"grow_within": grow}))
+        loop = ClosedLoop(sim, targets,
                           space=LoopSpace(ranges=rock.ranges, free=rock.free, ratio=None),
-                          steps=LoopSteps(max_rounds=max_rounds, margin=0.25, update=update),
-                          seeding=LoopSeeds(seeds_per_round=3, max_seeds=10),
-                          models=models,
-                          target_se=target_se,
-                          **{} if grow is None else {"grow_within": grow})
+                          steps=LoopSteps(max_rounds=max_rounds, margin=LOOP.range_margin,
+                                          update=update),
+                          seeding=seeding, models=models, target_se=target_se)
         res = loop.run(inv.solution)
         h = res.history
         worst = float(np.nanmax([abs(h[f"err_{r}"].iloc[res.best_round])

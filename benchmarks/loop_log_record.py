@@ -5,7 +5,7 @@ stopped before it wrote its rounds table; optionally the summaries of other run 
 (``--runs``: e.g. a probe of the card beside the loop).
 
     python benchmarks/loop_log_record.py LOG --commit SHA --title "..." --note "..." \\
-        [--runs A.h5 B.h5 ...] --out benchmarks/results_NAME_DATE.json \\
+        [--runs A.h5 B.h5 ...] --out benchmarks/results/results_NAME_DATE.json \\
         --markdown docs/measurements/DATE-NAME.md
 """
 from __future__ import annotations

@@ -13,7 +13,7 @@ fresh-seed verdicts, the planted card itself judged on the loop's seeds (how far
 seeds' mean lies from the loop seeds' mean of the true card), the runs and the CPU time.
 
     python benchmarks/planted_card.py --study CLONE/results --set pb_coh_MPa=37.5 \\
-        --set pb_ten_MPa=30 --out benchmarks/results_planted_card_DATE.json \\
+        --set pb_ten_MPa=30 --out benchmarks/results/results_planted_card_DATE.json \\
         --markdown docs/measurements/DATE-planted-card.md
 """
 from __future__ import annotations
@@ -33,7 +33,7 @@ import pandas as pd
 import yaml
 from _study import CONFIG, REPO, cpu_model, fresh_seed_lines
 
-from bpmcal.cli.options import loop_argv
+from bpmcal.cli.jobs import job_argv
 
 #: the planted card by default: Table 2 interior, strength ratio 0.8 (the study's 1.4-1.5)
 PLANTED = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=25.0, pb_kratio=2.5, pb_ten_MPa=30.0,
@@ -86,25 +86,24 @@ def main(argv=None) -> int:
         k, v = kv.split("=", 1)
         planted[k] = float(v)
     study = Path(a.study)
-    sp, u, b, v = cfg["specimen"], cfg["compression"], cfg["bts"], cfg["verification"]
-    common = ["--scale", str(sp["scale"]), "--platen-velocity", str(u["platen_velocity"]),
-              "--record-strain", str(u["record_strain"]), "--threads", "1", "--quiet"]
+    v = cfg["verification"]
     # the loop's and the fresh seeds' seeds side by side, as the study runs them (the
-    # rows do not depend on it; the last --threads wins over common's)
-    loop_threads = ["--threads", str(cfg["resources"]["loop_threads"])]
-    bts_opts = ["--bts-scale", str(b["scale"]), "--bts-loading", b["loading"],
-                "--bts-contact-cap", str(b["contact_cap"]),
-                "--bts-platen-velocity", str(b["platen_velocity"]),
-                "--bts-approach-velocity", str(b["approach_velocity"]),
-                "--bts-stop-drop", str(b["stop_drop"]),
-                "--bts-post-peak-strain", str(b["post_peak_strain"])]
+    # rows do not depend on it)
+    loop_threads = cfg["resources"]["loop_threads"]
     log: list[dict] = []
     cpu0 = time.process_time()
     c0 = os.times()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(a.keep) if a.keep else Path(tmp)
         tmp.mkdir(parents=True, exist_ok=True)
-        cache = ["--specimen-cache", str(tmp / "packings")]
+        cache = str(tmp / "packings")
+
+        def job(name, *, threads=1, **files):
+            """The study's command of job ``name`` (bpmcal.cli.jobs.job_argv: every setting
+            of --config, for a lab with a σt target) on these files, quiet."""
+            return ["bpmcal", *job_argv(cfg, name, threads=threads, targets={"bts"},
+                                        cache=cache, **files), "--quiet"]
+
         pf = tmp / "planted.yaml"
         # a --keep folder of the same planted card: its lab runs are read, not run again
         same = pf.exists() and yaml.safe_load(pf.read_text()) == planted
@@ -119,9 +118,11 @@ def main(argv=None) -> int:
                 if same and (tmp / f"lab{s}.h5").exists() and (tmp / f"lab{s}.bts.h5").exists():
                     reused.append(s)
                 else:
-                    _run(["bpmcal", "sample", "--params", str(pf), "--seed", str(s), "--out",
-                          str(tmp / f"lab{s}.h5"), "--bts-out", str(tmp / f"lab{s}.bts.h5"),
-                          *common, *bts_opts, *cache], log)
+                    # the study's sample job on the planted card (a failed run stops here)
+                    cmd = job("sample", output={"ucs": str(tmp / f"lab{s}.h5"),
+                                                "bts": str(tmp / f"lab{s}.bts.h5")})
+                    _run([a for a in cmd if a != "--failed-ok"]
+                         + ["--params", str(pf), "--seed", str(s)], log)
                 us = read_summary(tmp / f"lab{s}.h5")
                 bs = read_summary(tmp / f"lab{s}.bts.h5")
                 out.append({"seed": s, "ucs_MPa": us["ucs_MPa"], "E_GPa": us["E_GPa"],
@@ -146,35 +147,36 @@ def main(argv=None) -> int:
                            + f",,{lab['bts_MPa']!r}"
                            + "".join(f",{v!r}" for v in lab_se.values()) + "\n")
         card = tmp / "P1.yaml"
+        models = str(study / "regression" / "models.json")
+        # the study's initial calibration, the calibration section's fixed parameters at
+        # the planted card's values
         c = cfg["calibration"]
-        _run(["bpmcal", "calibrate", "--dataset", str(study / "dataset.csv"), "--models",
-              str(study / "regression" / "models.json"), "--lab", str(lab_csv), "--cards",
-              str(card), "--fixed", json.dumps({k: planted[k] for k in c["fixed"]}),
-              "--free", ",".join(c["free"]), "--ranges", json.dumps(cfg["ranges"]),
-              "--ratio", str(c["strength_ratio"]), "--n-boot", "0", "--seed", str(c["seed"])], log)
+        planted_cfg = {**cfg, "calibration": {**c, "fixed": {k: planted[k] for k in c["fixed"]}}}
+        _run(["bpmcal", *job_argv(planted_cfg, "calibrate_initial", input={
+            "dataset": str(study / "dataset.csv"), "models": models, "lab": str(lab_csv)},
+            output={"cards": str(card)})], log)
         verified = tmp / "P1.verified.yaml"
-        # every loop setting of the study's verification section, as the workflow passes
-        # them for a card with a σt target (the adaptive tensile specimens per seed too)
-        _run(["bpmcal", "verify", "--card", str(card), "--models",
-              str(study / "regression" / "models.json"), "--out-card", str(verified),
-              "--rounds", str(tmp / "rounds.csv"), "--run", str(tmp / "best.h5"),
-              *loop_argv(v, tensile=True), *common, *bts_opts,
-              *cache, *loop_threads], log)  # the fresh-seed check measures σt as the card's loop did
+        # the study's closed loop for a card with a σt target (every loop setting of the
+        # verification section, the adaptive tensile specimens per seed too)
+        _run(job("verify", threads=loop_threads, input={"card": str(card), "models": models},
+                 output={"card": str(verified), "rounds": str(tmp / "rounds.csv"),
+                         "run": str(tmp / "best.h5")}), log)
+        # the fresh-seed check measures σt as the card's loop did
         seeds = [int(s) for s in v["fresh_seeds"]]
-        _run(["bpmcal", "fresh-seeds", "--card", str(verified), "--seeds",
-              ",".join(map(str, seeds)), "--runs", *[str(tmp / f"h{s}.h5") for s in seeds],
-              "--bts-runs", *[str(tmp / f"h{s}.bts.h5") for s in seeds], "--seed-runs",
-              str(tmp / "fresh_seeds.csv"), *common, *bts_opts, *cache, *loop_threads], log)
-        _run(["bpmcal", "fresh-seeds-table", "--cards", str(verified), "--seed-runs",
-              str(tmp / "fresh_seeds.csv"), "--table", str(tmp / "fresh_seeds_table.csv"),
-              "--rtol", str(v["rtol"])], log)
+        _run(job("fresh_seeds", threads=loop_threads, input={"card": str(verified)}, output={
+            "runs": [str(tmp / f"h{s}.h5") for s in seeds],
+            "bts_runs": [str(tmp / f"h{s}.bts.h5") for s in seeds],
+            "seed_runs": str(tmp / "fresh_seeds.csv")}), log)
+        _run(["bpmcal", *job_argv(cfg, "fresh_seeds_table", input={
+            "cards": [str(verified)], "seed_runs": [str(tmp / "fresh_seeds.csv")]},
+            output={"table": str(tmp / "fresh_seeds_table.csv")})], log)
         cal = yaml.safe_load(card.read_text())
         ver = yaml.safe_load(verified.read_text())["verification"]
         # the planted card itself on the seeds of the loop's card round, measured as the
         # loop measures (σt the mean of the loop's tensile specimens per seed): how far
         # the lab seeds' mean lies from the loop seeds' mean of the true card
         own = _judge(own_runs(verified, planted, [int(s) for s in ver["seeds"]], tmp,
-                              [*common, *bts_opts, *cache, *loop_threads], log),
+                              job, loop_threads, log),
                      lab, float(v["rtol"]), lab_se)
         hold = pd.read_csv(tmp / "fresh_seeds_table.csv")
         rounds = pd.read_csv(tmp / "rounds.csv")
@@ -208,8 +210,9 @@ def main(argv=None) -> int:
         "cpu_s_self": time.process_time() - cpu0, "commands": log,
     }
     # the loop's rounds (parameters, means, errors, tolerances, steps) beside the record
-    rec["rounds_csv"] = rounds_name(a.out)
-    rounds.to_csv(Path(a.out).with_name(rec["rounds_csv"]), index=False)
+    rounds_csv = Path(a.out).with_name(rounds_name(a.out))
+    rec["rounds_csv"] = os.path.relpath(rounds_csv.resolve(), REPO)
+    rounds.to_csv(rounds_csv, index=False)
     Path(a.out).write_text(json.dumps(rec, indent=1, default=float) + "\n")
     text = markdown(rec)
     if a.markdown:
@@ -218,10 +221,12 @@ def main(argv=None) -> int:
     return 0
 
 
-def own_runs(verified: Path, planted: dict, seeds: list, tmp: Path, opts: list, log) -> pd.DataFrame:
-    """The planted card on ``seeds`` as the closed loop ran them: ``bpmcal fresh-seeds`` of
-    a copy of the verified card with the planted parameters (its specimens, settings and
-    tensile specimens per seed). Returns the seed rows; ``bts_valid``: σt was measured."""
+def own_runs(verified: Path, planted: dict, seeds: list, tmp: Path, job, threads: int,
+             log) -> pd.DataFrame:
+    """The planted card on ``seeds`` as the closed loop ran them: the study's fresh-seeds
+    job (``job``: the planted record's command builder) of a copy of the verified card with
+    the planted parameters (its specimens, settings and tensile specimens per seed).
+    Returns the seed rows; ``bts_valid``: σt was measured."""
     card = yaml.safe_load(verified.read_text())
     card["parameters"] = {**card["parameters"], **planted}
     # the card stands for its loop's parameters (io.card.card_parameters): planted there
@@ -231,10 +236,11 @@ def own_runs(verified: Path, planted: dict, seeds: list, tmp: Path, opts: list, 
     own = tmp / "own.yaml"
     own.write_text(yaml.safe_dump(card))
     table = tmp / "own_seeds.csv"
-    _run(["bpmcal", "fresh-seeds", "--card", str(own), "--seeds", ",".join(map(str, seeds)),
-          "--runs", *[str(tmp / f"own{s}.h5") for s in seeds],
-          "--bts-runs", *[str(tmp / f"own{s}.bts.h5") for s in seeds],
-          "--seed-runs", str(table), *opts], log)
+    cmd = job("fresh_seeds", threads=threads, input={"card": str(own)}, output={
+        "runs": [str(tmp / f"own{s}.h5") for s in seeds],
+        "bts_runs": [str(tmp / f"own{s}.bts.h5") for s in seeds], "seed_runs": str(table)})
+    i = cmd.index("--seeds")  # the loop's seeds, not the config's fresh ones
+    _run([*cmd[:i + 1], ",".join(map(str, seeds)), *cmd[i + 2:]], log)
     runs = pd.read_csv(table)
     return runs.assign(bts_valid=runs["bts_MPa"].notna())
 
@@ -242,6 +248,13 @@ def own_runs(verified: Path, planted: dict, seeds: list, tmp: Path, opts: list, 
 def rounds_name(out: str) -> str:
     """The file name of a record's closed-loop rounds (CSV, beside the record ``out``)."""
     return Path(out).stem.replace("results_planted_card_", "results_planted_card_rounds_") + ".csv"
+
+
+def _rounds_path(rounds_csv: str) -> str:
+    """The path of a record's rounds CSV: the record's own (relative to the repository);
+    a bare name, from a record written before they moved to benchmarks/results/, lay in
+    benchmarks/."""
+    return rounds_csv if "/" in rounds_csv else f"benchmarks/{rounds_csv}"
 
 
 def _loop_tensile_specimens(rec: dict) -> int:
@@ -293,7 +306,7 @@ def markdown(rec: dict) -> str:
     v = rec["verification"]
     lines += ["", f"Closed loop: {v['status']} after {v['rounds']} round(s), {v['runs']} runs "
                   f"({v['n_seeds']} seeds in the card's round): {v['message']}"
-              + (f" (every round: `benchmarks/{rec['rounds_csv']}`)" if rec.get("rounds_csv")
+              + (f" (every round: `{_rounds_path(rec['rounds_csv'])}`)" if rec.get("rounds_csv")
                  else ""), "",
               "| target | lab | closed-loop mean | error | tolerance "
               + ("max(1 %, 2 sqrt(SE² + SE_lab²))" if rec.get("lab_se") else "max(1 %, 2 SE)")

@@ -25,7 +25,7 @@ over all, the median HDI width (% of the design range), the identifiability clas
 share of cards whose freest direction is the strength pair, the runs and the CPU time.
 
     python benchmarks/posterior_coverage.py --case pb-ratio pb pb-pair fj --cards 25 \\
-        --out benchmarks/results_posterior_coverage_DATE.json \\
+        --out benchmarks/results/results_posterior_coverage_DATE.json \\
         --markdown docs/measurements/DATE-posterior-coverage.md
 
 A synthetic rock is not the DEM: this checks the posterior's machinery (surrogate,

@@ -15,7 +15,7 @@ planted value lies in the HDI, the HDI widths and the identifiability. No closed
 runs: the refinement alone brings runs near the card.
 
     python benchmarks/posterior_planted.py --study CLONE/results --cards 8 \\
-        --out benchmarks/results_posterior_planted_DATE.json \\
+        --out benchmarks/results/results_posterior_planted_DATE.json \\
         --markdown docs/measurements/DATE-posterior-planted.md
 """
 from __future__ import annotations
@@ -29,7 +29,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import yaml
-from _study import CONFIG, bts_disc_and_settings, record_header, ucs_settings, write_record
+from _study import (
+    CONFIG,
+    bts_disc_and_settings,
+    record_header,
+    study_geometry,
+    ucs_settings,
+    write_record,
+)
 
 FREE = ("pb_emod_GPa", "pb_kratio", "pb_ten_MPa", "pb_coh_MPa")
 
@@ -49,13 +56,9 @@ def planted_cards(n: int, cfg: dict, seed: int = 2026) -> list[dict]:
 def dem_of(cfg: dict, threads: int, cache):
     """The DEM of the refinement runs: (the tests a seed runs, how they run)."""
     from bpmcal.lab.run_context import RunContext
-    from bpmcal.lab.runner import Geometry
     from bpmcal.stages.measure import SeedTests
 
-    sp = cfg["specimen"]
-    geo = Geometry(scale=sp["scale"], diameter_mm=sp["diameter_mm"], height_mm=sp["height_mm"],
-                   sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
-                   relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
+    geo = study_geometry(cfg)
     disc, bts = bts_disc_and_settings(cfg)
     return (SeedTests(geo, ucs_settings(cfg), bts_geometry=disc, bts_settings=bts),
             RunContext(cache=cache, threads=threads,

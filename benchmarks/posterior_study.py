@@ -4,10 +4,10 @@ untargeted predictions' spreads (the surrogate's, and the predictive DEM draws' 
 phi and eta_f), the learning curve, and what the posterior cost beside the study.
 
     python benchmarks/posterior_study.py --study CLONE/results \\
-        [--cost benchmarks/results_cost_model_DATE_NAME.json] [--commit C] [--note TEXT] \\
-        --out benchmarks/results_posterior_study_DATE.json \\
+        [--cost benchmarks/results/results_cost_model_DATE_NAME.json] [--commit C] [--note TEXT] \\
+        --out benchmarks/results/results_posterior_study_DATE.json \\
         --markdown docs/measurements/DATE-posterior-study.md
-    python benchmarks/posterior_study.py --render benchmarks/results_posterior_study_DATE.json \\
+    python benchmarks/posterior_study.py --render benchmarks/results/results_posterior_study_DATE.json \\
         --markdown docs/measurements/DATE-posterior-study.md
 
 What it reads: each specimen's posterior card (``<study>/posterior/<spec>/card.yaml``:

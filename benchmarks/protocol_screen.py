@@ -29,7 +29,7 @@ import argparse
 import json
 import sys
 import time
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +37,14 @@ import yaml
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from _study import CONFIG, REPO, bts_disc_and_settings, study_design  # noqa: E402
+from _study import (  # noqa: E402
+    CONFIG,
+    REPO,
+    bts_disc_and_settings,
+    study_design,
+    study_geometry,
+    ucs_settings,
+)
 
 #: the summary values a row keeps of each test
 KEEP = {"ucs": ("ucs_MPa", "E_GPa", "nu", "peak_strain", "u_pre_MJm3", "crack_init_MPa",
@@ -55,14 +62,6 @@ def _ids(spec: str) -> list[str]:
         lo, hi = (int(x) for x in spec.split(":"))
         return [f"s{i:03d}" for i in range(lo, hi)]
     return spec.split(",")
-
-
-def ucs_settings(cfg: dict):
-    """The study's UCS settings: the ``compression`` keys that are ``UCSSettings`` fields."""
-    from bpmcal.lab.ucs import UCSSettings
-
-    c = cfg["compression"]
-    return UCSSettings(**{f.name: c[f.name] for f in fields(UCSSettings) if f.name in c})
 
 
 def _plain(v):
@@ -161,7 +160,7 @@ def main(argv=None) -> int:
     ap.add_argument("--series", help="keep every run's series and cracks here (.npz)")
     a = ap.parse_args(argv)
 
-    from bpmcal.lab.runner import Geometry, set_threads
+    from bpmcal.lab.runner import set_threads
     from bpmcal.stages.runs import params_from_design
     from bpmcal.study.config import validate_config
 
@@ -169,10 +168,7 @@ def main(argv=None) -> int:
     protos = json.loads(Path(text).read_text() if Path(text).is_file() else text)
     cfg = yaml.safe_load(Path(a.config).read_text())
     validate_config(cfg, REPO / "workflow" / "schemas" / "config.schema.yaml", base_dir=REPO)
-    sp = cfg["specimen"]
-    geo = Geometry(scale=sp["scale"], diameter_mm=sp["diameter_mm"], height_mm=sp["height_mm"],
-                   sigma0_MPa=sp["sigma0_MPa"], install_gap_mm=sp["install_gap_mm"],
-                   relax_ratio=sp["relax_ratio"], genesis=sp["genesis"])
+    geo = study_geometry(cfg)
     disc, bts_st = bts_disc_and_settings(cfg)
     base = {"ucs": (geo, ucs_settings(cfg)), "bts": (disc, bts_st)}
     set_threads(1)

@@ -1,7 +1,7 @@
 """Seeds side by side: what ``--threads N`` buys a stage that runs many packing seeds.
 
     python benchmarks/seed_pool.py [--params benchmarks/fj_base_card.yaml] [--scale 0.3]
-        [--seeds 4] [--repeat 3] [--json benchmarks/results_seed_pool_DATE.json]
+        [--seeds 4] [--repeat 3] [--json benchmarks/results/results_seed_pool_DATE.json]
 
 ``bpmcal scatter`` (the UCS test of one parameter set on ``--seeds`` packing seeds; the
 closed loop's rounds and the fresh-seed check run their seeds the same way,

@@ -28,8 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-A1 = dict(rmin_mm=0.8, porosity=0.34, pb_emod_GPa=10.396, pb_kratio=3.467, pb_ten_MPa=27.670,
-          pb_coh_MPa=19.689, pb_fa_deg=35.0, fric=0.35)
+from bpmcal.study.paper import A1  # the paper's card
 
 
 def trial(d: Path, case: str, scale: float, delay: float, threads: int

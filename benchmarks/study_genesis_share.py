@@ -8,7 +8,7 @@ samples above it, with their genesis and test times, so that the reason for each
 read off.
 
     python benchmarks/study_genesis_share.py --study CLONE/results --label LABEL \\
-        --out benchmarks/results_study_genesis_share_DATE.json \\
+        --out benchmarks/results/results_study_genesis_share_DATE.json \\
         --markdown docs/measurements/DATE-genesis-share.md
 
 The times are those the runs measured in their own process (wall clock): a study run on a

@@ -6,7 +6,7 @@ impact, read from the run's ``results/`` (the report's ``tables/comparison.csv``
 stage tables beside it).
 
     python benchmarks/study_outputs.py CLONE --commit COMMIT \\
-        --out benchmarks/results_study_outputs_DATE.json \\
+        --out benchmarks/results/results_study_outputs_DATE.json \\
         --markdown docs/measurements/DATE-default-study-results.md
 
 ``CLONE`` is the clone the study ran in (``snakemake --cores 2`` on

@@ -8,7 +8,7 @@ Run each study in a fresh clone with empty caches, e.g.
 then
 
     python benchmarks/study_record.py --run before=CLONE1,TIME1,COMMIT1 \\
-        --run after=CLONE2,TIME2,COMMIT2 --out benchmarks/results_default_study_DATE.json \\
+        --run after=CLONE2,TIME2,COMMIT2 --out benchmarks/results/results_default_study_DATE.json \\
         --markdown docs/measurements/DATE-default-study.md
 
 A run is ``label=clone directory,time log,commit``; its results are read from the clone's

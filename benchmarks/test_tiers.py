@@ -2,7 +2,7 @@
 the whole suite (what CI runs), each timed as one ``pytest`` process, with the counts
 pytest reports, the host's CPU, the load average before and after, and the commit.
 
-    python benchmarks/test_tiers.py --out benchmarks/results_test_tiers_DATE.json \\
+    python benchmarks/test_tiers.py --out benchmarks/results/results_test_tiers_DATE.json \\
         --markdown docs/measurements/DATE-test-tiers.md
 
 ``--tiers fast`` times the fast tier only. Run it on a quiet machine with a warm numba

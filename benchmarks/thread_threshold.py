@@ -3,7 +3,7 @@ case of ``dem_throughput.py`` (a bonded pack in a box under a small compression;
 parallel bond, and flat joints 1 x 3 with ``--flatjoint``), alone on the machine.
 
     python benchmarks/thread_threshold.py [--sizes 1000,2000,4000,8000,16000,32000] \\
-        [--repeat 3] [--ball-steps 2e7] [--json benchmarks/results_thread_threshold_DATE.json]
+        [--repeat 3] [--ball-steps 2e7] [--json benchmarks/results/results_thread_threshold_DATE.json]
 
 Each size runs in its own process per thread count (``dem_throughput.py --json``), the
 counts alternating, ``--repeat`` times; steps = ball-steps / balls (the same work at every

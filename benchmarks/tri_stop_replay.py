@@ -2,8 +2,8 @@
 check of ``lab.stepping.load_to_failure`` on each run file's recorded series.
 
     python benchmarks/tri_stop_replay.py run RESULTS/tri --rule 0.9,0.0005 --rule 0.8,0.001 \\
-        --out benchmarks/results_tri_stop_replay_DATE.json
-    python benchmarks/tri_stop_replay.py markdown benchmarks/results_tri_stop_replay_DATE.json \\
+        --out benchmarks/results/results_tri_stop_replay_DATE.json
+    python benchmarks/tri_stop_replay.py markdown benchmarks/results/results_tri_stop_replay_DATE.json \\
         --out docs/measurements/DATE-tri-stop-replay.md
 
 A run is deterministic, so up to a stop it is the same run: the check is made once per

@@ -7,13 +7,13 @@ tolerances, and the CPU time; per setting, the totals.
 
     python benchmarks/verify_rules.py --study CLONE/results \\
         --setting "grow 1:grow_within=1" --setting "grow 2:grow_within=2" \\
-        --commit SHA --out benchmarks/results_verify_rules_DATE.json \\
+        --commit SHA --out benchmarks/results/results_verify_rules_DATE.json \\
         --markdown docs/measurements/DATE-verify-rules.md
 
 A setting is ``label:key=value,key=value`` over the config's ``verification`` keys that
 ``bpmcal verify`` takes (the fields of ``LoopSettings``: grow_within, jacobian_update,
 max_rounds, max_seeds, ...; each value checked as the field checks it), and the command's
-loop options are the section's (``bpmcal.cli.options.loop_argv``, as the workflow's). The
+command is the workflow's (``bpmcal.cli.jobs.job_argv``: every setting of the config). The
 loops are deterministic, so their rounds and runs are figures; the CPU times are those of
 one run each on the recording host, with whatever ran beside it (the load is recorded).
 """
@@ -27,10 +27,10 @@ from pathlib import Path
 
 import pandas as pd
 import yaml
-from _study import CONFIG, REPO, record_header, write_record
+from _study import CONFIG, REPO, record_header, study_targets, write_record
 
 from bpmcal.analysis.calibration.loop_settings import LIMITS
-from bpmcal.cli.options import loop_argv
+from bpmcal.cli.jobs import job_argv
 
 
 def setting(text: str) -> tuple[str, dict]:
@@ -48,20 +48,21 @@ def setting(text: str) -> tuple[str, dict]:
         raise SystemExit(f"--setting {text!r}: {e}") from None
 
 
-def verify_cmd(cfg: dict, card: Path, models: Path, out: Path, over: dict) -> list[str]:
-    """The study's ``bpmcal verify`` command for ``card``, with ``over`` replacing keys of
-    the config's verification section (specimen: scale, platen velocity, record strain;
-    the other specimen settings are the CLI's defaults, which are the default config's)."""
-    v = {**cfg["verification"], **over}
-    cmd = ["bpmcal", "verify", "--card", str(card), "--models", str(models),
-           "--out-card", str(out / "card.yaml"), "--rounds", str(out / "rounds.csv"),
-           "--run", str(out / "best_round.h5"), *loop_argv(v),
-           "--threads", str(cfg["resources"]["loop_threads"]),
-           "--scale", str(cfg["specimen"]["scale"]),
-           "--platen-velocity", str(cfg["compression"]["platen_velocity"]),
-           "--record-strain", str(cfg["compression"]["record_strain"]),
-           "--specimen-cache", str(out.parent.parent / "packings"), "--quiet"]
-    return cmd
+def verify_cmd(cfg: dict, card: Path, models: Path, out: Path, over: dict,
+               targets=None) -> list[str]:
+    """The study's ``bpmcal verify`` command for ``card`` (the workflow's:
+    ``bpmcal.cli.jobs.job_argv``), with ``over`` replacing keys of the config's verification
+    section; its packing cache beside the settings' folders; quiet. ``targets``: the lab's
+    (default: the config's lab CSV)."""
+    cfg = {**cfg, "verification": {**cfg["verification"], **over}}
+    if targets is None:
+        targets = study_targets(cfg)
+    return ["bpmcal", *job_argv(cfg, "verify", input={"card": str(card), "models": str(models)},
+                                output={"card": str(out / "card.yaml"),
+                                        "rounds": str(out / "rounds.csv"),
+                                        "run": str(out / "best_round.h5")},
+                                threads=cfg["resources"]["loop_threads"], targets=targets,
+                                cache=str(out.parent.parent / "packings")), "--quiet"]
 
 
 def one(cfg, study: Path, spec: str, label: str, over: dict, work: Path) -> dict:

@@ -10,7 +10,7 @@ config/, benchmarks/, .ci/ and the top-level files:
   system's, not files the repository needs;
 - no relative Markdown link that climbs out of the repository.
 
-The measurement records (docs/measurements/, benchmarks/results_*.json) keep the exact
+The measurement records (docs/measurements/, benchmarks/results/*.json) keep the exact
 command that produced them, host paths included: that is their provenance (where the
 measured run's files were), not a reference a reader follows, so only the first rule
 applies to them."""
@@ -37,7 +37,7 @@ LINK = re.compile(r"\]\(([^)\s]+)\)")
 def is_record(rel: str) -> bool:
     """A dated measurement record or a benchmark's JSON result (see the module docstring)."""
     return rel.startswith("docs/measurements/") or re.fullmatch(
-        r"benchmarks/results[^/]*\.json", rel) is not None
+        r"benchmarks/results/[^/]*\.json", rel) is not None
 
 
 def tracked() -> list[str]:
@@ -95,7 +95,7 @@ def test_no_reference_outside_the_repository(rel):
     ("docs/x.md", "[notes](../../elsewhere/notes.md)", 1),
     ("docs/measurements/x.md", "Command: `python b.py --out /work/main/x.json`", 0),
     ("docs/measurements/x.md", "spec: ../shared/FJM.md", 2),
-    ("benchmarks/results_x.json", '{"cmd": "--runs /work/run/a.h5"}', 0),
+    ("benchmarks/results/results_x.json", '{"cmd": "--runs /work/run/a.h5"}', 0),
     ("docs/x.md", "[spec](flatjoint-spec.md), [readme](../README.md), /tmp/old, "
                   "~/.cache/bpmcal, [site](https://example.org/a/../b)", 0),
 ])

@@ -8,6 +8,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "benchmarks"))
+#: the benchmarks' JSON records (their scripts: benchmarks/)
+RESULTS = REPO / "benchmarks" / "results"
 
 import bts_resolution  # noqa: E402
 
@@ -18,9 +20,9 @@ def test_the_tensile_strength_records_are_their_json_rendered():
                         ("2026-11-28", ("specimens", "specimens_a1-seeds31-90"))):
         page = REPO / "docs" / "measurements" / f"{date}-tensile-strength.md"
         names = [f"results_bts_{s}_{date}.json" for s in stems]
-        recs = [json.loads((REPO / "benchmarks" / n).read_text()) for n in names]
+        recs = [json.loads((RESULTS / n).read_text()) for n in names]
         title = page.read_text().splitlines()[0][2:]
-        assert page.read_text() == bts_resolution.markdown(recs, title, names), page.name
+        assert page.read_text() == bts_resolution.markdown(recs, title, names, "benchmarks"), page.name
 
 
 def test_the_planted_cards_tensile_records_are_their_json_rendered():
@@ -30,9 +32,9 @@ def test_the_planted_cards_tensile_records_are_their_json_rendered():
             ("2026-11-29g-bts-specimens-planted.md",
              ("results_bts_specimens_planted_u_2026-11-29.json",))):
         page = REPO / "docs" / "measurements" / page
-        recs = [json.loads((REPO / "benchmarks" / n).read_text()) for n in names]
+        recs = [json.loads((RESULTS / n).read_text()) for n in names]
         title = page.read_text().splitlines()[0][2:]
-        assert page.read_text() == bts_resolution.markdown(recs, title, list(names)), page.name
+        assert page.read_text() == bts_resolution.markdown(recs, title, list(names), "benchmarks"), page.name
 
 
 def _listed(page: str) -> set[str]:
@@ -108,7 +110,7 @@ def test_the_default_study_records_are_their_json_rendered():
     for page, pattern, render in (
             ("default-study.md", "results_default_study_*.json", study_record.markdown),
             ("default-study-results.md", "results_study_outputs_*.json", study_outputs.markdown)):
-        for raw in (REPO / "benchmarks").glob(pattern):
+        for raw in RESULTS.glob(pattern):
             rec = json.loads(raw.read_text())
             tag = raw.stem.rsplit("_", 1)[-1]  # the date, a letter for a second record that day
             assert tag.startswith(rec["date"]), raw.name
@@ -119,7 +121,7 @@ def test_the_default_study_records_are_their_json_rendered():
 def test_the_planted_card_record_is_its_json_rendered():
     import planted_card
 
-    for raw in (REPO / "benchmarks").glob("results_planted_card_*.json"):
+    for raw in RESULTS.glob("results_planted_card_*.json"):
         rec = json.loads(raw.read_text())
         tag = raw.stem.removeprefix("results_planted_card_")  # the date, a letter for a 2nd run
         assert tag.startswith(rec["date"]), raw.name
@@ -135,22 +137,22 @@ def test_the_fresh_seed_check_record_is_the_planted_records_rejudged():
     page = (REPO / "docs" / "measurements" / "2026-11-28p-fresh-seed-check.md").read_text()
     cmd = re.search(r"--rejudge ([^`]+)`", page).group(1).split()
     assert len(cmd) == 6
-    assert planted_card.rejudge_markdown([str(REPO / "benchmarks" / f) for f in cmd]).replace(
-        str(REPO / "benchmarks") + "/", "") in page
+    assert planted_card.rejudge_markdown([str(RESULTS / f) for f in cmd]).replace(
+        str(RESULTS) + "/", "") in page
     import example_record
 
     examples = re.findall(r"`python example_record.py --rejudge (\S+) --lab (\S+)"
                           r"(?: --triaxial-seeds (\d+))?`", page)
     assert len(examples) == 3
     for rec, lab, m in examples:
-        assert example_record.rejudge_markdown(str(REPO / "benchmarks" / rec), lab,
+        assert example_record.rejudge_markdown(str(RESULTS / rec), lab,
                                                int(m) if m else None) in page, rec
 
 
 def test_the_test_tiers_record_is_its_json_rendered():
     import test_tiers
 
-    for raw in (REPO / "benchmarks").glob("results_test_tiers_*.json"):
+    for raw in RESULTS.glob("results_test_tiers_*.json"):
         rec = json.loads(raw.read_text())
         md = REPO / "docs" / "measurements" / f"{rec['date']}-test-tiers.md"
         assert md.read_text() == test_tiers.markdown(rec), (md.name, "regenerate from", raw.name)
@@ -159,7 +161,7 @@ def test_the_test_tiers_record_is_its_json_rendered():
 def test_the_genesis_share_record_is_its_json_rendered():
     import study_genesis_share as genesis_share
 
-    for raw in (REPO / "benchmarks").glob("results_study_genesis_share_*.json"):
+    for raw in RESULTS.glob("results_study_genesis_share_*.json"):
         rec = json.loads(raw.read_text())
         md = REPO / "docs" / "measurements" / f"{rec['date']}-genesis-share.md"
         assert md.read_text() == genesis_share.markdown(rec), (md.name, "regenerate from", raw.name)
@@ -168,7 +170,7 @@ def test_the_genesis_share_record_is_its_json_rendered():
 def test_the_example_study_records_are_their_json_rendered():
     import example_record
 
-    for raw in (REPO / "benchmarks").glob("results_example_*.json"):
+    for raw in RESULTS.glob("results_example_*.json"):
         rec = json.loads(raw.read_text())
         md = REPO / "docs" / "measurements" / rec["page"]
         assert md.read_text() == example_record.markdown(rec), (md.name, "regenerate from", raw.name)
@@ -198,7 +200,7 @@ def test_a_test_tiers_record_says_whether_numba_s_cache_was_warm():
     in their note)."""
     import test_tiers
 
-    rec = json.loads((REPO / "benchmarks" / "results_test_tiers_2026-11-28.json").read_text())
+    rec = json.loads((RESULTS / "results_test_tiers_2026-11-28.json").read_text())
     for n, state in ((0, "cold"), (12, "warm")):
         rec["numba_cache"] = {"dir": ".cache/test/bpmcal/numba/x", "kernels": n, "state": state}
         text = test_tiers.markdown(rec)
@@ -210,7 +212,7 @@ def test_a_test_tiers_record_says_whether_numba_s_cache_was_warm():
 def test_the_cost_model_records_are_their_json_rendered():
     import cost_model
 
-    for raw in (REPO / "benchmarks").glob("results_cost_model_*.json"):
+    for raw in RESULTS.glob("results_cost_model_*.json"):
         date, name = raw.stem.removeprefix("results_cost_model_").split("_", 1)
         rec = json.loads(raw.read_text())
         assert rec["date"] == date[:10], raw.name  # a second record of a day: DATEb, DATEc
@@ -221,7 +223,7 @@ def test_the_cost_model_records_are_their_json_rendered():
 def test_the_posterior_study_records_are_their_json_rendered():
     import posterior_study
 
-    for raw in (REPO / "benchmarks").glob("results_posterior_study_*.json"):
+    for raw in RESULTS.glob("results_posterior_study_*.json"):
         rec = json.loads(raw.read_text())
         tag = raw.stem.rsplit("_", 1)[-1]  # the date, a letter for a second record that day
         assert tag.startswith(rec["date"]), raw.name

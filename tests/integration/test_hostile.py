@@ -392,7 +392,7 @@ def test_the_record_is_its_json_rendered():
     sys.path.insert(0, str(REPO / "benchmarks"))
     import hostile_inputs
 
-    raw = [json.loads((REPO / "benchmarks" / f"results_hostile_inputs_{w}_2026-12-02.json")
+    raw = [json.loads((REPO / "benchmarks" / "results" / f"results_hostile_inputs_{w}_2026-12-02.json")
                       .read_text()) for w in ("before", "after")]
     page = (REPO / "docs" / "measurements" / "2026-12-02-hostile-inputs.md").read_text()
     assert hostile_inputs.markdown(*raw) in page

@@ -1,11 +1,8 @@
-"""The paper's calibrated specimen A1 and the small specimens the tests build from it."""
+"""The paper's calibrated specimen A1 (``bpmcal.study.paper.A1``) and the small specimens the
+tests build from it."""
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
-from bpmcal.study.paper import CALIBRATED
-
-#: the paper's calibrated specimen A1 (section 4.2's set for B1, at n = 0.34 and
-#: Rmin = 0.8 mm); phi_p and mu at the Table 2 midpoints (our choice)
-A1 = dict(rmin_mm=0.8, porosity=0.34, **CALIBRATED["B1"], pb_fa_deg=35.0, fric=0.35)
+from bpmcal.study.paper import A1  # noqa: F401  (the paper's card: bpmcal.study.paper)
 
 #: small specimens for tests: 12 x 24 mm, Rmin 0.8 mm (~300 balls)
 SMALL = Geometry(scale=0.24)

@@ -1,7 +1,7 @@
-"""``benchmarks/genesis_share.py`` times the default study's sample job with a copy of
-its options (``STUDY_ARGS``); a copy goes stale silently when the workflow changes (it
-once ran the Brazilian disc at an old size and speed). The options of the default
-study's dry run must be the copy's."""
+"""``benchmarks/genesis_share.py`` times the default study's sample job with its options
+(``study_args()``, from ``bpmcal.cli.jobs.job_argv``, as the workflow's); a hand-typed
+copy once went stale silently (it ran the Brazilian disc at an old size and speed). The
+options of the default study's dry run must be the benchmark's."""
 import shlex
 import sys
 
@@ -29,7 +29,7 @@ def test_genesis_share_runs_the_sample_job_with_the_default_study_options(tmp_pa
     parser = build_parser(only="sample")
     study = vars(parser.parse_args(argv))
     bench = vars(parser.parse_args(["sample", "--design", "d.csv", "--sample", "s000",
-                                    "--out", "u.h5", *genesis_share.STUDY_ARGS]))
+                                    "--out", "u.h5", *genesis_share.study_args()]))
     differ = {k: (study[k], bench.get(k)) for k in study
               if k not in PER_JOB and study[k] != bench.get(k)}
-    assert not differ, f"genesis_share.STUDY_ARGS differ from the workflow: {differ}"
+    assert not differ, f"genesis_share.study_args() differ from the workflow: {differ}"

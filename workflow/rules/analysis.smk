@@ -4,7 +4,7 @@
 
 rule screen:
     input:
-        FILES.dataset,
+        dataset=FILES.dataset,
     output:
         beside(
             FILES.table(L.TABLE3),
@@ -29,16 +29,10 @@ rule screen:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        s=config["screening"],
+        settings=settings("screen"),
+        argv=argv("screen"),
     shell:
-        "bpmcal screen --dataset {input:q} --selected {output.selected:q} "
-        "--table3 {output.table3:q} --figure {output.fig:q} "
-        "--importance-table {output.importance:q} --cv-table {output.cv:q} "
-        "--shadow-table {output.shadow:q} --summary {output.summary:q} "
-        "--threshold {params.s[threshold_pct]:q} --importance {params.s[importance]:q} "
-        "--n-splits {params.s[n_splits]:q} --n-repeats {params.s[n_repeats]:q} "
-        "--rule {params.s[rule]:q} --tensile-rule {params.s[tensile_rule]:q} "
-        "--seed {params.s[seed]:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule regress:
@@ -70,17 +64,10 @@ rule regress:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        r=config["regression"],
+        settings=settings("regress"),
+        argv=argv("regress"),
     shell:
-        "bpmcal regress --dataset {input.dataset:q} --selected {input.selected:q} "
-        "--models {output.models:q} --equations {output.equations:q} "
-        "--summaries {output.summaries:q} --coefficients {output.coefficients:q} "
-        "--candidates {output.candidates:q} --table4 {output.table4:q} "
-        "--fit-table {output.fit:q} --figure {output.fig:q} "
-        "--alpha-in {params.r[alpha_in]:q} --alpha-out {params.r[alpha_out]:q} "
-        "--vif-max {params.r[vif_max]:q} --hierarchy {params.r[hierarchy]:q} "
-        "--cv-folds {params.r[cv_folds]:q} --cv-repeats {params.r[cv_repeats]:q} "
-        "--seed {params.r[seed]:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule calibrate_initial:
@@ -95,21 +82,10 @@ rule calibrate_initial:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        # not n_boot: the initial calibration runs no bootstrap; c's keys are the options'
-        # (--ratio), so that a study run before the key's rename does not rerun
-        c={
-            "ratio": config["calibration"]["strength_ratio"],
-            "seed": config["calibration"]["seed"],
-        },
-        fixed=json.dumps(config["calibration"]["fixed"]),
-        free=",".join(config["calibration"]["free"]),
-        ranges=json.dumps(config["ranges"]),
-        bounds=json.dumps(config["calibration"]["bounds"]),
+        settings=settings("calibrate_initial"),
+        argv=argv("calibrate_initial"),
     shell:
-        "bpmcal calibrate --dataset {input.dataset:q} --models {input.models:q} "
-        "--lab {input.lab:q} --cards {output.cards:q} --fixed {params.fixed:q} "
-        "--free {params.free:q} --ranges {params.ranges:q} --bounds {params.bounds:q} "
-        "--ratio {params.c[ratio]:q} --n-boot 0 --seed {params.c[seed]:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule calibrate:
@@ -127,25 +103,10 @@ rule calibrate:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        # c's keys are the options' (--ratio): as in calibrate_initial
-        c={
-            "ratio": config["calibration"]["strength_ratio"],
-            **{k: config["calibration"][k] for k in ("n_boot", "seed")},
-        },
-        fixed=json.dumps(config["calibration"]["fixed"]),
-        free=",".join(config["calibration"]["free"]),
-        ratio_from=lambda wc, input: (
-            ["--ratio-from", input.chosen] if input.chosen else []
-        ),
-        ranges=json.dumps(config["ranges"]),
-        bounds=json.dumps(config["calibration"]["bounds"]),
+        settings=settings("calibrate"),
+        argv=argv("calibrate"),
     shell:
-        "bpmcal calibrate --dataset {input.dataset:q} --models {input.models:q} "
-        "--lab {input.lab:q} --cards {output.cards:q} --table {output.table:q} "
-        "--fixed {params.fixed:q} --free {params.free:q} --ranges {params.ranges:q} "
-        "--bounds {params.bounds:q} --ratio {params.c[ratio]:q} "
-        "{params.ratio_from:q} --n-boot {params.c[n_boot]:q} --seed {params.c[seed]:q} "
-        "> {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule verify:
@@ -172,16 +133,10 @@ rule verify:
     params:
         # the closed loop's settings only (LoopSettings' fields): changing another
         # verification key (fresh_seeds, scatter_seeds) must not rerun the closed loops
-        loop=loop_args(),
-        opts=specimen_args(),
-        bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
-        dtt=dtt_args() if LAB_DTT else [],
-        tri=tri_args() if LAB_TRI else [],
+        settings=settings("verify"),
+        argv=argv("verify"),
     shell:
-        "bpmcal verify --card {input.card:q} --models {input.models:q} "
-        "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
-        "--seed-runs {output.seeds:q} {params.loop:q} --threads {threads} "
-        "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule transfer:
@@ -204,23 +159,10 @@ rule transfer:
         * (1 + config["transfer"]["max_rounds"]),
         mem_mb=config["resources"]["dem_mem_mb"],
     params:
-        t={"max_rounds": config["transfer"]["max_rounds"]},
-        # the first packing seed no closed loop may use (grown seed sets included)
-        seed=transfer_seed(config["verification"]),
-        rtol=config["verification"]["rtol"],
-        margin=config["verification"]["range_margin"],
-        jac=config["verification"]["jacobian_update"],
-        opts=specimen_args(scale=config["transfer"]["scale"]),
-        bts=bts_args() if LAB_BTS else [],  # Brazilian tests only for a σt target
-        dtt=dtt_args() if LAB_DTT else [],
-        tri=tri_args() if LAB_TRI else [],
+        settings=settings("transfer"),
+        argv=argv("transfer"),
     shell:
-        "bpmcal transfer --card {input.card:q} --models {input.models:q} "
-        "--out-card {output.card:q} --rounds {output.rounds:q} --run {output.run:q} "
-        "--seed {params.seed:q} --rtol {params.rtol:q} --range-margin {params.margin:q} "
-        "--jacobian-update {params.jac:q} --max-rounds {params.t[max_rounds]:q} "
-        "--threads {threads} "
-        "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule transfer_table:
@@ -233,9 +175,10 @@ rule transfer_table:
         FILES.log("transfer_table"),
     conda:
         "../envs/bpmcal.yaml"
+    params:
+        argv=argv("transfer_table"),
     shell:
-        "bpmcal transfer-table --cards {input.cards:q} --table {output.table:q} "
-        "> {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule seed_scatter:
@@ -256,13 +199,10 @@ rule seed_scatter:
         runtime=config["resources"]["dem_runtime_min"] * len(SCATTER_SEEDS),
         mem_mb=config["resources"]["dem_mem_mb"] * config["resources"]["loop_threads"],
     params:
-        seeds=",".join(str(s) for s in SCATTER_SEEDS),
-        rtol=config["verification"]["rtol"],
-        opts=specimen_args(),
+        settings=settings("seed_scatter"),
+        argv=argv("seed_scatter"),
     shell:
-        "bpmcal scatter --card {input.card:q} --seeds {params.seeds:q} --runs {output.runs:q} "
-        "--seed-runs {output.seed_runs:q} --table {output.table:q} --rtol {params.rtol:q} "
-        "--threads {threads} {params.opts:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule fresh_seeds:
@@ -298,25 +238,10 @@ rule fresh_seeds:
         runtime=config["resources"]["dem_runtime_min"] * max(1, len(FRESH_SEEDS)),
         mem_mb=config["resources"]["dem_mem_mb"] * config["resources"]["loop_threads"],
     params:
-        seeds=",".join(str(s) for s in FRESH_SEEDS),
-        bts_runs=lambda wc, output: (
-            ["--bts-runs", *output.bts_runs] if output.bts_runs else []
-        ),
-        dtt_runs=lambda wc, output: (
-            ["--dtt-runs", *output.dtt_runs] if output.dtt_runs else []
-        ),
-        tri_runs=lambda wc, output: (
-            ["--tri-runs", *output.tri_runs] if output.tri_runs else []
-        ),
-        opts=specimen_args(),
-        bts=bts_args() if BTS_ON else [],  # every card's σt on the fresh seeds
-        dtt=dtt_args() if LAB_DTT else [],
-        tri=tri_args() if LAB_TRI else [],
+        settings=settings("fresh_seeds"),
+        argv=argv("fresh_seeds"),
     shell:
-        "bpmcal fresh-seeds --card {input.card:q} --seeds {params.seeds:q} "
-        "--runs {output.runs:q} {params.bts_runs:q} {params.dtt_runs:q} "
-        "{params.tri_runs:q} --seed-runs {output.seed_runs:q} --threads {threads} "
-        "{params.opts:q} {params.bts:q} {params.dtt:q} {params.tri:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule fresh_seeds_table:
@@ -331,11 +256,10 @@ rule fresh_seeds_table:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        rtol=config["verification"]["rtol"],
+        settings=settings("fresh_seeds_table"),
+        argv=argv("fresh_seeds_table"),
     shell:
-        "bpmcal fresh-seeds-table --cards {input.cards:q} "
-        "--seed-runs {input.seed_runs:q} --table {output.table:q} --rtol {params.rtol:q} "
-        "> {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule verification_tables:
@@ -356,7 +280,7 @@ rule verification_tables:
         FILES.log("verification_tables"),
     conda:
         "../envs/bpmcal.yaml"
+    params:
+        argv=argv("verification_tables"),
     shell:
-        "bpmcal verification-tables --cards {input.cards:q} --runs {input.runs:q} "
-        "--lab {input.lab:q} --table5 {output.table5:q} --table6 {output.table6:q} "
-        "--figure {output.fig6:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"

@@ -6,24 +6,23 @@ rule sweep_plan:
         card=FILES.initial_card(SWEEP_SPEC),
         models=FILES.models,
     output:
-        FILES.sweep_plan,
+        plan=FILES.sweep_plan,
     log:
         FILES.log("sweep_plan"),
     conda:
         "../envs/bpmcal.yaml"
     params:
-        ratios=",".join(str(x) for x in config["ratio_sweep"]["ratios"]),
-        seed=config["ratio_sweep"]["seed"],
+        settings=settings("sweep_plan"),
+        argv=argv("sweep_plan"),
     shell:
-        "bpmcal sweep-plan --card {input.card:q} --models {input.models:q} "
-        "--ratios {params.ratios:q} --seed {params.seed:q} --out {output:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule sweep_ucs:
     input:
-        FILES.sweep_plan,
+        plan=FILES.sweep_plan,
     output:
-        FILES.sweep_run("{rid}"),
+        run=FILES.sweep_run("{rid}"),
     log:
         FILES.log("sweep", "{rid}"),
     wildcard_constraints:
@@ -36,10 +35,10 @@ rule sweep_ucs:
         runtime=config["resources"]["dem_runtime_min"],
         mem_mb=config["resources"]["dem_mem_mb"],
     params:
-        opts=specimen_args(),
+        settings=settings("sweep_ucs"),
+        argv=argv("sweep_ucs"),
     shell:
-        "bpmcal ucs --design {input:q} --sample {wildcards.rid:q} --out {output:q} "
-        "--threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule sweep_analyse:
@@ -70,19 +69,17 @@ rule sweep_analyse:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        s={k: config["ratio_sweep"][k] for k in ("criterion", "target")},
+        settings=settings("sweep_analyse"),
+        argv=argv("sweep_analyse"),
     shell:
-        "bpmcal sweep-analyse --plan {input.plan:q} --runs {input.runs:q} "
-        "--criterion {params.s[criterion]:q} --target {params.s[target]:q} "
-        "--table {output.table:q} --chosen {output.chosen:q} --fig4 {output.fig4:q} "
-        "--fig5 {output.fig5:q} --vtk {output.vtk:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule impact:
     input:
         card=IMPACT_CARD,
     output:
-        FILES.impact_run("{v}"),
+        run=FILES.impact_run("{v}"),
     log:
         FILES.log("impact", "impact_{v}ms"),
     wildcard_constraints:
@@ -95,25 +92,10 @@ rule impact:
         runtime=config["resources"]["dem_runtime_min"] * 2,
         mem_mb=config["resources"]["dem_mem_mb"],
     params:
-        # what an impact run reads (not the velocities: a job's own is its wildcard)
-        i={
-            k: config["impact"][k]
-            for k in (
-                "hammer_mass_kg",
-                "dp_ratio",
-                "anvil_fric",
-                "duration_ms",
-                "record_us",
-                "seed",
-            )
-        },
-        opts=specimen_args(scale=config["impact"]["scale"], loading=False),
+        settings=settings("impact"),
+        argv=argv("impact"),
     shell:
-        "bpmcal impact --card {input.card:q} --out {output:q} --velocity {wildcards.v:q} "
-        "--hammer-mass {params.i[hammer_mass_kg]:q} --dp-ratio {params.i[dp_ratio]:q} "
-        "--anvil-fric {params.i[anvil_fric]:q} --duration-ms {params.i[duration_ms]:q} "
-        "--record-us {params.i[record_us]:q} --seed {params.i[seed]:q} --threads {threads} "
-        "--failed-ok {params.opts:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule impact_analyse:
@@ -144,7 +126,7 @@ rule impact_analyse:
         FILES.log("impact_analyse"),
     conda:
         "../envs/bpmcal.yaml"
+    params:
+        argv=argv("impact_analyse"),
     shell:
-        "bpmcal impact-analyse --main {input.main:q} --runs {input.runs:q} "
-        "--energy {output.energy:q} --t10 {output.t10:q} --jk-fit {output.jk_fit:q} "
-        "--fig7 {output.fig7:q} --fig-t10 {output.figt10:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"

@@ -31,7 +31,8 @@ rule report:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        config=json.dumps(config),  # JSON text, shell-quoted below; never echoed
+        # the config as JSON text (shell-quoted in argv; never echoed)
+        settings=settings("report"),
+        argv=argv("report"),
     shell:
-        "bpmcal report --config-json {params.config:q} --config-out {output.config:q} "
-        "> {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"

@@ -3,28 +3,28 @@
 # triaxial.design_sigma3_MPa its triaxial test at that confinement) -> gathered dataset.
 # A sample whose DEM run fails writes a failure record (--failed-ok: exit 0), so the DAG
 # goes on and the dataset carries the sample with its status and reason.
+# Every rule's command is the package's (bpmcal.cli.jobs, by the rule's name): the rule
+# names its files; params.settings is what the job reads of the config (compared by
+# Snakemake's params trigger), params.argv the whole command.
 
 
 rule design:
     output:
-        FILES.design,
+        design=FILES.design,
     log:
         FILES.log("design"),
     conda:
         "../envs/bpmcal.yaml"
     params:
-        ranges=json.dumps(config["ranges"]),
-        n=config["study"]["n_samples"],
-        seed=config["study"]["lhs_seed"],
-        opt=config["study"]["lhs_optimization"],
+        settings=settings("design"),
+        argv=argv("design"),
     shell:
-        "bpmcal design --ranges {params.ranges:q} --n {params.n:q} --seed {params.seed:q} "
-        "--optimization {params.opt:q} --out {output:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule sample:
     input:
-        FILES.design,
+        design=FILES.design,
     output:
         ucs=FILES.ucs_run("{sample}"),
         # with bts.enabled, the sample's Brazilian test runs in the same job (one process
@@ -44,20 +44,13 @@ rule sample:
         runtime=config["resources"]["dem_runtime_min"],
         mem_mb=config["resources"]["dem_mem_mb"],
     params:
-        opts=specimen_args(),
-        # the Brazilian settings as a plain value (a callable's value is not compared by
-        # Snakemake's params trigger: a changed bts key would not rerun the samples)
-        bts_opts=bts_args() if BTS_ON else [],
-        bts_out=lambda wc, output: ["--bts-out", output.bts] if BTS_ON else [],
-        dtt_opts=dtt_args() if DTT_ON else [],
-        dtt_out=lambda wc, output: ["--dtt-out", output.dtt] if DTT_ON else [],
-        tri_opts=tri_args() if TRI_ON else [],
-        tri_out=lambda wc, output: ["--tri-out", output.tri] if TRI_ON else [],
+        # the settings as a plain value (argv, derived from the job's files, is not
+        # compared by Snakemake's params trigger: a changed bts key would not rerun the
+        # samples)
+        settings=settings("sample"),
+        argv=argv("sample"),
     shell:
-        "bpmcal sample --design {input:q} --sample {wildcards.sample:q} --out {output.ucs:q} "
-        "--threads {threads} --failed-ok {params.opts:q} {params.bts_out:q} "
-        "{params.bts_opts:q} {params.dtt_out:q} {params.dtt_opts:q} "
-        "{params.tri_out:q} {params.tri_opts:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 rule gather:
@@ -68,15 +61,12 @@ rule gather:
         dtt=[FILES.dtt_run(s) for s in SAMPLES] if DTT_ON else [],
         tri=[FILES.tri_run(s) for s in SAMPLES] if TRI_ON else [],
     output:
-        FILES.dataset,
+        dataset=FILES.dataset,
     log:
         FILES.log("gather"),
     conda:
         "../envs/bpmcal.yaml"
     params:
-        bts=lambda wc, input: ["--bts-runs", *input.bts] if input.bts else [],
-        dtt=lambda wc, input: ["--dtt-runs", *input.dtt] if input.dtt else [],
-        tri=lambda wc, input: ["--tri-runs", *input.tri] if input.tri else [],
+        argv=argv("gather"),
     shell:
-        "bpmcal gather --design {input.design:q} --runs {input.runs:q} {params.bts:q} "
-        "{params.dtt:q} {params.tri:q} --out {output:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"

@@ -6,7 +6,7 @@ rule triaxial:
     input:
         card=lambda wc: FILES.triaxial_card(wc.kind, wc.spec),
     output:
-        FILES.triaxial_run("{kind}", "{spec}", "{s3}"),
+        run=FILES.triaxial_run("{kind}", "{spec}", "{s3}"),
     log:
         FILES.log("triaxial", "{kind}", "{spec}", "{s3}"),
     wildcard_constraints:
@@ -20,12 +20,10 @@ rule triaxial:
         runtime=config["resources"]["dem_runtime_min"],
         mem_mb=config["resources"]["dem_mem_mb"],
     params:
-        t={k: config["triaxial"][k] for k in ("seed", "servo_alpha")},
-        opts=specimen_args(ucs=False),
+        settings=settings("triaxial"),
+        argv=argv("triaxial"),
     shell:
-        "bpmcal triaxial --params {input.card:q} --sigma3 {wildcards.s3:q} "
-        "--seed {params.t[seed]:q} --servo-alpha {params.t[servo_alpha]:q} "
-        "--out {output:q} --threads {threads} --failed-ok {params.opts:q} > {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"
 
 
 _TX_CARDS = [FILES.triaxial_card(k, s) for k in TRIAX_KINDS for s in SPECIMENS]
@@ -58,14 +56,7 @@ rule triaxial_envelopes:
     conda:
         "../envs/bpmcal.yaml"
     params:
-        sigma3=",".join(f"{x:g}" for x in TRIAX_S3),
-        lab=lambda wc, input, output: (
-            ["--lab-triaxial", input.lab_triaxial, "--lab-table", output.lab_table]
-            if input.lab_triaxial
-            else []
-        ),
+        settings=settings("triaxial_envelopes"),
+        argv=argv("triaxial_envelopes"),
     shell:
-        "bpmcal envelopes --cards {input.cards:q} --runs {input.runs:q} "
-        "--sigma3 {params.sigma3:q} --lab {input.lab:q} {params.lab:q} "
-        "--table {output.table:q} --points {output.points:q} --figure {output.fig:q} "
-        "> {log:q} 2>&1"
+        "bpmcal {params.argv:q} > {log:q} 2>&1"

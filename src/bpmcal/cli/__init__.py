@@ -105,9 +105,9 @@ from .verification import (
     _add_verify,
 )
 
-#: ``bpmcal.cli``'s own names and the shared options re-exported from ``cli.options`` (the
-#: workflow's ``common.smk`` reads ``BTS_OPTIONS``/``DTT_OPTIONS``, whose names are the
-#: bts/dtt config keys; tests read ``GENESES``)
+#: ``bpmcal.cli``'s own names and the shared options re-exported from ``cli.options``
+#: (``BTS_OPTIONS``/``DTT_OPTIONS`` name the bts/dtt config keys that are options, read by
+#: ``cli.jobs``, which builds the workflow's commands; tests read ``GENESES``)
 __all__ = ["COMMANDS", "build_parser", "main", "BTS_OPTIONS", "DTT_OPTIONS",
            "GENESES",
            "add_bts_args", "add_budget_args", "add_dtt_args", "add_outcome_args", "add_run_args",

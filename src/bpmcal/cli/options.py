@@ -10,12 +10,14 @@ default is the settings' own (the lab tests' settings dataclasses, ``Geometry``,
 inside the functions, so that importing this module loads no engine.
 
 The closed loop's options are generated from the fields of ``LoopSettings`` (their
-names, defaults, limits and help lines: :func:`add_loop_args`), and so is the workflow's
-command line of a config's ``verification`` section (:func:`loop_argv`).
+names, defaults, limits and help lines: :func:`add_loop_args`), and so is the jobs'
+command line of a config's ``verification`` section (:func:`loop_argv`, read by
+:mod:`bpmcal.cli.jobs`).
 
 ``BTS_OPTIONS`` and ``DTT_OPTIONS`` name the settings fields that are options, under the
-same names as the keys of the study config's ``bts`` and ``dtt`` sections; the workflow
-(``workflow/rules/common.smk``) builds its ``--bts-*`` and ``--dtt-*`` options from them.
+same names as the keys of the study config's ``bts`` and ``dtt`` sections; the jobs'
+commands (:mod:`bpmcal.cli.jobs`, for the workflow and the benchmarks) build their
+``--bts-*`` and ``--dtt-*`` options from them.
 """
 from __future__ import annotations
 
@@ -519,8 +521,8 @@ def loop_settings_of(args, names=None):
 
 
 def loop_argv(section: dict, *, tensile: bool = False, triaxial: bool = False) -> list[str]:
-    """The ``bpmcal verify`` options of a config's ``verification`` section (the workflow's
-    ``verify`` rule, the benchmarks): ``--FIELD VALUE`` for every ``LoopSettings`` field,
+    """The ``bpmcal verify`` options of a config's ``verification`` section (the ``verify``
+    job's, :mod:`bpmcal.cli.jobs`): ``--FIELD VALUE`` for every ``LoopSettings`` field,
     a bool as its switch, the section's values checked as ``LoopSettings`` checks them.
     Left out: a null (the option's default is the same none) and a field that cannot act
     on this study (its ``needs``: ``tensile``, a σt target; ``triaxial``, a σ1 target; a

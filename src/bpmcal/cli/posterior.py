@@ -64,7 +64,7 @@ def _add_posterior(p):
                    help="DEM seed runs the refinement may add, measured as the card's closed "
                         "loop measured it (the specimen and loading options must be the "
                         f"loop's; default {r['max_runs']}; 0: none)")
-    p.add_argument("--refine-ratio", type=number("refine-ratio", 0.0, lo_open=True),
+    p.add_argument("--refine-ratio", type=number("refine-ratio", 0.0, 100.0, lo_open=True),
                    default=r["ratio"], help="refine while a target's surrogate error exceeds "
                    f"this multiple of its lab side's sd (default {r['ratio']:g})")
     p.add_argument("--refine-seeds", type=integer("refine-seeds", 1, 50), default=r["seeds"],
@@ -134,7 +134,8 @@ def _add_predictive(p):
                                                 f"scale^3 (default {im.hammer_mass:g})")
     p.add_argument("--dp-ratio", type=number("dp-ratio", 0.0, 1.0), default=im.dp_ratio)
     p.add_argument("--anvil-fric", type=number("anvil-fric", 0.0, 10.0), default=im.anvil_fric)
-    p.add_argument("--duration-ms", type=number("duration-ms", 0.0, lo_open=True, unit="ms"),
+    p.add_argument("--duration-ms", type=number("duration-ms", 0.0, 1000.0, lo_open=True,
+                                                 unit="ms"),
                    default=im.duration * 1e3)
     p.add_argument("--record-us", type=number("record-us", 0.0, lo_open=True, unit="us"),
                    default=im.record_dt * 1e6)

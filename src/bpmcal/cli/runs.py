@@ -301,7 +301,8 @@ def _add_impact(p):
                         f"(default {im.dp_ratio:g})")
     p.add_argument("--anvil-fric", type=number("anvil-fric", 0.0, 10.0), default=im.anvil_fric,
                    help=f"friction of anvil and hammer (default {im.anvil_fric:g})")
-    p.add_argument("--duration-ms", type=positive("duration-ms", "ms"),
+    p.add_argument("--duration-ms", type=number("duration-ms", 0.0, 1000.0, lo_open=True,
+                                                 unit="ms"),
                    default=im.duration * 1e3,
                    help=f"run at most this long [ms] (default {im.duration * 1e3:g})")
     p.add_argument("--record-us", type=positive("record-us", "us"),

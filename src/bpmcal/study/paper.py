@@ -55,6 +55,26 @@ CALIBRATED = {
     "B3": {"pb_emod_GPa": 10.676, "pb_kratio": 3.456, "pb_ten_MPa": 27.890, "pb_coh_MPa": 21.550},
 }
 
+#: section 4.2: what every calibrated card fixes (porosity n and Rmin)
+FIXED = {"rmin_mm": 0.8, "porosity": 0.34}
+#: what the paper does not state (NOTES): phi_p and mu, bpmcal's choice, the midpoints of
+#: their Table 2 ranges (15-55 deg, 0.15-0.55)
+UNSTATED = {"pb_fa_deg": 35.0, "fric": 0.35}
+
+
+def card(spec: str = "B1") -> dict:
+    """The paper's calibrated card of lab specimen ``spec`` (B1-B3; Table 5 re-runs it as
+    A1-A3): all eight parameters, section 4.2's four with ``FIXED`` and ``UNSTATED``, in
+    the paper's units (a new dict)."""
+    return {**FIXED, **CALIBRATED[spec], **UNSTATED}
+
+
+#: the paper's cards A1-A3 (lab specimens B1-B3): the one definition the tests, the
+#: benchmarks and the docs' examples run
+CARDS = {f"A{i}": card(f"B{i}") for i in (1, 2, 3)}
+#: the card of B1, the specimen most tests and benchmarks build
+A1 = CARDS["A1"]
+
 #: Table 5: PFC3D re-runs A1-A3 of the calibrated sets, and their errors (%)
 VERIFIED = {
     "B1": {"ucs_MPa": 60.187, "E_GPa": 13.643, "nu": 0.257,

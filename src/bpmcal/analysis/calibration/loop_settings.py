@@ -3,9 +3,10 @@ closed loop on the DEM (``bpmcal verify``; the study's ``verification`` section)
 the one table of their limits that everything taking them shares: the dataclass
 (validated once, when it is built), :class:`~.closed_loop.ClosedLoop`'s keywords
 (:func:`check_loop_value`), the ``bpmcal verify`` and ``transfer`` options (generated from
-the fields: ``bpmcal.cli.options.add_loop_args``) and the workflow's command line
-(``bpmcal.cli.options.loop_argv``). The config schema states the same names, defaults
-and limits (``tests/workflow/test_defaults.py`` holds them equal).
+the fields: ``bpmcal.cli.options.add_loop_args``) and the jobs' command line
+(``bpmcal.cli.options.loop_argv``, through ``bpmcal.cli.jobs``). The config schema
+states the same names, defaults and limits (``tests/workflow/test_defaults.py`` holds
+them equal).
 
 A new loop setting is a field here (its default, its :class:`Limit` and its help line),
 its key in ``workflow/schemas/config.schema.yaml`` (with ``config/config.yaml`` and the

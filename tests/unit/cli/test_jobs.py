@@ -1,0 +1,119 @@
+"""bpmcal.cli.jobs: one builder of every study job's command, read by the workflow's rules
+(each rule names its files and runs ``bpmcal {params.argv:q}``) and by the benchmarks.
+(The dry-run commands of the study configs are compared with the rules' in
+tests/workflow; here: every job's command is one the CLI parses, carries the config's
+values, and is the only place the workflow maps config keys to options.)"""
+import re
+
+import pytest
+import yaml
+from support.repo import REPO, SCHEMA
+
+from bpmcal.analysis.calibration.loop_settings import LoopSettings
+from bpmcal.cli import build_parser
+from bpmcal.cli.jobs import JOBS, _tokens, job_argv, job_options
+from bpmcal.study.config import validate_config
+
+RULES = REPO / "workflow" / "rules"
+
+
+def _config(*names, **over):
+    cfg = {}
+    for n in names:
+        cfg.update(yaml.safe_load((REPO / "config" / n).read_text()))
+    for k, v in over.items():
+        cfg[k] = {**cfg.get(k, {}), **v}
+    validate_config(cfg, SCHEMA, base_dir=REPO, note=lambda line: None)
+    return cfg
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return _config("config.yaml")
+
+
+def _files(cfg, job, targets=()):
+    """A path for every file and wildcard the job's command names (a list where the
+    option takes several)."""
+    ns = {"input": {}, "output": {}, "wildcards": {}}
+    for t in _tokens(cfg, job, targets, None):
+        if not isinstance(t, str) and t.key:
+            ns[t.source][t.key] = f"{t.source}_{t.key}"
+    ns["wildcards"] = {k: "1.5" if k in ("v", "s3") else v for k, v in ns["wildcards"].items()}
+    return ns
+
+
+def _parse(argv):
+    return build_parser(only=argv[0]).parse_args(argv)
+
+
+def _rules():
+    return {m for f in RULES.glob("*.smk")
+            for m in re.findall(r"^rule (\w+):", f.read_text(), re.M)}
+
+
+def test_every_rule_runs_the_command_of_its_job_and_nothing_else():
+    """One source: every rule of the workflow (but `all`) is a job of JOBS, its shell is
+    the job's argv, and no rule file maps a config key to an option by hand."""
+    assert _rules() - {"all"} == set(JOBS)
+    for f in RULES.glob("*.smk"):
+        text = f.read_text()
+        for rule, body in re.findall(r"^rule (\w+):\n(.*?)(?=^rule |\Z)", text, re.M | re.S):
+            assert 'shell:\n        "bpmcal {params.argv:q} > {log:q} 2>&1"' in body, rule
+            assert f'argv=argv("{rule}")' in body, rule
+        assert not re.search(r'"--[a-z]', text), f"{f.name}: an option typed in a rule file"
+
+
+@pytest.mark.parametrize("targets", [(), ("bts", "dtt", "tri")])
+@pytest.mark.parametrize("job", sorted(JOBS))
+def test_every_jobs_command_parses(cfg, job, targets):
+    """The command of every job, with and without every lab target, is one ``bpmcal``
+    accepts (an option the CLI lost, or a value it refuses, fails here, before a study)."""
+    if "tri" in targets:
+        cfg = _config("config.yaml", triaxial={"design_sigma3_MPa": 10.0})
+    argv = job_argv(cfg, job, threads=2, targets=targets, **_files(cfg, job, targets))
+    assert _parse(argv).cmd == argv[0]
+
+
+def test_the_command_carries_the_configs_values():
+    cfg = _config("config.yaml", verification={"max_rounds": 7, "grow_within": 1.5},
+                  compression={"damping": 0.6}, bts={"stop_drop": 0.4})
+    a = _parse(job_argv(cfg, "verify", threads=3, targets={"bts"}, **_files(cfg, "verify")))
+    from bpmcal.cli.options import loop_settings_of
+
+    assert loop_settings_of(a) == LoopSettings(**{
+        k: v for k, v in cfg["verification"].items() if k not in ("scatter_seeds",
+                                                                   "fresh_seeds")})
+    assert (a.damping, a.bts_stop_drop, a.threads, a.scale) == (0.6, 0.4, 3, 0.4)
+    plain = _parse(job_argv(cfg, "verify", targets=(), **_files(cfg, "verify")))
+    assert plain.tensile_seed_cv == LoopSettings().tensile_seed_cv  # no σt target: not passed
+    s = _parse(job_argv(cfg, "sample", threads=1, **_files(cfg, "sample")))
+    assert s.bts_out == "output_bts" and s.bts_stop_drop == 0.4 and s.failed_ok
+
+
+def test_the_settings_are_the_command_without_files_and_threads(cfg):
+    """What a rule hands Snakemake's params trigger: every config value of the command,
+    none of its files (a changed file name alone reruns nothing)."""
+    for job in JOBS:
+        files = _files(cfg, job)
+        argv = job_argv(cfg, job, threads=5, **files)
+        opts = job_options(cfg, job)
+        it = iter(argv)
+        assert all(any(o == a for a in it) for o in opts), job  # a subsequence, in order
+        names = {v for ns in files.values() for v in ns.values()}
+        assert not names & set(opts), job
+    changed = _config("config.yaml", screening={"seed": 99})
+    assert job_options(changed, "screen") != job_options(cfg, "screen")
+    assert job_options(changed, "regress") == job_options(cfg, "regress")
+
+
+def test_a_missing_file_is_refused_and_an_optional_one_left_out(cfg):
+    with pytest.raises(KeyError, match="--card"):
+        job_argv(cfg, "verify", output={"card": "c", "rounds": "r", "run": "x"}, targets=())
+    argv = job_argv(cfg, "verify", input={"card": "c", "models": "m"},
+                    output={"card": "v", "rounds": "r", "run": "x"}, threads=1, targets=())
+    assert "--seed-runs" not in argv and argv[:3] == ["verify", "--card", "c"]
+    with pytest.raises(KeyError, match="job 'nope'"):
+        job_options(cfg, "nope")
+    with pytest.raises(ValueError, match=r"targets \['sigma'\]"):
+        job_options(cfg, "verify", targets={"sigma"})
