@@ -54,7 +54,7 @@ import numpy as np
 import pandas as pd
 from _study import record_header, write_record
 
-from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps, invert
+from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSteps, Multistart, SearchSpace, invert
 from bpmcal.analysis.calibration.loop_settings import UPDATES, LoopSettings
 from bpmcal.analysis.stepwise import StepwiseRegression
 
@@ -225,8 +225,11 @@ def one_card(rock: Rock, i: int, models: dict, max_rounds, updates=UPDATES,
     targets = {r: float(lab[r].mean()) for r in rock.responses}
     target_se = ({r: float(lab[r].std(ddof=1) / len(lab) ** 0.5) for r in rock.responses}
                  if rock.target_se else None)
-    inv = invert(models, targets, rock.fixed, free=rock.free, ratio=None, ranges=rock.ranges,
-                 seed=0)
+    inv = invert(models,
+                 targets,
+                 rock.fixed,
+                 SearchSpace(ranges=rock.ranges, free=rock.free, ratio=None),
+                 search=Multistart(seed=0))
     truth = rock.truth(planted)
     out = []
     for update, grow in [(u, g) for u in updates for g in grows]:
@@ -239,7 +242,7 @@ def one_card(rock: Rock, i: int, models: dict, max_rounds, updates=UPDATES,
         seeding = LoopSeeds(seeds_per_round=LOOP.seeds_per_round, max_seeds=LOOP.max_seeds,
                             **({} if grow is None else {"grow_within": grow}))
         loop = ClosedLoop(sim, targets,
-                          space=LoopSpace(ranges=rock.ranges, free=rock.free, ratio=None),
+                          space=SearchSpace(ranges=rock.ranges, free=rock.free, ratio=None),
                           steps=LoopSteps(max_rounds=max_rounds, margin=LOOP.range_margin,
                                           update=update),
                           seeding=seeding, models=models, target_se=target_se)

@@ -47,7 +47,7 @@ from _study import record_header, write_record
 from loop_convergence import ROCKS, design_runs, simulate
 from loop_convergence import planted_card as planted_of
 
-from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps, invert
+from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSteps, Multistart, SearchSpace, invert
 from bpmcal.analysis.posterior import PosteriorSettings, Problem, fit_posterior, fit_surrogate
 from bpmcal.analysis.stepwise import design_matrix
 from bpmcal.stages.posterior import RefineSettings, refine_posterior
@@ -114,8 +114,11 @@ def one_case(case: str, i: int, se_factor: float, n_design: int, refine_max: int
     lab = pd.DataFrame([simulate(rock, planted, s) for s in lab_seeds(rock, i)])
     targets = {r: float(lab[r].mean()) for r in targets_r}
     se = {r: se_factor * float(lab[r].std(ddof=1) / len(lab) ** 0.5) for r in targets_r}
-    inv = invert({r: models[r] for r in targets_r}, targets, rock.fixed, free=free, ratio=ratio,
-                 ranges=rock.ranges, seed=0)
+    inv = invert({r: models[r] for r in targets_r},
+                 targets,
+                 rock.fixed,
+                 SearchSpace(ranges=rock.ranges, free=free, ratio=ratio),
+                 search=Multistart(seed=0))
     runs = []
 
     def sim(params, seed):
@@ -125,7 +128,7 @@ def one_case(case: str, i: int, se_factor: float, n_design: int, refine_max: int
 
     loop = ClosedLoop(sim,
                       targets,
-                      space=LoopSpace(ranges=rock.ranges, free=free, ratio=ratio),
+                      space=SearchSpace(ranges=rock.ranges, free=free, ratio=ratio),
                       steps=LoopSteps(margin=0.25),
                       seeding=LoopSeeds(seeds_per_round=3, max_seeds=10),
                       models={r: models[r] for r in targets_r},

@@ -87,7 +87,7 @@ def lab_targets(card: dict, dem, seeds, discs: int, folder: Path) -> tuple[dict,
 
 # long: one planted card from its lab measurement to the posterior's verdict, step by step
 def one_card(i: int, planted: dict, cfg: dict, study: Path, dem, a, folder: Path) -> dict:
-    from bpmcal.analysis.calibration import invert
+    from bpmcal.analysis.calibration import Multistart, SearchSpace, invert
     from bpmcal.analysis.posterior import PosteriorSettings
     from bpmcal.stages.inputs import read_dataset, read_models
     from bpmcal.stages.posterior import RefineSettings, _fit, _measure, refine_posterior
@@ -98,7 +98,11 @@ def one_card(i: int, planted: dict, cfg: dict, study: Path, dem, a, folder: Path
     targets, se, lab_s = lab_targets(planted, dem, seeds, a.lab_discs, folder)
     models = read_models(study / "regression" / "models.json")
     fixed = {k: v for k, v in planted.items() if k not in FREE}
-    inv = invert(models, targets, fixed, free=list(FREE), ratio=None, ranges=cfg["ranges"], seed=0)
+    inv = invert(models,
+                 targets,
+                 fixed,
+                 SearchSpace(ranges=cfg["ranges"], free=list(FREE), ratio=None),
+                 search=Multistart(seed=0))
     card = {"parameters": inv.solution, "roles": {k: ("free" if k in FREE else "fixed")
                                                   for k in inv.solution},
             "ranges": cfg["ranges"], "targets": targets, "target_se": se,

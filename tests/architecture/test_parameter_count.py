@@ -24,10 +24,6 @@ _STAGE = ("a stage function: its arguments are the CLI's options one to one; to 
 ALLOWED = {
     'analysis/calibration/bootstrap.py:bootstrap_intervals': (
         "the bootstrap's data, models and resampling settings; to take a settings value"),
-    'analysis/calibration/inversion.py:invert': (
-        "the inversion's models, targets, box and options; to take a settings value"),
-    'analysis/calibration/inversion.py:_verdict': (
-        "the inversion's verdict from its many results; to take the result object"),
     'io/h5.py:write_run': (
         "a run file's parts (summary, series, arrays, cost, provenance) as keywords"),
     'io/h5.py:_fill': (

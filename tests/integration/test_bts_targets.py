@@ -14,7 +14,7 @@ import pytest
 import yaml
 from support.synthetic import FIXED, RANGES, TRUTH, dem_response, models, predict, write_models
 
-from bpmcal.analysis.calibration import LoopSettings, invert
+from bpmcal.analysis.calibration import LoopSettings, Multistart, SearchSpace, invert
 from bpmcal.cli import main
 from bpmcal.io.h5 import check_run_file, write_run
 from bpmcal.lab.runner import Geometry
@@ -131,7 +131,7 @@ def test_a_lab_csv_without_bts_is_calibrated_as_before(d, tmp_path):
         if k not in ("provenance", "lab"):
             assert a[k] == b[k], k
     targets = {k: T[k] for k in ("ucs_MPa", "E_GPa", "nu")}
-    ref = invert(models(), targets, FIXED, ratio=1.4, ranges=R, seed=0)
+    ref = invert(models(), targets, FIXED, SearchSpace(ranges=R, ratio=1.4), search=Multistart(seed=0))
     assert a["targets"] == pytest.approx(targets)
     assert a["status"] == ref.status and a["missed"] == []
     for k in PARAMS:

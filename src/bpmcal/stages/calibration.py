@@ -17,7 +17,13 @@ import pandas as pd
 
 from .. import params as P
 from ..analysis import PAPER_RATIO, bootstrap_intervals, invert
-from ..analysis.calibration import bts_strengths, check_calibration_space, tensile_target
+from ..analysis.calibration import (
+    Multistart,
+    SearchSpace,
+    bts_strengths,
+    check_calibration_space,
+    tensile_target,
+)
 from ..analysis.calibration.reach import prediction_errors
 from ..io.card import write_card
 from ..io.checks import BadInput, read_json
@@ -97,8 +103,12 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
     for rec, targets in jobs:
         spec = str(rec["specimen"])
         s_free, s_ratio, ratio_by = bts_strengths(targets, free, fixed, ratio)
-        inv = invert(model_set, targets, fixed, free=s_free, bounds=bounds, ratio=s_ratio,
-                     ranges=ranges, seed=seed, errors=errors,
+        inv = invert(model_set,
+                     targets,
+                     fixed,
+                     SearchSpace(ranges=ranges, free=s_free, ratio=s_ratio, bounds=bounds),
+                     search=Multistart(seed=seed),
+                     errors=errors,
                      target_se=lab_target_se(rec, targets))
         if n_boot:
             boot = bootstrap_intervals(df, model_set, targets, fixed, free=s_free,

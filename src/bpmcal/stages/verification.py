@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from .. import params as P
-from ..analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps
+from ..analysis.calibration import ClosedLoop, LoopSeeds, LoopSteps, SearchSpace
 from ..analysis.calibration.loop_settings import LoopSettings
 from ..analysis.calibration.specimens import MISS_ACCEPTED
 from ..io.card import read_card, write_card
@@ -109,7 +109,7 @@ def _dem_loop(c: dict, model_set, targets: dict, *, params: dict, run, bts_run=N
                                     and np.isfinite(jac.loc[list(targets), list(free)]
                                                     .to_numpy(float)).all()):
             jac = None  # learned for other targets or parameters: start from the models
-        space = LoopSpace(ranges=c["ranges"], free=free, ratio=ratio,
+        space = SearchSpace(ranges=c["ranges"], free=free, ratio=ratio,
                           bounds=c.get("calibration_bounds") or None)
         steps = LoopSteps(rtol=loop.rtol if rtol is None else rtol, max_rounds=loop.max_rounds,
                           margin=loop.range_margin, polish=loop.polish,

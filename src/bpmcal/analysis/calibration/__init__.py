@@ -21,8 +21,8 @@ The package holds one concept per module:
   (the seed scatter job that runs the DEM for it is ``bpmcal.stages.seed_scatter``).
 """
 from .bootstrap import BootstrapResults, bootstrap_intervals
-from .closed_loop import ClosedLoop, ClosedLoopResult, LoopSeeds, LoopSpace, LoopSteps
-from .inversion import InversionResult, invert
+from .closed_loop import ClosedLoop, ClosedLoopResult, LoopSeeds, LoopSteps
+from .inversion import InversionResult, Multistart, invert
 from .loop_settings import UPDATES, LoopSettings
 from .scatter import scatter_table
 from .space import (
@@ -30,12 +30,14 @@ from .space import (
     PAPER_FIXED,
     PAPER_RATIO,
     CalibrationSpace,
+    SearchSpace,
     bts_strengths,
     check_calibration_space,
     tensile_target,
 )
 
 __all__ = ["UPDATES", "PAPER_RATIO", "PAPER_FIXED", "DEFAULT_FREE", "tensile_target", "bts_strengths",
-           "CalibrationSpace", "check_calibration_space", "InversionResult", "invert", "BootstrapResults",
-           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "LoopSeeds", "LoopSpace", "LoopSteps",
+           "CalibrationSpace", "check_calibration_space", "InversionResult", "Multistart", "invert",
+           "BootstrapResults",
+           "bootstrap_intervals", "ClosedLoop", "ClosedLoopResult", "LoopSeeds", "LoopSteps", "SearchSpace",
            "LoopSettings", "scatter_table"]

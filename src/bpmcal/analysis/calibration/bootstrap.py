@@ -20,8 +20,8 @@ import pandas as pd
 
 from .._common import seed_from, usable_rows
 from ..stepwise import RegressionModel, StepwiseRegression
-from .inversion import InversionResult, invert
-from .space import PAPER_RATIO, _check_targets
+from .inversion import InversionResult, Multistart, invert
+from .space import PAPER_RATIO, SearchSpace, _check_targets
 
 
 @dataclass
@@ -84,7 +84,11 @@ def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel],
     rows = usable_rows(df, needed)
     data = rows.data
     rng = np.random.default_rng(seed)
-    base = invert(models, targets, fixed, free, bounds, ratio, ranges=ranges, seed=seed_from(rng), tol=tol)
+    base = invert(models,
+                  targets,
+                  fixed,
+                  SearchSpace(ranges=ranges, free=free, ratio=ratio, bounds=bounds),
+                  search=Multistart(seed=seed_from(rng), tol=tol))
     designs = {r: (models[r].design(data), data[r].to_numpy(float)) for r in responses}
     start = [{p: base.solution[p] for p in base.free}]
     recs = []
@@ -99,8 +103,12 @@ def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel],
                 boot[r] = models[r].with_coefficients(beta[0], beta[1:])
         else:
             boot = reselect.fit(data.iloc[idx], {r: candidates[r] for r in responses}).final_models
-        inv = invert(boot, targets, fixed, free, bounds, ratio, ranges=ranges, n_starts=n_starts,
-                     seed=seed_from(rng), tol=tol, x0=start, diagnose=False)
+        inv = invert(boot,
+                     targets,
+                     fixed,
+                     SearchSpace(ranges=ranges, free=free, ratio=ratio, bounds=bounds),
+                     search=Multistart(n_starts=n_starts, seed=seed_from(rng), tol=tol, diagnose=False),
+                     x0=start)
         rec = {"resample": b, "status": inv.status, "reachable": inv.reachable}
         rec.update({p: inv.solution[p] for p in inv.free + inv.derived})
         rec.update({f"{r}@estimate": float(boot[r].predict(base.solution)) for r in responses})

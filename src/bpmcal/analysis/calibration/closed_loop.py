@@ -44,8 +44,8 @@ from .seed_policy import (
     round_seeds,
 )
 from .space import (
-    PAPER_RATIO,
     CalibrationSpace,
+    SearchSpace,
     _check_ranges,
     _check_targets,
     _default_free,
@@ -137,18 +137,6 @@ def _loop_options(responses, rtol, max_rounds, margin, polish, update, grow_with
 
 
 @dataclass(frozen=True)
-class LoopSpace:
-    """Where a :class:`ClosedLoop` may go: the design ``ranges`` (required), the ``free``
-    parameters (None: the contact model's default set), the bond-strength ``ratio`` (None:
-    both strengths free) and optional narrower ``bounds``; as for :func:`invert`."""
-
-    ranges: Mapping[str, Sequence[float]]
-    free: Sequence[str] | None = None
-    ratio: float | None = PAPER_RATIO
-    bounds: Mapping[str, Sequence[float]] | None = None
-
-
-@dataclass(frozen=True)
 class LoopSteps:
     """How a :class:`ClosedLoop` judges and takes its rounds: ``rtol``, ``max_rounds``,
     ``margin``, ``polish``, ``update``, ``damping``, ``max_step``, ``min_step``,
@@ -183,7 +171,7 @@ class LoopSeeds:
 class ClosedLoop:
     """Newton-Broyden closed-loop correction of a calibration with the simulator itself.
 
-    Its options come in three values: ``space`` (:class:`LoopSpace`: ``free``, ``ratio``,
+    Its options come in three values: ``space`` (:class:`~.space.SearchSpace`: ``free``, ``ratio``,
     ``ranges``, ``bounds``), ``steps`` (:class:`LoopSteps`: ``rtol``, ``max_rounds``,
     ``margin``, ``polish``, ``update``, ``damping``, ``max_step``, ``min_step``,
     ``broyden``, ``z``) and ``seeding`` (:class:`LoopSeeds`: ``seeds_per_round``,
@@ -307,7 +295,7 @@ class ClosedLoop:
     """
 
     def __init__(self, simulate: Callable[[dict], Mapping[str, float]], targets: Mapping[str, float], *,
-                 space: LoopSpace, models: Mapping[str, RegressionModel] | None = None,
+                 space: SearchSpace, models: Mapping[str, RegressionModel] | None = None,
                  jacobian: pd.DataFrame | None = None, steps: LoopSteps = LoopSteps(),
                  seeding: LoopSeeds = LoopSeeds(), target_se: Mapping[str, float] | None = None,
                  report: Callable[[str], None] | None = None,

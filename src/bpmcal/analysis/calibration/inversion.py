@@ -23,7 +23,7 @@ from bpmcal.params import BTS
 from ..stepwise import RegressionModel
 from .fit import _fit, _fmt_pct, _lhs
 from .reach import reach_text, reach_within_error
-from .space import PAPER_RATIO, CalibrationSpace, _check_targets, tensile_target
+from .space import CalibrationSpace, SearchSpace, _check_targets, tensile_target
 from .widen import _what_to_widen
 
 
@@ -110,11 +110,28 @@ class InversionResult:
 
 
 
-def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], fixed: Mapping[str, float],
-           free: Sequence[str] | None = None, bounds: Mapping[str, Sequence[float]] | None = None,
-           ratio: float | None = PAPER_RATIO, *, ranges: Mapping[str, Sequence[float]], n_starts: int = 24,
-           seed: int = 0, tol: float = 1e-3, distinct: float = 0.02, x0: Sequence[Mapping[str, float]] = (),
-           diagnose: bool = True, errors: Mapping | None = None,
+@dataclass(frozen=True)
+class Multistart:
+    """How :func:`invert` searches: ``n_starts`` Latin-hypercube starting points in the
+    free-parameter box (``seed``); ``tol``, the largest relative residual that counts as
+    meeting the targets; ``distinct``, solutions further apart than this fraction of a
+    range are distinct; ``diagnose``, say what to widen when the targets are missed."""
+
+    n_starts: int = 24
+    seed: int = 0
+    tol: float = 1e-3
+    distinct: float = 0.02
+    diagnose: bool = True
+
+    def __post_init__(self):
+        if not self.tol > 0 or not self.distinct > 0:
+            raise ValueError(f"tol={self.tol!r}, distinct={self.distinct!r}: expected positive "
+                             "numbers")
+
+
+def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float],
+           fixed: Mapping[str, float], space: SearchSpace, *, search: Multistart = Multistart(),
+           x0: Sequence[Mapping[str, float]] = (), errors: Mapping | None = None,
            target_se: Mapping[str, float] | None = None) -> InversionResult:
     """Solve the regression models for the free parameters that reproduce ``targets``.
 
@@ -127,31 +144,24 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
     fixed:
         parameter -> value for the parameters held fixed (paper: :data:`PAPER_FIXED` plus
         ``pb_fa_deg`` and ``fric``). A fixed value outside its range in ``ranges`` is an error.
-    free:
-        parameters to solve for (default :data:`DEFAULT_FREE`, plus ``pb_ten_MPa`` when
-        ``ratio`` is None).
-    bounds:
-        parameter -> (lo, hi) narrowing ``ranges`` for a free (or the derived) parameter;
-        bounds reaching beyond ``ranges`` are an error (the regression is not valid there).
-    ratio:
-        ``pb_ten_MPa / pb_coh_MPa`` (default 1.4), or None for independent strengths.
-    ranges:
-        The design space: parameter -> (lo, hi) the dataset was sampled over (the study
-        config's ``ranges``, paper units); required for every free parameter and for
-        ``pb_ten_MPa`` with a ratio. The free parameters are confined to it.
-    n_starts, seed:
-        Latin-hypercube starting points in the free-parameter box (seeded).
-    tol:
-        Largest relative residual that counts as meeting the targets.
-    distinct:
-        Solutions further apart than this fraction of a range (in some free parameter)
-        are distinct.
-    x0:
-        Extra starting points (mappings holding the free parameters), tried first.
-    diagnose:
-        For ``unreachable`` and ``no-exact-fit``, search the extrapolated regression for
+    space:
+        The :class:`~.space.SearchSpace`: ``ranges``, the design space (parameter -> (lo,
+        hi) the dataset was sampled over, the study config's ``ranges``, paper units;
+        required for every free parameter and for the tensile strength with a ratio: the
+        free parameters are confined to it); ``free``, the parameters to solve for
+        (default :data:`DEFAULT_FREE`, plus ``pb_ten_MPa`` when ``ratio`` is None);
+        ``ratio``, ``pb_ten_MPa / pb_coh_MPa`` (default 1.4; None: independent
+        strengths); ``bounds``, parameter -> (lo, hi) narrowing ``ranges`` for a free (or
+        the derived) parameter (bounds reaching beyond ``ranges`` are an error: the
+        regression is not valid there).
+    search:
+        :class:`Multistart`: the starting points and their seed, the residual that counts
+        as met (``tol``), when two solutions are distinct, and ``diagnose``: for
+        ``unreachable`` and ``no-exact-fit``, search the extrapolated regression for
         which configured limit to widen and how far (``widen``, ``advice``; costs one more
         multi-start), and with a σt target the spans the models reach (``reach``).
+    x0:
+        Extra starting points (mappings holding the free parameters), tried first.
     errors, target_se:
         The models' prediction errors (:func:`~.reach.prediction_errors`) and the lab
         values' standard errors: when the targets are not met exactly, whether the miss
@@ -161,24 +171,22 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
         ``unreachable`` with the probability stated. Without ``errors`` the models are
         taken as exact (the bootstrap's resamples).
     """
-    space = CalibrationSpace(free, fixed, ratio, ranges, bounds)
+    tol = search.tol
+    space = CalibrationSpace(space.free, fixed, space.ratio, space.ranges, space.bounds)
     responses, t = _check_targets(targets, models)
     space.check_models(models, responses)
-    if not tol > 0 or not distinct > 0:
-        raise ValueError(f"tol={tol!r}, distinct={distinct!r}: expected positive numbers")
     fits = _fit(space, models, responses, t, space.lo, space.hi, [space.free_values(p) for p in x0],
-                n_starts, seed)
+                search.n_starts, search.seed)
     fits = [(c, m, space.u(x), r) for c, m, x, r in fits]
     best_cost, best_max, best_u, best_r = fits[0]
     reachable = best_max <= tol
-    kept = _distinct(fits, reachable, tol, distinct)
+    kept = _distinct(fits, reachable, tol, search.distinct)
     alternatives = _fits_frame(space, models, responses, kept)
     start_frame = _fits_frame(space, models, responses, fits)
     solution = space.full(space.x(best_u))
     edges = space.at_bound(best_u)
-    v = _verdict(space, models, targets, responses, t, best_u, best_r, reachable, len(kept), edges,
-                 tol=tol, n_starts=n_starts, seed=seed, diagnose=diagnose, errors=errors,
-                 target_se=target_se)
+    v = _verdict(space, models, targets, responses, t, (best_u, best_r), reachable, len(kept),
+                 edges, search=search, errors=errors, target_se=target_se)
     status, message, widen, advice, reach, test = v
     return InversionResult(
         status=status, message=message, solution=solution, free=space.free, derived=space.derived,
@@ -191,12 +199,15 @@ def invert(models: Mapping[str, RegressionModel], targets: Mapping[str, float], 
         reach=reach, reach_test=test)
 
 
-def _verdict(space: CalibrationSpace, models, targets, responses, t, best_u, best_r, reachable: bool,
-             n_kept: int, edges, *, tol, n_starts, seed, diagnose, errors, target_se) -> tuple:
+def _verdict(space: CalibrationSpace, models, targets, responses, t, best: tuple, reachable: bool,
+             n_kept: int, edges, *, search: Multistart, errors, target_se) -> tuple:
     """The status and message of an inversion, with what to widen (``widen``, ``advice``),
     the σt spans (``reach``) and the test of the miss against the models' own error
     (``test``; :mod:`.reach`): a miss within that error is ``within-error`` and gets no
-    advice to widen or to change the model."""
+    advice to widen or to change the model. ``best``: the best fit's unit point and
+    residuals."""
+    best_u, best_r = best
+    tol, n_starts, seed, diagnose = search.tol, search.n_starts, search.seed, search.diagnose
     x_best = space.x(best_u)
     test = {}
     if not reachable and errors:

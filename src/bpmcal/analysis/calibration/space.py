@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,6 +34,20 @@ from .._common import check_params, check_responses
 from ..stepwise import RegressionModel
 
 PAPER_RATIO = 1.4
+
+
+@dataclass(frozen=True)
+class SearchSpace:
+    """Where a calibration may look (:func:`~.inversion.invert`, :class:`~.closed_loop.ClosedLoop`):
+    the design ``ranges`` (parameter -> (lo, hi), paper units; required), the ``free``
+    parameters (None: the contact model's default set, plus the tensile strength when
+    ``ratio`` is None), the bond-strength ``ratio`` σ/τ (None: both strengths free) and
+    optional narrower ``bounds``."""
+
+    ranges: Mapping[str, Sequence[float]]
+    free: Sequence[str] | None = None
+    ratio: float | None = PAPER_RATIO
+    bounds: Mapping[str, Sequence[float]] | None = None
 PAPER_FIXED: dict[str, float] = {P.POROSITY: 0.34, P.RMIN: 0.8}
 DEFAULT_FREE: tuple[str, ...] = P.LINEARPBOND.free
 _TEN, _COH = P.LINEARPBOND.strength

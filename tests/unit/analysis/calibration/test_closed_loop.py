@@ -3,7 +3,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps, invert, scatter_table
+from bpmcal.analysis.calibration import (
+    ClosedLoop,
+    LoopSeeds,
+    LoopSteps,
+    Multistart,
+    SearchSpace,
+    invert,
+    scatter_table,
+)
 from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.params import table2_ranges
 
@@ -36,7 +44,7 @@ class BiasedDEM:
 
 @pytest.fixture(scope="module")
 def start():
-    inv = invert(MODELS, TARGETS, FIXED, seed=0, ranges=T2)
+    inv = invert(MODELS, TARGETS, FIXED, SearchSpace(ranges=T2), search=Multistart(seed=0))
     assert inv.ok
     return inv.solution
 
@@ -45,7 +53,7 @@ def test_converges_within_a_few_rounds(start):
     dem = BiasedDEM()
     res = ClosedLoop(dem,
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8),
                      models=MODELS).run(start)
     assert res.converged and res.n_rounds <= 4
@@ -65,7 +73,7 @@ def test_converges_within_a_few_rounds(start):
 def test_broyden_update_satisfies_the_secant_condition(start):
     res = ClosedLoop(BiasedDEM(noise=0.0),
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=1e-4, max_rounds=3),
                      models=MODELS).run(start)
     h = res.history
@@ -79,7 +87,7 @@ def test_broyden_update_satisfies_the_secant_condition(start):
 def test_unreachable_target_does_not_converge(start):
     res = ClosedLoop(BiasedDEM(),
                      {**TARGETS, "ucs_MPa": 400.0},
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(max_rounds=6),
                      models=MODELS).run(start)
     assert not res.converged and res.status in ("stalled", "max_rounds")
@@ -91,7 +99,7 @@ def test_failed_simulation_stops_the_loop(start):
     broken = lambda p: {"ucs_MPa": np.nan, "E_GPa": 14.0, "nu": 0.2}
     res = ClosedLoop(broken,
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      models=MODELS).run(start)
     assert res.status == "failed" and res.n_rounds == 1
 
@@ -101,18 +109,18 @@ def test_explicit_jacobian_and_input_checks(start):
                      columns=["pb_emod_GPa", "pb_kratio", "pb_coh_MPa"])
     res = ClosedLoop(BiasedDEM(),
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(max_rounds=12),
                      jacobian=J).run(start)
     assert res.converged
     with pytest.raises(ValueError, match="exactly one"):
         ClosedLoop(BiasedDEM(),
                    TARGETS,
-                   space=LoopSpace(ranges=T2))
+                   space=SearchSpace(ranges=T2))
     with pytest.raises(ValueError, match="pb_ten_MPa"):
         ClosedLoop(BiasedDEM(),
                    TARGETS,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    models=MODELS).run({**start, "pb_ten_MPa": 20.0})
 
 
@@ -169,7 +177,7 @@ def test_seed_averaged_round_records_mean_cv_se_and_tolerance(start):
     dem = SeedDEM(3)
     res = ClosedLoop(dem,
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8),
                      models=MODELS).run(start)
     assert res.n_seeds == 3 and res.seeds == (1, 2, 3)  # the default: 3 seeds per round
@@ -207,7 +215,7 @@ def test_seed_averaged_loop_brackets_the_planted_truth_single_seed_does_not(star
         for rs in range(60):
             res = ClosedLoop(SeedDEM(rs),
                              TARGETS,
-                             space=LoopSpace(ranges=T2),
+                             space=SearchSpace(ranges=T2),
                              steps=LoopSteps(rtol=0.01, max_rounds=8),
                              seeding=LoopSeeds(seeds_per_round=k),
                              models=MODELS).run(start)
@@ -227,7 +235,7 @@ def test_more_seeds_converge_closer_to_the_planted_truth(start):
     def errors(k):
         return np.array([_truth_errors(ClosedLoop(SeedDEM(rs),
                                                   TARGETS,
-                                                  space=LoopSpace(ranges=T2),
+                                                  space=SearchSpace(ranges=T2),
                                                   steps=LoopSteps(rtol=0.01, max_rounds=8),
                                                   seeding=LoopSeeds(seeds_per_round=k),
                                                   models=MODELS).run(start))
@@ -248,28 +256,28 @@ def test_seed_arguments_are_checked():
     with pytest.raises(ValueError, match="takes no seed"):
         ClosedLoop(one_arg,
                    TARGETS,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    seeding=LoopSeeds(seeds_per_round=3),
                    models=MODELS)
     with pytest.raises(ValueError, match="takes no seed"):
         ClosedLoop(one_arg,
                    TARGETS,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    seeding=LoopSeeds(seeds=[1, 2]),
                    models=MODELS)
     assert ClosedLoop(one_arg,
                       TARGETS,
-                      space=LoopSpace(ranges=T2),
+                      space=SearchSpace(ranges=T2),
                       models=MODELS).seeds == (None,)
     dem = SeedDEM()
     assert ClosedLoop(dem,
                       TARGETS,
-                      space=LoopSpace(ranges=T2),
+                      space=SearchSpace(ranges=T2),
                       seeding=LoopSeeds(seeds=[7, 9]),
                       models=MODELS).seeds == (7, 9)
     assert ClosedLoop(dem,
                       TARGETS,
-                      space=LoopSpace(ranges=T2),
+                      space=SearchSpace(ranges=T2),
                       seeding=LoopSeeds(seeds_per_round=5),
                       models=MODELS).seeds_per_round == 5
     for bad in (LoopSeeds(seeds_per_round=0), LoopSeeds(seeds_per_round=2.0),
@@ -277,9 +285,9 @@ def test_seed_arguments_are_checked():
                 LoopSeeds(seeds=[1, 2], seeds_per_round=3), LoopSeeds(max_seeds=0),
                 LoopSeeds(max_seeds=4.0), LoopSeeds(max_seeds=True), LoopSeeds(max_seeds="10")):
         with pytest.raises(ValueError):
-            ClosedLoop(dem, TARGETS, space=LoopSpace(ranges=T2), models=MODELS, seeding=bad)
+            ClosedLoop(dem, TARGETS, space=SearchSpace(ranges=T2), models=MODELS, seeding=bad)
     with pytest.raises(ValueError):
-        ClosedLoop(dem, TARGETS, space=LoopSpace(ranges=T2), models=MODELS,
+        ClosedLoop(dem, TARGETS, space=SearchSpace(ranges=T2), models=MODELS,
                    steps=LoopSteps(z=-1.0))
 
 
@@ -289,7 +297,7 @@ def test_a_failed_seed_fails_the_round_and_names_the_seed(start):
         return {**out, "ucs_MPa": np.nan} if seed == 2 else out
     res = ClosedLoop(flaky,
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      models=MODELS).run(start)
     assert res.status == "failed" and "seed 2" in res.message and res.n_rounds == 1
     assert len(res.samples) == 3
@@ -304,7 +312,7 @@ def test_a_parameter_held_at_its_bound_lets_the_others_meet_their_targets(start)
     targets = {**TARGETS, "nu": 0.34}
     res = ClosedLoop(BiasedDEM(noise=0.0),
                      targets,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8),
                      models=MODELS).run(start)
     assert not res.converged and res.status in ("max_rounds", "stalled")
@@ -325,7 +333,7 @@ def test_a_margin_lets_the_loop_follow_a_target_just_outside_the_design_space(st
     dem = BiasedDEM(noise=0.0)
     res = ClosedLoop(dem,
                      targets,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8, margin=0.25),
                      models=MODELS).run(start)
     assert res.converged
@@ -343,7 +351,7 @@ def test_a_target_beyond_the_margin_is_held_at_the_widened_bound_and_named(start
     targets = {**TARGETS, "nu": 0.37}  # pb_kratio 6.23 > 5 + 0.25 x 4
     res = ClosedLoop(BiasedDEM(noise=0.0),
                      targets,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8, margin=0.25),
                      models=MODELS).run(start)
     assert not res.converged
@@ -359,7 +367,7 @@ def test_the_margin_never_widens_a_configured_narrowing(start):
     targets = {**TARGETS, "nu": 0.34}
     res = ClosedLoop(BiasedDEM(noise=0.0),
                      targets,
-                     space=LoopSpace(ranges=T2, bounds={"pb_kratio": [1.0, 4.5]}),
+                     space=SearchSpace(ranges=T2, bounds={"pb_kratio": [1.0, 4.5]}),
                      steps=LoopSteps(rtol=0.01, max_rounds=8, margin=0.25),
                      models=MODELS).run(start)
     assert not res.converged
@@ -374,25 +382,25 @@ def test_a_start_outside_the_design_space_needs_the_margin(start):
     with pytest.raises(ValueError, match="pb_kratio=5.4 outside"):
         ClosedLoop(BiasedDEM(),
                    TARGETS,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    models=MODELS).run(outside)
     res = ClosedLoop(BiasedDEM(),
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(max_rounds=1, margin=0.25),
                      models=MODELS).run(outside)
     assert res.history.loc[0, "pb_kratio"] == 5.4
     with pytest.raises(ValueError, match=r"outside \[0.8, 5.2\].*widened by the margin 0.05"):
         ClosedLoop(BiasedDEM(),
                    TARGETS,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    steps=LoopSteps(margin=0.05),
                    models=MODELS).run(outside)
     for bad in (-0.1, 1.5, float("nan"), True, "0.2"):
         with pytest.raises(ValueError, match="margin"):
             ClosedLoop(BiasedDEM(),
                        TARGETS,
-                       space=LoopSpace(ranges=T2),
+                       space=SearchSpace(ranges=T2),
                        steps=LoopSteps(margin=bad),
                        models=MODELS)
 
@@ -412,7 +420,7 @@ def test_a_grown_seed_set_removes_the_bias_of_the_first_seeds(start):
     assert np.mean(list(OffsetDEM.DEV.values())) == pytest.approx(0.0, abs=1e-15)
     fixed = ClosedLoop(OffsetDEM(),
                        TARGETS,
-                       space=LoopSpace(ranges=T2),
+                       space=SearchSpace(ranges=T2),
                        steps=LoopSteps(rtol=0.01, max_rounds=8),
                        models=MODELS).run(start)
     assert fixed.converged and fixed.n_seeds == 3
@@ -421,7 +429,7 @@ def test_a_grown_seed_set_removes_the_bias_of_the_first_seeds(start):
     dem = OffsetDEM()
     grown = ClosedLoop(dem,
                        TARGETS,
-                       space=LoopSpace(ranges=T2),
+                       space=SearchSpace(ranges=T2),
                        steps=LoopSteps(rtol=0.01, max_rounds=8),
                        seeding=LoopSeeds(max_seeds=10),
                        models=MODELS).run(start)
@@ -449,7 +457,7 @@ def test_growing_the_seed_set_brings_fresh_packings_closer_to_the_targets(start)
         for rs in range(100):
             res = ClosedLoop(SeedDEM(rs),
                              TARGETS,
-                             space=LoopSpace(ranges=T2),
+                             space=SearchSpace(ranges=T2),
                              steps=LoopSteps(rtol=0.01, max_rounds=8),
                              models=MODELS,
                              seeding=LoopSeeds(**kw)).run(start)
@@ -475,14 +483,14 @@ class TinyScatterDEM(SeedDEM):
 def test_a_converged_loop_polishes_towards_the_targets(start):
     plain = ClosedLoop(TinyScatterDEM(),
                        TARGETS,
-                       space=LoopSpace(ranges=T2),
+                       space=SearchSpace(ranges=T2),
                        steps=LoopSteps(rtol=0.01, max_rounds=8, polish=False),
                        models=MODELS).run(start)
     assert plain.converged and "polish" not in plain.message
     assert np.max(np.abs(_truth_errors(plain))) > 0.003  # inside 1 %, but well off
     res = ClosedLoop(TinyScatterDEM(),
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8),
                      models=MODELS).run(start)
     h = res.history
@@ -507,7 +515,7 @@ def test_a_polishing_step_that_leaves_the_tolerance_keeps_the_converged_round(st
 
     res = ClosedLoop(Step(),
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8),
                      models=MODELS).run(start)
     h = res.history
@@ -528,7 +536,7 @@ def test_a_failed_polishing_round_leaves_the_converged_card(start):
 
     res = ClosedLoop(Fails(),
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8),
                      models=MODELS).run(start)
     h = res.history
@@ -540,20 +548,20 @@ def test_a_failed_polishing_round_leaves_the_converged_card(start):
 def test_no_polishing_without_a_round_left_or_a_standard_error(start):
     last = ClosedLoop(TinyScatterDEM(),
                       TARGETS,
-                      space=LoopSpace(ranges=T2),
+                      space=SearchSpace(ranges=T2),
                       steps=LoopSteps(rtol=0.01, max_rounds=3),
                       models=MODELS).run(start)  # converges in round 3 of 3
     assert last.converged and last.n_rounds == 3 and "polish" not in last.message
     one = ClosedLoop(BiasedDEM(),
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8),
                      models=MODELS).run(start)  # one seed: no standard error to judge a miss by
     assert one.converged and not one.history["polish"].fillna(False).any()
     with pytest.raises(ValueError, match="polish"):
         ClosedLoop(BiasedDEM(),
                    TARGETS,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    steps=LoopSteps(polish="yes"),
                    models=MODELS)
 
@@ -569,7 +577,7 @@ def test_polishing_brings_the_rock_closer_to_the_targets(start):
         for rs in range(100):
             res = ClosedLoop(SeedDEM(rs),
                              TARGETS,
-                             space=LoopSpace(ranges=T2),
+                             space=SearchSpace(ranges=T2),
                              steps=LoopSteps(rtol=0.01, max_rounds=8, polish=polish),
                              seeding=LoopSeeds(seeds_per_round=3, max_seeds=10, grow_within=1),
                              models=MODELS).run(start)
@@ -593,7 +601,7 @@ def test_growing_near_the_targets_brings_the_rock_closer_than_growing_at_them(st
         for rs in range(100):
             res = ClosedLoop(SeedDEM(rs),
                              TARGETS,
-                             space=LoopSpace(ranges=T2),
+                             space=SearchSpace(ranges=T2),
                              steps=LoopSteps(rtol=0.01, max_rounds=8, polish=False),
                              seeding=LoopSeeds(seeds_per_round=3, max_seeds=10, grow_within=grow_within),
                              models=MODELS).run(start)
@@ -624,7 +632,7 @@ def test_the_seed_set_grows_within_grow_within_tolerances(start):
     tolerance 2 SE = 1.73 %: 1.15 tolerances off. With grow_within 2 the seed set grows in
     round 1 (judged then on the 10 seeds, mean +0.6 %: converged); with 1 it does not."""
     dem = OffsetSeeds({1: 0.005, 2: 0.020, 3: 0.035})
-    kw = dict(models=MODELS, space=LoopSpace(ranges=T2),
+    kw = dict(models=MODELS, space=SearchSpace(ranges=T2),
               steps=LoopSteps(rtol=0.01, max_rounds=2, polish=False))
     near = ClosedLoop(dem,
                       TARGETS,
@@ -645,7 +653,7 @@ def test_a_bad_grow_within_is_refused(start, bad):
     with pytest.raises(ValueError, match="grow_within"):
         ClosedLoop(SeedDEM(0),
                    TARGETS,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    seeding=LoopSeeds(grow_within=bad),
                    models=MODELS)
 
@@ -692,7 +700,7 @@ def _loop4(rs, seeding=LoopSeeds(seeds_per_round=3, max_seeds=10), **kw):
     steps = LoopSteps(**{"rtol": 0.01, "max_rounds": 8, **kw})
     return ClosedLoop(NoisyDEM(rs),
                       TARGETS4,
-                      space=LoopSpace(ranges=T2, free=FREE4, ratio=None),
+                      space=SearchSpace(ranges=T2, free=FREE4, ratio=None),
                       models=MODELS4,
                       steps=steps,
                       seeding=seeding).run(start)
@@ -747,7 +755,7 @@ def test_a_parameter_held_at_its_bound_is_probed(start):
     s = {**FIXED, "pb_emod_GPa": 13.2, "pb_kratio": 3.4, "pb_ten_MPa": 10.0, "pb_coh_MPa": 39.7}
     res = ClosedLoop(NoisyDEM(0, rho=1.0),
                      TARGETS4,
-                     space=LoopSpace(ranges=T2, free=FREE4, ratio=None),
+                     space=SearchSpace(ranges=T2, free=FREE4, ratio=None),
                      steps=LoopSteps(rtol=0.01, max_rounds=10),
                      seeding=LoopSeeds(seeds_per_round=3, max_seeds=10),
                      models=MODELS4).run(s)
@@ -763,7 +771,7 @@ def test_a_parameter_held_at_its_bound_is_probed(start):
 def _loop_for_broyden():
     loop = ClosedLoop(SeedDEM(),
                       TARGETS,
-                      space=LoopSpace(ranges=T2),
+                      space=SearchSpace(ranges=T2),
                       seeding=LoopSeeds(seeds_per_round=4),
                       models=MODELS)
     return loop, np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
@@ -809,7 +817,7 @@ def test_the_trust_region_grows_again_after_good_capped_steps():
 
     loop = ClosedLoop(SeedDEM(),
                       TARGETS,
-                      space=LoopSpace(ranges=T2),
+                      space=SearchSpace(ranges=T2),
                       steps=LoopSteps(max_step=0.2),
                       seeding=LoopSeeds(seeds_per_round=3),
                       models=MODELS)
@@ -854,7 +862,7 @@ def test_a_target_with_its_own_standard_error_is_met_within_both_errors(start):
     def loop(**kw):
         return ClosedLoop(TinyScatterDEM(),
                           targets,
-                          space=LoopSpace(ranges=T2),
+                          space=SearchSpace(ranges=T2),
                           steps=LoopSteps(rtol=0.01, max_rounds=4, polish=False),
                           models=MODELS,
                           **kw).run(truth)
@@ -870,13 +878,13 @@ def test_a_target_with_its_own_standard_error_is_met_within_both_errors(start):
     with pytest.raises(ValueError, match="target_se.ucs_MPa"):
         ClosedLoop(TinyScatterDEM(),
                    targets,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    models=MODELS,
                    target_se={"ucs_MPa": -1.0})
     with pytest.raises(ValueError, match="'bts_MPa' is not a target"):
         ClosedLoop(TinyScatterDEM(),
                    targets,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    models=MODELS,
                    target_se={"bts_MPa": 1.0})
 
@@ -898,7 +906,7 @@ def test_history_update_recovers_a_linear_response_once_the_steps_span_the_space
     rounds taken in turn, is not (it knows the last step's secant only)."""
     loop = ClosedLoop(SeedDEM(),
                       TARGETS,
-                      space=LoopSpace(ranges=T2),
+                      space=SearchSpace(ranges=T2),
                       steps=LoopSteps(update="history"),
                       seeding=LoopSeeds(seeds_per_round=3),
                       models=MODELS)
@@ -922,7 +930,7 @@ def test_history_update_of_two_rounds_is_broydens_least_change_update():
     along the step (Broyden's least-change update from the starting estimate)."""
     loop = ClosedLoop(SeedDEM(),
                       TARGETS,
-                      space=LoopSpace(ranges=T2),
+                      space=SearchSpace(ranges=T2),
                       steps=LoopSteps(update="history"),
                       seeding=LoopSeeds(seeds_per_round=3),
                       models=MODELS)
@@ -942,7 +950,7 @@ def test_history_update_weighs_each_round_by_its_noise():
     measured precisely moves it fully."""
     loop = ClosedLoop(SeedDEM(),
                       TARGETS,
-                      space=LoopSpace(ranges=T2),
+                      space=SearchSpace(ranges=T2),
                       steps=LoopSteps(update="history"),
                       seeding=LoopSeeds(seeds_per_round=3),
                       models=MODELS)
@@ -962,7 +970,7 @@ def test_history_update_weighs_each_round_by_its_noise():
 def test_history_loop_converges_on_the_biased_dem(start):
     res = ClosedLoop(BiasedDEM(),
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8, update="history"),
                      models=MODELS).run(start)
     assert res.converged and res.n_rounds <= 4
@@ -973,7 +981,7 @@ def test_unknown_update_rule_is_refused():
     with pytest.raises(ValueError, match="update='secant'"):
         ClosedLoop(SeedDEM(),
                    TARGETS,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    steps=LoopSteps(update="secant"),
                    models=MODELS)
 
@@ -984,7 +992,7 @@ def test_every_judged_round_is_reported(start):
     lines = []
     res = ClosedLoop(BiasedDEM(),
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8),
                      models=MODELS,
                      report=lines.append).run(start)
@@ -999,7 +1007,7 @@ def test_every_judged_round_is_reported(start):
 def test_a_rounds_seeds_run_at_once_take_the_same_path(start):
     """simulate_seeds (a round's seeds in one call, e.g. side by side on several CPUs)
     gives the loop the same rounds, steps, seed growth and card as one seed at a time."""
-    kw = dict(models=MODELS, steps=LoopSteps(rtol=0.01, max_rounds=8), space=LoopSpace(ranges=T2),
+    kw = dict(models=MODELS, steps=LoopSteps(rtol=0.01, max_rounds=8), space=SearchSpace(ranges=T2),
               seeding=LoopSeeds(seeds_per_round=3, max_seeds=10))
     one = ClosedLoop(SeedDEM(2), TARGETS, **kw).run(start)
     dem, batches = SeedDEM(2), []
@@ -1042,7 +1050,7 @@ def test_a_seed_cap_judges_that_response_on_its_first_seeds_only(start):
     dem = CappedDEM(5)
     res = ClosedLoop(dem,
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      steps=LoopSteps(rtol=0.01, max_rounds=8),
                      seeding=LoopSeeds(max_seeds=10, seed_caps={"ucs_MPa": 4}),
                      models=MODELS).run(start)
@@ -1077,7 +1085,7 @@ def test_a_seed_cap_does_not_grow_the_set_for_the_capped_response(start):
         g = np.random.default_rng([11, seed]).standard_normal()
         return {**t, "ucs_MPa": t["ucs_MPa"] * (1 + 0.06 * g)}
 
-    kw = dict(models=MODELS, steps=LoopSteps(rtol=0.02, max_rounds=8), space=LoopSpace(ranges=T2))
+    kw = dict(models=MODELS, steps=LoopSteps(rtol=0.02, max_rounds=8), space=SearchSpace(ranges=T2))
     free = ClosedLoop(dem, TARGETS, seeding=LoopSeeds(max_seeds=10), **kw).run(start)
     capped = ClosedLoop(dem,
                         TARGETS,
@@ -1093,7 +1101,7 @@ def test_a_failed_run_within_the_cap_still_fails_the_round(start):
         return {**out, "ucs_MPa": np.nan} if seed == 2 else out
     res = ClosedLoop(dem,
                      TARGETS,
-                     space=LoopSpace(ranges=T2),
+                     space=SearchSpace(ranges=T2),
                      seeding=LoopSeeds(seed_caps={"ucs_MPa": 2}),
                      models=MODELS).run(start)
     assert res.status == "failed" and "seed 2" in res.message
@@ -1104,7 +1112,7 @@ def test_bad_seed_caps_are_refused(start):
         with pytest.raises(ValueError, match="seed_caps"):
             ClosedLoop(SeedDEM(),
                        TARGETS,
-                       space=LoopSpace(ranges=T2),
+                       space=SearchSpace(ranges=T2),
                        seeding=LoopSeeds(seed_caps=bad),
                        models=MODELS)
 
@@ -1127,7 +1135,7 @@ def test_a_strength_falling_with_a_bond_strength_starts_the_loop_flat():
     notes = []
     loop = ClosedLoop(NoisyDEM(0),
                       TARGETS4,
-                      space=LoopSpace(ranges=T2, free=FREE4, ratio=None),
+                      space=SearchSpace(ranges=T2, free=FREE4, ratio=None),
                       steps=LoopSteps(max_rounds=1),
                       seeding=LoopSeeds(seeds_per_round=3),
                       models=TURNED,
@@ -1149,7 +1157,7 @@ def test_a_strength_falling_with_a_bond_strength_starts_the_loop_flat():
                        index=list(TARGETS4))
     given = ClosedLoop(NoisyDEM(0),
                        TARGETS4,
-                       space=LoopSpace(ranges=T2, free=FREE4, ratio=None),
+                       space=SearchSpace(ranges=T2, free=FREE4, ratio=None),
                        steps=LoopSteps(max_rounds=1),
                        seeding=LoopSeeds(seeds_per_round=3),
                        jacobian=jac)
@@ -1167,7 +1175,7 @@ def test_the_auto_budget_is_two_rounds_per_free_parameter(start):
     dem = BiasedDEM()
     three = ClosedLoop(dem,
                        TARGETS,
-                       space=LoopSpace(ranges=T2),
+                       space=SearchSpace(ranges=T2),
                        steps=LoopSteps(rtol=1e-7),
                        models=MODELS).run(start)
     assert three.status == "max_rounds" and three.n_rounds == 6 == three.max_rounds
@@ -1177,7 +1185,7 @@ def test_the_auto_budget_is_two_rounds_per_free_parameter(start):
     assert len(four.jacobian.columns) == 4
     fixed = ClosedLoop(BiasedDEM(),
                        TARGETS,
-                       space=LoopSpace(ranges=T2),
+                       space=SearchSpace(ranges=T2),
                        steps=LoopSteps(rtol=1e-7, max_rounds=3),
                        models=MODELS).run(start)
     assert fixed.n_rounds == 3 == fixed.max_rounds
@@ -1191,6 +1199,6 @@ def test_a_bad_round_budget_is_refused_naming_it(bad):
                                          "or 'auto'"):
         ClosedLoop(BiasedDEM(),
                    TARGETS,
-                   space=LoopSpace(ranges=T2),
+                   space=SearchSpace(ranges=T2),
                    steps=LoopSteps(max_rounds=bad),
                    models=MODELS)

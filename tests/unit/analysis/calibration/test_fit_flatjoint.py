@@ -8,7 +8,7 @@ from bpmcal.analysis.calibration import (
     CalibrationSpace,
     ClosedLoop,
     LoopSeeds,
-    LoopSpace,
+    SearchSpace,
     bts_strengths,
     invert,
 )
@@ -47,8 +47,10 @@ def test_the_space_takes_the_flat_joint_strength_pair():
 
 def test_a_planted_flat_joint_card_is_solved_back_and_the_loop_meets_it():
     t = targets(TRUTH)
-    inv = invert(MODELS, t, FIXED, ratio=None, free=(*P.FLATJOINT.free, "fj_ten_MPa"),
-                 ranges=RANGES)
+    inv = invert(MODELS,
+                 t,
+                 FIXED,
+                 SearchSpace(ranges=RANGES, free=(*P.FLATJOINT.free, "fj_ten_MPa"), ratio=None))
     assert inv.ok
     for k in ("fj_emod_GPa", "fj_kratio", "fj_ten_MPa", "fj_coh_MPa"):
         assert inv.solution[k] == pytest.approx(TRUTH[k], rel=1e-3)
@@ -60,7 +62,7 @@ def test_a_planted_flat_joint_card_is_solved_back_and_the_loop_meets_it():
 
     res = ClosedLoop(dem,
                      t,
-                     space=LoopSpace(ranges=RANGES, free=(*P.FLATJOINT.free, "fj_ten_MPa"), ratio=None),
+                     space=SearchSpace(ranges=RANGES, free=(*P.FLATJOINT.free, "fj_ten_MPa"), ratio=None),
                      seeding=LoopSeeds(seeds_per_round=1),
                      models=MODELS).run(inv.solution)
     assert res.converged

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from support.synthetic import FIXED, TRUTH, dem_response, models, predict
 
-from bpmcal.analysis.calibration import ClosedLoop, LoopSpace, LoopSteps, bts_strengths, invert
+from bpmcal.analysis.calibration import ClosedLoop, LoopSteps, Multistart, SearchSpace, bts_strengths, invert
 from bpmcal.params import BTS, table2_ranges
 
 T2 = table2_ranges()  # pb_ten_MPa, pb_coh_MPa in [10, 50]
@@ -26,7 +26,11 @@ def test_inversion_recovers_a_planted_ratio_from_a_planted_sigma_t(planted):
     truth = {**FIXED, **TRUTH, "pb_ten_MPa": planted * TRUTH["pb_coh_MPa"]}
     targets = predict(ms, truth)
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)  # configured 1.4 is overridden
-    res = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3)
+    res = invert(ms,
+                 targets,
+                 FIXED,
+                 SearchSpace(ranges=T2, free=free, ratio=ratio),
+                 search=Multistart(seed=3))
     assert res.status == "ok" and res.missed == [] and res.reach == {}
     got = res.solution["pb_ten_MPa"] / res.solution["pb_coh_MPa"]
     assert got == pytest.approx(planted, rel=1e-6)
@@ -34,7 +38,7 @@ def test_inversion_recovers_a_planted_ratio_from_a_planted_sigma_t(planted):
         assert res.solution[p] == pytest.approx(v, rel=1e-6), p
     # without σt the configured ratio would have been used and σt missed
     ucs_only = {k: v for k, v in targets.items() if k != BTS}
-    r14 = invert(ms, ucs_only, FIXED, ratio=1.4, ranges=T2, seed=3)
+    r14 = invert(ms, ucs_only, FIXED, SearchSpace(ranges=T2, ratio=1.4), search=Multistart(seed=3))
     assert r14.solution["pb_ten_MPa"] / r14.solution["pb_coh_MPa"] == pytest.approx(1.4)
     assert abs(ms[BTS].predict(r14.solution) / targets[BTS] - 1) > 0.01
 
@@ -60,7 +64,11 @@ def test_unreachable_ucs_over_bts_is_a_no_exact_fit_with_the_missed_targets():
     targets = predict(ms, truth)
     targets[BTS] = targets["ucs_MPa"] / 15.0  # σc/σt = 15: beyond what these models give
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)
-    res = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3)
+    res = invert(ms,
+                 targets,
+                 FIXED,
+                 SearchSpace(ranges=T2, free=free, ratio=ratio),
+                 search=Multistart(seed=3))
     assert res.status == "no-exact-fit" and not res.ok
     missed = {m["target"]: m for m in res.missed}
     assert BTS in missed  # the model's σt is too high for a σc/σt of 15
@@ -95,7 +103,11 @@ def test_a_sigma_c_out_of_range_stays_unreachable_with_sigma_t():
     top = {**FIXED, **TRUTH, "pb_coh_MPa": 50.0, "pb_ten_MPa": 50.0, "pb_kratio": 1.0}
     targets["ucs_MPa"] = 1.3 * ms["ucs_MPa"].predict(top)
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)
-    res = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3, diagnose=False)
+    res = invert(ms,
+                 targets,
+                 FIXED,
+                 SearchSpace(ranges=T2, free=free, ratio=ratio),
+                 search=Multistart(seed=3, diagnose=False))
     assert res.status == "unreachable"
     assert "ucs_MPa" in {m["target"] for m in res.missed}
 
@@ -113,10 +125,14 @@ def test_closed_loop_steers_sigma_t_with_the_ratio_free():
     sim = _dem(ms)
     targets = sim(truth)  # the planted truth, as the 'DEM' sees it
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)
-    start = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3).solution
+    start = invert(ms,
+                   targets,
+                   FIXED,
+                   SearchSpace(ranges=T2, free=free, ratio=ratio),
+                   search=Multistart(seed=3)).solution
     loop = ClosedLoop(sim,
                       targets,
-                      space=LoopSpace(ranges=T2, free=free, ratio=ratio),
+                      space=SearchSpace(ranges=T2, free=free, ratio=ratio),
                       steps=LoopSteps(rtol=1e-3, max_rounds=8),
                       models=ms)
     res = loop.run(start)
@@ -131,11 +147,14 @@ def test_closed_loop_with_an_unreachable_sigma_t_records_the_miss():
     targets = sim({**FIXED, **TRUTH, "pb_ten_MPa": 35.0})
     targets[BTS] = targets["ucs_MPa"] / 15.0
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)
-    start = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3,
-                   diagnose=False).solution
+    start = invert(ms,
+                   targets,
+                   FIXED,
+                   SearchSpace(ranges=T2, free=free, ratio=ratio),
+                   search=Multistart(seed=3, diagnose=False)).solution
     res = ClosedLoop(sim,
                      targets,
-                     space=LoopSpace(ranges=T2, free=free, ratio=ratio),
+                     space=SearchSpace(ranges=T2, free=free, ratio=ratio),
                      steps=LoopSteps(max_rounds=4),
                      models=ms).run(start)
     assert not res.converged
@@ -149,7 +168,11 @@ def test_a_sigma_c_over_sigma_t_below_the_reach_advises_a_wider_tensile_range():
     targets = predict(ms, truth)
     targets[BTS] = targets["ucs_MPa"] / 3.0  # σc/σt = 3: below what these models give
     free, ratio, _ = bts_strengths(targets, None, FIXED, 1.4)
-    res = invert(ms, targets, FIXED, free=free, ratio=ratio, ranges=T2, seed=3)
+    res = invert(ms,
+                 targets,
+                 FIXED,
+                 SearchSpace(ranges=T2, free=free, ratio=ratio),
+                 search=Multistart(seed=3))
     assert res.status == "no-exact-fit"
     assert targets["ucs_MPa"] / targets[BTS] < res.reach["ucs_over_bts"][0]
     assert "widen the range of pb_ten_MPa upwards" in res.message

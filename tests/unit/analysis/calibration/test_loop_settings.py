@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSpace, LoopSteps
+from bpmcal.analysis.calibration import ClosedLoop, LoopSeeds, LoopSteps, SearchSpace
 from bpmcal.analysis.calibration.loop_settings import LIMITS, Limit, LoopSettings, check_loop_value
 from bpmcal.cli import build_parser
 from bpmcal.cli.options import loop_argv, loop_settings_of
@@ -68,7 +68,7 @@ def test_closed_loop_keywords_are_checked_by_the_same_limits():
                  else {"steps": LoopSteps(**{name: bad})})
         with pytest.raises(ValueError, match=f"{name}={bad!r}: expected") as e:
             ClosedLoop(lambda p, seed: {}, {"ucs_MPa": 1.0},
-                       space=LoopSpace(ranges={"pb_coh_MPa": [1, 2]}), jacobian=object(),
+                       space=SearchSpace(ranges={"pb_coh_MPa": [1, 2]}), jacobian=object(),
                        **where)
         assert str(e.value).endswith(LIMITS[field].expected())
     assert check_loop_value("range_margin", 0.5, "margin") == 0.5
