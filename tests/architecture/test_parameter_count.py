@@ -22,8 +22,6 @@ _STAGE = ("a stage function: its arguments are the CLI's options one to one; to 
 #: "path:qualified name" -> why it still takes more (each entry is a candidate for a
 #: settings value; the test below fails when an entry's function is gone or fits)
 ALLOWED = {
-    'analysis/calibration/bootstrap.py:bootstrap_intervals': (
-        "the bootstrap's data, models and resampling settings; to take a settings value"),
     'io/h5.py:write_run': (
         "a run file's parts (summary, series, arrays, cost, provenance) as keywords"),
     'io/h5.py:_fill': (

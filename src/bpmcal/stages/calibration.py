@@ -111,8 +111,9 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
                      errors=errors,
                      target_se=lab_target_se(rec, targets))
         if n_boot:
-            boot = bootstrap_intervals(df, model_set, targets, fixed, free=s_free,
-                                       bounds=bounds, ratio=s_ratio, ranges=ranges,
+            boot = bootstrap_intervals(df, model_set, targets, fixed,
+                                       SearchSpace(ranges=ranges, free=s_free, ratio=s_ratio,
+                                                   bounds=bounds),
                                        n_boot=n_boot, seed=seed)
             bootstrap = {"n_boot": n_boot, "scheme": boot.scheme,
                          "unreachable_resamples": boot.n_unreachable,

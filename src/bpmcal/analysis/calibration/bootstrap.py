@@ -21,7 +21,7 @@ import pandas as pd
 from .._common import seed_from, usable_rows
 from ..stepwise import RegressionModel, StepwiseRegression
 from .inversion import InversionResult, Multistart, invert
-from .space import PAPER_RATIO, SearchSpace, _check_targets
+from .space import SearchSpace, _check_targets
 
 
 @dataclass
@@ -56,21 +56,20 @@ class BootstrapResults:
             f"full-data inversion: {self.base.status} - {self.base.message}", "", self.intervals.to_string()])
 
 
-def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel], targets: Mapping[str, float],
-                        fixed: Mapping[str, float], free: Sequence[str] | None = None,
-                        bounds: Mapping[str, Sequence[float]] | None = None,
-                        ratio: float | None = PAPER_RATIO, *, ranges: Mapping[str, Sequence[float]],
-                        n_boot: int = 1000, level: float = 0.95, seed: int = 0,
-                        reselect: StepwiseRegression | None = None,
-                        candidates: Mapping[str, Sequence[str]] | None = None, n_starts: int = 0,
-                        tol: float = 1e-3) -> BootstrapResults:
+def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel],
+                        targets: Mapping[str, float], fixed: Mapping[str, float],
+                        space: SearchSpace, *, n_boot: int = 1000, level: float = 0.95,
+                        seed: int = 0, reselect: StepwiseRegression | None = None,
+                        candidates: Mapping[str, Sequence[str]] | None = None,
+                        search: Multistart = Multistart(n_starts=0)) -> BootstrapResults:
     """Case-resampling bootstrap of the calibration (see the module docstring).
 
     ``models`` are the full-data models whose terms are refitted in every resample (or,
     with ``reselect``, re-selected from ``candidates``; use ``cv_folds=0`` there for
-    speed). Each resample's inversion starts from the full-data solution plus ``n_starts``
-    Latin-hypercube points. ``ranges`` and ``bounds`` confine every inversion as in
-    :func:`invert` (the design space, optionally narrowed).
+    speed). Each resample's inversion starts from the full-data solution plus
+    ``search.n_starts`` Latin-hypercube points (``search.tol`` the residual that counts as
+    met; each inversion's seed is drawn from ``seed``). ``space`` confines every inversion
+    as in :func:`invert` (the design space, optionally narrowed).
     """
     if not isinstance(n_boot, (int, np.integer)) or n_boot < 2:
         raise ValueError(f"n_boot={n_boot!r}: expected an integer >= 2")
@@ -84,11 +83,8 @@ def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel],
     rows = usable_rows(df, needed)
     data = rows.data
     rng = np.random.default_rng(seed)
-    base = invert(models,
-                  targets,
-                  fixed,
-                  SearchSpace(ranges=ranges, free=free, ratio=ratio, bounds=bounds),
-                  search=Multistart(seed=seed_from(rng), tol=tol))
+    base = invert(models, targets, fixed, space,
+                  search=Multistart(seed=seed_from(rng), tol=search.tol))
     designs = {r: (models[r].design(data), data[r].to_numpy(float)) for r in responses}
     start = [{p: base.solution[p] for p in base.free}]
     recs = []
@@ -103,11 +99,9 @@ def bootstrap_intervals(df: pd.DataFrame, models: Mapping[str, RegressionModel],
                 boot[r] = models[r].with_coefficients(beta[0], beta[1:])
         else:
             boot = reselect.fit(data.iloc[idx], {r: candidates[r] for r in responses}).final_models
-        inv = invert(boot,
-                     targets,
-                     fixed,
-                     SearchSpace(ranges=ranges, free=free, ratio=ratio, bounds=bounds),
-                     search=Multistart(n_starts=n_starts, seed=seed_from(rng), tol=tol, diagnose=False),
+        inv = invert(boot, targets, fixed, space,
+                     search=Multistart(n_starts=search.n_starts, seed=seed_from(rng),
+                                       tol=search.tol, diagnose=False),
                      x0=start)
         rec = {"resample": b, "status": inv.status, "reachable": inv.reachable}
         rec.update({p: inv.solution[p] for p in inv.free + inv.derived})
