@@ -99,17 +99,17 @@ defaults (``BTSSettings``: the default study's `bts` section, tests/workflow/tes
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from ..dem.errors import InputError
 from .budget import Loading, platen_loading
-from .records import append_cracks, append_energies, loading_cracks
+from .driver import Loaded, LoadingTest, PeakTracker, record_common, run_test
+from .records import loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
-from .stepping import LoadingProgress, cycle, heartbeat, loading_bound
+from .stepping import cycle, loading_bound
 from .validity import INIT_MIN, bts_validity, per_contact
 
 #: how the disc is loaded: ISRM curved jaws or two planar platens
@@ -440,47 +440,6 @@ def seat(sp: Specimen, platens, st: BTSSettings) -> dict:
     return {"seat_steps": int(m.step - s0), "seat_load_N": F, "seat_ratio": float(ratio)}
 
 
-class PeakTracker:
-    """The peak of a Brazilian test: the load at which the disc splits, not the top of a
-    seating or contact-crushing event.
-
-    ``add(P, strain)`` takes every record (P the load) and returns True when the load has
-    dropped below ``stop_drop`` x the peak at least ``post_peak_strain`` strain after it; the
-    caller then says whether the disc split (``judge``: cracks formed since the peak reach
-    the central zone). A split ends the test at this peak. A drop without a split is a
-    contact event: it is recorded in ``events`` (its peak load and strain, the load it
-    dropped to), and the peak starts again from the current record, so the test loads on
-    and the split that follows sets the peak. ``peak_record`` is the index of the record
-    of the peak."""
-
-    def __init__(self, stop_drop: float, post_peak_strain: float):
-        self.stop_drop, self.post_peak_strain = float(stop_drop), float(post_peak_strain)
-        self.peak, self.peak_strain, self.peak_record = 0.0, 0.0, 0
-        self.events: list[dict] = []
-        self._n = 0  # records seen (the first, at zero load, is record 0)
-        self._last = (0.0, 0.0)
-
-    def add(self, load: float, strain: float) -> bool:
-        self._n += 1
-        k = self._n
-        self._last = (float(load), float(strain))
-        if load > self.peak:
-            self.peak, self.peak_strain, self.peak_record = float(load), float(strain), k
-        return (self.peak > 0 and load < self.stop_drop * self.peak
-                and strain - self.peak_strain >= self.post_peak_strain)
-
-    def judge(self, split: bool) -> bool:
-        """After a drop: True (stop) if the disc split, else record a contact event and
-        restart the peak from the current record."""
-        if split:
-            return True
-        load, strain = self._last
-        self.events.append({"record": self.peak_record, "load_N": self.peak,
-                            "strain": self.peak_strain, "drop_to_N": load})
-        self.peak, self.peak_strain, self.peak_record = load, strain, self._n
-        return False
-
-
 def _split_started(m, step0, since_step, centre, radius, half_band, zone) -> bool:
     """Whether the cracks formed after ``since_step`` (loading steps) reach the central
     zone of the loaded diameter: at least ``validity.INIT_MIN`` of them within ``zone`` R
@@ -525,127 +484,137 @@ def retest_seed(seed: int, k: int) -> int:
     return (int(seed) + int(k) * RETEST_SEED_STEP) % 2 ** 32
 
 
-def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) -> BTSResult:
-    """Run the test on the free disc ``sp`` (its model is modified: platens are added).
-    ``progress(dict)`` is called after every record with the latest values."""
-    st = settings
-    m = sp.model
-    D = sp.spec.diameter
-    t = sp.spec.height
-    R = 0.5 * D
-    loading = st.loading_at(D)
-    v = loading.velocity
-    dbar = 2.0 * float(m.radii.mean())
-    half_band = max(0.25 * R, 1.5 * dbar)
-    wb, wt = add_loaders(sp, st)
-    caps = install_contact_caps(sp, st.contact_cap, st.contact_cap_factor,
-                                st.contact_cap_bridge)
-    m.set_damping(st.damping)
-    m.set_timestep(None)
-    dt = m.dt
-    bound = loading_bound(m, st, loading)
-    seated = seat(sp, (wb, wt), st)
+class BrazilianTest(LoadingTest):
+    """The Brazilian test of a free disc as a ``driver.LabTest``: platens or jaws, contact
+    caps, seating, the fast approach (``on_record``: the approach speed's hook) and the
+    split check (``stop``: a drop is the split only when its cracks reach the central
+    zone, ``_split_started``)."""
 
-    def platens(speed):
-        m.set_wall_velocity(wb, velocity=(0.0, speed, 0.0))
-        m.set_wall_velocity(wt, velocity=(0.0, -speed, 0.0))
-        return max(1, int(round(st.record_strain * D / (2 * speed * dt))))  # steps per record
+    def __init__(self, sp: Specimen, settings: BTSSettings):
+        self.sp, self.settings, self.m = sp, settings, sp.model
 
-    approach = st.approach_velocity > v  # fast approach until the first crack(s)
-    until = approach_cracks(m, st.approach_damage)
-    n_rec = platens(st.approach_velocity if approach else v)
-    approach_strain = 0.0
-    c0 = m.positions[:, :2].mean(axis=0)  # disc centre (x, y)
-    yb0, yt0 = float(m.wall_position(wb)[1]), float(m.wall_position(wt)[1])
-    ser = {k: [] for k in BTS_SERIES}
-    e0 = m.energies()
-    e0_walls = e0["work_walls_each"][wb] + e0["work_walls_each"][wt]
-    step0 = m.step
-    t_start = m.time
-    t0 = time.perf_counter()
-    reason = "max_steps"
+    def prepare(self) -> None:
+        st, sp, m = self.settings, self.sp, self.m
+        self.D, self.t = sp.spec.diameter, sp.spec.height
+        self.R = 0.5 * self.D
+        loading = st.loading_at(self.D)
+        self.v = loading.velocity
+        self.dbar = 2.0 * float(m.radii.mean())
+        self.half_band = max(0.25 * self.R, 1.5 * self.dbar)
+        self.walls = add_loaders(sp, st)
+        self.caps = install_contact_caps(sp, st.contact_cap, st.contact_cap_factor,
+                                         st.contact_cap_bridge)
+        m.set_damping(st.damping)
+        m.set_timestep(None)
+        self.dt = m.dt
+        self.bound = loading_bound(m, st, loading)
+        self.seated = seat(sp, self.walls, st)
+        self.approach = st.approach_velocity > self.v  # fast approach until the first crack(s)
+        self.until = approach_cracks(m, st.approach_damage)
+        self._platens(st.approach_velocity if self.approach else self.v)
+        self.approach_strain = 0.0
+        self.c0 = m.positions[:, :2].mean(axis=0)  # disc centre (x, y)
+        wb, wt = self.walls
+        self.y0 = (float(m.wall_position(wb)[1]), float(m.wall_position(wt)[1]))
+        self.series = {k: [] for k in BTS_SERIES}
+        self.e0 = m.energies()
+        self.e0_walls = self.e0["work_walls_each"][wb] + self.e0["work_walls_each"][wt]
+        self.step0 = m.step
+        self.t_start = m.time
+        self.record()
+        self.stop_drop = split_drop(sp, st)
 
-    def record():
+    def _platens(self, speed: float) -> None:
+        wb, wt = self.walls
+        self.m.set_wall_velocity(wb, velocity=(0.0, speed, 0.0))
+        self.m.set_wall_velocity(wt, velocity=(0.0, -speed, 0.0))
+        self.n_rec = max(1, int(round(self.settings.record_strain * self.D
+                                      / (2 * speed * self.dt))))  # steps per record
+
+    def load_step(self) -> None:
+        cycle(self.m, self.n_rec)
+
+    def record(self) -> tuple[float, float]:
+        m, ser, (wb, wt), D = self.m, self.series, self.walls, self.D
         e = m.energies()
         fb = abs(m.wall_force(wb)[1])
         ft = abs(m.wall_force(wt)[1])
-        delta = (float(m.wall_position(wb)[1]) - yb0) + (yt0 - float(m.wall_position(wt)[1]))
+        delta = ((float(m.wall_position(wb)[1]) - self.y0[0])
+                 + (self.y0[1] - float(m.wall_position(wt)[1])))
         P = 0.5 * (fb + ft)
-        ser["step"].append(m.step - step0)
-        ser["time"].append(m.time - t_start)
+        record_common(self, e, self.e0, self.t_start)
         ser["displacement"].append(delta)
         ser["diametral_strain"].append(delta / D)
         ser["load"].append(P)
         ser["load_bottom"].append(fb)
         ser["load_top"].append(ft)
-        ser["tensile_stress"].append(float(tensile_strength(P, D, t)))
-        append_cracks(ser, m)
-        append_energies(ser, e, e0)
+        ser["tensile_stress"].append(float(tensile_strength(P, D, self.t)))
         ser["work_walls"].append(e["work_walls_each"][wb] + e["work_walls_each"][wt]
-                                 - e0_walls)
-        ser["unbalanced"].append(m.unbalanced_ratio())
-        ser["arc_deg"].append(math.degrees(0.5 * (_arc_half_angle(m, wb, c0)
-                                                  + _arc_half_angle(m, wt, c0))))
+                                 - self.e0_walls)
+        ser["arc_deg"].append(math.degrees(0.5 * (_arc_half_angle(m, wb, self.c0)
+                                                  + _arc_half_angle(m, wt, self.c0))))
         return P, delta / D
 
-    record()
-    drop = split_drop(sp, st)
-    track = PeakTracker(drop, st.post_peak_strain)
-    tell = LoadingProgress(progress, m, step0, bound, st.max_strain)
-    with heartbeat(lambda: tell(strain=ser["diametral_strain"][-1])):
-        while True:
-            if m.step - step0 >= st.max_steps:
-                reason = "max_steps"
-                break
-            cycle(m, n_rec)
-            P, eps = record()
-            if approach and ser["cracks_tension"][-1] + ser["cracks_shear"][-1] >= until:
-                approach, approach_strain = False, eps  # the first crack: load at v from here
-                n_rec = platens(v)
-            dropped = track.add(P, eps)
-            tell(strain=eps, stress_MPa=ser["tensile_stress"][-1] / 1e6,
-                 peak_MPa=float(tensile_strength(track.peak, D, t)) / 1e6,
-                 cracks=ser["cracks_tension"][-1] + ser["cracks_shear"][-1])
-            if dropped:
-                ip = track.peak_record
-                since = ser["step"][ip - 1] if ip > 0 else -1
-                if track.judge(_split_started(m, step0, since, c0, R, half_band,
-                                              st.central_zone)):
-                    reason = "post_peak_drop"
-                    break
-            if eps >= st.max_strain:
-                reason = "max_strain"
-                break
-    ip, events = track.peak_record, track.events
-    wall = time.perf_counter() - t0
-    series = {k: np.asarray(vv) for k, vv in ser.items()}
-    summ = analyse(series, D, t, ip)
-    ev = loading_cracks(m, step0, dt)  # relative to the start of loading (< 0: before)
-    upto = ev["step"] <= series["step"][ip]
-    central = np.hypot(*(ev["pos"][upto, :2] - c0).T) <= st.central_band * D
-    val = bts_validity(ev, series["step"], ip, centre=c0, radius=R, mean_ball_diameter=dbar,
-                       central_zone=st.central_zone, ended=reason == "post_peak_drop",
-                       contact="jaw" if st.loading == "jaws" else "platen")
-    summ.update(val)
-    summ["bts_MPa"] = summ["bts_peak_MPa"] if val["bts_valid"] else math.nan
-    summ.update({
-        "cracks_central_frac_peak": float(central.mean()) if central.size else math.nan,
-        "cracks_tension": int(series["cracks_tension"][-1]),
-        "cracks_shear": int(series["cracks_shear"][-1]),
-        "steps": int(m.step - step0), "wall_s": wall, "stop_reason": reason,
-        "dt": dt, "platen_velocity": v, "approach_velocity": st.approach_velocity,
-        "approach_strain": approach_strain, "loading": st.loading,
-        "diameter_mm": D * 1e3, "thickness_mm": t * 1e3,
-        "mean_ball_diameter_mm": dbar * 1e3, "balls_across": D / dbar,
-        "contact_events": len(events), "contact_cap_bonds": int(caps.size),
-        "contact_cap_bridge": cap_bridges(sp, st.contact_cap_bridge), "split_drop": drop,
-        "contact_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
-        "contact_event_max_MPa": (max(float(tensile_strength(e["load_N"], D, t))
-                                      for e in events) / 1e6 if events else 0.0),
-        "peak_step": int(series["step"][ip]),
-        "records": int(series["step"].size), **seated,
-    })
-    return BTSResult(summary=summ, series=series, cracks=ev, settings=st)
+    def on_record(self, load: float, strain: float) -> None:
+        ser = self.series
+        if self.approach and ser["cracks_tension"][-1] + ser["cracks_shear"][-1] >= self.until:
+            self.approach, self.approach_strain = False, strain  # load at v from here
+            self._platens(self.v)
+
+    def strain_now(self) -> float:
+        return self.series["diametral_strain"][-1]
+
+    def shown(self, load: float, peak: float) -> tuple[float, float]:
+        return (self.series["tensile_stress"][-1] / 1e6,
+                float(tensile_strength(peak, self.D, self.t)) / 1e6)
+
+    def post_peak(self, peak_strain: float) -> float:
+        return self.settings.post_peak_strain
+
+    def stop(self, tracker: PeakTracker) -> bool:
+        ip = tracker.peak_record
+        since = self.series["step"][ip - 1] if ip > 0 else -1
+        return _split_started(self.m, self.step0, since, self.c0, self.R, self.half_band,
+                              self.settings.central_zone)
+
+    def analyse(self, end: Loaded) -> BTSResult:
+        st, m, D, t = self.settings, self.m, self.D, self.t
+        ip, events = end.tracker.peak_record, end.tracker.events
+        series = {k: np.asarray(vv) for k, vv in self.series.items()}
+        summ = analyse(series, D, t, ip)
+        ev = loading_cracks(m, self.step0, self.dt)  # relative to the start of loading
+        upto = ev["step"] <= series["step"][ip]
+        central = np.hypot(*(ev["pos"][upto, :2] - self.c0).T) <= st.central_band * D
+        val = bts_validity(ev, series["step"], ip, centre=self.c0, radius=self.R,
+                           mean_ball_diameter=self.dbar, central_zone=st.central_zone,
+                           ended=end.reason == "post_peak_drop",
+                           contact="jaw" if st.loading == "jaws" else "platen")
+        summ.update(val)
+        summ["bts_MPa"] = summ["bts_peak_MPa"] if val["bts_valid"] else math.nan
+        caps = self.caps
+        summ["cracks_central_frac_peak"] = float(central.mean()) if central.size else math.nan
+        summ.update(end.summary(self))
+        summ.update({
+            "platen_velocity": self.v, "approach_velocity": st.approach_velocity,
+            "approach_strain": self.approach_strain, "loading": st.loading,
+            "diameter_mm": D * 1e3, "thickness_mm": t * 1e3,
+            "mean_ball_diameter_mm": self.dbar * 1e3, "balls_across": D / self.dbar,
+            "contact_events": len(events), "contact_cap_bonds": int(caps.size),
+            "contact_cap_bridge": cap_bridges(self.sp, st.contact_cap_bridge),
+            "split_drop": self.stop_drop,
+            "contact_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
+            "contact_event_max_MPa": (max(float(tensile_strength(e["load_N"], D, t))
+                                          for e in events) / 1e6 if events else 0.0),
+            "peak_step": int(series["step"][ip]), **self.seated,
+        })
+        return BTSResult(summary=summ, series=series, cracks=ev, settings=st)
+
+
+def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) -> BTSResult:
+    """Run the test on the free disc ``sp`` (its model is modified: platens are added):
+    :class:`BrazilianTest` on the lab-test driver (``driver.run_test``). ``progress(dict)``
+    is called after every record with the latest values."""
+    return run_test(BrazilianTest(sp, settings), progress)
 
 
 def settings_dict(st: BTSSettings) -> dict:
