@@ -65,7 +65,8 @@ One disc, one verdict: ``run_bts`` tests the disc it is given. ``runner.bts_test
 Brazilian test of the CLI, the API and the study) does what a laboratory does with a
 disc whose fracture did not start at its centre (ISRM: invalid, discarded): it tests
 another disc of the same card, up to ``retests`` (2) more, each packed with the next seed
-of :func:`retest_seed`, and keeps the first valid one. The run records ``discs`` (how many
+of ``seeds.retest_seed`` (the one seed scheme, :mod:`bpmcal.lab.seeds`), and keeps the first
+valid one. The run records ``discs`` (how many
 were tested), ``disc_seed`` (the packing seed of the disc kept) and ``discarded`` (each
 discarded disc's seed and reason); if every disc was invalid, the last one is recorded,
 invalid, and gives no σt. ``wall_s`` is the time of all of them.
@@ -471,17 +472,6 @@ def approach_cracks(m, damage: float) -> int:
     """The cracks that end a fast approach: ``damage`` x the bonds of model ``m`` now
     (rounded up), at least one."""
     return max(1, math.ceil(damage * m.bond_pairs()[0].size))
-
-
-#: the step between the packing seeds of a card's successive discs (a large prime, so
-#: that the retest discs of neighbouring seeds do not coincide)
-RETEST_SEED_STEP = 1_000_003
-
-
-def retest_seed(seed: int, k: int) -> int:
-    """The packing seed of the ``k``-th disc tested after an invalid one (``k`` = 0: the
-    first disc, ``seed`` itself), in [0, 2**32)."""
-    return (int(seed) + int(k) * RETEST_SEED_STEP) % 2 ** 32
 
 
 class BrazilianTest(LoadingTest):

@@ -27,7 +27,7 @@ from .. import params as P
 from ..cost import phase
 from ..dem._jit import numba, set_threads
 from ..dem.errors import InputError, InstabilityError
-from .brazilian import BTSSettings, retest_seed, run_bts
+from .brazilian import BTSSettings, run_bts
 from .brazilian import settings_dict as bts_dict
 from .budget import StepBudgetError
 from .direct_tension import DTTSettings, run_dtt
@@ -35,6 +35,7 @@ from .direct_tension import settings_dict as dtt_dict
 from .impact import ImpactSettings, run_impact
 from .impact import settings_dict as impact_dict
 from .packing_cache import get_packing
+from .seeds import retest_seed, retry
 from .servo import ServoError
 from .specimen import (
     DEFAULT_GENESIS,
@@ -344,8 +345,9 @@ def bts_test(params: dict, seed: int, geometry: Geometry | None = None,
              keep_particles: bool = True, genesis_max_steps: int | None = None) -> LabRun:
     """One Brazilian test (``lab.brazilian``) of packing ``seed``: the first valid of up to
     ``1 + settings.retests`` discs (an invalid disc is discarded and another packed with
-    ``retest_seed``; the summary's ``discs``, ``disc_seed`` and ``discarded`` say which);
-    ``geometry`` defaults to the ISRM disc 50 x 25 mm at scale 1 (``bts_geometry``)."""
+    ``seeds.retest_seed``, in ``seeds.retry``, the one retry loop; the summary's ``discs``,
+    ``disc_seed`` and ``discarded`` say which); ``geometry`` defaults to the ISRM disc
+    50 x 25 mm at scale 1 (``bts_geometry``)."""
     st = settings or BTSSettings()
     geo = geometry or bts_geometry()
     p = P.validate_params(params)
@@ -358,19 +360,20 @@ def bts_test(params: dict, seed: int, geometry: Geometry | None = None,
                          genesis_max_steps=genesis_max_steps, finite=("bts_MPa",),
                          cost_phase="bts" if k == 0 else "bts_retest")
 
-    # an invalid disc is discarded and another tested, as in the laboratory (lab.brazilian)
-    run, discarded, wall = disc(0), [], 0.0
-    k = 0
-    while not run.summary["bts_valid"] and k < st.retests:
-        discarded.append(f"seed {retest_seed(seed, k)}: {run.summary['bts_invalid_reason']}")
-        wall += run.summary["wall_s"]
-        k += 1
+    discarded, wall = [], [0.0]
+
+    def discard(k: int, run: LabRun) -> None:
+        reason = run.summary["bts_invalid_reason"]
+        discarded.append(f"seed {retest_seed(seed, k)}: {reason}")
+        wall[0] += run.summary["wall_s"]
         if progress is not None:
-            progress({"note": f"disc {k} invalid ({run.summary['bts_invalid_reason']}); "
-                              f"testing disc {k + 1} of at most {st.retests + 1}"})
-        run = disc(k)
+            progress({"note": f"disc {k + 1} invalid ({reason}); "
+                              f"testing disc {k + 2} of at most {st.retests + 1}"})
+
+    # an invalid disc is discarded and another tested, as in the laboratory (lab.brazilian)
+    run, k = retry(disc, st.retests + 1, lambda r: r.summary["bts_valid"], discard)
     run.summary.update(discs=k + 1, disc_seed=retest_seed(seed, k),
-                       discarded="; ".join(discarded), wall_s=wall + run.summary["wall_s"])
+                       discarded="; ".join(discarded), wall_s=wall[0] + run.summary["wall_s"])
     return run
 
 
