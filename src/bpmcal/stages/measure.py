@@ -29,12 +29,13 @@ from ..io.checks import BadInput
 from ..lab import seeds
 from ..lab.brazilian import BTSSettings
 from ..lab.direct_tension import DTTSettings
+from ..lab.registry import SAMPLE_KINDS
 from ..lab.runner import Geometry
 from ..lab.runner import bts_geometry as _isrm_disc
 from ..lab.triaxial import TriaxialSettings
 from ..lab.ucs import UCSSettings
 from ..params import SAMPLE_TESTS, TENSILE_TESTS
-from .runs import run_bts_file, run_dtt_file, run_triaxial_file, run_ucs_file
+from .runs import RUN_FILES
 
 #: the tensile tests by their test names (``bts``, ``dtt``: the values of
 #: ``params.TENSILE_TESTS``, response -> test), whose strength a seed may measure on several
@@ -55,8 +56,7 @@ def packing_seed_gap(max_retests: int = 10) -> tuple[int, int]:
 #: (``P.SAMPLE_TESTS``' tests: :func:`valid_tensile_run`). Looked up here at every call,
 #: never bound at import: the seam through which tests replace the DEM
 #: (``monkeypatch.setitem(measure.RUNNERS, "bts", fake)``)
-RUNNERS = {"ucs": run_ucs_file, "bts": run_bts_file, "dtt": run_dtt_file,
-           "tri": run_triaxial_file}
+RUNNERS = {key: RUN_FILES[k.name] for key, k in SAMPLE_KINDS.items()}
 
 
 def disc_geometry(geometry):
