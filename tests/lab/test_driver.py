@@ -220,3 +220,22 @@ def test_the_registry_covers_every_sample_test_and_the_stages_runners():
     assert set(gather.TEST_COLUMNS) == set(P.SAMPLE_TESTS.values())
     with pytest.raises(KeyError, match="expected one of ucs, bts, dtt, triaxial, impact"):
         registry.kind("shear")
+
+
+@pytest.mark.parametrize("name", [n for n, k in registry.LAB_TESTS.items() if k.test_class])
+@pytest.mark.parametrize("field, bad", [("damping", 1.0), ("stop_drop", 0.0),
+                                        ("max_strain", 0.6), ("max_steps", 0),
+                                        ("max_steps", 2.5), ("record_strain", 0.0),
+                                        ("record_strain", float("nan")),
+                                        ("post_peak_strain", -1e-4), ("fit_window", (0.6, 0.4))])
+def test_every_driven_test_checks_the_settings_they_share_alike(name, field, bad):
+    """The settings every driven test has are checked once (``check_loading_settings``):
+    the same bad value is refused by each test's settings with the same message (the
+    Brazilian test has no fit window)."""
+    from bpmcal.dem.errors import InputError
+
+    cls = registry.kind(name).settings
+    if field not in cls.__dataclass_fields__:
+        pytest.skip(f"{name} has no {field}")
+    with pytest.raises(InputError, match=f"^{field}="):
+        cls(**{field: bad})

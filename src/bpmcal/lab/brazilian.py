@@ -106,7 +106,14 @@ import numpy as np
 
 from ..dem.errors import InputError
 from .budget import Loading, platen_loading
-from .driver import Loaded, LoadingTest, PeakTracker, record_common, run_test
+from .driver import (
+    Loaded,
+    LoadingTest,
+    PeakTracker,
+    check_loading_settings,
+    record_common,
+    run_test,
+)
 from .records import loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
@@ -165,26 +172,16 @@ class BTSSettings:
         if not (self.platen_velocity > 0 and math.isfinite(self.platen_velocity)):
             raise InputError(f"platen_velocity={self.platen_velocity!r}: expected a positive "
                              "speed in m/s")
-        if not (0.0 <= self.damping < 1.0):
-            raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
         if not (self.platen_fric >= 0 and math.isfinite(self.platen_fric)):
             raise InputError(f"platen_fric={self.platen_fric!r}: expected a friction "
                              "coefficient >= 0")
-        if not (0.0 < self.stop_drop < 1.0):
-            raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
-        if not (0.0 < self.max_strain <= 0.5):
-            raise InputError(f"max_strain={self.max_strain!r}: expected a diametral strain "
-                             "in (0, 0.5]")
-        if not (self.record_strain > 0 and math.isfinite(self.record_strain)):
-            raise InputError(f"record_strain={self.record_strain!r}: expected > 0")
+        check_loading_settings(self)
         if not (math.isfinite(self.approach_velocity) and self.approach_velocity >= 0):
             raise InputError(f"approach_velocity={self.approach_velocity!r}: expected a speed "
                              ">= 0 in m/s (0: no fast approach)")
         if not (0.0 <= self.approach_damage < 1.0):  # NaN fails too
             raise InputError(f"approach_damage={self.approach_damage!r}: expected a fraction "
                              "of the bonds in [0, 1) (0: the first crack ends the approach)")
-        if not (self.post_peak_strain >= 0):
-            raise InputError(f"post_peak_strain={self.post_peak_strain!r}: expected >= 0")
         if not (0.0 < self.central_band <= 0.5):
             raise InputError(f"central_band={self.central_band!r}: expected a fraction of D "
                              "in (0, 0.5]")
@@ -195,8 +192,6 @@ class BTSSettings:
         if not (0.0 < self.seat_tol < 1.0 and self.seat_ratio > 0):
             raise InputError(f"seat_tol={self.seat_tol!r}, seat_ratio={self.seat_ratio!r}: "
                              "expected 0 < seat_tol < 1 and seat_ratio > 0")
-        if not (int(self.max_steps) > 0):
-            raise InputError(f"max_steps={self.max_steps!r}: expected a positive integer")
         if self.loading not in LOADINGS:
             raise InputError(f"loading={self.loading!r}: expected one of {', '.join(LOADINGS)}")
         if isinstance(self.jaw_ratio, bool) or not (

@@ -46,7 +46,7 @@ from ..dem.errors import InputError
 from ..dem.slots import FIX_VZ
 from ..exact_math import lsq_slope
 from .budget import Loading, platen_loading
-from .driver import Loaded, LoadingTest, record_common, run_test
+from .driver import Loaded, LoadingTest, check_loading_settings, record_common, run_test
 from .records import loading_cracks
 from .specimen import Specimen
 from .stepping import cycle, loading_bound
@@ -82,24 +82,10 @@ class DTTSettings:
                                            and math.isfinite(v)):
                 raise InputError(f"{name}={v!r}: expected a positive number")
         positive("grip_velocity", self.grip_velocity)
-        positive("record_strain", self.record_strain)
         if not (isinstance(self.grip_length, (int, float)) and 0.0 < self.grip_length < 0.45):
             raise InputError(f"grip_length={self.grip_length!r}: expected a fraction of the "
                              "height in (0, 0.45) at each end (the grips may not meet)")
-        if not (0.0 <= self.damping < 1.0):
-            raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
-        if not (0.0 < self.stop_drop < 1.0):
-            raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
-        if not (self.post_peak_strain >= 0):
-            raise InputError(f"post_peak_strain={self.post_peak_strain!r}: expected an axial "
-                             "strain >= 0")
-        if not (0.0 < self.max_strain <= 0.5):
-            raise InputError(f"max_strain={self.max_strain!r}: expected a strain in (0, 0.5]")
-        if not (int(self.max_steps) > 0):
-            raise InputError(f"max_steps={self.max_steps!r}: expected a positive integer")
-        lo, hi = self.fit_window
-        if not (0.0 <= lo < hi <= 1.0):
-            raise InputError(f"fit_window={self.fit_window!r}: expected 0 <= lo < hi <= 1")
+        check_loading_settings(self)
         if not (self.grip_clearance >= 0 and math.isfinite(self.grip_clearance)):
             raise InputError(f"grip_clearance={self.grip_clearance!r}: expected a number of "
                              "mean ball diameters >= 0")

@@ -20,7 +20,8 @@ what every test did the same way before, each in its own loop:
 - the common record columns (:func:`record_common`: step, time, crack counts, the
   engine's energy terms, the unbalanced-force ratio) and the common summary
   (:meth:`Loaded.summary`: final crack counts, steps, wall time, stop reason, time step,
-  records).
+  records);
+- the checks of the settings they share (:func:`check_loading_settings`).
 
 Hooks with defaults (:class:`LoadingTest`): ``on_record(stress, strain)`` after every
 loading record (the Brazilian test ends its fast approach there: the approach speed),
@@ -37,12 +38,42 @@ are energies integrated over the whole run. It shares the set-up of every test
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Protocol
 
+from ..dem.errors import InputError
 from .records import append_cracks, append_energies
 from .stepping import LoadingProgress, heartbeat
+
+
+def check_loading_settings(st) -> None:
+    """The checks of the settings every driven test has (its ``*Settings.__post_init__``
+    calls this beside its own): ``damping``, ``stop_drop``, ``max_strain``, ``max_steps``,
+    ``record_strain``, ``post_peak_strain`` and, where there is one, ``fit_window``. An
+    InputError naming the first bad value and what was expected."""
+    def number(v) -> bool:  # a real number (not a bool), finite; NaN fails
+        return (isinstance(v, (int, float)) or hasattr(v, "__float__")) and not isinstance(
+            v, bool) and math.isfinite(float(v))
+
+    checks = (
+        ("damping", lambda v: 0.0 <= v < 1.0, "a local damping in [0, 1)"),
+        ("stop_drop", lambda v: 0.0 < v < 1.0, "a fraction in (0, 1)"),
+        ("max_strain", lambda v: 0.0 < v <= 0.5, "a strain in (0, 0.5]"),
+        ("max_steps", lambda v: v > 0 and float(v).is_integer(), "a positive integer"),
+        ("record_strain", lambda v: v > 0, "a strain > 0"),
+        ("post_peak_strain", lambda v: v >= 0, "a strain >= 0"),
+    )
+    for name, ok, expected in checks:
+        v = getattr(st, name)
+        if not (number(v) and ok(v)):
+            raise InputError(f"{name}={v!r}: expected {expected}")
+    window = getattr(st, "fit_window", None)
+    if window is not None:
+        lo, hi = window
+        if not (0.0 <= lo < hi <= 1.0):
+            raise InputError(f"fit_window={window!r}: expected 0 <= lo < hi <= 1")
 
 
 class PeakTracker:

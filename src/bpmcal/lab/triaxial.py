@@ -63,7 +63,7 @@ import numpy as np
 
 from ..dem.errors import InputError
 from .budget import Loading, platen_loading
-from .driver import Loaded, LoadingTest, record_common, run_test
+from .driver import Loaded, LoadingTest, check_loading_settings, record_common, run_test
 from .records import LateralGauge, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
@@ -119,7 +119,7 @@ class TriaxialSettings:
         if self.strain_rate is not None and not (self.strain_rate > 0
                                                  and math.isfinite(self.strain_rate)):
             raise InputError(f"strain_rate={self.strain_rate!r}: expected a positive rate in 1/s")
-        for k in ("platen_velocity", "servo_vmax", "seat_stress", "record_strain"):
+        for k in ("platen_velocity", "servo_vmax", "seat_stress"):
             v = getattr(self, k)
             if not (v > 0 and math.isfinite(v)):
                 raise InputError(f"{k}={v!r}: expected a positive number (SI units)")
@@ -127,8 +127,7 @@ class TriaxialSettings:
             v = getattr(self, k)
             if not (v >= 0 and math.isfinite(v)):
                 raise InputError(f"{k}={v!r}: expected a number >= 0")
-        if not (0.0 <= self.damping < 1.0):
-            raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
+        check_loading_settings(self)
         if not (0.0 < self.servo_alpha <= 1.0):
             raise InputError(f"servo_alpha={self.servo_alpha!r}: expected 0 < alpha <= 1")
         if int(self.servo_interval) < 1 or int(self.gain_update) < 1:
@@ -137,13 +136,6 @@ class TriaxialSettings:
         if not (0.0 < self.consol_tol < 1.0 and self.consol_ratio > 0):
             raise InputError(f"consol_tol={self.consol_tol!r}, consol_ratio="
                              f"{self.consol_ratio!r}: expected 0 < tol < 1, ratio > 0")
-        if not (0.0 < self.stop_drop < 1.0):
-            raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
-        if not (0.0 < self.max_strain <= 0.5):
-            raise InputError(f"max_strain={self.max_strain!r}: expected a strain in (0, 0.5]")
-        lo, hi = self.fit_window
-        if not (0.0 <= lo < hi <= 1.0):
-            raise InputError(f"fit_window={self.fit_window!r}: expected 0 <= lo < hi <= 1")
 
 
 @dataclass

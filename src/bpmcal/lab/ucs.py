@@ -77,7 +77,7 @@ import numpy as np
 from ..dem.errors import InputError
 from ..exact_math import lsq_slope
 from .budget import Loading, platen_loading
-from .driver import Loaded, LoadingTest, record_common, run_test
+from .driver import Loaded, LoadingTest, check_loading_settings, record_common, run_test
 from .records import LateralGauge, loading_cracks
 from .specimen import Specimen, apply_end_caps
 from .stepping import cycle, loading_bound
@@ -161,17 +161,7 @@ class UCSSettings:
         if not (0.0 <= self.platen_fric <= 10.0):  # NaN fails too
             raise InputError(f"platen_fric={self.platen_fric!r}: expected a friction "
                              "coefficient in [0, 10]")
-        if not (0.0 <= self.damping < 1.0):
-            raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
-        if not (0.0 < self.stop_drop < 1.0):
-            raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
-        if not (0.0 < self.max_strain <= 0.5):
-            raise InputError(f"max_strain={self.max_strain!r}: expected a strain in (0, 0.5]")
-        lo, hi = self.fit_window
-        if not (0.0 <= lo < hi <= 1.0):
-            raise InputError(f"fit_window={self.fit_window!r}: expected 0 <= lo < hi <= 1")
-        if not (self.record_strain > 0 and math.isfinite(self.record_strain)):
-            raise InputError(f"record_strain={self.record_strain!r}: expected > 0")
+        check_loading_settings(self)
         check_approach(self.approach_velocity, self.approach_ramp)
 
 
