@@ -71,7 +71,8 @@ were tested), ``disc_seed`` (the packing seed of the disc kept) and ``discarded`
 discarded disc's seed and reason); if every disc was invalid, the last one is recorded,
 invalid, and gives no σt. ``wall_s`` is the time of all of them.
 
-The peak (``PeakTracker``) is the load at which the disc splits: when the load falls
+The peak (``driver.PeakTracker``; the test runs on the lab-test driver, ``lab.driver``, as
+:class:`BrazilianTest`) is the load at which the disc splits: when the load falls
 below ``split_drop`` of the peak (at least ``post_peak_strain`` diametral strain past it), the
 cracks formed since the peak must reach the central zone (``_split_started``); a drop
 without them is a contact event (a seating or crushing event at a loader, recorded in
@@ -552,9 +553,6 @@ class BrazilianTest(LoadingTest):
     def shown(self, load: float, peak: float) -> tuple[float, float]:
         return (self.series["tensile_stress"][-1] / 1e6,
                 float(tensile_strength(peak, self.D, self.t)) / 1e6)
-
-    def post_peak(self, peak_strain: float) -> float:
-        return self.settings.post_peak_strain
 
     def stop(self, tracker: PeakTracker) -> bool:
         ip = tracker.peak_record

@@ -3,13 +3,15 @@ parameters (paper units), get the packing (cached), build the specimen, run the 
 return everything a run file holds as a :class:`LabRun` (no file is written here: the
 stages in ``bpmcal.stages.runs`` write it, or a failure record).
 
-``ucs_test``, ``bts_test`` (Brazilian), ``dtt_test`` (direct tension), ``triaxial_test`` and
-``impact_test`` share these
-conventions. A run that goes numerically unstable, a specimen that cannot be built or
-does not settle, or a servo stage that does not converge raises one of
+:func:`lab_test` runs any test of the registry (``lab.registry.LAB_TESTS``: its driver
+class on ``lab.driver``, its specimen, boundary and checks); ``ucs_test``, ``bts_test``
+(Brazilian), ``dtt_test`` (direct tension) and ``triaxial_test`` are it by name, and
+``impact_test`` (not driven) shares its conventions. A run that goes numerically
+unstable, a specimen that cannot be built or does not settle, or a servo stage that does
+not converge raises one of
 :data:`RUN_FAILURES`: the run failed, which a study records as data (a failure record);
-any other exception is a bug. ``*_inputs`` give the inputs a run file records, also for
-a run that failed or was not run.
+any other exception is a bug. :func:`test_inputs` (``*_inputs`` by name) gives the inputs
+a run file records, also for a run that failed or was not run.
 
 ``genesis_max_steps`` bounds the settling of the specimen (``specimen.build_specimen``);
 ``progress`` receives the genesis phases (``{"phase", "steps", "ratio", "target",
