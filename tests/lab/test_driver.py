@@ -124,7 +124,7 @@ def test_the_driver_stops_where_the_curve_says():
     assert t.series["strain"][n_peak] == pytest.approx(1e-4)
     assert len(t.series["step"]) == n_stop + 1  # + the first record, before loading
     assert t.m.step == n_stop * N_REC == end.summary(t)["steps"]
-    assert end.summary(t)["records"] == n_stop + 1 and end.summary(t)["dt"] == DT
+    assert end.records(t) == n_stop + 1 and end.summary(t)["dt"] == DT
 
 
 def test_a_slow_fall_stops_only_below_stop_drop():

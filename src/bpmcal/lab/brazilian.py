@@ -588,7 +588,7 @@ class BrazilianTest(LoadingTest):
             "contact_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
             "contact_event_max_MPa": (max(float(tensile_strength(e["load_N"], D, t))
                                           for e in events) / 1e6 if events else 0.0),
-            "peak_step": int(series["step"][ip]), **self.seated,
+            "peak_step": int(series["step"][ip]), "records": end.records(self), **self.seated,
         })
         return BTSResult(summary=summ, series=series, cracks=ev, settings=st)
 

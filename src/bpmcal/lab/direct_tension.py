@@ -206,7 +206,7 @@ class DirectTensionTest(LoadingTest):
         summ.update(end.summary(self))
         summ.update({
             "grip_velocity": self.v, "strain_rate": 2 * self.v / self.H0,
-            "grip_balls_bottom": int(bot.size), "grip_balls_top": int(top.size),
+            "records": end.records(self), "grip_balls_bottom": int(bot.size), "grip_balls_top": int(top.size),
             "gauge_length_mm": (zt - zb) * 1e3, "diameter_mm": 2e3 * self.R0,
             "height_mm": self.H0 * 1e3, "mean_ball_diameter_mm": dbar * 1e3,
             "balls_across": 2.0 * self.R0 / dbar, "peak_step": int(series["step"][ip]),

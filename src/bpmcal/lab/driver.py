@@ -19,8 +19,8 @@ what every test did the same way before, each in its own loop:
   the strain, the stress and peak as ``shown``, the cracks, steps, ETA;
 - the common record columns (:func:`record_common`: step, time, crack counts, the
   engine's energy terms, the unbalanced-force ratio) and the common summary
-  (:meth:`Loaded.summary`: final crack counts, steps, wall time, stop reason, time step,
-  records);
+  (:meth:`Loaded.summary`: final crack counts, steps, wall time, stop reason, time step;
+  :meth:`Loaded.records`);
 - the checks of the settings they share (:func:`check_loading_settings`).
 
 Hooks with defaults (:class:`LoadingTest`): ``on_record(stress, strain)`` after every
@@ -171,13 +171,22 @@ class Loaded:
     tracker: PeakTracker
     wall_s: float
 
-    def summary(self, test) -> dict:
-        """The summary entries every test reports."""
+    def summary(self, test, before_stop: dict | None = None) -> dict:
+        """The summary entries every test reports: its final crack counts, steps, wall
+        time, (``before_stop``: a test's own entries here, the triaxial consolidation's
+        time), stop reason and time step. The number of records (:meth:`records`) each
+        test places itself: the order of a summary's keys is the order of the columns of
+        the tables built from it (a closed loop's seed table), kept as it was."""
         ser, m = test.series, test.m
         return {"cracks_tension": int(ser["cracks_tension"][-1]),
                 "cracks_shear": int(ser["cracks_shear"][-1]),
                 "steps": int(m.step - test.step0), "wall_s": self.wall_s,
-                "stop_reason": self.reason, "dt": test.dt, "records": len(ser["step"])}
+                **(before_stop or {}), "stop_reason": self.reason, "dt": test.dt}
+
+    @staticmethod
+    def records(test) -> int:
+        """The number of records of the test's series (the first, before loading, too)."""
+        return len(test.series["step"])
 
 
 def record_common(test, e: dict, e0: dict, t_start: float) -> None:

@@ -344,10 +344,10 @@ class TriaxialTest(LoadingTest):
         st, m, caps = self.settings, self.m, self.caps
         series = {k: np.asarray(vv) for k, vv in self.series.items()}
         summ = analyse(series, st)
-        summ.update(end.summary(self))
+        summ.update(end.summary(self, before_stop={"consol_s": self.consol_s}))
         summ.update({
-            "consol_s": self.consol_s, "platen_velocity": self.v,
-            "strain_rate": 2 * self.v / self.H0, "servo_interval": int(st.servo_interval),
+            "platen_velocity": self.v, "strain_rate": 2 * self.v / self.H0,
+            "records": end.records(self), "servo_interval": int(st.servo_interval),
             "servo_alpha": float(st.servo_alpha), **self.con,
             "end_cap_bonds": int(caps.size),
             "end_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),

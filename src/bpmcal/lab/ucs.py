@@ -434,7 +434,7 @@ class UCSTest(LoadingTest):
         summ.update({
             "platen_velocity": self.v, "strain_rate": 2 * self.v / self.H0,
             "approach_velocity": st.approach_velocity, "approach_strain": self.ax.approach_strain,
-            "end_cap_bonds": int(caps.size),
+            "records": end.records(self), "end_cap_bonds": int(caps.size),
             "end_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
         })
         ev = loading_cracks(m, self.step0, self.dt)  # relative to the start of loading
