@@ -126,9 +126,11 @@ class PeakTracker:
 
 class LabTest(Protocol):
     """What :func:`run_test` drives. Attributes set by ``prepare``: ``m`` (the model),
-    ``settings`` (``max_steps``, ``max_strain``), ``series`` (column -> list),
-    ``step0`` (the model's step when loading starts), ``dt`` (its time step), ``bound`` (the loading's step
-    estimate, ``stepping.loading_bound``), ``stop_drop`` (the drop that may end it)."""
+    ``settings`` (``max_steps``, ``max_strain``), ``series`` (column -> list), ``step0``
+    (the model's step when loading starts), ``dt`` (its time step), ``bound`` (the
+    loading's step estimate, ``stepping.loading_bound``), ``stop_drop`` (the drop that
+    may end it). The hooks (``on_record``, ``post_peak``, ``shown``, ``strain_now``,
+    ``peak0``) have defaults in :class:`LoadingTest`."""
 
     def prepare(self) -> None: ...
 
