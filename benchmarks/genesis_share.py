@@ -153,10 +153,15 @@ def child(a) -> int:
     from bpmcal.stages import runs
 
     tm = Timer()
-    for owner, names in ((runs, {"ucs_test": "ucs", "bts_test": "bts", "write_lab_run": "write"}),
+    # the tests: per test before the lab-test driver and registry (one lab_test, one
+    # run_test since), as a --src of either kind has them
+    tests = ({"ucs_test": "ucs", "bts_test": "bts"} if hasattr(runs, "ucs_test")
+             else {"lab_test": "ucs+bts"})
+    driver = ({"run_ucs": "test", "run_bts": "test"} if hasattr(runner, "run_ucs")
+              else {"run_test": "test"})
+    for owner, names in ((runs, {**tests, "write_lab_run": "write"}),
                          (runner, {"make_specimen": "genesis", "get_packing": "packing",
-                                   "build_specimen": "build", "run_ucs": "test",
-                                   "run_bts": "test"}),
+                                   "build_specimen": "build", **driver}),
                          # cycle: the genesis's steps (its calls of stepping.cycle)
                          (specimen, {"distribute": "distribute", "_solve": "solve",
                                      "_settle_force_free": "settle_free",

@@ -75,19 +75,23 @@ def _plain(v):
 
 
 class DiscLog:
-    """Wraps ``lab.runner.run_bts``: every disc a Brazilian test runs (retests too)."""
+    """Wraps the lab-test driver as ``lab.runner`` calls it (``run_test``): every disc a
+    Brazilian test runs (retests too)."""
 
     def __init__(self):
         self.discs = []
 
     def install(self):
         from bpmcal.lab import runner
+        from bpmcal.lab.brazilian import BrazilianTest
 
-        inner = runner.run_bts
+        inner = runner.run_test
 
-        def run_bts(sp, st, progress=None):
-            res = inner(sp, st, progress=progress)
-            s, ser = res.summary, res.series
+        def run_test(test, progress=None):
+            res = inner(test, progress)
+            if not isinstance(test, BrazilianTest):
+                return res
+            sp, s, ser = test.sp, res.summary, res.series
             cr = np.asarray(ser["cracks_tension"]) + np.asarray(ser["cracks_shear"])
             first = np.flatnonzero(cr > 0)
             self.discs.append({
@@ -99,7 +103,7 @@ class DiscLog:
             self.last = res
             return res
 
-        runner.run_bts = run_bts
+        runner.run_test = run_test
 
 
 def run_one(test, p, seed, geo, st, cache, log):

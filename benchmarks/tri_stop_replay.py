@@ -1,5 +1,6 @@
 """What a lighter stop rule would save on triaxial tests that already ran: replay the stop
-check of ``lab.stepping.load_to_failure`` on each run file's recorded series.
+check of the lab-test driver (``lab.driver.load``, formerly ``stepping.load_to_failure``)
+on each run file's recorded series.
 
     python benchmarks/tri_stop_replay.py run RESULTS/tri --rule 0.9,0.0005 --rule 0.8,0.001 \\
         --out benchmarks/results/results_tri_stop_replay_DATE.json
@@ -29,7 +30,7 @@ from bpmcal.io.h5 import read_inputs, read_series, read_summary
 
 
 def stop_index(q, eps, stop_drop: float, post_peak_strain: float) -> int | None:
-    """The record at which the stop check of ``load_to_failure`` first holds, or None."""
+    """The record at which the driver's stop check first holds, or None."""
     peak, peak_eps = -np.inf, 0.0
     for i, (s, e) in enumerate(zip(q, eps)):
         if i == 0:

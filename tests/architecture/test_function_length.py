@@ -22,14 +22,8 @@ ALLOWED = {
     "dem/kernels.py:wall_range": "njit linear contact law over the ball-wall slots, one fused pass",
     "dem/neighbors.py:rebuild": "njit Verlet rebuild with the contact-history carry-over, one pass "
                                 "over the cells; review §2: to be split with the engine",
-    "lab/brazilian.py:run_bts": "the Brazilian loading loop: its stop judges the split and its "
-                                "record interval changes after the approach, so it keeps its own "
-                                "loop instead of stepping.load_to_failure",
-    "lab/impact.py:run_impact": "the impact loading loop (see lab/brazilian.py:run_bts)",
-    "lab/triaxial.py:run_triaxial": "the triaxial test: set-up, its record of 20 series and the "
-                                    "summary around stepping.load_to_failure",
-    "lab/ucs.py:run_ucs": "the UCS test: set-up, gauges, its record and the summary around "
-                          "stepping.load_to_failure",
+    "lab/impact.py:run_impact": "the impact test's loop: dynamic, ended on time, not driven by "
+                                "lab/driver.py (its docstring says why)",
     "lab/specimen.py:build_specimen": "specimen genesis step by step (pack, relax, install, bond); "
                                       "review §2: a candidate for a split by step",
     "plots/fracture.py:fig_impact": "one figure of two panels and their annotations",

@@ -15,15 +15,16 @@ from bpmcal.analysis.calibration import LoopSettings
 from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.io.checks import BadInput
 from bpmcal.io.h5 import write_run
+from bpmcal.lab import seeds as S
 from bpmcal.lab.run_context import RunContext
 from bpmcal.lab.runner import Geometry
+from bpmcal.lab.seeds import REPLACEMENT_STRIDE as BTS_REPLACEMENT_STRIDE
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import BTS
 from bpmcal.stages import loop_runs as LR
 from bpmcal.stages import measure as M
 from bpmcal.stages import verification as V
 from bpmcal.stages import verification_tables as VT
-from bpmcal.stages.measure import BTS_REPLACEMENT_STRIDE
 from bpmcal.stages.runs import RunOutcome
 
 DTT = "dtt_MPa"
@@ -156,7 +157,7 @@ class SpecimenDEM(FakeDEM):
 
     def dtt(self, out, params, seed, geometry, settings, **kw):
         self.calls.append(("dtt", seed))
-        j = seed // M.TENSILE_REPLICATE_STRIDE
+        j = seed // S.REPLICATE_STRIDE
         v = predict(dtt_models(), params)[DTT] * (1.04 + 0.02 * j)
         s = {"dtt_peak_MPa": v, "dtt_MPa": v, "dtt_valid": True, "dtt_invalid_reason": ""}
         write_run(out, test="dtt", inputs={"seed": seed}, summary=s)
@@ -178,7 +179,7 @@ def _verify_specimens(card, d, out, monkeypatch, n):
 def test_a_seeds_tensile_strength_is_the_mean_of_its_specimens(card, d, tmp_path, monkeypatch,
                                                                 n, first_error):
     dem, v = _verify_specimens(card, d, tmp_path, monkeypatch, n)
-    stride = M.TENSILE_REPLICATE_STRIDE
+    stride = S.REPLICATE_STRIDE
     # a round's runs, each a job of its own (verification.seed_parts): the seeds' UCS tests, then
     # specimen j = 0, 1, ... of every seed (packed with seed, seed + stride, ...)
     assert dem.calls[:2 + 2 * n] == [("ucs", 7), ("ucs", 8), *[
@@ -200,7 +201,7 @@ def test_fresh_seeds_measure_sigma_t_as_the_loop_did(card, d, tmp_path, monkeypa
     dtt = [tmp_path / f"f{s}.dtt.h5" for s in (101, 102)]
     df = H.fresh_seeds(tmp_path / "B1.yaml", seeds=[101, 102], runs=runs, dtt_runs=dtt,
                        seed_runs=tmp_path / "seeds.csv", tests=TESTS)
-    stride = M.TENSILE_REPLICATE_STRIDE
+    stride = S.REPLICATE_STRIDE
     assert [c for c in dem.calls if c[0] == "dtt"] == [
         ("dtt", s + j * stride) for j in range(3) for s in (101, 102)]
     assert (df["dtt_specimens"] == 3).all()
@@ -271,23 +272,23 @@ def test_the_settings_refuse_a_bad_grow_within_naming_it(factor):
 
 def test_no_two_specimens_of_seeds_below_100000_share_a_packing(monkeypatch):
     """Every tensile specimen j, replacement m and ISRM retest k of a seed is packed with
-    seed + j x TENSILE_REPLICATE_STRIDE + m x BTS_REPLACEMENT_STRIDE + k x RETEST_SEED_STEP:
+    seed + j x REPLICATE_STRIDE + m x REPLACEMENT_STRIDE + k x RETEST_STEP (lab.seeds):
     two such offsets differ by at least 100,000, so seeds below it never share a disc, and
     every packing seed stays below 2**32. Checked by brute force on the seeds of a study
     (loop 1-20, fresh 101-105) too. The old stride, 1,000,000, put retest 1 of seed 101 on
     specimen 1 of seed 104 (a planted-card run shared two discs that way)."""
-    from bpmcal.lab.brazilian import retest_seed
+
 
     gap, reach = M.packing_seed_gap()
     assert gap >= 100_000 and 100_000 + reach < 2 ** 32
     seeds = [*range(1, 21), *range(101, 106)]
-    used = [M.replicate_seed(s, j) + m * M.BTS_REPLACEMENT_STRIDE + k * 1_000_003
-            for s in seeds for j in range(4) for m in range(M.BTS_MAX_REPLACEMENTS + 1)
+    used = [S.replicate_seed(s, j) + m * S.REPLACEMENT_STRIDE + k * 1_000_003
+            for s in seeds for j in range(4) for m in range(S.MAX_REPLACEMENTS + 1)
             for k in range(3)]
     assert len(set(used)) == len(used)
-    assert retest_seed(101, 1) != M.replicate_seed(104, 1)
-    monkeypatch.setattr(M, "TENSILE_REPLICATE_STRIDE", 1_000_000)
-    assert M.packing_seed_gap()[0] == 3 and retest_seed(101, 1) == M.replicate_seed(104, 1)
+    assert S.retest_seed(101, 1) != S.replicate_seed(104, 1)
+    monkeypatch.setattr(S, "REPLICATE_STRIDE", 1_000_000)
+    assert M.packing_seed_gap()[0] == 3 and S.retest_seed(101, 1) == S.replicate_seed(104, 1)
 
 
 class ScatterDEM(SpecimenDEM):
@@ -320,7 +321,7 @@ def _verify_adaptive(card, d, out, monkeypatch, cv, **kw):
 
 def _specimens_by_seed(dem):
     """Packing seed -> how many distinct specimens ran for it (a round's seeds in order)."""
-    stride = M.TENSILE_REPLICATE_STRIDE
+    stride = S.REPLICATE_STRIDE
     out = {}
     for test, s in dem.calls:
         if test == "dtt":
@@ -382,7 +383,7 @@ def test_the_topped_up_seed_mean_is_that_of_all_its_specimens(tmp_path, monkeypa
                        ctx=RunContext(threads=1), loop=loop)
     params = dict(PLANTED)
     outs = runs.simulate_seeds(params, [1, 2, 3])
-    stride = M.TENSILE_REPLICATE_STRIDE
+    stride = S.REPLICATE_STRIDE
     base = predict(dtt_models(), params)[DTT]
     for seed, out, row in zip([1, 2, 3], outs, runs.by_round[0]):
         vals = [base * (1 + 0.2 * np.random.default_rng(seed + j * stride).standard_normal())

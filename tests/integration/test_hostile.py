@@ -264,7 +264,7 @@ def test_failed_commands_remove_the_folders_they_created(tmp_path):
                                           ("max_steps", "raise max_steps")])
 @pytest.mark.parametrize("test", ["ucs", "triaxial", "dtt", "bts"])
 def test_a_run_is_complete_only_after_its_peak_and_drop(test, stop, reason):
-    from bpmcal.lab.validity import incomplete_reason
+    from bpmcal.lab.registry import incomplete_reason
 
     got = incomplete_reason(test, {"stop_reason": stop, "steps": 100, "ucs_MPa": 6.1})
     assert (got == "") == (reason == "") and reason in got

@@ -57,21 +57,17 @@ def _run_done(args, cmd: str, out, path=None) -> int:
     return EXIT_OK if args.failed_ok and not out.kept else EXIT_RUN_FAILED
 
 
-#: each lab test's specimen, and the config key that sizes it in the default study
-_SPECIMEN = {"ucs": ("cylinder", "specimen.scale"), "triaxial": ("cylinder", "specimen.scale"),
-             "dtt": ("cylinder", "specimen.scale"), "bts": ("disc", "bts.scale"),
-             "impact": ("impact", "impact.scale")}
-
-
 def study_scale_note(cmd: str, tests) -> str | None:
     """The one line a lab command prints when its specimens (``tests``: (test, geometry))
     are not at the default study's scale (``lab.runner.STUDY_SCALES``), the one setting in
-    which its defaults differ from the study's, or None."""
+    which its defaults differ from the study's, or None. Each test's specimen and the
+    config key that sizes it in the study: ``lab.registry.LAB_TESTS``."""
+    from ..lab.registry import kind
     from ..lab.runner import STUDY_SCALES
 
     parts = []
     for test, geo in tests:
-        what, key = _SPECIMEN[test]
+        what, key = kind(test).scale, kind(test).scale_key
         study = STUDY_SCALES[what]
         if abs(geo.scale - study) > 1e-12:
             name = "cylinder" if what == "impact" else what

@@ -65,12 +65,14 @@ One disc, one verdict: ``run_bts`` tests the disc it is given. ``runner.bts_test
 Brazilian test of the CLI, the API and the study) does what a laboratory does with a
 disc whose fracture did not start at its centre (ISRM: invalid, discarded): it tests
 another disc of the same card, up to ``retests`` (2) more, each packed with the next seed
-of :func:`retest_seed`, and keeps the first valid one. The run records ``discs`` (how many
+of ``seeds.retest_seed`` (the one seed scheme, :mod:`bpmcal.lab.seeds`), and keeps the first
+valid one. The run records ``discs`` (how many
 were tested), ``disc_seed`` (the packing seed of the disc kept) and ``discarded`` (each
 discarded disc's seed and reason); if every disc was invalid, the last one is recorded,
 invalid, and gives no σt. ``wall_s`` is the time of all of them.
 
-The peak (``PeakTracker``) is the load at which the disc splits: when the load falls
+The peak (``driver.PeakTracker``; the test runs on the lab-test driver, ``lab.driver``, as
+:class:`BrazilianTest`) is the load at which the disc splits: when the load falls
 below ``split_drop`` of the peak (at least ``post_peak_strain`` diametral strain past it), the
 cracks formed since the peak must reach the central zone (``_split_started``); a drop
 without them is a contact event (a seating or crushing event at a loader, recorded in
@@ -99,17 +101,24 @@ defaults (``BTSSettings``: the default study's `bts` section, tests/workflow/tes
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from ..dem.errors import InputError
 from .budget import Loading, platen_loading
-from .records import append_cracks, append_energies, loading_cracks
+from .driver import (
+    Loaded,
+    LoadingTest,
+    PeakTracker,
+    check_loading_settings,
+    record_common,
+    run_test,
+)
+from .records import loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
-from .stepping import LoadingProgress, cycle, heartbeat, loading_bound
+from .stepping import cycle, loading_bound
 from .validity import INIT_MIN, bts_validity, per_contact
 
 #: how the disc is loaded: ISRM curved jaws or two planar platens
@@ -164,26 +173,16 @@ class BTSSettings:
         if not (self.platen_velocity > 0 and math.isfinite(self.platen_velocity)):
             raise InputError(f"platen_velocity={self.platen_velocity!r}: expected a positive "
                              "speed in m/s")
-        if not (0.0 <= self.damping < 1.0):
-            raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
         if not (self.platen_fric >= 0 and math.isfinite(self.platen_fric)):
             raise InputError(f"platen_fric={self.platen_fric!r}: expected a friction "
                              "coefficient >= 0")
-        if not (0.0 < self.stop_drop < 1.0):
-            raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
-        if not (0.0 < self.max_strain <= 0.5):
-            raise InputError(f"max_strain={self.max_strain!r}: expected a diametral strain "
-                             "in (0, 0.5]")
-        if not (self.record_strain > 0 and math.isfinite(self.record_strain)):
-            raise InputError(f"record_strain={self.record_strain!r}: expected > 0")
+        check_loading_settings(self)
         if not (math.isfinite(self.approach_velocity) and self.approach_velocity >= 0):
             raise InputError(f"approach_velocity={self.approach_velocity!r}: expected a speed "
                              ">= 0 in m/s (0: no fast approach)")
         if not (0.0 <= self.approach_damage < 1.0):  # NaN fails too
             raise InputError(f"approach_damage={self.approach_damage!r}: expected a fraction "
                              "of the bonds in [0, 1) (0: the first crack ends the approach)")
-        if not (self.post_peak_strain >= 0):
-            raise InputError(f"post_peak_strain={self.post_peak_strain!r}: expected >= 0")
         if not (0.0 < self.central_band <= 0.5):
             raise InputError(f"central_band={self.central_band!r}: expected a fraction of D "
                              "in (0, 0.5]")
@@ -194,8 +193,6 @@ class BTSSettings:
         if not (0.0 < self.seat_tol < 1.0 and self.seat_ratio > 0):
             raise InputError(f"seat_tol={self.seat_tol!r}, seat_ratio={self.seat_ratio!r}: "
                              "expected 0 < seat_tol < 1 and seat_ratio > 0")
-        if not (int(self.max_steps) > 0):
-            raise InputError(f"max_steps={self.max_steps!r}: expected a positive integer")
         if self.loading not in LOADINGS:
             raise InputError(f"loading={self.loading!r}: expected one of {', '.join(LOADINGS)}")
         if isinstance(self.jaw_ratio, bool) or not (
@@ -440,47 +437,6 @@ def seat(sp: Specimen, platens, st: BTSSettings) -> dict:
     return {"seat_steps": int(m.step - s0), "seat_load_N": F, "seat_ratio": float(ratio)}
 
 
-class PeakTracker:
-    """The peak of a Brazilian test: the load at which the disc splits, not the top of a
-    seating or contact-crushing event.
-
-    ``add(P, strain)`` takes every record (P the load) and returns True when the load has
-    dropped below ``stop_drop`` x the peak at least ``post_peak_strain`` strain after it; the
-    caller then says whether the disc split (``judge``: cracks formed since the peak reach
-    the central zone). A split ends the test at this peak. A drop without a split is a
-    contact event: it is recorded in ``events`` (its peak load and strain, the load it
-    dropped to), and the peak starts again from the current record, so the test loads on
-    and the split that follows sets the peak. ``peak_record`` is the index of the record
-    of the peak."""
-
-    def __init__(self, stop_drop: float, post_peak_strain: float):
-        self.stop_drop, self.post_peak_strain = float(stop_drop), float(post_peak_strain)
-        self.peak, self.peak_strain, self.peak_record = 0.0, 0.0, 0
-        self.events: list[dict] = []
-        self._n = 0  # records seen (the first, at zero load, is record 0)
-        self._last = (0.0, 0.0)
-
-    def add(self, load: float, strain: float) -> bool:
-        self._n += 1
-        k = self._n
-        self._last = (float(load), float(strain))
-        if load > self.peak:
-            self.peak, self.peak_strain, self.peak_record = float(load), float(strain), k
-        return (self.peak > 0 and load < self.stop_drop * self.peak
-                and strain - self.peak_strain >= self.post_peak_strain)
-
-    def judge(self, split: bool) -> bool:
-        """After a drop: True (stop) if the disc split, else record a contact event and
-        restart the peak from the current record."""
-        if split:
-            return True
-        load, strain = self._last
-        self.events.append({"record": self.peak_record, "load_N": self.peak,
-                            "strain": self.peak_strain, "drop_to_N": load})
-        self.peak, self.peak_strain, self.peak_record = load, strain, self._n
-        return False
-
-
 def _split_started(m, step0, since_step, centre, radius, half_band, zone) -> bool:
     """Whether the cracks formed after ``since_step`` (loading steps) reach the central
     zone of the loaded diameter: at least ``validity.INIT_MIN`` of them within ``zone`` R
@@ -514,138 +470,134 @@ def approach_cracks(m, damage: float) -> int:
     return max(1, math.ceil(damage * m.bond_pairs()[0].size))
 
 
-#: the step between the packing seeds of a card's successive discs (a large prime, so
-#: that the retest discs of neighbouring seeds do not coincide)
-RETEST_SEED_STEP = 1_000_003
+class BrazilianTest(LoadingTest):
+    """The Brazilian test of a free disc as a ``driver.LabTest``: platens or jaws, contact
+    caps, seating, the fast approach (``on_record``: the approach speed's hook) and the
+    split check (``stop``: a drop is the split only when its cracks reach the central
+    zone, ``_split_started``)."""
 
+    def __init__(self, sp: Specimen, settings: BTSSettings):
+        self.sp, self.settings, self.m = sp, settings, sp.model
 
-def retest_seed(seed: int, k: int) -> int:
-    """The packing seed of the ``k``-th disc tested after an invalid one (``k`` = 0: the
-    first disc, ``seed`` itself), in [0, 2**32)."""
-    return (int(seed) + int(k) * RETEST_SEED_STEP) % 2 ** 32
+    def prepare(self) -> None:
+        st, sp, m = self.settings, self.sp, self.m
+        self.D, self.t = sp.spec.diameter, sp.spec.height
+        self.R = 0.5 * self.D
+        loading = st.loading_at(self.D)
+        self.v = loading.velocity
+        self.dbar = 2.0 * float(m.radii.mean())
+        self.half_band = max(0.25 * self.R, 1.5 * self.dbar)
+        self.walls = add_loaders(sp, st)
+        self.caps = install_contact_caps(sp, st.contact_cap, st.contact_cap_factor,
+                                         st.contact_cap_bridge)
+        m.set_damping(st.damping)
+        m.set_timestep(None)
+        self.dt = m.dt
+        self.bound = loading_bound(m, st, loading)
+        self.seated = seat(sp, self.walls, st)
+        self.approach = st.approach_velocity > self.v  # fast approach until the first crack(s)
+        self.until = approach_cracks(m, st.approach_damage)
+        self._platens(st.approach_velocity if self.approach else self.v)
+        self.approach_strain = 0.0
+        self.c0 = m.positions[:, :2].mean(axis=0)  # disc centre (x, y)
+        wb, wt = self.walls
+        self.y0 = (float(m.wall_position(wb)[1]), float(m.wall_position(wt)[1]))
+        self.series = {k: [] for k in BTS_SERIES}
+        self.e0 = m.energies()
+        self.e0_walls = self.e0["work_walls_each"][wb] + self.e0["work_walls_each"][wt]
+        self.step0 = m.step
+        self.t_start = m.time
+        self.record()
+        self.stop_drop = split_drop(sp, st)
 
+    def _platens(self, speed: float) -> None:
+        wb, wt = self.walls
+        self.m.set_wall_velocity(wb, velocity=(0.0, speed, 0.0))
+        self.m.set_wall_velocity(wt, velocity=(0.0, -speed, 0.0))
+        self.n_rec = max(1, int(round(self.settings.record_strain * self.D
+                                      / (2 * speed * self.dt))))  # steps per record
 
-def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) -> BTSResult:
-    """Run the test on the free disc ``sp`` (its model is modified: platens are added).
-    ``progress(dict)`` is called after every record with the latest values."""
-    st = settings
-    m = sp.model
-    D = sp.spec.diameter
-    t = sp.spec.height
-    R = 0.5 * D
-    loading = st.loading_at(D)
-    v = loading.velocity
-    dbar = 2.0 * float(m.radii.mean())
-    half_band = max(0.25 * R, 1.5 * dbar)
-    wb, wt = add_loaders(sp, st)
-    caps = install_contact_caps(sp, st.contact_cap, st.contact_cap_factor,
-                                st.contact_cap_bridge)
-    m.set_damping(st.damping)
-    m.set_timestep(None)
-    dt = m.dt
-    bound = loading_bound(m, st, loading)
-    seated = seat(sp, (wb, wt), st)
+    def load_step(self) -> None:
+        cycle(self.m, self.n_rec)
 
-    def platens(speed):
-        m.set_wall_velocity(wb, velocity=(0.0, speed, 0.0))
-        m.set_wall_velocity(wt, velocity=(0.0, -speed, 0.0))
-        return max(1, int(round(st.record_strain * D / (2 * speed * dt))))  # steps per record
-
-    approach = st.approach_velocity > v  # fast approach until the first crack(s)
-    until = approach_cracks(m, st.approach_damage)
-    n_rec = platens(st.approach_velocity if approach else v)
-    approach_strain = 0.0
-    c0 = m.positions[:, :2].mean(axis=0)  # disc centre (x, y)
-    yb0, yt0 = float(m.wall_position(wb)[1]), float(m.wall_position(wt)[1])
-    ser = {k: [] for k in BTS_SERIES}
-    e0 = m.energies()
-    e0_walls = e0["work_walls_each"][wb] + e0["work_walls_each"][wt]
-    step0 = m.step
-    t_start = m.time
-    t0 = time.perf_counter()
-    reason = "max_steps"
-
-    def record():
+    def record(self) -> tuple[float, float]:
+        m, ser, (wb, wt), D = self.m, self.series, self.walls, self.D
         e = m.energies()
         fb = abs(m.wall_force(wb)[1])
         ft = abs(m.wall_force(wt)[1])
-        delta = (float(m.wall_position(wb)[1]) - yb0) + (yt0 - float(m.wall_position(wt)[1]))
+        delta = ((float(m.wall_position(wb)[1]) - self.y0[0])
+                 + (self.y0[1] - float(m.wall_position(wt)[1])))
         P = 0.5 * (fb + ft)
-        ser["step"].append(m.step - step0)
-        ser["time"].append(m.time - t_start)
+        record_common(self, e, self.e0, self.t_start)
         ser["displacement"].append(delta)
         ser["diametral_strain"].append(delta / D)
         ser["load"].append(P)
         ser["load_bottom"].append(fb)
         ser["load_top"].append(ft)
-        ser["tensile_stress"].append(float(tensile_strength(P, D, t)))
-        append_cracks(ser, m)
-        append_energies(ser, e, e0)
+        ser["tensile_stress"].append(float(tensile_strength(P, D, self.t)))
         ser["work_walls"].append(e["work_walls_each"][wb] + e["work_walls_each"][wt]
-                                 - e0_walls)
-        ser["unbalanced"].append(m.unbalanced_ratio())
-        ser["arc_deg"].append(math.degrees(0.5 * (_arc_half_angle(m, wb, c0)
-                                                  + _arc_half_angle(m, wt, c0))))
+                                 - self.e0_walls)
+        ser["arc_deg"].append(math.degrees(0.5 * (_arc_half_angle(m, wb, self.c0)
+                                                  + _arc_half_angle(m, wt, self.c0))))
         return P, delta / D
 
-    record()
-    drop = split_drop(sp, st)
-    track = PeakTracker(drop, st.post_peak_strain)
-    tell = LoadingProgress(progress, m, step0, bound, st.max_strain)
-    with heartbeat(lambda: tell(strain=ser["diametral_strain"][-1])):
-        while True:
-            if m.step - step0 >= st.max_steps:
-                reason = "max_steps"
-                break
-            cycle(m, n_rec)
-            P, eps = record()
-            if approach and ser["cracks_tension"][-1] + ser["cracks_shear"][-1] >= until:
-                approach, approach_strain = False, eps  # the first crack: load at v from here
-                n_rec = platens(v)
-            dropped = track.add(P, eps)
-            tell(strain=eps, stress_MPa=ser["tensile_stress"][-1] / 1e6,
-                 peak_MPa=float(tensile_strength(track.peak, D, t)) / 1e6,
-                 cracks=ser["cracks_tension"][-1] + ser["cracks_shear"][-1])
-            if dropped:
-                ip = track.peak_record
-                since = ser["step"][ip - 1] if ip > 0 else -1
-                if track.judge(_split_started(m, step0, since, c0, R, half_band,
-                                              st.central_zone)):
-                    reason = "post_peak_drop"
-                    break
-            if eps >= st.max_strain:
-                reason = "max_strain"
-                break
-    ip, events = track.peak_record, track.events
-    wall = time.perf_counter() - t0
-    series = {k: np.asarray(vv) for k, vv in ser.items()}
-    summ = analyse(series, D, t, ip)
-    ev = loading_cracks(m, step0, dt)  # relative to the start of loading (< 0: before)
-    upto = ev["step"] <= series["step"][ip]
-    central = np.hypot(*(ev["pos"][upto, :2] - c0).T) <= st.central_band * D
-    val = bts_validity(ev, series["step"], ip, centre=c0, radius=R, mean_ball_diameter=dbar,
-                       central_zone=st.central_zone, ended=reason == "post_peak_drop",
-                       contact="jaw" if st.loading == "jaws" else "platen")
-    summ.update(val)
-    summ["bts_MPa"] = summ["bts_peak_MPa"] if val["bts_valid"] else math.nan
-    summ.update({
-        "cracks_central_frac_peak": float(central.mean()) if central.size else math.nan,
-        "cracks_tension": int(series["cracks_tension"][-1]),
-        "cracks_shear": int(series["cracks_shear"][-1]),
-        "steps": int(m.step - step0), "wall_s": wall, "stop_reason": reason,
-        "dt": dt, "platen_velocity": v, "approach_velocity": st.approach_velocity,
-        "approach_strain": approach_strain, "loading": st.loading,
-        "diameter_mm": D * 1e3, "thickness_mm": t * 1e3,
-        "mean_ball_diameter_mm": dbar * 1e3, "balls_across": D / dbar,
-        "contact_events": len(events), "contact_cap_bonds": int(caps.size),
-        "contact_cap_bridge": cap_bridges(sp, st.contact_cap_bridge), "split_drop": drop,
-        "contact_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
-        "contact_event_max_MPa": (max(float(tensile_strength(e["load_N"], D, t))
-                                      for e in events) / 1e6 if events else 0.0),
-        "peak_step": int(series["step"][ip]),
-        "records": int(series["step"].size), **seated,
-    })
-    return BTSResult(summary=summ, series=series, cracks=ev, settings=st)
+    def on_record(self, load: float, strain: float) -> None:
+        ser = self.series
+        if self.approach and ser["cracks_tension"][-1] + ser["cracks_shear"][-1] >= self.until:
+            self.approach, self.approach_strain = False, strain  # load at v from here
+            self._platens(self.v)
+
+    def strain_now(self) -> float:
+        return self.series["diametral_strain"][-1]
+
+    def shown(self, load: float, peak: float) -> tuple[float, float]:
+        return (self.series["tensile_stress"][-1] / 1e6,
+                float(tensile_strength(peak, self.D, self.t)) / 1e6)
+
+    def stop(self, tracker: PeakTracker) -> bool:
+        ip = tracker.peak_record
+        since = self.series["step"][ip - 1] if ip > 0 else -1
+        return _split_started(self.m, self.step0, since, self.c0, self.R, self.half_band,
+                              self.settings.central_zone)
+
+    def analyse(self, end: Loaded) -> BTSResult:
+        st, m, D, t = self.settings, self.m, self.D, self.t
+        ip, events = end.tracker.peak_record, end.tracker.events
+        series = {k: np.asarray(vv) for k, vv in self.series.items()}
+        summ = analyse(series, D, t, ip)
+        ev = loading_cracks(m, self.step0, self.dt)  # relative to the start of loading
+        upto = ev["step"] <= series["step"][ip]
+        central = np.hypot(*(ev["pos"][upto, :2] - self.c0).T) <= st.central_band * D
+        val = bts_validity(ev, series["step"], ip, centre=self.c0, radius=self.R,
+                           mean_ball_diameter=self.dbar, central_zone=st.central_zone,
+                           ended=end.reason == "post_peak_drop",
+                           contact="jaw" if st.loading == "jaws" else "platen")
+        summ.update(val)
+        summ["bts_MPa"] = summ["bts_peak_MPa"] if val["bts_valid"] else math.nan
+        caps = self.caps
+        summ["cracks_central_frac_peak"] = float(central.mean()) if central.size else math.nan
+        summ.update(end.summary(self))
+        summ.update({
+            "platen_velocity": self.v, "approach_velocity": st.approach_velocity,
+            "approach_strain": self.approach_strain, "loading": st.loading,
+            "diameter_mm": D * 1e3, "thickness_mm": t * 1e3,
+            "mean_ball_diameter_mm": self.dbar * 1e3, "balls_across": D / self.dbar,
+            "contact_events": len(events), "contact_cap_bonds": int(caps.size),
+            "contact_cap_bridge": cap_bridges(self.sp, st.contact_cap_bridge),
+            "split_drop": self.stop_drop,
+            "contact_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
+            "contact_event_max_MPa": (max(float(tensile_strength(e["load_N"], D, t))
+                                          for e in events) / 1e6 if events else 0.0),
+            "peak_step": int(series["step"][ip]), "records": end.records(self), **self.seated,
+        })
+        return BTSResult(summary=summ, series=series, cracks=ev, settings=st)
+
+
+def run_bts(sp: Specimen, settings: BTSSettings = BTSSettings(), progress=None) -> BTSResult:
+    """Run the test on the free disc ``sp`` (its model is modified: platens are added):
+    :class:`BrazilianTest` on the lab-test driver (``driver.run_test``). ``progress(dict)``
+    is called after every record with the latest values."""
+    return run_test(BrazilianTest(sp, settings), progress)
 
 
 def settings_dict(st: BTSSettings) -> dict:

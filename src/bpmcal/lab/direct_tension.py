@@ -38,7 +38,6 @@ the run is recorded with ``dtt_valid`` false and that reason, and gives no sigma
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -47,9 +46,10 @@ from ..dem.errors import InputError
 from ..dem.slots import FIX_VZ
 from ..exact_math import lsq_slope
 from .budget import Loading, platen_loading
-from .records import append_cracks, append_energies, loading_cracks
+from .driver import Loaded, LoadingTest, check_loading_settings, record_common, run_test
+from .records import loading_cracks
 from .specimen import Specimen
-from .stepping import cycle, load_to_failure, loading_bound
+from .stepping import cycle, loading_bound
 from .validity import dtt_validity
 
 #: columns of the recorded time series
@@ -82,24 +82,10 @@ class DTTSettings:
                                            and math.isfinite(v)):
                 raise InputError(f"{name}={v!r}: expected a positive number")
         positive("grip_velocity", self.grip_velocity)
-        positive("record_strain", self.record_strain)
         if not (isinstance(self.grip_length, (int, float)) and 0.0 < self.grip_length < 0.45):
             raise InputError(f"grip_length={self.grip_length!r}: expected a fraction of the "
                              "height in (0, 0.45) at each end (the grips may not meet)")
-        if not (0.0 <= self.damping < 1.0):
-            raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
-        if not (0.0 < self.stop_drop < 1.0):
-            raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
-        if not (self.post_peak_strain >= 0):
-            raise InputError(f"post_peak_strain={self.post_peak_strain!r}: expected an axial "
-                             "strain >= 0")
-        if not (0.0 < self.max_strain <= 0.5):
-            raise InputError(f"max_strain={self.max_strain!r}: expected a strain in (0, 0.5]")
-        if not (int(self.max_steps) > 0):
-            raise InputError(f"max_steps={self.max_steps!r}: expected a positive integer")
-        lo, hi = self.fit_window
-        if not (0.0 <= lo < hi <= 1.0):
-            raise InputError(f"fit_window={self.fit_window!r}: expected 0 <= lo < hi <= 1")
+        check_loading_settings(self)
         if not (self.grip_clearance >= 0 and math.isfinite(self.grip_clearance)):
             raise InputError(f"grip_clearance={self.grip_clearance!r}: expected a number of "
                              "mean ball diameters >= 0")
@@ -146,82 +132,94 @@ def analyse(series: dict, settings: DTTSettings) -> dict:
             "cracks_shear_peak": int(series["cracks_shear"][ip]), "peak_record": ip}
 
 
-def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) -> DTTResult:
-    """Run the test on the free cylinder ``sp`` (its model is modified: grips are fixed).
-    ``progress(dict)`` is called after every record with the latest values."""
-    st = settings
-    m = sp.model
-    if m.n_walls:
-        raise InputError(f"the direct-tension specimen must be free (built with "
-                         f"boundary='free'); it has {m.n_walls} wall(s)")
-    H0 = sp.z_top - sp.z_bottom
-    R0 = sp.radius0
-    area = math.pi * R0 * R0
-    loading = st.loading_at(H0)
-    v = loading.velocity
-    bot, top, zb, zt = grips(sp, st.grip_length)
-    m.fix(bot, FIX_VZ)
-    m.fix(top, FIX_VZ)
-    vb = np.zeros((bot.size, 3))
-    vb[:, 2] = -v
-    vt = np.zeros((top.size, 3))
-    vt[:, 2] = v
-    m.set_velocity(bot, vel=np.column_stack([m.velocities[bot, :2], vb[:, 2]]))
-    m.set_velocity(top, vel=np.column_stack([m.velocities[top, :2], vt[:, 2]]))
-    m.set_damping(st.damping)
-    m.set_timestep(None)
-    dt = m.dt
-    bound = loading_bound(m, st, loading)
-    n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
-    ser = {k: [] for k in DTT_SERIES}
-    e0 = m.energies()
-    step0 = m.step
-    t_start = m.time
-    t0 = time.perf_counter()
+class DirectTensionTest(LoadingTest):
+    """The direct-tension test of the free cylinder ``sp`` as a ``driver.LabTest``: grips
+    pulled apart, the load the mean of the grips' axial resultants."""
 
-    def record():
+    def __init__(self, sp: Specimen, settings: DTTSettings):
+        self.sp, self.settings, self.m = sp, settings, sp.model
+
+    def prepare(self) -> None:
+        st, sp, m = self.settings, self.sp, self.m
+        if m.n_walls:
+            raise InputError(f"the direct-tension specimen must be free (built with "
+                             f"boundary='free'); it has {m.n_walls} wall(s)")
+        H0 = self.H0 = sp.z_top - sp.z_bottom
+        self.R0 = sp.radius0
+        self.area = math.pi * self.R0 * self.R0
+        loading = st.loading_at(H0)
+        v = self.v = loading.velocity
+        bot, top, self.zb, self.zt = grips(sp, st.grip_length)
+        self.grips = (bot, top)
+        m.fix(bot, FIX_VZ)
+        m.fix(top, FIX_VZ)
+        vb = np.zeros((bot.size, 3))
+        vb[:, 2] = -v
+        vt = np.zeros((top.size, 3))
+        vt[:, 2] = v
+        m.set_velocity(bot, vel=np.column_stack([m.velocities[bot, :2], vb[:, 2]]))
+        m.set_velocity(top, vel=np.column_stack([m.velocities[top, :2], vt[:, 2]]))
+        m.set_damping(st.damping)
+        m.set_timestep(None)
+        self.dt = m.dt
+        self.bound = loading_bound(m, st, loading)
+        self.n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * self.dt))))
+        self.series = {k: [] for k in DTT_SERIES}
+        self.e0 = m.energies()
+        self.step0 = m.step
+        self.t_start = m.time
+        self.record()
+        self.stop_drop = st.stop_drop
+
+    def load_step(self) -> None:
+        cycle(self.m, self.n_rec)
+
+    def strain_now(self) -> float:
+        return 2.0 * self.v * (self.m.time - self.t_start) / self.H0
+
+    def record(self) -> tuple[float, float]:
+        m, ser, area, (bot, top) = self.m, self.series, self.area, self.grips
         e = m.energies()
         f, _ = m.ball_forces()
         ft = -float(f[top, 2].sum())  # the specimen pulls the top grip down
         fb = float(f[bot, 2].sum())
-        eps = 2.0 * v * (m.time - t_start) / H0
-        ser["step"].append(m.step - step0)
-        ser["time"].append(m.time - t_start)
+        eps = self.strain_now()
+        record_common(self, e, self.e0, self.t_start)
         ser["axial_strain"].append(eps)
         ser["axial_stress"].append(0.5 * (ft + fb) / area)
         ser["stress_top"].append(ft / area)
         ser["stress_bottom"].append(fb / area)
-        append_cracks(ser, m)
-        append_energies(ser, e, e0)
-        ser["unbalanced"].append(m.unbalanced_ratio())
         return ser["axial_stress"][-1], eps
 
-    record()
-    reason = load_to_failure(
-        m, st, step0, bound, progress, lambda: cycle(m, n_rec), record, ser,
-        strain_now=lambda: 2.0 * v * (m.time - t_start) / H0,
-        post_peak=lambda eps_peak: st.post_peak_strain)
-    wall = time.perf_counter() - t0
-    series = {k: np.asarray(vv) for k, vv in ser.items()}
-    summ = analyse(series, st)
-    ip = summ.pop("peak_record")
-    ev = loading_cracks(m, step0, dt)
-    dbar = 2.0 * float(m.radii.mean())
-    val = dtt_validity(ev, series["step"], ip, grip_faces=(zb, zt),
-                       clearance=st.grip_clearance * dbar, ended=reason == "post_peak_drop")
-    summ.update(val)
-    summ["dtt_MPa"] = summ["dtt_peak_MPa"] if val["dtt_valid"] else math.nan
-    summ.update({
-        "cracks_tension": int(series["cracks_tension"][-1]),
-        "cracks_shear": int(series["cracks_shear"][-1]),
-        "steps": int(m.step - step0), "wall_s": wall, "stop_reason": reason, "dt": dt,
-        "grip_velocity": v, "strain_rate": 2 * v / H0, "records": int(series["step"].size),
-        "grip_balls_bottom": int(bot.size), "grip_balls_top": int(top.size),
-        "gauge_length_mm": (zt - zb) * 1e3, "diameter_mm": 2e3 * R0, "height_mm": H0 * 1e3,
-        "mean_ball_diameter_mm": dbar * 1e3, "balls_across": 2.0 * R0 / dbar,
-        "peak_step": int(series["step"][ip]),
-    })
-    return DTTResult(summary=summ, series=series, cracks=ev, settings=st, grip_balls=(bot, top))
+    def analyse(self, end: Loaded) -> DTTResult:
+        st, m, (bot, top), zb, zt = self.settings, self.m, self.grips, self.zb, self.zt
+        series = {k: np.asarray(vv) for k, vv in self.series.items()}
+        summ = analyse(series, st)
+        ip = summ.pop("peak_record")
+        ev = loading_cracks(m, self.step0, self.dt)
+        dbar = 2.0 * float(m.radii.mean())
+        val = dtt_validity(ev, series["step"], ip, grip_faces=(zb, zt),
+                           clearance=st.grip_clearance * dbar,
+                           ended=end.reason == "post_peak_drop")
+        summ.update(val)
+        summ["dtt_MPa"] = summ["dtt_peak_MPa"] if val["dtt_valid"] else math.nan
+        summ.update(end.summary(self))
+        summ.update({
+            "grip_velocity": self.v, "strain_rate": 2 * self.v / self.H0,
+            "records": end.records(self), "grip_balls_bottom": int(bot.size), "grip_balls_top": int(top.size),
+            "gauge_length_mm": (zt - zb) * 1e3, "diameter_mm": 2e3 * self.R0,
+            "height_mm": self.H0 * 1e3, "mean_ball_diameter_mm": dbar * 1e3,
+            "balls_across": 2.0 * self.R0 / dbar, "peak_step": int(series["step"][ip]),
+        })
+        return DTTResult(summary=summ, series=series, cracks=ev, settings=st,
+                         grip_balls=(bot, top))
+
+
+def run_dtt(sp: Specimen, settings: DTTSettings = DTTSettings(), progress=None) -> DTTResult:
+    """Run the test on the free cylinder ``sp`` (its model is modified: grips are fixed):
+    :class:`DirectTensionTest` on the lab-test driver (``driver.run_test``).
+    ``progress(dict)`` is called after every record with the latest values."""
+    return run_test(DirectTensionTest(sp, settings), progress)
 
 
 def settings_dict(st: DTTSettings) -> dict:

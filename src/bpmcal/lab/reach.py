@@ -25,11 +25,12 @@ def screen_test_loading(test: str, params: dict, geometry, settings) -> None:
     diameter is the Brazilian test's loaded length) with ``settings``: a ``BudgetError``
     naming the cause if the loading cannot reach the card's failure."""
     from ..dem.material import expected_failure_strain, stiffest_spring
+    from .registry import kind
     from .specimen import card_material
 
     material, _ = card_material(params)
     g = geometry
-    loading = settings.loading_at(g.scale * (g.diameter_mm if test == "bts" else g.height_mm)
+    loading = settings.loading_at(g.scale * (g.diameter_mm if kind(test).disc else g.height_mm)
                                   * 1e-3)
     n = estimate_balls(params[P.RMIN], params[P.POROSITY], scale=g.scale,
                        diameter_mm=g.diameter_mm, height_mm=g.height_mm)

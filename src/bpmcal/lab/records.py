@@ -1,7 +1,12 @@
 """What every quasi-static lab test records the same way: the engine's energy terms in its
 time series, its crack counts by mode, and its crack events timed from the start of the
-loading. Shared by the UCS, triaxial, Brazilian and direct-tension tests."""
+loading; the lateral gauge of a cylinder. Shared by the UCS, triaxial, Brazilian and
+direct-tension tests."""
 from __future__ import annotations
+
+import numpy as np
+
+from ..dem.errors import InputError
 
 #: energy terms of a test's series: state energies as they are, dissipated ones counted
 #: from the start of the loading (``e0``)
@@ -32,3 +37,25 @@ def loading_cracks(m, step0: int, dt: float) -> dict:
     ev["step"] = ev["step"] - step0
     ev["time"] = ev["step"] * dt
     return ev
+
+
+class LateralGauge:
+    """The lateral gauge of a cylinder (the UCS and triaxial tests): the surface balls
+    (``sp.surface``, those that touched the lateral vessel wall at the end of genesis)
+    whose centres lie within ``band`` (fractions of the height ``H0`` above ``z_base``) in
+    the positions ``pos0`` at the start of the test; ``strain(pos)``: their mean radial
+    displacement over ``R0``, compression positive (expansion negative)."""
+
+    def __init__(self, sp, pos0, z_base: float, H0: float, band, R0: float):
+        z0 = pos0[sp.surface, 2]
+        sel = (z0 >= z_base + band[0] * H0) & (z0 <= z_base + band[1] * H0)
+        self.balls = sp.surface[sel]
+        if self.balls.size < 3:
+            raise InputError(f"only {self.balls.size} surface balls in the lateral strain "
+                             "band: the specimen is too small for a lateral strain measurement")
+        self.rho0 = np.hypot(pos0[self.balls, 0], pos0[self.balls, 1])
+        self.R0 = R0
+
+    def strain(self, pos) -> float:
+        rho = np.hypot(pos[self.balls, 0], pos[self.balls, 1])
+        return -float((rho - self.rho0).mean()) / self.R0

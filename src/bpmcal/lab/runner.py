@@ -3,13 +3,15 @@ parameters (paper units), get the packing (cached), build the specimen, run the 
 return everything a run file holds as a :class:`LabRun` (no file is written here: the
 stages in ``bpmcal.stages.runs`` write it, or a failure record).
 
-``ucs_test``, ``bts_test`` (Brazilian), ``dtt_test`` (direct tension), ``triaxial_test`` and
-``impact_test`` share these
-conventions. A run that goes numerically unstable, a specimen that cannot be built or
-does not settle, or a servo stage that does not converge raises one of
+:func:`lab_test` runs any test of the registry (``lab.registry.LAB_TESTS``: its driver
+class on ``lab.driver``, its specimen, boundary and checks); ``ucs_test``, ``bts_test``
+(Brazilian), ``dtt_test`` (direct tension) and ``triaxial_test`` are it by name, and
+``impact_test`` (not driven) shares its conventions. A run that goes numerically
+unstable, a specimen that cannot be built or does not settle, or a servo stage that does
+not converge raises one of
 :data:`RUN_FAILURES`: the run failed, which a study records as data (a failure record);
-any other exception is a bug. ``*_inputs`` give the inputs a run file records, also for
-a run that failed or was not run.
+any other exception is a bug. :func:`test_inputs` (``*_inputs`` by name) gives the inputs
+a run file records, also for a run that failed or was not run.
 
 ``genesis_max_steps`` bounds the settling of the specimen (``specimen.build_specimen``);
 ``progress`` receives the genesis phases (``{"phase", "steps", "ratio", "target",
@@ -27,14 +29,14 @@ from .. import params as P
 from ..cost import phase
 from ..dem._jit import numba, set_threads
 from ..dem.errors import InputError, InstabilityError
-from .brazilian import BTSSettings, retest_seed, run_bts
-from .brazilian import settings_dict as bts_dict
+from .brazilian import BTSSettings
 from .budget import StepBudgetError
-from .direct_tension import DTTSettings, run_dtt
-from .direct_tension import settings_dict as dtt_dict
+from .direct_tension import DTTSettings
+from .driver import run_test
 from .impact import ImpactSettings, run_impact
-from .impact import settings_dict as impact_dict
 from .packing_cache import get_packing
+from .registry import kind
+from .seeds import retest_seed, retry
 from .servo import ServoError
 from .specimen import (
     DEFAULT_GENESIS,
@@ -45,9 +47,8 @@ from .specimen import (
     card_material,
     default_install_gap,
 )
-from .triaxial import TriaxialSettings, run_triaxial
-from .triaxial import settings_dict as tx_dict
-from .ucs import UCSSettings, run_ucs, settings_dict
+from .triaxial import TriaxialSettings
+from .ucs import UCSSettings
 
 #: the exceptions that mean "this run failed" (a failure record, not a bug)
 RUN_FAILURES = (InstabilityError, GenesisError, ServoError, StepBudgetError)
@@ -180,38 +181,45 @@ def _base_inputs(params: dict, seed: int, geometry: Geometry) -> dict:
     return d
 
 
-def ucs_inputs(params: dict, seed: int, geometry: Geometry, settings: UCSSettings) -> dict:
+def test_inputs(test: str, params: dict, seed: int, geometry: Geometry, settings) -> dict:
+    """The inputs a run file of lab test ``test`` (``registry.LAB_TESTS``) records: the
+    card, the geometry, the seed and its settings under ``<test>_`` (a disc's thickness
+    and a confined test's sigma3 beside them)."""
+    k = kind(test)
     d = _base_inputs(params, seed, geometry)
-    d.update({f"ucs_{k}": v for k, v in settings_dict(settings).items()})
+    if k.disc:
+        d["thickness_mm"] = d["height_mm"]
+    if k.confined:
+        d["sigma3_MPa"] = settings.sigma3 / 1e6
+    d.update({f"{test}_{key}": v for key, v in k.settings_dict(settings).items()})
     return d
+
+
+def ucs_inputs(params: dict, seed: int, geometry: Geometry, settings: UCSSettings) -> dict:
+    """:func:`test_inputs` of the UCS test."""
+    return test_inputs("ucs", params, seed, geometry, settings)
 
 
 def bts_inputs(params: dict, seed: int, geometry: Geometry, settings: BTSSettings) -> dict:
-    d = _base_inputs(params, seed, geometry)
-    d["thickness_mm"] = d["height_mm"]
-    d.update({f"bts_{k}": v for k, v in bts_dict(settings).items()})
-    return d
+    """:func:`test_inputs` of the Brazilian test."""
+    return test_inputs("bts", params, seed, geometry, settings)
 
 
 def dtt_inputs(params: dict, seed: int, geometry: Geometry, settings: DTTSettings) -> dict:
-    d = _base_inputs(params, seed, geometry)
-    d.update({f"dtt_{k}": v for k, v in dtt_dict(settings).items()})
-    return d
+    """:func:`test_inputs` of the direct-tension test."""
+    return test_inputs("dtt", params, seed, geometry, settings)
 
 
 def triaxial_inputs(params: dict, seed: int, geometry: Geometry,
                     settings: TriaxialSettings) -> dict:
-    d = _base_inputs(params, seed, geometry)
-    d["sigma3_MPa"] = settings.sigma3 / 1e6
-    d.update({f"triaxial_{k}": v for k, v in tx_dict(settings).items()})
-    return d
+    """:func:`test_inputs` of the triaxial test."""
+    return test_inputs("triaxial", params, seed, geometry, settings)
 
 
 def impact_inputs(params: dict, seed: int, geometry: Geometry,
                   settings: ImpactSettings) -> dict:
-    d = _base_inputs(params, seed, geometry)
-    d.update({f"impact_{k}": v for k, v in impact_dict(settings).items()})
-    return d
+    """:func:`test_inputs` of the impact test."""
+    return test_inputs("impact", params, seed, geometry, settings)
 
 
 # ------------------------------------------------------------------ the tests
@@ -222,11 +230,6 @@ def _crack_arrays(ev: dict) -> dict:
             "sigma_n": ev["sigma_n"], "i": ev["i"], "j": ev["j"],
             # flat joints: one crack per broken element (its index in the contact, area)
             **{k: ev[k] for k in ("element", "area") if k in ev}}
-
-
-#: the series whose maximum is the peak of each test (for the morphology)
-_PEAK_SERIES = {"ucs": "axial_stress", "triaxial": "deviator", "bts": "load",
-                "dtt": "axial_stress"}
 
 
 def _morphology(test: str, sp, res, ini: dict) -> dict:
@@ -240,7 +243,8 @@ def _morphology(test: str, sp, res, ini: dict) -> dict:
     if "peak_step" in res.summary:  # the test knows its peak (a Brazilian split)
         peak_step = int(res.summary["peak_step"])
     else:
-        peak_step = int(res.series["step"][int(np.argmax(res.series[_PEAK_SERIES[test]]))])
+        peak = res.series[kind(test).peak_series]
+        peak_step = int(res.series["step"][int(np.argmax(peak))])
     r0 = ini["radius"]
     if test == "bts":
         xc, yc = (float(v) for v in ini["position"][:, :2].mean(axis=0))
@@ -326,80 +330,92 @@ def _lab_run(test, sp, res, ini, inputs, t0, t_gen, keep_particles, finite) -> L
                   bonds=bonds if keep_particles else None)
 
 
-def ucs_test(params: dict, seed: int, geometry: Geometry = Geometry(),
-             settings: UCSSettings = UCSSettings(), *, cache=None, threads=None,
-             progress=None, keep_particles: bool = True,
-             genesis_max_steps: int | None = None) -> LabRun:
-    """One UCS test (``lab.ucs``) on the cylinder of ``geometry``."""
-    p = P.validate_params(params)  # bad input: raise before any work
-    return _lab_test("ucs", p, seed, geometry, ucs_inputs(p, seed, geometry, settings),
-                     "platens", lambda sp: run_ucs(sp, settings, progress=progress),
-                     cache=cache, threads=threads, keep_particles=keep_particles,
-                     progress=progress, genesis_max_steps=genesis_max_steps,
-                     finite=("ucs_MPa", "E_GPa", "nu"))
+def default_geometry(test: str) -> Geometry:
+    """The specimen of lab test ``test`` by default: the ISRM disc at scale 1
+    (:func:`bts_geometry`) for the Brazilian test, the 50 x 100 mm cylinder else."""
+    return bts_geometry() if kind(test).disc else Geometry()
 
 
-def bts_test(params: dict, seed: int, geometry: Geometry | None = None,
-             settings: BTSSettings | None = None, *, cache=None, threads=None, progress=None,
+def lab_test(test: str, params: dict, seed: int, geometry: Geometry | None = None,
+             settings=None, *, cache=None, threads=None, progress=None,
              keep_particles: bool = True, genesis_max_steps: int | None = None) -> LabRun:
-    """One Brazilian test (``lab.brazilian``) of packing ``seed``: the first valid of up to
-    ``1 + settings.retests`` discs (an invalid disc is discarded and another packed with
-    ``retest_seed``; the summary's ``discs``, ``disc_seed`` and ``discarded`` say which);
-    ``geometry`` defaults to the ISRM disc 50 x 25 mm at scale 1 (``bts_geometry``)."""
-    st = settings or BTSSettings()
-    geo = geometry or bts_geometry()
-    p = P.validate_params(params)
-    inputs = bts_inputs(p, seed, geo, st)
+    """One lab test ``test`` (``registry.LAB_TESTS``) of ``params`` on packing ``seed``:
+    its specimen (``geometry``, default :func:`default_geometry`; the registry's
+    boundary), its ``driver.LabTest`` on the driver with ``settings`` (default: the
+    settings class's defaults), its results. A test with retests (the Brazilian) runs
+    :func:`_retested`; the impact, which the driver does not run, :func:`impact_test`
+    (its particles are always kept: its fragments are labelled on them)."""
+    k = kind(test)
+    st = settings or k.settings()
+    geo = geometry or default_geometry(test)
+    p = P.validate_params(params)  # bad input: raise before any work
+    kw = dict(cache=cache, threads=threads, progress=progress,
+              genesis_max_steps=genesis_max_steps)
+    if k.test_class is None:
+        return impact_test(p, seed, geo, st, **kw)
+    inputs = test_inputs(test, p, seed, geo, st)
 
-    def disc(k: int) -> LabRun:  # the cost ledger books a retest apart (bpmcal.cost)
-        return _lab_test("bts", p, retest_seed(seed, k), geo, inputs, "free",
-                         lambda sp: run_bts(sp, st, progress=progress), cache=cache,
-                         threads=threads, keep_particles=keep_particles, progress=progress,
-                         genesis_max_steps=genesis_max_steps, finite=("bts_MPa",),
-                         cost_phase="bts" if k == 0 else "bts_retest")
+    def specimen(s: int, retest: bool = False) -> LabRun:  # a retest booked apart (bpmcal.cost)
+        return _lab_test(test, p, s, geo, inputs, k.boundary,
+                         lambda sp: run_test(k.test_class(sp, st), progress),
+                         keep_particles=keep_particles, finite=k.finite,
+                         cost_phase=f"{test}_retest" if retest else None, **kw)
+
+    if k.retests:
+        return _retested(specimen, seed, st.retests, progress)
+    return specimen(seed)
+
+
+def _retested(specimen, seed: int, retests: int, progress) -> LabRun:
+    """The first valid of up to ``1 + retests`` specimens (``specimen(packing seed,
+    retest)``): an invalid one is discarded and another packed with
+    ``seeds.retest_seed``, in ``seeds.retry``, the one retry loop; the summary's
+    ``discs``, ``disc_seed`` and ``discarded`` say which, and ``wall_s`` is the time of
+    all of them."""
+    discarded, wall = [], [0.0]
+
+    def discard(k: int, run: LabRun) -> None:
+        reason = run.summary["bts_invalid_reason"]
+        discarded.append(f"seed {retest_seed(seed, k)}: {reason}")
+        wall[0] += run.summary["wall_s"]
+        if progress is not None:
+            progress({"note": f"disc {k + 1} invalid ({reason}); "
+                              f"testing disc {k + 2} of at most {retests + 1}"})
 
     # an invalid disc is discarded and another tested, as in the laboratory (lab.brazilian)
-    run, discarded, wall = disc(0), [], 0.0
-    k = 0
-    while not run.summary["bts_valid"] and k < st.retests:
-        discarded.append(f"seed {retest_seed(seed, k)}: {run.summary['bts_invalid_reason']}")
-        wall += run.summary["wall_s"]
-        k += 1
-        if progress is not None:
-            progress({"note": f"disc {k} invalid ({run.summary['bts_invalid_reason']}); "
-                              f"testing disc {k + 1} of at most {st.retests + 1}"})
-        run = disc(k)
+    run, k = retry(lambda k: specimen(retest_seed(seed, k), k > 0), retests + 1,
+                   lambda r: r.summary["bts_valid"], discard)
     run.summary.update(discs=k + 1, disc_seed=retest_seed(seed, k),
-                       discarded="; ".join(discarded), wall_s=wall + run.summary["wall_s"])
+                       discarded="; ".join(discarded), wall_s=wall[0] + run.summary["wall_s"])
     return run
 
 
+def ucs_test(params: dict, seed: int, geometry: Geometry = Geometry(),
+             settings: UCSSettings = UCSSettings(), **kw) -> LabRun:
+    """One UCS test (``lab.ucs``) on the cylinder of ``geometry``: :func:`lab_test`."""
+    return lab_test("ucs", params, seed, geometry, settings, **kw)
+
+
+def bts_test(params: dict, seed: int, geometry: Geometry | None = None,
+             settings: BTSSettings | None = None, **kw) -> LabRun:
+    """One Brazilian test (``lab.brazilian``) of packing ``seed``: the first valid of up to
+    ``1 + settings.retests`` discs (:func:`_retested`); ``geometry`` defaults to the ISRM
+    disc 50 x 25 mm at scale 1 (``bts_geometry``): :func:`lab_test`."""
+    return lab_test("bts", params, seed, geometry, settings, **kw)
+
+
 def dtt_test(params: dict, seed: int, geometry: Geometry = Geometry(),
-             settings: DTTSettings | None = None, *, cache=None, threads=None, progress=None,
-             keep_particles: bool = True, genesis_max_steps: int | None = None) -> LabRun:
+             settings: DTTSettings | None = None, **kw) -> LabRun:
     """One direct-tension test (``lab.direct_tension``) on the free cylinder of
-    ``geometry`` (the UCS cylinder by default)."""
-    st = settings or DTTSettings()
-    p = P.validate_params(params)
-    return _lab_test("dtt", p, seed, geometry, dtt_inputs(p, seed, geometry, st), "free",
-                     lambda sp: run_dtt(sp, st, progress=progress), cache=cache,
-                     threads=threads, keep_particles=keep_particles, progress=progress,
-                     genesis_max_steps=genesis_max_steps, finite=())
+    ``geometry`` (the UCS cylinder by default): :func:`lab_test`."""
+    return lab_test("dtt", params, seed, geometry, settings, **kw)
 
 
 def triaxial_test(params: dict, seed: int, geometry: Geometry = Geometry(),
-                  settings: TriaxialSettings | None = None, *, cache=None, threads=None,
-                  progress=None, keep_particles: bool = True,
-                  genesis_max_steps: int | None = None) -> LabRun:
+                  settings: TriaxialSettings | None = None, **kw) -> LabRun:
     """One triaxial test (``lab.triaxial``; sigma3 in ``settings``) on the UCS cylinder of
-    ``geometry``."""
-    st = settings or TriaxialSettings()
-    p = P.validate_params(params)
-    return _lab_test("triaxial", p, seed, geometry, triaxial_inputs(p, seed, geometry, st),
-                     "vessel", lambda sp: run_triaxial(sp, st, progress=progress),
-                     cache=cache, threads=threads, keep_particles=keep_particles,
-                     progress=progress, genesis_max_steps=genesis_max_steps,
-                     finite=("sigma1_MPa", "E_GPa", "nu"))
+    ``geometry``: :func:`lab_test`."""
+    return lab_test("triaxial", params, seed, geometry, settings, **kw)
 
 
 def impact_test(params: dict, seed: int, geometry: Geometry = Geometry(),

@@ -9,8 +9,8 @@ second. Splitting is exact:
 the engine's state after ``cycle(m, a + b)`` is bitwise that of ``m.cycle(a + b)``
 (tested), only the state energies are recorded at the last step as before.
 
-The virtual tests (genesis, UCS, impact and new ones) call ``cycle(m, n)`` instead of
-``m.cycle(n)``.
+The virtual tests (genesis, every lab test through ``lab.driver``, the impact) call
+``cycle(m, n)`` instead of ``m.cycle(n)``.
 """
 from __future__ import annotations
 
@@ -118,34 +118,3 @@ class LoadingProgress:
             self.progress({**self.last, "steps": self.m.step - self.step0,
                            "wall_s": time.perf_counter() - self.t0,
                            "bound_steps": self.bound, "max_strain": self.max_strain})
-
-
-def load_to_failure(m, settings, step0: int, bound: int, progress, advance, record, ser,
-                    strain_now, post_peak, shown=None, peak0: float = 0.0) -> str:
-    """The loading loop of the axial tests (UCS, direct tension, triaxial): until
-    ``settings.max_steps`` steps since ``step0``, ``advance()`` one record interval, then
-    ``record()`` -> (the loading's stress, its strain); keep the peak; tell ``progress``
-    (:class:`LoadingProgress`, with a heartbeat that reads ``strain_now()`` during long
-    intervals; ``shown(stress, peak)`` -> the stress and peak shown in MPa, default the
-    values themselves); stop once the stress has dropped below ``settings.stop_drop`` x the
-    peak at least ``post_peak(strain at the peak)`` past it, or at ``settings.max_strain``.
-    ``ser``: the test's series (its last crack counts are shown). Returns the stop reason:
-    ``post_peak_drop``, ``max_strain`` or ``max_steps``."""
-    st = settings
-    peak, peak_strain = peak0, 0.0
-    tell = LoadingProgress(progress, m, step0, bound, st.max_strain)
-    with heartbeat(lambda: tell(strain=strain_now())):
-        while True:
-            if m.step - step0 >= st.max_steps:
-                return "max_steps"
-            advance()
-            s, eps = record()
-            if s > peak:
-                peak, peak_strain = s, eps
-            s_mpa, peak_mpa = shown(s, peak) if shown else (s / 1e6, peak / 1e6)
-            tell(strain=eps, stress_MPa=s_mpa, peak_MPa=peak_mpa,
-                 cracks=ser["cracks_tension"][-1] + ser["cracks_shear"][-1])
-            if peak > 0 and s < st.stop_drop * peak and eps - peak_strain >= post_peak(peak_strain):
-                return "post_peak_drop"
-            if eps >= st.max_strain:
-                return "max_strain"

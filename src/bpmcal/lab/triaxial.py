@@ -63,10 +63,11 @@ import numpy as np
 
 from ..dem.errors import InputError
 from .budget import Loading, platen_loading
-from .records import append_cracks, append_energies, loading_cracks
+from .driver import Loaded, LoadingTest, check_loading_settings, record_common, run_test
+from .records import LateralGauge, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
-from .stepping import load_to_failure, loading_bound
+from .stepping import loading_bound
 from .ucs import END_CAP_FACTOR, END_CAP_HEIGHT, check_end_cap, fit_slope, install_end_caps
 
 #: columns of the recorded time series
@@ -118,7 +119,7 @@ class TriaxialSettings:
         if self.strain_rate is not None and not (self.strain_rate > 0
                                                  and math.isfinite(self.strain_rate)):
             raise InputError(f"strain_rate={self.strain_rate!r}: expected a positive rate in 1/s")
-        for k in ("platen_velocity", "servo_vmax", "seat_stress", "record_strain"):
+        for k in ("platen_velocity", "servo_vmax", "seat_stress"):
             v = getattr(self, k)
             if not (v > 0 and math.isfinite(v)):
                 raise InputError(f"{k}={v!r}: expected a positive number (SI units)")
@@ -126,8 +127,7 @@ class TriaxialSettings:
             v = getattr(self, k)
             if not (v >= 0 and math.isfinite(v)):
                 raise InputError(f"{k}={v!r}: expected a number >= 0")
-        if not (0.0 <= self.damping < 1.0):
-            raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
+        check_loading_settings(self)
         if not (0.0 < self.servo_alpha <= 1.0):
             raise InputError(f"servo_alpha={self.servo_alpha!r}: expected 0 < alpha <= 1")
         if int(self.servo_interval) < 1 or int(self.gain_update) < 1:
@@ -136,13 +136,6 @@ class TriaxialSettings:
         if not (0.0 < self.consol_tol < 1.0 and self.consol_ratio > 0):
             raise InputError(f"consol_tol={self.consol_tol!r}, consol_ratio="
                              f"{self.consol_ratio!r}: expected 0 < tol < 1, ratio > 0")
-        if not (0.0 < self.stop_drop < 1.0):
-            raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
-        if not (0.0 < self.max_strain <= 0.5):
-            raise InputError(f"max_strain={self.max_strain!r}: expected a strain in (0, 0.5]")
-        lo, hi = self.fit_window
-        if not (0.0 <= lo < hi <= 1.0):
-            raise InputError(f"fit_window={self.fit_window!r}: expected 0 <= lo < hi <= 1")
 
 
 @dataclass
@@ -266,63 +259,67 @@ def analyse(series: dict, settings: TriaxialSettings) -> dict:
             "cracks_shear_peak": int(series["cracks_shear"][ip])}
 
 
-def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
-                 progress=None) -> TriaxialResult:
-    """Consolidate specimen ``sp`` (built with ``boundary="vessel"``) to sigma3 and load
-    it axially; its model is modified. ``progress(dict)`` is called after every record."""
-    st = settings
-    m = sp.model
-    cell = _Cell(sp)
-    wb, wt, wl = cell.wb, cell.wt, cell.wl
-    m.set_wall_friction([wb, wt], st.platen_fric)
-    m.set_wall_friction(wl, st.wall_fric)
-    caps = install_end_caps(sp, st.end_cap, st.end_cap_factor)  # before consolidation
-    m.set_damping(st.damping)
-    m.set_timestep(None)
-    dt = m.dt
-    bound = loading_bound(m, st, st.loading_at(sp.z_top - sp.z_bottom))
-    t_c = time.perf_counter()
-    con = consolidate(sp, st)
-    lateral = con.pop("servo")
-    consol_s = time.perf_counter() - t_c
-    H0 = cell.height()
-    Rc0 = cell.radius()
-    A0 = math.pi * Rc0 ** 2
-    v = st.loading_at(H0).velocity
-    m.set_wall_velocity(wb, velocity=(0.0, 0.0, v))
-    m.set_wall_velocity(wt, velocity=(0.0, 0.0, -v))
-    loop = ServoLoop(m, [lateral], interval=st.servo_interval, gain_update=st.gain_update)
-    n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * dt))))
-    pos0 = m.positions.copy()
-    z0 = pos0[sp.surface, 2]
-    zb = float(m.wall_position(wb)[2])
-    band = (z0 >= zb + st.lateral_band[0] * H0) & (z0 <= zb + st.lateral_band[1] * H0)
-    gauge = sp.surface[band]
-    if gauge.size < 3:
-        raise InputError(f"only {gauge.size} surface balls in the lateral strain band: the "
-                         "specimen is too small for a lateral strain measurement")
-    rho0 = np.hypot(pos0[gauge, 0], pos0[gauge, 1])
-    R0 = sp.radius0
-    ser = {k: [] for k in TRIAXIAL_SERIES}
-    e0 = m.energies()
-    walls = (wb, wt, wl)
-    e0_walls = sum(e0["work_walls_each"][w] for w in walls)
-    step0 = m.step
-    t_start = m.time
-    t0 = time.perf_counter()
+class TriaxialTest(LoadingTest):
+    """The triaxial test of ``sp`` (built with ``boundary="vessel"``) as a
+    ``driver.LabTest``: consolidation to sigma3 in ``prepare``, then axial loading with the
+    lateral wall servo-controlled (``load_step``); its peak is the deviator's."""
 
-    def record():
+    peak0 = -math.inf  # the deviator may start below zero
+
+    def __init__(self, sp: Specimen, settings: TriaxialSettings):
+        self.sp, self.settings, self.m = sp, settings, sp.model
+
+    def prepare(self) -> None:
+        st, sp, m = self.settings, self.sp, self.m
+        cell = self.cell = _Cell(sp)
+        wb, wt, wl = cell.wb, cell.wt, cell.wl
+        m.set_wall_friction([wb, wt], st.platen_fric)
+        m.set_wall_friction(wl, st.wall_fric)
+        self.caps = install_end_caps(sp, st.end_cap, st.end_cap_factor)  # before consolidation
+        m.set_damping(st.damping)
+        m.set_timestep(None)
+        self.dt = m.dt
+        self.bound = loading_bound(m, st, st.loading_at(sp.z_top - sp.z_bottom))
+        t_c = time.perf_counter()
+        self.con = consolidate(sp, st)
+        lateral = self.con.pop("servo")
+        self.consol_s = time.perf_counter() - t_c
+        H0 = self.H0 = cell.height()
+        self.Rc0 = cell.radius()
+        self.A0 = math.pi * self.Rc0 ** 2
+        v = self.v = st.loading_at(H0).velocity
+        m.set_wall_velocity(wb, velocity=(0.0, 0.0, v))
+        m.set_wall_velocity(wt, velocity=(0.0, 0.0, -v))
+        self.loop = ServoLoop(m, [lateral], interval=st.servo_interval,
+                              gain_update=st.gain_update)
+        self.n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * self.dt))))
+        self.gauge = LateralGauge(sp, m.positions.copy(), float(m.wall_position(wb)[2]), H0,
+                                  st.lateral_band, sp.radius0)
+        self.series = {k: [] for k in TRIAXIAL_SERIES}
+        self.e0 = m.energies()
+        self.walls = (wb, wt, wl)
+        self.e0_walls = sum(self.e0["work_walls_each"][w] for w in self.walls)
+        self.step0 = m.step
+        self.t_start = m.time
+        self.record()
+        self.stop_drop = st.stop_drop
+
+    def load_step(self) -> None:
+        self.loop.run(self.n_rec)
+
+    def strain_now(self) -> float:
+        return 2 * self.v * (self.m.time - self.t_start) / self.H0
+
+    def record(self) -> tuple[float, float]:
+        m, ser, cell, H0 = self.m, self.series, self.cell, self.H0
         e = m.energies()
-        sb, stp = cell.platen_stresses(A0)
+        sb, stp = cell.platen_stresses(self.A0)
         s1 = 0.5 * (sb + stp)
         s3 = cell.lateral_stress()
         ea = (H0 - cell.height()) / H0
-        pos = m.positions
-        rho = np.hypot(pos[gauge, 0], pos[gauge, 1])
-        er = -float((rho - rho0).mean()) / R0
-        erw = -(cell.radius() - Rc0) / Rc0
-        ser["step"].append(m.step - step0)
-        ser["time"].append(m.time - t_start)
+        er = self.gauge.strain(m.positions)
+        erw = -(cell.radius() - self.Rc0) / self.Rc0
+        record_common(self, e, self.e0, self.t_start)
         ser["axial_strain"].append(ea)
         ser["lateral_strain"].append(er)
         ser["lateral_strain_wall"].append(erw)
@@ -333,34 +330,38 @@ def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
         ser["stress_top"].append(stp)
         ser["stress_bottom"].append(sb)
         ser["wall_radius"].append(cell.radius())
-        append_cracks(ser, m)
-        append_energies(ser, e, e0)
-        ser["work_walls"].append(sum(e["work_walls_each"][w] for w in walls) - e0_walls)
-        ser["unbalanced"].append(m.unbalanced_ratio())
+        ser["work_walls"].append(sum(e["work_walls_each"][w] for w in self.walls)
+                                 - self.e0_walls)
         return s1 - s3, ea
 
-    record()
-    reason = load_to_failure(
-        m, st, step0, bound, progress, lambda: loop.run(n_rec), record, ser,
-        strain_now=lambda: 2 * v * (m.time - t_start) / H0,
-        post_peak=lambda eps_peak: min(st.post_peak_strain, 0.5 * eps_peak),
-        shown=lambda q, peak: (ser["axial_stress"][-1] / 1e6, (peak + st.sigma3) / 1e6),
-        peak0=-math.inf)
-    wall = time.perf_counter() - t0
-    series = {k: np.asarray(vv) for k, vv in ser.items()}
-    summ = analyse(series, st)
-    summ.update({
-        "cracks_tension": int(series["cracks_tension"][-1]),
-        "cracks_shear": int(series["cracks_shear"][-1]),
-        "steps": int(m.step - step0), "wall_s": wall, "consol_s": consol_s,
-        "stop_reason": reason, "dt": dt, "platen_velocity": v, "strain_rate": 2 * v / H0,
-        "records": int(series["step"].size), "servo_interval": int(st.servo_interval),
-        "servo_alpha": float(st.servo_alpha), **con,
-        "end_cap_bonds": int(caps.size),
-        "end_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
-    })
-    ev = loading_cracks(m, step0, dt)  # relative to the start of axial loading
-    return TriaxialResult(summary=summ, series=series, cracks=ev, settings=st)
+    def post_peak(self, peak_strain: float) -> float:
+        return min(self.settings.post_peak_strain, 0.5 * peak_strain)
+
+    def shown(self, q: float, peak: float) -> tuple[float, float]:
+        return self.series["axial_stress"][-1] / 1e6, (peak + self.settings.sigma3) / 1e6
+
+    def analyse(self, end: Loaded) -> TriaxialResult:
+        st, m, caps = self.settings, self.m, self.caps
+        series = {k: np.asarray(vv) for k, vv in self.series.items()}
+        summ = analyse(series, st)
+        summ.update(end.summary(self, before_stop={"consol_s": self.consol_s}))
+        summ.update({
+            "platen_velocity": self.v, "strain_rate": 2 * self.v / self.H0,
+            "records": end.records(self), "servo_interval": int(st.servo_interval),
+            "servo_alpha": float(st.servo_alpha), **self.con,
+            "end_cap_bonds": int(caps.size),
+            "end_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
+        })
+        ev = loading_cracks(m, self.step0, self.dt)  # relative to the start of axial loading
+        return TriaxialResult(summary=summ, series=series, cracks=ev, settings=st)
+
+
+def run_triaxial(sp: Specimen, settings: TriaxialSettings = TriaxialSettings(),
+                 progress=None) -> TriaxialResult:
+    """Consolidate specimen ``sp`` (built with ``boundary="vessel"``) to sigma3 and load
+    it axially (its model is modified): :class:`TriaxialTest` on the lab-test driver
+    (``driver.run_test``). ``progress(dict)`` is called after every record."""
+    return run_test(TriaxialTest(sp, settings), progress)
 
 
 def settings_dict(st: TriaxialSettings) -> dict:

@@ -70,7 +70,6 @@ The test stops when sigma falls below ``stop_drop`` (70 %) of the peak after the
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -78,9 +77,10 @@ import numpy as np
 from ..dem.errors import InputError
 from ..exact_math import lsq_slope
 from .budget import Loading, platen_loading
-from .records import append_cracks, append_energies, loading_cracks
+from .driver import Loaded, LoadingTest, check_loading_settings, record_common, run_test
+from .records import LateralGauge, loading_cracks
 from .specimen import Specimen, apply_end_caps
-from .stepping import cycle, load_to_failure, loading_bound
+from .stepping import cycle, loading_bound
 
 #: columns of the recorded time series
 SERIES = ("step", "time", "axial_strain", "lateral_strain", "volumetric_strain",
@@ -161,17 +161,7 @@ class UCSSettings:
         if not (0.0 <= self.platen_fric <= 10.0):  # NaN fails too
             raise InputError(f"platen_fric={self.platen_fric!r}: expected a friction "
                              "coefficient in [0, 10]")
-        if not (0.0 <= self.damping < 1.0):
-            raise InputError(f"damping={self.damping!r}: expected a local damping in [0, 1)")
-        if not (0.0 < self.stop_drop < 1.0):
-            raise InputError(f"stop_drop={self.stop_drop!r}: expected a fraction in (0, 1)")
-        if not (0.0 < self.max_strain <= 0.5):
-            raise InputError(f"max_strain={self.max_strain!r}: expected a strain in (0, 0.5]")
-        lo, hi = self.fit_window
-        if not (0.0 <= lo < hi <= 1.0):
-            raise InputError(f"fit_window={self.fit_window!r}: expected 0 <= lo < hi <= 1")
-        if not (self.record_strain > 0 and math.isfinite(self.record_strain)):
-            raise InputError(f"record_strain={self.record_strain!r}: expected > 0")
+        check_loading_settings(self)
         check_approach(self.approach_velocity, self.approach_ramp)
 
 
@@ -357,53 +347,59 @@ def transit_steps(m, stress: float, strain: float, length: float, area: float) -
 RAMP_PIECE = 8
 
 
-def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) -> UCSResult:
-    """Run the test on specimen ``sp`` (its model is modified). ``progress(dict)`` is
-    called after every record with the latest values."""
-    st = settings
-    m = sp.model
-    H0 = sp.z_top - sp.z_bottom
-    R0 = sp.radius0
-    area = math.pi * R0 * R0
-    loading = st.loading_at(H0)
-    v = loading.velocity
-    caps = install_end_caps(sp, st.end_cap, st.end_cap_factor)  # before anything moves
-    wb, wt = sp.platens
-    approach = st.approach_velocity > v  # fast until the first crack, then at v
-    ax = _Axial(m, (wb, wt), H0, st.approach_velocity if approach else v)
-    ax.approaching = approach
-    m.set_wall_friction([wb, wt], st.platen_fric)
-    m.set_damping(st.damping)
-    m.set_timestep(None)
-    dt = m.dt
-    bound = loading_bound(m, st, loading)
-    ax.records_every(st.record_strain, dt)
-    pos0 = m.positions.copy()
-    z0 = pos0[sp.surface, 2]
-    band = (z0 >= sp.z_bottom + st.lateral_band[0] * H0) & (
-        z0 <= sp.z_bottom + st.lateral_band[1] * H0)
-    gauge = sp.surface[band]
-    if gauge.size < 3:
-        raise InputError(f"only {gauge.size} surface balls in the lateral strain band: the "
-                         "specimen is too small for a lateral strain measurement")
-    rho0 = np.hypot(pos0[gauge, 0], pos0[gauge, 1])
-    slabs = [np.flatnonzero(np.abs(pos0[:, 2] - (sp.z_bottom + f * H0)) <= 0.05 * H0)
-             for f in CENTRAL_GAUGE]
-    zc0 = [pos0[g, 2].mean() for g in slabs]
-    ser = {k: [] for k in SERIES}
-    e0 = m.energies()
-    step0 = m.step
-    t0 = time.perf_counter()
+class UCSTest(LoadingTest):
+    """The UCS test of specimen ``sp`` as a ``driver.LabTest``: end caps, the platens'
+    approach and its ramp to the loading speed (``on_record``: the approach speed's hook),
+    the lateral and central gauges."""
 
-    def record():
+    def __init__(self, sp: Specimen, settings: UCSSettings):
+        self.sp, self.settings, self.m = sp, settings, sp.model
+
+    def prepare(self) -> None:
+        st, sp, m = self.settings, self.sp, self.m
+        H0 = self.H0 = sp.z_top - sp.z_bottom
+        R0 = sp.radius0
+        self.area = math.pi * R0 * R0
+        loading = st.loading_at(H0)
+        v = self.v = loading.velocity
+        self.caps = install_end_caps(sp, st.end_cap, st.end_cap_factor)  # before anything moves
+        wb, wt = self.walls = sp.platens
+        approach = st.approach_velocity > v  # fast until the first crack, then at v
+        ax = self.ax = _Axial(m, (wb, wt), H0, st.approach_velocity if approach else v)
+        ax.approaching = approach
+        m.set_wall_friction([wb, wt], st.platen_fric)
+        m.set_damping(st.damping)
+        m.set_timestep(None)
+        self.dt = m.dt
+        self.bound = loading_bound(m, st, loading)
+        ax.records_every(st.record_strain, self.dt)
+        pos0 = m.positions.copy()
+        self.gauge = LateralGauge(sp, pos0, sp.z_bottom, H0, st.lateral_band, R0)
+        self.slabs = [np.flatnonzero(np.abs(pos0[:, 2] - (sp.z_bottom + f * H0)) <= 0.05 * H0)
+                      for f in CENTRAL_GAUGE]
+        self.zc0 = [pos0[g, 2].mean() for g in self.slabs]
+        self.series = {k: [] for k in SERIES}
+        self.e0 = m.energies()
+        self.step0 = m.step
+        self.cracks0 = sum(m.crack_counts())  # of the genesis, if any
+        ax.start()
+        self.t_start = m.time
+        self.e0_walls = self.e0["work_walls_each"][wb] + self.e0["work_walls_each"][wt]
+        self.record()
+        self.stop_drop = st.stop_drop
+
+    def load_step(self) -> None:
+        self.ax.advance(lambda n: cycle(self.m, n))
+
+    def record(self) -> tuple[float, float]:
+        m, ser, (wb, wt), area = self.m, self.series, self.walls, self.area
+        slabs, zc0 = self.slabs, self.zc0
         e = m.energies()
         ft = abs(m.wall_force(wt)[2])
         fb = abs(m.wall_force(wb)[2])
-        ea = ax.strain()
-        rho = np.hypot(m.positions[gauge, 0], m.positions[gauge, 1])
-        er = -float((rho - rho0).mean()) / R0
-        ser["step"].append(m.step - step0)
-        ser["time"].append(m.time - t_start)
+        ea = self.ax.strain()
+        er = self.gauge.strain(m.positions)
+        record_common(self, e, self.e0, self.t_start)
         ser["axial_strain"].append(ea)
         ser["lateral_strain"].append(er)
         ser["axial_strain_central"].append(
@@ -414,40 +410,42 @@ def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) 
         ser["axial_stress"].append(0.5 * (ft + fb) / area)
         ser["stress_top"].append(ft / area)
         ser["stress_bottom"].append(fb / area)
-        append_cracks(ser, m)
-        append_energies(ser, e, e0)
         ser["work_walls"].append(e["work_walls_each"][wb] + e["work_walls_each"][wt]
-                                 - e0_walls)
-        ser["unbalanced"].append(m.unbalanced_ratio())
-        if ax.approaching and ser["cracks_tension"][-1] + ser["cracks_shear"][-1] > cracks0:
-            ramp = st.approach_ramp * transit_steps(m, ser["axial_stress"][-1], ea, H0, area)
-            ax.switch(v, st.record_strain, dt, int(math.ceil(ramp)))  # the first crack
+                                 - self.e0_walls)
         return ser["axial_stress"][-1], ea
 
-    cracks0 = sum(m.crack_counts())  # of the genesis, if any
-    ax.start()
-    t_start = m.time
-    e0_walls = e0["work_walls_each"][wb] + e0["work_walls_each"][wt]
-    record()
-    reason = load_to_failure(
-        m, st, step0, bound, progress, lambda: ax.advance(lambda n: cycle(m, n)), record, ser,
-        strain_now=ax.strain,
-        post_peak=lambda eps_peak: min(st.post_peak_strain, 0.5 * eps_peak))
-    wall = time.perf_counter() - t0
-    series = {k: np.asarray(vv) for k, vv in ser.items()}
-    summ = analyse(series, st)
-    summ.update({
-        "cracks_tension": int(series["cracks_tension"][-1]),
-        "cracks_shear": int(series["cracks_shear"][-1]),
-        "steps": int(m.step - step0), "wall_s": wall, "stop_reason": reason,
-        "dt": dt, "platen_velocity": v, "strain_rate": 2 * v / H0,
-        "approach_velocity": st.approach_velocity, "approach_strain": ax.approach_strain,
-        "records": int(series["step"].size),
-        "end_cap_bonds": int(caps.size),
-        "end_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
-    })
-    ev = loading_cracks(m, step0, dt)  # relative to the start of loading (< 0: during genesis)
-    return UCSResult(summary=summ, series=series, cracks=ev, settings=st)
+    def on_record(self, stress: float, strain: float) -> None:
+        ser, ax, st = self.series, self.ax, self.settings
+        if ax.approaching and ser["cracks_tension"][-1] + ser["cracks_shear"][-1] > self.cracks0:
+            ramp = st.approach_ramp * transit_steps(self.m, stress, strain, self.H0, self.area)
+            ax.switch(self.v, st.record_strain, self.dt, int(math.ceil(ramp)))  # the first crack
+
+    def strain_now(self) -> float:
+        return self.ax.strain()
+
+    def post_peak(self, peak_strain: float) -> float:
+        return min(self.settings.post_peak_strain, 0.5 * peak_strain)
+
+    def analyse(self, end: Loaded) -> UCSResult:
+        st, m, caps = self.settings, self.m, self.caps
+        series = {k: np.asarray(vv) for k, vv in self.series.items()}
+        summ = analyse(series, st)
+        summ.update(end.summary(self))
+        summ.update({
+            "platen_velocity": self.v, "strain_rate": 2 * self.v / self.H0,
+            "approach_velocity": st.approach_velocity, "approach_strain": self.ax.approach_strain,
+            "records": end.records(self), "end_cap_bonds": int(caps.size),
+            "end_cap_broken": int(np.count_nonzero(np.isin(m.bond_states[caps], (1, 2)))),
+        })
+        ev = loading_cracks(m, self.step0, self.dt)  # relative to the start of loading
+        return UCSResult(summary=summ, series=series, cracks=ev, settings=st)
+
+
+def run_ucs(sp: Specimen, settings: UCSSettings = UCSSettings(), progress=None) -> UCSResult:
+    """Run the test on specimen ``sp`` (its model is modified): :class:`UCSTest` on the
+    lab-test driver (``driver.run_test``). ``progress(dict)`` is called after every record
+    with the latest values."""
+    return run_test(UCSTest(sp, settings), progress)
 
 
 def settings_dict(st: UCSSettings) -> dict:

@@ -47,7 +47,7 @@ An invalid run gives no strength value (``bts_MPa`` / ``dtt_MPa`` NaN; the peak 
 stays in ``bts_peak_MPa`` / ``dtt_peak_MPa`` for inspection), and says why in
 ``bts_invalid_reason`` / ``dtt_invalid_reason``.
 
-**Complete or not** (:func:`incomplete_reason`, every quasi-static test): a test's measure
+**Complete or not** (:func:`cut_off_reason`, every quasi-static test): a test's measure
 is defined by what it must reach: the UCS, triaxial and direct-tension tests a peak
 followed by the drop to ``stop_drop`` of it (``stop_reason`` "post_peak_drop"), the
 Brazilian test the split that ends it the same way. A loading stopped by a cut-off first
@@ -197,27 +197,22 @@ def dtt_validity(cracks: dict, series_step, peak_record: int, *, grip_faces,
     return out
 
 
-#: the measure each quasi-static test reports and the series quantity of its peak, for
-#: :func:`incomplete_reason`'s message: test -> (measure, summary key of the peak, unit)
-_MEASURE = {"ucs": ("sigma_c", "ucs_MPa", "MPa"), "triaxial": ("sigma_1 at failure",
-                                                               "sigma1_MPa", "MPa"),
-            "dtt": ("sigma_t", "dtt_peak_MPa", "MPa"), "bts": ("sigma_t", "bts_peak_MPa",
-                                                              "MPa")}
 #: the stop reasons that mean the test reached what defines its measure
 COMPLETE = ("post_peak_drop",)
 
 
-def incomplete_reason(test: str, summary: dict) -> str:
-    """Why a finished run of ``test`` ("ucs", "triaxial", "dtt", "bts"; other tests: "")
-    measured nothing: its loading stopped at a cut-off (``max_strain``, ``max_steps``)
-    before the peak and the drop that define the measure (module doc); "" for a complete
-    run."""
-    if test not in _MEASURE:
+def cut_off_reason(measure: tuple[str, str, str] | None, summary: dict) -> str:
+    """Why a finished run measured nothing: its loading stopped at a cut-off
+    (``max_strain``, ``max_steps``) before the peak and the drop that define its
+    ``measure`` ((what it measures, the summary key of its peak, unit): the test's
+    ``registry.LabTestKind.measure``; None, a test without one: ""); "" for a complete
+    run. ``registry.incomplete_reason`` by the test's name."""
+    if measure is None:
         return ""
     stop = str(summary.get("stop_reason", ""))
     if stop in COMPLETE:
         return ""
-    measure, key, unit = _MEASURE[test]
+    measure, key, unit = measure
     what = {"max_strain": "its max_strain", "max_steps": "its max_steps"}.get(
         stop, f"stop reason {stop!r}")
     peak = summary.get(key)

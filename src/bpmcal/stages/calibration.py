@@ -103,18 +103,12 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
     for rec, targets in jobs:
         spec = str(rec["specimen"])
         s_free, s_ratio, ratio_by = bts_strengths(targets, free, fixed, ratio)
-        inv = invert(model_set,
-                     targets,
-                     fixed,
-                     SearchSpace(ranges=ranges, free=s_free, ratio=s_ratio, bounds=bounds),
-                     search=Multistart(seed=seed),
-                     errors=errors,
-                     target_se=lab_target_se(rec, targets))
+        space = SearchSpace(ranges=ranges, free=s_free, ratio=s_ratio, bounds=bounds)
+        inv = invert(model_set, targets, fixed, space, search=Multistart(seed=seed),
+                     errors=errors, target_se=lab_target_se(rec, targets))
         if n_boot:
-            boot = bootstrap_intervals(df, model_set, targets, fixed,
-                                       SearchSpace(ranges=ranges, free=s_free, ratio=s_ratio,
-                                                   bounds=bounds),
-                                       n_boot=n_boot, seed=seed)
+            boot = bootstrap_intervals(df, model_set, targets, fixed, space, n_boot=n_boot,
+                                       seed=seed)
             bootstrap = {"n_boot": n_boot, "scheme": boot.scheme,
                          "unreachable_resamples": boot.n_unreachable,
                          "intervals": boot.intervals.reset_index().to_dict("records")}

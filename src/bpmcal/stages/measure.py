@@ -6,12 +6,12 @@ replaced (:func:`valid_tensile_run`), a tensile strength the mean of several spe
 (:func:`seed_strength`, :func:`combine_specimens`), written into a seed's row
 (:func:`row_strength`); the tests a seed runs (:class:`SeedTests`).
 
-The one seed scheme of these measurements is here: specimen j of packing seed s is packed
-with :func:`replicate_seed` (s + j x ``TENSILE_REPLICATE_STRIDE``), the m-th replacement
-of an invalid run adds m x ``BTS_REPLACEMENT_STRIDE`` (m <= ``BTS_MAX_REPLACEMENTS``), and
-a Brazilian disc's own ISRM retests, which the lab runs within one test, step by
-``lab.brazilian.RETEST_SEED_STEP``; :func:`packing_seed_gap` shows that no two of them
-share a packing.
+The seeds of these measurements follow the one seed scheme (:mod:`bpmcal.lab.seeds`):
+specimen j of packing seed s is packed with ``replicate_seed(s, j)``, the m-th
+replacement of an invalid run with ``replacement_seed(., m)`` (m <= ``MAX_REPLACEMENTS``),
+and a Brazilian disc's own ISRM retests, which the lab runs within one test, with
+``retest_seed``; :func:`packing_seed_gap` shows that no two of them share a packing. An
+invalid run is replaced in ``seeds.retry``, the one retry loop.
 
 Every DEM run of the closed loop, the transfer, the seed scatter, the fresh-seed check and
 the posterior's refinement goes through :data:`RUNNERS`, looked up at the call: the one
@@ -26,58 +26,29 @@ import numpy as np
 
 from ..analysis.calibration.loop_settings import MAX_TENSILE_SPECIMENS
 from ..io.checks import BadInput
+from ..lab import seeds
 from ..lab.brazilian import BTSSettings
 from ..lab.direct_tension import DTTSettings
+from ..lab.registry import SAMPLE_KINDS
 from ..lab.runner import Geometry
 from ..lab.runner import bts_geometry as _isrm_disc
 from ..lab.triaxial import TriaxialSettings
 from ..lab.ucs import UCSSettings
 from ..params import SAMPLE_TESTS, TENSILE_TESTS
-from .runs import run_bts_file, run_dtt_file, run_triaxial_file, run_ucs_file
-
-#: an invalid Brazilian test (its fracture did not start in the central zone) is no
-#: measurement: the closed loop and the fresh-seed check run the disc again on the next
-#: replacement seeds, seed + k x BTS_REPLACEMENT_STRIDE (k = 1, 2, ...), at most
-#: BTS_MAX_REPLACEMENTS times, before σt of that seed counts as a failed measurement
-BTS_REPLACEMENT_STRIDE = 100_000
-BTS_MAX_REPLACEMENTS = 3
-
+from .runs import RUN_FILES
 
 #: the tensile tests by their test names (``bts``, ``dtt``: the values of
 #: ``params.TENSILE_TESTS``, response -> test), whose strength a seed may measure on several
-#: specimens (``tensile_specimens``): specimen j of packing seed s is packed with
-#: ``replicate_seed(s, j)`` = s + j x TENSILE_REPLICATE_STRIDE (j = 0: s itself, the UCS
-#: test's packing). Its packing may move on twice: a replacement as above (+ m x
-#: BTS_REPLACEMENT_STRIDE, m <= BTS_MAX_REPLACEMENTS) and, for a Brazilian disc, the
-#: test's own ISRM retests (+ k x ``lab.brazilian.RETEST_SEED_STEP``, k <= 10). The stride
-#: keeps every such packing seed of every seed below 100,000 apart from every other
-#: (:func:`packing_seed_gap`: the smallest difference of two offsets is the replacement
-#: stride, 100,000) and below 2**32. (It was 1,000,000: then a retest of seed s, s +
-#: 1,000,003, was specimen 1 of seed s + 3, and two seeds shared that disc.)
+#: specimens (``tensile_specimens``, packed with ``seeds.replicate_seed``)
 TENSILE_TEST_NAMES: tuple[str, ...] = tuple(TENSILE_TESTS.values())
-TENSILE_REPLICATE_STRIDE = 20_000_003
-
-
-def replicate_seed(seed: int, j: int) -> int:
-    """The packing seed of specimen ``j`` (0, 1, ...) of packing ``seed``'s tensile test."""
-    return int(seed) + int(j) * TENSILE_REPLICATE_STRIDE
+#: (the replicate stride under the name the CLI's help and the benchmarks read)
+TENSILE_REPLICATE_STRIDE = seeds.REPLICATE_STRIDE
 
 
 def packing_seed_gap(max_retests: int = 10) -> tuple[int, int]:
-    """(the smallest nonzero difference between two offsets from a packing seed, the
-    largest offset) over every tensile specimen j < MAX_TENSILE_SPECIMENS, replacement
-    m <= BTS_MAX_REPLACEMENTS and ISRM retest k <= ``max_retests`` (the offset j x
-    TENSILE_REPLICATE_STRIDE + m x BTS_REPLACEMENT_STRIDE + k x RETEST_SEED_STEP): two
-    seeds closer than the gap never share a packing, and a seed below 2**32 minus the
-    largest offset stays a valid packing seed."""
-    from ..lab.brazilian import RETEST_SEED_STEP
-
-    steps = (TENSILE_REPLICATE_STRIDE, BTS_REPLACEMENT_STRIDE, RETEST_SEED_STEP)
-    reach = (MAX_TENSILE_SPECIMENS - 1, BTS_MAX_REPLACEMENTS, max_retests)
-    gap = min(abs(a * steps[0] + b * steps[1] + c * steps[2])
-              for a in range(-reach[0], reach[0] + 1) for b in range(-reach[1], reach[1] + 1)
-              for c in range(-reach[2], reach[2] + 1) if (a, b, c) != (0, 0, 0))
-    return gap, sum(r * s for r, s in zip(reach, steps))
+    """``seeds.packing_seed_gap`` over the closed loop's tensile specimens
+    (``MAX_TENSILE_SPECIMENS``): two seeds closer than the gap never share a packing."""
+    return seeds.packing_seed_gap(MAX_TENSILE_SPECIMENS, max_retests)
 
 
 #: the DEM runner of each test, by the test's name: the UCS test (a
@@ -85,8 +56,7 @@ def packing_seed_gap(max_retests: int = 10) -> tuple[int, int]:
 #: (``P.SAMPLE_TESTS``' tests: :func:`valid_tensile_run`). Looked up here at every call,
 #: never bound at import: the seam through which tests replace the DEM
 #: (``monkeypatch.setitem(measure.RUNNERS, "bts", fake)``)
-RUNNERS = {"ucs": run_ucs_file, "bts": run_bts_file, "dtt": run_dtt_file,
-           "tri": run_triaxial_file}
+RUNNERS = {key: RUN_FILES[k.name] for key, k in SAMPLE_KINDS.items()}
 
 
 def disc_geometry(geometry):
@@ -146,12 +116,12 @@ def test_strength(resp: str, outcome) -> float:
 
 
 def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, settings, *,
-                      max_replacements: int = BTS_MAX_REPLACEMENTS, **kw):
+                      max_replacements: int = seeds.MAX_REPLACEMENTS, **kw):
     """A per-sample test (``test``: "bts", the Brazilian disc ``geometry``; "dtt", the
     direct-tension cylinder; "tri", the triaxial test at the design confinement, whose
     runs have no validity check) of ``params`` on packing ``seed`` that measures its
     strength: an invalid run (``<test>_valid`` false) is replaced by the specimen of the
-    next replacement seed (``seed + k x BTS_REPLACEMENT_STRIDE``), up to
+    next replacement seed (``seeds.replacement_seed(seed, k)``), up to
     ``max_replacements`` times; a failed run (instability, genesis) is not replaced (it is
     a failure, not a measurement of the wrong thing). ``path_of(seed, k)`` names the run
     file of attempt k. Returns (the outcome used, the packing seed it ran on, the reasons
@@ -159,12 +129,20 @@ def valid_tensile_run(test: str, path_of, params: dict, seed: int, geometry, set
     invalid."""
     run_file = RUNNERS[test]
     invalid = []
-    for k in range(max_replacements + 1):
-        s = int(seed) + k * BTS_REPLACEMENT_STRIDE
-        b = run_file(path_of(s, k), params, s, geometry, settings, **kw)
-        if b.status != "ok" or b.summary.get(f"{test}_valid", True):
-            return b, s, invalid
-        invalid.append(f"seed {s}: {b.summary.get(f'{test}_invalid_reason', 'invalid')}")
+
+    def attempt(k: int):
+        s = seeds.replacement_seed(seed, k)
+        return s, run_file(path_of(s, k), params, s, geometry, settings, **kw)
+
+    def usable(sb) -> bool:
+        return sb[1].status != "ok" or sb[1].summary.get(f"{test}_valid", True)
+
+    def discard(k: int, sb) -> None:
+        invalid.append(f"seed {sb[0]}: {sb[1].summary.get(f'{test}_invalid_reason', 'invalid')}")
+
+    (s, b), _ = seeds.retry(attempt, max_replacements + 1, usable, discard)
+    if not usable((s, b)):  # every attempt invalid: the last one is counted too
+        discard(max_replacements, (s, b))
     return b, s, invalid
 
 
@@ -193,7 +171,7 @@ def specimen_run(resp: str, path_of, params: dict, seed: int, j: int, geometry, 
     ``replicate_seed(seed, j)``; an invalid run replaced: :func:`valid_tensile_run`);
     ``path_of(j, s, k)`` names the run file of its attempt k on packing s."""
     b, s, bad = valid_tensile_run(SAMPLE_TESTS[resp], lambda s, k: path_of(j, s, k), params,
-                                  replicate_seed(seed, j), geometry, settings, **kw)
+                                  seeds.replicate_seed(seed, j), geometry, settings, **kw)
     return SpecimenRun(b.status, b.error, None if b.path is None else str(b.path), int(s),
                        list(bad), test_strength(resp, b))
 

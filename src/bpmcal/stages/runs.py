@@ -1,9 +1,10 @@
 """DEM run files: one virtual lab test (``bpmcal.lab.runner``) written to one HDF5 file
 (``bpmcal.io.h5``), or its failure record.
 
-``run_ucs_file`` is what ``bpmcal ucs`` and ``bpmcal sample`` and the workflow's
-``sample`` and ``sweep_ucs`` rules call; ``run_bts_file``, ``run_dtt_file``,
-``run_triaxial_file`` and ``run_impact_file`` the same for the other tests. A run that
+``run_test_file`` writes any lab test of the registry (``lab.registry.LAB_TESTS``);
+``RUN_FILES`` holds it per test, as ``run_ucs_file`` (what ``bpmcal ucs`` and ``bpmcal
+sample`` and the workflow's ``sample`` and ``sweep_ucs`` rules call), ``run_bts_file``,
+``run_dtt_file``, ``run_triaxial_file`` and ``run_impact_file``. A run that
 failed (one of ``lab.runner.RUN_FAILURES``: numerical instability, a specimen that cannot
 be built or does not settle, a servo that does not converge) produces a *failure record*
 (status "failed" and the message) instead of an exception, so a study is not stopped by
@@ -12,7 +13,7 @@ replaces a good run file: if ``out`` already holds a run with status "ok", the r
 beside it as ``NAME.failed.h5`` and the outcome says so (``kept``).
 
 A run whose loading a cut-off stopped before the peak and the drop that define its measure
-(``lab.validity.incomplete_reason``) is written whole with status "incomplete" and the
+(``lab.registry.incomplete_reason``) is written whole with status "incomplete" and the
 reason: it is kept for inspection but is no measurement (every reader treats any status
 other than "ok" as a failed measurement).
 
@@ -36,32 +37,19 @@ from ..io.card import card_parameters, check_card, is_card
 from ..io.checks import BadInput, out_dir, out_file, read_model_table, read_yaml
 from ..io.h5 import RunFileError, check_run_file, write_run
 from ..io.safe_names import clip, shown
-from ..lab.brazilian import BTSSettings
 from ..lab.budget import BudgetError
-from ..lab.direct_tension import DTTSettings
-from ..lab.impact import ImpactSettings
 from ..lab.reach import screen_test_loading
+from ..lab.registry import LAB_TESTS, incomplete_reason, kind
 from ..lab.run_context import RunContext
 from ..lab.runner import (
     RUN_FAILURES,
     Geometry,
     LabRun,
-    bts_geometry,
-    bts_inputs,
-    bts_test,
-    dtt_inputs,
-    dtt_test,
-    impact_inputs,
-    impact_test,
+    default_geometry,
+    lab_test,
     specimen_spec,
-    triaxial_inputs,
-    triaxial_test,
-    ucs_inputs,
-    ucs_test,
+    test_inputs,
 )
-from ..lab.triaxial import TriaxialSettings
-from ..lab.ucs import UCSSettings
-from ..lab.validity import incomplete_reason
 
 
 @dataclass
@@ -113,7 +101,7 @@ def write_failure(out, *, test: str, inputs: dict, error: str, wall_s: float = 0
 def write_lab_run(out, r: LabRun) -> RunOutcome:
     """Write a finished test to ``out`` (HDF5, atomically): status "ok", or "incomplete"
     with the reason when a cut-off stopped its loading before what defines its measure
-    (``lab.validity.incomplete_reason``: the whole run is kept for inspection, but it is
+    (``lab.registry.incomplete_reason``: the whole run is kept for inspection, but it is
     no measurement, and it goes beside a good run file rather than over it)."""
     reason = incomplete_reason(r.test, r.summary)
     status, kept = ("incomplete", None) if reason else ("ok", None)
@@ -138,75 +126,45 @@ def _run_file(out, test: str, inputs: dict, run) -> RunOutcome:
     return write_lab_run(out, r)
 
 
-def run_ucs_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
-                 settings: UCSSettings = UCSSettings(), *, cache=None, threads=None,
-                 progress=None, keep_particles: bool = True,
-                 genesis_max_steps: int | None = None) -> RunOutcome:
-    """Run one UCS test and write ``out`` (HDF5). Returns the outcome; unstable runs and
-    unbuildable specimens give status "failed" (and a failure-record file)."""
+def run_test_file(test: str, out, params: dict, seed: int, geometry: Geometry | None = None,
+                  settings=None, *, cache=None, threads=None, progress=None,
+                  keep_particles: bool = True, genesis_max_steps: int | None = None
+                  ) -> RunOutcome:
+    """Run one lab test ``test`` (``lab.registry.LAB_TESTS``; ``lab.runner.lab_test``)
+    and write ``out`` (HDF5, test ``test``). Returns the outcome; unstable runs and
+    unbuildable specimens give status "failed" (and a failure-record file). ``geometry``
+    defaults to the test's specimen (``lab.runner.default_geometry``: the ISRM disc
+    50 x 25 mm at scale 1 for the Brazilian test, the 50 x 100 mm cylinder else),
+    ``settings`` to its settings class's defaults."""
+    st = settings or kind(test).settings()
+    geo = geometry or default_geometry(test)
     p = P.validate_params(params)  # bad input: raise before any work
-    return _run_file(out, "ucs", ucs_inputs(p, seed, geometry, settings),
-                     lambda: ucs_test(p, seed, geometry, settings, cache=cache,
-                                      threads=threads, progress=progress,
-                                      keep_particles=keep_particles,
-                                      genesis_max_steps=genesis_max_steps))
-
-
-def run_bts_file(out, params: dict, seed: int, geometry: Geometry | None = None,
-                 settings: BTSSettings | None = None, *, cache=None, threads=None,
-                 progress=None, keep_particles: bool = True,
-                 genesis_max_steps: int | None = None) -> RunOutcome:
-    """Run one Brazilian test and write ``out`` (HDF5, test "bts"). ``geometry`` defaults
-    to the ISRM disc 50 x 25 mm at scale 1 (``lab.runner.bts_geometry``)."""
-    st = settings or BTSSettings()
-    geo = geometry or bts_geometry()
-    p = P.validate_params(params)
-    return _run_file(out, "bts", bts_inputs(p, seed, geo, st),
-                     lambda: bts_test(p, seed, geo, st, cache=cache, threads=threads,
+    return _run_file(out, test, test_inputs(test, p, seed, geo, st),
+                     lambda: lab_test(test, p, seed, geo, st, cache=cache, threads=threads,
                                       progress=progress, keep_particles=keep_particles,
                                       genesis_max_steps=genesis_max_steps))
 
 
-def run_dtt_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
-                 settings: DTTSettings | None = None, *, cache=None, threads=None,
-                 progress=None, keep_particles: bool = True,
-                 genesis_max_steps: int | None = None) -> RunOutcome:
-    """Run one direct-tension test and write ``out`` (HDF5, test "dtt"); the specimen is
-    the UCS cylinder of ``geometry``, free of its vessel."""
-    st = settings or DTTSettings()
-    p = P.validate_params(params)
-    return _run_file(out, "dtt", dtt_inputs(p, seed, geometry, st),
-                     lambda: dtt_test(p, seed, geometry, st, cache=cache, threads=threads,
-                                      progress=progress, keep_particles=keep_particles,
-                                      genesis_max_steps=genesis_max_steps))
+def _file_writer(test: str):
+    """:func:`run_test_file` of ``test``, as ``run_<test>_file(out, params, seed,
+    geometry=None, settings=None, **kw)``."""
+    def write(out, params: dict, seed: int, geometry: Geometry | None = None, settings=None,
+              **kw) -> RunOutcome:
+        return run_test_file(test, out, params, seed, geometry, settings, **kw)
+
+    write.__name__ = write.__qualname__ = f"run_{test}_file"
+    write.__doc__ = (f"One {kind(test).title} test written to ``out``: "
+                     f"``run_test_file({test!r}, out, ...)``.")
+    return write
 
 
-def run_triaxial_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
-                      settings: TriaxialSettings | None = None, *, cache=None, threads=None,
-                      progress=None, keep_particles: bool = True,
-                      genesis_max_steps: int | None = None) -> RunOutcome:
-    """Run one triaxial test (sigma3 in ``settings``) and write ``out`` (HDF5, test
-    "triaxial"); the specimen is the UCS cylinder of ``geometry``."""
-    st = settings or TriaxialSettings()
-    p = P.validate_params(params)
-    return _run_file(out, "triaxial", triaxial_inputs(p, seed, geometry, st),
-                     lambda: triaxial_test(p, seed, geometry, st, cache=cache,
-                                           threads=threads, progress=progress,
-                                           keep_particles=keep_particles,
-                                           genesis_max_steps=genesis_max_steps))
-
-
-def run_impact_file(out, params: dict, seed: int, geometry: Geometry = Geometry(),
-                    settings: ImpactSettings | None = None, *, cache=None, threads=None,
-                    progress=None, genesis_max_steps: int | None = None) -> RunOutcome:
-    """Drop-hammer impact on a specimen of the given parameters -> HDF5 file (test
-    "impact"; the same conventions as the UCS run files)."""
-    st = settings or ImpactSettings()
-    p = P.validate_params(params)
-    return _run_file(out, "impact", impact_inputs(p, seed, geometry, st),
-                     lambda: impact_test(p, seed, geometry, st, cache=cache, threads=threads,
-                                         progress=progress,
-                                         genesis_max_steps=genesis_max_steps))
+#: the run-file writer of each lab test, by its name (``lab.registry.LAB_TESTS``)
+RUN_FILES = {test: _file_writer(test) for test in LAB_TESTS}
+run_ucs_file = RUN_FILES["ucs"]
+run_bts_file = RUN_FILES["bts"]
+run_dtt_file = RUN_FILES["dtt"]
+run_triaxial_file = RUN_FILES["triaxial"]
+run_impact_file = RUN_FILES["impact"]
 
 
 # ------------------------------------------------------------------ the run commands
@@ -311,15 +269,6 @@ def _float_or_nan(v) -> float:
         return math.nan
 
 
-#: what each test's specimen is, for messages
-_WHAT = {"ucs": "UCS cylinder", "bts": "Brazilian disc", "triaxial": "triaxial cylinder",
-         "dtt": "direct-tension cylinder"}
-
-#: the run file of each test: (inputs of the record, function writing the file)
-_TESTS = {"ucs": (ucs_inputs, run_ucs_file), "bts": (bts_inputs, run_bts_file),
-          "triaxial": (triaxial_inputs, run_triaxial_file), "dtt": (dtt_inputs, run_dtt_file)}
-
-
 def lab_test_file(test: str, out, *, geometry, settings, params_file=None, sets=(),
                   design=None, sample=None, seed=None, ctx: RunContext = RunContext(),
                   keep_particles: bool = True) -> RunOutcome:
@@ -352,13 +301,12 @@ def lab_test_files(tests, *, params_file=None, sets=(), design=None, sample=None
     progs = list(progress) if progress is not None else [ctx.progress] * len(tests)
     done = []
     for (test, out, geometry, settings), prog, skip in zip(tests, progs, skips):
-        inputs_of, run_file = _TESTS[test]
         if skip:
-            inp = inputs_of({k: _float_or_nan(v) for k, v in params.items()}, seed, geometry,
-                            settings)
+            inp = test_inputs(test, {k: _float_or_nan(v) for k, v in params.items()}, seed,
+                              geometry, settings)
             done.append(write_failure(out, test=test, inputs=inp, error=skip))
             continue
-        done.append(run_file(out, params, seed, geometry, settings,
+        done.append(run_test_file(test, out, params, seed, geometry, settings,
                              keep_particles=keep_particles,
                              **dict(ctx.lab_kw(), progress=prog)))
     return done
@@ -378,7 +326,7 @@ def _checked_tests(tests, *, params_file, sets, design, sample, seed, ctx, flags
             try:  # buildable at all (e.g. 3 ball diameters across)
                 specimen_spec(P.validate_params(params), seed, geometry)
             except InputError as e:
-                raise InputError(f"the {_WHAT[test]}: {e}") from None
+                raise InputError(f"the {kind(test).specimen}: {e}") from None
             try:
                 screen_test_loading(test, P.validate_params(params), geometry, settings)
             except BudgetError as e:

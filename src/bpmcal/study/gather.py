@@ -11,7 +11,7 @@ responses of its UCS run, ``status`` and ``error``:
   another format); ``error`` says what is wrong with it.
 
 - "incomplete": the run's loading stopped at a cut-off (``max_strain``, ``max_steps``)
-  before the peak and the drop that define sigma_c (``lab.validity.incomplete_reason``);
+  before the peak and the drop that define sigma_c (``lab.registry.incomplete_reason``);
   its measurement columns (:data:`MEASURES`) are NaN, ``error`` says why.
 
 No sample is ever dropped; the analysis steps use the "ok" rows and say how many they left
@@ -54,6 +54,7 @@ from .. import params as P
 from ..io.checks import BadInput
 from ..io.h5 import RunFileError, check_run_file, read_inputs, read_summary
 from ..io.safe_names import clip, printable, shown
+from ..lab.registry import SAMPLE_KINDS
 
 #: response columns of the dataset, in order
 RESPONSE_COLUMNS = ("ucs_MPa", "E_GPa", "nu", "peak_strain", "u_pre_MJm3", "cracks_tension",
@@ -62,31 +63,21 @@ RESPONSE_COLUMNS = ("ucs_MPa", "E_GPa", "nu", "peak_strain", "u_pre_MJm3", "crac
                     "genesis_s", "stop_reason")
 
 
-#: Brazilian columns of the dataset (when the study runs the Brazilian test): summary key
-#: of the run file -> column
-BTS_RESPONSES = {"bts_MPa": "bts_MPa", "wall_s": "bts_wall_s", "bts_valid": "bts_valid",
-                 "bts_peak_MPa": "bts_peak_MPa", "balls_across": "bts_balls_across",
-                 "discs": "bts_discs"}
-BTS_COLUMNS = ("bts_MPa", "bts_wall_s", "bts_status", "bts_error", "bts_valid",
-               "bts_peak_MPa", "bts_balls_across", "bts_discs")
-#: the same for the direct-tension test (``dtt``), when the study runs it
-DTT_RESPONSES = {"dtt_MPa": "dtt_MPa", "wall_s": "dtt_wall_s", "dtt_valid": "dtt_valid",
-                 "dtt_peak_MPa": "dtt_peak_MPa", "balls_across": "dtt_balls_across"}
-DTT_COLUMNS = ("dtt_MPa", "dtt_wall_s", "dtt_status", "dtt_error", "dtt_valid",
-               "dtt_peak_MPa", "dtt_balls_across")
-#: the triaxial test at the design confinement (``tri``, ``triaxial.design_sigma3_MPa``),
-#: when the study runs it: its sigma1 at failure is ``tri_MPa``
-TRI_RESPONSES = {"sigma1_MPa": "tri_MPa", "sigma3_MPa": "tri_sigma3_MPa", "wall_s": "tri_wall_s"}
-TRI_COLUMNS = ("tri_MPa", "tri_sigma3_MPa", "tri_wall_s", "tri_status", "tri_error")
-#: test -> (summary key -> column, the columns in order): every per-sample test besides
-#: the UCS test (``P.SAMPLE_TESTS``)
-TEST_COLUMNS = {"bts": (BTS_RESPONSES, BTS_COLUMNS), "dtt": (DTT_RESPONSES, DTT_COLUMNS),
-                "tri": (TRI_RESPONSES, TRI_COLUMNS)}
+#: the per-sample tests besides the UCS test (``P.SAMPLE_TESTS``), by their sample key: the
+#: Brazilian (``bts``), direct-tension (``dtt``) and triaxial test at the design confinement
+#: (``tri``, ``triaxial.design_sigma3_MPa``; its sigma1 at failure is ``tri_MPa``), when the
+#: study runs them: their summary keys -> dataset columns and the columns in order
+#: (``lab.registry.LAB_TESTS``' ``responses`` and ``columns``)
+_SAMPLE = {key: k for key, k in SAMPLE_KINDS.items() if key != "ucs"}
+BTS_RESPONSES, BTS_COLUMNS = _SAMPLE["bts"].responses, _SAMPLE["bts"].columns
+DTT_RESPONSES, DTT_COLUMNS = _SAMPLE["dtt"].responses, _SAMPLE["dtt"].columns
+TRI_RESPONSES, TRI_COLUMNS = _SAMPLE["tri"].responses, _SAMPLE["tri"].columns
+#: test -> (summary key -> column, the columns in order)
+TEST_COLUMNS = {key: (k.responses, k.columns) for key, k in _SAMPLE.items()}
 #: ``<test>_status`` of a finished run that is no valid test
 INVALID = "invalid"
 #: what an invalid run of each test is (the tests with a validity check)
-_INVALID_WHAT = {"bts": "the fracture did not start in the disc's central zone or did not "
-                        "split it", "dtt": "the specimen broke next to a grip"}
+_INVALID_WHAT = {key: k.invalid_what for key, k in _SAMPLE.items() if k.invalid_what}
 #: the tests by name, for the status report
 _TEST_TITLE = {"bts": "Brazilian", "dtt": "Direct-tension", "tri": "Triaxial (design sigma3)"}
 
@@ -98,7 +89,7 @@ _BOOL_KEYS = ("bts_valid", "dtt_valid")
 #: incomplete run's stress at its cut-off is no sigma_c); the rest describe the run
 MEASURES = ("ucs_MPa", "E_GPa", "nu", "peak_strain", "u_pre_MJm3", "crack_init_MPa")
 #: the test a run file of each of a sample's runs records (``io.h5``'s ``test``)
-RUN_TEST = {"ucs": "ucs", "bts": "bts", "dtt": "dtt", "tri": "triaxial"}
+RUN_TEST = {key: k.name for key, k in SAMPLE_KINDS.items()}
 
 
 def _bad_value(k: str, v) -> bool:

@@ -104,7 +104,7 @@ def test_a_killed_writer_leaves_no_file(tmp_path):
 def test_unstable_run_gives_a_failure_record(tmp_path, monkeypatch, packing_cache):
     def unstable(*a, **k):
         raise InstabilityError("run blew up at step 12: ball 3 ...", 12, 3)
-    monkeypatch.setattr(runner, "run_ucs", unstable)
+    monkeypatch.setattr(runner, "run_test", unstable)  # the driver, as the runner calls it
     out = tmp_path / "f.h5"
     res = run_ucs_file(out, A1, 3, SMALL, FAST, cache=packing_cache)
     assert res.status == "failed"

@@ -404,8 +404,8 @@ def test_the_run_of_a_valid_first_disc_records_one_disc(base):
 def _fake_disc(valid_from: int, seed0: int):
     """A stand-in for one disc's test (``runner._lab_test``): discs packed with the seeds
     of retests below ``valid_from`` are invalid, the others valid."""
-    from bpmcal.lab.brazilian import retest_seed
     from bpmcal.lab.runner import LabRun
+    from bpmcal.lab.seeds import retest_seed
 
     seeds = [retest_seed(seed0, k) for k in range(11)]
 
@@ -428,7 +428,7 @@ def test_an_invalid_disc_is_discarded_and_another_tested(monkeypatch, valid_from
     tested (packed with the next retest seed), up to ``retests`` more; the first valid one
     is the test, and the run names every discarded disc and its reason."""
     from bpmcal.lab import runner
-    from bpmcal.lab.brazilian import retest_seed
+    from bpmcal.lab.seeds import retest_seed
 
     monkeypatch.setattr(runner, "_lab_test", _fake_disc(valid_from, SEED))
     notes = []
@@ -447,7 +447,7 @@ def test_an_invalid_disc_is_discarded_and_another_tested(monkeypatch, valid_from
 
 
 def test_retest_seeds_are_deterministic_distinct_and_in_range():
-    from bpmcal.lab.brazilian import retest_seed
+    from bpmcal.lab.seeds import retest_seed
 
     assert retest_seed(5, 0) == 5
     seeds = [retest_seed(2 ** 32 - 3, k) for k in range(4)]

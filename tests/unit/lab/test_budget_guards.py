@@ -104,7 +104,7 @@ def test_a_failure_never_replaces_a_good_run(cache, tmp_path, monkeypatch):
 
     def unstable(*a, **k):
         raise InstabilityError("run blew up at step 12: ball 3 ...", 12, 3)
-    monkeypatch.setattr(runner, "run_ucs", unstable)
+    monkeypatch.setattr(runner, "run_test", unstable)  # the driver, as the runner calls it
     res = run_ucs_file(out, A1, 3, SMALL, FAST, cache=cache)
     assert res.status == "failed" and res.kept == out
     assert out.read_bytes() == good

@@ -10,10 +10,10 @@ from bpmcal.dem.errors import InputError
 from bpmcal.lab.brazilian import (
     FLATJOINT_SPLIT_DROP,
     BTSSettings,
-    PeakTracker,
     cap_bridges,
     split_drop,
 )
+from bpmcal.lab.driver import PeakTracker
 from bpmcal.lab.validity import INIT_MIN, bts_validity, burst_mask, dtt_validity, per_contact
 
 R = 0.01  # disc radius [m]

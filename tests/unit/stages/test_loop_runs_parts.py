@@ -10,6 +10,7 @@ import math
 import pytest
 
 from bpmcal.io.h5 import write_run
+from bpmcal.lab import seeds as S
 from bpmcal.lab.brazilian import BTSSettings
 from bpmcal.lab.run_context import RunContext
 from bpmcal.lab.runner import Geometry
@@ -22,7 +23,7 @@ from bpmcal.stages.runs import RunOutcome
 
 PARAMS = {"rmin_mm": 0.8, "porosity": 0.3, "pb_emod_GPa": 20.0, "pb_kratio": 2.0,
           "pb_ten_MPa": 30.0, "pb_coh_MPa": 30.0, "pb_fa_deg": 35.0, "fric": 0.35}
-STRIDE = M.BTS_REPLACEMENT_STRIDE
+STRIDE = S.REPLACEMENT_STRIDE
 
 
 class SeedDEM:
@@ -98,13 +99,13 @@ def _same(a, b):
     assert (a["bts"] is None) == (b["bts"] is None)
 
 
-R1 = M.TENSILE_REPLICATE_STRIDE
+R1 = S.REPLICATE_STRIDE
 
 
 @pytest.mark.parametrize("n, invalid, failed", [
     (1, (), ()),                              # one valid disc
     (3, (7, 7 + R1), ()),                     # disc 0 and disc 1 invalid: replaced
-    (3, (7 + 2 * R1 + k * STRIDE for k in range(M.BTS_MAX_REPLACEMENTS + 1)), ()),  # never valid
+    (3, (7 + 2 * R1 + k * STRIDE for k in range(S.MAX_REPLACEMENTS + 1)), ()),  # never valid
     (3, (), (7 + R1,)),                       # disc 1 fails: the seed has no σt
 ])
 def test_a_seed_put_together_from_its_runs_is_the_seed_run_whole(tmp_path, monkeypatch, n,
@@ -128,7 +129,7 @@ def test_a_seed_put_together_from_its_runs_is_the_seed_run_whole(tmp_path, monke
         assert row["status"] == "failed" and math.isnan(row[BTS])
     elif n == 3 and len(invalid) > 2:
         assert row["status"] == "failed" and math.isnan(row[BTS])  # disc 2 never valid
-        assert row["bts_invalid"] == M.BTS_MAX_REPLACEMENTS + 1
+        assert row["bts_invalid"] == S.MAX_REPLACEMENTS + 1
     else:
         assert row["status"] == "ok" and math.isfinite(row[BTS])
         assert row["bts_invalid"] == len(invalid)

@@ -24,7 +24,7 @@ from bpmcal.params import AUTO_ROUNDS, ROUNDS_PER_FREE
 from ...io.checks import BadInput
 
 #: the most tensile specimens a packing seed may measure σt on (``tensile_specimens``;
-#: ``bpmcal.stages.measure.packing_seed_gap`` proves their packings apart)
+#: ``bpmcal.lab.seeds.packing_seed_gap`` proves their packings apart)
 MAX_TENSILE_SPECIMENS = 50
 #: the most rounds of a closed loop
 MAX_ROUNDS = 50
