@@ -65,6 +65,8 @@ def _child(case: str, steps: int, cache: str, card: dict, threads: int) -> dict:
                        boundary="free" if test == "bts" else "platens")
     m = sp.model
     n, nb = m.n, m.n_bonds
+    if steps == 0:  # the process without the test (instruction counts: the test's share)
+        return {"case": case, "balls": n, "steps": 0}
     engine = [0.0, 0]  # CPU seconds inside Model.cycle, calls
     inner = Model.cycle
 

@@ -10,9 +10,8 @@ nothing here runs a step.
 """
 from __future__ import annotations
 
-from collections import namedtuple
-
 import math
+from collections import namedtuple
 
 import numpy as np
 
