@@ -7,14 +7,18 @@ settings, its records, the Brazilian seating under servo control) for ``--steps`
 of loading (``max_steps``; the same steps at every size, so a smaller specimen records
 as often per step as it does in the study), on a specimen of the given card built with
 the study's genesis (pfc, relax ratio 0.01, sigma0 0.1 MPa; packings cached under
-``--cache``, not timed). Each case runs in its own process (``--threads``, default 1, as
-the study's jobs), ``--repeat`` times with the order rotating; the table gives medians:
+``--cache``, not timed). The loading is cut at ``--steps`` on purpose, so the tests'
+refusal of a loading estimated to need more steps is bypassed. Each case runs in its
+own process (``--threads``, default 1, as the study's jobs), ``--repeat`` times with the
+order rotating; the table gives medians:
 
 - particle-steps per CPU-second of the whole test call (engine, records, control) and of
   the engine alone (``Model.cycle``), their ratio to the largest cylinder's, and the
-  share of the test's CPU outside the engine;
-- bonds per ball at the start, records, engine calls, neighbour-list rebuilds, the peak
-  RSS of the process.
+  share of the test's CPU outside the engine, and of it the records' measurements of
+  the engine (``Model.energies``, ``Model.unbalanced_ratio``) and the Brazilian
+  seating's servo control (``ServoLoop.control``, every step);
+- bonds per ball at the start, records, engine calls, the peak RSS of the process (and
+  in ``--json`` the neighbour-list rebuilds).
 
 ``--src DIR`` (repeatable) runs every case with each source tree in turn (``PYTHONPATH``;
 numba's cache is keyed on the engine's sources): a before/after pair in one invocation,
@@ -24,9 +28,10 @@ adds the engine's 10k-ball benchmark (``dem_throughput.py --n 10000``) as a case
     python benchmarks/small_model_speed.py [--steps 4000] [--repeat 3] \
         [--src /tmp/before/src --src src] [--reference] [--json out.json]
 
-The scales are for the default card (``--card``: Rmin 0.8 mm, porosity 0.34); the ball
-counts are printed. The host's CPU and load average (before and after) are printed with
-the table: on a loaded host compare ratios measured side by side, not absolute figures.
+The scales are for the default card (``CARD``: Rmin 0.8 mm, porosity 0.34, the other
+parameters mid-range); the ball counts are printed. The host's CPU and load average
+(before and after) are printed with the table: on a loaded host compare ratios measured
+side by side, not absolute figures.
 """
 from __future__ import annotations
 
@@ -50,9 +55,43 @@ GENESIS = {"sigma0_MPa": 0.1, "genesis": "pfc", "relax_ratio": 0.01}
 
 
 # ------------------------------------------------------------------ child: one case
+class _Timers:
+    """CPU seconds and calls of wrapped methods, each exclusive of the wrapped calls it
+    makes (``energies`` may step the engine once: that is the engine's)."""
+
+    def __init__(self):
+        self.cpu, self.calls, self._stack, self._saved = {}, {}, [], []
+
+    def wrap(self, owner, name: str, key: str) -> None:
+        f = getattr(owner, name)
+        self._saved.append((owner, name, f))
+        self.cpu.setdefault(key, 0.0)
+        self.calls.setdefault(key, 0)
+
+        def timed(*a, **kw):
+            self._stack.append(0.0)
+            c = time.process_time()
+            try:
+                return f(*a, **kw)
+            finally:
+                dt = time.process_time() - c
+                inner = self._stack.pop()
+                self.cpu[key] += dt - inner
+                self.calls[key] += 1
+                if self._stack:
+                    self._stack[-1] += dt
+
+        setattr(owner, name, timed)
+
+    def unwrap(self) -> None:
+        for owner, name, f in reversed(self._saved):
+            setattr(owner, name, f)
+
+
 def _child(case: str, steps: int, cache: str, card: dict, threads: int) -> dict:
     from bpmcal.dem import Model
     from bpmcal.dem._jit import set_threads
+    from bpmcal.lab import brazilian, servo, ucs
     from bpmcal.lab.brazilian import BTSSettings, run_bts
     from bpmcal.lab.runner import Geometry, bts_geometry, make_specimen
     from bpmcal.lab.ucs import UCSSettings, run_ucs
@@ -65,20 +104,14 @@ def _child(case: str, steps: int, cache: str, card: dict, threads: int) -> dict:
                        boundary="free" if test == "bts" else "platens")
     m = sp.model
     n, nb = m.n, m.n_bonds
-    if steps == 0:  # the process without the test (instruction counts: the test's share)
-        return {"case": case, "balls": n, "steps": 0}
-    engine = [0.0, 0]  # CPU seconds inside Model.cycle, calls
-    inner = Model.cycle
-
-    def timed(self, *a, **kw):
-        c = time.process_time()
-        try:
-            return inner(self, *a, **kw)
-        finally:
-            engine[0] += time.process_time() - c
-            engine[1] += 1
-
-    Model.cycle = timed
+    timers = _Timers()
+    timers.wrap(Model, "cycle", "engine")
+    timers.wrap(Model, "energies", "measure")  # the records' measurements of the engine
+    timers.wrap(Model, "unbalanced_ratio", "measure")
+    timers.wrap(servo.ServoLoop, "control", "servo")  # the seating's control, per step
+    # the loading is cut at ``steps`` on purpose: no refusal of a loading estimated to
+    # need more (budget.check_loading_steps; its bound only feeds the progress line)
+    brazilian.loading_bound = ucs.loading_bound = lambda m, st, loading: st.max_steps
     s0, r0 = m.step, m.n_rebuilds
     c0 = time.process_time()
     if test == "bts":
@@ -86,15 +119,18 @@ def _child(case: str, steps: int, cache: str, card: dict, threads: int) -> dict:
     else:
         res = run_ucs(sp, UCSSettings(max_steps=steps, end_cap=0.0))
     cpu = time.process_time() - c0
-    Model.cycle = inner
+    timers.unwrap()
     ball_steps = n * (m.step - s0)
+    eng = timers.cpu["engine"]
     return {"case": case, "balls": n, "bonds_per_ball": 2 * nb / n, "steps": m.step - s0,
             "loading_steps": int(res.summary["steps"]), "cpu_s": cpu,
-            "engine_cpu_s": engine[0], "engine_calls": engine[1],
+            "engine_cpu_s": eng, "engine_calls": timers.calls["engine"],
             "records": int(res.summary["records"]), "rebuilds": m.n_rebuilds - r0,
             "particle_steps_per_cpu_s": ball_steps / cpu,
-            "engine_particle_steps_per_cpu_s": ball_steps / engine[0],
-            "outside_engine": 1.0 - engine[0] / cpu,
+            "engine_particle_steps_per_cpu_s": ball_steps / eng,
+            "outside_engine": 1.0 - eng / cpu,
+            "measure_share": timers.cpu["measure"] / cpu,
+            "servo_share": timers.cpu["servo"] / cpu,
             "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}
 
 
@@ -107,7 +143,8 @@ def _reference(steps: int, threads: int) -> dict:
             "engine_cpu_s": d["cpu_s"], "engine_calls": 1, "records": 0,
             "rebuilds": d["rebuilds"], "particle_steps_per_cpu_s": d["particle_steps_per_cpu_s"],
             "engine_particle_steps_per_cpu_s": d["particle_steps_per_cpu_s"],
-            "outside_engine": 0.0, "peak_rss_mb": d["peak_rss_mb"]}
+            "outside_engine": 0.0, "measure_share": 0.0, "servo_share": 0.0,
+            "peak_rss_mb": d["peak_rss_mb"]}
 
 
 # ------------------------------------------------------------------ parent
@@ -147,7 +184,7 @@ def table(runs, srcs, cases) -> dict:
             med[(s, c)] = {k: _median(rs, k) for k in (
                 "balls", "bonds_per_ball", "steps", "records", "engine_calls", "rebuilds",
                 "particle_steps_per_cpu_s", "engine_particle_steps_per_cpu_s",
-                "outside_engine", "peak_rss_mb")}
+                "outside_engine", "measure_share", "servo_share", "peak_rss_mb")}
     big = "ucs_10k" if "ucs_10k" in cases else cases[-1]
     for s in srcs:
         for c in cases:
@@ -161,7 +198,7 @@ def table(runs, srcs, cases) -> dict:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--steps", type=int, default=4000, help="loading steps of every case")
+    ap.add_argument("--steps", type=int, default=4000, help="loading steps of every case (>= 1)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated, of: "
@@ -178,6 +215,8 @@ def main(argv=None):
     ap.add_argument("--json", default=None, help="write every run and the medians here")
     a = ap.parse_args(argv)
     a.card = json.loads(a.card_json) if a.card_json else dict(CARD)
+    if a.steps < 1 or a.repeat < 1:
+        ap.error(f"--steps {a.steps}, --repeat {a.repeat}: expected integers >= 1")
     if a.child:
         d = (_reference(a.steps, a.threads) if a.child == "bench_10k"
              else _child(a.child, a.steps, a.cache, a.card, a.threads))
@@ -205,20 +244,22 @@ def main(argv=None):
             print(f"  {c:11s} {s or '(installed)':28s} {d['balls']:6d} balls "
                   f"{d['particle_steps_per_cpu_s'] / 1e6:6.2f} M/CPU-s (engine "
                   f"{d['engine_particle_steps_per_cpu_s'] / 1e6:6.2f}), outside the engine "
-                  f"{100 * d['outside_engine']:4.1f} %", flush=True)
+                  f"{100 * d['outside_engine']:4.1f} % (measurements {100 * d['measure_share']:4.1f} %, "
+                  f"servo {100 * d['servo_share']:4.1f} %)", flush=True)
     load1 = os.getloadavg()
     med = table(runs, srcs, cases)
     print(f"\nmedians of {a.repeat}; load average after {load1[0]:.2f} {load1[1]:.2f} "
           f"{load1[2]:.2f}")
     print("case        src                          balls bonds/ball steps recs calls "
-          "M p-steps/CPU-s (engine) outside  cost vs 10k  vs first src  peak MB")
+          "M p-steps/CPU-s (engine) outside (measure servo)  cost vs 10k  vs first src  peak MB")
     for s, c in order:
         d = med[(s, c)]
         print(f"{c:11s} {(s or '(installed)')[-28:]:28s} {d['balls']:6.0f} {d['bonds_per_ball']:6.2f} "
               f"{d['steps']:6.0f} {d['records']:4.0f} {d['engine_calls']:5.0f} "
               f"{d['particle_steps_per_cpu_s'] / 1e6:10.2f} "
               f"({d['engine_particle_steps_per_cpu_s'] / 1e6:5.2f}) "
-              f"{100 * d['outside_engine']:6.1f} %  {d['vs_10k']:8.3f}  {d['vs_first_src']:10.3f}"
+              f"{100 * d['outside_engine']:6.1f} % ({100 * d['measure_share']:4.1f} "
+              f"{100 * d['servo_share']:4.1f})  {d['vs_10k']:8.3f}  {d['vs_first_src']:10.3f}"
               f"  {d['peak_rss_mb']:7.0f}")
     if a.json:
         out = {"host": host(), "load_average_before": list(load0),
