@@ -521,7 +521,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         (``_jit.compiled``) is kept while the state's records are the same objects
         (``_grow``, a new wall or new bonds replace one: its types are then looked up
         again): the same machine code, without numba's per-call matching of the types
-        of the ~70 arrays (about 17 us a call; a servo-controlled seating calls the
+        of the ~70 arrays (12-17 us a call; a servo-controlled seating calls the
         engine every step)."""
         state = (self.B, self.P, self.Bd, self.S, self.W, self.Fj, self.prm, self.iprm,
                  self.eacc)
