@@ -114,3 +114,15 @@ def test_unbalanced_ratio_is_pfcs_mean_force_ratio_with_and_without_fixed_balls(
                                      m.Bd.blk, m.prm, m.Fj.c)
         assert r == float(np.linalg.norm(m.B.force[free], axis=1).mean() / fc)
         assert 0.0 < r < np.inf
+
+
+def test_a_pickled_model_steps_on_as_the_original():
+    import pickle
+
+    a, _ = box_pack(30, seed=6)
+    a.cycle(5)
+    b = pickle.loads(pickle.dumps(a))
+    a.cycle(40)
+    b.cycle(40)
+    assert np.array_equal(a.positions, b.positions) and np.array_equal(a.velocities,
+                                                                       b.velocities)

@@ -516,6 +516,13 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         self._recorded = False
         self._measured = False
 
+    def __getstate__(self):
+        """A pickled model keeps its state, not the kernel's entry point (``_run_steps``
+        looks it up again)."""
+        d = self.__dict__.copy()
+        d["_kernel"] = None
+        return d
+
     def _run_steps(self, nsteps: int, record: bool, serial: bool):
         """``kernels.run_steps`` on this model's state. The compiled version's entry point
         (``_jit.compiled``) is kept while the state's records are the same objects
