@@ -1,7 +1,8 @@
 """Compare run files bit for bit: every dataset, and every attribute of the summary,
 genesis and inputs groups, except the host's timings (``wall_s``, ``test_s``,
-``genesis_s``) and the file's provenance (commit, version, creation time: the file's own
-attributes, not compared). Prints, per pair, how many items were compared and which differ.
+``genesis_s``, the triaxial consolidation's ``consol_s``) and the file's provenance
+(commit, version, creation time: the file's own attributes, not compared). Prints, per
+pair, how many items were compared and which differ.
 
     python benchmarks/run_diff.py A.h5 B.h5 [C.h5 D.h5 ...]
 
@@ -16,7 +17,7 @@ import sys
 import h5py
 import numpy as np
 
-TIMING = {"wall_s", "test_s", "genesis_s"}
+TIMING = {"wall_s", "test_s", "genesis_s", "consol_s"}
 GROUPS = ("summary", "genesis", "inputs")
 
 

@@ -30,7 +30,7 @@ from . import diagnostics as D
 from . import flatjoint as FJ
 from . import kernels as K
 from . import neighbors as NB
-from ._jit import set_threads
+from ._jit import compiled, set_threads
 from .errors import InputError, InstabilityError
 from .material import MATERIALS, FlatJointMaterial, Material
 from .model_arrays import IDX, Balls, Pairs, Slots, aligned_zeros, readonly, vec3
@@ -176,6 +176,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         self._measured = False  # the measure pass (energies) is of the current state
         self._removed_work = 0.0
         self._removed_grav = 0.0
+        self._kernel = None  # (the state's arrays, run_steps' entry point): _run_steps
 
     # ------------------------------------------------------------------ allocation
     @property
@@ -515,6 +516,33 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         self._recorded = False
         self._measured = False
 
+    def __getstate__(self):
+        """A pickled model keeps its state, not the kernel's entry point (``_run_steps``
+        looks it up again)."""
+        d = self.__dict__.copy()
+        d["_kernel"] = None
+        return d
+
+    def _run_steps(self, nsteps: int, record: bool, serial: bool):
+        """``kernels.run_steps`` on this model's state. The compiled version's entry point
+        (``_jit.compiled``) is kept while the state's records are the same objects
+        (``_grow``, a new wall or new bonds replace one: its types are then looked up
+        again): the same machine code, without numba's per-call matching of the types
+        of the ~70 arrays (12-17 us a call; a servo-controlled seating calls the
+        engine every step)."""
+        state = (self.B, self.P, self.Bd, self.S, self.W, self.Fj, self.prm, self.iprm,
+                 self.eacc)
+        args = (*state, int(nsteps), bool(record), bool(serial))
+        kern = self._kernel
+        if kern is None or any(a is not b for a, b in zip(state, kern[0])):
+            run = compiled(K.run_steps, args)
+            if run is None:  # not loaded yet: numba's dispatcher loads it (or numba is off)
+                out = K.run_steps(*args)
+                self._kernel = (state, compiled(K.run_steps, args) or K.run_steps)
+                return out
+            kern = self._kernel = (state, run)
+        return kern[1](*args)
+
     def cycle(self, nsteps: int, record: bool = True):
         """Run ``nsteps`` steps (numba runs them; this loop only handles overflow and
         instability). With ``record`` the last step stores the state energies."""
@@ -528,8 +556,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         self._measured = False
         done = 0
         while True:
-            st, k = K.run_steps(self.B, self.P, self.Bd, self.S, self.W, self.Fj, self.prm,
-                                self.iprm, self.eacc, nsteps - done, record, serial)
+            st, k = self._run_steps(nsteps - done, bool(record), serial)
             done += int(k)
             if st == 0 and done >= nsteps:
                 break

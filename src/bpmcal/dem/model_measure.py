@@ -90,7 +90,11 @@ class MeasureMixin:
             return 0.0
         if not (self._measured and np.array_equal(self.prm, self._measured_prm)):
             self.energies()  # current resultant forces (measure pass)
-        fu = np.linalg.norm(self.B.force[free], axis=1).mean()
+        # np.linalg.norm(f, axis=1) is sqrt(add.reduce(f * f, axis=1)) for real f: the
+        # same ufuncs on the same values, without its argument handling, and without the
+        # copy of a mask that selects every ball
+        f = self.B.force if free.all() else self.B.force[free]
+        fu = np.sqrt(np.add.reduce(f * f, axis=1)).mean()
         fc, cnt = D.contact_force_mean(self.B.pos, self.B.radius, self.P.pi, self.P.pj,
                                        self.P.fs, int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]),
                                        self.Bd.state, self.Bd.blk, self.prm, self.Fj.c)
