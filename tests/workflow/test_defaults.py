@@ -25,6 +25,7 @@ from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import auto_rounds
 from bpmcal.stages import defaults_of
+from bpmcal.stages.bts_size import SizeSettings
 from bpmcal.stages.calibration import calibrate
 from bpmcal.stages.posterior import RefineSettings, posterior
 from bpmcal.stages.ratio_sweep import sweep_analyse, sweep_plan
@@ -40,6 +41,7 @@ POST, REFINE = PosteriorSettings(), RefineSettings()
 
 GEO, UCS, IMP, BTS = Geometry(), UCSSettings(), ImpactSettings(), BTSSettings()
 DTT = DTTSettings()
+SIZE = SizeSettings()
 SCR, REG, LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
 CAL, VER = defaults_of(calibrate), defaults_of(LoopSettings)
 
@@ -125,6 +127,8 @@ DEFAULTS = {
                              ("triaxial", "servo_alpha", None)),
     "triaxial.design_sigma3_MPa": (None, ("sample", "design_sigma3", None)),
     "triaxial.design_stop_drop": (DESIGN_STOP_DROP, ("sample", "design_stop_drop", None)),
+    **{f"bts_size.{k}": (getattr(SIZE, k), ("bts-size", k, None))
+       for k in ("seeds", "max_seeds", "target_se", "first_seed", "middle")},
     "posterior.surrogate": (POST.surrogate, ("posterior", "surrogate", None)),
     "posterior.seed": (POST.seed, ("posterior", "posterior_seed", None)),
     "posterior.hdi_prob": (POST.hdi_prob, ("posterior", "hdi_prob", None)),
@@ -170,6 +174,7 @@ STUDY_ONLY = {
     "verification.fresh_seeds",  # the seeds of the fresh_seeds jobs ([]: no such jobs)
     "ratio_sweep.enabled",  # whether the DAG has the sweep
     "transfer.enabled",  # whether the DAG has the full-size transfer
+    "bts_size",  # the section ({}: its defaults; its jobs only for a lab disc diameter)
     "bts", "bts.enabled",  # whether the DAG has the Brazilian jobs ({}: the defaults)
     "bts.scale",  # null: the disc at the cylinder's scale (bpmcal sample --bts-scale: the same)
     "dtt", "dtt.enabled",  # whether the DAG has the direct-tension jobs

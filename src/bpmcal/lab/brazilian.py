@@ -385,6 +385,25 @@ def cap_bridges(sp: Specimen, bridge: bool | None) -> bool:
     return bool(bridge)
 
 
+def similar_contact_cap(cap: float, diameter: float, reference: float) -> float:
+    """The contact cap [mean ball diameters] of a disc of ``diameter`` that is the same
+    share of it as ``cap`` is of a disc of ``reference`` (any one unit): ``cap`` x
+    diameter / reference, ``cap`` itself (the same float) when the two are equal.
+
+    Why: ``contact_cap`` counts mean ball diameters, and a card's balls keep their size on
+    every disc, so on a larger disc the same cap is a smaller share of it, while the
+    contact's own load concentration (the crushed zone under a platen) grows with the
+    disc. On A1 with the study's 1.5 the valid discs became rarer with the size, and a cap
+    of the same share of D made them valid again; a cap of the large disc's share on the
+    study's disc made it fail at the platen (the test, not the rock:
+    docs/measurements/2026-12-02h-bts-size.md). A size curve therefore scales the cap with
+    D from the study's disc, whose cap (and so every result on it) stays as it is."""
+    for name, v in (("diameter", diameter), ("reference", reference)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise InputError(f"{name}={v!r}: expected a positive disc diameter")
+    return cap if diameter == reference else cap * diameter / reference
+
+
 def install_contact_caps(sp: Specimen, height_d: float, factor: float,
                          bridge: bool | None = True) -> np.ndarray:
     """Contact caps: the bonds of ``contact_cap_bonds`` get ``factor`` x their tensile
