@@ -13,14 +13,14 @@ import yaml
 
 from bpmcal.cli import main
 from bpmcal.dem.errors import InputError
-from bpmcal.io.study_files import StudyFiles
 from bpmcal.io.checks import BadInput
+from bpmcal.io.study_files import StudyFiles
 from bpmcal.lab.brazilian import BTSSettings, similar_contact_cap
 from bpmcal.lab.run_context import RunContext
 from bpmcal.lab.runner import bts_geometry
+from bpmcal.report.bts_size import section
 from bpmcal.stages import bts_size as bs
 from bpmcal.stages import measure
-from bpmcal.report.bts_size import section
 from bpmcal.stages.runs import RunOutcome
 
 
