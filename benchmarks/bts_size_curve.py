@@ -21,8 +21,8 @@ the exact command), rendered to Markdown by ``markdown``:
 
     nice -n 19 python benchmarks/bts_size_curve.py validity --scales 0.55,0.8,1.0 \\
         --seeds 1,2,3,4,5 --out benchmarks/results_bts_size_validity_DATE.json
-    nice -n 19 python benchmarks/bts_size_curve.py curve --scales 0.55,0.8,1.0 \\
-        --seeds 1,...,8 --out benchmarks/results_bts_size_curve_DATE.json
+    nice -n 19 python benchmarks/bts_size_curve.py curve --scales 0.55,0.7416,1.0 \\
+        --seeds 301,...,305 --max-seeds 8 --out benchmarks/results_bts_size_curve_DATE.json
     python benchmarks/bts_size_curve.py markdown RECORD.json [RECORD.json ...] \\
         --out docs/measurements/DATE-bts-size.md
 
@@ -155,14 +155,17 @@ def curve(a, argv) -> dict:
     study_mm = disc.scale * disc.diameter_mm
     sizes_mm = [s * disc.diameter_mm for s in scales]
     rec = {**_meta(argv), "part": "curve", "card": label, "parameters": params,
-           "config": str(a.config), "bts": cfg["bts"], "seeds": seeds}
+           "config": str(a.config), "bts": cfg["bts"], "seeds": seeds,
+           "max_seeds": a.max_seeds or len(seeds), "target_se": a.target_se}
     n = len(seeds)
     if seeds != list(range(seeds[0], seeds[0] + n)):
         raise SystemExit(f"--seeds {a.seeds}: expected consecutive seeds (the stage's)")
     with tempfile.TemporaryDirectory() as tmp:
         c0 = time.process_time()
-        runs = run_sizes(params, sizes_mm, disc, st, run_path=lambda d, s: Path(tmp) / f"{d}_{s}.h5",
-                         settings=SizeSettings(seeds=n, max_seeds=n, first_seed=seeds[0]),
+        size = SizeSettings(seeds=n, max_seeds=max(n, a.max_seeds or n),
+                            target_se=a.target_se, first_seed=seeds[0])
+        runs = run_sizes(params, sizes_mm, disc, st, settings=size,
+                         run_path=lambda d, s: Path(tmp) / f"{d}_{s}.h5",
                          note=lambda line: print(line, flush=True))
         rec["cpu_s"] = time.process_time() - c0
     runs["run"] = ""
@@ -221,7 +224,9 @@ def _validity_md(rec: dict) -> list[str]:
 def _curve_md(rec: dict) -> list[str]:
     f = rec["fit"]
     out = [f"Card: {rec['card']}; packing seeds {', '.join(map(str, rec['seeds']))} at every "
-           "size; each seed's test as the study runs it (an invalid disc retested, "
+           f"size, then one more while the size's SE exceeded {rec['target_se']:g} of its "
+           f"mean, up to {rec['max_seeds']} (`bts_size.SizeSettings`); each seed's test as "
+           "the study runs it (an invalid disc retested, "
            "`bts.retests`); the contact cap scaled with D from the study's disc "
            f"(`similar_contact_cap`). CPU {rec['cpu_s']:.0f} s in all.", "",
            "| D (mm) | balls across | cap (mean ball diameters) | seeds | valid | discs tested "
@@ -266,6 +271,9 @@ def main(argv=None) -> int:
         p.add_argument("--card", default=None, help="a card file (default: the paper's A1)")
         p.add_argument("--config", default=str(CONFIG))
         p.add_argument("--out", default=None, help="write the JSON record here")
+    c.add_argument("--max-seeds", type=int, default=None,
+                   help="seeds at a size at most (more while its SE exceeds --target-se)")
+    c.add_argument("--target-se", type=float, default=0.02)
     m = sub.add_parser("markdown")
     m.add_argument("records", nargs="+")
     m.add_argument("--title", default="σt against the Brazilian disc's size")

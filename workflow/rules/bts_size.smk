@@ -37,7 +37,7 @@ rule bts_size:
         fit=FILES.bts_size_fit("{spec}"),
     log:
         FILES.log("bts_size", "{spec}"),
-    priority: PRIORITY["fresh_seeds"]
+    priority: PRIORITY["bts_size"]
     conda:
         "../envs/bpmcal.yaml"
     threads: config["resources"]["dem_threads"]
