@@ -191,8 +191,11 @@ def _validity_md(rec: dict) -> list[str]:
            "valid | σt of the valid (MPa) | peaks of all (MPa, mean) | invalid: why | "
            "CPU s per disc (median) |", "|---|---|---|---|---|---|---|---|---|---|"]
     groups: dict = {}
+    biggest = max(r["diameter_mm"] for r in rec["runs"])
     for r in rec["runs"]:
-        groups.setdefault((r["scale"], r["contact_cap"], r["variant"]), []).append(r)
+        name = (f"the config's cap's share of the {biggest:g} mm disc"
+                if r["variant"].startswith("cap of the") else r["variant"])
+        groups.setdefault((r["scale"], r["contact_cap"], name), []).append(r)
     for (_, cap, name), rs in groups.items():
         v = [r["bts_MPa"] for r in rs if r["bts_valid"]]
         why: dict = {}
