@@ -211,6 +211,26 @@ def _validity_md(rec: dict) -> list[str]:
             + f" | {statistics.fmean(r['bts_peak_MPa'] for r in rs):.2f} | "
             + ("; ".join(f"{k} ({n})" for k, n in why.items()) or "–")
             + f" | {statistics.median(r['cpu_s'] for r in rs):.1f} |")
+    share = {}
+    for r in rec["runs"]:  # the discs with the study's cap share: the config's or scaled
+        if r["variant"] == "cap scaled with D" or (r["variant"] == "config's cap"
+                                                   and r["scale"] == rec["reference_scale"]):
+            share.setdefault(r["diameter_mm"], []).append(r["bts_MPa"] if r["bts_valid"]
+                                                          else math.nan)
+    if len(share) > 1:
+        from bpmcal.stages.bts_size import fit_power_law
+
+        d = sorted(share)
+        v = [[x for x in share[k] if x == x] for k in d]
+        f = fit_power_law(d, [statistics.fmean(x) if x else math.nan for x in v],
+                          [statistics.stdev(x) / math.sqrt(len(x)) if len(x) > 1 else math.nan
+                           for x in v], min(d))
+        cs = statistics.fmean(r["cap_share_of_D"] for r in rec["runs"]
+                              if r["variant"] == "cap scaled with D")
+        out += ["", f"The valid discs with the study's cap share ({cs:.3f} D), fitted as the "
+                f"`bts_size` stage fits: σt = {_f(f['sigma_ref_MPa'], '.3f')} MPa x (D / "
+                f"{min(d):g} mm)^-k, k = {_f(f['k'], '.3f')} ± {_f(f['k_se'], '.3f')} (SE; "
+                f"χ² {_f(f['chi2'], '.2f')} on {f['n_sizes']} sizes)."]
     out += ["", "Per disc:", "",
             "| D (mm) | cap | seed | valid | peak (MPa) | initiation (R from the centre) | "
             "pre-peak share from a platen | burst cracks | cap bonds (broken) | why not |",
