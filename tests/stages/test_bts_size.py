@@ -266,3 +266,16 @@ def test_the_command_and_the_reports_table(tmp_path, card, monkeypatch, capsys):
             f"{f['sigma_lab_size_se']:.3f} MPa, measured on discs of the lab's size") in text
     assert f"error {f['err_pct']:+.1f} %" in text
     assert section(StudyFiles(tmp_path / "none"), ["B1"]) == ""
+
+
+@pytest.mark.parametrize("raw", ["0", "-27.5", "fifty", "nan", "inf", "-0", "1e400", "2001"])
+def test_the_lab_csv_refuses_a_bad_disc_diameter(raw):
+    """The lab CSV's ``bts_diameter_mm`` (what the rule passes as --lab-diameter) is checked
+    when the config is validated: one problem naming the specimen and the value."""
+    from bpmcal.study.lab_data import lab_problems
+
+    df = pd.DataFrame({"specimen": ["B1"], "ucs_MPa": ["60"], "E_GPa": ["13"], "nu": ["0.25"],
+                       "bts_MPa": ["8"], "bts_diameter_mm": [raw]})
+    msgs = lab_problems(df, "lab.csv")
+    assert len(msgs) == 1 and "specimen B1 bts_diameter_mm=" in msgs[0], msgs
+    assert "expected a positive number" in msgs[0] or "expected a value in (0, 2000]" in msgs[0]
