@@ -40,7 +40,7 @@ def test_the_disc_size_record_is_its_json_rendered():
     import bts_size_curve
 
     page = REPO / "docs" / "measurements" / "2026-12-02-bts-disc-size.md"
-    names = ["results_bts_size_validity_2026-12-02.json"]
+    names = ["results_bts_size_validity_2026-12-02.json", "results_bts_size_curve_2026-12-02.json"]
     recs = [json.loads((REPO / "benchmarks" / n).read_text()) for n in names]
     text = page.read_text()
     assert text.startswith(bts_size_curve.markdown(recs, text.splitlines()[0][2:], names))

@@ -2,10 +2,11 @@
 discs of a few diameters, its size curve fitted, and σt at the diameter of the lab's discs
 (``bts_diameter_mm`` of the lab CSV) compared with the lab's σt.
 
-Why: σt of a bonded disc falls with the disc's size (A1: 9.73 MPa on the study's 27.5 mm
-disc, about 8.5 on 50 mm discs; docs/measurements/2026-12-02-bts-disc-size.md), and the closed
-loop fits σt on the study's disc (``bts.scale``), whatever disc the lab used. A lab row
-that names its disc's diameter is compared here at that diameter.
+Why: σt of a bonded disc falls with the disc's size (A1: 50 mm discs read 0.87 and 0.94
+of the study's 27.5 mm disc on two sets of packings;
+docs/measurements/2026-12-02-bts-disc-size.md), and the closed loop fits σt on the study's
+disc (``bts.scale``), whatever disc the lab used. A lab row that names its disc's diameter
+is compared here at that diameter.
 
 The sizes (:func:`sizes_of`): the study's disc, the lab's, and with ``middle`` their
 geometric mean. Every disc is the study's (its loading, its genesis, the card's balls: a
