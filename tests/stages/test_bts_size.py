@@ -5,6 +5,7 @@ goes through): the exponent recovered, the contact cap scaled with D from the st
 and the study's disc left as it is, the seeds grown until the mean is precise enough, the
 tables and run files written."""
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -279,3 +280,36 @@ def test_the_lab_csv_refuses_a_bad_disc_diameter(raw):
     msgs = lab_problems(df, "lab.csv")
     assert len(msgs) == 1 and "specimen B1 bts_diameter_mm=" in msgs[0], msgs
     assert "expected a positive number" in msgs[0] or "expected a value in (0, 2000]" in msgs[0]
+
+
+def test_the_report_says_at_which_size_it_compared(tmp_path, card, monkeypatch):
+    """The whole report of a study whose lab row gave a disc diameter: Table 5's σt note
+    names the study's disc and points to the section, which has the table and the fit."""
+    import copy
+
+    from support.repo import REPO
+
+    from bpmcal import params as P
+    from bpmcal.io import study_files as L
+    from bpmcal.report.build import build
+
+    monkeypatch.setitem(measure.RUNNERS, "bts", FakeDiscs())
+    files = StudyFiles(tmp_path / "results")
+    assert main(_argv(files, card)) == 0
+    pd.DataFrame({"sample_id": ["s000"], "status": ["ok"], "error": [""],
+                  "wall_s": [1.0]}).to_csv(files.dataset, index=False)
+    ks = (*P.TARGETS, P.BTS)
+    t5 = {"status": "converged", "note": "", "tensile_note": "", "missed": "", "n_seeds": 3,
+          **{f"{c}{k}{e}": 1.0 for k in ks for c in ("single_pass_", "closed_loop_")
+             for e in ("", "_err_pct")}, **{f"lab_{k}": 2.0 for k in ks}}
+    Path(files.table(L.TABLE5)).parent.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame([t5], index=pd.Index(["B1"], name="specimen")).to_csv(files.table(L.TABLE5))
+    pd.DataFrame({"specimen": ["B1"]}).to_csv(files.table(L.CALIBRATION), index=False)
+    cfg = copy.deepcopy(yaml.safe_load((REPO / "config" / "config.yaml").read_text()))
+    cfg["study"].update(name="my_rock", reference="none")
+    text = open(build(files.outdir, cfg)).read()
+    f = pd.read_csv(files.bts_size_fit("B1")).iloc[0]
+    assert (f"- **B1: σt** is compared here on the study's 27.5 mm disc; the lab's discs are "
+            f"50 mm: σt there {f['sigma_lab_size_MPa']:.3f} ± {f['sigma_lab_size_se']:.3f} MPa "
+            "(measured)") in text
+    assert "## σt at the lab's disc size" in text and "**B1** (lab discs 50 mm" in text
