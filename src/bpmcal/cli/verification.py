@@ -215,9 +215,10 @@ def _add_bts_size(p):
                                               hi_open=True), default=d.target_se,
                    help="the relative standard error of σt wanted at every size (default "
                         f"{d.target_se:g})")
-    p.add_argument("--first-seed", type=integer("first-seed", 0, 2 ** 32 - 1001),
+    p.add_argument("--first-seed", type=integer("first-seed", 0, 2 ** 32 - 1),
                    default=d.first_seed,
-                   help=f"the first packing seed (default {d.first_seed})")
+                   help=f"the first packing seed (default {d.first_seed}; with --max-seeds below "
+                        "2^32)")
     p.add_argument("--middle", action=argparse.BooleanOptionalAction, default=d.middle,
                    help="also measure the disc between the study's and the lab's (their "
                         "geometric mean; --no-middle: not)")
