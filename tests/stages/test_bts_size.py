@@ -313,3 +313,20 @@ def test_the_report_says_at_which_size_it_compared(tmp_path, card, monkeypatch):
             f"50 mm: σt there {f['sigma_lab_size_MPa']:.3f} ± {f['sigma_lab_size_se']:.3f} MPa "
             "(measured)") in text
     assert "## σt at the lab's disc size" in text and "**B1** (lab discs 50 mm" in text
+
+
+def test_which_specimens_get_a_size_curve(tmp_path):
+    """Only a lab row whose disc diameter differs from the study's disc (rule bts_size):
+    none in the shipped lab CSVs, so no study's DAG gains the job unless its CSV asks."""
+    from support.repo import REPO
+
+    from bpmcal.study.lab_data import lab_disc_diameters, load_lab
+
+    for f in sorted((REPO / "config" / "lab").glob("*.csv")):
+        if "triaxial" not in f.name:
+            assert lab_disc_diameters(load_lab(f), 27.5) == {}, f.name
+    f = tmp_path / "lab.csv"
+    f.write_text("specimen,ucs_MPa,E_GPa,nu,bts_MPa,bts_diameter_mm\n"
+                 "A,60,13,0.25,8,50\nB,60,13,0.25,8,\nC,60,13,0.25,8,27.5\nD,60,13,0.25,,\n"
+                 "E,60,13,0.25,8,20\n")
+    assert lab_disc_diameters(load_lab(f), 27.5) == {"A": 50.0, "E": 20.0}

@@ -2,6 +2,7 @@
 # whose bts_diameter_mm differs from the study's disc, its verified card's σt on a few disc
 # sizes, the fitted size curve and σt at the lab's size against the lab's. No lab row with
 # a diameter: no job (the DAG is the study's without it).
+from bpmcal.study.lab_data import lab_disc_diameters
 
 # the study's disc [mm]: bts.scale (null: the cylinder's scale) x bts.diameter_mm
 _BTS_DISC_MM = (
@@ -10,15 +11,7 @@ _BTS_DISC_MM = (
     else config["specimen"]["scale"]
 ) * config["bts"]["diameter_mm"]
 # specimen -> its lab discs' diameter [mm], where it differs from the study's disc
-BTS_SIZE_LAB_MM = (
-    {
-        str(s): float(d)
-        for s, d in zip(_lab["specimen"], _lab["bts_diameter_mm"])
-        if d == d and abs(float(d) - _BTS_DISC_MM) > 1e-6 * _BTS_DISC_MM
-    }
-    if "bts_diameter_mm" in _lab.columns
-    else {}
-)
+BTS_SIZE_LAB_MM = lab_disc_diameters(_lab, _BTS_DISC_MM)
 BTS_SIZE_SPECS = list(BTS_SIZE_LAB_MM)
 
 
