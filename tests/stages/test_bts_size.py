@@ -17,6 +17,7 @@ from bpmcal.dem.errors import InputError
 from bpmcal.io.checks import BadInput
 from bpmcal.io.study_files import StudyFiles
 from bpmcal.lab.brazilian import BTSSettings, similar_contact_cap
+from bpmcal.lab.budget import BudgetError
 from bpmcal.lab.run_context import RunContext
 from bpmcal.lab.runner import bts_geometry
 from bpmcal.report.bts_size import section
@@ -330,3 +331,22 @@ def test_which_specimens_get_a_size_curve(tmp_path):
                  "A,60,13,0.25,8,50\nB,60,13,0.25,8,\nC,60,13,0.25,8,27.5\nD,60,13,0.25,,\n"
                  "E,60,13,0.25,8,20\n")
     assert lab_disc_diameters(load_lab(f), 27.5) == {"A": 50.0, "E": 20.0}
+
+
+def test_a_lab_disc_too_large_is_refused_before_any_run(tmp_path, card, monkeypatch):
+    """A 200 mm lab disc needs a cap of 10.9 mean ball diameters (over BTSSettings' 10) and,
+    within the ball budget, is refused before the first disc runs."""
+    fake = FakeDiscs()
+    monkeypatch.setitem(measure.RUNNERS, "bts", fake)
+    with pytest.raises(InputError, match="contact_cap=10.9"):
+        bs.bts_size(card, lab_diameter_mm=200.0, disc=bts_geometry(scale=0.55),
+                    settings=BTSSettings(contact_cap=1.5), run_dir=tmp_path / "runs",
+                    runs_table=tmp_path / "r.csv", sizes_table=tmp_path / "s.csv",
+                    fit_table=tmp_path / "f.csv", ctx=RunContext(max_balls=None))
+    assert fake.calls == [] and not (tmp_path / "runs").exists()
+    with pytest.raises(BudgetError, match="more than the budget of 20,000"):  # exit 2 too
+        bs.bts_size(card, lab_diameter_mm=150.0, disc=bts_geometry(scale=0.55),
+                    settings=BTSSettings(contact_cap=1.5), run_dir=tmp_path / "runs",
+                    runs_table=tmp_path / "r.csv", sizes_table=tmp_path / "s.csv",
+                    fit_table=tmp_path / "f.csv", ctx=RunContext(max_balls=20_000))
+    assert fake.calls == [] and not (tmp_path / "runs").exists()
