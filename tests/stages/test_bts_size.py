@@ -338,7 +338,7 @@ def test_a_lab_disc_too_large_is_refused_before_any_run(tmp_path, card, monkeypa
     within the ball budget, is refused before the first disc runs."""
     fake = FakeDiscs()
     monkeypatch.setitem(measure.RUNNERS, "bts", fake)
-    with pytest.raises(InputError, match="contact_cap=10.9"):
+    with pytest.raises(BadInput, match="--lab-diameter 200 mm: .*contact_cap=10.9"):
         bs.bts_size(card, lab_diameter_mm=200.0, disc=bts_geometry(scale=0.55),
                     settings=BTSSettings(contact_cap=1.5), run_dir=tmp_path / "runs",
                     runs_table=tmp_path / "r.csv", sizes_table=tmp_path / "s.csv",

@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..dem.errors import InputError
 from ..io.card import card_parameters, read_card
 from ..io.checks import BadInput
 from ..io.tables import write_table
@@ -262,7 +263,13 @@ def bts_size(card, *, lab_diameter_mm: float, disc: Geometry, settings: BTSSetti
     params = card_parameters(c)
     study_mm = disc.scale * disc.diameter_mm
     sizes_mm = sizes_of(study_mm, lab_diameter_mm, size_settings.middle)
-    ctx.check_budget(params, *(_disc_at(disc, settings, study_mm, d)[0] for d in sizes_mm))
+    try:
+        discs = [_disc_at(disc, settings, study_mm, d)[0] for d in sizes_mm]
+    except InputError as e:  # the scaled contact cap past BTSSettings' bound
+        raise BadInput(f"--lab-diameter {lab_diameter_mm:g} mm: the study's contact cap "
+                       f"scaled with D to that disc is out of bounds ({e}); a size curve "
+                       "reaches discs whose cap stays within them") from None
+    ctx.check_budget(params, *discs)
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     runs = run_sizes(params, sizes_mm, disc, settings, settings=size_settings, ctx=ctx,
