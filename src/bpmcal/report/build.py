@@ -248,7 +248,8 @@ def _settings(lay, cfg, ref=False) -> str:
 
 
 def _disc_note(cfg: dict, ds: pd.DataFrame) -> str:
-    """Which disc σt is measured on, and that it is compared with the lab as measured."""
+    """Which disc σt is measured on, that the closed loop fits it as measured, and where the
+    comparison at the lab's disc size is."""
     b, sp = cfg.get("bts") or {}, cfg.get("specimen") or {}
     scale = b.get("scale") if b.get("scale") is not None else sp.get("scale", 1.0)
     d, t = b.get("diameter_mm", 50.0) * scale, b.get("thickness_mm", 25.0) * scale
