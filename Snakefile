@@ -46,6 +46,7 @@ include: "workflow/rules/analysis.smk"
 include: "workflow/rules/fracture.smk"
 include: "workflow/rules/triaxial.smk"
 include: "workflow/rules/posterior.smk"
+include: "workflow/rules/bts_size.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -81,6 +82,7 @@ rule all:
             if LAB_DTT
             else []
         ),
+        [FILES.bts_size_fit(s) for s in BTS_SIZE_SPECS],
         rules.transfer_table.output if TRANSFER_ON else [],
         rules.sweep_analyse.output if SWEEP_ON else [],
         rules.impact_analyse.output,

@@ -37,6 +37,17 @@ def test_the_planted_cards_tensile_records_are_their_json_rendered():
         assert page.read_text() == bts_resolution.markdown(recs, title, list(names), "benchmarks"), page.name
 
 
+def test_the_disc_size_record_is_its_json_rendered():
+    """Its tables are generated (``bts_size_curve.py markdown``); the findings follow them."""
+    import bts_size_curve
+
+    page = REPO / "docs" / "measurements" / "2026-12-02-bts-disc-size.md"
+    names = ["results_bts_size_validity_2026-12-02.json", "results_bts_size_curve_2026-12-02.json"]
+    recs = [json.loads((RESULTS / n).read_text()) for n in names]
+    text = page.read_text()
+    assert text.startswith(bts_size_curve.markdown(recs, text.splitlines()[0][2:], names))
+
+
 def _listed(page: str) -> set[str]:
     """The records a page of docs/measurements lists in its tables (first column)."""
     text = (REPO / "docs" / "measurements" / page).read_text()

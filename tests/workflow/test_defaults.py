@@ -11,7 +11,8 @@ from support.repo import REPO
 from support.repo import SCHEMA as SCHEMA_FILE
 
 from bpmcal import params as P
-from bpmcal.analysis import PAPER_RATIO, ClosedLoop, StepwiseRegression, XGBScreening
+from bpmcal.analysis import PAPER_RATIO, StepwiseRegression, XGBScreening
+from bpmcal.analysis.calibration import LoopSteps
 from bpmcal.analysis.calibration.loop_settings import LIMITS, LoopSettings
 from bpmcal.analysis.posterior import PosteriorSettings
 from bpmcal.cli import build_parser
@@ -25,6 +26,7 @@ from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import auto_rounds
 from bpmcal.stages import defaults_of
+from bpmcal.stages.bts_size import SizeSettings
 from bpmcal.stages.calibration import calibrate
 from bpmcal.stages.posterior import RefineSettings, posterior
 from bpmcal.stages.ratio_sweep import sweep_analyse, sweep_plan
@@ -40,7 +42,9 @@ POST, REFINE = PosteriorSettings(), RefineSettings()
 
 GEO, UCS, IMP, BTS = Geometry(), UCSSettings(), ImpactSettings(), BTSSettings()
 DTT = DTTSettings()
-SCR, REG, LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
+SIZE = SizeSettings()
+SCR, REG = defaults_of(XGBScreening), defaults_of(StepwiseRegression)
+LOOP = defaults_of(LoopSteps)  # the closed loop's defaults (ClosedLoop's steps)
 CAL, VER = defaults_of(calibrate), defaults_of(LoopSettings)
 
 
@@ -125,6 +129,8 @@ DEFAULTS = {
                              ("triaxial", "servo_alpha", None)),
     "triaxial.design_sigma3_MPa": (None, ("sample", "design_sigma3", None)),
     "triaxial.design_stop_drop": (DESIGN_STOP_DROP, ("sample", "design_stop_drop", None)),
+    **{f"bts_size.{k}": (getattr(SIZE, k), ("bts-size", k, None))
+       for k in ("seeds", "max_seeds", "target_se", "first_seed", "middle")},
     "posterior.surrogate": (POST.surrogate, ("posterior", "surrogate", None)),
     "posterior.seed": (POST.seed, ("posterior", "posterior_seed", None)),
     "posterior.hdi_prob": (POST.hdi_prob, ("posterior", "hdi_prob", None)),
@@ -170,6 +176,7 @@ STUDY_ONLY = {
     "verification.fresh_seeds",  # the seeds of the fresh_seeds jobs ([]: no such jobs)
     "ratio_sweep.enabled",  # whether the DAG has the sweep
     "transfer.enabled",  # whether the DAG has the full-size transfer
+    "bts_size",  # the section ({}: its defaults; its jobs only for a lab disc diameter)
     "bts", "bts.enabled",  # whether the DAG has the Brazilian jobs ({}: the defaults)
     "bts.scale",  # null: the disc at the cylinder's scale (bpmcal sample --bts-scale: the same)
     "dtt", "dtt.enabled",  # whether the DAG has the direct-tension jobs

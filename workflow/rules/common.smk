@@ -36,14 +36,16 @@ SAMPLES = L.sample_ids(config["study"]["n_samples"])
 # which ready job Snakemake starts first (a job's priority, higher first; no rule waits
 # for a lower one): the longest jobs, so that short ones fill the cores at the end instead
 # of a long one running alone - the posterior predictive (every draw's triaxial tests and
-# impact), the closed loops and transfers, the posteriors, the fresh seeds, the impacts,
-# the seed scatter, then the one-test jobs; the analysis jobs (seconds) last
+# impact), the closed loops and transfers, the posteriors, the fresh seeds and the σt size
+# curves, the impacts, the seed scatter, then the one-test jobs; the analysis jobs
+# (seconds) last
 PRIORITY = {
     "posterior_predictive": 60,
     "verify": 50,
     "transfer": 50,
     "posterior": 45,
     "fresh_seeds": 40,
+    "bts_size": 40,
     "impact": 30,
     "seed_scatter": 25,
     "sample": 20,

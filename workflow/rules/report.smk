@@ -22,6 +22,12 @@ rule report:
             FRESH_SEEDS_ON,
             _POSTERIOR_FILES,
         ),
+        # σt at the lab's disc size (workflow/rules/bts_size.smk; none: no lab diameter)
+        bts_size=[
+            f
+            for s in BTS_SIZE_SPECS
+            for f in (FILES.bts_size_sizes(s), FILES.bts_size_fit(s))
+        ],
     output:
         [f for f in _REPORT_OUT if f not in (FILES.report_index, FILES.report_config)],
         index=FILES.report_index,

@@ -28,8 +28,8 @@ directly above its ``cmd_<cmd>`` (its handler):
 - ``cli.study``: ``design``, ``gather``, ``screen``, ``regress``, ``calibrate``,
   ``sweep-plan``, ``sweep-analyse``, ``report``;
 - ``cli.verification``: ``verify``, ``transfer``, ``transfer-table``, ``scatter``,
-  ``fresh-seeds``, ``fresh-seeds-table``, ``verification-tables``, ``envelopes``,
-  ``impact-analyse``;
+  ``fresh-seeds``, ``fresh-seeds-table``, ``bts-size``, ``verification-tables``,
+  ``envelopes``, ``impact-analyse``;
 - ``cli.posterior``: ``posterior``, ``predictive``;
 - ``cli.options``: the option groups several commands share and their readers;
 - ``cli.args``: argument types and exit codes.
@@ -94,6 +94,7 @@ from .study import (
     _add_sweep_plan,
 )
 from .verification import (
+    _add_bts_size,
     _add_envelopes,
     _add_fresh_seeds,
     _add_fresh_seeds_table,
@@ -152,6 +153,8 @@ COMMANDS = {
                     "Brazilian tests)", _add_fresh_seeds, False),
     "fresh-seeds-table": ("the fresh-seed check of every card against its lab targets",
                           _add_fresh_seeds_table, False),
+    "bts-size": ("a verified card's σt size curve and σt at the lab's disc size",
+                 _add_bts_size, False),
     "verification-tables": ("Tables 5 and 6 and Fig. 6", _add_verification_tables, False),
     "posterior": ("a verified card's posterior: what its targets pin and leave free",
                   _add_posterior, False),

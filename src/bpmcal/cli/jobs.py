@@ -51,6 +51,9 @@ class _Ref:
     source: str
     key: str | None = None
     optional: bool = False
+    #: (value, what it stands for) pairs: the token is what its source's value stands for
+    #: (None: the value itself)
+    table: tuple | None = None
 
 
 def _in(flag, key, optional=False):
@@ -379,6 +382,36 @@ def _posterior_predictive(c, t, cache):
             THREADS, *specimen_args(c, ucs=False, cache=cache)]
 
 
+def study_disc_mm(cfg: dict) -> float:
+    """The study's Brazilian disc [mm]: ``bts.scale`` (null: the cylinder's scale) times
+    ``bts.diameter_mm``."""
+    b = cfg["bts"]
+    return (b["scale"] if b["scale"] is not None else cfg["specimen"]["scale"]) * b["diameter_mm"]
+
+
+def bts_size_diameters(cfg: dict, lab=None) -> dict:
+    """Specimen -> its lab discs' diameter [mm], where the lab CSV gives one that differs
+    from the study's disc (:func:`~bpmcal.study.lab_data.lab_disc_diameters`): the
+    specimens of the ``bts_size`` job."""
+    from ..study.lab_data import lab_disc_diameters, load_lab
+
+    lab = load_lab(cfg["lab"]["csv"]) if lab is None else lab
+    return lab_disc_diameters(lab, study_disc_mm(cfg))
+
+
+def _bts_size(c, t, cache):
+    s = c["bts_size"]
+    lab_mm = tuple((k, f"{v:g}") for k, v in bts_size_diameters(c).items())
+    return ["bts-size", _in("--card", "card"), _Ref("--lab-diameter", "wildcards", "spec",
+                                                   table=lab_mm),
+            _out("--run-dir", "run_dir"), _out("--runs", "runs"), _out("--sizes", "sizes"),
+            _out("--fit", "fit"), THREADS,
+            *_pairs({"--seeds": s["seeds"], "--max-seeds": s["max_seeds"],
+                     "--target-se": s["target_se"], "--first-seed": s["first_seed"]}),
+            "--middle" if s["middle"] else "--no-middle",
+            *specimen_args(c, cache=cache), *bts_args(c)]
+
+
 def _report(c, t, cache):
     return ["report", "--config-json", json.dumps(c), _out("--config-out", "config")]
 
@@ -393,7 +426,7 @@ JOBS = {
     "sweep_plan": _sweep_plan, "sweep_ucs": _sweep_ucs, "sweep_analyse": _sweep_analyse,
     "impact": _impact_job, "impact_analyse": _impact_analyse, "triaxial": _triaxial,
     "triaxial_envelopes": _triaxial_envelopes, "posterior": _posterior,
-    "posterior_predictive": _posterior_predictive, "report": _report,
+    "posterior_predictive": _posterior_predictive, "bts_size": _bts_size, "report": _report,
 }
 
 
@@ -441,6 +474,8 @@ def job_argv(config: dict, job: str, *, input=None, output=None, wildcards=None,
             out.append(tok)
             continue
         v = ns[tok.source] if tok.key is None else ns[tok.source].get(tok.key)
+        if tok.table is not None:
+            v = dict(tok.table).get(v)
         vals = [] if v is None else [str(x) for x in v] if isinstance(v, list) else [str(v)]
         if not vals:
             if tok.optional:

@@ -1,6 +1,7 @@
 """Subcommands that run or tabulate the calibrated cards: the closed loop ``verify``,
 ``transfer`` to full size and ``transfer-table``, the seed ``scatter``, the fresh-seed
-check (``fresh-seeds``, ``fresh-seeds-table``), ``verification-tables`` (Tables 5 and 6), the
+check (``fresh-seeds``, ``fresh-seeds-table``), σt at the lab's disc size (``bts-size``),
+``verification-tables`` (Tables 5 and 6), the
 triaxial ``envelopes`` and ``impact-analyse``.
 
 Each ``_add_<cmd>`` (its options) stands directly above its ``cmd_<cmd>`` (the handler).
@@ -18,13 +19,15 @@ from pathlib import Path
 from ..io.checks import BadInput
 from ..stages import defaults_of
 from ..stages.progress import Progress
-from .args import integer, number
+from .args import integer, number, positive
 from .options import (
     add_bts_args,
     add_dtt_args,
     add_loop_args,
     add_run_args,
     add_tri_args,
+    bts_disc_of,
+    bts_settings_of,
     file_arg,
     loop_settings_of,
     run_context,
@@ -187,6 +190,60 @@ def cmd_fresh_seeds(args) -> int:
                      dtt_runs=args.dtt_runs, tri_runs=args.tri_runs)
     prog.done(f"{int((df['status'] == 'ok').sum())} of {len(df)} seed(s) ok")
     print(df.to_string(index=False))
+    return 0
+
+
+def _add_bts_size(p):
+    from ..stages.bts_size import SizeSettings
+
+    d = SizeSettings()
+    p.add_argument("--card", required=True, help="a verified card with a bts_MPa target")
+    p.add_argument("--lab-diameter", required=True, type=positive("lab-diameter", "mm"),
+                   help="the diameter of the lab's Brazilian discs [mm] (the lab CSV's "
+                        "bts_diameter_mm)")
+    file_arg(p, "--run-dir", "output folder: every disc's run file")
+    file_arg(p, "--runs", "output table: one row per disc size and seed")
+    file_arg(p, "--sizes", "output table: one row per disc size (seeds, valid, σt mean, SE)")
+    file_arg(p, "--fit", "output table: the power-law fit and σt at the lab's size against "
+                         "the lab's")
+    p.add_argument("--seeds", type=integer("seeds", 2, 1000), default=d.seeds,
+                   help=f"packing seeds at every size to start with (default {d.seeds})")
+    p.add_argument("--max-seeds", type=integer("max-seeds", 2, 1000), default=d.max_seeds,
+                   help="seeds at a size at most, added one at a time while its mean's "
+                        f"standard error exceeds --target-se (default {d.max_seeds})")
+    p.add_argument("--target-se", type=number("target-se", 0.0, 1.0, lo_open=True,
+                                              hi_open=True), default=d.target_se,
+                   help="the relative standard error of σt wanted at every size (default "
+                        f"{d.target_se:g})")
+    p.add_argument("--first-seed", type=integer("first-seed", 0, 2 ** 32 - 1),
+                   default=d.first_seed,
+                   help=f"the first packing seed (default {d.first_seed}; with --max-seeds below "
+                        "2^32)")
+    p.add_argument("--middle", action=argparse.BooleanOptionalAction, default=d.middle,
+                   help="also measure the disc between the study's and the lab's (their "
+                        "geometric mean; --no-middle: not)")
+    p.add_argument("--quiet", action="store_true")
+    add_run_args(p)
+    add_bts_args(p, "bts_")
+    p.set_defaults(func=cmd_bts_size)
+
+
+def cmd_bts_size(args) -> int:
+    from ..stages.bts_size import SizeSettings, bts_size
+
+    prog = Progress(f"bts-size {Path(args.card).parent.name}", enabled=not args.quiet)
+    sz = SizeSettings(seeds=args.seeds, max_seeds=args.max_seeds, target_se=args.target_se,
+                      first_seed=args.first_seed, middle=args.middle)
+    r = bts_size(args.card, lab_diameter_mm=args.lab_diameter,
+                 disc=bts_disc_of(args, "bts_"), settings=bts_settings_of(args, "bts_"),
+                 run_dir=args.run_dir, runs_table=args.runs, sizes_table=args.sizes,
+                 fit_table=args.fit, size_settings=sz, ctx=run_context(args, prog),
+                 note=lambda line: prog({"note": line}))
+    f = r["fit"].iloc[0]
+    prog.done(f"σt at {f['lab_diameter_mm']:g} mm: {f['sigma_lab_size_MPa']:.3f} ± "
+              f"{f['sigma_lab_size_se']:.3f} MPa ({f['method']}); lab {f['lab_bts_MPa']:g} MPa")
+    print(r["sizes"].to_string(index=False))
+    print(r["fit"].to_string(index=False))
     return 0
 
 

@@ -377,6 +377,23 @@ class StudyFiles:
         """The fresh-seed check's responses of every seed (table)."""
         return self.path("verification", specimen, "fresh_seeds", "seeds.csv")
 
+    def bts_size_dir(self, specimen: str) -> str:
+        """The run files of a verified card's σt size curve (``bts_size``; a folder: the
+        seeds per size grow until σt is precise enough)."""
+        return self.path("verification", specimen, "bts_size", "runs")
+
+    def bts_size_runs(self, specimen: str) -> str:
+        """... one row per disc size and seed (table)."""
+        return self.path("verification", specimen, "bts_size", "runs.csv")
+
+    def bts_size_sizes(self, specimen: str) -> str:
+        """... one row per disc size: seeds, valid discs, σt mean and SE (table)."""
+        return self.path("verification", specimen, "bts_size", "sizes.csv")
+
+    def bts_size_fit(self, specimen: str) -> str:
+        """... the power-law fit and σt at the lab's disc size against the lab (table)."""
+        return self.path("verification", specimen, "bts_size", "fit.csv")
+
     def scatter_run(self, seed) -> str:
         """The UCS run of the first specimen's card with packing seed ``seed``."""
         return self.path("verification", "seed_scatter", f"seed{seed}.h5")

@@ -382,6 +382,29 @@ def cap_bridges(sp: Specimen, bridge: bool | None) -> bool:
     return bool(bridge)
 
 
+def similar_contact_cap(cap: float, diameter: float, reference: float) -> float:
+    """The contact cap [mean ball diameters] of a disc of ``diameter`` that is the same
+    share of it as ``cap`` is of a disc of ``reference`` (any one unit): ``cap`` x
+    diameter / reference, ``cap`` itself (the same float) when the two are equal.
+
+    Why: ``contact_cap`` counts mean ball diameters, and a card's balls keep their size on
+    every disc, so on a larger disc the same cap is a smaller share of it, while the
+    contact's own load concentration (the crushed zone under a platen) grows with the
+    disc. On A1 (one disc on each of 5 packings) the study's 1.5 left 5, 1 and 2 discs
+    valid at 27.5, 40 and 50 mm, the others starting their fracture at a platen; the cap
+    scaled with D (0.12 D) left 5 of 5 valid at every size, and on the 27.5 mm disc the
+    share that 1.5 has of a 50 mm disc (0.82 mean ball diameters) left 2 of 5: the valid
+    fraction follows the cap's share of the disc, not the disc's size (the test, not the
+    rock: docs/measurements/2026-12-02-bts-disc-size.md). A size curve therefore scales
+    the cap with D from the study's disc, whose cap (and so every result on it) stays as
+    it is. The cap's share also moves σt itself (a larger share, a higher peak on the same
+    packing), so σt is stated at the study's share on every size."""
+    for name, v in (("diameter", diameter), ("reference", reference)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise InputError(f"{name}={v!r}: expected a positive disc diameter")
+    return cap if diameter == reference else cap * diameter / reference
+
+
 def install_contact_caps(sp: Specimen, height_d: float, factor: float,
                          bridge: bool | None = True) -> np.ndarray:
     """Contact caps: the bonds of ``contact_cap_bonds`` get ``factor`` x their tensile

@@ -29,6 +29,7 @@ from ..io.provenance import git_commit
 from ..io.tables import markdown_table, write_table
 from ..study import paper
 from ..study.config import check_study_config
+from .bts_size import section as bts_size_section
 from .cells import compare, num, pct_diff, read_table
 from .posterior import section as posterior_section
 from .verification import section as verification_section
@@ -144,6 +145,7 @@ def build(outdir, config: dict) -> Path:
     S.append(_regression(lay, comp, ref))
     S.append(_calibration(lay, cfg, comp, ref))
     S.append(verification_section(lay, comp, ref))
+    S.append(bts_size_section(lay, _specimens(lay)))
     S.append(_ratio(lay, comp, ref) if sweep else "")
     S.append(_impact(lay, cfg, comp, ref))
     S.append(_triaxial(lay, cfg, ref) if triax else "")
@@ -246,16 +248,18 @@ def _settings(lay, cfg, ref=False) -> str:
 
 
 def _disc_note(cfg: dict, ds: pd.DataFrame) -> str:
-    """Which disc σt is measured on, and that it is compared with the lab as measured."""
+    """Which disc σt is measured on, that the closed loop fits it as measured, and where the
+    comparison at the lab's disc size is."""
     b, sp = cfg.get("bts") or {}, cfg.get("specimen") or {}
     scale = b.get("scale") if b.get("scale") is not None else sp.get("scale", 1.0)
     d, t = b.get("diameter_mm", 50.0) * scale, b.get("thickness_mm", 25.0) * scale
     across = (f", {ds['bts_balls_across'].median():.1f} mean ball diameters across "
               "(median)" if "bts_balls_across" in ds.columns else "")
-    return (f"- σt is measured on a {d:g} × {t:g} mm disc{across}, and a lab σt is compared "
-            "with it as measured, with no size correction: σt falls with the disc's size "
-            "(docs/measurements: the resolution curve), so a lab value from a larger disc "
-            "asks for a stronger card than this comparison shows")
+    return (f"- σt is measured on a {d:g} × {t:g} mm disc{across}, and the closed loop fits "
+            "a lab σt on it as measured: σt falls with the disc's size (docs/measurements: "
+            "the size curve), so a lab value from a larger disc asks for a stronger card "
+            "than that fit shows; where the lab CSV gives its discs' diameter "
+            "(`bts_diameter_mm`), \"σt at the lab's disc size\" compares at that size")
 
 
 def _table3(lay, comp, ref=False) -> str:

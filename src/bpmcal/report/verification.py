@@ -50,6 +50,14 @@ def section(lay, comp, ref=False) -> str:
                          "regression never sampled it)")
         if ran and isinstance(r.get("tensile_note"), str) and r["tensile_note"]:
             notes.append(f"- **{spec}: tensile specimens per seed** — {r['tensile_note']}")
+        if ran and P.BTS in tens and Path(lay.bts_size_fit(spec)).exists():
+            f = pd.read_csv(lay.bts_size_fit(spec)).iloc[0]
+            notes.append(f"- **{spec}: σt** is compared here on the study's "
+                         f"{num(f['reference_mm'], 'g')} mm disc; the lab's discs are "
+                         f"{num(f['lab_diameter_mm'], 'g')} mm: σt there "
+                         f"{num(f['sigma_lab_size_MPa'])} ± {num(f['sigma_lab_size_se'])} MPa "
+                         f"({f['method']}), error {num(f['err_pct'], '+.2f')} % against the "
+                         "lab (\"σt at the lab's disc size\")")
         if ran and isinstance(r.get("missed"), str) and r["missed"]:
             notes.append(f"- **{spec}: target(s) missed by the closed loop** — {r['missed']} "
                          "(error of the DEM in % of the lab value; no target is left out)")

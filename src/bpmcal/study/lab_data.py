@@ -140,6 +140,17 @@ def lab_problems(df, key: str) -> list[str]:
     return msgs
 
 
+def lab_disc_diameters(df, study_mm: float, rel: float = 1e-6) -> dict:
+    """Specimen -> the diameter [mm] of its lab Brazilian discs, for the rows of a validated
+    lab table (``load_lab``) whose ``bts_diameter_mm`` is given and differs from the
+    study's disc ``study_mm`` by more than ``rel`` of it: the specimens whose σt the study
+    compares at the lab's size (rule ``bts_size``); {} without the column."""
+    if "bts_diameter_mm" not in df.columns:
+        return {}
+    return {str(s): float(d) for s, d in zip(df["specimen"], df["bts_diameter_mm"])
+            if _given(d) and abs(float(d) - study_mm) > rel * study_mm}
+
+
 def _given(raw) -> bool:
     """An optional lab value that is not empty."""
     return not (raw is None or (isinstance(raw, float) and math.isnan(raw))
