@@ -25,7 +25,7 @@ from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import auto_rounds
 from bpmcal.stages import defaults_of
-from bpmcal.stages.calibration import calibrate
+from bpmcal.stages.calibration import CalibrationSettings
 from bpmcal.stages.posterior import RefineSettings, posterior
 from bpmcal.stages.ratio_sweep import sweep_analyse, sweep_plan
 from bpmcal.stages.runs import impact_file
@@ -41,7 +41,7 @@ POST, REFINE = PosteriorSettings(), RefineSettings()
 GEO, UCS, IMP, BTS = Geometry(), UCSSettings(), ImpactSettings(), BTSSettings()
 DTT = DTTSettings()
 SCR, REG, LOOP = defaults_of(XGBScreening), defaults_of(StepwiseRegression), defaults_of(ClosedLoop)
-CAL, VER = defaults_of(calibrate), defaults_of(LoopSettings)
+CAL, VER = defaults_of(CalibrationSettings), defaults_of(LoopSettings)
 
 
 def _ratios(text):
