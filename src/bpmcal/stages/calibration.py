@@ -106,11 +106,10 @@ def calibrate(dataset, models, lab, *, cards, ranges: dict, settings: Calibratio
     one material card per specimen: ``cards`` holds one file per lab specimen, named
     ``<specimen>.yaml`` (``bpmcal.io.study_files``); ``table``: the calibration table (optional).
     ``ranges`` is the design space the dataset was sampled over (the config's ``ranges``)
-    and bounds the free parameters; ``settings.bounds`` (the config's
-    ``calibration.bounds``) may narrow it (:class:`CalibrationSettings`). ``ratio_from``:
-    the strength-ratio sweep's chosen JSON (its ratio replaces ``settings.strength_ratio``
-    when it chose one). ``n_boot=0`` skips the bootstrap (the initial calibration that
-    only seeds the strength-ratio sweep needs the point estimate).
+    and bounds the free parameters; ``settings`` (:class:`CalibrationSettings`) may narrow
+    it. ``ratio_from``: the strength-ratio sweep's chosen JSON (its ratio replaces
+    ``settings.strength_ratio`` when it chose one). ``n_boot=0`` skips the bootstrap (the
+    initial calibration that only seeds the strength-ratio sweep needs the point estimate).
 
     Every card records the configured ``ranges``, the effective ``bounds`` of the calibrated
     parameters with the configured key each side comes from, and, when the targets are not
