@@ -119,12 +119,12 @@ def calibrate(dataset, models, lab, *, cards, ranges: dict, settings: Calibratio
     A specimen whose lab row gives ``bts_MPa`` is also calibrated against σt (a ``bts_MPa``
     model in ``models`` is then required): σt sets its bond-strength ratio
     (:func:`bpmcal.analysis.calibration.bts_strengths`: ``pb_ten_MPa`` free, the card's
-    ``ratio_ten_coh`` null), instead of the configured ratio or the sweep's choice. When the set of
-    targets cannot be met at once (e.g. a σc/σt beyond the parallel-bond model's) the card
-    is ``no-exact-fit``, keeps the least-squares compromise and lists every missed target
-    (``missed``: target, value, predicted, error_pct) and what the models reach (``reach``).
-    Every card records ``strength_ratio``: the ratio pb_ten/pb_coh of its parameters and
-    what set it. A lab row without σt is calibrated exactly as before."""
+    ``ratio_ten_coh`` null), instead of the configured ratio or the sweep's choice. When
+    the set of targets cannot be met at once (e.g. a σc/σt beyond the parallel-bond
+    model's) the card is ``no-exact-fit``, keeps the least-squares compromise and lists
+    every missed target (``missed``: target, value, predicted, error_pct) and what the
+    models reach (``reach``). Every card records ``strength_ratio``: the ratio pb_ten/pb_coh
+    of its parameters and what set it (:func:`_ratio_set_by`)."""
     lab_df = read_lab(lab)
     fixed, free, bounds = settings.fixed, settings.free, settings.bounds
     n_boot, seed = settings.n_boot, settings.seed
@@ -162,11 +162,7 @@ def calibrate(dataset, models, lab, *, cards, ranges: dict, settings: Calibratio
         else:
             bootstrap = {"n_boot": 0, "scheme": None, "unreachable_resamples": None,
                          "intervals": []}
-        set_by = (f"{ratio_by} target" if ratio_by in TENSILE_RESPONSES else
-                  "ratio sweep" if ratio_from and not note_is_fallback(note)
-                  # the card-format-1 spelling, kept (the key is calibration.strength_ratio)
-                  else "config calibration.ratio" if s_ratio is not None
-                  else "both strengths free")
+        set_by = _ratio_set_by(ratio_by, s_ratio, ratio_from, note)
         card = calibration_card(
             spec, inv, rec, targets, ratio=s_ratio, set_by=set_by, bounds=bounds,
             bootstrap=bootstrap, dataset_note=dnote,
@@ -286,6 +282,17 @@ def lab_target_se(rec: dict, targets: dict) -> dict:
         if v is not None and math.isfinite(float(v)):
             out[r] = float(v)
     return out
+
+
+def _ratio_set_by(ratio_by: str, ratio: float | None, ratio_from, note: str) -> str:
+    """What set a card's strength ratio (its ``strength_ratio.set_by``): a tensile target
+    (``ratio_by``, :func:`~bpmcal.analysis.calibration.bts_strengths`), the ratio sweep
+    (``ratio_from`` and no fallback in ``note``), the configured ``ratio`` or nothing."""
+    return (f"{ratio_by} target" if ratio_by in TENSILE_RESPONSES else
+            "ratio sweep" if ratio_from and not note_is_fallback(note)
+            # the card-format-1 spelling, kept (the key is calibration.strength_ratio)
+            else "config calibration.ratio" if ratio is not None
+            else "both strengths free")
 
 
 def note_is_fallback(note: str) -> bool:
