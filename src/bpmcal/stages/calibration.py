@@ -128,13 +128,9 @@ def calibrate(dataset, models, lab, *, cards, ranges: dict, settings: Calibratio
     lab_df = read_lab(lab)
     fixed, free, bounds = settings.fixed, settings.free, settings.bounds
     n_boot, seed = settings.n_boot, settings.seed
-    ratio, note = _check_calibrate_inputs(lab_df, cards, settings, ranges, ratio_from)
+    ratio, note, jobs, with_bts = _check_calibrate_inputs(lab_df, cards, settings, ranges,
+                                                          ratio_from)
     by_spec = {Path(c).stem: c for c in cards}
-    jobs = [(rec, lab_targets(rec)) for rec in lab_df.to_dict("records")]
-    with_bts = [str(rec["specimen"]) for rec, t in jobs if tensile_target(t)]
-    if with_bts:  # σt sets the ratio of these specimens: their space must be valid too
-        f_bts, r_bts, _ = bts_strengths({BTS: 1.0}, free, fixed, ratio)
-        check_calibration_space(f_bts, fixed, r_bts, ranges, bounds)
     df = read_dataset(dataset)
     model_set = read_models(models)
     _check_tensile_models(jobs, model_set, df, dataset, models, lab, n_boot)
@@ -179,10 +175,12 @@ def calibrate(dataset, models, lab, *, cards, ranges: dict, settings: Calibratio
 
 
 def _check_calibrate_inputs(lab_df: pd.DataFrame, cards, settings: CalibrationSettings, ranges,
-                            ratio_from) -> tuple[float | None, str]:
+                            ratio_from) -> tuple[float | None, str, list, list]:
     """The checks :func:`calibrate` makes before it reads the dataset (``settings`` were
     checked when built): one card per lab specimen, valid ``ranges`` and a valid
-    calibration space. Returns the ratio used (:func:`chosen_ratio`) and the note on it."""
+    calibration space (also with σt setting the ratio, for the specimens with a tensile
+    target). Returns the ratio used (:func:`chosen_ratio`), the note on it, the jobs (each
+    lab row and its targets) and the specimens with a tensile target."""
     specs = [str(s) for s in lab_df["specimen"]]
     by_spec = {Path(c).stem: c for c in cards}
     if sorted(by_spec) != sorted(specs) or len(by_spec) != len(cards):
@@ -192,8 +190,14 @@ def _check_calibrate_inputs(lab_df: pd.DataFrame, cards, settings: CalibrationSe
     if not isinstance(ranges, dict):
         raise BadInput(f"--ranges: expected a JSON mapping of parameter name to "
                        f"[low, high] (paper units), got {ranges!r}")
-    check_calibration_space(settings.free, settings.fixed, ratio, ranges, settings.bounds)
-    return ratio, note
+    free, fixed, bounds = settings.free, settings.fixed, settings.bounds
+    check_calibration_space(free, fixed, ratio, ranges, bounds)
+    jobs = [(rec, lab_targets(rec)) for rec in lab_df.to_dict("records")]
+    with_bts = [str(rec["specimen"]) for rec, t in jobs if tensile_target(t)]
+    if with_bts:  # σt sets the ratio of these specimens: their space must be valid too
+        f_bts, r_bts, _ = bts_strengths({BTS: 1.0}, free, fixed, ratio)
+        check_calibration_space(f_bts, fixed, r_bts, ranges, bounds)
+    return ratio, note, jobs, with_bts
 
 
 def _check_tensile_models(jobs: list, model_set, df: pd.DataFrame, dataset, models, lab, n_boot) -> None:
