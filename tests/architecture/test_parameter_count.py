@@ -15,10 +15,6 @@ SRC = Path(__file__).resolve().parents[2] / "src" / "bpmcal"
 MAX_PARAMETERS = 12
 KERNEL_DECORATORS = {"jit", "jit_parallel", "njit", "_inl"}
 
-#: the reason of a stage function's entry
-_STAGE = ("a stage function: its arguments are the CLI's options one to one; to take a "
-          "settings value with the CLI options generated from it (issue 54 item 1)")
-
 #: "path:qualified name" -> why it still takes more (each entry is a candidate for a
 #: settings value; the test below fails when an entry's function is gone or fits)
 ALLOWED = {
@@ -33,17 +29,6 @@ ALLOWED = {
         "(RunContext.lab_kw), which the lab's public test functions take as keywords"),
     'lab/runner.py:_lab_test_run': (
         'as _lab_test'),
-    'stages/calibration.py:calibrate': _STAGE,
-    'stages/posterior.py:posterior': (
-        "nine output files and the posterior's settings (its DEM: one SeedTests and one "
-        "RunContext); to take a settings value"),
-    'stages/posterior.py:_posterior': (
-        "posterior's arguments passed on"),
-    'stages/predictive.py:predictive': (
-        "the draws' triaxial and impact runs (files, specimens, settings, seeds; its DEM: one "
-        "RunContext); to take a settings value"),
-    'stages/regression.py:regress': _STAGE,
-    'stages/screening.py:screen': _STAGE,
 }
 
 

@@ -14,8 +14,8 @@ from bpmcal import params as P
 from bpmcal.cli import main
 from bpmcal.io import h5
 from bpmcal.stages.dataset import gather
-from bpmcal.stages.regression import regress
-from bpmcal.stages.screening import screen
+from bpmcal.stages.regression import RegressionSettings, regress
+from bpmcal.stages.screening import ScreeningSettings, screen
 
 
 def _design(tmp_path, rows) -> str:
@@ -181,10 +181,11 @@ def _analyse(df, folder):
         ("fit", "fit.csv"), ("regfig", "reg.png")]}
     s = screen(f, selected=o["selected"], table3_csv=o["table3"], figure=o["fig"],
                importance_table=o["imp"], cv_table=o["cv"], shadow_table=o["shadow"],
-               summary=o["sum"], n_splits=4, n_repeats=2)
+               summary=o["sum"], settings=ScreeningSettings(n_splits=4, n_repeats=2))
     r = regress(f, o["selected"], models=o["models"], equations=o["eq"], summaries=o["summ"],
                 coefficients=o["coef"], candidates=o["cand"], table4=o["table4"],
-                fit_table=o["fit"], figure=o["regfig"], cv_folds=4, cv_repeats=2)
+                fit_table=o["fit"], figure=o["regfig"],
+                settings=RegressionSettings(cv_folds=4, cv_repeats=2))
     return o, s, r
 
 

@@ -27,7 +27,7 @@ from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import auto_rounds
 from bpmcal.stages import defaults_of
 from bpmcal.stages.bts_size import SizeSettings
-from bpmcal.stages.calibration import calibrate
+from bpmcal.stages.calibration import CalibrationSettings
 from bpmcal.stages.posterior import RefineSettings, posterior
 from bpmcal.stages.ratio_sweep import sweep_analyse, sweep_plan
 from bpmcal.stages.runs import impact_file
@@ -45,7 +45,7 @@ DTT = DTTSettings()
 SIZE = SizeSettings()
 SCR, REG = defaults_of(XGBScreening), defaults_of(StepwiseRegression)
 LOOP = defaults_of(LoopSteps)  # the closed loop's defaults (ClosedLoop's steps)
-CAL, VER = defaults_of(calibrate), defaults_of(LoopSettings)
+CAL, VER = defaults_of(CalibrationSettings), defaults_of(LoopSettings)
 
 
 def _ratios(text):

@@ -53,15 +53,16 @@ def _lab(tmp, name, **targets):
     return f
 
 
-def _calibrate(study, lab, out, **kw):
+def _calibrate(study, lab, out):
     """Calibrate the one specimen of ``lab`` to ``out/<specimen>.yaml``; the card."""
     from bpmcal.io.card import read_card
-    from bpmcal.stages.calibration import calibrate
+    from bpmcal.stages.calibration import CalibrationSettings, calibrate
 
     c = study["cfg"]["calibration"]
     card = Path(out) / f"{Path(lab).stem}.yaml"
-    calibrate(study["dataset"], study["models"], lab, cards=[card], fixed=c["fixed"],
-              ranges=study["cfg"]["ranges"], n_boot=0, seed=1, **kw)
+    calibrate(study["dataset"], study["models"], lab, cards=[card],
+              ranges=study["cfg"]["ranges"],
+              settings=CalibrationSettings(fixed=c["fixed"], n_boot=0, seed=1))
     return read_card(card)
 
 
@@ -152,7 +153,7 @@ def test_report_shows_the_paper_only_for_the_paper_study(study, tmp_path, refere
     and as another rock's."""
     from bpmcal.io import study_files as L
     from bpmcal.report.build import build
-    from bpmcal.stages.calibration import calibrate
+    from bpmcal.stages.calibration import CalibrationSettings, calibrate
     from bpmcal.stages.verification_tables import verification_tables
 
     out = tmp_path / "results"
@@ -161,7 +162,8 @@ def test_report_shows_the_paper_only_for_the_paper_study(study, tmp_path, refere
     c = study["cfg"]["calibration"]
     specs = ("B1", "B2", "B3")
     calibrate(study["dataset"], study["models"], lab, cards=[lay.card(s) for s in specs],
-              fixed=c["fixed"], ranges=study["cfg"]["ranges"], n_boot=0, seed=1,
+              ranges=study["cfg"]["ranges"],
+              settings=CalibrationSettings(fixed=c["fixed"], n_boot=0, seed=1),
               table=lay.table(L.CALIBRATION))
     for spec in specs:
         _verify(lay.card(spec), study["models"], lay, spec)

@@ -25,6 +25,7 @@ Use:
 
 - ``type=`` converters for argparse: :func:`number`, :func:`integer`, ``SEED``,
   ``THREADS`` (NaN, inf, booleans and out-of-range values are refused by name);
+  :func:`limited` for an option of a settings field (the field's bounds);
 - :class:`Parser` (argparse errors as one line); ``bpmcal.io.checks.BadInput`` for
   anything else a user can get wrong.
 """
@@ -106,6 +107,18 @@ def integer(name: str, lo: int | None = None, hi: int | None = None):
     conv.__name__ = name
     conv.bounds = (lo, False, hi, False)
     return conv
+
+
+def limited(name: str, limit, *, unit: str = ""):
+    """An argparse type of a settings field's ``limit`` (a
+    ``bpmcal.analysis.calibration.loop_settings.Limit`` of kind "int" or "float"):
+    :func:`integer` or :func:`number` within the field's bounds, so that the option
+    accepts what the field accepts."""
+    if limit.kind == "int":
+        return integer(name, None if limit.lo is None else int(limit.lo),
+                       None if limit.hi is None else int(limit.hi))
+    return number(name, limit.lo, limit.hi, lo_open=limit.lo_open, hi_open=limit.hi_open,
+                  unit=unit)
 
 
 def integer_or(word: str, name: str, lo: int | None = None, hi: int | None = None):

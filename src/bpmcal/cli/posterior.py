@@ -76,7 +76,7 @@ def _add_posterior(p):
 
 def cmd_posterior(args) -> int:
     from ..analysis.posterior import PosteriorSettings
-    from ..stages.posterior import RefineSettings, posterior
+    from ..stages.posterior import PosteriorOutputs, RefineSettings, posterior
 
     prog = Progress(f"posterior {Path(args.card).parent.name}", enabled=not args.quiet)
     settings = PosteriorSettings(surrogate=args.surrogate, seed=args.posterior_seed,
@@ -84,12 +84,14 @@ def cmd_posterior(args) -> int:
                                  ess_min=args.ess_min, max_steps=args.sampler_max_steps)
     refine = RefineSettings(max_runs=args.refine_max_runs, ratio=args.refine_ratio,
                             seeds=args.refine_seeds, seed=args.refine_seed)
-    out = posterior(args.card, args.dataset, args.models, out_card=args.out_card,
-                    table=args.table, predictions=args.predictions, netcdf=args.netcdf,
-                    figure=args.figure, loop_seeds=args.loop_seeds, fresh_seeds=args.fresh_seeds,
-                    learning=args.learning, learning_figure=args.learning_figure,
-                    refine_runs=args.refine_runs, draws=args.draws, n_draws=args.n_draws,
-                    settings=settings, refine=refine,
+    files = PosteriorOutputs(out_card=args.out_card, table=args.table,
+                             predictions=args.predictions, netcdf=args.netcdf,
+                             figure=args.figure, learning=args.learning,
+                             learning_figure=args.learning_figure,
+                             refine_runs=args.refine_runs, draws=args.draws)
+    out = posterior(args.card, args.dataset, args.models, files=files,
+                    loop_seeds=args.loop_seeds, fresh_seeds=args.fresh_seeds,
+                    n_draws=args.n_draws, settings=settings, refine=refine,
                     tests=seed_tests_of(args) if args.refine_max_runs else None,
                     design_sigma3=args.design_sigma3, ctx=run_context(args, prog))["posterior"]
     prog.done(f"{out['status']}: {out['identifiability']} {out['reach']['text']}")
@@ -160,7 +162,7 @@ def cmd_predictive(args) -> int:
 
     from ..lab.impact import ImpactSettings
     from ..lab.triaxial import TriaxialSettings
-    from ..stages.predictive import predictive, summarise
+    from ..stages.predictive import PredictiveSettings, predictive, summarise
 
     prog = Progress(f"predictive {args.specimen}", enabled=not args.quiet)
     geo = run_geometry(args)
@@ -170,11 +172,11 @@ def cmd_predictive(args) -> int:
                          hammer_mass=args.hammer_mass * args.impact_scale ** 3,
                          dp_ratio=args.dp_ratio, anvil_fric=args.anvil_fric,
                          duration=args.duration_ms * 1e-3, record_dt=args.record_us * 1e-6)
+    settings = PredictiveSettings(sigma3_MPa=args.sigma3, geometry=geo, tri_settings=st,
+                                  impact_geometry=igeo, impact_settings=ist,
+                                  tri_seed=args.triaxial_seed, impact_seed=args.impact_seed)
     t = predictive(args.draws, specimen=args.specimen, tri_runs=args.tri_runs, table=args.table,
-                   sigma3=args.sigma3, geometry=geo, tri_settings=st,
-                   impact_runs=args.impact_runs, impact_geometry=igeo, impact_settings=ist,
-                   tri_seed=args.triaxial_seed, impact_seed=args.impact_seed,
-                   envelopes=args.envelopes, card_impact=args.card_impact,
-                   ctx=run_context(args, prog))
+                   settings=settings, impact_runs=args.impact_runs, envelopes=args.envelopes,
+                   card_impact=args.card_impact, ctx=run_context(args, prog))
     prog.done(summarise(t).to_string())
     return 0

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from ..io.checks import BadInput, parse_json
 from ..stages import defaults_of
-from .args import SEED, integer, number
+from .args import SEED, integer, limited, number
 from .options import file_arg
 
 
@@ -67,9 +67,10 @@ def cmd_gather(args) -> int:
 
 
 def _add_screen(p):
-    from ..analysis import XGBScreening
+    from ..stages.screening import ScreeningSettings
+    from ..stages.settings import limits
 
-    d = defaults_of(XGBScreening)
+    d, lim = defaults_of(ScreeningSettings), limits(ScreeningSettings)
     p.add_argument("--dataset", required=True)
     for flag, h in (("--selected", "output JSON: the selected candidates per response"),
                     ("--table3", "output table (CSV, Markdown beside): Table 3"),
@@ -79,37 +80,38 @@ def _add_screen(p):
                     ("--shadow-table", "output table: largest shadow-feature share"),
                     ("--summary", "output text: the screening summary")):
         file_arg(p, flag, h)
-    p.add_argument("--threshold", type=number("threshold", 0.0, 100.0), default=d["threshold"],
+    p.add_argument("--threshold", type=limited("threshold", lim["threshold"]),
+                   default=d["threshold"],
                    help=f"selection threshold [%%] (default {d['threshold']:g})")
-    p.add_argument("--importance", default=d["importance"],
-                   choices=["gain", "total_gain", "permutation", "shap"],
+    p.add_argument("--importance", default=d["importance"], choices=lim["importance"].words,
                    help=f"importance type that drives the selection (default {d['importance']})")
-    from ..analysis.screening import RULES
-    from ..stages.screening import TENSILE_RULE
-
-    p.add_argument("--rule", default=d["rule"], choices=RULES,
+    p.add_argument("--rule", default=d["rule"], choices=lim["rule"].words,
                    help=f"selection rule of σc, E, ν: threshold (the paper's: share above "
                         f"--threshold) or above_noise (also every parameter above the largest "
                         f"shadow share) (default {d['rule']})")
-    p.add_argument("--tensile-rule", default=TENSILE_RULE, choices=RULES,
-                   help=f"selection rule of σt (default {TENSILE_RULE})")
-    p.add_argument("--n-splits", type=integer("n-splits", 2, 100), default=d["n_splits"],
-                   help=f"CV folds (default {d['n_splits']})")
-    p.add_argument("--n-repeats", type=integer("n-repeats", 1, 1000), default=d["n_repeats"],
+    p.add_argument("--tensile-rule", default=d["tensile_rule"],
+                   choices=lim["tensile_rule"].words,
+                   help=f"selection rule of σt (default {d['tensile_rule']})")
+    p.add_argument("--n-splits", type=limited("n-splits", lim["n_splits"]),
+                   default=d["n_splits"], help=f"CV folds (default {d['n_splits']})")
+    p.add_argument("--n-repeats", type=limited("n-repeats", lim["n_repeats"]),
+                   default=d["n_repeats"],
                    help=f"permutation repeats (default {d['n_repeats']})")
     p.add_argument("--seed", type=SEED, default=d["seed"])
     p.set_defaults(func=cmd_screen)
 
 
 def cmd_screen(args) -> int:
-    from ..stages.screening import screen
+    from ..stages.screening import ScreeningSettings, screen
 
+    settings = ScreeningSettings(threshold=args.threshold, importance=args.importance,
+                                 rule=args.rule, tensile_rule=args.tensile_rule,
+                                 n_splits=args.n_splits, n_repeats=args.n_repeats,
+                                 seed=args.seed)
     r = screen(args.dataset, selected=args.selected, table3_csv=args.table3,
                figure=args.figure, importance_table=args.importance_table,
                cv_table=args.cv_table, shadow_table=args.shadow_table, summary=args.summary,
-               threshold=args.threshold, importance=args.importance, n_splits=args.n_splits,
-               n_repeats=args.n_repeats, seed=args.seed, rule=args.rule,
-               tensile_rule=args.tensile_rule)
+               settings=settings)
     print(r["note"])
     for k, v in r["selected"].items():
         print(f"{k}: {', '.join(v)}")
@@ -117,9 +119,10 @@ def cmd_screen(args) -> int:
 
 
 def _add_regress(p):
-    from ..analysis import StepwiseRegression
+    from ..stages.regression import RegressionSettings
+    from ..stages.settings import limits
 
-    d = defaults_of(StepwiseRegression)
+    d, lim = defaults_of(RegressionSettings), limits(RegressionSettings)
     p.add_argument("--dataset", required=True)
     p.add_argument("--selected", required=True, help="selected.json of the screening")
     for flag, h in (("--models", "output JSON: the fitted models"),
@@ -131,36 +134,37 @@ def _add_regress(p):
                     ("--fit-table", "output table: adjusted and CV R² per stage"),
                     ("--figure", "output figure: predicted vs simulated")):
         file_arg(p, flag, h)
-    p.add_argument("--alpha-in", type=number("alpha-in", 0.0, 0.5, lo_open=True),
-                   default=d["alpha_in"])
-    p.add_argument("--alpha-out", type=number("alpha-out", 0.0, 0.5, lo_open=True),
-                   default=d["alpha_out"])
-    p.add_argument("--vif-max", type=number("vif-max", 1.0), default=d["vif_max"])
-    p.add_argument("--hierarchy", default=d["hierarchy"], choices=["strong", "weak", "none"])
-    p.add_argument("--cv-folds", type=integer("cv-folds", 2, 100), default=d["cv_folds"])
-    p.add_argument("--cv-repeats", type=integer("cv-repeats", 1, 1000), default=d["cv_repeats"])
+    for name in ("alpha_in", "alpha_out", "vif_max", "hierarchy", "cv_folds", "cv_repeats"):
+        opt = name.replace("_", "-")
+        if lim[name].kind == "choice":
+            p.add_argument(f"--{opt}", default=d[name], choices=lim[name].words)
+        else:
+            p.add_argument(f"--{opt}", type=limited(opt, lim[name]), default=d[name])
     p.add_argument("--seed", type=SEED, default=d["seed"])
     p.set_defaults(func=cmd_regress)
 
 
 def cmd_regress(args) -> int:
-    from ..stages.regression import regress
+    from ..stages.regression import RegressionSettings, regress
 
+    settings = RegressionSettings(alpha_in=args.alpha_in, alpha_out=args.alpha_out,
+                                  vif_max=args.vif_max, hierarchy=args.hierarchy,
+                                  cv_folds=args.cv_folds, cv_repeats=args.cv_repeats,
+                                  seed=args.seed)
     r = regress(args.dataset, args.selected, models=args.models, equations=args.equations,
                 summaries=args.summaries, coefficients=args.coefficients,
                 candidates=args.candidates, table4=args.table4, fit_table=args.fit_table,
-                figure=args.figure, alpha_in=args.alpha_in, alpha_out=args.alpha_out,
-                vif_max=args.vif_max, hierarchy=args.hierarchy, cv_folds=args.cv_folds,
-                cv_repeats=args.cv_repeats, seed=args.seed)
+                figure=args.figure, settings=settings)
     print(r["note"])
     print(r["equations"])
     return 0
 
 
 def _add_calibrate(p):
-    from ..stages.calibration import calibrate
+    from ..stages.calibration import CalibrationSettings
+    from ..stages.settings import limits
 
-    d = defaults_of(calibrate)
+    d, lim = defaults_of(CalibrationSettings), limits(CalibrationSettings)
     p.add_argument("--dataset", required=True)
     p.add_argument("--models", required=True, help="models.json of the regression")
     p.add_argument("--lab", required=True, help="lab CSV")
@@ -181,13 +185,14 @@ def _add_calibrate(p):
     p.add_argument("--free", default=None,
                    help=f"comma-separated free parameters (default, by the contact model the "
                         f"names use: {free})")
-    p.add_argument("--ratio", type=number("ratio", None, 100.0), default=d["ratio"],
+    p.add_argument("--ratio", type=number("ratio", None, lim["strength_ratio"].hi),
+                   default=d["strength_ratio"],
                    help=f"strength ratio of the model's strength pair, {pairs} (<= 0: both "
-                        f"free; default {d['ratio']:g})")
+                        f"free; default {d['strength_ratio']:g})")
     p.add_argument("--ratio-from", default=None,
                    help="JSON file with the chosen ratio (the ratio sweep's choice; when it "
                         "holds none, --ratio is used)")
-    p.add_argument("--n-boot", type=integer("n-boot", 0, 1_000_000), default=d["n_boot"],
+    p.add_argument("--n-boot", type=limited("n-boot", lim["n_boot"]), default=d["n_boot"],
                    help="bootstrap resamples for the intervals (0: no bootstrap, else >= 2; "
                         f"default {d['n_boot']})")
     p.add_argument("--seed", type=SEED, default=d["seed"])
@@ -195,16 +200,16 @@ def _add_calibrate(p):
 
 
 def cmd_calibrate(args) -> int:
-    from ..stages.calibration import calibrate
+    from ..stages.calibration import CalibrationSettings, calibrate
 
     fixed = parse_json(args.fixed, "--fixed")
     ranges = parse_json(args.ranges, "--ranges")
     bounds = parse_json(args.bounds, "--bounds") if args.bounds else {}
+    settings = CalibrationSettings(fixed=fixed, free=args.free.split(",") if args.free else None,
+                                   strength_ratio=None if args.ratio <= 0 else args.ratio,
+                                   bounds=bounds, n_boot=args.n_boot, seed=args.seed)
     r = calibrate(args.dataset, args.models, args.lab, cards=args.cards, table=args.table,
-                  fixed=fixed, ranges=ranges, bounds=bounds,
-                  ratio=None if args.ratio <= 0 else args.ratio, ratio_from=args.ratio_from,
-                  free=args.free.split(",") if args.free else None, n_boot=args.n_boot,
-                  seed=args.seed)
+                  ranges=ranges, settings=settings, ratio_from=args.ratio_from)
     if r["note"]:
         print(r["note"])
     print(r["table"].to_string())

@@ -11,6 +11,7 @@ given (``bpmcal.io.study_files``).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
@@ -31,6 +32,7 @@ from ..io.provenance import provenance
 from ..io.tables import write_table
 from ..params import BTS, TENSILE_RESPONSES
 from .inputs import CSV, YAML, outputs, read_dataset, read_lab, read_models, usable
+from .settings import SEED, Limit, check_fields, setting
 
 
 def chosen_ratio(ratio_from, ratio: float | None) -> tuple[float | None, str]:
@@ -54,17 +56,66 @@ def chosen_ratio(ratio_from, ratio: float | None) -> tuple[float | None, str]:
     return a, ""
 
 
-def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=None,
-              ratio: float | None = PAPER_RATIO, ratio_from=None, free=None, n_boot=200,
-              seed=13, table=None) -> dict:
+@dataclass(frozen=True)
+class CalibrationSettings:
+    """The calibration's settings (the config's ``calibration`` section, ``bpmcal
+    calibrate``'s options), checked when built: the ``fixed`` parameters (paper units),
+    the ``free`` ones (None: the contact model's), the bond-strength ratio
+    ``strength_ratio`` of the model's strength pair (None: both strengths free; the
+    command's ``--ratio``, <= 0 there), the ``bounds`` narrowing the design ranges of free
+    parameters, the bootstrap's resamples ``n_boot`` (0: none, else >= 2) and the
+    ``seed`` of the inversion's starts and the bootstrap."""
+
+    fixed: dict
+    free: tuple | None = None
+    strength_ratio: float | None = setting(
+        PAPER_RATIO, Limit("float", 0.0, 20.0, lo_open=True, null=True,
+                           what="the ratio of the strength pair; none: both free"))
+    bounds: dict = field(default_factory=dict)
+    n_boot: int = setting(200, Limit("int", 0, 100_000, what="bootstrap resamples"))
+    seed: int = setting(13, SEED)
+
+    def __post_init__(self):
+        check_fields(self)
+        fixed = self.fixed
+        if not isinstance(fixed, dict):
+            raise BadInput(f"--fixed {fixed!r}: expected a JSON object of parameter values")
+        try:
+            fixed = P.validate_params(fixed, require_all=False)
+        except P.ParameterError as e:
+            raise P.ParameterError(f"--fixed: {e}") from None
+        object.__setattr__(self, "fixed", fixed)
+        if self.n_boot == 1:
+            raise P.ParameterError(f"--n-boot {self.n_boot}: expected 0 (no bootstrap) or an "
+                                   "integer >= 2")
+        free = self.free
+        if free is not None:
+            free = tuple(free)
+            object.__setattr__(self, "free", free)
+        if free:
+            bad = [f for f in free if f not in P.ALL_PARAMS]
+            if bad:
+                known = P.model_of({**fixed, **dict.fromkeys(f for f in free
+                                                             if f in P.ALL_PARAMS)})
+                raise BadInput(f"--free {','.join(free)}: unknown parameter(s) {bad}; "
+                               f"expected names from {list(known.params)}")
+        bounds = {} if self.bounds is None else self.bounds
+        if not isinstance(bounds, dict):
+            raise BadInput(f"--bounds: expected a JSON mapping of parameter name to "
+                           f"[low, high] (paper units), got {bounds!r}")
+        object.__setattr__(self, "bounds", dict(bounds))
+
+
+def calibrate(dataset, models, lab, *, cards, ranges: dict, settings: CalibrationSettings,
+              ratio_from=None, table=None) -> dict:
     """Invert the final regression models for every lab specimen; bootstrap intervals;
     one material card per specimen: ``cards`` holds one file per lab specimen, named
     ``<specimen>.yaml`` (``bpmcal.io.study_files``); ``table``: the calibration table (optional).
     ``ranges`` is the design space the dataset was sampled over (the config's ``ranges``)
-    and bounds the free parameters; ``bounds`` (the config's ``calibration.bounds``) may
-    narrow it. ``ratio_from``: the strength-ratio sweep's chosen JSON (its ratio replaces
-    ``ratio`` when it chose one). ``n_boot=0`` skips the bootstrap (the initial calibration
-    that only seeds the strength-ratio sweep needs the point estimate).
+    and bounds the free parameters; ``settings`` (:class:`CalibrationSettings`) may narrow
+    it. ``ratio_from``: the strength-ratio sweep's chosen JSON (its ratio replaces
+    ``settings.strength_ratio`` when it chose one). ``n_boot=0`` skips the bootstrap (the
+    initial calibration that only seeds the strength-ratio sweep needs the point estimate).
 
     Every card records the configured ``ranges``, the effective ``bounds`` of the calibrated
     parameters with the configured key each side comes from, and, when the targets are not
@@ -74,21 +125,18 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
     A specimen whose lab row gives ``bts_MPa`` is also calibrated against σt (a ``bts_MPa``
     model in ``models`` is then required): σt sets its bond-strength ratio
     (:func:`bpmcal.analysis.calibration.bts_strengths`: ``pb_ten_MPa`` free, the card's
-    ``ratio_ten_coh`` null), instead of ``ratio`` or the sweep's choice. When the set of
-    targets cannot be met at once (e.g. a σc/σt beyond the parallel-bond model's) the card
-    is ``no-exact-fit``, keeps the least-squares compromise and lists every missed target
-    (``missed``: target, value, predicted, error_pct) and what the models reach (``reach``).
-    Every card records ``strength_ratio``: the ratio pb_ten/pb_coh of its parameters and
-    what set it. A lab row without σt is calibrated exactly as before."""
+    ``ratio_ten_coh`` null), instead of the configured ratio or the sweep's choice. When
+    the set of targets cannot be met at once (e.g. a σc/σt beyond the parallel-bond
+    model's) the card is ``no-exact-fit``, keeps the least-squares compromise and lists
+    every missed target (``missed``: target, value, predicted, error_pct) and what the
+    models reach (``reach``). Every card records ``strength_ratio``: the ratio pb_ten/pb_coh
+    of its parameters and what set it (:func:`_ratio_set_by`)."""
     lab_df = read_lab(lab)
-    fixed, ratio, bounds, note = _check_calibrate_inputs(lab_df, cards, fixed, ranges, bounds, ratio,
-                                                         ratio_from, free, n_boot)
+    fixed, free, bounds = settings.fixed, settings.free, settings.bounds
+    n_boot, seed = settings.n_boot, settings.seed
+    ratio, note, jobs, with_bts = _check_calibrate_inputs(lab_df, cards, settings, ranges,
+                                                          ratio_from)
     by_spec = {Path(c).stem: c for c in cards}
-    jobs = [(rec, lab_targets(rec)) for rec in lab_df.to_dict("records")]
-    with_bts = [str(rec["specimen"]) for rec, t in jobs if tensile_target(t)]
-    if with_bts:  # σt sets the ratio of these specimens: their space must be valid too
-        f_bts, r_bts, _ = bts_strengths({BTS: 1.0}, free, fixed, ratio)
-        check_calibration_space(f_bts, fixed, r_bts, ranges, bounds)
     df = read_dataset(dataset)
     model_set = read_models(models)
     _check_tensile_models(jobs, model_set, df, dataset, models, lab, n_boot)
@@ -115,11 +163,7 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
         else:
             bootstrap = {"n_boot": 0, "scheme": None, "unreachable_resamples": None,
                          "intervals": []}
-        set_by = (f"{ratio_by} target" if ratio_by in TENSILE_RESPONSES else
-                  "ratio sweep" if ratio_from and not note_is_fallback(note)
-                  # the card-format-1 spelling, kept (the key is calibration.strength_ratio)
-                  else "config calibration.ratio" if s_ratio is not None
-                  else "both strengths free")
+        set_by = _ratio_set_by(ratio_by, s_ratio, ratio_from, note)
         card = calibration_card(
             spec, inv, rec, targets, ratio=s_ratio, set_by=set_by, bounds=bounds,
             bootstrap=bootstrap, dataset_note=dnote,
@@ -135,40 +179,30 @@ def calibrate(dataset, models, lab, *, cards, fixed: dict, ranges: dict, bounds=
     return {"table": out, "note": note}
 
 
-def _check_calibrate_inputs(lab_df: pd.DataFrame, cards, fixed, ranges, bounds, ratio, ratio_from,
-                            free, n_boot) -> tuple[dict, float | None, dict, str]:
-    """The checks :func:`calibrate` makes before it reads the dataset: one card per lab
-    specimen, valid ``fixed``, ``n_boot``, ``free``, ``ranges`` and ``bounds``, and a valid
-    calibration space. Returns the checked ``fixed``, the ratio used (:func:`chosen_ratio`),
-    ``bounds`` as a dict and the note on the ratio."""
+def _check_calibrate_inputs(lab_df: pd.DataFrame, cards, settings: CalibrationSettings, ranges,
+                            ratio_from) -> tuple[float | None, str, list, list]:
+    """The checks :func:`calibrate` makes before it reads the dataset (``settings`` were
+    checked when built): one card per lab specimen, valid ``ranges`` and a valid
+    calibration space (also with σt setting the ratio, for the specimens with a tensile
+    target). Returns the ratio used (:func:`chosen_ratio`), the note on it, the jobs (each
+    lab row and its targets) and the specimens with a tensile target."""
     specs = [str(s) for s in lab_df["specimen"]]
     by_spec = {Path(c).stem: c for c in cards}
     if sorted(by_spec) != sorted(specs) or len(by_spec) != len(cards):
         raise BadInput(f"--cards {' '.join(map(str, cards))}: expected one card per lab "
                        f"specimen, named <specimen>.yaml: {specs}")
-    if not isinstance(fixed, dict):
-        raise BadInput(f"--fixed {fixed!r}: expected a JSON object of parameter values")
-    try:
-        fixed = P.validate_params(fixed, require_all=False)
-    except P.ParameterError as e:
-        raise P.ParameterError(f"--fixed: {e}") from None
-    if n_boot == 1:
-        raise P.ParameterError(f"--n-boot {n_boot}: expected 0 (no bootstrap) or an integer "
-                               ">= 2")
-    if free:
-        bad = [f for f in free if f not in P.ALL_PARAMS]
-        if bad:
-            known = P.model_of({**fixed, **dict.fromkeys(f for f in free if f in P.ALL_PARAMS)})
-            raise BadInput(f"--free {','.join(free)}: unknown parameter(s) {bad}; expected "
-                           f"names from {list(known.params)}")
-    ratio, note = chosen_ratio(ratio_from, ratio)
-    bounds = dict(bounds or {})
-    for name, val in (("--ranges", ranges), ("--bounds", bounds)):
-        if not isinstance(val, dict):
-            raise BadInput(f"{name}: expected a JSON mapping of parameter name to "
-                           f"[low, high] (paper units), got {val!r}")
+    ratio, note = chosen_ratio(ratio_from, settings.strength_ratio)
+    if not isinstance(ranges, dict):
+        raise BadInput(f"--ranges: expected a JSON mapping of parameter name to "
+                       f"[low, high] (paper units), got {ranges!r}")
+    free, fixed, bounds = settings.free, settings.fixed, settings.bounds
     check_calibration_space(free, fixed, ratio, ranges, bounds)
-    return fixed, ratio, bounds, note
+    jobs = [(rec, lab_targets(rec)) for rec in lab_df.to_dict("records")]
+    with_bts = [str(rec["specimen"]) for rec, t in jobs if tensile_target(t)]
+    if with_bts:  # σt sets the ratio of these specimens: their space must be valid too
+        f_bts, r_bts, _ = bts_strengths({BTS: 1.0}, free, fixed, ratio)
+        check_calibration_space(f_bts, fixed, r_bts, ranges, bounds)
+    return ratio, note, jobs, with_bts
 
 
 def _check_tensile_models(jobs: list, model_set, df: pd.DataFrame, dataset, models, lab, n_boot) -> None:
@@ -257,6 +291,17 @@ def lab_target_se(rec: dict, targets: dict) -> dict:
         if v is not None and math.isfinite(float(v)):
             out[r] = float(v)
     return out
+
+
+def _ratio_set_by(ratio_by: str, ratio: float | None, ratio_from, note: str) -> str:
+    """What set a card's strength ratio (its ``strength_ratio.set_by``): a tensile target
+    (``ratio_by``, :func:`~bpmcal.analysis.calibration.bts_strengths`), the ratio sweep
+    (``ratio_from`` and no fallback in ``note``), the configured ``ratio`` or nothing."""
+    return (f"{ratio_by} target" if ratio_by in TENSILE_RESPONSES else
+            "ratio sweep" if ratio_from and not note_is_fallback(note)
+            # the card-format-1 spelling, kept (the key is calibration.strength_ratio)
+            else "config calibration.ratio" if ratio is not None
+            else "both strengths free")
 
 
 def note_is_fallback(note: str) -> bool:

@@ -403,44 +403,60 @@ def _write_netcdf(res, path) -> None:
         idata.to_netcdf(str(tmp), engine="h5netcdf")
 
 
-def posterior(card, dataset, models, *, out_card, table, predictions, netcdf, figure,
-              loop_seeds=None, fresh_seeds=None, learning=None, learning_figure=None,
-              refine_runs=None, draws=None,
-              n_draws: int = 8, settings: PosteriorSettings = PosteriorSettings(),
+@dataclass(frozen=True)
+class PosteriorOutputs:
+    """The files :func:`posterior` writes: ``out_card`` (the card with its ``posterior``
+    section), ``table`` (parameters), ``predictions`` (responses), ``netcdf`` (the draws
+    as arviz InferenceData), ``figure`` (pair plot); optional (None: not written)
+    ``learning`` (the learning curve) and ``learning_figure`` (its plot), ``refine_runs``
+    (the refinement's seed rows) and ``draws`` (the draws for the predictive DEM runs)."""
+
+    out_card: str | Path
+    table: str | Path
+    predictions: str | Path
+    netcdf: str | Path
+    figure: str | Path
+    learning: str | Path | None = None
+    learning_figure: str | Path | None = None
+    refine_runs: str | Path | None = None
+    draws: str | Path | None = None
+
+    def check(self) -> None:
+        """Every output path checked before any work (``stages.inputs.outputs``), each
+        named by its ``bpmcal posterior`` option."""
+        outputs((self.out_card, "--out-card", YAML), (self.table, "--table", CSV),
+                (self.predictions, "--predictions", CSV), (self.netcdf, "--netcdf", NC),
+                (self.figure, "--figure", PNG), (self.learning, "--learning", CSV),
+                (self.learning_figure, "--learning-figure", PNG),
+                (self.refine_runs, "--refine-runs", CSV), (self.draws, "--draws", CSV))
+
+
+def posterior(card, dataset, models, *, files: PosteriorOutputs, loop_seeds=None,
+              fresh_seeds=None, n_draws: int = 8,
+              settings: PosteriorSettings = PosteriorSettings(),
               refine: RefineSettings = RefineSettings(), tests=None,
               design_sigma3=None, ctx: RunContext = RunContext()) -> dict:
     """The posterior of one verified card (module docstring). Inputs: the card, the
     dataset and the regression's models (the surrogates' basis), the loop's and the fresh
-    seeds' tables (optional). Outputs: ``out_card`` (the card with its ``posterior``
-    section), ``table`` (parameters), ``predictions`` (responses), ``netcdf`` (arviz),
-    ``figure`` (pair plot); optional ``learning`` (the learning curve) and
-    ``learning_figure`` (its plot), ``refine_runs`` (the refinement's seed rows) and
-    ``draws`` (``n_draws`` posterior draws for the predictive DEM runs). ``refine`` needs
+    seeds' tables (optional). Outputs: ``files`` (:class:`PosteriorOutputs`; its ``draws``
+    holds ``n_draws`` posterior draws for the predictive DEM runs). ``refine`` needs
     ``tests`` to run (the :class:`~.measure.SeedTests` of the card's closed loop; its DEM
     runs as ``ctx`` says, :class:`~bpmcal.lab.run_context.RunContext`, which also takes
     the stage's notes); without it the surrogate's error is only reported. Returns the
     card."""
-    outputs((out_card, "--out-card", YAML), (table, "--table", CSV),
-            (predictions, "--predictions", CSV), (netcdf, "--netcdf", NC),
-            (figure, "--figure", PNG), (learning, "--learning", CSV),
-            (learning_figure, "--learning-figure", PNG),
-            (refine_runs, "--refine-runs", CSV), (draws, "--draws", CSV))
+    files.check()
     if isinstance(n_draws, bool) or not isinstance(n_draws, int) or n_draws < 0:
         raise BadInput(f"--draws-n {n_draws!r}: expected an integer >= 0")
     with threadpool_limits(limits=1):  # small matrices: BLAS threads only spin
-        return _posterior(card, dataset, models, out_card=out_card, table=table,
-                          predictions=predictions, netcdf=netcdf, figure=figure,
-                          loop_seeds=loop_seeds, fresh_seeds=fresh_seeds, learning=learning,
-                          learning_figure=learning_figure, refine_runs=refine_runs, draws=draws,
-                          n_draws=n_draws, settings=settings, refine=refine, tests=tests,
-                          design_sigma3=design_sigma3, ctx=ctx)
+        return _posterior(card, dataset, models, files=files, loop_seeds=loop_seeds,
+                          fresh_seeds=fresh_seeds, n_draws=n_draws, settings=settings,
+                          refine=refine, tests=tests, design_sigma3=design_sigma3, ctx=ctx)
 
 
 # long: the stage's job in its order (the fit, refinement, curve, every output); each step
 # is one call
-def _posterior(card, dataset, models, *, out_card, table, predictions, netcdf, figure,
-               loop_seeds, fresh_seeds, learning, learning_figure, refine_runs, draws, n_draws,
-               settings, refine, tests, design_sigma3, ctx) -> dict:
+def _posterior(card, dataset, models, *, files, loop_seeds, fresh_seeds, n_draws, settings,
+               refine, tests, design_sigma3, ctx) -> dict:
     c, se, model_set, prob, params, runs, point = _inputs(card, dataset, models, loop_seeds,
                                                           fresh_seeds)
     if tests is not None and refine.max_runs:
@@ -450,7 +466,7 @@ def _posterior(card, dataset, models, *, out_card, table, predictions, netcdf, f
         return _fit(r, c, se, model_set, prob, params, point, s, design_sigma3)
 
     res = fit(runs)
-    folder = Path(out_card).parent / f".{Path(out_card).stem}.refine"
+    folder = Path(files.out_card).parent / f".{Path(files.out_card).stem}.refine"
     tensile_n = int((c.get("verification") or {}).get("tensile_specimens", 1))
     measure = None
     if tests is not None and refine.max_runs:
@@ -462,25 +478,25 @@ def _posterior(card, dataset, models, *, out_card, table, predictions, netcdf, f
     res, runs, rows, history = refine_posterior(res, runs, fit, refine, measure, params,
                                                 ctx.progress)
     curve = None
-    if learning is not None:
+    if files.learning is not None:
         cheap = PosteriorSettings(**{**settings.__dict__, **CURVE_SETTINGS})
         curve = learning_curve(runs, lambda r: fit(r, cheap))
     ref = {"max_runs": refine.max_runs, "ratio_limit": refine.ratio, "runs": len(rows),
            "ran": tests is not None, "history": history}
     out = dict(c)
     out["posterior"] = card_section(res, refine=ref, curve=curve)
-    write_table(res.summary, table)
-    write_table(res.predictions, predictions)
-    _write_netcdf(res, netcdf)
-    save_figure(fig_pairs(res), figure)
-    if learning is not None:
-        write_table(curve, learning, index=False)
-        if learning_figure is not None:
-            save_figure(fig_learning(curve), learning_figure)
-    if refine_runs is not None:
+    write_table(res.summary, files.table)
+    write_table(res.predictions, files.predictions)
+    _write_netcdf(res, files.netcdf)
+    save_figure(fig_pairs(res), files.figure)
+    if files.learning is not None:
+        write_table(curve, files.learning, index=False)
+        if files.learning_figure is not None:
+            save_figure(fig_learning(curve), files.learning_figure)
+    if files.refine_runs is not None:
         write_table(pd.DataFrame(rows, columns=None if rows else ["round", "seed"]),
-                    refine_runs, index=False)
-    if draws is not None:
-        write_table(pick_draws(res, n_draws, settings.seed), draws, index=False)
-    write_card(out_card, out)
+                    files.refine_runs, index=False)
+    if files.draws is not None:
+        write_table(pick_draws(res, n_draws, settings.seed), files.draws, index=False)
+    write_card(files.out_card, out)
     return out

@@ -23,6 +23,7 @@ import dataclasses
 import math
 import os
 import shutil
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -32,15 +33,48 @@ from .. import params as P
 from ..io.checks import BadInput, read_csv
 from ..io.h5 import RunFileError, read_summary
 from ..io.tables import write_table
+from ..lab.impact import ImpactSettings
 from ..lab.run_context import RunContext
+from ..lab.runner import Geometry
+from ..lab.triaxial import TriaxialSettings
 from .inputs import CSV, H5, outputs
 from .journal import RunJournal
 from .pool import SeedPool
 from .runs import run_impact_file, run_triaxial_file
-from .triaxial import fit_envelopes
+from .settings import SEED, check_fields, setting
+from .triaxial import DEFAULT_SIGMA3_MPA, fit_envelopes
 
 #: the predictions a draw's runs give (the envelope's and the impact's)
 PREDICTIONS = ("mi", "c_MPa", "phi_deg", "eta_f")
+
+
+@dataclass(frozen=True)
+class PredictiveSettings:
+    """How every draw is run (``bpmcal predictive``'s options): the triaxial tests at the
+    confining stresses ``sigma3_MPa`` (MPa, at least two different ones: an envelope) on
+    the cylinder ``geometry`` loaded as ``tri_settings`` say (their ``sigma3`` is each
+    test's), packed with ``tri_seed``; the drop hammer on ``impact_geometry`` as
+    ``impact_settings`` say, packed with ``impact_seed`` (both needed when the stage is
+    given impact run files). Checked when built."""
+
+    sigma3_MPa: tuple = DEFAULT_SIGMA3_MPA
+    geometry: Geometry = field(default_factory=Geometry)
+    tri_settings: TriaxialSettings = field(default_factory=TriaxialSettings)
+    impact_geometry: Geometry | None = None
+    impact_settings: ImpactSettings | None = None
+    tri_seed: int = setting(1, SEED)
+    impact_seed: int = setting(1, SEED)
+
+    def __post_init__(self):
+        check_fields(self)
+        sigma3 = tuple(float(x) for x in self.sigma3_MPa)
+        if len(sigma3) < 2:
+            raise BadInput(f"--sigma3 {list(sigma3)}: expected at least two confining "
+                           "stresses (an envelope)")
+        object.__setattr__(self, "sigma3_MPa", sigma3)
+        if (self.impact_geometry is None) != (self.impact_settings is None):
+            raise BadInput("predictive settings: impact_geometry and impact_settings go "
+                           "together (both, or neither: no impact)")
 
 
 def _run_job(*, kind: str, stem, params: dict, seed: int, geometry, settings, ctx
@@ -132,23 +166,24 @@ def _draw_row(sigma3: list, tri: list[dict], impact: dict | None) -> dict:
     return row
 
 
-def _draw_jobs(params: list, tri_runs: list, sigma3: list, impact_runs, *, geometry,
-               tri_settings, impact_geometry, impact_settings, tri_seed: int,
-               impact_seed: int) -> list[tuple]:
+def _draw_jobs(params: list, tri_runs: list, impact_runs, settings: PredictiveSettings
+               ) -> list[tuple]:
     """Every run of every draw as its own pool job (:func:`_run_job`), the longest first so
     that the stage's CPUs stay busy to its end: the impacts, then the triaxial tests from
     the highest confinement down. Returns (draw, index: -1 for the impact, else the
     stress's, its output file, job) in that order."""
+    sigma3 = settings.sigma3_MPa
     k, jobs = len(sigma3), []
     if impact_runs is not None:
-        jobs += [(i, -1, impact_runs[i], dict(kind="impact", params=p, seed=impact_seed,
-                                              geometry=impact_geometry,
-                                              settings=impact_settings))
+        jobs += [(i, -1, impact_runs[i], dict(kind="impact", params=p,
+                                              seed=settings.impact_seed,
+                                              geometry=settings.impact_geometry,
+                                              settings=settings.impact_settings))
                  for i, p in enumerate(params)]
     for j in sorted(range(k), key=lambda j: -sigma3[j]):
-        st = dataclasses.replace(tri_settings, sigma3=float(sigma3[j]) * 1e6)
-        jobs += [(i, j, tri_runs[i * k + j], dict(kind="tri", params=p, seed=tri_seed,
-                                                  geometry=geometry, settings=st))
+        st = dataclasses.replace(settings.tri_settings, sigma3=float(sigma3[j]) * 1e6)
+        jobs += [(i, j, tri_runs[i * k + j], dict(kind="tri", params=p, seed=settings.tri_seed,
+                                                  geometry=settings.geometry, settings=st))
                  for i, p in enumerate(params)]
     return jobs
 
@@ -174,37 +209,34 @@ def _card_values(envelopes, specimen: str, impact_run) -> dict:
     return out
 
 
-def predictive(draws, *, specimen: str, tri_runs, table, sigma3, geometry, tri_settings,
-               impact_runs=None, impact_geometry=None, impact_settings=None, tri_seed=1,
-               impact_seed=1, envelopes=None, card_impact=None,
+def predictive(draws, *, specimen: str, tri_runs, table, settings: PredictiveSettings,
+               impact_runs=None, envelopes=None, card_impact=None,
                ctx: RunContext = RunContext()) -> pd.DataFrame:
-    """Run every draw of ``draws`` (module docstring): ``tri_runs`` are the triaxial run
-    files draw by draw, ``sigma3`` (MPa) within each; ``impact_runs`` one per draw (None:
-    no impact); ``ctx``: how the DEM runs (:class:`~bpmcal.lab.run_context.RunContext`).
+    """Run every draw of ``draws`` (module docstring) as ``settings`` say
+    (:class:`PredictiveSettings`): ``tri_runs`` are the triaxial run files draw by draw,
+    ``settings.sigma3_MPa`` within each; ``impact_runs`` one per draw (None: no impact);
+    ``ctx``: how the DEM runs (:class:`~bpmcal.lab.run_context.RunContext`).
     ``envelopes`` (the study's triaxial envelope table) and ``card_impact``
     (the card's reference impact run) give the card's own row. Writes ``table``: one row
     per draw (its parameters and predictions) and the card's row (``draw`` = card)."""
     d = read_csv(draws, "--draws", ["draw"], min_rows=1)
-    sigma3 = [float(x) for x in sigma3]
+    sigma3 = list(settings.sigma3_MPa)
     n = len(d)
-    if len(sigma3) < 2:
-        raise BadInput(f"--sigma3 {sigma3}: expected at least two confining stresses (an "
-                       "envelope)")
     if len(tri_runs) != n * len(sigma3):
         raise BadInput(f"--tri-runs: {len(tri_runs)} file(s) for {n} draw(s) x "
                        f"{len(sigma3)} stresses: expected one per draw and stress, draw by draw")
     if impact_runs is not None and len(impact_runs) != n:
         raise BadInput(f"--impact-runs: {len(impact_runs)} file(s) for {n} draw(s)")
+    if impact_runs is not None and settings.impact_settings is None:
+        raise BadInput("--impact-runs: given, but the settings have no impact specimen and "
+                       "settings (impact_geometry, impact_settings)")
     outputs((table, "--table", CSV), *((f, "--tri-runs", H5) for f in tri_runs),
             *((f, "--impact-runs", H5) for f in (impact_runs or [])))
     names = [c for c in d.columns if c in P.ALL_PARAMS]
     params = [{k: float(r[k]) for k in names} for _, r in d.iterrows()]
     for p in params:
         P.validate_params(p)
-    jobs = _draw_jobs(params, tri_runs, sigma3, impact_runs, geometry=geometry,
-                      tri_settings=tri_settings, impact_geometry=impact_geometry,
-                      impact_settings=impact_settings, tri_seed=tri_seed,
-                      impact_seed=impact_seed)
+    jobs = _draw_jobs(params, tri_runs, impact_runs, settings)
     names_of = {-1: "impact"} | {j: f"triaxial {s3:g} MPa" for j, s3 in enumerate(sigma3)}
     folder = Path(table).parent / f".{Path(table).stem}.runs"
     done = _run_journaled([job for *_, job in jobs],

@@ -8,11 +8,14 @@ and writes exactly the files it is given (``bpmcal.io.study_files``).
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+
 import numpy as np
 
 from .. import params as P
 from ..analysis import StepwiseRegression
 from ..analysis._common import dataset_params, usable_rows
+from ..analysis.stepwise import HIERARCHIES
 from ..analysis.stepwise import combine as combine_regressions
 from ..io.atomic import write_text
 from ..io.checks import BadInput, read_json
@@ -24,20 +27,41 @@ from ..study.gather import has_tensile, tensile_view
 from . import defaults_of
 from .inputs import CSV, JSON, MD, PNG, TXT, outputs, read_dataset, usable
 from .screening import _RESP_NAME, _TEST_NAME, tensile_note
+from .settings import SEED, Limit, check_fields, setting
 
 #: the defaults of the stage are those of the analysis it runs
 _REGR = defaults_of(StepwiseRegression)
 
 
+@dataclass(frozen=True)
+class RegressionSettings:
+    """The stepwise regression's settings (the config's ``regression`` section, ``bpmcal
+    regress``'s options), checked when built: the entry and removal p-values
+    ``alpha_in`` and ``alpha_out``, the VIF limit ``vif_max``, the terms' ``hierarchy``,
+    the cross-validation's ``cv_folds`` and ``cv_repeats`` and its ``seed``
+    (:class:`~bpmcal.analysis.StepwiseRegression`)."""
+
+    alpha_in: float = setting(_REGR["alpha_in"], Limit("float", 0.0, 0.5, lo_open=True))
+    alpha_out: float = setting(_REGR["alpha_out"], Limit("float", 0.0, 0.5, lo_open=True))
+    vif_max: float = setting(_REGR["vif_max"], Limit("float", 1.0))
+    hierarchy: str = setting(_REGR["hierarchy"], Limit("choice", words=HIERARCHIES))
+    cv_folds: int = setting(_REGR["cv_folds"], Limit("int", 2, 20))
+    cv_repeats: int = setting(_REGR["cv_repeats"], Limit("int", 1, 100))
+    seed: int = setting(_REGR["seed"], SEED)
+
+    def __post_init__(self):
+        check_fields(self)
+
+
 def regress(dataset, selected, *, models, equations, summaries, coefficients, candidates,
-            table4, fit_table, figure, alpha_in=_REGR["alpha_in"],
-            alpha_out=_REGR["alpha_out"], vif_max=_REGR["vif_max"],
-            hierarchy=_REGR["hierarchy"], cv_folds=_REGR["cv_folds"],
-            cv_repeats=_REGR["cv_repeats"], seed=_REGR["seed"]) -> dict:
+            table4, fit_table, figure, settings: RegressionSettings = RegressionSettings()
+            ) -> dict:
     """Three-stage stepwise regression of the screened candidates -> ``models`` (JSON),
     ``equations`` (Markdown), ``summaries`` (text), the coefficient and candidate-term
     tables, Table 4, the fit table (adjusted and CV R² per stage) and the
-    predicted-vs-simulated figure. Returns the note and the equations text."""
+    predicted-vs-simulated figure, as ``settings`` say (:class:`RegressionSettings`).
+    Returns the note and the equations text."""
+    cv_folds, seed = settings.cv_folds, settings.seed
     df = read_dataset(dataset, min_ok=max(cv_folds, 4))
     sel = read_json(selected, "--selected")
     if not isinstance(sel, dict) or not isinstance(sel.get("selected"), dict):
@@ -48,9 +72,7 @@ def regress(dataset, selected, *, models, equations, summaries, coefficients, ca
             (candidates, "--candidates", CSV), (table4, "--table4", CSV),
             (fit_table, "--fit-table", CSV), (figure, "--figure", PNG))
     note = usable(df)
-    reg = StepwiseRegression(alpha_in=alpha_in, alpha_out=alpha_out, vif_max=vif_max,
-                             hierarchy=hierarchy, cv_folds=cv_folds, cv_repeats=cv_repeats,
-                             seed=seed)
+    reg = StepwiseRegression(**asdict(settings))
     chosen = dict(sel["selected"])
     tensile = {r: chosen.pop(r) for r in P.SAMPLE_TESTS if r in chosen}  # own rows each
     res = reg.fit(df, chosen)

@@ -8,11 +8,14 @@ and writes exactly the files it is given (``bpmcal.io.study_files``).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import pandas as pd
 
 from .. import params as P
 from ..analysis import XGBScreening, table3, table3_markdown
 from ..analysis._common import dataset_params, usable_rows
+from ..analysis.screening import IMPORTANCE_TYPES, RULES
 from ..analysis.screening import combine as combine_screenings
 from ..io.atomic import write_text
 from ..io.checks import BadInput
@@ -23,6 +26,7 @@ from ..plots.calibration import fig_importance
 from ..study.gather import tensile_responses, tensile_view
 from . import defaults_of
 from .inputs import CSV, JSON, PNG, TXT, outputs, read_dataset, usable
+from .settings import SEED, Limit, check_fields, setting
 
 #: the defaults of the stage are those of the analysis it runs
 _SCREEN = defaults_of(XGBScreening)
@@ -31,16 +35,36 @@ _SCREEN = defaults_of(XGBScreening)
 TENSILE_RULE = "all"
 
 
+@dataclass(frozen=True)
+class ScreeningSettings:
+    """The screening's settings (the config's ``screening`` section, ``bpmcal screen``'s
+    options; ``threshold`` is the key ``threshold_pct``), checked when built: the
+    selection ``threshold`` [%], the ``importance`` type that drives it, the selection
+    ``rule`` of σc, E and ν and ``tensile_rule`` of σt (``analysis.screening.RULES``), the
+    CV folds ``n_splits``, the permutation repeats ``n_repeats`` and the ``seed``."""
+
+    threshold: float = setting(_SCREEN["threshold"], Limit("float", 0.0, 100.0))
+    importance: str = setting(_SCREEN["importance"], Limit("choice", words=IMPORTANCE_TYPES))
+    rule: str = setting(_SCREEN["rule"], Limit("choice", words=RULES))
+    tensile_rule: str = setting(TENSILE_RULE, Limit("choice", words=RULES))
+    n_splits: int = setting(_SCREEN["n_splits"], Limit("int", 2, 20))
+    n_repeats: int = setting(_SCREEN["n_repeats"], Limit("int", 1, 100))
+    seed: int = setting(_SCREEN["seed"], SEED)
+
+    def __post_init__(self):
+        check_fields(self)
+
+
 def screen(dataset, *, selected, table3_csv, figure, importance_table, cv_table,
-           shadow_table, summary, threshold=_SCREEN["threshold"],
-           importance=_SCREEN["importance"], n_splits=_SCREEN["n_splits"],
-           n_repeats=_SCREEN["n_repeats"], seed=_SCREEN["seed"], rule=_SCREEN["rule"],
-           tensile_rule=TENSILE_RULE) -> dict:
+           shadow_table, summary, settings: ScreeningSettings = ScreeningSettings()) -> dict:
     """XGBoost screening of ``dataset`` -> ``selected`` (JSON), Table 3, the importance
     figure and the supplementary tables (every importance type, CV R², shadow maxima) and
-    ``summary`` (text). ``rule`` selects the candidates of σc, E and ν, ``tensile_rule``
-    those of σt (``analysis.screening.RULES``). Returns the selection and the note on
-    left-out samples."""
+    ``summary`` (text), as ``settings`` say (:class:`ScreeningSettings`: ``rule`` selects
+    the candidates of σc, E and ν, ``tensile_rule`` those of σt). Returns the selection
+    and the note on left-out samples."""
+    s = settings
+    threshold, importance, n_splits, seed = s.threshold, s.importance, s.n_splits, s.seed
+    n_repeats, rule, tensile_rule = s.n_repeats, s.rule, s.tensile_rule
     df = read_dataset(dataset, min_ok=4)  # the smallest K-fold CV (2 folds) needs 4 rows
     outputs((selected, "--selected", JSON), (table3_csv, "--table3", CSV),
             (figure, "--figure", PNG), (importance_table, "--importance-table", CSV),

@@ -71,10 +71,12 @@ def _call(tmp_path, draws, fake, monkeypatch):
     tri = [out / f"draw{d}.s3_{s:g}.h5" for d in (1, 2) for s in SIGMA3]
     imp = [out / f"draw{d}.impact.h5" for d in (1, 2)]
     table = out / "predictive.csv"
-    t = pred.predictive(draws, specimen="B1", tri_runs=tri, table=table, sigma3=SIGMA3,
-                        geometry=Geometry(), tri_settings=TriaxialSettings(),
-                        impact_runs=imp, impact_geometry=Geometry(),
-                        impact_settings=ImpactSettings(), ctx=RunContext(threads=1))
+    settings = pred.PredictiveSettings(sigma3_MPa=SIGMA3, geometry=Geometry(),
+                                       tri_settings=TriaxialSettings(),
+                                       impact_geometry=Geometry(),
+                                       impact_settings=ImpactSettings())
+    t = pred.predictive(draws, specimen="B1", tri_runs=tri, table=table, settings=settings,
+                        impact_runs=imp, ctx=RunContext(threads=1))
     return t, tri, imp, table
 
 

@@ -8,8 +8,8 @@ import pandas as pd
 import pytest
 
 from bpmcal import params as P
-from bpmcal.stages.regression import regress
-from bpmcal.stages.screening import screen
+from bpmcal.stages.regression import RegressionSettings, regress
+from bpmcal.stages.screening import ScreeningSettings, screen
 from bpmcal.study.design import lhs_design
 
 RANGES = {"rmin_mm": [0.6, 1.0], "porosity": [0.2, 0.36], "fj_emod_GPa": [40, 100],
@@ -60,14 +60,15 @@ def _calibrated_card(dataset, stages, o, lab_csv: str) -> dict:
     against the lab CSV text ``lab_csv`` (strength ratio 0.08), the files in ``o``: the
     card of specimen G1."""
     from bpmcal.io.card import read_card
-    from bpmcal.stages.calibration import calibrate
+    from bpmcal.stages.calibration import CalibrationSettings, calibrate
 
     lab = o / "lab.csv"
     lab.write_text(lab_csv)
     (o / "cards").mkdir()
     fixed = {"rmin_mm": 0.8, "porosity": 0.3, "fj_fa_deg": 20.0, "fj_fric": 0.6, "fj_nal": 3.0}
     calibrate(dataset, stages[0] / "models.json", lab, cards=[o / "cards" / "G1.yaml"],
-              fixed=fixed, ranges=dict(RANGES), ratio=0.08, n_boot=0)
+              ranges=dict(RANGES),
+              settings=CalibrationSettings(fixed=fixed, strength_ratio=0.08, n_boot=0))
     return read_card(o / "cards" / "G1.yaml")
 
 
@@ -75,10 +76,12 @@ def _screen_and_regress(dataset, o):
     """The screening and regression stages on ``dataset``, their files in ``o``."""
     out = screen(dataset, selected=o / "sel.json", table3_csv=o / "t3.csv",
                  figure=o / "imp.png", importance_table=o / "imp.csv", cv_table=o / "cv.csv",
-                 shadow_table=o / "sh.csv", summary=o / "s.txt", n_repeats=1)
+                 shadow_table=o / "sh.csv", summary=o / "s.txt",
+                 settings=ScreeningSettings(n_repeats=1))
     regress(dataset, o / "sel.json", models=o / "models.json", equations=o / "eq.md",
             summaries=o / "sum.txt", coefficients=o / "coef.csv", candidates=o / "cand.csv",
-            table4=o / "t4.csv", fit_table=o / "fit.csv", figure=o / "fit.png", cv_repeats=1)
+            table4=o / "t4.csv", fit_table=o / "fit.csv", figure=o / "fit.png",
+            settings=RegressionSettings(cv_repeats=1))
     return out
 
 
