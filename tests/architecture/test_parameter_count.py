@@ -18,10 +18,6 @@ KERNEL_DECORATORS = {"jit", "jit_parallel", "njit", "_inl"}
 #: "path:qualified name" -> why it still takes more (each entry is a candidate for a
 #: settings value; the test below fails when an entry's function is gone or fits)
 ALLOWED = {
-    'io/h5.py:write_run': (
-        "a run file's parts (summary, series, arrays, cost, provenance) as keywords"),
-    'io/h5.py:_fill': (
-        "write_run's parts passed on"),
     'lab/morphology.py:run_summary': (
         "the failure morphology's inputs from the model and the test"),
     'lab/runner.py:_lab_test': (

@@ -53,12 +53,18 @@ def d(tmp_path_factory):
     (d / "notahdf5.h5").write_text("this is not HDF5\n")
     with h5py.File(d / "foreign.h5", "w") as f:
         f.create_dataset("x", data=np.arange(3))
-    h5.write_run(d / "good.h5", test="ucs", inputs={"a": 1}, summary={"ucs_MPa": 50.0},
-                 series={"step": np.arange(20000)})
+    h5.write_run(d / "good.h5",
+                 h5.RunRecord(test="ucs",
+                           inputs={"a": 1},
+                           summary={"ucs_MPa": 50.0},
+                           series={"step": np.arange(20000)}))
     raw = (d / "good.h5").read_bytes()
     (d / "truncated.h5").write_bytes(raw[: len(raw) // 2])
-    h5.write_run(d / "failed.h5", test="ucs", inputs={"a": 1}, status="failed",
-                 error="GenesisError: did not settle")
+    h5.write_run(d / "failed.h5",
+                 h5.RunRecord(test="ucs",
+                           inputs={"a": 1},
+                           status="failed",
+                           error="GenesisError: did not settle"))
     (d / "runs").mkdir()
     (d / "lab_escape.csv").write_text(LAB_HEAD + "../../evil_card,60,13,0.25,\n")
     (d / "lab_upre.csv").write_text(LAB_HEAD + "B1,60,13,0.25,abc\n")

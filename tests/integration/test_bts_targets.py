@@ -16,7 +16,7 @@ from support.synthetic import FIXED, RANGES, TRUTH, dem_response, models, predic
 
 from bpmcal.analysis.calibration import LoopSettings, Multistart, SearchSpace, invert
 from bpmcal.cli import main
-from bpmcal.io.h5 import check_run_file, write_run
+from bpmcal.io.h5 import RunRecord, check_run_file, write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.ucs import UCSSettings
 from bpmcal.params import BTS, PARAMS
@@ -200,13 +200,13 @@ class FakeDEM:
         y = self._resp(params)
         s = {k: y[k] for k in ("ucs_MPa", "E_GPa", "nu")} | {"u_pre_MJm3": 0.1, "peak_strain": 0.01,
                                                               "cracks_tension": 1, "cracks_shear": 1}
-        write_run(out, test="ucs", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="ucs", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
     def bts(self, out, params, seed, geometry, settings, **kw):
         self.calls.append(("bts", seed, geometry))
         s = {BTS: self._resp(params)[BTS]}
-        write_run(out, test="bts", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="bts", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
 

@@ -14,7 +14,7 @@ from support.synthetic import FIXED, RANGES, TRUTH, calibrate_b1, dem_response, 
 from bpmcal.analysis.calibration import LoopSettings
 from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.io.checks import BadInput
-from bpmcal.io.h5 import write_run
+from bpmcal.io.h5 import RunRecord, write_run
 from bpmcal.lab import seeds as S
 from bpmcal.lab.run_context import RunContext
 from bpmcal.lab.runner import Geometry
@@ -113,7 +113,7 @@ class FakeDEM:
         y = dem_response({**predict(dtt_models(), params), BTS: 0.0})
         s = {k: y[k] for k in ("ucs_MPa", "E_GPa", "nu")} | {
             "u_pre_MJm3": 0.1, "peak_strain": 0.01, "cracks_tension": 1, "cracks_shear": 1}
-        write_run(out, test="ucs", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="ucs", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
     def dtt(self, out, params, seed, geometry, settings, **kw):
@@ -123,7 +123,7 @@ class FakeDEM:
         s = {"dtt_peak_MPa": 0.5 * v if not valid else v, "dtt_MPa": v if valid else math.nan,
              "dtt_valid": valid,
              "dtt_invalid_reason": "" if valid else "failure next to the bottom grip: planted"}
-        write_run(out, test="dtt", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="dtt", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
 
@@ -160,7 +160,7 @@ class SpecimenDEM(FakeDEM):
         j = seed // S.REPLICATE_STRIDE
         v = predict(dtt_models(), params)[DTT] * (1.04 + 0.02 * j)
         s = {"dtt_peak_MPa": v, "dtt_MPa": v, "dtt_valid": True, "dtt_invalid_reason": ""}
-        write_run(out, test="dtt", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="dtt", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
 
@@ -304,7 +304,7 @@ class ScatterDEM(SpecimenDEM):
         z = np.random.default_rng(seed).standard_normal()
         v = predict(dtt_models(), params)[DTT] * (1 + self.cv * z)
         s = {"dtt_peak_MPa": v, "dtt_MPa": v, "dtt_valid": True, "dtt_invalid_reason": ""}
-        write_run(out, test="dtt", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="dtt", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
 

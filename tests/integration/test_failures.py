@@ -108,10 +108,15 @@ def test_gather_records_unreadable_missing_and_failed_samples(tmp_path, capsys):
     pd.DataFrame(rows).to_csv(design, index=False)
     runs = tmp_path / "runs"
     runs.mkdir()
-    h5.write_run(runs / "s000.h5", test="ucs", inputs={**A1, "seed": 0},
-                 summary={"ucs_MPa": 50.0, "stop_reason": "post_peak_drop"})
-    h5.write_run(runs / "s001.h5", test="ucs", inputs={**A1, "seed": 1}, status="failed",
-                 error="InstabilityError: blew up")
+    h5.write_run(runs / "s000.h5",
+                 h5.RunRecord(test="ucs",
+                           inputs={**A1, "seed": 0},
+                           summary={"ucs_MPa": 50.0, "stop_reason": "post_peak_drop"}))
+    h5.write_run(runs / "s001.h5",
+                 h5.RunRecord(test="ucs",
+                           inputs={**A1, "seed": 1},
+                           status="failed",
+                           error="InstabilityError: blew up"))
     raw = (runs / "s000.h5").read_bytes()
     (runs / "s002.h5").write_bytes(raw[: len(raw) // 3])  # truncated (a killed copy)
     (runs / "s003.h5").write_text("garbage")  # not HDF5

@@ -159,8 +159,8 @@ def test_a_full_disk_leaves_no_temporary_and_no_crash(tmp_path):
 
     code = ("import numpy as np\n"
             "from bpmcal.io import h5\n"
-            f"h5.write_run({str(tmp_path / 'r.h5')!r}, test='ucs', inputs={{}}, "
-            "series={'x': np.random.default_rng(0).random(200000)})\n")
+            f"h5.write_run({str(tmp_path / 'r.h5')!r}, h5.RunRecord(test='ucs', inputs={{}}, "
+            "series={'x': np.random.default_rng(0).random(200000)}))\n")
 
     def limit():
         resource.setrlimit(resource.RLIMIT_FSIZE, (50_000, 50_000))
@@ -333,8 +333,10 @@ def test_config_and_cli_share_the_bounds():
 def test_summary_escapes_what_it_prints(tmp_path, capsys):
     from bpmcal.io import h5
 
-    h5.write_run(tmp_path / "r.h5", test="ucs", inputs={},
-                 summary={"note": "a\x1b[31mred\x1b[0m\nstatus                   ok"})
+    h5.write_run(tmp_path / "r.h5",
+                 h5.RunRecord(test="ucs",
+                           inputs={},
+                           summary={"note": "a\x1b[31mred\x1b[0m\nstatus                   ok"}))
     assert main(["summary", str(tmp_path / "r.h5")]) == 0
     out = capsys.readouterr().out
     assert "\x1b" not in out and "a\\x1b[31mred" in out

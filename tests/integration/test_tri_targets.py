@@ -16,7 +16,7 @@ from bpmcal.analysis.calibration import LoopSettings
 from bpmcal.analysis.stepwise import RegressionModel
 from bpmcal.cli import main
 from bpmcal.io.checks import BadInput
-from bpmcal.io.h5 import write_run
+from bpmcal.io.h5 import RunRecord, write_run
 from bpmcal.lab.runner import Geometry
 from bpmcal.lab.triaxial import TriaxialSettings
 from bpmcal.lab.ucs import UCSSettings
@@ -109,14 +109,14 @@ class FakeDEM:
         y = dem_response(predict(tri_models(), params))
         s = {k: y[k] for k in ("ucs_MPa", "E_GPa", "nu")} | {
             "u_pre_MJm3": 0.1, "peak_strain": 0.01, "cracks_tension": 1, "cracks_shear": 1}
-        write_run(out, test="ucs", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="ucs", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
     def bts(self, out, params, seed, geometry, settings, **kw):
         self.calls.append(("bts", seed))
         v = dem_response(predict(tri_models(), params))[BTS]
         s = {BTS: v, "bts_valid": True, "bts_peak_MPa": v}
-        write_run(out, test="bts", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="bts", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
     def tri(self, out, params, seed, geometry, settings, **kw):
@@ -124,7 +124,7 @@ class FakeDEM:
         self.sigma3.append(settings.sigma3)
         v = predict(tri_models(), params)[TRI] * 0.95
         s = {"sigma1_MPa": v, "sigma3_MPa": settings.sigma3 / 1e6}
-        write_run(out, test="triaxial", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="triaxial", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
     def install(self, monkeypatch):
@@ -244,13 +244,21 @@ def test_gather_reads_the_triaxial_run_files(tmp_path):
     for i, sid in enumerate(design["sample_id"]):
         ucs[sid] = tmp_path / f"{sid}.h5"
         inputs = {k: v for k, v in rows[i].items() if k != "sample_id"}  # its design row
-        write_run(ucs[sid], test="ucs", inputs=inputs,
-                  summary={"ucs_MPa": 100.0 + i, "stop_reason": "post_peak_drop"})
+        write_run(ucs[sid],
+                  RunRecord(test="ucs",
+                            inputs=inputs,
+                            summary={"ucs_MPa": 100.0 + i, "stop_reason": "post_peak_drop"}))
         tri[sid] = tmp_path / f"{sid}.tri.h5"
-    write_run(tri["s000"], test="triaxial", inputs={**rows[0], "sample_id": None},
-              summary={"sigma1_MPa": 150.0, "sigma3_MPa": S3, "wall_s": 2.0})
-    write_run(tri["s001"], test="triaxial", inputs={**rows[1], "sample_id": None},
-              status="failed", error="ServoError: planted", summary={"wall_s": 1.0})
+    write_run(tri["s000"],
+              RunRecord(test="triaxial",
+                        inputs={**rows[0], "sample_id": None},
+                        summary={"sigma1_MPa": 150.0, "sigma3_MPa": S3, "wall_s": 2.0}))
+    write_run(tri["s001"],
+              RunRecord(test="triaxial",
+                        inputs={**rows[1], "sample_id": None},
+                        status="failed",
+                        error="ServoError: planted",
+                        summary={"wall_s": 1.0}))
     df = gather(design, ucs, tri_files=tri)  # s002: no triaxial run file
     assert df["tri_MPa"].iloc[0] == 150.0 and df["tri_sigma3_MPa"].iloc[0] == S3
     assert list(df["tri_status"]) == ["ok", "failed", "missing"]

@@ -101,28 +101,37 @@ def _run_files(d: Path) -> None:
     ok = {"ucs_MPa": 50.0, "E_GPa": 12.0, "nu": 0.2, "stop_reason": "post_peak_drop"}
     runs = d / "runs"
     runs.mkdir()
-    h5.write_run(runs / "s000.h5", test="ucs", inputs=row, summary=ok)
+    h5.write_run(runs / "s000.h5", h5.RunRecord(test="ucs", inputs=row, summary=ok))
     (d / "other_test").mkdir()
-    h5.write_run(d / "other_test" / "s000.h5", test="bts", inputs=row,
-                 summary={"bts_MPa": 3.0, "stop_reason": "post_peak_drop"})
+    h5.write_run(d / "other_test" / "s000.h5",
+                 h5.RunRecord(test="bts",
+                           inputs=row,
+                           summary={"bts_MPa": 3.0, "stop_reason": "post_peak_drop"}))
     (d / "other_seed").mkdir()
-    h5.write_run(d / "other_seed" / "s000.h5", test="ucs", inputs={**row, "seed": 8},
-                 summary=ok)
+    h5.write_run(d / "other_seed" / "s000.h5",
+                 h5.RunRecord(test="ucs", inputs={**row, "seed": 8}, summary=ok))
     (d / "other_params").mkdir()
-    h5.write_run(d / "other_params" / "s000.h5", test="ucs",
-                 inputs={**row, "pb_emod_GPa": 30.0}, summary=ok)
+    h5.write_run(d / "other_params" / "s000.h5",
+                 h5.RunRecord(test="ucs",
+                           inputs={**row, "pb_emod_GPa": 30.0},
+                           summary=ok))
     (d / "incomplete").mkdir()
-    h5.write_run(d / "incomplete" / "s000.h5", test="ucs", inputs=row, status="incomplete",
-                 error="incomplete: the loading stopped at its max_strain",
-                 summary={**ok, "ucs_MPa": 6.1, "stop_reason": "max_strain"})
+    h5.write_run(d / "incomplete" / "s000.h5",
+                 h5.RunRecord(test="ucs",
+                           inputs=row,
+                           status="incomplete",
+                           error="incomplete: the loading stopped at its max_strain",
+                           summary={**ok, "ucs_MPa": 6.1, "stop_reason": "max_strain"}))
     (d / "text_value").mkdir()
-    h5.write_run(d / "text_value" / "s000.h5", test="ucs", inputs=row,
-                 summary={**ok, "ucs_MPa": "fifty"})
+    h5.write_run(d / "text_value" / "s000.h5",
+                 h5.RunRecord(test="ucs",
+                           inputs=row,
+                           summary={**ok, "ucs_MPa": "fifty"}))
     (d / "escape").mkdir()
     forged = "boom\x1b[2J\x1b]0;owned\x07\nstatus                   ok"
-    h5.write_run(d / "escape" / "s000.h5", test="ucs", inputs=row, status="failed",
-                 error=forged)
-    h5.write_run(d / "escape.h5", test="ucs", inputs=row, summary={**ok, "note": forged})
+    h5.write_run(d / "escape" / "s000.h5",
+                 h5.RunRecord(test="ucs", inputs=row, status="failed", error=forged))
+    h5.write_run(d / "escape.h5", h5.RunRecord(test="ucs", inputs=row, summary={**ok, "note": forged}))
     # a few kB that declare 6e9 values (a chunked dataset of fill values: 44 GiB as floats)
     with h5py.File(d / "huge.h5", "w") as f:
         f.attrs.update({"schema_version": 1, "test": "ucs", "status": "ok", "error": ""})

@@ -32,9 +32,11 @@ def _row(i, card=A1) -> dict:
 
 
 def _ucs_ok(path, ucs, i=0, card=A1):
-    h5.write_run(path, test="ucs", inputs=_row(i, card),
-                 summary={"ucs_MPa": ucs, "E_GPa": 12.0, "nu": 0.21, "wall_s": 3.0,
-                          "stop_reason": "post_peak_drop"})
+    h5.write_run(path,
+                 h5.RunRecord(test="ucs",
+                           inputs=_row(i, card),
+                           summary={"ucs_MPa": ucs, "E_GPa": 12.0, "nu": 0.21, "wall_s": 3.0,
+                          "stop_reason": "post_peak_drop"}))
 
 
 def test_a_failed_brazilian_test_is_recorded_and_the_sample_keeps_its_ucs(tmp_path, capsys,
@@ -53,8 +55,10 @@ def test_a_failed_brazilian_test_is_recorded_and_the_sample_keeps_its_ucs(tmp_pa
     assert "bpmcal bts: FAILED: " in capsys.readouterr().err
     rec = h5.read_summary(bts / "s001.h5")
     assert rec["status"] == "failed" and "GenesisError" in rec["error"]
-    h5.write_run(bts / "s000.h5", test="bts", inputs=_row(0),
-                 summary={"bts_MPa": 6.5, "wall_s": 2.5})
+    h5.write_run(bts / "s000.h5",
+                 h5.RunRecord(test="bts",
+                           inputs=_row(0),
+                           summary={"bts_MPa": 6.5, "wall_s": 2.5}))
     # s002 has no Brazilian run file (missing); every sample's UCS run is ok
     ucs = [tmp_path / "ucs" / f"s00{i}.h5" for i in range(3)]
     for i, f in enumerate(ucs):
@@ -76,8 +80,12 @@ def test_a_failed_brazilian_test_is_recorded_and_the_sample_keeps_its_ucs(tmp_pa
 def test_a_failure_records_value_is_never_taken_as_sigma_t(tmp_path):
     design = _design(tmp_path, [A1])
     _ucs_ok(tmp_path / "u" / "s000.h5", 40.0)
-    h5.write_run(tmp_path / "b" / "s000.h5", test="bts", inputs=_row(0), status="failed",
-                 error="ServoError: the disc did not seat", summary={"bts_MPa": 3.0})
+    h5.write_run(tmp_path / "b" / "s000.h5",
+                 h5.RunRecord(test="bts",
+                           inputs=_row(0),
+                           status="failed",
+                           error="ServoError: the disc did not seat",
+                           summary={"bts_MPa": 3.0}))
     df, _ = gather(design, [tmp_path / "u" / "s000.h5"], tmp_path / "d.csv",
                    bts_runs=[tmp_path / "b" / "s000.h5"])
     r = df.iloc[0]
@@ -91,14 +99,18 @@ def test_an_invalid_brazilian_test_gives_no_sigma_t_and_says_why(tmp_path):
     design = _design(tmp_path, [A1, A1])
     for i in (0, 1):
         _ucs_ok(tmp_path / "u" / f"s00{i}.h5", 40.0, i)
-    h5.write_run(tmp_path / "b" / "s000.h5", test="bts", inputs=_row(0),
-                 summary={"bts_MPa": 6.5, "bts_peak_MPa": 6.5, "bts_valid": True,
-                          "balls_across": 13.0, "wall_s": 2.5})
+    h5.write_run(tmp_path / "b" / "s000.h5",
+                 h5.RunRecord(test="bts",
+                           inputs=_row(0),
+                           summary={"bts_MPa": 6.5, "bts_peak_MPa": 6.5, "bts_valid": True,
+                          "balls_across": 13.0, "wall_s": 2.5}))
     reason = "fracture initiated next to the top platen: the first 5 cracks ..."
-    h5.write_run(tmp_path / "b" / "s001.h5", test="bts", inputs=_row(1),
-                 summary={"bts_MPa": float("nan"), "bts_peak_MPa": 0.78, "bts_valid": False,
+    h5.write_run(tmp_path / "b" / "s001.h5",
+                 h5.RunRecord(test="bts",
+                           inputs=_row(1),
+                           summary={"bts_MPa": float("nan"), "bts_peak_MPa": 0.78, "bts_valid": False,
                           "bts_invalid_reason": reason, "balls_across": 13.0,
-                          "wall_s": 2.5})
+                          "wall_s": 2.5}))
     df, report = gather(design, [tmp_path / "u" / f"s00{i}.h5" for i in (0, 1)],
                         tmp_path / "d.csv",
                         bts_runs=[tmp_path / "b" / f"s00{i}.h5" for i in (0, 1)])
@@ -119,10 +131,12 @@ def test_gather_counts_the_discs_discarded_before_a_valid_one(tmp_path):
     for i in (0, 1):
         _ucs_ok(tmp_path / "u" / f"s00{i}.h5", 40.0, i)
     for i, discs in ((0, 1), (1, 2)):
-        h5.write_run(tmp_path / "b" / f"s00{i}.h5", test="bts", inputs=_row(i),
-                     summary={"bts_MPa": 6.5 + i, "bts_peak_MPa": 6.5 + i, "bts_valid": True,
+        h5.write_run(tmp_path / "b" / f"s00{i}.h5",
+                     h5.RunRecord(test="bts",
+                               inputs=_row(i),
+                               summary={"bts_MPa": 6.5 + i, "bts_peak_MPa": 6.5 + i, "bts_valid": True,
                               "balls_across": 13.0, "wall_s": 2.5 * discs, "discs": discs,
-                              "discarded": "" if discs == 1 else "seed 8: planted"})
+                              "discarded": "" if discs == 1 else "seed 8: planted"}))
     df, report = gather(design, [tmp_path / "u" / f"s00{i}.h5" for i in (0, 1)],
                         tmp_path / "d.csv",
                         bts_runs=[tmp_path / "b" / f"s00{i}.h5" for i in (0, 1)])

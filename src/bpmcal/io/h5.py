@@ -51,6 +51,7 @@ import json
 import math
 import stat
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
@@ -102,22 +103,37 @@ def _put_attrs(obj, d: dict):
         obj.attrs[k] = _attr(v)
 
 
-def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
-              genesis: dict | None = None, series: dict | None = None,
-              cracks: dict | None = None, particles_initial: dict | None = None,
-              particles_final: dict | None = None, bonds: dict | None = None,
-              status: str = "ok", error: str = "", extra: dict | None = None,
-              groups: dict | None = None, cost=None) -> Path:
-    """Write one run atomically (built in memory, written to a temporary file in the same
-    directory, then renamed). ``cost``: a callable giving the ``/cost`` attributes, called
-    when everything else is in the file (so that they include building it)."""
+@dataclass(frozen=True)
+class RunRecord:
+    """What a run file holds (:func:`write_run`): its ``test`` and ``inputs``, ``status``
+    ("ok", "failed", "incomplete") and ``error``; the attribute groups ``summary``,
+    ``genesis`` and ``extra``; the datasets ``series``, ``cracks``, ``particles_initial``,
+    ``particles_final`` and ``bonds``; and named ``groups`` of datasets of their own."""
+
+    test: str
+    inputs: dict
+    summary: dict | None = None
+    genesis: dict | None = None
+    series: dict | None = None
+    cracks: dict | None = None
+    particles_initial: dict | None = None
+    particles_final: dict | None = None
+    bonds: dict | None = None
+    status: str = "ok"
+    error: str = ""
+    extra: dict | None = None
+    groups: dict | None = None
+
+
+def write_run(path, record: RunRecord, *, cost=None) -> Path:
+    """Write one run (``record``) atomically (built in memory, written to a temporary file
+    in the same directory, then renamed). ``cost``: a callable giving the ``/cost``
+    attributes, called when everything else is in the file (so that they include building
+    it)."""
     path = Path(path)
     image = io.BytesIO()
     with h5py.File(image, "w") as f:
-        _fill(f, test=test, inputs=inputs, summary=summary, genesis=genesis, series=series,
-              cracks=cracks, particles_initial=particles_initial,
-              particles_final=particles_final, bonds=bonds, status=status, error=error,
-              extra=extra, groups=groups)
+        _fill(f, record)
         if cost is not None:
             _put_attrs(f.create_group("cost"), cost())
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
@@ -125,40 +141,39 @@ def write_run(path, *, test: str, inputs: dict, summary: dict | None = None,
     return path
 
 
-def _fill(f, *, test, inputs, summary, genesis, series, cracks, particles_initial,
-          particles_final, bonds, status, error, extra, groups) -> None:
+def _fill(f, r: RunRecord) -> None:
     """The groups and datasets of a run file (:func:`write_run`) in the open file ``f``."""
-    prov = provenance(inputs, stamp=True)
-    _put_attrs(f, {"schema_version": SCHEMA_VERSION, "test": test, "status": status,
-                   "error": error, **prov})
-    _put_attrs(f.create_group("inputs"), inputs)
-    _put_attrs(f.create_group("summary"), summary or {})
-    _put_attrs(f.create_group("genesis"), genesis or {})
-    if extra:
-        _put_attrs(f.create_group("extra"), extra)
-    if series:
+    prov = provenance(r.inputs, stamp=True)
+    _put_attrs(f, {"schema_version": SCHEMA_VERSION, "test": r.test, "status": r.status,
+                   "error": r.error, **prov})
+    _put_attrs(f.create_group("inputs"), r.inputs)
+    _put_attrs(f.create_group("summary"), r.summary or {})
+    _put_attrs(f.create_group("genesis"), r.genesis or {})
+    if r.extra:
+        _put_attrs(f.create_group("extra"), r.extra)
+    if r.series:
         g = f.create_group("series")
-        for k, v in series.items():
+        for k, v in r.series.items():
             ds = g.create_dataset(k, data=np.asarray(v), compression="gzip",
                                   shuffle=True)
             ds.attrs["unit"] = SERIES_UNITS.get(k, "")
-    if cracks is not None:
+    if r.cracks is not None:
         g = f.create_group("cracks")
-        for k, v in cracks.items():
+        for k, v in r.cracks.items():
             g.create_dataset(k, data=np.asarray(v))
-    for name, d in (("initial", particles_initial), ("final", particles_final)):
+    for name, d in (("initial", r.particles_initial), ("final", r.particles_final)):
         if d:
             g = f.require_group("particles").create_group(name)
             for k, v in d.items():
                 g.create_dataset(k, data=np.asarray(v), compression="gzip",
                                  shuffle=True)
-    for gname, arrays in (groups or {}).items():
+    for gname, arrays in (r.groups or {}).items():
         g = f.create_group(gname)
         for k, v in arrays.items():
             g.create_dataset(k, data=np.asarray(v))
-    if bonds:
+    if r.bonds:
         g = f.create_group("bonds")
-        for k, v in bonds.items():
+        for k, v in r.bonds.items():
             g.create_dataset(k, data=np.asarray(v), compression="gzip", shuffle=True)
 
 

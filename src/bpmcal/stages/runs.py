@@ -35,7 +35,7 @@ from ..cost import LEDGER, phase
 from ..dem.errors import InputError
 from ..io.card import card_parameters, check_card, is_card
 from ..io.checks import BadInput, out_dir, out_file, read_model_table, read_yaml
-from ..io.h5 import RunFileError, check_run_file, write_run
+from ..io.h5 import RunFileError, RunRecord, check_run_file, write_run
 from ..io.safe_names import clip, shown
 from ..lab.budget import BudgetError
 from ..lab.reach import screen_test_loading
@@ -93,8 +93,8 @@ def write_failure(out, *, test: str, inputs: dict, error: str, wall_s: float = 0
     ``out`` is a good run file (never overwrite a good result with a failure)."""
     out, kept = _not_over_a_good_run(out)
     with phase("write"):
-        write_run(out, test=test, inputs=inputs, status="failed", error=error,
-                  summary={"wall_s": wall_s}, cost=file_cost)
+        write_run(out, RunRecord(test=test, inputs=inputs, status="failed", error=error,
+                                 summary={"wall_s": wall_s}), cost=file_cost)
     return RunOutcome(status="failed", error=error, path=out, kept=kept)
 
 
@@ -108,10 +108,12 @@ def write_lab_run(out, r: LabRun) -> RunOutcome:
     if reason:
         out, kept = _not_over_a_good_run(out)
     with phase("write"):
-        write_run(out, test=r.test, inputs=r.inputs, summary=r.summary, genesis=r.genesis,
-                  series=r.series, cracks=r.cracks, particles_initial=r.particles_initial,
-                  particles_final=r.particles_final, bonds=r.bonds, groups=r.groups,
-                  status=status, error=reason, cost=file_cost)
+        write_run(out, RunRecord(test=r.test, inputs=r.inputs, summary=r.summary,
+                                 genesis=r.genesis, series=r.series, cracks=r.cracks,
+                                 particles_initial=r.particles_initial,
+                                 particles_final=r.particles_final, bonds=r.bonds,
+                                 groups=r.groups, status=status, error=reason),
+                  cost=file_cost)
     return RunOutcome(status=status, summary=r.summary, error=reason, path=out, kept=kept)
 
 

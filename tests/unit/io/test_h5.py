@@ -59,7 +59,7 @@ def test_round_trip_through_the_reader(run):
 def test_written_file_has_a_normal_mode_not_the_temporary_0600(tmp_path):
     old = os.umask(0o022)
     try:
-        out = h5.write_run(tmp_path / "m.h5", test="ucs", inputs={"a": 1})
+        out = h5.write_run(tmp_path / "m.h5", h5.RunRecord(test="ucs", inputs={"a": 1}))
     finally:
         os.umask(old)
     assert out.stat().st_mode & 0o777 == 0o644  # readable by the group and others
@@ -72,7 +72,7 @@ def test_a_failed_write_leaves_no_file(tmp_path, monkeypatch):
         raise RuntimeError("disk full")
     monkeypatch.setattr(h5.h5py.Group, "create_dataset", boom)
     with pytest.raises(RuntimeError):
-        h5.write_run(out, test="ucs", inputs={"a": 1}, series={"t": np.arange(3)})
+        h5.write_run(out, h5.RunRecord(test="ucs", inputs={"a": 1}, series={"t": np.arange(3)}))
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []
 
@@ -88,7 +88,8 @@ def test_a_killed_writer_leaves_no_file(tmp_path):
             time.sleep(60)
             real(a, b)
         atomic.os.replace = slow
-        h5.write_run({str(out)!r}, test="ucs", inputs={{}}, series={{"t": np.arange(10**6)}})
+        h5.write_run({str(out)!r}, h5.RunRecord(test="ucs", inputs={{}},
+                                              series={{"t": np.arange(10**6)}}))
     """)
     p = subprocess.Popen([sys.executable, "-c", code])
     t0 = time.time()

@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from bpmcal.io.h5 import write_run
+from bpmcal.io.h5 import RunRecord, write_run
 from bpmcal.lab import seeds as S
 from bpmcal.lab.brazilian import BTSSettings
 from bpmcal.lab.run_context import RunContext
@@ -39,20 +39,24 @@ class SeedDEM:
         self.calls.append(("ucs", seed))
         s = {"ucs_MPa": 50.0 + seed % 7, "E_GPa": 20.0 + seed % 5, "nu": 0.2 + 0.01 * (seed % 3),
              "u_pre_MJm3": 0.1, "peak_strain": 0.01, "cracks_tension": 1, "cracks_shear": 2}
-        write_run(out, test="ucs", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="ucs", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
     def bts(self, out, params, seed, geometry, settings, **kw):
         self.calls.append(("bts", seed))
         if seed in self.failed:
-            write_run(out, test="bts", inputs={"seed": seed}, status="failed", error="unstable",
-                      summary={"wall_s": 0.0})
+            write_run(out,
+                      RunRecord(test="bts",
+                                inputs={"seed": seed},
+                                status="failed",
+                                error="unstable",
+                                summary={"wall_s": 0.0}))
             return RunOutcome(status="failed", error="InstabilityError: planted", path=out)
         valid = seed not in self.invalid
         v = 5.0 + (seed % 1009) / 1000.0
         s = {"bts_peak_MPa": v, BTS: v if valid else math.nan, "bts_valid": valid,
              "bts_invalid_reason": "" if valid else f"planted at {seed}"}
-        write_run(out, test="bts", inputs={"seed": seed}, summary=s)
+        write_run(out, RunRecord(test="bts", inputs={"seed": seed}, summary=s))
         return RunOutcome(status="ok", summary=s, path=out)
 
 

@@ -16,7 +16,7 @@ from support.repo import REPO, SCHEMA
 from bpmcal.analysis.envelopes import hoek_brown_sigma1, mohr_coulomb_q, mohr_coulomb_sigma_c
 from bpmcal.cli import main
 from bpmcal.io.card import write_card
-from bpmcal.io.h5 import write_run
+from bpmcal.io.h5 import RunRecord, write_run
 
 S3 = [0.0, 5.0, 10.0, 20.0]
 
@@ -30,8 +30,12 @@ def _run(path, params, s3, s1=None, status="ok", error=""):
     summ = {} if s1 is None else {"sigma1_MPa": s1, "sigma3_MPa": s3, "E_GPa": 11.0,
                                   "nu": 0.22, "sigma3_maxdev_rel": 1e-4,
                                   "cracks_tension": 10, "cracks_shear": 5, "wall_s": 1.0}
-    write_run(path, test="triaxial", inputs={**params, "sigma3_MPa": s3, "seed": 1},
-              summary=summ, status=status, error=error)
+    write_run(path,
+              RunRecord(test="triaxial",
+                        inputs={**params, "sigma3_MPa": s3, "seed": 1},
+                        summary=summ,
+                        status=status,
+                        error=error))
     return str(path)
 
 

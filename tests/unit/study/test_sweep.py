@@ -34,13 +34,15 @@ def test_sweep_plan_holds_the_predicted_ucs_at_the_target():
 
 
 def test_sweep_choice_picks_the_tensile_share_closest_to_the_target(tmp_path):
-    from bpmcal.io.h5 import write_run
+    from bpmcal.io.h5 import RunRecord, write_run
     plan = pd.DataFrame({"sample_id": ["a050", "a100", "a150"], "ratio": [0.5, 1.0, 1.5],
                          "pb_ten_MPa": [10, 20, 30], "pb_coh_MPa": [20, 20, 20],
                          "extrapolated": [False] * 3})
     for sid, nt, ns in (("a050", 10, 90), ("a100", 55, 45), ("a150", 90, 10)):
-        write_run(tmp_path / f"{sid}.h5", test="ucs", inputs={},
-                  summary={"cracks_tension": nt, "cracks_shear": ns, "ucs_MPa": 50.0})
+        write_run(tmp_path / f"{sid}.h5",
+                  RunRecord(test="ucs",
+                            inputs={},
+                            summary={"cracks_tension": nt, "cracks_shear": ns, "ucs_MPa": 50.0}))
     runs = {sid: tmp_path / f"{sid}.h5" for sid in plan["sample_id"]}
     df, chosen = analyse_sweep(plan, runs, "tensile_share", 0.6)
     assert chosen["chosen_ratio"] == 1.0
