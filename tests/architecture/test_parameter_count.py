@@ -1,10 +1,9 @@
 """No function in src/bpmcal takes more than :data:`MAX_PARAMETERS` parameters (``self``
 and ``cls`` not counted; ``*args``/``**kwargs`` count one each), outside the numba
 kernels (decorated ``@jit``, ``@jit_parallel``, ``@njit`` or the inlined ``@_inl``: their arguments are the
-engine's arrays, structure-of-arrays by design), unless it is in :data:`ALLOWED` with
-its reason. A setting that crosses several functions travels as one settings value
-(a frozen dataclass), not as one more parameter of each: a new long signature fails
-this test (issue 54)."""
+engine's arrays, structure-of-arrays by design); there are no exceptions. A setting that
+crosses several functions travels as one settings value (a frozen dataclass), not as one
+more parameter of each: a new long signature fails this test (issue 54)."""
 import ast
 from pathlib import Path
 
@@ -14,19 +13,6 @@ from support.source import functions
 SRC = Path(__file__).resolve().parents[2] / "src" / "bpmcal"
 MAX_PARAMETERS = 12
 KERNEL_DECORATORS = {"jit", "jit_parallel", "njit", "_inl"}
-
-#: "path:qualified name" -> why it still takes more (each entry is a candidate for a
-#: settings value; the test below fails when an entry's function is gone or fits)
-ALLOWED = {
-    'lab/morphology.py:run_summary': (
-        "the failure morphology's inputs from the model and the test"),
-    'lab/runner.py:_lab_test': (
-        "the runner's specimen, settings and the individual values of a RunContext "
-        "(RunContext.lab_kw), which the lab's public test functions take as keywords"),
-    'lab/runner.py:_lab_test_run': (
-        'as _lab_test'),
-}
-
 
 def _decorator_name(d) -> str:
     node = d.func if isinstance(d, ast.Call) else d
@@ -51,21 +37,12 @@ SOURCES = sorted(SRC.rglob("*.py"))
 
 
 @pytest.mark.parametrize("path", SOURCES, ids=[str(f.relative_to(SRC)) for f in SOURCES])
-def test_no_long_signature_without_a_reason(path):
+def test_no_long_signature(path):
     rel = path.relative_to(SRC).as_posix()
     bad = [f"{name} ({n})" for name, n in parameter_counts(path.read_text())
-           if n > MAX_PARAMETERS and f"{rel}:{name}" not in ALLOWED]
+           if n > MAX_PARAMETERS]
     assert not bad, (f"{rel}: functions with more than {MAX_PARAMETERS} parameters: "
                      f"{', '.join(bad)} (pass a settings value instead)")
-
-
-def test_every_allowed_function_exists_and_still_takes_more():
-    """An entry of ALLOWED whose function now fits (or was renamed) goes."""
-    for key in ALLOWED:
-        rel, name = key.split(":")
-        counts = dict(parameter_counts((SRC / rel).read_text()))
-        assert counts.get(name, 0) > MAX_PARAMETERS, (
-            f"ALLOWED[{key!r}]: no such function over {MAX_PARAMETERS} parameters any more")
 
 
 def test_the_check_can_fail():

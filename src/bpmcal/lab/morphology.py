@@ -37,6 +37,7 @@ of the loading when fewer than ``MIN_CRACKS`` formed after the peak.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -159,13 +160,29 @@ def fragment_stats(n_balls: int, bond_i, bond_j, intact, radius,
             "detached_balls": int(np.count_nonzero(sizes == 1))}
 
 
-def run_summary(cracks: dict, peak_step: int, *, axis: int, low: float, length: float,
-                centre_point, width: float, n_balls: int, bond_i, bond_j, bond_state,
-                radius, half_thickness: float, seed: int = 0) -> dict:
+@dataclass(frozen=True)
+class Frame:
+    """Where a specimen's cracks are measured: the loading ``axis`` (0, 1, 2), the
+    specimen's extent along it (``low``, ``length``), its ``centre_point``, its ``width``
+    (the diameter: ``plane_offset`` and ``plane_rms`` are in units of it) and the
+    fracture plane's ``half_thickness`` (the fit's band) [m]."""
+
+    axis: int
+    low: float
+    length: float
+    centre_point: tuple
+    width: float
+    half_thickness: float
+
+
+def run_summary(cracks: dict, peak_step: int, frame: Frame, *, n_balls: int, bond_i, bond_j,
+                bond_state, radius, seed: int = 0) -> dict:
     """All morphology metrics of one run (module docstring). ``cracks``: the run's crack
     events (``pos``, ``step`` relative to the start of loading; genesis cracks, step < 0,
-    are left out); ``peak_step`` the step of the peak; ``width`` the specimen's diameter
-    (for ``plane_offset`` and ``plane_rms``); ``bond_state`` 0 for intact bonds."""
+    are left out); ``peak_step`` the step of the peak; ``frame`` the specimen's loading
+    frame (:class:`Frame`); ``bond_state`` 0 for intact bonds."""
+    axis, low, length = frame.axis, frame.low, frame.length
+    centre_point, width, half_thickness = frame.centre_point, frame.width, frame.half_thickness
     pos = np.asarray(cracks["pos"], float).reshape(-1, 3)
     step = np.asarray(cracks["step"])
     loading = step >= 0

@@ -237,7 +237,7 @@ def _morphology(test: str, sp, res, ini: dict) -> dict:
     loading axis (the cylinder's axis; a Brazilian disc's loaded diameter, y), the
     principal fracture plane (fitted with a half-thickness of 1.5 mean ball diameters)
     and the fragments."""
-    from .morphology import run_summary
+    from .morphology import Frame, run_summary
 
     m = sp.model
     if "peak_step" in res.summary:  # the test knows its peak (a Brazilian split)
@@ -245,20 +245,20 @@ def _morphology(test: str, sp, res, ini: dict) -> dict:
     else:
         peak = res.series[kind(test).peak_series]
         peak_step = int(res.series["step"][int(np.argmax(peak))])
-    r0 = ini["radius"]
+    band = 3.0 * float(np.mean(ini["radius"]))
     if test == "bts":
         xc, yc = (float(v) for v in ini["position"][:, :2].mean(axis=0))
         d = 2.0 * sp.radius0
-        geo = dict(axis=1, low=yc - 0.5 * d, length=d,
-                   centre_point=(xc, yc, 0.5 * (sp.z_bottom + sp.z_top)), width=d)
+        frame = Frame(axis=1, low=yc - 0.5 * d, length=d,
+                      centre_point=(xc, yc, 0.5 * (sp.z_bottom + sp.z_top)), width=d,
+                      half_thickness=band)
     else:
-        geo = dict(axis=2, low=sp.z_bottom, length=sp.z_top - sp.z_bottom,
-                   centre_point=(0.0, 0.0, 0.5 * (sp.z_bottom + sp.z_top)),
-                   width=2.0 * sp.radius0)
+        frame = Frame(axis=2, low=sp.z_bottom, length=sp.z_top - sp.z_bottom,
+                      centre_point=(0.0, 0.0, 0.5 * (sp.z_bottom + sp.z_top)),
+                      width=2.0 * sp.radius0, half_thickness=band)
     bi, bj = m.bond_pairs()
-    return run_summary(res.cracks, peak_step, n_balls=m.n, bond_i=bi, bond_j=bj,
-                       bond_state=m.bond_states, radius=m.radii,
-                       half_thickness=3.0 * float(np.mean(r0)), **geo)
+    return run_summary(res.cracks, peak_step, frame, n_balls=m.n, bond_i=bi, bond_j=bj,
+                       bond_state=m.bond_states, radius=m.radii)
 
 
 def _threads(m) -> int:
@@ -266,24 +266,38 @@ def _threads(m) -> int:
     return max(m.threads_used, default=numba.get_num_threads())
 
 
+@dataclass(frozen=True)
+class _How:
+    """How one lab test runs (:func:`_lab_test`): the packing ``cache``, numba
+    ``threads``, the ``progress`` sink and the genesis's step budget, as the public test
+    functions take them; ``keep_particles`` (the particles in the run file), ``finite``
+    (summary keys that must be finite, else a warning) and ``cost_phase`` (the cost
+    ledger's phase: default the test's name, ``bpmcal.cost``)."""
+
+    cache: object = None
+    threads: int | None = None
+    progress: object = None
+    genesis_max_steps: int | None = None
+    keep_particles: bool = True
+    finite: tuple = ()
+    cost_phase: str | None = None
+
+
 def _lab_test(test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
-              boundary: str, run, *, cache, threads, keep_particles, progress=None,
-              genesis_max_steps=None, finite=(), cost_phase: str | None = None) -> LabRun:
+              boundary: str, run, how: _How) -> LabRun:
     """Shared body of the UCS, Brazilian, direct-tension and triaxial tests: specimen, test, results;
-    booked to the cost ledger's phase ``cost_phase`` (default: the test's name;
+    booked to the cost ledger's phase ``how.cost_phase`` (default: the test's name;
     ``bpmcal.cost``)."""
-    with phase(cost_phase or test):
-        return _lab_test_run(test, params, seed, geometry, inputs, boundary, run, cache=cache,
-                             threads=threads, keep_particles=keep_particles,
-                             progress=progress, genesis_max_steps=genesis_max_steps,
-                             finite=finite)
+    with phase(how.cost_phase or test):
+        return _lab_test_run(test, params, seed, geometry, inputs, boundary, run, how)
 
 
 def _lab_test_run(test: str, params: dict, seed: int, geometry: Geometry, inputs: dict,
-                  boundary: str, run, *, cache, threads, keep_particles, progress,
-                  genesis_max_steps, finite) -> LabRun:
+                  boundary: str, run, how: _How) -> LabRun:
     """``_lab_test``'s work: genesis (phase ``genesis``), the test (``test``), its
     results (``results``)."""
+    cache, threads, progress = how.cache, how.threads, how.progress
+    genesis_max_steps, keep_particles, finite = how.genesis_max_steps, how.keep_particles, how.finite
     if threads:
         set_threads(threads)  # for the whole run, genesis included
     t0 = time.perf_counter()
@@ -356,10 +370,10 @@ def lab_test(test: str, params: dict, seed: int, geometry: Geometry | None = Non
     inputs = test_inputs(test, p, seed, geo, st)
 
     def specimen(s: int, retest: bool = False) -> LabRun:  # a retest booked apart (bpmcal.cost)
+        how = _How(**kw, keep_particles=keep_particles, finite=k.finite,
+                   cost_phase=f"{test}_retest" if retest else None)
         return _lab_test(test, p, s, geo, inputs, k.boundary,
-                         lambda sp: run_test(k.test_class(sp, st), progress),
-                         keep_particles=keep_particles, finite=k.finite,
-                         cost_phase=f"{test}_retest" if retest else None, **kw)
+                         lambda sp: run_test(k.test_class(sp, st), progress), how)
 
     if k.retests:
         return _retested(specimen, seed, st.retests, progress)

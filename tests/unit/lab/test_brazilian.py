@@ -409,7 +409,7 @@ def _fake_disc(valid_from: int, seed0: int):
 
     seeds = [retest_seed(seed0, k) for k in range(11)]
 
-    def fake(test, params, seed, geometry, inputs, boundary, run, **kw):
+    def fake(test, params, seed, geometry, inputs, boundary, run, how):
         k = seeds.index(seed)
         ok = k >= valid_from
         summ = {"bts_valid": ok, "bts_MPa": 7.0 + k if ok else math.nan,

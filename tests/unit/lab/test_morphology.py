@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from bpmcal.lab.morphology import (
+    Frame,
     crack_heights,
     fit_plane,
     fragment_stats,
@@ -113,17 +114,17 @@ def test_run_summary_uses_post_peak_cracks_for_the_plane():
     post = planted_band(600, 65.0, 0.4, rng)  # the band after it
     pos = np.concatenate([pre, post])
     step = np.concatenate([rng.integers(0, 1000, 400), rng.integers(1000, 2000, 600)])
-    s = run_summary({"pos": pos, "step": step}, 1000, axis=2, low=0.0, length=H,
-                    centre_point=(0, 0, H / 2), width=D, n_balls=3, bond_i=[0], bond_j=[1],
-                    bond_state=[0], radius=[1.0, 1.0, 1.0], half_thickness=2e-3)
+    frame = Frame(axis=2, low=0.0, length=H, centre_point=(0, 0, H / 2), width=D,
+                  half_thickness=2e-3)
+    s = run_summary({"pos": pos, "step": step}, 1000, frame, n_balls=3, bond_i=[0], bond_j=[1],
+                    bond_state=[0], radius=[1.0, 1.0, 1.0])
     assert s["plane_cracks"] == "post-peak"
     assert s["plane_dip_deg"] == pytest.approx(65.0, abs=1.5)
     assert s["plane_axis_height"] == pytest.approx(0.4, abs=0.02)
     assert s["crack_height_median_peak"] == pytest.approx(0.5, abs=0.05)
     assert s["fragments"] == 2 and s["detached_balls"] == 1
-    few = run_summary({"pos": pos[:10], "step": step[:10]}, 1000, axis=2, low=0.0, length=H,
-                      centre_point=(0, 0, H / 2), width=D, n_balls=3, bond_i=[0], bond_j=[1],
-                      bond_state=[0], radius=[1.0, 1.0, 1.0], half_thickness=2e-3)
+    few = run_summary({"pos": pos[:10], "step": step[:10]}, 1000, frame, n_balls=3,
+                      bond_i=[0], bond_j=[1], bond_state=[0], radius=[1.0, 1.0, 1.0])
     assert few["plane_cracks"] == "none" and math.isnan(few["plane_dip_deg"])
 
 
