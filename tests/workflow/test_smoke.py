@@ -657,6 +657,10 @@ RERUN = {
     "posterior.predictive.specimens": (2, {"posterior_predictive": 1}),
     "posterior.predictive.sigma3_MPa": ([0.0, 5.0], {"posterior_predictive": 1}),
     "posterior.predictive.impact": (False, {"posterior_predictive"}),
+    # the smoke study's lab gives no disc size: no bts_size job, so nothing reruns
+    **{f"bts_size.{k}": (v, set()) for k, v in {
+        "seeds": 4, "max_seeds": 9, "target_se": 0.03, "first_seed": 302,
+        "middle": False}.items()},
 }
 #: keys the map leaves out, and why
 NOT_MAPPED = {"outdir": "moves every file: everything reruns, by construction",

@@ -114,32 +114,26 @@ def _place(src: Path, dst) -> None:
     os.replace(tmp, dst)
 
 
-def _run_journaled(jobs: list[dict], tags: list[str], folder: Path, ctx: RunContext
+def _run_journaled(jobs: list[dict], tags: list[str], journal: RunJournal, ctx: RunContext
                    ) -> list[dict]:
-    """Every job (:func:`_run_job`'s arguments but ``stem``) through the journal in
-    ``folder`` (module docstring): a job it holds is read back, the others run side by
-    side, each journaled as it ends. Returns every job's record, in order. The journal
-    stays when a run raises (the finished ones are read back next time)."""
-    journal = RunJournal(folder)
+    """Every job (:func:`_run_job`'s arguments but ``stem``) through ``journal`` (module
+    docstring): a job it holds is read back, the others run side by side, each journaled
+    as it ends. Returns every job's record, in order."""
+    folder = journal.folder
     if journal.resumable:
         print(f"predictive: {journal.resumable} finished run(s) of an earlier attempt in "
               f"{folder}: read back, not run again", flush=True)
-    try:
-        keys = [RunJournal.key(**job, genesis_max_steps=ctx.genesis_max_steps) for job in jobs]
-        done = {i: journal.get(k) for i, k in enumerate(keys)}
-        todo = [i for i, rec in done.items() if rec is None]
+    keys = [RunJournal.key(**job, genesis_max_steps=ctx.genesis_max_steps) for job in jobs]
+    done = {i: journal.get(k) for i, k in enumerate(keys)}
+    todo = [i for i, rec in done.items() if rec is None]
 
-        def finished(j, res):
-            rec, files = res
-            done[todo[j]] = journal.add(keys[todo[j]], rec, files)
+    def finished(j, res):
+        rec, files = res
+        done[todo[j]] = journal.add(keys[todo[j]], rec, files)
 
-        with SeedPool.of(ctx) as pool:  # every run its own job: no idle tail
-            pool.map(_run_job, [dict(jobs[i], stem=journal.stem(keys[i])) for i in todo],
-                     tags=[tags[i] for i in todo], done=finished)
-    except BaseException:
-        journal.keep_or_remove()
-        raise
-    journal.release()
+    with SeedPool.of(ctx) as pool:  # every run its own job: no idle tail
+        pool.map(_run_job, [dict(jobs[i], stem=journal.stem(keys[i])) for i in todo],
+                 tags=[tags[i] for i in todo], done=finished)
     return [dict(done[i], path=folder / done[i]["file"]) for i in range(len(jobs))]
 
 
@@ -238,22 +232,33 @@ def predictive(draws, *, specimen: str, tri_runs, table, settings: PredictiveSet
         P.validate_params(p)
     jobs = _draw_jobs(params, tri_runs, impact_runs, settings)
     names_of = {-1: "impact"} | {j: f"triaxial {s3:g} MPa" for j, s3 in enumerate(sigma3)}
-    folder = Path(table).parent / f".{Path(table).stem}.runs"
-    done = _run_journaled([job for *_, job in jobs],
-                          [f"draw {int(d['draw'].iloc[i])} {names_of[j]}" for i, j, *_ in jobs],
-                          folder, ctx)
-    for (_, _, out, _), rec in zip(jobs, done):
-        _place(rec["path"], out)
+    journal = RunJournal(Path(table).parent / f".{Path(table).stem}.runs")
+    try:
+        done = _run_journaled([job for *_, job in jobs],
+                              [f"draw {int(d['draw'].iloc[i])} {names_of[j]}"
+                               for i, j, *_ in jobs], journal, ctx)
+        for (_, _, dst, _), rec in zip(jobs, done):
+            _place(rec["path"], dst)
+        out = _table(d, params, sigma3, done, jobs, envelopes, specimen, card_impact)
+        write_table(out, table, index=False)
+    except BaseException:
+        journal.keep_or_remove()  # the finished runs are read back next time
+        raise
+    journal.remove()
+    return out
+
+
+def _table(d, params, sigma3, done, jobs, envelopes, specimen, card_impact) -> pd.DataFrame:
+    """The stage's table: one row per draw (its parameters and predictions) and the
+    card's row."""
+    n = len(d)
     runs = {(i, j): r for (i, j, *_), r in zip(jobs, done)}
     rows = [_draw_row(sigma3, [runs[i, j] for j in range(len(sigma3))],
                       runs.get((i, -1))) for i in range(n)]
     out = pd.DataFrame([{"draw": str(int(x)), **p, **r}
                         for x, p, r in zip(d["draw"], params, rows)])
     card = {"draw": "card", **_card_values(envelopes, specimen, card_impact), "note": ""}
-    out = pd.concat([out, pd.DataFrame([card])], ignore_index=True)
-    write_table(out, table, index=False)
-    RunJournal(folder).remove()
-    return out
+    return pd.concat([out, pd.DataFrame([card])], ignore_index=True)
 
 
 def summarise(t: pd.DataFrame, prob: float = 0.9) -> pd.DataFrame:
