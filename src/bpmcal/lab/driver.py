@@ -26,8 +26,9 @@ what every test did the same way before, each in its own loop:
 Hooks with defaults (:class:`LoadingTest`): ``on_record(stress, strain)`` after every
 loading record (the Brazilian test ends its fast approach there: the approach speed),
 ``post_peak`` (the strain past the peak before a drop counts), ``shown`` (MPa for the
-progress line), ``strain_now`` (the heartbeat's strain) and ``peak0`` (the peak before
-the first record: -inf for the triaxial deviator, which may start below zero).
+progress line) and ``peak0`` (the peak before the first record: -inf for the triaxial
+deviator, which may start below zero). ``strain_now`` (the heartbeat's strain between two
+records) is each test's own: no default.
 
 The drop-hammer impact test (``lab.impact``) is not driven here: it is dynamic, not
 quasi-static. It has no peak to track and no strain to bound it: it ends on time (the
@@ -129,8 +130,8 @@ class LabTest(Protocol):
     ``settings`` (``max_steps``, ``max_strain``), ``series`` (column -> list), ``step0``
     (the model's step when loading starts), ``dt`` (its time step), ``bound`` (the
     loading's step estimate, ``stepping.loading_bound``), ``stop_drop`` (the drop that
-    may end it). The hooks (``on_record``, ``post_peak``, ``shown``, ``strain_now``,
-    ``peak0``) have defaults in :class:`LoadingTest`."""
+    may end it). The hooks (``on_record``, ``post_peak``, ``shown``, ``peak0``) have
+    defaults in :class:`LoadingTest`; ``strain_now`` has none (each test's own strain)."""
 
     def prepare(self) -> None: ...
 
@@ -141,6 +142,8 @@ class LabTest(Protocol):
     def stop(self, tracker: PeakTracker) -> bool: ...
 
     def analyse(self, end: Loaded): ...
+
+    def strain_now(self) -> float: ...  # the strain now, between two records (the heartbeat's)
 
 
 class LoadingTest:
@@ -160,8 +163,6 @@ class LoadingTest:
     def shown(self, stress: float, peak: float) -> tuple[float, float]:
         return stress / 1e6, peak / 1e6
 
-    def strain_now(self) -> float:
-        raise NotImplementedError  # the strain now, between two records (the heartbeat's)
 
 
 @dataclass
