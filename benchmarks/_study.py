@@ -12,6 +12,7 @@ import json
 import os
 import re
 import shlex
+import subprocess
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -127,6 +128,22 @@ def bts_disc_and_settings(cfg: dict, scale: float | None = None, **over):
                         genesis=sp["genesis"])
     kw = {f.name: b[f.name] for f in fields(BTSSettings) if f.name in b}
     return disc, BTSSettings(**{**kw, **over})
+
+
+def run_meta(script: str, argv) -> dict:
+    """A benchmark record's date, commit (``+dirty`` with uncommitted changes under src),
+    host CPU, load at the start and command line (``python benchmarks/<script> ...``)."""
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
+                                capture_output=True, text=True).stdout.strip()
+        dirty = bool(subprocess.run(["git", "status", "--porcelain", "src"], cwd=REPO,
+                                    capture_output=True, text=True).stdout.strip())
+    except OSError:
+        commit, dirty = "unknown", False
+    return {"date": dt.date.today().isoformat(), "commit": commit + ("+dirty" if dirty else ""),
+            "cpu_model": cpu_model(), "cpus": os.cpu_count(),
+            "load_average_start": list(os.getloadavg()),
+            "command": f"python benchmarks/{script} " + shlex.join(argv)}
 
 
 def record_header(script: str, argv) -> dict:

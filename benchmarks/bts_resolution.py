@@ -39,12 +39,9 @@ Runs go two at a time (``--jobs``, one numba thread each).
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
 import os
-import shlex
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -56,7 +53,7 @@ from _study import (
     CONFIG,
     REPO,
     bts_disc_and_settings,
-    cpu_model,
+    run_meta,
     section_settings,
     study_design,
     study_geometry,
@@ -162,7 +159,7 @@ def _run_dtt(job):
 
 def dtt(a, argv) -> dict:
     cfg = _config(a.config)
-    meta = _meta(argv)
+    meta = run_meta("bts_resolution.py", argv)
     scale = cfg["dtt"]["scale"] or cfg["specimen"]["scale"]
     seeds = [int(x) for x in a.seeds.split(",")]
     with tempfile.TemporaryDirectory() as tmp, ProcessPoolExecutor(max_workers=a.jobs) as ex:
@@ -206,20 +203,6 @@ def _stats(rows):
             "cpu_s_median": statistics.median(r["cpu_s"] for r in rows)}
 
 
-def _meta(argv):
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
-                                capture_output=True, text=True).stdout.strip()
-        dirty = bool(subprocess.run(["git", "status", "--porcelain", "src"], cwd=REPO,
-                                    capture_output=True, text=True).stdout.strip())
-    except OSError:
-        commit, dirty = "unknown", False
-    return {"date": dt.date.today().isoformat(), "commit": commit + ("+dirty" if dirty else ""),
-            "cpu_model": cpu_model(), "cpus": os.cpu_count(),
-            "load_average_start": os.getloadavg(),
-            "command": "python benchmarks/bts_resolution.py " + shlex.join(argv)}
-
-
 def _config(path) -> dict:
     """The config, validated (the schema's defaults filled in), as the workflow reads it."""
     from bpmcal.study.config import validate_config
@@ -231,7 +214,7 @@ def _config(path) -> dict:
 
 def curve(a, argv) -> dict:
     cfg = _config(a.config)
-    meta = _meta(argv)
+    meta = run_meta("bts_resolution.py", argv)
     scales = [float(x) for x in a.scales.split(",")]
     seeds = [int(x) for x in a.seeds.split(",")]
     name, prm = "A1", dict(A1)
@@ -257,7 +240,7 @@ def curve(a, argv) -> dict:
 
 def loadings(a, argv) -> dict:
     cfg = _config(a.config)
-    meta = _meta(argv)
+    meta = run_meta("bts_resolution.py", argv)
     scale = cfg["bts"]["scale"] or cfg["specimen"]["scale"]
     seeds = [int(x) for x in a.a1_seeds.split(",")]
     design = study_design(cfg)
@@ -295,7 +278,7 @@ def cards(a, argv) -> dict:
     from bpmcal.io.card import card_parameters
 
     cfg = _config(a.config)
-    meta = _meta(argv)
+    meta = run_meta("bts_resolution.py", argv)
     scale = cfg["bts"]["scale"] or cfg["specimen"]["scale"]
     seeds = [int(x) for x in a.seeds.split(",")]
     named = {} if a.without_a1 else {"A1": dict(A1)}

@@ -32,36 +32,19 @@ every disc, so a stopped invocation keeps what it measured.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
 import math
 import os
-import shlex
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import yaml
-from _study import CONFIG, REPO, bts_disc_and_settings, cpu_model
+from _study import CONFIG, REPO, bts_disc_and_settings, run_meta
 
 from bpmcal.study.paper import A1
-
-
-def _meta(argv) -> dict:
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
-                                capture_output=True, text=True).stdout.strip()
-        dirty = bool(subprocess.run(["git", "status", "--porcelain", "src"], cwd=REPO,
-                                    capture_output=True, text=True).stdout.strip())
-    except OSError:
-        commit, dirty = "unknown", False
-    return {"date": dt.date.today().isoformat(), "commit": commit + ("+dirty" if dirty else ""),
-            "cpu_model": cpu_model(), "cpus": os.cpu_count(),
-            "load_average_start": list(os.getloadavg()),
-            "command": "python benchmarks/bts_size_curve.py " + shlex.join(argv)}
 
 
 def _config(path) -> dict:
@@ -130,7 +113,7 @@ def validity(a, argv) -> dict:
     if ref in scales and max(scales) != ref:  # the converse on the study's disc
         jobs.append((ref, similar_contact_cap(cap, ref, max(scales)),
                      f"cap of the {max(scales):g} disc's share"))
-    rec = {**_meta(argv), "part": "validity", "card": label, "parameters": params,
+    rec = {**run_meta("bts_size_curve.py", argv), "part": "validity", "card": label, "parameters": params,
            "config": str(a.config), "bts": cfg["bts"], "reference_scale": ref,
            "seeds": seeds, "runs": []}
     with tempfile.TemporaryDirectory() as tmp:
@@ -156,7 +139,7 @@ def curve(a, argv) -> dict:
     disc, st = bts_disc_and_settings(cfg)
     study_mm = disc.scale * disc.diameter_mm
     sizes_mm = [s * disc.diameter_mm for s in scales]
-    rec = {**_meta(argv), "part": "curve", "card": label, "parameters": params,
+    rec = {**run_meta("bts_size_curve.py", argv), "part": "curve", "card": label, "parameters": params,
            "config": str(a.config), "bts": cfg["bts"], "seeds": seeds,
            "max_seeds": a.max_seeds or len(seeds), "target_se": a.target_se}
     n = len(seeds)
