@@ -19,11 +19,20 @@ def dies(*, x, threads, progress):
     os._exit(9)  # a worker killed mid-run (out of memory, a signal)
 
 
+def _mark(marker):
+    """Write this worker's pid to ``marker`` whole (written then renamed): a test polling
+    for the file never reads it half written."""
+    from pathlib import Path
+    marker = Path(marker)
+    part = marker.with_name(f".{marker.name}.{os.getpid()}.part")  # not matched by w*
+    part.write_text(str(os.getpid()))
+    os.replace(part, marker)
+
+
 def sleepy(*, x, marker, threads, progress):
     """Write this worker's pid to ``marker`` and sleep ``x`` seconds (a long run)."""
     import time
-    from pathlib import Path
-    Path(marker).write_text(str(os.getpid()))
+    _mark(marker)
     time.sleep(x)
     return x
 
