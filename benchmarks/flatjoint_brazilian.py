@@ -45,7 +45,17 @@ LDB_FJ = {"contact_model": "flatjoint", "rmin_mm": 0.8, "porosity": 0.3,
 FJ_SLIT = {"contact_model": "flatjoint", "rmin_mm": 0.8, "porosity": 0.3,
            "fj_emod_GPa": 60.0, "fj_kratio": 2.0, "fj_ten_MPa": 10.0, "fj_coh_MPa": 100.0,
            "fj_fa_deg": 30.0, "fj_fric": 0.6, "fj_slit_frac": 0.2, "fj_gi_ratio": 0.2}
-CARDS = {"ldb_fj": LDB_FJ, "fj_slit02_gi02": FJ_SLIT}
+#: a flat-joint card whose joints fail in shear before tension (low cohesion), with larger
+#: balls and no slits, and a soft, weak one (low modulus and strengths, wider friction
+#: angle): cards of another kind than the verified one
+FJ_SHEAR = {"contact_model": "flatjoint", "rmin_mm": 1.0, "porosity": 0.35,
+            "fj_emod_GPa": 40.0, "fj_kratio": 2.5, "fj_ten_MPa": 8.0, "fj_coh_MPa": 30.0,
+            "fj_fa_deg": 20.0, "fj_fric": 0.5}
+FJ_SOFT = {"contact_model": "flatjoint", "rmin_mm": 0.8, "porosity": 0.3,
+           "fj_emod_GPa": 15.0, "fj_kratio": 1.5, "fj_ten_MPa": 4.0, "fj_coh_MPa": 40.0,
+           "fj_fa_deg": 40.0, "fj_fric": 0.7}
+CARDS = {"ldb_fj": LDB_FJ, "fj_slit02_gi02": FJ_SLIT, "fj_shear": FJ_SHEAR,
+         "fj_soft": FJ_SOFT}
 #: the paper's A1 (parallel bond: bpmcal.study.paper) and flat-joint cards with and
 #: without slits
 UCS_CARDS = {"a1": (A1, 0.4), "ldb_fj": (LDB_FJ, 0.3),
@@ -65,10 +75,12 @@ def study_config() -> dict:
     return cfg
 
 
-def disc_run(card: str, scale: float, seed: int, variant: str, cfg: dict) -> dict:
+def disc_run(card: str, scale: float, seed: int, variant: str, cfg: dict,
+             cap: float | None = None) -> dict:
     from bpmcal.lab.runner import bts_test
 
-    over = {"retests": 0, **(BEFORE if variant == "before" else {})}
+    over = {"retests": 0, **(BEFORE if variant == "before" else {}),
+            **({} if cap is None else {"contact_cap": cap})}
     geo, st = bts_disc_and_settings(cfg, scale=scale, **over)
     t0 = time.process_time()
     run = bts_test(CARDS[card], seed, geo, st, threads=1, keep_particles=False)
@@ -81,6 +93,7 @@ def disc_run(card: str, scale: float, seed: int, variant: str, cfg: dict) -> dic
             "n_balls": int(s["n_balls"]), "balls_across": s["balls_across"],
             "contact_cap_bonds": int(s["contact_cap_bonds"]),
             "contact_cap_bridge": bool(s["contact_cap_bridge"]),
+            "contact_cap": st.contact_cap,
             "split_drop": s["split_drop"], "steps": int(s["steps"]),
             "cpu_s": time.process_time() - t0}
 
@@ -110,6 +123,8 @@ def main(argv=None) -> int:
     ap.add_argument("--scales", default="0.55,0.8")
     ap.add_argument("--seeds", default="1,2,3,4,5")
     ap.add_argument("--cards", default=",".join(CARDS))
+    ap.add_argument("--caps", default="", help="contact caps [mean ball diameters] to run "
+                    "each disc with (default: the study's bts.contact_cap)")
     ap.add_argument("--before", default="", help="scales at which to run the before settings")
     ap.add_argument("--ucs", action="store_true", help="the UCS part too")
     ap.add_argument("--jobs", type=int, default=2)
@@ -124,9 +139,10 @@ def main(argv=None) -> int:
     head["bpmcal_source"] = str(Path(bpmcal.__file__).parent)
     seeds = [int(x) for x in a.seeds.split(",")]
     cfg = study_config()
-    tasks = [(c, float(sc), sd, "after") for c in a.cards.split(",")
-             for sc in a.scales.split(",") for sd in seeds]
-    tasks += [(c, float(sc), sd, "before") for c in a.cards.split(",")
+    caps = [float(x) for x in a.caps.split(",") if x] or [None]
+    tasks = [(c, float(sc), sd, "after", cp) for c in a.cards.split(",")
+             for sc in a.scales.split(",") for cp in caps for sd in seeds]
+    tasks += [(c, float(sc), sd, "before", None) for c in a.cards.split(",")
               for sc in a.before.split(",") if sc for sd in seeds]
     out = {**head, "discs": [], "ucs": []}
 
@@ -138,7 +154,8 @@ def main(argv=None) -> int:
         for r in (ex.map(ucs_run, UCS_CARDS) if a.ucs else []):
             out["ucs"].append(r)
             save()
-        for r in ex.map(disc_run, *zip(*tasks), [cfg] * len(tasks)):
+        for r in ex.map(disc_run, *[[t[k] for t in tasks] for k in range(4)],
+                        [cfg] * len(tasks), [t[4] for t in tasks]):
             out["discs"].append(r)
             save()
     save()
