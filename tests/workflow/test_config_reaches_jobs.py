@@ -28,7 +28,7 @@ OVERLAY = {
             "platen_velocity": 0.0237, "approach_velocity": 0.137, "approach_damage": 0.0037,
             "stop_drop": 0.237,
             "post_peak_strain": 0.000437, "platen_fric": 0.337, "damping": 0.637,
-            "max_strain": 0.0437, "record_strain": 1.37e-5},
+            "max_strain": 0.0437, "record_strain": 1.37e-5, "min_balls_across": 13.7},
     "transfer": {"enabled": True},
     "verification": {"range_margin": 0.137, "polish": False, "jacobian_update": "history",
                      "grow_within": 1.37,

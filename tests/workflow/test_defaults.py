@@ -78,7 +78,8 @@ DEFAULTS = {
        for k in ("platen_velocity", "damping", "platen_fric", "stop_drop", "max_strain",
                  "record_strain", "post_peak_strain", "approach_velocity", "approach_damage",
                  "loading", "jaw_ratio",
-                 "contact_cap", "contact_cap_factor", "central_zone", "retests")},
+                 "contact_cap", "contact_cap_factor", "central_zone", "retests",
+                 "min_balls_across")},
     **{f"dtt.{k}": (getattr(DTT, k), ("dtt", k, None))
        for k in ("grip_velocity", "grip_length", "grip_clearance", "damping", "stop_drop",
                  "post_peak_strain", "max_strain", "record_strain")},

@@ -568,7 +568,8 @@ RERUN = {
         "contact_cap_factor": 999.0, "central_zone": 0.45, "retests": 1, "platen_velocity": 0.051,
         "approach_velocity": 0.11, "approach_damage": 0.007, "platen_fric": 0.31,
         "damping": 0.71, "stop_drop": 0.21,
-        "max_strain": 0.051, "record_strain": 1.1e-5, "post_peak_strain": 0.00031}.items()},
+        "max_strain": 0.051, "record_strain": 1.1e-5, "post_peak_strain": 0.00031,
+        "min_balls_across": 14.0}.items()},
     "dtt.enabled": (True, {"sample"}),  # the sample jobs gain the test
     **{f"dtt.{k}": (v, set()) for k, v in {  # off in the smoke study: nothing reads them
         "scale": 0.31, "grip_velocity": 0.011, "grip_length": 0.21, "grip_clearance": 1.1,

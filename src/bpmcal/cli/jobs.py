@@ -119,7 +119,8 @@ def bts_args(cfg: dict) -> list[str]:
     if b["scale"] is not None:  # null: the disc at the cylinder's scale
         opts["--bts-scale"] = b["scale"]
     for f in BTS_OPTIONS:
-        opts[f"--bts-{f.replace('_', '-')}"] = b[f]
+        if b[f] is not None:  # null (min_balls_across): the option's default, by contact model
+            opts[f"--bts-{f.replace('_', '-')}"] = b[f]
     return _pairs(opts)
 
 

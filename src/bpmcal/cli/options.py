@@ -217,8 +217,8 @@ def file_arg(p, flag, help_, nargs=None):
 #: BTSSettings fields that are command options: ``bpmcal bts --FIELD`` and, for the closed
 #: loop of a card with a σt target, ``bpmcal verify/transfer --bts-FIELD`` (the study
 #: passes its `bts` section to all three, so σt is measured as for the regression's model)
-BTS_OPTIONS = ("loading", "jaw_ratio", "contact_cap", "contact_cap_factor", "central_zone",
-               "retests", "platen_velocity", "approach_velocity", "approach_damage",
+BTS_OPTIONS = ("min_balls_across", "loading", "jaw_ratio", "contact_cap", "contact_cap_factor",
+               "central_zone", "retests", "platen_velocity", "approach_velocity", "approach_damage",
                "platen_fric", "damping", "stop_drop", "post_peak_strain", "max_strain",
                "record_strain")
 
@@ -272,9 +272,13 @@ def add_bts_args(p, prefix: str = ""):
                    default=BTS_THICKNESS_MM,
                    help=f"disc thickness before scaling [mm] (default {BTS_THICKNESS_MM:g}, "
                         "ISRM t = D/2)")
-    from ..lab.brazilian import LOADINGS
+    from ..lab.brazilian import FLATJOINT_MIN_ACROSS, LOADINGS, MAX_ACROSS
 
     spec = {
+        "min_balls_across": (number(lab("min_balls_across"), 0.0, MAX_ACROSS),
+                             "the fewest mean ball diameters across the disc: a coarser disc "
+                             "is enlarged to this many (default {d}: none for parallel bonds, "
+                             f"{FLATJOINT_MIN_ACROSS:g} for flat joints; 0: the disc as sized)"),
         "loading": (choice(lab("loading"), LOADINGS),
                     "how the disc is loaded: flat (two planar platens) or jaws (ISRM curved "
                     "jaws, radius --jaw-ratio x the disc's) (default {d})"),

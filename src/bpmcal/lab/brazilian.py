@@ -8,7 +8,11 @@ the cylinder (the cached packing procedure in a vessel D x t with its axis along
 the whole vessel is removed and the disc settles free (``build_specimen(boundary="free")``).
 Every run records ``balls_across`` = D / mean ball diameter, the resolution of the
 measurement (docs/measurements: sigma_t, its seed scatter, valid fraction and cost
-against it for the paper's A1 set).
+against it for the paper's A1 set). A disc coarser than ``min_balls_across`` (None: none
+for parallel bonds, 19 for flat joints, ``FLATJOINT_MIN_ACROSS``) is enlarged to it
+before genesis (``resolved_disc``, applied by ``runner.lab_test``; the run's inputs
+record ``disc_enlarged`` and ``disc_scale_requested``): a flat-jointed disc of 13 balls
+across starts its fracture at a platen on most packings, whatever its caps.
 
 Loading (``loading``):
 
@@ -152,6 +156,10 @@ class BTSSettings:
     # ends the test at that peak (None: stop_drop for parallel bonds, FLATJOINT_SPLIT_DROP
     # for flat joints; lab.brazilian.split_drop)
     split_drop: float | None = None
+    # the fewest mean ball diameters across the disc: a smaller disc is enlarged to it
+    # before genesis (None: 0, none, for parallel bonds, FLATJOINT_MIN_ACROSS for flat
+    # joints; lab.brazilian.min_across, resolved_disc)
+    min_balls_across: float | None = None
     seat_stress: float = 0.1e6  # Pa, seating load as 2 P / (pi D t) before loading
     seat_velocity: float = 0.0125  # m/s, platen speed cap and at-rest threshold of seating
     seat_tol: float = 0.05  # seated: both platen loads within this fraction of the target
@@ -213,6 +221,13 @@ class BTSSettings:
                 and 0.0 < self.split_drop < 1.0):
             raise InputError(f"split_drop={self.split_drop!r}: expected a fraction in (0, 1) or "
                              "null (by contact model)")
+        if self.min_balls_across is not None and (
+                isinstance(self.min_balls_across, bool)
+                or not isinstance(self.min_balls_across, (int, float))
+                or not 0.0 <= self.min_balls_across <= MAX_ACROSS):
+            raise InputError(f"min_balls_across={self.min_balls_across!r}: expected a number "
+                             f"of mean ball diameters in [0, {MAX_ACROSS:g}] (0: the disc as "
+                             "sized) or null (by contact model)")
         if self.contact_cap_bridge not in (None, True, False):
             raise InputError(f"contact_cap_bridge={self.contact_cap_bridge!r}: expected true, "
                              "false or null (by contact model)")
@@ -371,6 +386,46 @@ def split_drop(sp: Specimen, st: "BTSSettings") -> float:
     if sp.model.material.contact_model == "flatjoint":
         return FLATJOINT_SPLIT_DROP
     return float(st.stop_drop)
+
+
+#: the fewest mean ball diameters across a flat-jointed disc (``BTSSettings.
+#: min_balls_across`` None). The Lac du Bonnet flat-joint card's discs of 12.9 balls across
+#: (27.5 mm) started their fracture at a platen on 4 of 5 packings with the study's caps
+#: (and on 5 of 5 with caps of 2.5 or 3.5 ball diameters), those of 18.8 across (40 mm)
+#: split from the centre on 5 of 5 (docs/measurements/2026-12-02b-flatjoint-brazilian-split.md,
+#: 2026-12-02g-flatjoint-disc-resolution.md): a flat-jointed disc needs a finer resolution
+#: than a parallel-bonded one (88 % of the default study's discs valid at 13 across)
+FLATJOINT_MIN_ACROSS = 19.0
+#: the largest ``min_balls_across`` accepted (a disc 60 balls across has ~10^5 balls)
+MAX_ACROSS = 60.0
+
+
+def min_across(contact_model: str, st: "BTSSettings") -> float:
+    """The fewest mean ball diameters across a disc of ``contact_model`` under ``st``
+    (``BTSSettings.min_balls_across``; None: 0 for parallel bonds,
+    :data:`FLATJOINT_MIN_ACROSS` for flat joints)."""
+    if st.min_balls_across is not None:
+        return float(st.min_balls_across)
+    return FLATJOINT_MIN_ACROSS if contact_model == "flatjoint" else 0.0
+
+
+def resolved_disc(geometry, params: dict, st: "BTSSettings"):
+    """The disc ``geometry`` (``runner.Geometry``: diameter_mm x scale) a card ``params``
+    (validated, paper units) is tested on under ``st``: itself when it has at least
+    :func:`min_across` mean ball diameters across, else the same disc enlarged (its scale,
+    so its thickness too) to exactly that many. The mean ball diameter is the packing's,
+    Rmin (1 + Rmax/Rmin) (radii uniform in [Rmin, Rmax], as PFC's ball distribute draws
+    them); a run records the diameter it had (``diameter_mm``, ``balls_across``) and
+    ``disc_enlarged``."""
+    from dataclasses import replace
+
+    from .. import params as P
+
+    need = min_across(params.get("contact_model", P.DEFAULT_CONTACT_MODEL), st)
+    dbar_mm = float(params[P.RMIN]) * (1.0 + P.RADIUS_RATIO)
+    if need <= 0 or geometry.scale * geometry.diameter_mm >= need * dbar_mm:
+        return geometry
+    return replace(geometry, scale=need * dbar_mm / geometry.diameter_mm)
 
 
 def cap_bridges(sp: Specimen, bridge: bool | None) -> bool:

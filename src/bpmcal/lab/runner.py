@@ -29,7 +29,7 @@ from .. import params as P
 from ..cost import phase
 from ..dem._jit import numba, set_threads
 from ..dem.errors import InputError, InstabilityError
-from .brazilian import BTSSettings
+from .brazilian import BTSSettings, resolved_disc
 from .budget import StepBudgetError
 from .direct_tension import DTTSettings
 from .driver import run_test
@@ -367,7 +367,12 @@ def lab_test(test: str, params: dict, seed: int, geometry: Geometry | None = Non
               genesis_max_steps=genesis_max_steps)
     if k.test_class is None:
         return impact_test(p, seed, geo, st, **kw)
+    asked = geo
+    if k.disc:  # a disc too coarse for the card's contact model is enlarged
+        geo = resolved_disc(geo, p, st)
     inputs = test_inputs(test, p, seed, geo, st)
+    if k.disc:
+        inputs.update(disc_scale_requested=float(asked.scale), disc_enlarged=geo is not asked)
 
     def specimen(s: int, retest: bool = False) -> LabRun:  # a retest booked apart (bpmcal.cost)
         how = _How(**kw, keep_particles=keep_particles, finite=k.finite,

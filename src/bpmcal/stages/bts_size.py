@@ -8,8 +8,10 @@ docs/measurements/2026-12-02-bts-disc-size.md), and the closed loop fits σt on 
 disc (``bts.scale``), whatever disc the lab used. A lab row that names its disc's diameter
 is compared here at that diameter.
 
-The sizes (:func:`sizes_of`): the study's disc, the lab's, and with ``middle`` their
-geometric mean. Every disc is the study's (its loading, its genesis, the card's balls: a
+The sizes (:func:`sizes_of`): the study's disc (as the card is tested on it: a
+flat-jointed card's enlarged to its fewest balls across, ``lab.brazilian.resolved_disc``),
+the lab's, and with ``middle`` their geometric mean; the other sizes are not enlarged.
+Every disc is the study's (its loading, its genesis, the card's balls: a
 larger disc has more balls across) with the contact cap scaled with the diameter from the
 study's disc (``lab.brazilian.similar_contact_cap``: the same share of D on every disc;
 the study's own disc keeps its cap), each seed's test run as the study runs it (an invalid
@@ -41,10 +43,10 @@ from ..dem.errors import InputError
 from ..io.card import card_parameters, read_card
 from ..io.checks import BadInput
 from ..io.tables import write_table
-from ..lab.brazilian import BTSSettings, similar_contact_cap
+from ..lab.brazilian import BTSSettings, resolved_disc, similar_contact_cap
 from ..lab.run_context import RunContext
 from ..lab.runner import Geometry
-from ..params import BTS
+from ..params import BTS, validate_params
 from .measure import RUNNERS
 
 #: the lab's size is "the same" as a measured one within this relative difference
@@ -149,12 +151,13 @@ def sigma_at(sizes: pd.DataFrame, fit: dict, diameter_mm: float) -> dict:
 
 
 def _disc_at(disc: Geometry, st: BTSSettings, study_mm: float, d_mm: float):
-    """The study's disc and settings at diameter ``d_mm``: its scale, and the contact cap
-    scaled with D (the study's disc: its own, unchanged)."""
+    """The study's disc and settings at diameter ``d_mm``: its scale, the contact cap
+    scaled with D, and no enlargement (the study's disc: its own, unchanged)."""
     if d_mm == study_mm:
         return disc, st
     return (replace(disc, scale=d_mm / disc.diameter_mm),
-            replace(st, contact_cap=similar_contact_cap(st.contact_cap, d_mm, study_mm)))
+            replace(st, contact_cap=similar_contact_cap(st.contact_cap, d_mm, study_mm),
+                    min_balls_across=0.0))
 
 
 def _run_row(d_mm, seed, geo, st, out) -> dict:
@@ -261,6 +264,10 @@ def bts_size(card, *, lab_diameter_mm: float, disc: Geometry, settings: BTSSetti
                        "compares the card's σt with the lab's at the lab's disc size")
     lab_se = float((c.get("target_se") or {}).get(BTS, 0.0))
     params = card_parameters(c)
+    # the study's disc as the card is tested on it (a flat-jointed card's is enlarged to
+    # its fewest balls across: lab.brazilian.resolved_disc); the other sizes are run at
+    # their size, however coarse (the curve is of the size: _disc_at)
+    disc = resolved_disc(disc, validate_params(params), settings)
     study_mm = disc.scale * disc.diameter_mm
     sizes_mm = sizes_of(study_mm, lab_diameter_mm, size_settings.middle)
     try:

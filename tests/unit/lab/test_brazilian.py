@@ -470,3 +470,61 @@ def test_caps_that_do_not_bridge_leave_the_split_free(cache):
     assert across.size > 0 and set(split) == set(every) - set(across)
     assert not np.any(x[bi[split]] * x[bj[split]] < 0)
     assert cap_bridges(sp, None) and not cap_bridges(sp, False)
+
+
+# --------------------------------------------------- the fewest balls across (issue 56 item 2)
+LDB_FJ = {"contact_model": "flatjoint", "rmin_mm": 0.8, "porosity": 0.3,
+          "fj_emod_GPa": 86.72, "fj_kratio": 1.7, "fj_ten_MPa": 11.63, "fj_coh_MPa": 115.0,
+          "fj_fa_deg": 30.0, "fj_fric": 0.6}
+
+
+def test_a_flat_jointed_disc_is_enlarged_to_its_fewest_balls_across_a_bonded_one_is_not():
+    """``resolved_disc``: a flat-jointed card's 27.5 mm disc (12.9 mean ball diameters
+    across at Rmin 0.8 mm, the diameter Rmin (1 + 1.66)) becomes a disc of exactly 19
+    across, its thickness with it (the scale); a parallel-bonded card's stays as sized; a
+    disc already fine enough, and min_balls_across 0, stay the same object."""
+    from bpmcal.lab.brazilian import FLATJOINT_MIN_ACROSS, min_across, resolved_disc
+    from bpmcal.params import validate_params
+
+    disc = bts_geometry(scale=0.55)
+    fj, pb = validate_params(LDB_FJ), validate_params(A1)
+    dbar = 0.8 * 2.66
+    big = resolved_disc(disc, fj, DEFAULT)
+    assert min_across("flatjoint", DEFAULT) == FLATJOINT_MIN_ACROSS == 19.0
+    assert big.scale * big.diameter_mm == pytest.approx(19.0 * dbar, rel=1e-12)
+    assert big.scale * big.height_mm == pytest.approx(9.5 * dbar, rel=1e-12)  # t = D / 2
+    assert (big.diameter_mm, big.height_mm, big.genesis) == (disc.diameter_mm,
+                                                               disc.height_mm, disc.genesis)
+    assert resolved_disc(disc, pb, DEFAULT) is disc
+    assert resolved_disc(big, fj, DEFAULT) is big  # already 19 across
+    assert resolved_disc(disc, fj, BTSSettings(min_balls_across=0.0)) is disc
+    # an explicit count applies to either model
+    pb_big = resolved_disc(disc, pb, BTSSettings(min_balls_across=20.0))
+    assert pb_big.scale * pb_big.diameter_mm == pytest.approx(20.0 * dbar, rel=1e-12)
+    wide = bts_geometry(scale=1.2)  # 60 mm: 28 across, kept
+    assert resolved_disc(wide, fj, DEFAULT) is wide
+
+
+@pytest.mark.parametrize("bad", [-1.0, 61.0, math.nan, True, "19"])
+def test_a_bad_fewest_balls_across_is_refused(bad):
+    with pytest.raises(InputError, match="min_balls_across"):
+        BTSSettings(min_balls_across=bad)
+
+
+def test_the_enlarged_disc_is_the_one_tested_and_recorded(cache):
+    """Through ``runner.bts_test``: A1 on a 17.5 mm disc (8.2 across) with min_balls_across
+    11 is tested on a disc of 11 across (the packing's own mean diameter within 3 % of the
+    nominal), and its inputs say it was enlarged from the scale asked for."""
+    from bpmcal.lab.runner import bts_test
+
+    st = BTSSettings(min_balls_across=11.0, retests=0, max_strain=0.004)
+    run = bts_test(A1, SEED, bts_geometry(scale=0.35), st, cache=cache, threads=1,
+                   keep_particles=False)
+    s = run.summary
+    assert s["diameter_mm"] == pytest.approx(11.0 * 0.8 * 2.66, rel=1e-9)
+    assert s["balls_across"] == pytest.approx(11.0, rel=0.03)
+    assert run.inputs["disc_enlarged"] is True and run.inputs["disc_scale_requested"] == 0.35
+    asis = bts_test(A1, SEED, bts_geometry(scale=0.35), BTSSettings(retests=0,
+                    max_strain=0.004), cache=cache, threads=1, keep_particles=False)
+    assert asis.inputs["disc_enlarged"] is False
+    assert asis.summary["diameter_mm"] == pytest.approx(17.5, rel=1e-9)

@@ -142,7 +142,9 @@ def test_flat_joints_raise_sigma_c_over_sigma_t_above_the_parallel_bond(base, ca
 @pytest.mark.parametrize("test,extra", [
     # one disc: whether it is valid, or split before its max_strain (else it is written
     # whole as incomplete: --failed-ok), does not matter here (a retest would run another)
-    ("bts", ["--scale", "0.4", "--max-strain", "0.002", "--retests", "0", "--failed-ok"]),
+    # the disc as sized (--min-balls-across 0: not enlarged to a flat joint's 19 across)
+    ("bts", ["--scale", "0.4", "--max-strain", "0.002", "--retests", "0", "--failed-ok",
+             "--min-balls-across", "0"]),
     ("dtt", ["--scale", "0.24"]),
     ("triaxial", ["--scale", "0.24", "--sigma3", "5"]),
     ("impact", ["--scale", "0.24", "--duration-ms", "0.3"])])

@@ -189,12 +189,13 @@ def test_the_stage_recovers_the_curve_and_compares_at_the_labs_size(tmp_path, ca
     assert f["err_pct"] == pytest.approx(100 * (lab50["mean_MPa"] / 8.0 - 1))
     assert f["z"] == pytest.approx((lab50["mean_MPa"] - 8.0) / math.hypot(lab50["se_MPa"], 0.3))
     # the study's disc runs with the study's settings object; the others with the cap x D
+    # and at their own size (not enlarged to a contact model's fewest balls across)
     for d, _, s in fake.calls:
         if d == pytest.approx(27.5):
             assert s is st
         else:
             assert s.contact_cap == pytest.approx(1.5 * d / 27.5)
-            assert s == BTSSettings(contact_cap=s.contact_cap)
+            assert s == BTSSettings(contact_cap=s.contact_cap, min_balls_across=0.0)
     for name in ("runs", "sizes", "fit"):
         assert (out / f"{name}.csv").is_file() and (out / f"{name}.md").is_file()
     assert pd.read_csv(out / "fit.csv")["method"].iloc[0] == "measured"
@@ -350,3 +351,31 @@ def test_a_lab_disc_too_large_is_refused_before_any_run(tmp_path, card, monkeypa
                     runs_table=tmp_path / "r.csv", sizes_table=tmp_path / "s.csv",
                     fit_table=tmp_path / "f.csv", ctx=RunContext(max_balls=20_000))
     assert fake.calls == [] and not (tmp_path / "runs").exists()
+
+
+def test_a_flat_jointed_cards_study_disc_is_its_enlarged_disc(tmp_path, monkeypatch):
+    """A flat-jointed card is tested on the study's disc enlarged to 19 balls across
+    (``lab.brazilian.resolved_disc``: 27.5 mm -> 40.43 mm at Rmin 0.8 mm): that disc is the
+    curve's reference and runs with the study's settings; the other sizes run at their
+    size with the cap scaled from it."""
+    f = tmp_path / "fj.yaml"
+    f.write_text(yaml.safe_dump({
+        "card_format": 1, "specimen": "LdB",
+        "parameters": {"contact_model": "flatjoint", "rmin_mm": 0.8, "porosity": 0.3,
+                       "fj_emod_GPa": 86.72, "fj_kratio": 1.7, "fj_ten_MPa": 11.63,
+                       "fj_coh_MPa": 115.0, "fj_fa_deg": 30.0, "fj_fric": 0.6},
+        "targets": {"ucs_MPa": 200.0, "bts_MPa": 9.0},
+        "lab": {"ucs_MPa": 200.0, "bts_MPa": 9.0}, "target_se": {"bts_MPa": 0.3}}))
+    fake = FakeDiscs()
+    r, _, st = _stage(tmp_path, f, fake, monkeypatch)
+    study = 19 * 0.8 * 2.66
+    sizes = r["sizes"]
+    assert list(sizes["diameter_mm"]) == pytest.approx([study, math.sqrt(study * 50), 50.0])
+    assert list(sizes["role"]) == ["the study's disc", "between", "the lab's disc"]
+    assert r["fit"]["reference_mm"].iloc[0] == pytest.approx(study)
+    for d, _, s in fake.calls:
+        if d == pytest.approx(study):
+            assert s is st
+        else:
+            assert s.contact_cap == pytest.approx(1.5 * d / study)
+            assert s.min_balls_across == 0.0
