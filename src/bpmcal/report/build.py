@@ -16,6 +16,7 @@ import os
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from .. import __version__
@@ -244,7 +245,25 @@ def _settings(lay, cfg, ref=False) -> str:
                              f"(range {w.min():.1f}-{w.max():.1f} s)")
             if test == "bts":
                 lines.append(_disc_note(cfg, ds))
+        ratio = _direct_over_brazilian(ds)
+        if ratio:
+            lines.append(ratio)
     return "\n".join(lines) + "\n"
+
+
+def _direct_over_brazilian(ds: pd.DataFrame) -> str:
+    """The direct/Brazilian strength ratio σt,d/σt of the samples with both tensile
+    strengths valid (rock: about 0.7-0.8), or "" without both tests."""
+    if not {"bts_MPa", "dtt_MPa"} <= set(ds.columns):
+        return ""
+    r = (ds["dtt_MPa"] / ds["bts_MPa"]).replace([np.inf, -np.inf], np.nan).dropna()
+    if not len(r):
+        return ("- Direct/Brazilian ratio σt,d/σt: no sample has both tensile strengths "
+                "valid")
+    return (f"- Direct/Brazilian ratio σt,d/σt: median {r.median():.2f} (range "
+            f"{r.min():.2f}-{r.max():.2f}) over the {len(r)} samples with both valid (rock: "
+            "about 0.7-0.8; the two are measured on different specimens, the cylinder and "
+            "the disc)")
 
 
 def _disc_note(cfg: dict, ds: pd.DataFrame) -> str:
@@ -255,6 +274,15 @@ def _disc_note(cfg: dict, ds: pd.DataFrame) -> str:
     d, t = b.get("diameter_mm", 50.0) * scale, b.get("thickness_mm", 25.0) * scale
     across = (f", {ds['bts_balls_across'].median():.1f} mean ball diameters across "
               "(median)" if "bts_balls_across" in ds.columns else "")
+    from ..lab.brazilian import BTSSettings, min_across
+
+    need = min_across(cfg.get("contact_model", P.DEFAULT_CONTACT_MODEL),
+                      BTSSettings(min_balls_across=b.get("min_balls_across")))
+    if need > 0 and P.RMIN in ds.columns:  # the rule of lab.brazilian.resolved_disc
+        big = int((d < need * ds[P.RMIN] * (1.0 + P.RADIUS_RATIO)).sum())
+        across += (f"; {big} of {len(ds)} samples' discs enlarged to {need:g} mean ball "
+                   "diameters across (bts.min_balls_across: a coarser disc starts its "
+                   "fracture at a platen)")
     return (f"- σt is measured on a {d:g} × {t:g} mm disc{across}, and the closed loop fits "
             "a lab σt on it as measured: σt falls with the disc's size (docs/measurements: "
             "the size curve), so a lab value from a larger disc asks for a stronger card "

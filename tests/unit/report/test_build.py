@@ -127,3 +127,31 @@ def test_bad_input_is_one_clear_error_and_writes_nothing(study, kw, needle):
 def test_an_outdir_that_is_not_a_folder_is_named(tmp_path):
     with pytest.raises(BadInput, match=r"--outdir .*nowhere: not a directory"):
         report(tmp_path / "nowhere", config_json=json.dumps(CONFIG))
+
+
+def test_the_direct_over_brazilian_ratio_is_of_the_samples_with_both_valid():
+    from bpmcal.report.build import _direct_over_brazilian
+
+    ds = pd.DataFrame({"bts_MPa": [10.0, 8.0, math.nan, 5.0],
+                       "dtt_MPa": [8.0, 6.0, 7.0, math.nan]})
+    line = _direct_over_brazilian(ds)
+    assert "median 0.78" in line and "0.75-0.80" in line and "2 samples" in line
+    assert _direct_over_brazilian(ds[["bts_MPa"]]) == ""
+    none = _direct_over_brazilian(pd.DataFrame({"bts_MPa": [math.nan], "dtt_MPa": [7.0]}))
+    assert "no sample has both" in none
+
+
+def test_the_disc_note_counts_the_discs_enlarged_to_the_fewest_balls_across():
+    """27.5 mm discs: a flat-jointed study's samples with Rmin 0.6 mm (17.2 mean ball
+    diameters across) and 0.5 mm (20.7): the first enlarged to 19, the second not; a
+    parallel-bonded study's, none (bts.min_balls_across null)."""
+    from bpmcal.report.build import _disc_note
+
+    ds = pd.DataFrame({"rmin_mm": [0.6, 0.5], "bts_balls_across": [17.2, 20.7]})
+    cfg = {"bts": {"scale": 0.55, "min_balls_across": None}, "specimen": {"scale": 0.4}}
+    fj = _disc_note({**cfg, "contact_model": "flatjoint"}, ds)
+    assert "1 of 2 samples' discs enlarged to 19 mean ball diameters" in fj
+    assert "27.5 × 13.75 mm" in fj
+    assert "enlarged" not in _disc_note(cfg, ds)
+    pb20 = _disc_note({**cfg, "bts": {"scale": 0.55, "min_balls_across": 20.0}}, ds)
+    assert "1 of 2 samples' discs enlarged to 20" in pb20
