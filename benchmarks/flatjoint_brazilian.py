@@ -76,11 +76,12 @@ def study_config() -> dict:
 
 
 def disc_run(card: str, scale: float, seed: int, variant: str, cfg: dict,
-             cap: float | None = None) -> dict:
+             cap: float | None = None, across: float | None = None) -> dict:
     from bpmcal.lab.runner import bts_test
 
     over = {"retests": 0, **(BEFORE if variant == "before" else {}),
-            **({} if cap is None else {"contact_cap": cap})}
+            **({} if cap is None else {"contact_cap": cap}),
+            **({} if across is None else {"min_balls_across": across})}
     geo, st = bts_disc_and_settings(cfg, scale=scale, **over)
     t0 = time.process_time()
     run = bts_test(CARDS[card], seed, geo, st, threads=1, keep_particles=False)
@@ -93,7 +94,8 @@ def disc_run(card: str, scale: float, seed: int, variant: str, cfg: dict,
             "n_balls": int(s["n_balls"]), "balls_across": s["balls_across"],
             "contact_cap_bonds": int(s["contact_cap_bonds"]),
             "contact_cap_bridge": bool(s["contact_cap_bridge"]),
-            "contact_cap": st.contact_cap,
+            "contact_cap": st.contact_cap, "min_balls_across": st.min_balls_across,
+            "diameter_mm": s["diameter_mm"], "disc_enlarged": bool(run.inputs["disc_enlarged"]),
             "split_drop": s["split_drop"], "steps": int(s["steps"]),
             "cpu_s": time.process_time() - t0}
 
@@ -125,6 +127,8 @@ def main(argv=None) -> int:
     ap.add_argument("--cards", default=",".join(CARDS))
     ap.add_argument("--caps", default="", help="contact caps [mean ball diameters] to run "
                     "each disc with (default: the study's bts.contact_cap)")
+    ap.add_argument("--min-across", default="", help="min_balls_across values to run each "
+                    "disc with ('default': the contact model's; default: the study's)")
     ap.add_argument("--before", default="", help="scales at which to run the before settings")
     ap.add_argument("--ucs", action="store_true", help="the UCS part too")
     ap.add_argument("--jobs", type=int, default=2)
@@ -140,9 +144,10 @@ def main(argv=None) -> int:
     seeds = [int(x) for x in a.seeds.split(",")]
     cfg = study_config()
     caps = [float(x) for x in a.caps.split(",") if x] or [None]
-    tasks = [(c, float(sc), sd, "after", cp) for c in a.cards.split(",")
-             for sc in a.scales.split(",") for cp in caps for sd in seeds]
-    tasks += [(c, float(sc), sd, "before", None) for c in a.cards.split(",")
+    acr = [None if x == "default" else float(x) for x in a.min_across.split(",") if x] or [None]
+    tasks = [(c, float(sc), sd, "after", cp, ac) for c in a.cards.split(",")
+             for sc in a.scales.split(",") for ac in acr for cp in caps for sd in seeds]
+    tasks += [(c, float(sc), sd, "before", None, None) for c in a.cards.split(",")
               for sc in a.before.split(",") if sc for sd in seeds]
     out = {**head, "discs": [], "ucs": []}
 
@@ -155,7 +160,7 @@ def main(argv=None) -> int:
             out["ucs"].append(r)
             save()
         for r in ex.map(disc_run, *[[t[k] for t in tasks] for k in range(4)],
-                        [cfg] * len(tasks), [t[4] for t in tasks]):
+                        [cfg] * len(tasks), *[[t[k] for t in tasks] for k in (4, 5)]):
             out["discs"].append(r)
             save()
     save()
