@@ -14,6 +14,12 @@ frictionless platens, no end caps) with one thing changed:
   sigma0; the ``pfc`` genesis leaves none);
 - ``pb_rmul_1.1``: the bond radius multiplier lambda-bar 1.1 (PFC's default 1; the paper
   does not state it);
+- ``linear_4/pi``: the linear contacts 4/pi (1.27) x stiffer, E* x 4/pi with E-bar
+  unchanged: the contact-stiffness convention of PFC 4 (ball stiffness k = 4 R Ec in
+  3D, two in series: 2 R Ec for equal balls) against PFC 5+'s deformability method
+  (pi r^2 E* / L = (pi/2) R E* for equal balls), the one area or length convention that
+  differs between PFC versions (the parallel bond's, pi (lambda r)^2 and E-bar / L, is
+  the same in both);
 - ``pb_mcf_0``: the moment-contribution factor beta-bar 0 (bonds carry no bending or
   twisting moment; PFC's default 1);
 - ``damping_0.3``: local damping 0.3 instead of PFC's 0.7;
@@ -39,6 +45,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import os
 import sys
 import time
@@ -56,6 +63,7 @@ VARIANTS = {
     "sigma0_1": ("A1", {"genesis": "bpmcal", "sigma0_MPa": 1.0}, {}, {}),
     "pb_rmul_1.1": ("A1", {}, {}, {"pb_rmul": 1.1}),
     "pb_mcf_0": ("A1", {}, {}, {"pb_mcf": 0.0}),
+    "linear_4/pi": ("A1", {}, {}, {"emod": "x4/pi"}),
     "damping_0.3": ("A1", {}, {"damping": 0.3}, {}),
     "slow": ("A1", {}, {"platen_velocity": 0.02, "approach_velocity": 0.0}, {}),
     "platen_fric_0.5": ("A1", {}, {"platen_fric": 0.5}, {}),
@@ -86,7 +94,9 @@ def run(variant: str, scale: float, seed: int) -> dict:
 
         def card_material(p, *a, **kw):
             mat, micro = base(p, *a, **kw)
-            return dataclasses.replace(mat, **mat_kw), micro
+            over = {k: (mat.emod * 4.0 / math.pi if v == "x4/pi" else v)
+                    for k, v in mat_kw.items()}
+            return dataclasses.replace(mat, **over), micro
         runner.card_material = card_material
     t0 = time.process_time()
     r = ucs_test(card, seed, Geometry(scale=scale, **geo_kw), UCSSettings(**st_kw),
