@@ -112,14 +112,39 @@ def run(variant: str, scale: float, seed: int) -> dict:
     return out
 
 
+def render(rec: dict) -> str:
+    """The record's tables: each run beside the base run and the paper's PFC3D (Markdown)."""
+    runs = {r["variant"]: r for r in rec["runs"]}
+    base = runs.get("base")
+    head = ["variant", "card", "σc [MPa]", "E [GPa]", "ν", "bonds per ball", "porosity",
+            "Δσc, ΔE, Δν vs base [%]", "σc, E, ν vs PFC3D [%]", "CPU [s]"]
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for v, r in runs.items():
+        if base is not None and r["card"] == "A1":
+            d = ", ".join(f"{100 * (r[k] / base[k] - 1):+.1f}" for k in ("ucs_MPa", "E_GPa", "nu"))
+        else:
+            d = "–"
+        pfc = ", ".join(f"{r[f'{k}_vs_pfc3d_pct']:+.1f}" for k in ("ucs_MPa", "E_GPa", "nu"))
+        out.append(f"| `{v}` | {r['card']} | {r['ucs_MPa']:.2f} | {r['E_GPa']:.3f} | "
+                   f"{r['nu']:.3f} | {r['bonds_per_ball']:.2f} | {r['porosity_achieved']:.4f} "
+                   f"| {d} | {pfc} | {r['cpu_s']:.0f} |")
+    return "\n".join(out) + "\n"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--variants", default=",".join(VARIANTS))
     ap.add_argument("--scale", type=float, default=1.0)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=1)
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--out", help="the JSON record to write")
+    ap.add_argument("--render", help="print the tables of this JSON record and stop")
     a = ap.parse_args(argv)
+    if a.render:
+        print(render(json.loads(Path(a.render).read_text())), end="")
+        return 0
+    if not a.out:
+        ap.error("--out FILE is needed to run (or --render FILE)")
     unknown = [v for v in a.variants.split(",") if v not in VARIANTS]
     if unknown:
         ap.error(f"--variants {','.join(unknown)}: expected some of {', '.join(VARIANTS)}")
