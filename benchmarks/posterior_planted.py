@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import yaml
 from _study import (
     CONFIG,
     bts_disc_and_settings,
     record_header,
+    study_config,
     study_geometry,
     ucs_settings,
     write_record,
@@ -182,12 +182,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out")
     ap.add_argument("--markdown")
     a = ap.parse_args(argv)
-    from bpmcal.study.config import validate_config
-
-    cfg = yaml.safe_load(Path(a.config).read_text())
-    validate_config(cfg, str(Path(CONFIG).parents[1] / "workflow" / "schemas" /
-                             "config.schema.yaml"))
-    header = record_header("posterior_planted.py", argv)
+    cfg = study_config(a.config)  # validated from the repository, wherever it runs
+    header = record_header("posterior_planted.py", sys.argv[1:] if argv is None else argv)
     study = Path(a.study)
     dem = dem_of(cfg, a.threads, str(study / "cache" / "packings"))
     rows = []
