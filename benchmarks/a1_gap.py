@@ -30,6 +30,7 @@ frictionless platens, no end caps) with one thing changed:
 - ``platen_fric_0.5``: platen friction 0.5 instead of 0;
 - ``unstated_hi``: phi_p 55 deg and mu 0.55, the top of Table 2's ranges, for the two
   parameters the paper does not state (bpmcal uses the ranges' midpoints 35 deg, 0.35);
+- ``gap_x2+linear_4/pi``: the two together;
 - ``A2``, ``A3``: the paper's other two cards, base settings.
 
 Every run reports σc, E, ν, its genesis's coordination, bonds per ball and achieved
@@ -68,6 +69,7 @@ VARIANTS = {
     "slow": ("A1", {}, {"platen_velocity": 0.02, "approach_velocity": 0.0}, {}),
     "platen_fric_0.5": ("A1", {}, {"platen_fric": 0.5}, {}),
     "unstated_hi": ("A1", {}, {}, {}),
+    "gap_x2+linear_4/pi": ("A1", {"install_gap_mm": "x2"}, {}, {"emod": "x4/pi"}),
     "A2": ("A2", {}, {}, {}),
     "A3": ("A3", {}, {}, {}),
 }
