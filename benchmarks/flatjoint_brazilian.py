@@ -120,6 +120,29 @@ def ucs_run(card: str) -> dict:
             "cpu_s": time.process_time() - t0}
 
 
+def render(recs: list[dict]) -> str:
+    """Per card, disc and cap (the records' discs pooled): the median balls across, discs,
+    valid, σt of the valid (mean, seed CV), the invalid discs' reasons (Markdown)."""
+    groups: dict = {}
+    for rec in recs:
+        for r in rec["discs"]:
+            d = r.get("diameter_mm", 50.0 * r["scale"])  # records before diameter_mm
+            key = (r["card"], round(d, 2), r.get("contact_cap"), r.get("disc_enlarged"))
+            groups.setdefault(key, []).append(r)
+    head = ["card", "disc [mm]", "balls across", "cap", "enlarged", "valid", "σt [MPa]",
+            "seed CV", "why not (invalid discs)"]
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for (card, d, cap, big), rs in sorted(groups.items(), key=lambda kv: kv[0][:3]):
+        v = np.array([r["bts_MPa"] for r in rs if r["valid"]])
+        across = float(np.median([r["balls_across"] for r in rs]))
+        why = "; ".join(sorted({r["reason"].split(":")[0] for r in rs if not r["valid"]}))
+        cv = f"{100 * v.std(ddof=1) / v.mean():.1f} %" if v.size > 1 else "–"
+        out.append(f"| {card} | {d:g} | {across:.1f} | {cap if cap is not None else 1.5:g} | "
+                   f"{'yes' if big else 'no'} | {v.size} of {len(rs)} | "
+                   f"{(f'{v.mean():.2f}' if v.size else '–')} | {cv} | {why} |")
+    return "\n".join(out) + "\n"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scales", default="0.55,0.8")
@@ -134,8 +157,15 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--commit", default="", help="the commit of the source when it runs "
                     "from an export (git archive) that git cannot name")
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--out", help="the JSON record to write")
+    ap.add_argument("--render", nargs="+", help="print the per-card table of these JSON "
+                    "records and stop")
     a = ap.parse_args(argv)
+    if a.render:
+        print(render([json.loads(Path(f).read_text()) for f in a.render]), end="")
+        return 0
+    if not a.out:
+        ap.error("--out FILE is needed to run (or --render FILE ...)")
     head = record_header("flatjoint_brazilian.py", sys.argv[1:] if argv is None else argv)
     head["commit"] = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
                                     capture_output=True, text=True).stdout.strip() or a.commit
