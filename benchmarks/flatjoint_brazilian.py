@@ -61,6 +61,8 @@ CARDS = {"ldb_fj": LDB_FJ, "fj_slit02_gi02": FJ_SLIT, "fj_shear": FJ_SHEAR,
 UCS_CARDS = {"a1": (A1, 0.4), "ldb_fj": (LDB_FJ, 0.3),
              "fj_slit02_gi0": ({**FJ_SLIT, "fj_gi_ratio": 0.0}, 0.3),
              "fj_slit04_gi02": ({**FJ_SLIT, "fj_slit_frac": 0.4}, 0.3)}
+#: --loading (set in the workers by main: a module value each process reads)
+LOADING: list = []
 #: the Brazilian settings flat joints had before (those of parallel bonds)
 BEFORE = {"contact_cap_bridge": True, "split_drop": 0.5}
 
@@ -81,7 +83,8 @@ def disc_run(card: str, scale: float, seed: int, variant: str, cfg: dict,
 
     over = {"retests": 0, **(BEFORE if variant == "before" else {}),
             **({} if cap is None else {"contact_cap": cap}),
-            **({} if across is None else {"min_balls_across": across})}
+            **({} if across is None else {"min_balls_across": across}),
+            **({"loading": LOADING[0]} if LOADING else {})}
     geo, st = bts_disc_and_settings(cfg, scale=scale, **over)
     t0 = time.process_time()
     run = bts_test(CARDS[card], seed, geo, st, threads=1, keep_particles=False)
@@ -96,7 +99,7 @@ def disc_run(card: str, scale: float, seed: int, variant: str, cfg: dict,
             "contact_cap_bridge": bool(s["contact_cap_bridge"]),
             "contact_cap": st.contact_cap, "min_balls_across": st.min_balls_across,
             "diameter_mm": s["diameter_mm"], "disc_enlarged": bool(run.inputs["disc_enlarged"]),
-            "split_drop": s["split_drop"], "steps": int(s["steps"]),
+            "split_drop": s["split_drop"], "steps": int(s["steps"]), "loading": st.loading,
             "cpu_s": time.process_time() - t0}
 
 
@@ -152,6 +155,7 @@ def main(argv=None) -> int:
                     "each disc with (default: the study's bts.contact_cap)")
     ap.add_argument("--min-across", default="", help="min_balls_across values to run each "
                     "disc with ('default': the contact model's; default: the study's)")
+    ap.add_argument("--loading", default="", help="flat or jaws (default: the study's)")
     ap.add_argument("--before", default="", help="scales at which to run the before settings")
     ap.add_argument("--ucs", action="store_true", help="the UCS part too")
     ap.add_argument("--jobs", type=int, default=2)
@@ -185,7 +189,10 @@ def main(argv=None) -> int:
         out["load_average_end"] = list(os.getloadavg())
         Path(a.out).write_text(json.dumps(out, indent=1, default=float))
 
-    with ProcessPoolExecutor(a.jobs) as ex:
+    if a.loading:
+        LOADING.append(a.loading)
+    with ProcessPoolExecutor(a.jobs, initializer=LOADING.extend,
+                             initargs=([a.loading] if a.loading else [],)) as ex:
         for r in (ex.map(ucs_run, UCS_CARDS) if a.ucs else []):
             out["ucs"].append(r)
             save()
