@@ -130,18 +130,20 @@ def render(recs: list[dict]) -> str:
     for rec in recs:
         for r in rec["discs"]:
             d = r.get("diameter_mm", 50.0 * r["scale"])  # records before diameter_mm
-            key = (r["card"], round(d, 2), r.get("contact_cap"), r.get("disc_enlarged"))
+            key = (r["card"], round(d, 2), r.get("contact_cap") or 1.5,
+                   bool(r.get("disc_enlarged")), r.get("loading", "flat"))
             groups.setdefault(key, []).append(r)
-    head = ["card", "disc [mm]", "balls across", "cap", "enlarged", "valid", "σt [MPa]",
+    head = ["card", "disc [mm]", "balls across", "cap", "enlarged", "loading", "valid",
+            "σt [MPa]",
             "seed CV", "why not (invalid discs)"]
     out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for (card, d, cap, big), rs in sorted(groups.items(), key=lambda kv: kv[0][:3]):
+    for (card, d, cap, big, how), rs in sorted(groups.items(), key=lambda kv: kv[0]):
         v = np.array([r["bts_MPa"] for r in rs if r["valid"]])
         across = float(np.median([r["balls_across"] for r in rs]))
         why = "; ".join(sorted({r["reason"].split(":")[0] for r in rs if not r["valid"]}))
         cv = f"{100 * v.std(ddof=1) / v.mean():.1f} %" if v.size > 1 else "–"
-        out.append(f"| {card} | {d:g} | {across:.1f} | {cap if cap is not None else 1.5:g} | "
-                   f"{'yes' if big else 'no'} | {v.size} of {len(rs)} | "
+        out.append(f"| {card} | {d:g} | {across:.1f} | {cap:g} | {'yes' if big else 'no'} | "
+                   f"{how} | {v.size} of {len(rs)} | "
                    f"{(f'{v.mean():.2f}' if v.size else '–')} | {cv} | {why} |")
     return "\n".join(out) + "\n"
 
