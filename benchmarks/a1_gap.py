@@ -114,9 +114,10 @@ def run(variant: str, scale: float, seed: int) -> dict:
     return out
 
 
-def render(rec: dict) -> str:
-    """The record's tables: each run beside the base run and the paper's PFC3D (Markdown)."""
-    runs = {r["variant"]: r for r in rec["runs"]}
+def render(recs: list[dict]) -> str:
+    """The records' runs (pooled; a later run of a variant replaces an earlier one), each
+    beside the base run and the paper's PFC3D (Markdown)."""
+    runs = {r["variant"]: r for rec in recs for r in rec["runs"]}
     base = runs.get("base")
     head = ["variant", "card", "σc [MPa]", "E [GPa]", "ν", "bonds per ball", "porosity",
             "Δσc, ΔE, Δν vs base [%]", "σc, E, ν vs PFC3D [%]", "CPU [s]"]
@@ -140,10 +141,11 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--out", help="the JSON record to write")
-    ap.add_argument("--render", help="print the tables of this JSON record and stop")
+    ap.add_argument("--render", nargs="+", help="print the table of these JSON records "
+                    "and stop")
     a = ap.parse_args(argv)
     if a.render:
-        print(render(json.loads(Path(a.render).read_text())), end="")
+        print(render([json.loads(Path(f).read_text()) for f in a.render]), end="")
         return 0
     if not a.out:
         ap.error("--out FILE is needed to run (or --render FILE)")
