@@ -389,12 +389,12 @@ def split_drop(sp: Specimen, st: "BTSSettings") -> float:
 
 
 #: the fewest mean ball diameters across a flat-jointed disc (``BTSSettings.
-#: min_balls_across`` None). The Lac du Bonnet flat-joint card's discs of 12.9 balls across
-#: (27.5 mm) started their fracture at a platen on 4 of 5 packings with the study's caps
-#: (and on 5 of 5 with caps of 2.5 or 3.5 ball diameters), those of 18.8 across (40 mm)
-#: split from the centre on 5 of 5 (docs/measurements/2026-12-02b-flatjoint-brazilian-split.md,
-#: 2026-12-02g-flatjoint-disc-resolution.md): a flat-jointed disc needs a finer resolution
-#: than a parallel-bonded one (88 % of the default study's discs valid at 13 across)
+#: min_balls_across`` None). On four flat-jointed cards of different kinds the study's
+#: 27.5 mm disc (10-13 balls across) split from the centre on 9 of 29 packings (larger
+#: contact caps did no better), discs of 19 across on 28 of 40
+#: (docs/measurements/2026-12-02g-flatjoint-disc-resolution.md): a flat-jointed disc needs
+#: a finer resolution than a parallel-bonded one, whose 13-ball discs the default study
+#: finds valid about 9 times in 10
 FLATJOINT_MIN_ACROSS = 19.0
 #: the largest ``min_balls_across`` accepted (a disc 60 balls across has ~10^5 balls)
 MAX_ACROSS = 60.0
