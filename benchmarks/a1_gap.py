@@ -31,7 +31,8 @@ frictionless platens, no end caps) with one thing changed:
 - ``unstated_hi``: phi_p 55 deg and mu 0.55, the top of Table 2's ranges, for the two
   parameters the paper does not state (bpmcal uses the ranges' midpoints 35 deg, 0.35);
 - ``gap_x2+linear_4/pi``: the two together;
-- ``A2``, ``A3``: the paper's other two cards, base settings.
+- ``A2``, ``A3``: the paper's other two cards, base settings; ``A2:gap_x2+linear_4/pi``,
+  ``A3:...``: with the two changes together.
 
 Every run reports σc, E, ν, its genesis's coordination, bonds per ball and achieved
 porosity, and the difference from the paper's PFC3D values (Table 5) of its card. One JSON
@@ -72,6 +73,8 @@ VARIANTS = {
     "gap_x2+linear_4/pi": ("A1", {"install_gap_mm": "x2"}, {}, {"emod": "x4/pi"}),
     "A2": ("A2", {}, {}, {}),
     "A3": ("A3", {}, {}, {}),
+    "A2:gap_x2+linear_4/pi": ("A2", {"install_gap_mm": "x2"}, {}, {"emod": "x4/pi"}),
+    "A3:gap_x2+linear_4/pi": ("A3", {"install_gap_mm": "x2"}, {}, {"emod": "x4/pi"}),
 }
 #: card changes of a variant (paper units)
 CARD_OVER = {"unstated_hi": {"pb_fa_deg": 55.0, "fric": 0.55}}
