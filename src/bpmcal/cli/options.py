@@ -275,10 +275,9 @@ def add_bts_args(p, prefix: str = ""):
     from ..lab.brazilian import FLATJOINT_MIN_ACROSS, LOADINGS, MAX_ACROSS
 
     spec = {
-        "min_balls_across": (number(lab("min_balls_across"), 0.0, MAX_ACROSS),
-                             "the fewest mean ball diameters across the disc: a coarser disc "
-                             "is enlarged to this many (default {d}: none for parallel bonds, "
-                             f"{FLATJOINT_MIN_ACROSS:g} for flat joints; 0: the disc as sized)"),
+        "min_balls_across": (number(lab("min_balls_across"), 0.0, MAX_ACROSS), "a coarser "
+                             "disc is enlarged to this many mean ball diameters across (default "
+                             f"{{d}}: 0 for parallel bonds, {FLATJOINT_MIN_ACROSS:g} for flat joints)"),
         "loading": (choice(lab("loading"), LOADINGS),
                     "how the disc is loaded: flat (two planar platens) or jaws (ISRM curved "
                     "jaws, radius --jaw-ratio x the disc's) (default {d})"),
