@@ -9,7 +9,7 @@ the whole vessel is removed and the disc settles free (``build_specimen(boundary
 Every run records ``balls_across`` = D / mean ball diameter, the resolution of the
 measurement (docs/measurements: sigma_t, its seed scatter, valid fraction and cost
 against it for the paper's A1 set). A disc coarser than ``min_balls_across`` (None: none
-for parallel bonds, 19 for flat joints, ``FLATJOINT_MIN_ACROSS``) is enlarged to it
+for parallel bonds, 25 for flat joints, ``FLATJOINT_MIN_ACROSS``) is enlarged to it
 before genesis (``resolved_disc``, applied by ``runner.lab_test``; the run's inputs
 record ``disc_enlarged`` and ``disc_scale_requested``): a flat-jointed disc of 13 balls
 across starts its fracture at a platen on most packings, whatever its caps.
@@ -391,11 +391,11 @@ def split_drop(sp: Specimen, st: "BTSSettings") -> float:
 #: the fewest mean ball diameters across a flat-jointed disc (``BTSSettings.
 #: min_balls_across`` None). On four flat-jointed cards of different kinds the study's
 #: 27.5 mm disc (10-13 balls across) split from the centre on 9 of 29 packings (larger
-#: contact caps did no better), discs of 19 across on 28 of 40
-#: (docs/measurements/2026-12-02g-flatjoint-disc-resolution.md): a flat-jointed disc needs
-#: a finer resolution than a parallel-bonded one, whose 13-ball discs the default study
-#: finds valid about 9 times in 10
-FLATJOINT_MIN_ACROSS = 19.0
+#: contact caps did no better), discs of 19 across on 28 of 40, discs of 25 across on
+#: 25 of 25 (docs/measurements/2026-12-02g-flatjoint-disc-resolution.md): a flat-jointed disc
+#: needs a finer resolution than a parallel-bonded one, whose 13-ball discs the default
+#: study finds valid about 9 times in 10
+FLATJOINT_MIN_ACROSS = 25.0
 #: the largest ``min_balls_across`` accepted (a disc 60 balls across has ~10^5 balls)
 MAX_ACROSS = 60.0
 

@@ -480,7 +480,7 @@ LDB_FJ = {"contact_model": "flatjoint", "rmin_mm": 0.8, "porosity": 0.3,
 
 def test_a_flat_jointed_disc_is_enlarged_to_its_fewest_balls_across_a_bonded_one_is_not():
     """``resolved_disc``: a flat-jointed card's 27.5 mm disc (12.9 mean ball diameters
-    across at Rmin 0.8 mm, the diameter Rmin (1 + 1.66)) becomes a disc of exactly 19
+    across at Rmin 0.8 mm, the diameter Rmin (1 + 1.66)) becomes a disc of exactly 25
     across, its thickness with it (the scale); a parallel-bonded card's stays as sized; a
     disc already fine enough, and min_balls_across 0, stay the same object."""
     from bpmcal.lab.brazilian import FLATJOINT_MIN_ACROSS, min_across, resolved_disc
@@ -490,18 +490,18 @@ def test_a_flat_jointed_disc_is_enlarged_to_its_fewest_balls_across_a_bonded_one
     fj, pb = validate_params(LDB_FJ), validate_params(A1)
     dbar = 0.8 * 2.66
     big = resolved_disc(disc, fj, DEFAULT)
-    assert min_across("flatjoint", DEFAULT) == FLATJOINT_MIN_ACROSS == 19.0
-    assert big.scale * big.diameter_mm == pytest.approx(19.0 * dbar, rel=1e-12)
-    assert big.scale * big.height_mm == pytest.approx(9.5 * dbar, rel=1e-12)  # t = D / 2
+    assert min_across("flatjoint", DEFAULT) == FLATJOINT_MIN_ACROSS == 25.0
+    assert big.scale * big.diameter_mm == pytest.approx(25.0 * dbar, rel=1e-12)
+    assert big.scale * big.height_mm == pytest.approx(12.5 * dbar, rel=1e-12)  # t = D / 2
     assert (big.diameter_mm, big.height_mm, big.genesis) == (disc.diameter_mm,
                                                                disc.height_mm, disc.genesis)
     assert resolved_disc(disc, pb, DEFAULT) is disc
-    assert resolved_disc(big, fj, DEFAULT) is big  # already 19 across
+    assert resolved_disc(big, fj, DEFAULT) is big  # already 25 across
     assert resolved_disc(disc, fj, BTSSettings(min_balls_across=0.0)) is disc
     # an explicit count applies to either model
     pb_big = resolved_disc(disc, pb, BTSSettings(min_balls_across=20.0))
     assert pb_big.scale * pb_big.diameter_mm == pytest.approx(20.0 * dbar, rel=1e-12)
-    wide = bts_geometry(scale=1.2)  # 60 mm: 28 across, kept
+    wide = bts_geometry(scale=1.2)  # 60 mm: 28.2 across, kept
     assert resolved_disc(wide, fj, DEFAULT) is wide
 
 

@@ -143,14 +143,14 @@ def test_the_direct_over_brazilian_ratio_is_of_the_samples_with_both_valid():
 
 def test_the_disc_note_counts_the_discs_enlarged_to_the_fewest_balls_across():
     """27.5 mm discs: a flat-jointed study's samples with Rmin 0.6 mm (17.2 mean ball
-    diameters across) and 0.5 mm (20.7): the first enlarged to 19, the second not; a
+    diameters across) and 0.4 mm (25.8): the first enlarged to 25, the second not; a
     parallel-bonded study's, none (bts.min_balls_across null)."""
     from bpmcal.report.build import _disc_note
 
-    ds = pd.DataFrame({"rmin_mm": [0.6, 0.5], "bts_balls_across": [17.2, 20.7]})
+    ds = pd.DataFrame({"rmin_mm": [0.6, 0.4], "bts_balls_across": [17.2, 25.8]})
     cfg = {"bts": {"scale": 0.55, "min_balls_across": None}, "specimen": {"scale": 0.4}}
     fj = _disc_note({**cfg, "contact_model": "flatjoint"}, ds)
-    assert "1 of 2 samples' discs enlarged to 19 mean ball diameters" in fj
+    assert "1 of 2 samples' discs enlarged to 25 mean ball diameters" in fj
     assert "27.5 × 13.75 mm" in fj
     assert "enlarged" not in _disc_note(cfg, ds)
     pb20 = _disc_note({**cfg, "bts": {"scale": 0.55, "min_balls_across": 20.0}}, ds)

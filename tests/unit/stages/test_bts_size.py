@@ -354,8 +354,8 @@ def test_a_lab_disc_too_large_is_refused_before_any_run(tmp_path, card, monkeypa
 
 
 def test_a_flat_jointed_cards_study_disc_is_its_enlarged_disc(tmp_path, monkeypatch):
-    """A flat-jointed card is tested on the study's disc enlarged to 19 balls across
-    (``lab.brazilian.resolved_disc``: 27.5 mm -> 40.43 mm at Rmin 0.8 mm): that disc is the
+    """A flat-jointed card is tested on the study's disc enlarged to 25 balls across
+    (``lab.brazilian.resolved_disc``: 27.5 mm -> 53.2 mm at Rmin 0.8 mm): that disc is the
     curve's reference and runs with the study's settings; the other sizes run at their
     size with the cap scaled from it."""
     f = tmp_path / "fj.yaml"
@@ -368,10 +368,11 @@ def test_a_flat_jointed_cards_study_disc_is_its_enlarged_disc(tmp_path, monkeypa
         "lab": {"ucs_MPa": 200.0, "bts_MPa": 9.0}, "target_se": {"bts_MPa": 0.3}}))
     fake = FakeDiscs()
     r, _, st = _stage(tmp_path, f, fake, monkeypatch)
-    study = 19 * 0.8 * 2.66
+    study = 25 * 0.8 * 2.66
     sizes = r["sizes"]
-    assert list(sizes["diameter_mm"]) == pytest.approx([study, math.sqrt(study * 50), 50.0])
-    assert list(sizes["role"]) == ["the study's disc", "between", "the lab's disc"]
+    # (the sizes in order: the lab's 50 mm disc is now the smaller)
+    assert list(sizes["diameter_mm"]) == pytest.approx([50.0, math.sqrt(study * 50), study])
+    assert list(sizes["role"]) == ["the lab's disc", "between", "the study's disc"]
     assert r["fit"]["reference_mm"].iloc[0] == pytest.approx(study)
     for d, _, s in fake.calls:
         if d == pytest.approx(study):
