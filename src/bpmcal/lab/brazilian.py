@@ -409,6 +409,15 @@ def min_across(contact_model: str, st: "BTSSettings") -> float:
     return FLATJOINT_MIN_ACROSS if contact_model == "flatjoint" else 0.0
 
 
+def across_mm(rmin_mm, count: float):
+    """The disc diameter [mm] that holds ``count`` mean ball diameters across for balls of
+    Rmin ``rmin_mm`` (a number or an array): count x Rmin (1 + Rmax/Rmin), the mean
+    diameter of radii uniform in [Rmin, Rmax] (PFC's ball distribute)."""
+    from ..params import RADIUS_RATIO
+
+    return count * rmin_mm * (1.0 + RADIUS_RATIO)
+
+
 def resolved_disc(geometry, params: dict, st: "BTSSettings"):
     """The disc ``geometry`` (``runner.Geometry``: diameter_mm x scale) a card ``params``
     (validated, paper units) is tested on under ``st``: itself when it has at least
@@ -422,10 +431,10 @@ def resolved_disc(geometry, params: dict, st: "BTSSettings"):
     from .. import params as P
 
     need = min_across(params.get("contact_model", P.DEFAULT_CONTACT_MODEL), st)
-    dbar_mm = float(params[P.RMIN]) * (1.0 + P.RADIUS_RATIO)
-    if need <= 0 or geometry.scale * geometry.diameter_mm >= need * dbar_mm:
+    d_mm = across_mm(float(params[P.RMIN]), need)
+    if need <= 0 or geometry.scale * geometry.diameter_mm >= d_mm:
         return geometry
-    return replace(geometry, scale=need * dbar_mm / geometry.diameter_mm)
+    return replace(geometry, scale=d_mm / geometry.diameter_mm)
 
 
 def cap_bridges(sp: Specimen, bridge: bool | None) -> bool:

@@ -274,12 +274,12 @@ def _disc_note(cfg: dict, ds: pd.DataFrame) -> str:
     d, t = b.get("diameter_mm", 50.0) * scale, b.get("thickness_mm", 25.0) * scale
     across = (f", {ds['bts_balls_across'].median():.1f} mean ball diameters across "
               "(median)" if "bts_balls_across" in ds.columns else "")
-    from ..lab.brazilian import BTSSettings, min_across
+    from ..lab.brazilian import BTSSettings, across_mm, min_across
 
     need = min_across(cfg.get("contact_model", P.DEFAULT_CONTACT_MODEL),
                       BTSSettings(min_balls_across=b.get("min_balls_across")))
     if need > 0 and P.RMIN in ds.columns:  # the rule of lab.brazilian.resolved_disc
-        big = int((d < need * ds[P.RMIN] * (1.0 + P.RADIUS_RATIO)).sum())
+        big = int((d < across_mm(ds[P.RMIN], need)).sum())
         across += (f"; {big} of {len(ds)} samples' discs enlarged to {need:g} mean ball "
                    "diameters across (bts.min_balls_across: a coarser disc starts its "
                    "fracture at a platen)")
