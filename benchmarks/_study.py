@@ -146,6 +146,38 @@ def run_meta(script: str, argv) -> dict:
             "command": f"python benchmarks/{script} " + shlex.join(argv)}
 
 
+def add_record_options(ap, what: str = "the table") -> None:
+    """A benchmark's record options: ``--out`` (the JSON record to write), ``--render``
+    (print ``what`` of one or more JSON records and stop) and ``--commit`` (the commit of
+    the source when it runs from an export that git cannot name)."""
+    ap.add_argument("--out", help="the JSON record to write")
+    ap.add_argument("--render", nargs="+", help=f"print {what} of these JSON records and stop")
+    ap.add_argument("--commit", default="", help="the commit of the source when it runs "
+                    "from an export (git archive) that git cannot name")
+
+
+def rendered(ap, a, render) -> bool:
+    """Print ``render(records)`` of ``--render`` and say so (True), or check that a run has
+    its ``--out`` (``ap.error`` otherwise) and say it has not (False)."""
+    if a.render:
+        print(render([json.loads(Path(f).read_text()) for f in a.render]), end="")
+        return True
+    if not a.out:
+        ap.error("--out FILE is needed to run (or --render FILE ...)")
+    return False
+
+
+def source_commit(given: str = "") -> str:
+    """The short commit of the source the benchmark runs, or ``given`` (``--commit``) when
+    it runs from an export git cannot name."""
+    try:
+        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
+                             capture_output=True, text=True).stdout.strip()
+    except OSError:
+        out = ""
+    return out or given
+
+
 def record_header(script: str, argv) -> dict:
     """The fixed header of a measurement record: date, host CPU, load, the exact command."""
     return {"date": dt.date.today().isoformat(), "cpu_model": cpu_model(),

@@ -53,7 +53,7 @@ import sys
 import time
 from pathlib import Path
 
-from _study import run_meta
+from _study import add_record_options, rendered, run_meta
 
 #: variant -> (card, Geometry fields, UCSSettings fields, Material fields)
 VARIANTS = {
@@ -143,19 +143,15 @@ def main(argv=None) -> int:
     ap.add_argument("--scale", type=float, default=1.0)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=1)
-    ap.add_argument("--out", help="the JSON record to write")
-    ap.add_argument("--render", nargs="+", help="print the table of these JSON records "
-                    "and stop")
+    add_record_options(ap)
     a = ap.parse_args(argv)
-    if a.render:
-        print(render([json.loads(Path(f).read_text()) for f in a.render]), end="")
+    if rendered(ap, a, render):
         return 0
-    if not a.out:
-        ap.error("--out FILE is needed to run (or --render FILE)")
     unknown = [v for v in a.variants.split(",") if v not in VARIANTS]
     if unknown:
         ap.error(f"--variants {','.join(unknown)}: expected some of {', '.join(VARIANTS)}")
     rec = {**run_meta("a1_gap.py", sys.argv[1:] if argv is None else argv), "runs": []}
+    rec["commit"] = rec["commit"] or a.commit
 
     def save():
         rec["load_average_end"] = list(os.getloadavg())

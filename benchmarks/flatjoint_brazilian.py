@@ -25,15 +25,20 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-import yaml
-from _study import CONFIG, REPO, bts_disc_and_settings, record_header
+from _study import (
+    add_record_options,
+    bts_disc_and_settings,
+    record_header,
+    rendered,
+    source_commit,
+    study_config,
+)
 
 from bpmcal.study.paper import A1
 
@@ -61,30 +66,19 @@ CARDS = {"ldb_fj": LDB_FJ, "fj_slit02_gi02": FJ_SLIT, "fj_shear": FJ_SHEAR,
 UCS_CARDS = {"a1": (A1, 0.4), "ldb_fj": (LDB_FJ, 0.3),
              "fj_slit02_gi0": ({**FJ_SLIT, "fj_gi_ratio": 0.0}, 0.3),
              "fj_slit04_gi02": ({**FJ_SLIT, "fj_slit_frac": 0.4}, 0.3)}
-#: --loading (set in the workers by main: a module value each process reads)
-LOADING: list = []
 #: the Brazilian settings flat joints had before (those of parallel bonds)
 BEFORE = {"contact_cap_bridge": True, "split_drop": 0.5}
 
 
-def study_config() -> dict:
-    """config/config.yaml, validated (the schema's defaults filled in) as the workflow
-    reads it."""
-    from bpmcal.study.config import validate_config
-
-    cfg = yaml.safe_load(CONFIG.read_text())
-    validate_config(cfg, REPO / "workflow" / "schemas" / "config.schema.yaml", base_dir=REPO)
-    return cfg
-
-
-def disc_run(card: str, scale: float, seed: int, variant: str, cfg: dict,
-             cap: float | None = None, across: float | None = None) -> dict:
+def disc_run(card: str, scale: float, seed: int, variant: str, cap: float | None,
+             across: float | None, loading: str, cfg: dict) -> dict:
+    """One disc; ``cap``, ``across`` None and ``loading`` "": the study's."""
     from bpmcal.lab.runner import bts_test
 
     over = {"retests": 0, **(BEFORE if variant == "before" else {}),
             **({} if cap is None else {"contact_cap": cap}),
             **({} if across is None else {"min_balls_across": across}),
-            **({"loading": LOADING[0]} if LOADING else {})}
+            **({"loading": loading} if loading else {})}
     geo, st = bts_disc_and_settings(cfg, scale=scale, **over)
     t0 = time.process_time()
     run = bts_test(CARDS[card], seed, geo, st, threads=1, keep_particles=False)
@@ -161,29 +155,21 @@ def main(argv=None) -> int:
     ap.add_argument("--before", default="", help="scales at which to run the before settings")
     ap.add_argument("--ucs", action="store_true", help="the UCS part too")
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--commit", default="", help="the commit of the source when it runs "
-                    "from an export (git archive) that git cannot name")
-    ap.add_argument("--out", help="the JSON record to write")
-    ap.add_argument("--render", nargs="+", help="print the per-card table of these JSON "
-                    "records and stop")
+    add_record_options(ap, "the per-card table")
     a = ap.parse_args(argv)
-    if a.render:
-        print(render([json.loads(Path(f).read_text()) for f in a.render]), end="")
+    if rendered(ap, a, render):
         return 0
-    if not a.out:
-        ap.error("--out FILE is needed to run (or --render FILE ...)")
     head = record_header("flatjoint_brazilian.py", sys.argv[1:] if argv is None else argv)
-    head["commit"] = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
-                                    capture_output=True, text=True).stdout.strip() or a.commit
+    head["commit"] = source_commit(a.commit)
     import bpmcal
     head["bpmcal_source"] = str(Path(bpmcal.__file__).parent)
     seeds = [int(x) for x in a.seeds.split(",")]
     cfg = study_config()
     caps = [float(x) for x in a.caps.split(",") if x] or [None]
     acr = [None if x == "default" else float(x) for x in a.min_across.split(",") if x] or [None]
-    tasks = [(c, float(sc), sd, "after", cp, ac) for c in a.cards.split(",")
+    tasks = [(c, float(sc), sd, "after", cp, ac, a.loading) for c in a.cards.split(",")
              for sc in a.scales.split(",") for ac in acr for cp in caps for sd in seeds]
-    tasks += [(c, float(sc), sd, "before", None, None) for c in a.cards.split(",")
+    tasks += [(c, float(sc), sd, "before", None, None, a.loading) for c in a.cards.split(",")
               for sc in a.before.split(",") if sc for sd in seeds]
     out = {**head, "discs": [], "ucs": []}
 
@@ -191,15 +177,11 @@ def main(argv=None) -> int:
         out["load_average_end"] = list(os.getloadavg())
         Path(a.out).write_text(json.dumps(out, indent=1, default=float))
 
-    if a.loading:
-        LOADING.append(a.loading)
-    with ProcessPoolExecutor(a.jobs, initializer=LOADING.extend,
-                             initargs=([a.loading] if a.loading else [],)) as ex:
+    with ProcessPoolExecutor(a.jobs) as ex:
         for r in (ex.map(ucs_run, UCS_CARDS) if a.ucs else []):
             out["ucs"].append(r)
             save()
-        for r in ex.map(disc_run, *[[t[k] for t in tasks] for k in range(4)],
-                        [cfg] * len(tasks), *[[t[k] for t in tasks] for k in (4, 5)]):
+        for r in ex.map(disc_run, *zip(*tasks), [cfg] * len(tasks)):
             out["discs"].append(r)
             save()
     save()
