@@ -72,6 +72,7 @@ DEFAULTS = {
     "compression.end_cap_factor": (UCS.end_cap_factor, ("ucs", "end_cap_factor", None)),
     "compression.approach_velocity": (UCS.approach_velocity, ("ucs", "approach_velocity", None)),
     "compression.approach_ramp": (UCS.approach_ramp, ("ucs", "approach_ramp", None)),
+    "compression.density_scaling": (UCS.density_scaling, ("ucs", "density_scaling", None)),
     "bts.diameter_mm": (BTS_DIAMETER_MM, ("bts", "diameter", None)),
     "bts.thickness_mm": (BTS_THICKNESS_MM, ("bts", "thickness", None)),
     **{f"bts.{k}": (getattr(BTS, k), ("bts", k, None))
@@ -79,10 +80,10 @@ DEFAULTS = {
                  "record_strain", "post_peak_strain", "approach_velocity", "approach_damage",
                  "loading", "jaw_ratio",
                  "contact_cap", "contact_cap_factor", "central_zone", "retests",
-                 "min_balls_across")},
+                 "min_balls_across", "density_scaling")},
     **{f"dtt.{k}": (getattr(DTT, k), ("dtt", k, None))
        for k in ("grip_velocity", "grip_length", "grip_clearance", "damping", "stop_drop",
-                 "post_peak_strain", "max_strain", "record_strain")},
+                 "density_scaling", "post_peak_strain", "max_strain", "record_strain")},
     "resources.max_balls": (MAX_BALLS, ("ucs", "max_balls", None)),
     "resources.genesis_max_steps": (GENESIS_MAX_STEPS, ("ucs", "genesis_max_steps", None)),
     "study.lhs_optimization": (defaults_of(lhs_design)["optimization"],

@@ -66,7 +66,7 @@ LAB_ONLY = {
                  "gain_update", "seat_stress", "consol_tol", "consol_tol_abs", "consol_ratio",
                  "max_consol_steps", "stop_drop", "max_strain", "max_steps", "record_strain",
                  "fit_window", "lateral_band", "post_peak_strain", "ci_fraction", "end_cap",
-                 "end_cap_factor"},
+                 "end_cap_factor", "density_scaling"},
     "impact": {"gravity", "after_rebound", "gap"},  # the drop's physics and stop
     "posterior": {"chunk", "walkers", "draws"},  # the sampler's ensemble
     # a job's packing cache, threads and progress line: the workflow's per job; its

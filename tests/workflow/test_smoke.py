@@ -562,6 +562,7 @@ RERUN = {
     # the UCS test's approach: the jobs that run a UCS test (not the triaxial ones)
     "compression.approach_velocity": (0.09, _AXIAL - {"triaxial"}),
     "compression.approach_ramp": (4.0, _AXIAL - {"triaxial"}),
+    "compression.density_scaling": (0.3, _AXIAL),
     **{f"bts.{k}": (v, {"sample", "fresh_seeds"}) for k, v in {  # fresh_seeds: every card's σt
         "enabled": False, "scale": 0.43, "diameter_mm": 51.0, "thickness_mm": 26.0,
         "loading": "jaws", "jaw_ratio": 1.4, "contact_cap": 1.4,
@@ -569,12 +570,13 @@ RERUN = {
         "approach_velocity": 0.11, "approach_damage": 0.007, "platen_fric": 0.31,
         "damping": 0.71, "stop_drop": 0.21,
         "max_strain": 0.051, "record_strain": 1.1e-5, "post_peak_strain": 0.00031,
-        "min_balls_across": 14.0}.items()},
-    "dtt.enabled": (True, {"sample"}),  # the sample jobs gain the test
+        "min_balls_across": 14.0, "density_scaling": 0.3}.items()},
+    # the sample jobs gain the test, the fresh seeds measure each card's σt,d
+    "dtt.enabled": (True, {"sample", "fresh_seeds"}),
     **{f"dtt.{k}": (v, set()) for k, v in {  # off in the smoke study: nothing reads them
         "scale": 0.31, "grip_velocity": 0.011, "grip_length": 0.21, "grip_clearance": 1.1,
         "damping": 0.71, "stop_drop": 0.21, "post_peak_strain": 0.00011, "max_strain": 0.021,
-        "record_strain": 2.1e-6}.items()},
+        "record_strain": 2.1e-6, "density_scaling": 0.3}.items()},
     "lab.csv": ("config/lab/green_sandstone_copy.csv",
                 {"calibrate_initial", "calibrate", "verification_tables",
                  "triaxial_envelopes"}),

@@ -217,9 +217,10 @@ rule fresh_seeds:
             if BTS_ON
             else []
         ),
+        # σt,d too when the study runs direct tension (a target, or the prediction)
         dtt_runs=(
             [FILES.fresh_seed_dtt_run("{spec}", s) for s in FRESH_SEEDS]
-            if LAB_DTT
+            if LAB_DTT or DTT_ON
             else []
         ),
         tri_runs=(

@@ -96,6 +96,8 @@ def specimen_args(cfg: dict, scale=None, loading: bool = True, ucs: bool = True,
         for k in ("platen_velocity", "damping", "stop_drop", "max_strain", "platen_fric",
                   "record_strain", "end_cap", "end_cap_factor"):
             opts["--" + k.replace("_", "-")] = u[k]
+    if loading and u["density_scaling"] is not None:  # null: the true masses
+        opts["--density-scaling"] = u["density_scaling"]
     if loading and ucs:
         opts["--approach-velocity"] = u["approach_velocity"]
         opts["--approach-ramp"] = u["approach_ramp"]
@@ -129,7 +131,8 @@ def dtt_args(cfg: dict) -> list[str]:
     d = cfg["dtt"]
     opts = {} if d["scale"] is None else {"--dtt-scale": d["scale"]}  # null: the cylinder's
     for f in DTT_OPTIONS:
-        opts[f"--dtt-{f.replace('_', '-')}"] = d[f]
+        if d[f] is not None:  # null (density_scaling): the option's default
+            opts[f"--dtt-{f.replace('_', '-')}"] = d[f]
     return _pairs(opts)
 
 
@@ -274,8 +277,10 @@ def _fresh_seeds(c, t, cache):
             _out("--runs", "runs"), _out("--bts-runs", "bts_runs", True),
             _out("--dtt-runs", "dtt_runs", True), _out("--tri-runs", "tri_runs", True),
             _out("--seed-runs", "seed_runs"), THREADS, *specimen_args(c, cache=cache),
-            # every card's σt on the fresh seeds (a target, or the card's prediction)
-            *_tests(c, bool(c["bts"]["enabled"]), "dtt" in t, "tri" in t)]
+            # every card's σt (and σt,d) on the fresh seeds when the study runs the test
+            # (a target, or the card's prediction)
+            *_tests(c, bool(c["bts"]["enabled"]), "dtt" in t or bool(c["dtt"]["enabled"]),
+                    "tri" in t)]
 
 
 def _fresh_seeds_table(c, t, cache):

@@ -123,6 +123,13 @@ def add_specimen_args(p, geo=None, what: str = "the 50 x 100 mm cylinder"):
     add_budget_args(p)
 
 
+#: the help of every test's density-scaling option (``{d}``: its default)
+DENSITY_SCALING_HELP = ("PFC's density scaling: each ball's inertial mass raised so that "
+                        "its critical timestep reaches this quantile of the balls' own "
+                        "(0.5: the median ball's), for fewer steps to the same quasi-static "
+                        "answer (default {d}: the true masses)")
+
+
 def add_run_args(p, loading=None):
     """Options of the cylinder and of its axial loading (shared by ucs, triaxial, verify,
     scatter, impact); the loading defaults are ``loading``'s (default ``UCSSettings()``)."""
@@ -149,6 +156,9 @@ def add_run_args(p, loading=None):
     p.add_argument("--stop-drop", type=fraction("stop-drop"), default=ld.stop_drop,
                    help="stop when stress < this fraction of the peak after it "
                         f"(default {ld.stop_drop:g})")
+    p.add_argument("--density-scaling", type=number("density-scaling", 0.0, 1.0),
+                   default=ld.density_scaling, metavar="Q", help=DENSITY_SCALING_HELP.format(
+                       d=ld.density_scaling))
     p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
                    default=ld.max_strain,
                    help=f"stop at this axial strain (default {ld.max_strain:g})")
@@ -204,6 +214,7 @@ def run_settings(args, cls=None, **extra):
                 if k in fields and hasattr(args, k)}  # the UCS test's
     return cls(platen_velocity=args.platen_velocity, strain_rate=args.strain_rate,
                damping=args.damping, stop_drop=args.stop_drop, max_strain=args.max_strain,
+               density_scaling=args.density_scaling,
                platen_fric=args.platen_fric, record_strain=args.record_strain,
                end_cap=args.end_cap, end_cap_factor=args.end_cap_factor,
                max_steps=args.max_steps, **approach, **extra)
@@ -219,8 +230,8 @@ def file_arg(p, flag, help_, nargs=None):
 #: passes its `bts` section to all three, so σt is measured as for the regression's model)
 BTS_OPTIONS = ("min_balls_across", "loading", "jaw_ratio", "contact_cap", "contact_cap_factor",
                "central_zone", "retests", "platen_velocity", "approach_velocity", "approach_damage",
-               "platen_fric", "damping", "stop_drop", "post_peak_strain", "max_strain",
-               "record_strain")
+               "platen_fric", "damping", "stop_drop", "density_scaling", "post_peak_strain",
+               "max_strain", "record_strain")
 
 def _add_options(g, spec: dict, defaults, lab) -> None:
     """The options of ``spec`` (field -> (type, help with ``{d}`` for the default)) on
@@ -239,6 +250,7 @@ def _stop_spec(lab) -> dict:
         "stop_drop": (fraction(lab("stop_drop")),
                       "stop when the load < this fraction of the peak after it "
                       "(default {d:g})"),
+        "density_scaling": (number(lab("density_scaling"), 0.0, 1.0), DENSITY_SCALING_HELP),
     }
 
 
@@ -346,7 +358,7 @@ def bts_disc_of(args, prefix: str = ""):
 
 #: DTTSettings fields that are command options (``bpmcal dtt --FIELD``)
 DTT_OPTIONS = ("grip_velocity", "grip_length", "grip_clearance", "damping", "stop_drop",
-               "post_peak_strain", "max_strain", "record_strain")
+               "density_scaling", "post_peak_strain", "max_strain", "record_strain")
 
 
 def add_dtt_args(p, prefix: str = ""):

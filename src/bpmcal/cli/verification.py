@@ -172,7 +172,8 @@ def _add_fresh_seeds(p):
                         "tensile-strength target; failure records 'not run' without one)")
     p.add_argument("--dtt-runs", nargs="+", default=None,
                    help="output direct-tension run files, one per seed (needed when the card "
-                        "has a direct-tension target, dtt_MPa)")
+                        "has a direct-tension target, dtt_MPa; else σt,d is the card's "
+                        "prediction)")
     p.add_argument("--tri-runs", nargs="+", default=None,
                    help="output triaxial run files at --design-sigma3, one per seed (needed when "
                         "the card has a triaxial-strength target, tri_MPa)")

@@ -108,9 +108,10 @@ def measure_walls(wvel, wradv, wmass, wforce, wradsum, prm, out):
 
 
 @jit
-def stiffness_timestep(radius, mass, inertia, fix, pi, pj, npairs, nb, bstate, sb, nslots,
-                       prm, fjprm, fjlive, fjtwist):
-    """PFC-style critical timestep: min over balls of sqrt(m/k_tran), sqrt(I/k_rot).
+def ball_stiffness(radius, pi, pj, npairs, nb, bstate, sb, nslots, prm, fjprm, fjlive,
+                   fjtwist):
+    """Each ball's translational and rotational stiffness (k_tran, k_rot), PFC's estimate
+    for the critical timestep.
 
     k_tran sums kn + kn_bar A (using max(kn, ks) and max of the bond stiffnesses) over
     every pair in the neighbour list (in contact or within the skin, so contacts about
@@ -118,7 +119,7 @@ def stiffness_timestep(radius, mass, inertia, fix, pi, pj, npairs, nb, bstate, s
     max(ks_bar J, kn_bar I)). A live flat joint (``fjlive[k]``; ``fjprm`` its law's
     parameters, ``fjtwist`` = sum A_e rho_e^2 of a unit interface) counts instead of the
     linear contact with k_tran = max(kn, ks) A and k_rot = ks A a^2 + max(kn I,
-    ks R^4 fjtwist) (docs/flatjoint-spec.md §5). Returns (dt_crit, index of the limiting ball).
+    ks R^4 fjtwist) (docs/flatjoint-spec.md §5).
     """
     n = radius.shape[0]
     kt = np.zeros(n)
@@ -160,6 +161,17 @@ def stiffness_timestep(radius, mass, inertia, fix, pi, pj, npairs, nb, bstate, s
         ks = kn / kratio
         kt[b] += max(kn, ks)
         kr[b] += ks * radius[b] * radius[b]
+    return kt, kr
+
+
+@jit
+def stiffness_timestep(radius, mass, inertia, fix, pi, pj, npairs, nb, bstate, sb, nslots,
+                       prm, fjprm, fjlive, fjtwist):
+    """PFC-style critical timestep: min over balls of sqrt(m/k_tran), sqrt(I/k_rot)
+    (:func:`ball_stiffness`). Returns (dt_crit, index of the limiting ball)."""
+    n = radius.shape[0]
+    kt, kr = ball_stiffness(radius, pi, pj, npairs, nb, bstate, sb, nslots, prm, fjprm,
+                            fjlive, fjtwist)
     best = np.inf
     arg = -1
     for i in range(n):

@@ -373,6 +373,47 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
             arg = i
         return float(dtc), int(arg)
 
+    def scale_density(self, quantile: float | None) -> dict:
+        """PFC's density scaling for quasi-static runs, ball by ball: raise each ball's
+        inertial mass and moment of inertia so that its own critical timestep (sqrt(m /
+        k_tran), sqrt(I / k_rot), the stiffnesses of :meth:`critical_timestep`) is at least
+        the ``quantile`` of all the free balls' (0: the smallest, no change; 0.5: the median
+        ball's). The critical timestep, and so the timestep :meth:`set_timestep` then sets,
+        grows by that factor; the balls that limited it get heavier, the others keep their
+        mass. Masses are always scaled from the balls' true masses (a second call replaces
+        the first; ``None`` restores them). Inertia only: a run with gravity is refused
+        (the weight would change). Returns ``dt_gain`` (the critical timestep's factor)
+        and ``mass_added`` (the fraction of the total mass added)."""
+        if not hasattr(self, "_true_mass"):
+            self._true_mass = (self.B.mass.copy(), self.B.inertia.copy())
+        m0, i0 = self._true_mass
+        self.B.mass[:], self.B.inertia[:] = m0, i0
+        if quantile is None or quantile == 0:
+            return {"dt_gain": 1.0, "mass_added": 0.0}
+        if isinstance(quantile, bool) or not (isinstance(quantile, (int, float))
+                                              and 0.0 <= quantile <= 1.0):
+            raise InputError(f"density scaling quantile={quantile!r}: expected a fraction "
+                             "in [0, 1] (or None: no scaling)")
+        if np.any(self.prm[P_GX:P_GX + 3] != 0.0):
+            raise InputError("density scaling with gravity on: the scaled masses would "
+                             "change the weight; expected a run without gravity")
+        self._ensure_lists()
+        F = self.Fj
+        kt, kr = D.ball_stiffness(self.B.radius, self.P.pi, self.P.pj,
+                                  int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]),
+                                  self.Bd.state, self.S.b, int(self.iprm[I_NSLOTS]), self.prm,
+                                  F.prm, F.flag[:, FJ.K_LIVE], FJ.twist_factor(F.geo))
+        with np.errstate(divide="ignore"):
+            t = np.minimum(np.sqrt(m0 / kt), np.sqrt(i0 / kr))
+        t = t[(self.B.fix != FIX_ALL) & np.isfinite(t)]
+        if not t.size:  # no contacts: nothing limits the timestep through them
+            return {"dt_gain": 1.0, "mass_added": 0.0}
+        target = float(np.quantile(t, float(quantile)))
+        self.B.mass[:] = np.maximum(m0, target * target * kt)
+        self.B.inertia[:] = np.maximum(i0, target * target * kr)
+        return {"dt_gain": target / float(t.min()),
+                "mass_added": float(self.B.mass.sum() / m0.sum() - 1.0)}
+
     def set_timestep(self, dt: float | None = None, safety: float = 0.8):
         """Set dt; ``None`` uses ``safety`` x the critical estimate. A dt above the
         critical estimate is refused."""

@@ -118,6 +118,7 @@ from .driver import (
     check_loading_settings,
     record_common,
     run_test,
+    scaled_timestep,
 )
 from .records import loading_cracks
 from .servo import Servo, ServoError, ServoLoop
@@ -171,6 +172,7 @@ class BTSSettings:
     loading: str = "flat"  # "flat": two planar platens | "jaws": ISRM curved jaws
     jaw_ratio: float = 1.5  # jaw radius / disc radius (ISRM: 1.5)
     retests: int = 2  # discs tested after an invalid one (runner.bts_test; ISRM practice)
+    density_scaling: float | None = None  # quantile: PFC's density scaling (lab.driver)
 
     def loading_at(self, length: float) -> Loading:
         """The loading of a disc of diameter ``length`` [m] (strain: the platens' approach
@@ -578,8 +580,7 @@ class BrazilianTest(LoadingTest):
         self.caps = install_contact_caps(sp, st.contact_cap, st.contact_cap_factor,
                                          st.contact_cap_bridge)
         m.set_damping(st.damping)
-        m.set_timestep(None)
-        self.dt = m.dt
+        self.dt = scaled_timestep(self)
         self.bound = loading_bound(m, st, loading)
         self.seated = seat(sp, self.walls, st)
         self.approach = st.approach_velocity > self.v  # fast approach until the first crack(s)

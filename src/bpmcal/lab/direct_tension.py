@@ -46,7 +46,14 @@ from ..dem.errors import InputError
 from ..dem.slots import FIX_VZ
 from ..exact_math import lsq_slope
 from .budget import Loading, platen_loading
-from .driver import Loaded, LoadingTest, check_loading_settings, record_common, run_test
+from .driver import (
+    Loaded,
+    LoadingTest,
+    check_loading_settings,
+    record_common,
+    run_test,
+    scaled_timestep,
+)
 from .records import loading_cracks
 from .specimen import Specimen
 from .stepping import cycle, loading_bound
@@ -70,6 +77,7 @@ class DTTSettings:
     record_strain: float = 2e-6  # axial strain between records
     fit_window: tuple = (0.2, 0.5)  # E_t over this range of the peak stress
     grip_clearance: float = 1.0  # mean ball diameters: a fracture closer to a grip is invalid
+    density_scaling: float | None = None  # quantile: PFC's density scaling (lab.driver)
 
     def loading_at(self, length: float) -> Loading:
         """The loading of a cylinder of ``length`` [m] (the height between the grips' ends)."""
@@ -160,8 +168,7 @@ class DirectTensionTest(LoadingTest):
         m.set_velocity(bot, vel=np.column_stack([m.velocities[bot, :2], vb[:, 2]]))
         m.set_velocity(top, vel=np.column_stack([m.velocities[top, :2], vt[:, 2]]))
         m.set_damping(st.damping)
-        m.set_timestep(None)
-        self.dt = m.dt
+        self.dt = scaled_timestep(self)
         self.bound = loading_bound(m, st, loading)
         self.n_rec = max(1, int(round(st.record_strain * H0 / (2 * v * self.dt))))
         self.series = {k: [] for k in DTT_SERIES}

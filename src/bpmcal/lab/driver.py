@@ -21,6 +21,8 @@ what every test did the same way before, each in its own loop:
   engine's energy terms, the unbalanced-force ratio) and the common summary
   (:meth:`Loaded.summary`: final crack counts, steps, wall time, stop reason, time step;
   :meth:`Loaded.records`);
+- the time step (:func:`scaled_timestep`), with PFC's density scaling where the
+  settings ask for it (``density_scaling``);
 - the checks of the settings they share (:func:`check_loading_settings`).
 
 Hooks with defaults (:class:`LoadingTest`): ``on_record(stress, strain)`` after every
@@ -70,11 +72,28 @@ def check_loading_settings(st) -> None:
         v = getattr(st, name)
         if not (number(v) and ok(v)):
             raise InputError(f"{name}={v!r}: expected {expected}")
+    q = getattr(st, "density_scaling", None)
+    if q is not None and not (number(q) and 0.0 <= q <= 1.0):
+        raise InputError(f"density_scaling={q!r}: expected a quantile in [0, 1] (the balls' "
+                         "critical timestep every ball's mass is scaled to reach), or None: "
+                         "no scaling")
     window = getattr(st, "fit_window", None)
     if window is not None:
         lo, hi = window
         if not (0.0 <= lo < hi <= 1.0):
             raise InputError(f"fit_window={window!r}: expected 0 <= lo < hi <= 1")
+
+
+def scaled_timestep(test) -> float:
+    """The time step of a prepared test (its model ``test.m``): PFC's 0.8 x the critical
+    timestep, after scaling the balls' inertial masses to the ``density_scaling`` quantile
+    of their own critical timesteps when its settings give one (``Model.scale_density``:
+    quasi-static loading only; None: the true masses). Keeps what the scaling did on the
+    test (``density``: ``dt_gain``, ``mass_added``) for its summary."""
+    m, q = test.m, getattr(test.settings, "density_scaling", None)
+    test.density = m.scale_density(q) if q is not None else None
+    m.set_timestep(None)
+    return m.dt
 
 
 class PeakTracker:
@@ -181,10 +200,13 @@ class Loaded:
         test places itself: the order of a summary's keys is the order of the columns of
         the tables built from it (a closed loop's seed table), kept as it was."""
         ser, m = test.series, test.m
+        d = getattr(test, "density", None)  # with density scaling: its timestep gain
         return {"cracks_tension": int(ser["cracks_tension"][-1]),
                 "cracks_shear": int(ser["cracks_shear"][-1]),
                 "steps": int(m.step - test.step0), "wall_s": self.wall_s,
-                **(before_stop or {}), "stop_reason": self.reason, "dt": test.dt}
+                **(before_stop or {}), "stop_reason": self.reason, "dt": test.dt,
+                **({} if d is None else {"density_dt_gain": d["dt_gain"],
+                                         "density_mass_added": d["mass_added"]})}
 
     @staticmethod
     def records(test) -> int:

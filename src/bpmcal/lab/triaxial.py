@@ -63,7 +63,14 @@ import numpy as np
 
 from ..dem.errors import InputError
 from .budget import Loading, platen_loading
-from .driver import Loaded, LoadingTest, check_loading_settings, record_common, run_test
+from .driver import (
+    Loaded,
+    LoadingTest,
+    check_loading_settings,
+    record_common,
+    run_test,
+    scaled_timestep,
+)
 from .records import LateralGauge, loading_cracks
 from .servo import Servo, ServoError, ServoLoop
 from .specimen import Specimen
@@ -106,6 +113,7 @@ class TriaxialSettings:
     ci_fraction: float = 0.01
     end_cap: float = END_CAP_HEIGHT  # end caps as in the UCS test (lab.ucs) [mean ball diameters]
     end_cap_factor: float = END_CAP_FACTOR
+    density_scaling: float | None = None  # quantile: PFC's density scaling (lab.driver)
 
     def loading_at(self, length: float) -> Loading:
         """The axial loading of a cylinder of ``length`` [m] (the consolidated height)."""
@@ -277,8 +285,7 @@ class TriaxialTest(LoadingTest):
         m.set_wall_friction(wl, st.wall_fric)
         self.caps = install_end_caps(sp, st.end_cap, st.end_cap_factor)  # before consolidation
         m.set_damping(st.damping)
-        m.set_timestep(None)
-        self.dt = m.dt
+        self.dt = scaled_timestep(self)
         self.bound = loading_bound(m, st, st.loading_at(sp.z_top - sp.z_bottom))
         t_c = time.perf_counter()
         self.con = consolidate(sp, st)

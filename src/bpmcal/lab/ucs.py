@@ -77,7 +77,14 @@ import numpy as np
 from ..dem.errors import InputError
 from ..exact_math import lsq_slope
 from .budget import Loading, platen_loading
-from .driver import Loaded, LoadingTest, check_loading_settings, record_common, run_test
+from .driver import (
+    Loaded,
+    LoadingTest,
+    check_loading_settings,
+    record_common,
+    run_test,
+    scaled_timestep,
+)
 from .records import LateralGauge, loading_cracks
 from .specimen import Specimen, apply_end_caps
 from .stepping import cycle, loading_bound
@@ -145,6 +152,7 @@ class UCSSettings:
     end_cap_factor: float = END_CAP_FACTOR  # strength factor of the end caps' bonds
     approach_velocity: float = 0.1  # m/s, each platen until the first crack (0: off)
     approach_ramp: float = 5.0  # wave transits over which the platens slow from it to v
+    density_scaling: float | None = None  # quantile: PFC's density scaling (lab.driver)
 
     def loading_at(self, length: float) -> Loading:
         """The loading of a cylinder of ``length`` [m] (the loaded height)."""
@@ -369,8 +377,7 @@ class UCSTest(LoadingTest):
         ax.approaching = approach
         m.set_wall_friction([wb, wt], st.platen_fric)
         m.set_damping(st.damping)
-        m.set_timestep(None)
-        self.dt = m.dt
+        self.dt = scaled_timestep(self)
         self.bound = loading_bound(m, st, loading)
         ax.records_every(st.record_strain, self.dt)
         pos0 = m.positions.copy()

@@ -158,6 +158,7 @@ def fresh_seeds_section(lay) -> str:
     t = read_table(lay, L.FRESH_SEEDS)
     if t is None:
         return ""
+    ratio = direct_over_brazilian(t)
     pred = t[t["role"] == "prediction"] if "role" in t.columns else t.iloc[:0]
     t = t[t["role"] != "prediction"] if "role" in t.columns else t
     if "passed" not in t.columns:  # a table of an older bpmcal: judged against the lab only
@@ -171,7 +172,7 @@ def fresh_seeds_section(lay) -> str:
     return ("\n### The verified cards on fresh packing seeds\n\n"
             f"Each verified card re-run on packing seeds its closed loop never saw ({seeds}). "
             + _fresh_check(t, notes, by_loop, z) + _fresh_against_lab(lay, t, notes, z)
-            + _predicted_tension(pred))
+            + _predicted_tension(pred) + ratio)
 
 
 def _fresh_check(t: pd.DataFrame, notes: pd.Series, by_loop: pd.DataFrame, z: float) -> str:
@@ -293,9 +294,38 @@ def _predicted_tension(pred: pd.DataFrame) -> str:
         return ""
     rows = [[r["specimen"], P.RESPONSES[r["response"]].unicode, f"{num(r['mean'])} ± {num(r['se'])}",
              num(r["cv_pct"], ".1f"), f"{int(r['n'])}"] for _, r in pred.iterrows()]
-    return ("\nσt of each card on the same fresh seeds (the lab gives none for it: a "
-            "prediction; valid tests only, an invalid disc rerun on a replacement seed). "
-            "The CV is the scatter of one disc between packings: a single disc of the study's "
-            "size measures σt to about that, the mean of n discs to CV/√n.\n\n"
+    return ("\nThe tensile strengths each card has no lab value for, on the same fresh seeds "
+            "(a prediction; valid tests only, an invalid specimen rerun on a replacement "
+            "seed). The CV is the scatter of one specimen between packings: a single disc or "
+            "cylinder of the study's size measures the strength to about that, the mean of n "
+            "to CV/√n.\n\n"
             + markdown_table(rows, ["specimen", "response", "fresh seeds: mean ± se",
                                     "seed CV %", "valid seeds"]) + "\n")
+
+
+def direct_over_brazilian(t: pd.DataFrame) -> str:
+    """Each card's direct/Brazilian ratio σt,d/σt on its fresh seeds (a fresh-seeds table
+    ``t`` with rows of both ``dtt_MPa`` and ``bts_MPa``, targets or predictions): the ratio
+    of the two means, its standard error from theirs (first order; the two are measured on
+    different specimens of the same packing seeds), "" when no card has both."""
+    rows = []
+    for sp, g in t.groupby("specimen", sort=False):
+        by = {r["response"]: r for _, r in g.iterrows()}
+        if not {"dtt_MPa", "bts_MPa"} <= set(by):
+            continue
+        d, b = by["dtt_MPa"], by["bts_MPa"]
+        if not (math.isfinite(d["mean"]) and math.isfinite(b["mean"]) and b["mean"] > 0):
+            rows.append([sp, "–", "–", f"{int(d['n'])}, {int(b['n'])}"])
+            continue
+        r = d["mean"] / b["mean"]
+        se = r * math.hypot(d["se"] / d["mean"], b["se"] / b["mean"])
+        rows.append([sp, f"{num(d['mean'])} / {num(b['mean'])}",
+                     f"{r:.2f} ± {se:.2f}" if math.isfinite(se) else f"{r:.2f}",
+                     f"{int(d['n'])}, {int(b['n'])}"])
+    if not rows:
+        return ""
+    return ("\nThe direct/Brazilian ratio σt,d/σt of each card on the same fresh seeds (rock: "
+            "about 0.7–0.8; the ratio of the two means, ± its standard error from theirs; "
+            "the cylinder and the disc are different specimens of each packing seed):\n\n"
+            + markdown_table(rows, ["specimen", "σt,d / σt [MPa]", "σt,d/σt",
+                                    "valid seeds (direct, Brazilian)"]) + "\n")

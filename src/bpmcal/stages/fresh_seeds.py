@@ -77,11 +77,13 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, tests, ctx: RunContext = RunCon
     ``bts_runs``, the Brazilian test of the same seed (its disc, default the ISRM disc at
     the cylinder's scale, and loading) into ``bts_runs[i]``: σt judged against the lab's
     when it is a target (``bts_runs`` is then required), else the card's prediction and
-    its seed scatter. A card with a direct-tension target (``dtt_MPa``) runs the
-    direct-tension test of every seed into ``dtt_runs[i]`` (its cylinder, default the UCS
-    cylinder); a card with a triaxial-strength target (``tri_MPa``) the triaxial test of
-    ``tests.tri_settings`` (its design confinement) on the UCS cylinder into
-    ``tri_runs[i]``. ``ctx``: how the DEM runs (:class:`~bpmcal.lab.run_context.RunContext`).
+    its seed scatter. With ``dtt_runs`` the direct-tension test of every seed runs into
+    ``dtt_runs[i]`` (its cylinder, default the UCS cylinder), likewise a target or the
+    card's prediction (a card with a direct-tension target, ``dtt_MPa``, needs them; with
+    both tensile tests the report gives the card's direct/Brazilian ratio); a card with a
+    triaxial-strength target (``tri_MPa``) the triaxial test of ``tests.tri_settings``
+    (its design confinement) on the UCS cylinder into ``tri_runs[i]``. ``ctx``: how the
+    DEM runs (:class:`~bpmcal.lab.run_context.RunContext`).
     An invalid tensile test is run again on replacement
     seeds (:func:`~.measure.valid_tensile_run`); when none is valid the seed has no σt
     (NaN, the reasons in ``error``) and keeps its UCS responses. σt is measured as the card's
@@ -111,6 +113,7 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, tests, ctx: RunContext = RunCon
     ran = v.get("status") != "not-run" and bool(v.get("parameters"))  # verified parameters
     with_bts = BTS in c["targets"]
     with_dtt = "dtt_MPa" in c["targets"]
+    run_dtt = with_dtt or dtt_runs is not None  # a target, or the card's prediction
     if with_bts and bts_runs is None and ran:
         raise BadInput(f"--card {card} has a tensile-strength target (bts_MPa): give "
                        "--bts-runs, one Brazilian run file per seed")
@@ -135,16 +138,17 @@ def fresh_seeds(card, *, seeds, runs, seed_runs, tests, ctx: RunContext = RunCon
                             cylinder if with_dtt else None)
     if ran:
         ctx.check_budget(params, geometry, *([disc] if bts_runs is not None else []),
-                         *([cylinder] if with_dtt else []))
+                         *([cylinder] if run_dtt else []))
     outputs(*((r, "--runs", H5) for r in runs), *((r, "--bts-runs", H5) for r in bts_runs or ()),
             *((r, "--dtt-runs", H5) for r in dtt_runs or ()),
             *((r, "--tri-runs", H5) for r in tri_runs or ()), (seed_runs, "--seed-runs", CSV))
     # the per-sample tests besides the UCS test: (strength, run files, measured for this
-    # card - σt always, as a target or the card's prediction -, run test, specimen,
-    # settings, inputs of its record, what it is, the target it needs)
+    # card - σt and σt,d whenever their run files are given, as a target or the card's
+    # prediction -, run test, specimen, settings, inputs of its record, what it is, the
+    # target it needs)
     extra = [(BTS, bts_runs, True, "bts", disc, tests.bts_settings, bts_inputs,
               "Brazilian test", ""),
-             ("dtt_MPa", dtt_runs, with_dtt, "dtt", cylinder, tests.dtt_settings, dtt_inputs,
+             ("dtt_MPa", dtt_runs, run_dtt, "dtt", cylinder, tests.dtt_settings, dtt_inputs,
               "direct-tension test", "direct-tension target"),
              (P.TRI, tri_runs, with_tri, "triaxial", geometry, tests.tri_settings, _tri_inputs,
               "triaxial test", "triaxial-strength target")]

@@ -132,3 +132,19 @@ def test_a_missing_file_is_refused_and_an_optional_one_left_out(cfg):
         job_options(cfg, "nope")
     with pytest.raises(ValueError, match=r"targets \['sigma'\]"):
         job_options(cfg, "verify", targets={"sigma"})
+
+
+def test_fresh_seeds_carry_the_direct_tension_settings_when_the_study_runs_that_test():
+    """dtt.enabled without a lab σt,d target: the fresh seeds measure the card's σt,d as a
+    prediction, so their command carries the direct-tension settings; off, it does not."""
+    on = _config("config.yaml", dtt={"enabled": True, "grip_velocity": 0.02})
+    a = _parse(job_argv(on, "fresh_seeds", threads=1, targets=(),
+                        **_files(on, "fresh_seeds")))
+    assert a.dtt_runs == ["output_dtt_runs"] and a.dtt_grip_velocity == 0.02
+    off = _config("config.yaml", dtt={"grip_velocity": 0.02})
+    b = _parse(job_argv(off, "fresh_seeds", threads=1, targets=(),
+                        output={k: v for k, v in _files(off, "fresh_seeds")["output"].items()
+                                if k != "dtt_runs"},
+                        input=_files(off, "fresh_seeds")["input"]))
+    assert b.dtt_runs is None and "--dtt-grip-velocity" not in job_argv(
+        off, "fresh_seeds", threads=1, targets=(), **_files(off, "fresh_seeds"))

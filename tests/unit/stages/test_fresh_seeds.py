@@ -500,3 +500,81 @@ def test_the_report_judges_the_cards_against_their_closed_loops(verified, monkey
     H.fresh_seeds_table([card], [tmp_path / "h" / "old.csv"], table=table)
     assert (f"Judged against the lab instead (no closed-loop mean of the same runs): "
             f"B1 ({H.OLD_SEED_TABLE})") in fresh_seeds_section(lay)
+
+
+class TensileDEM:
+    """Brazilian and direct-tension 'runs' of fresh seeds: σt 10 MPa and σt,d 7.5 MPa on
+    every seed but 102, where each is 2 % high."""
+
+    def __init__(self):
+        self.calls = []
+
+    def _run(self, test, value, out, seed):
+        from bpmcal.io.h5 import RunRecord, write_run
+        from bpmcal.lab.seeds import REPLICATE_STRIDE
+
+        self.calls.append((test, seed))
+        v = value * (1.02 if seed % REPLICATE_STRIDE == 102 else 1.0)  # its every specimen
+        s = {f"{test}_peak_MPa": v, f"{test}_MPa": v, f"{test}_valid": True,
+             f"{test}_invalid_reason": ""}
+        write_run(out, RunRecord(test=test, inputs={"seed": seed}, summary=s))
+        return RunOutcome(status="ok", summary=s, path=out)
+
+    def bts(self, out, params, seed, geometry, settings, **kw):
+        return self._run("bts", 10.0, out, seed)
+
+    def dtt(self, out, params, seed, geometry, settings, **kw):
+        return self._run("dtt", 7.5, out, seed)
+
+
+def test_direct_tension_without_a_target_is_measured_as_the_cards_prediction(
+        verified, monkeypatch):
+    """A card with neither tensile target whose fresh seeds are given direct-tension run
+    files (a study running both tensile tests): every seed runs the direct-tension test
+    beside its Brazilian one, σt,d is a "prediction" row of the table, and the report
+    gives the card's direct/Brazilian ratio (the ratio of the means, its standard error
+    from theirs)."""
+    from bpmcal.io.h5 import check_run_file
+    from bpmcal.report.verification import direct_over_brazilian
+
+    tmp_path, card, _ = verified
+    dem, tens = FreshDEM(), TensileDEM()
+    monkeypatch.setitem(M.RUNNERS, "ucs", dem)
+    monkeypatch.setitem(M.RUNNERS, "bts", tens.bts)
+    monkeypatch.setitem(M.RUNNERS, "dtt", tens.dtt)
+    seeds, d = [101, 102, 103], tmp_path / "h"
+    df = run_fresh_seeds(tmp_path, card, seeds, bts_runs=[d / f"s{s}.bts.h5" for s in seeds],
+                         dtt_runs=[d / f"s{s}.dtt.h5" for s in seeds])
+    from bpmcal.lab.seeds import REPLICATE_STRIDE
+
+    for test in ("bts", "dtt"):  # every seed's first specimen (more: its replicates)
+        assert {s for t, s in tens.calls if t == test and s < REPLICATE_STRIDE} == set(seeds)
+    assert df["dtt_MPa"].tolist() == pytest.approx([7.5, 7.65, 7.5])
+    assert check_run_file(d / "s102.dtt.h5")["status"] == "ok"
+    t = H.fresh_seeds_table([card], [d / "seeds.csv"], table=tmp_path / "t.csv")
+    pred = t[t["role"] == "prediction"].set_index("response")
+    assert set(pred.index) == {"bts_MPa", "dtt_MPa"}
+    direct, brazil = np.array([7.5, 7.65, 7.5]), np.array([10.0, 10.2, 10.0])
+    assert pred.loc["dtt_MPa", "mean"] == pytest.approx(direct.mean())
+    r = direct.mean() / brazil.mean()
+    se = r * math.hypot(direct.std(ddof=1) / math.sqrt(3) / direct.mean(),
+                        brazil.std(ddof=1) / math.sqrt(3) / brazil.mean())
+    text = direct_over_brazilian(t)
+    assert f"| {r:.2f} ± {se:.2f} |" in text and "| 3, 3 |" in text, text
+
+
+def test_without_direct_tension_run_files_the_card_has_no_ratio(verified, monkeypatch):
+    """The same card with Brazilian run files only (the default study): no direct-tension
+    run, no σt,d row, no ratio."""
+    from bpmcal.report.verification import direct_over_brazilian
+
+    tmp_path, card, _ = verified
+    tens = TensileDEM()
+    monkeypatch.setitem(M.RUNNERS, "ucs", FreshDEM())
+    monkeypatch.setitem(M.RUNNERS, "bts", tens.bts)
+    monkeypatch.setitem(M.RUNNERS, "dtt", tens.dtt)
+    d = tmp_path / "h"
+    run_fresh_seeds(tmp_path, card, [101, 102], bts_runs=[d / "a.h5", d / "b.h5"])
+    assert {t for t, _ in tens.calls} == {"bts"}
+    t = H.fresh_seeds_table([card], [d / "seeds.csv"], table=tmp_path / "t.csv")
+    assert "dtt_MPa" not in set(t["response"]) and direct_over_brazilian(t) == ""
