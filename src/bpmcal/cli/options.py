@@ -123,11 +123,13 @@ def add_specimen_args(p, geo=None, what: str = "the 50 x 100 mm cylinder"):
     add_budget_args(p)
 
 
-#: the help of every test's density-scaling option (``{d}``: its default)
+#: the help of every test's density-scaling option (``{d}``: what its default does)
 DENSITY_SCALING_HELP = ("PFC's density scaling: each ball's inertial mass raised so that "
                         "its critical timestep reaches this quantile of the balls' own "
                         "(0.5: the median ball's), for fewer steps to the same quasi-static "
-                        "answer (default {d}: the true masses)")
+                        "answer; 0: the true masses (default: {d})")
+#: what the axial tests' (UCS, triaxial) density scaling is by default
+AXIAL_DENSITY_DEFAULT = "by contact model, 0.5 for parallel bonds, the true masses for flat joints"
 
 
 def add_run_args(p, loading=None):
@@ -158,7 +160,7 @@ def add_run_args(p, loading=None):
                         f"(default {ld.stop_drop:g})")
     p.add_argument("--density-scaling", type=number("density-scaling", 0.0, 1.0),
                    default=ld.density_scaling, metavar="Q", help=DENSITY_SCALING_HELP.format(
-                       d=ld.density_scaling))
+                       d=AXIAL_DENSITY_DEFAULT))
     p.add_argument("--max-strain", type=number("max-strain", 0.0, 0.5, lo_open=True),
                    default=ld.max_strain,
                    help=f"stop at this axial strain (default {ld.max_strain:g})")
@@ -250,7 +252,8 @@ def _stop_spec(lab) -> dict:
         "stop_drop": (fraction(lab("stop_drop")),
                       "stop when the load < this fraction of the peak after it "
                       "(default {d:g})"),
-        "density_scaling": (number(lab("density_scaling"), 0.0, 1.0), DENSITY_SCALING_HELP),
+        "density_scaling": (number(lab("density_scaling"), 0.0, 1.0),
+                            DENSITY_SCALING_HELP.replace("{d}", "the true masses")),
     }
 
 

@@ -285,7 +285,7 @@ class TriaxialTest(LoadingTest):
         m.set_wall_friction(wl, st.wall_fric)
         self.caps = install_end_caps(sp, st.end_cap, st.end_cap_factor)  # before consolidation
         m.set_damping(st.damping)
-        self.dt = scaled_timestep(self)
+        self.dt = scaled_timestep(self, axial=True)
         self.bound = loading_bound(m, st, st.loading_at(sp.z_top - sp.z_bottom))
         t_c = time.perf_counter()
         self.con = consolidate(sp, st)

@@ -377,7 +377,7 @@ class UCSTest(LoadingTest):
         ax.approaching = approach
         m.set_wall_friction([wb, wt], st.platen_fric)
         m.set_damping(st.damping)
-        self.dt = scaled_timestep(self)
+        self.dt = scaled_timestep(self, axial=True)
         self.bound = loading_bound(m, st, loading)
         ax.records_every(st.record_strain, self.dt)
         pos0 = m.positions.copy()

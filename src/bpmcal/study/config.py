@@ -121,7 +121,27 @@ def validate_config(config: dict, schema_path, base_dir=".", note=_stderr_line,
         msgs.extend(_semantic_checks(config, Path(base_dir), read_files))
     if msgs:
         raise ConfigError("invalid configuration:\n  " + "\n  ".join(msgs))
+    _density_scaling_note(config, note)
     return config
+
+
+#: where density scaling's paired effect on the design samples is measured
+DENSITY_SCALING_RECORD = "docs/measurements/2026-12-02j-density-scaling.md"
+
+
+def _density_scaling_note(config: dict, note) -> None:
+    """One line to ``note`` when a flat-jointed study scales its balls' densities
+    (``compression``, ``bts`` or ``dtt`` ``density_scaling`` set): it was validated on
+    parallel-bond cards, and moves a flat-jointed card's responses sample by sample."""
+    if config.get("contact_model") != "flatjoint":
+        return
+    on = [f"{s}.density_scaling" for s in ("compression", "bts", "dtt")
+          if (config.get(s) or {}).get("density_scaling") is not None]
+    if on:
+        note(f"config: contact_model flatjoint with {', '.join(on)} set: density scaling "
+             "is validated on parallel-bond cards; on flat-jointed ones it moves σc, E and ν "
+             f"by several per cent from sample to sample ({DENSITY_SCALING_RECORD}); set it "
+             "null for the true masses")
 
 
 #: the schema's place in a source checkout (the package is installed from one)

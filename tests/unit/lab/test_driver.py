@@ -247,11 +247,11 @@ def test_every_driven_test_checks_the_settings_they_share_alike(name, field, bad
 @pytest.mark.parametrize("seed", [1, 2])
 def test_density_scaling_gives_the_same_quasi_static_answer_in_fewer_steps(seed, tmp_path):
     """A UCS test and a Brazilian test of A1 with PFC's density scaling (the median ball's
-    critical timestep): the time step grows by the gain the summary records, the loading
-    takes about that many times fewer steps, and the answer is the quasi-static one:
-    E and ν as without (elastic: the same to 0.1 % and 0.5 %), σc and σt within 3 % (the
-    post-crack path of a small specimen moves a little with any change of the
-    trajectory). Without it the summary has no density keys."""
+    critical timestep) against the true masses (0): the time step grows by the gain the
+    summary records, the loading takes about that many times fewer steps, and the answer
+    is the quasi-static one: E and ν as without (elastic: the same to 0.1 % and 0.5 %), σc
+    and σt within 3 % (the post-crack path of a small specimen moves a little with any
+    change of the trajectory). With the true masses the summary has no density keys."""
     import dataclasses
 
     from support.paper import A1, FAST, SMALL
@@ -264,8 +264,8 @@ def test_density_scaling_gives_the_same_quasi_static_answer_in_fewer_steps(seed,
                          **kw).summary,
                 bts_test(A1, seed, bts_geometry(scale=0.45),
                          BTSSettings(density_scaling=q, retests=0), **kw).summary)
-            for q in (None, 0.5)}
-    (u0, b0), (u1, b1) = runs[None], runs[0.5]
+            for q in (0.0, 0.5)}
+    (u0, b0), (u1, b1) = runs[0.0], runs[0.5]
     assert "density_dt_gain" not in u0 and "density_dt_gain" not in b0
     for s0, s1 in ((u0, u1), (b0, b1)):
         gain = s1["density_dt_gain"]
@@ -277,3 +277,38 @@ def test_density_scaling_gives_the_same_quasi_static_answer_in_fewer_steps(seed,
     assert u1["ucs_MPa"] == pytest.approx(u0["ucs_MPa"], rel=0.03)
     assert b0["bts_valid"] and b1["bts_valid"]
     assert b1["bts_MPa"] == pytest.approx(b0["bts_MPa"], rel=0.03)
+
+
+def test_the_default_scales_the_axial_tests_of_parallel_bonds_only(tmp_path):
+    """density_scaling None (every settings class's default): the UCS and triaxial tests of
+    a parallel-bonded card run at the contact model's quantile (AXIAL_DENSITY_SCALING,
+    the same run as the quantile given), a flat-jointed card's and every Brazilian or
+    direct-tension test with the true masses (the same run as 0)."""
+    import dataclasses
+
+    from support.paper import A1, FAST, FJ1, SMALL
+
+    from bpmcal.lab.brazilian import BTSSettings
+    from bpmcal.lab.driver import AXIAL_DENSITY_SCALING, density_quantile
+    from bpmcal.lab.runner import bts_geometry, bts_test, ucs_test
+
+    assert AXIAL_DENSITY_SCALING == {"linearpbond": 0.5, "flatjoint": None}
+    assert density_quantile(FAST, True, "linearpbond") == 0.5
+    assert density_quantile(FAST, True, "flatjoint") is None
+    assert density_quantile(BTSSettings(), False, "linearpbond") is None
+    assert density_quantile(BTSSettings(density_scaling=0.3), False, "flatjoint") == 0.3
+    kw = dict(threads=1, keep_particles=False, cache=tmp_path)
+    short = dataclasses.replace(FAST, max_strain=2e-3)  # elastic: E, ν and the steps
+    pb = {q: ucs_test(A1, 1, SMALL, dataclasses.replace(short, density_scaling=q),
+                      **kw).summary for q in (None, 0.5)}
+    same = ("steps", "dt", "E_GPa", "nu", "density_dt_gain", "density_mass_added")
+    assert pb[None]["density_dt_gain"] > 1.2
+    assert {k: pb[None][k] for k in same} == {k: pb[0.5][k] for k in same}
+    fj = {q: ucs_test(FJ1, 1, SMALL, dataclasses.replace(short, density_scaling=q),
+                      **kw).summary for q in (None, 0.0)}
+    assert "density_dt_gain" not in fj[None] and fj[None]["steps"] == fj[0.0]["steps"]
+    assert fj[None]["dt"] == fj[0.0]["dt"]
+    bts = {q: bts_test(A1, 1, bts_geometry(scale=0.45), BTSSettings(density_scaling=q,
+                                                                        retests=0),
+                       **kw).summary for q in (None, 0.0)}
+    assert "density_dt_gain" not in bts[None] and bts[None]["bts_MPa"] == bts[0.0]["bts_MPa"]

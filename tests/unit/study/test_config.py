@@ -250,3 +250,23 @@ def test_the_triaxial_overlay_adds_sigma1_on_the_lab_envelope_and_frees_the_fric
     assert base["triaxial"]["design_sigma3_MPa"] is None
     assert base["calibration"]["fixed"]["fj_fa_deg"] == 30.0
     assert "tri_MPa" not in load_lab(REPO / base["lab"]["csv"]).columns
+
+
+def test_a_flat_jointed_study_that_scales_densities_is_told_once():
+    """Density scaling is validated on parallel-bond cards: a flat-jointed study with it on
+    gets one line naming the keys and the record; with it null, or a parallel-bond
+    study with it on, none."""
+    def lines(*names, **sections):
+        cfg = merged_config(*names)
+        for sec, v in sections.items():
+            cfg.setdefault(sec, {})["density_scaling"] = v
+        seen = []
+        validate_config(cfg, SCHEMA, base_dir=REPO, note=seen.append)
+        return [s for s in seen if "density scaling" in s]
+
+    fj = ("config.yaml", "examples/lac_du_bonnet_fj.yaml")
+    got = lines(*fj, compression=0.5, dtt=0.25, bts=None)
+    assert len(got) == 1 and "compression.density_scaling, dtt.density_scaling set" in got[0]
+    assert "2026-12-02j-density-scaling.md" in got[0]
+    assert lines(*fj, compression=None, bts=None, dtt=None) == []
+    assert lines("config.yaml", compression=0.5, bts=0.5) == []
