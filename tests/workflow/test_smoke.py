@@ -514,7 +514,7 @@ def test_the_verified_cards_are_checked_on_fresh_seeds(smoke):
     index = (smoke / OUTDIR / "report" / "index.md").read_text()
     assert "The verified cards on fresh packing seeds" in index
     assert "**The check**: do the fresh seeds read as the card's closed loop" in index
-    assert "σt of each card on the same fresh seeds" in index
+    assert "The tensile strengths each card has no lab value for, on the same fresh seeds" in index
     loops = [yaml.safe_load(Path(lay.verified_card(sp)).read_text())["verification"]
              .get("n_seeds") for sp in ("B1", "B2", "B3")]
     # the false-alarm rate of a card fitted to its loop's seeds, when they were several
