@@ -357,15 +357,19 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         """Verlet skin [m]: pairs closer than this are in the neighbour list."""
         return float(self.prm[P_SKIN])
 
-    def critical_timestep(self) -> tuple[float, int]:
-        """(dt_crit, limiting ball): min over balls of sqrt(m/k_tran), sqrt(I/k_rot)."""
+    def _contacts(self) -> tuple:
+        """The contact state the stiffness estimate reads (``diagnostics.ball_stiffness``
+        after the radii): pairs, bonds, wall slots, the parameters and the flat joints'."""
         self._ensure_lists()
         F = self.Fj
+        return (self.P.pi, self.P.pj, int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]),
+                self.Bd.state, self.S.b, int(self.iprm[I_NSLOTS]), self.prm, F.prm,
+                F.flag[:, FJ.K_LIVE], FJ.twist_factor(F.geo))
+
+    def critical_timestep(self) -> tuple[float, int]:
+        """(dt_crit, limiting ball): min over balls of sqrt(m/k_tran), sqrt(I/k_rot)."""
         dtc, arg = D.stiffness_timestep(self.B.radius, self.B.mass, self.B.inertia, self.B.fix,
-                                        self.P.pi, self.P.pj, int(self.iprm[I_NPAIRS]),
-                                        int(self.iprm[I_NB]), self.Bd.state, self.S.b,
-                                        int(self.iprm[I_NSLOTS]), self.prm, F.prm,
-                                        F.flag[:, FJ.K_LIVE], FJ.twist_factor(F.geo))
+                                        *self._contacts())
         if not math.isfinite(dtc):  # no contacts at all: use a lone ball on a wall
             i = int(np.argmin(self.B.mass / self.B.radius))
             kn = math.pi * self.B.radius[i] * self.material.emod
@@ -397,12 +401,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         if np.any(self.prm[P_GX:P_GX + 3] != 0.0):
             raise InputError("density scaling with gravity on: the scaled masses would "
                              "change the weight; expected a run without gravity")
-        self._ensure_lists()
-        F = self.Fj
-        kt, kr = D.ball_stiffness(self.B.radius, self.P.pi, self.P.pj,
-                                  int(self.iprm[I_NPAIRS]), int(self.iprm[I_NB]),
-                                  self.Bd.state, self.S.b, int(self.iprm[I_NSLOTS]), self.prm,
-                                  F.prm, F.flag[:, FJ.K_LIVE], FJ.twist_factor(F.geo))
+        kt, kr = D.ball_stiffness(self.B.radius, *self._contacts())
         with np.errstate(divide="ignore"):
             t = np.minimum(np.sqrt(m0 / kt), np.sqrt(i0 / kr))
         t = t[(self.B.fix != FIX_ALL) & np.isfinite(t)]
