@@ -30,6 +30,7 @@ from . import diagnostics as D
 from . import flatjoint as FJ
 from . import kernels as K
 from . import neighbors as NB
+from . import servo_kernel as SK
 from ._jit import compiled, set_threads
 from .errors import InputError, InstabilityError
 from .material import MATERIALS, FlatJointMaterial, Material
@@ -176,7 +177,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         self._measured = False  # the measure pass (energies) is of the current state
         self._removed_work = 0.0
         self._removed_grav = 0.0
-        self._kernel = None  # (the state's arrays, run_steps' entry point): _run_steps
+        self._kernels = {}  # kernel -> (the state's arrays, its entry point): _run_steps
 
     # ------------------------------------------------------------------ allocation
     @property
@@ -560,32 +561,46 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         """A pickled model keeps its state, not the kernel's entry point (``_run_steps``
         looks it up again)."""
         d = self.__dict__.copy()
-        d["_kernel"] = None
+        d["_kernels"] = {}
         return d
 
-    def _run_steps(self, nsteps: int, record: bool, serial: bool):
-        """``kernels.run_steps`` on this model's state. The compiled version's entry point
-        (``_jit.compiled``) is kept while the state's records are the same objects
-        (``_grow``, a new wall or new bonds replace one: its types are then looked up
-        again): the same machine code, without numba's per-call matching of the types
-        of the ~70 arrays (12-17 us a call; a servo-controlled seating calls the
-        engine every step)."""
+    def _run_steps(self, nsteps: int, record: bool, serial: bool, kernel=None,
+                   extra: tuple = ()):
+        """``kernels.run_steps`` (or ``kernel``, a stepping kernel taking the same state
+        and arguments followed by ``extra``: ``servo_kernel.servo_steps``) on this model's
+        state. The compiled version's entry point (``_jit.compiled``) is kept while the
+        state's records are the same objects (``_grow``, a new wall or new bonds replace
+        one: its types are then looked up again): the same machine code, without numba's
+        per-call matching of the types of the ~70 arrays (12-17 us a call; a
+        servo-controlled seating calls the engine every step)."""
+        kernel = K.run_steps if kernel is None else kernel
         state = (self.B, self.P, self.Bd, self.S, self.W, self.Fj, self.prm, self.iprm,
                  self.eacc)
-        args = (*state, int(nsteps), bool(record), bool(serial))
-        kern = self._kernel
+        args = (*state, int(nsteps), bool(record), bool(serial), *extra)
+        cache = self._kernels
+        kern = cache.get(kernel)
         if kern is None or any(a is not b for a, b in zip(state, kern[0])):
-            run = compiled(K.run_steps, args)
+            run = compiled(kernel, args)
             if run is None:  # not loaded yet: numba's dispatcher loads it (or numba is off)
-                out = K.run_steps(*args)
-                self._kernel = (state, compiled(K.run_steps, args) or K.run_steps)
+                out = kernel(*args)
+                cache[kernel] = (state, compiled(kernel, args) or kernel)
                 return out
-            kern = self._kernel = (state, run)
+            kern = cache[kernel] = (state, run)
         return kern[1](*args)
 
     def cycle(self, nsteps: int, record: bool = True):
         """Run ``nsteps`` steps (numba runs them; this loop only handles overflow and
         instability). With ``record`` the last step stores the state energies."""
+        self._cycle(nsteps, record)
+
+    def cycle_servo(self, nsteps: int, servo: tuple, record: bool = True):
+        """Run ``nsteps`` steps with walls under servo control inside the engine
+        (``servo_kernel.servo_steps``; ``servo`` its arrays ``svi, svf, sdir, sballs,
+        swgt, lp``, which it updates): as :meth:`cycle`, the servo law applied between
+        the steps. ``bpmcal.lab.servo.ServoLoop`` builds and reads the arrays."""
+        self._cycle(nsteps, record, SK.servo_steps, tuple(servo))
+
+    def _cycle(self, nsteps: int, record: bool, kernel=None, extra: tuple = ()):
         nsteps = int(nsteps)
         if nsteps < 0:
             raise InputError(f"nsteps={nsteps}: expected >= 0")
@@ -596,7 +611,7 @@ class Model(WallsMixin, BondsMixin, FlatJointsMixin, MeasureMixin):
         self._measured = False
         done = 0
         while True:
-            st, k = self._run_steps(nsteps - done, bool(record), serial)
+            st, k = self._run_steps(nsteps - done, bool(record), serial, kernel, extra)
             done += int(k)
             if st == 0 and done >= nsteps:
                 break

@@ -121,7 +121,7 @@ from .driver import (
     scaled_timestep,
 )
 from .records import loading_cracks
-from .servo import Servo, ServoError, ServoLoop
+from .servo import Servo, ServoError, ServoLoop, WallTarget
 from .specimen import Specimen
 from .stepping import cycle, loading_bound
 from .validity import INIT_MIN, bts_validity, per_contact
@@ -496,7 +496,7 @@ def seat(sp: Specimen, platens, st: BTSSettings) -> dict:
     m = sp.model
     D, t = sp.spec.diameter, sp.spec.height
     F = st.seat_stress * math.pi * D * t / 2.0
-    servos = [Servo(m, w, lambda: F, alpha=st.servo_alpha, vmax=st.seat_velocity,
+    servos = [Servo(m, w, WallTarget.force(F), alpha=st.servo_alpha, vmax=st.seat_velocity,
                     direction=(0.0, sign, 0.0))
               for w, sign in zip(platens, (1.0, -1.0))]
     loop = ServoLoop(m, servos)

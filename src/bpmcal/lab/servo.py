@@ -24,20 +24,30 @@ velocity of the balls in contact (the wall velocity that keeps their overlaps co
 removes that lag: the overlap rate is then -G x error, so the error decays by (1 - alpha)
 per step whatever the balls do.
 
-The controller runs in Python between engine steps (``ServoLoop``): the velocity is set
-every ``interval`` steps (default every step; the gain is divided by ``interval``, since
-the velocity is then held that many steps) and the gain every ``gain_update`` steps; the
-engine itself is unchanged.
+The controller acts between engine steps (``ServoLoop``): the velocity is set every
+``interval`` steps (default every step; the gain is divided by ``interval``, since the
+velocity is then held that many steps) and the gain every ``gain_update`` steps. A target
+given as a :class:`WallTarget` (a force, a stress on a cylinder's lateral area or on its
+cross-section: every target the lab tests use) lets the engine apply the law itself
+(``dem.servo_kernel``: one numba call per piece of steps instead of a Python round trip
+per step); a target given as a Python function runs the loop from Python. Both compute
+with the same numba helpers, so they give the same state bit for bit (tested).
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
+from ..dem import servo_kernel as SK
 from ..dem.errors import InputError
 from ..dem.slots import WALL_CYLINDER
 from .stepping import cycle
+
+#: False runs every servo loop from Python (the same law and state, slower): for comparison
+#: (``benchmarks/servo_engine.py``) and debugging
+IN_ENGINE = True
 
 
 class ServoError(RuntimeError):
@@ -45,37 +55,50 @@ class ServoError(RuntimeError):
     its step limit: the run is recorded as failed with this message."""
 
 
-def wall_contacts(m, w) -> np.ndarray:
-    """Indices of the balls in contact with wall ``w`` now (non-zero contact force)."""
-    return m.wall_contact_balls(w)
+@dataclass(frozen=True)
+class WallTarget:
+    """A servo target the engine evaluates itself: ``kind`` ``"force"`` (``value`` in N),
+    ``"lateral"`` (a stress [Pa] on the lateral area 2 pi R H of the cylinder ``cylinder``,
+    H the gap between the platens ``bottom`` and ``top``) or ``"section"`` (a stress [Pa]
+    on the cylinder's cross-section pi R^2)."""
+    kind: str
+    value: float
+    cylinder: int = 0
+    bottom: int = 0
+    top: int = 0
+
+    def __post_init__(self):
+        if self.kind not in _TARGET_KINDS:
+            raise InputError(f"servo target kind {self.kind!r}: expected one of "
+                             f"{sorted(_TARGET_KINDS)}")
+        if not math.isfinite(self.value):
+            raise InputError(f"servo target {self.value!r}: expected a finite number")
+
+    @classmethod
+    def force(cls, value: float) -> "WallTarget":
+        return cls("force", float(value))
+
+    @classmethod
+    def lateral(cls, stress: float, cylinder: int, bottom: int, top: int) -> "WallTarget":
+        return cls("lateral", float(stress), int(cylinder), int(bottom), int(top))
+
+    @classmethod
+    def section(cls, stress: float, cylinder: int) -> "WallTarget":
+        return cls("section", float(stress), int(cylinder))
 
 
-def wall_stiffness(m, w) -> float:
-    """Sum of the normal stiffnesses k_n = pi R E* of the ball-wall contacts of wall ``w``
-    (PFC's K^c of the wall servo) [N/m]."""
-    return math.pi * float(m.material.emod) * float(m.radii[wall_contacts(m, w)].sum())
-
-
-def wall_normal_force(m, w, direction=None) -> float:
-    """Compressive force the balls exert on wall ``w`` along its normal [N] (for a
-    cylinder: the sum of the radial components, outward = compressive); with
-    ``direction`` (a unit vector pointing from the wall toward the specimen, for a wall
-    that translates, such as a Brazilian loading jaw) the force component against it."""
-    if direction is None and m.wall_type(w) == WALL_CYLINDER:
-        return m.wall_radial_force(w)
-    f = m.wall_force(w)
-    n = m.wall_normal(w) if direction is None else direction
-    return -float(f[0] * n[0] + f[1] * n[1] + f[2] * n[2])
+_TARGET_KINDS = {"force": SK.TARGET_FORCE, "lateral": SK.TARGET_LATERAL,
+                 "section": SK.TARGET_DISC}
 
 
 class Servo:
     """Servo control of one wall toward a target compressive force.
 
-    ``target`` is a callable returning the target force [N] now (so a stress target can
-    follow the loaded area). Planes move along their normal (positive = toward the balls);
-    cylinders change their radius (positive = expanding), or, given a ``direction`` (unit
-    vector from the wall toward the specimen), translate along it like a plane (a curved
-    loading jaw)."""
+    ``target`` is a :class:`WallTarget` (evaluated by the engine) or a callable returning
+    the target force [N] now (so a stress target can follow the loaded area). Planes move
+    along their normal (positive = toward the balls); cylinders change their radius
+    (positive = expanding), or, given a ``direction`` (unit vector from the wall toward
+    the specimen), translate along it like a plane (a curved loading jaw)."""
 
     def __init__(self, m, w, target, alpha: float = 0.8, vmax: float = 1.0,
                  approach: float | None = None, feedforward: bool = False,
@@ -86,8 +109,8 @@ class Servo:
             raise InputError(f"servo velocity cap {vmax!r}: expected a positive speed in m/s")
         self.m = m
         self.w = int(w)
-        self.target = target
-        self.alpha = float(alpha)
+        self.spec = target if isinstance(target, WallTarget) else None
+        self._target = target
         self.vmax = float(vmax)
         self.approach = self.vmax if approach is None else min(float(approach), self.vmax)
         self.dir = None
@@ -98,46 +121,56 @@ class Servo:
                 raise InputError(f"servo direction={direction!r}: expected a non-zero vector")
             self.dir = d / ln
         self.cyl = m.wall_type(w) == WALL_CYLINDER and self.dir is None
-        self.feedforward = bool(feedforward)
-        self.K = 0.0
-        self.v = 0.0
         self.interval = 1  # steps the velocity is held (set by ServoLoop)
-        self._balls = np.zeros(0, np.int64)
-        self._wgt = np.zeros(0)
+        r = self.row = SK.ServoRows(1, m.n)
+        r.svi[0, SK.SV_WALL] = self.w
+        r.svi[0, SK.SV_RADIAL] = int(self.cyl)
+        r.svi[0, SK.SV_FF] = int(bool(feedforward))
+        r.svf[0, SK.SV_ALPHA] = float(alpha)
+        r.svf[0, SK.SV_VMAX] = self.vmax
+        r.svf[0, SK.SV_APPROACH] = self.approach
+        if self.dir is not None:
+            r.sdir[0] = self.dir
+        if self.spec is not None:
+            t = self.spec
+            r.svi[0, SK.SV_TARGET] = _TARGET_KINDS[t.kind]
+            r.svi[0, SK.SV_RWALL], r.svi[0, SK.SV_BOTTOM], r.svi[0, SK.SV_TOP] = (
+                t.cylinder, t.bottom, t.top)
+            r.svf[0, SK.SV_GOAL] = t.value
+
+    @property
+    def alpha(self) -> float:
+        return float(self.row.svf[0, SK.SV_ALPHA])
+
+    @property
+    def feedforward(self) -> bool:
+        return bool(self.row.svi[0, SK.SV_FF])
+
+    @property
+    def K(self) -> float:
+        """Sum of the normal stiffnesses of the wall's contacts at the last gain update."""
+        return float(self.row.svf[0, SK.SV_K])
+
+    @property
+    def v(self) -> float:
+        """The speed the last update gave the wall [m/s]."""
+        return float(self.row.svf[0, SK.SV_V])
+
+    def target(self) -> float:
+        """The target force now [N]."""
+        return self.row.target(self.m) if self.spec is not None else float(self._target())
 
     def update_gain(self):
-        m = self.m
-        b = wall_contacts(m, self.w)
-        r = m.radii[b]
-        self.K = math.pi * float(m.material.emod) * float(r.sum())
-        self._balls = b
-        self._wgt = r / r.sum() if b.size else r
+        self.row.gain(self.m)
 
     def contact_velocity(self) -> float:
         """Stiffness-weighted mean velocity of the wall's contacting balls along the wall's
         direction of motion (outward radial for a cylinder, against the normal for a
         plane, i.e. the wall velocity that keeps their overlaps constant)."""
-        b = self._balls
-        if b.size == 0:
-            return 0.0
-        m = self.m
-        v = m.velocities[b]
-        if self.cyl:
-            p = m.positions[b] - m.wall_position(self.w)
-            n = m.wall_normal(self.w)
-            q = p - np.outer(p @ n, n)
-            rho = np.sqrt((q * q).sum(axis=1))
-            vr = (v * q).sum(axis=1) / np.where(rho > 0, rho, 1.0)
-        else:
-            vr = -(v @ self._direction())
-        return float(self._wgt @ vr)
-
-    def _direction(self) -> np.ndarray:
-        """Unit vector along which a translating wall moves toward the specimen."""
-        return self.m.wall_normal(self.w) if self.dir is None else self.dir
+        return self.row.contact_velocity(self.m)
 
     def force(self) -> float:
-        return wall_normal_force(self.m, self.w, self.dir)
+        return self.row.force(self.m)
 
     def error(self) -> float:
         """Measured minus target force [N]."""
@@ -145,34 +178,16 @@ class Servo:
 
     def apply(self):
         """Set the wall velocity from the current force (call after a step)."""
-        m = self.m
-        err = self.error()
-        if self.K > 0.0:
-            v = self.alpha * err / (self.K * m.dt * self.interval)
-            if self.feedforward:
-                v += self.contact_velocity()
-        else:  # no contact: approach the specimen (if it should be loaded)
-            v = -self.approach if self.target() > 0.0 else 0.0
-        v = min(self.vmax, max(-self.vmax, v))
-        self.v = v
-        if self.cyl:
-            m.set_wall_velocity(self.w, radial_velocity=v)  # expand when pushed harder
-        else:  # retreat when pushed harder than the target
-            m.set_wall_velocity(self.w, velocity=-v * self._direction())
-        return v
+        return self.row.apply(self.m, 0, self.interval, self.target())
 
     def stop(self):
-        self.v = 0.0
-        if self.cyl:
-            self.m.set_wall_velocity(self.w, radial_velocity=0.0)
-        else:
-            self.m.set_wall_velocity(self.w, velocity=(0.0, 0.0, 0.0))
+        self.row.set_speed(self.m, 0, 0.0)
 
 
 class ServoLoop:
     """Cycle a model while servo-controlling some walls: ``run(n)`` takes ``n`` steps,
     setting the servo velocities every ``interval`` steps and the gains every
-    ``gain_update`` steps."""
+    ``gain_update`` steps (in the engine when every target is a :class:`WallTarget`)."""
 
     def __init__(self, m, servos, interval: int = 1, gain_update: int = 10):
         if int(interval) < 1 or int(gain_update) < 1:
@@ -185,6 +200,7 @@ class ServoLoop:
             s.interval = self.interval
         self.gain_update = int(gain_update)
         self._since_gain = self.gain_update  # update the gain at the first call
+        self.in_engine = IN_ENGINE and all(s.spec is not None for s in self.servos)
 
     def control(self):
         if self._since_gain >= self.gain_update:
@@ -197,12 +213,32 @@ class ServoLoop:
     def run(self, nsteps: int, record: bool = True):
         """Take ``nsteps`` steps under servo control (the last one records energies when
         ``record``)."""
+        nsteps = int(nsteps)
+        if nsteps <= 0:
+            return
+        if self.in_engine:
+            self._run_in_engine(nsteps, record)
+            return
         m = self.m
         done = 0
-        nsteps = int(nsteps)
         while done < nsteps:
             k = min(self.interval, nsteps - done)
             self.control()
             cycle(m, k, record=record and done + k >= nsteps)
             done += k
             self._since_gain += k
+
+    def _run_in_engine(self, nsteps: int, record: bool) -> None:
+        rows = [s.row for s in self.servos]
+        for s in self.servos:
+            s.row.svf[0, SK.SV_EMOD] = float(self.m.material.emod)
+            s.row.fit(self.m.n)
+        st = SK.ServoRows.stack(rows)
+        lp = np.array([self.interval, self.gain_update, self._since_gain, -1], np.int64)
+        arrays = (*st.arrays(), lp)
+        try:
+            cycle(self.m, nsteps, record=record, quantum=self.interval,
+                  run=lambda k, rec: self.m.cycle_servo(k, arrays, record=rec))
+        finally:
+            st.unstack(rows)
+            self._since_gain = int(lp[SK.LP_SINCE])

@@ -53,22 +53,28 @@ def beat_now() -> None:
     _beat[1] = time.perf_counter()
 
 
-def cycle(m, nsteps: int, record: bool = True) -> None:
-    """``m.cycle(nsteps, record)`` in interruptible pieces (same result)."""
+def cycle(m, nsteps: int, record: bool = True, run=None, quantum: int = 1) -> None:
+    """``m.cycle(nsteps, record)`` in interruptible pieces (same result). ``run(k, rec)``
+    takes the steps instead of ``m.cycle`` (a servo loop in the engine,
+    ``Model.cycle_servo``); every piece but the last is then a multiple of ``quantum``
+    steps (the loop's chunk: a piece never ends inside one)."""
     global _rate
     nsteps = int(nsteps)
+    run = m.cycle if run is None else run
     if nsteps <= 0:
-        m.cycle(nsteps, record=record)
+        run(nsteps, record)
         return
     n = max(1, m.n)
+    q = max(1, int(quantum))
     done = 0
     while done < nsteps:
         budget = CALL_S * _rate if _rate else FIRST_BALL_STEPS
-        k = min(max(1, int(budget / n)), nsteps - done)
+        k = max(1, int(budget / n))
+        k = min(max(q, k - k % q), nsteps - done)
         t = time.perf_counter()
         c0 = LEDGER.engine_start()  # the cost ledger: CPU and ball-steps of the engine
         try:
-            m.cycle(k, record=record and done + k == nsteps)
+            run(k, record and done + k == nsteps)
         finally:
             LEDGER.engine_end(c0, k * n)
         el = time.perf_counter() - t

@@ -22,7 +22,8 @@ Stages:
    ratio <= ``consol_ratio``).
 2. **Axial loading**: the platens approach each other at ``platen_velocity`` each (as in
    the UCS test) while the lateral servo holds sigma3; the servo acts every
-   ``servo_interval`` steps (default every step) from Python, the engine is unchanged.
+   ``servo_interval`` steps (default every step), inside the engine (``lab.servo``:
+   its targets are ``WallTarget`` stresses on the cell's areas).
 
 Measurements, recorded every ``record_strain`` of axial strain, strains counted from the
 start of axial loading (compression positive):
@@ -72,7 +73,7 @@ from .driver import (
     scaled_timestep,
 )
 from .records import LateralGauge, loading_cracks
-from .servo import Servo, ServoError, ServoLoop
+from .servo import Servo, ServoError, ServoLoop, WallTarget
 from .specimen import Specimen
 from .stepping import loading_bound
 from .ucs import END_CAP_FACTOR, END_CAP_HEIGHT, check_end_cap, fit_slope, install_end_caps
@@ -198,9 +199,9 @@ def consolidate(sp: Specimen, st: TriaxialSettings) -> dict:
     s_ax = max(st.sigma3, st.seat_stress)
     kw = dict(alpha=st.servo_alpha, vmax=st.servo_vmax, approach=st.platen_velocity,
               feedforward=st.servo_feedforward)
-    servos = [Servo(m, c.wl, lambda: st.sigma3 * c.lateral_area(), **kw),
-              Servo(m, c.wb, lambda: s_ax * c.area(), **kw),
-              Servo(m, c.wt, lambda: s_ax * c.area(), **kw)]
+    servos = [Servo(m, c.wl, WallTarget.lateral(st.sigma3, c.wl, c.wb, c.wt), **kw),
+              Servo(m, c.wb, WallTarget.section(s_ax, c.wl), **kw),
+              Servo(m, c.wt, WallTarget.section(s_ax, c.wl), **kw)]
     loop = ServoLoop(m, servos, interval=st.servo_interval, gain_update=st.gain_update)
     H0, R0 = c.height(), c.radius()
     s0 = m.step

@@ -23,7 +23,8 @@ def _state(m) -> dict:
 
 def _dispatched(m):
     """Make ``m`` step through numba's dispatcher (the path before the entry point)."""
-    def run(nsteps, record, serial):
+    def run(nsteps, record, serial, kernel=None, extra=()):
+        assert kernel is None and extra == ()  # plain stepping only
         return K.run_steps(m.B, m.P, m.Bd, m.S, m.W, m.Fj, m.prm, m.iprm, m.eacc, nsteps,
                            record, serial)
     m._run_steps = run
@@ -76,12 +77,13 @@ def test_entry_point_gives_the_dispatchers_state_bit_for_bit(serial):
 def test_the_kept_entry_point_follows_the_states_records():
     m, _ = box_pack(40, seed=1)
     m.cycle(2)
-    state, run = m._kernel
+    state, run = m._kernels[K.run_steps]
     assert run is not K.run_steps  # the compiled entry point, not the dispatcher
     assert all(a is b for a, b in zip(state, (m.B, m.P, m.Bd, m.S, m.W, m.Fj)))
     m.bond(gap=0.0)  # new bond records
     m.cycle(1)
-    assert m._kernel[0][2] is m.Bd and m._kernel[1] is not K.run_steps
+    kept = m._kernels[K.run_steps]
+    assert kept[0][2] is m.Bd and kept[1] is not K.run_steps
 
 
 @pytest.mark.skipif(JIT_DISABLED, reason="numba is off: nothing is compiled")

@@ -48,6 +48,21 @@ def test_stepping_in_pieces_is_bitwise_the_same(cache, monkeypatch):
     assert all(np.array_equal(np.asarray(ea[k]), np.asarray(eb[k])) for k in ea)
 
 
+def test_pieces_of_a_chunked_run_end_on_its_chunks(cache, monkeypatch):
+    """With ``quantum`` (a servo loop's chunk) every piece but the last is a multiple of
+    it, also when the piece the speed allows is shorter than one chunk."""
+    m = _loaded(cache)
+    monkeypatch.setattr(stepping.time, "perf_counter", lambda: 0.0)  # no speed-up
+    for per_call, quantum, n in ((7, 3, 100), (2, 5, 23), (9, 1, 40)):
+        monkeypatch.setattr(stepping, "FIRST_BALL_STEPS", per_call * m.n)
+        monkeypatch.setattr(stepping, "_rate", None)
+        calls = []
+        stepping.cycle(m, n, run=lambda k, rec: calls.append((k, rec)), quantum=quantum)
+        assert sum(k for k, _ in calls) == n
+        assert all(k % quantum == 0 and k >= quantum for k, _ in calls[:-1])
+        assert [rec for _, rec in calls] == [False] * (len(calls) - 1) + [True]
+
+
 def test_a_specimen_that_does_not_settle_is_a_failure_record(cache, tmp_path):
     """pb_kratio = 1e-9 collapses the timestep: under the bpmcal genesis (a locked-in
     stress to settle) the settling never converges (the pfc genesis starts force-free and
