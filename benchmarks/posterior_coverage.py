@@ -5,10 +5,12 @@ checked against its 90 % highest-density intervals.
 
 No DEM. Per planted card (inside the ranges' middle 80 %): the rock's design (a Latin
 hypercube, one run each) and its stepwise regression; the lab targets as the mean of the
-card's own 20 lab packings with their standard errors (``--se-factor`` scales them: 0.25 is a lab
-with 16 times the specimens); the inversion; the closed loop from it (3 seeds growing to
-10, margin 0.25, the loop's defaults), every run kept; the posterior on the design and
-the loop's runs, with active refinement (``--refine`` seed runs at most, on the rock);
+card's own 20 lab packings with their standard errors (``--se-factor`` f measures the
+card on 20 / f^2 packings instead: 0.25 is a lab with 16 times the specimens, whose
+means sit closer to the card as its standard errors shrink); the inversion; the closed
+loop from it (3 seeds growing to 10, margin 0.25, the loop's defaults), every run kept;
+the posterior on the design and the loop's runs, with active refinement (``--refine``
+seed runs at most, on the rock);
 then, per free parameter, whether the planted value lies in the HDI. Variants
 (``--case``):
 
@@ -80,13 +82,17 @@ def planted_card(rock, i: int, ratio):
     return p
 
 
-def lab_seeds(rock, i: int) -> range:
-    """Card ``i``'s lab packings: its own (a rock's lab tests its own specimens). The
+def lab_seeds(rock, i: int, n: int | None = None) -> range:
+    """Card ``i``'s lab packings (``n`` of them, default as many as the rock's
+    ``lab_seeds``): its own (a rock's lab tests its own specimens). The
     rock's ``lab_seeds`` shared by every card would give every card the same packing
     offsets in its targets, one draw repeated, and the cards' coverages would not be
     independent trials (``loop_convergence.py`` keeps them: it measures the loop)."""
     shift = 1000 * (i + 1)
-    return range(rock.lab_seeds.start + shift, rock.lab_seeds.stop + shift)
+    n = len(rock.lab_seeds) if n is None else int(n)
+    if n > 1000:
+        raise ValueError(f"{n} lab packings: at most 1000 (the cards' seed blocks)")
+    return range(rock.lab_seeds.start + shift, rock.lab_seeds.start + shift + n)
 
 
 def _problem(rock, free, ratio, margin: float = 0.25) -> Problem:
@@ -111,9 +117,12 @@ def one_case(case: str, i: int, se_factor: float, n_design: int, refine_max: int
     free = [q for q in rock.free if not (ratio is not None and q == "pb_ten_MPa")]
     t0 = time.process_time()
     planted = planted_card(rock, i, ratio)
-    lab = pd.DataFrame([simulate(rock, planted, s) for s in lab_seeds(rock, i)])
+    # a lab whose standard errors are se_factor times the rock's: 1 / se_factor^2 times
+    # the specimens, so its means come closer to the card as its errors shrink
+    n_lab = max(3, round(len(rock.lab_seeds) / se_factor ** 2))
+    lab = pd.DataFrame([simulate(rock, planted, s) for s in lab_seeds(rock, i, n_lab)])
     targets = {r: float(lab[r].mean()) for r in targets_r}
-    se = {r: se_factor * float(lab[r].std(ddof=1) / len(lab) ** 0.5) for r in targets_r}
+    se = {r: float(lab[r].std(ddof=1) / len(lab) ** 0.5) for r in targets_r}
     inv = invert({r: models[r] for r in targets_r},
                  targets,
                  rock.fixed,
